@@ -1,0 +1,685 @@
+//! Instance, device choice, validation, and the state every GPU object shares.
+
+use std::collections::VecDeque;
+use std::ffi::{c_void, CStr, CString};
+use std::mem::ManuallyDrop;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{Arc, Mutex, MutexGuard};
+
+use ash::vk;
+use gpu_allocator::vulkan::{Allocation, Allocator, AllocatorCreateDesc};
+
+use crate::error::{vk_error, Error, Result};
+
+const VALIDATION_LAYER: &CStr = c"VK_LAYER_KHRONOS_validation";
+
+/// Environment variable that picks the device: an index from `srug info --devices`,
+/// `gpu`, `cpu`, or a case-insensitive part of the device name.
+pub const DEVICE_ENV: &str = "SRUG_DEVICE";
+/// Environment variable that turns the Khronos validation layer on (`1`) or off (`0`).
+pub const VALIDATION_ENV: &str = "SRUG_VALIDATION";
+
+/// Which physical device to use.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub enum DeviceSelection {
+    /// A discrete GPU, else an integrated one, else anything else (lavapipe).
+    #[default]
+    Auto,
+    /// The first discrete or integrated GPU; an error when there is none.
+    Gpu,
+    /// The first CPU implementation (lavapipe); an error when there is none.
+    Cpu,
+    /// The n-th device in enumeration order.
+    Index(usize),
+    /// The first device whose name contains this text (case-insensitive).
+    Name(String),
+}
+
+impl DeviceSelection {
+    /// Parses the syntax of [`DEVICE_ENV`].
+    pub fn parse(text: &str) -> Self {
+        let t = text.trim();
+        match t.to_ascii_lowercase().as_str() {
+            "" | "auto" => Self::Auto,
+            "gpu" => Self::Gpu,
+            "cpu" => Self::Cpu,
+            _ => t.parse().map(Self::Index).unwrap_or_else(|_| Self::Name(t.to_string())),
+        }
+    }
+}
+
+/// How to create a [`Device`]. `None` fields fall back to the environment.
+#[derive(Clone, Debug, Default)]
+pub struct DeviceOptions {
+    /// Device choice; `None` reads [`DEVICE_ENV`], else [`DeviceSelection::Auto`].
+    pub selection: Option<DeviceSelection>,
+    /// Khronos validation with synchronization validation; `None` reads [`VALIDATION_ENV`].
+    pub validation: Option<bool>,
+}
+
+/// What the chosen device is and can do.
+#[derive(Clone, Debug)]
+pub struct DeviceInfo {
+    /// Index in enumeration order.
+    pub index: usize,
+    /// `deviceName`.
+    pub name: String,
+    /// Driver name and info, e.g. "llvmpipe" / "Mesa 22.3.6".
+    pub driver: String,
+    /// Discrete, integrated, virtual, CPU or other.
+    pub device_type: vk::PhysicalDeviceType,
+    /// Vulkan API version as "major.minor.patch".
+    pub api_version: String,
+    /// `maxStorageBufferRange`: the largest buffer a descriptor can bind.
+    pub max_storage_buffer_range: u64,
+    /// `maxComputeSharedMemorySize`.
+    pub max_shared_memory: u32,
+    /// `maxComputeWorkGroupCount`.
+    pub max_workgroup_count: [u32; 3],
+    /// Subgroup size (8 on lavapipe; never assume 32).
+    pub subgroup_size: u32,
+    /// Nanoseconds per timestamp tick.
+    pub timestamp_period_ns: f64,
+    /// Valid bits of a timestamp on the compute queue; 0 when unsupported.
+    pub timestamp_valid_bits: u32,
+    /// fp16 arithmetic in shaders.
+    pub shader_float16: bool,
+    /// 16-bit values in storage buffers.
+    pub storage_16bit: bool,
+}
+
+/// GPU memory in use, as counted by srug's allocations.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct MemoryUsage {
+    /// Bytes allocated now.
+    pub current_bytes: u64,
+    /// Most bytes allocated at once since creation or the last [`Device::reset_peak_memory`].
+    pub peak_bytes: u64,
+}
+
+/// Collects what the validation layer says.
+#[derive(Default)]
+struct ValidationLog {
+    messages: Mutex<Vec<String>>,
+}
+
+/// Something to destroy once the GPU has finished the submission it may be used in.
+pub(crate) enum Garbage {
+    Buffer(vk::Buffer, Allocation),
+    Pipeline {
+        pipeline: vk::Pipeline,
+        layout: vk::PipelineLayout,
+        set_layout: Option<vk::DescriptorSetLayout>,
+    },
+    Transient(super::recording::Transient),
+}
+
+/// Submissions in flight and resources waiting for them.
+#[derive(Default)]
+pub(crate) struct Tracker {
+    /// Sequence number of the latest submission.
+    pub(crate) submitted: u64,
+    /// Every submission up to this one has completed.
+    pub(crate) completed: u64,
+    pub(crate) in_flight: VecDeque<(u64, vk::Fence)>,
+    pub(crate) garbage: Vec<(u64, Garbage)>,
+}
+
+/// State shared by the device and every object made from it. Objects hold an
+/// `Arc` of it, so the device outlives them all.
+pub(crate) struct Shared {
+    _entry: ash::Entry,
+    pub(crate) instance: ash::Instance,
+    debug: Option<(ash::ext::debug_utils::Instance, vk::DebugUtilsMessengerEXT)>,
+    validation_log: Option<Box<ValidationLog>>,
+    pub(crate) physical: vk::PhysicalDevice,
+    pub(crate) device: ash::Device,
+    pub(crate) queue: Mutex<vk::Queue>,
+    pub(crate) queue_family: u32,
+    pub(crate) allocator: Mutex<ManuallyDrop<Allocator>>,
+    pub(crate) tracker: Mutex<Tracker>,
+    pub(crate) info: DeviceInfo,
+    pub(crate) current_bytes: AtomicU64,
+    pub(crate) peak_bytes: AtomicU64,
+}
+
+/// Locks a mutex, recovering the data if a panicking thread poisoned it.
+pub(crate) fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(std::sync::PoisonError::into_inner)
+}
+
+impl Shared {
+    /// Destroys a garbage item now. The caller guarantees the GPU is done with it.
+    fn destroy(&self, item: Garbage) {
+        match item {
+            Garbage::Buffer(buffer, allocation) => {
+                let size = allocation.size();
+                if let Err(e) = lock(&self.allocator).free(allocation) {
+                    log::error!("freeing GPU memory failed: {e}");
+                }
+                self.current_bytes.fetch_sub(size, Ordering::Relaxed);
+                // SAFETY: the buffer belongs to this device and no submission uses it any more.
+                unsafe { self.device.destroy_buffer(buffer, None) };
+            }
+            Garbage::Pipeline { pipeline, layout, set_layout } => {
+                // SAFETY: as above; the objects were created on this device.
+                unsafe {
+                    self.device.destroy_pipeline(pipeline, None);
+                    self.device.destroy_pipeline_layout(layout, None);
+                    if let Some(s) = set_layout {
+                        self.device.destroy_descriptor_set_layout(s, None);
+                    }
+                }
+            }
+            Garbage::Transient(t) => t.destroy(&self.device),
+        }
+    }
+
+    /// Queues `item` for destruction after every submission made so far.
+    pub(crate) fn retire(&self, item: Garbage) {
+        let mut tracker = lock(&self.tracker);
+        if tracker.submitted <= tracker.completed {
+            drop(tracker);
+            self.destroy(item);
+        } else {
+            let seq = tracker.submitted;
+            tracker.garbage.push((seq, item));
+        }
+    }
+
+    /// Records finished submissions and frees what waited on them. With
+    /// `wait_for`, first blocks until that submission has finished.
+    pub(crate) fn maintain(&self, wait_for: Option<u64>) -> Result<()> {
+        let mut freed = Vec::new();
+        {
+            let mut tracker = lock(&self.tracker);
+            while let Some(&(seq, fence)) = tracker.in_flight.front() {
+                let must_wait = wait_for.is_some_and(|w| seq <= w);
+                // SAFETY: the fence belongs to this device and is not destroyed until popped below.
+                let done = unsafe {
+                    if must_wait {
+                        self.device.wait_for_fences(&[fence], true, u64::MAX).map_err(vk_error("vkWaitForFences"))?;
+                        true
+                    } else {
+                        self.device.get_fence_status(fence).map_err(vk_error("vkGetFenceStatus"))?
+                    }
+                };
+                if !done {
+                    break;
+                }
+                tracker.in_flight.pop_front();
+                tracker.completed = seq;
+                // SAFETY: the fence has signalled and is referenced nowhere else.
+                unsafe { self.device.destroy_fence(fence, None) };
+            }
+            let completed = tracker.completed;
+            let (ready, waiting): (Vec<_>, Vec<_>) =
+                std::mem::take(&mut tracker.garbage).into_iter().partition(|(seq, _)| *seq <= completed);
+            tracker.garbage = waiting;
+            freed.extend(ready.into_iter().map(|(_, g)| g));
+        }
+        for item in freed {
+            self.destroy(item);
+        }
+        Ok(())
+    }
+
+    pub(crate) fn take_validation_messages(&self) -> Vec<String> {
+        self.validation_log.as_ref().map(|l| std::mem::take(&mut *lock(&l.messages))).unwrap_or_default()
+    }
+}
+
+impl Drop for Shared {
+    fn drop(&mut self) {
+        // SAFETY: every object made from this device holds an Arc of it, so
+        // none is left; waiting for idle makes destroying what remains safe.
+        unsafe {
+            if let Err(e) = self.device.device_wait_idle() {
+                log::error!("vkDeviceWaitIdle failed while dropping the device: {e}");
+            }
+        }
+        let tracker = std::mem::take(&mut *lock(&self.tracker));
+        for (_, fence) in tracker.in_flight {
+            // SAFETY: the device is idle.
+            unsafe { self.device.destroy_fence(fence, None) };
+        }
+        for (_, item) in tracker.garbage {
+            self.destroy(item);
+        }
+        // SAFETY: the allocator is dropped exactly once, before the device it uses.
+        unsafe { ManuallyDrop::drop(&mut *lock(&self.allocator)) };
+        // SAFETY: all child objects are gone; destruction order is device, messenger, instance.
+        unsafe {
+            self.device.destroy_device(None);
+            if let Some((loader, messenger)) = self.debug.take() {
+                loader.destroy_debug_utils_messenger(messenger, None);
+            }
+            self.instance.destroy_instance(None);
+        }
+        if let Some(log) = &self.validation_log {
+            let left = lock(&log.messages);
+            for m in left.iter() {
+                log::error!("unread validation message: {m}");
+            }
+        }
+    }
+}
+
+/// A Vulkan device with one compute queue. Cheap to clone (shared handle).
+#[derive(Clone)]
+pub struct Device {
+    pub(crate) shared: Arc<Shared>,
+}
+
+impl std::fmt::Debug for Device {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Device").field("name", &self.shared.info.name).finish()
+    }
+}
+
+/// A device as listed before choosing one.
+#[derive(Clone, Debug)]
+pub struct AdapterSummary {
+    /// Index in enumeration order (what [`DeviceSelection::Index`] takes).
+    pub index: usize,
+    /// `deviceName`.
+    pub name: String,
+    /// Discrete, integrated, CPU...
+    pub device_type: vk::PhysicalDeviceType,
+    /// Vulkan API version.
+    pub api_version: String,
+}
+
+unsafe extern "system" fn on_validation_message(
+    severity: vk::DebugUtilsMessageSeverityFlagsEXT,
+    types: vk::DebugUtilsMessageTypeFlagsEXT,
+    data: *const vk::DebugUtilsMessengerCallbackDataEXT<'_>,
+    user: *mut c_void,
+) -> vk::Bool32 {
+    // SAFETY: the layer passes valid callback data for the duration of the call.
+    let text = unsafe {
+        data.as_ref()
+            .filter(|d| !d.p_message.is_null())
+            .map(|d| CStr::from_ptr(d.p_message).to_string_lossy().into_owned())
+            .unwrap_or_default()
+    };
+    let counts = severity.intersects(
+        vk::DebugUtilsMessageSeverityFlagsEXT::WARNING | vk::DebugUtilsMessageSeverityFlagsEXT::ERROR,
+    ) && types.intersects(
+        vk::DebugUtilsMessageTypeFlagsEXT::VALIDATION | vk::DebugUtilsMessageTypeFlagsEXT::PERFORMANCE,
+    );
+    if counts {
+        log::error!("Vulkan validation: {text}");
+        // SAFETY: `user` is the ValidationLog boxed in Shared, which outlives the messenger.
+        if let Some(log) = unsafe { user.cast::<ValidationLog>().as_ref() } {
+            lock(&log.messages).push(text);
+        }
+    } else {
+        log::debug!("Vulkan: {text}");
+    }
+    vk::FALSE
+}
+
+fn version_string(v: u32) -> String {
+    format!("{}.{}.{}", vk::api_version_major(v), vk::api_version_minor(v), vk::api_version_patch(v))
+}
+
+fn load_entry() -> Result<ash::Entry> {
+    // SAFETY: loading the system Vulkan loader runs its initialisers; we trust the installed loader.
+    unsafe { ash::Entry::load() }.map_err(|e| Error::Loader(e.to_string()))
+}
+
+fn type_rank(t: vk::PhysicalDeviceType) -> u32 {
+    match t {
+        vk::PhysicalDeviceType::DISCRETE_GPU => 0,
+        vk::PhysicalDeviceType::INTEGRATED_GPU => 1,
+        vk::PhysicalDeviceType::VIRTUAL_GPU => 2,
+        vk::PhysicalDeviceType::CPU => 3,
+        _ => 4,
+    }
+}
+
+fn name_of(props: &vk::PhysicalDeviceProperties) -> String {
+    props.device_name_as_c_str().map(|c| c.to_string_lossy().into_owned()).unwrap_or_default()
+}
+
+fn env_flag(name: &str) -> Option<bool> {
+    std::env::var(name).ok().map(|v| !matches!(v.trim(), "" | "0" | "false" | "off" | "no"))
+}
+
+impl Device {
+    /// Lists the Vulkan devices without creating one.
+    pub fn list() -> Result<Vec<AdapterSummary>> {
+        let entry = load_entry()?;
+        let app = vk::ApplicationInfo::default().api_version(vk::API_VERSION_1_2);
+        let create = vk::InstanceCreateInfo::default().application_info(&app);
+        // SAFETY: a minimal, valid instance; destroyed below before returning.
+        let instance = unsafe { entry.create_instance(&create, None) }.map_err(vk_error("vkCreateInstance"))?;
+        // SAFETY: the instance is valid until destroyed at the end of this block.
+        let out = unsafe {
+            let list = instance.enumerate_physical_devices().map_err(vk_error("vkEnumeratePhysicalDevices"));
+            let out = list.map(|pds| {
+                pds.iter()
+                    .enumerate()
+                    .map(|(index, &pd)| {
+                        let p = instance.get_physical_device_properties(pd);
+                        AdapterSummary {
+                            index,
+                            name: name_of(&p),
+                            device_type: p.device_type,
+                            api_version: version_string(p.api_version),
+                        }
+                    })
+                    .collect()
+            });
+            instance.destroy_instance(None);
+            out
+        };
+        out
+    }
+
+    /// Creates a device as `options` say (and the environment, where they are silent).
+    pub fn new(options: &DeviceOptions) -> Result<Self> {
+        let selection = match &options.selection {
+            Some(s) => s.clone(),
+            None => std::env::var(DEVICE_ENV).map(|v| DeviceSelection::parse(&v)).unwrap_or_default(),
+        };
+        let validation = options.validation.or_else(|| env_flag(VALIDATION_ENV)).unwrap_or(false);
+        let entry = load_entry()?;
+
+        // Instance, with the validation layer and synchronization validation when asked.
+        let mut layers: Vec<*const i8> = Vec::new();
+        let mut extensions: Vec<*const i8> = Vec::new();
+        if validation {
+            // SAFETY: plain enumeration on a loaded entry.
+            let available = unsafe { entry.enumerate_instance_layer_properties() }
+                .map_err(vk_error("vkEnumerateInstanceLayerProperties"))?;
+            if !available.iter().any(|l| l.layer_name_as_c_str().is_ok_and(|n| n == VALIDATION_LAYER)) {
+                return Err(Error::MissingComponent(
+                    "validation requested but VK_LAYER_KHRONOS_validation is not installed \
+                     (Debian package vulkan-validationlayers)"
+                        .into(),
+                ));
+            }
+            layers.push(VALIDATION_LAYER.as_ptr());
+            extensions.push(ash::ext::debug_utils::NAME.as_ptr());
+            extensions.push(ash::ext::validation_features::NAME.as_ptr());
+        }
+        let log_box: Option<Box<ValidationLog>> = validation.then(Box::default);
+        let user_ptr = log_box.as_ref().map_or(std::ptr::null_mut(), |b| {
+            std::ptr::from_ref::<ValidationLog>(b).cast_mut().cast::<c_void>()
+        });
+        let mut messenger_info = vk::DebugUtilsMessengerCreateInfoEXT::default()
+            .message_severity(
+                vk::DebugUtilsMessageSeverityFlagsEXT::WARNING
+                    | vk::DebugUtilsMessageSeverityFlagsEXT::ERROR
+                    | vk::DebugUtilsMessageSeverityFlagsEXT::INFO,
+            )
+            .message_type(
+                vk::DebugUtilsMessageTypeFlagsEXT::GENERAL
+                    | vk::DebugUtilsMessageTypeFlagsEXT::VALIDATION
+                    | vk::DebugUtilsMessageTypeFlagsEXT::PERFORMANCE,
+            )
+            .pfn_user_callback(Some(on_validation_message))
+            .user_data(user_ptr);
+        let enabled_features = [vk::ValidationFeatureEnableEXT::SYNCHRONIZATION_VALIDATION];
+        let mut validation_features =
+            vk::ValidationFeaturesEXT::default().enabled_validation_features(&enabled_features);
+        let app_name = CString::new("srug").unwrap_or_default();
+        let app = vk::ApplicationInfo::default()
+            .application_name(&app_name)
+            .engine_name(&app_name)
+            .api_version(vk::API_VERSION_1_2);
+        let mut create = vk::InstanceCreateInfo::default()
+            .application_info(&app)
+            .enabled_layer_names(&layers)
+            .enabled_extension_names(&extensions);
+        if validation {
+            create = create.push_next(&mut messenger_info).push_next(&mut validation_features);
+        }
+        // SAFETY: every pointer in `create` refers to locals alive for this call.
+        let instance = unsafe { entry.create_instance(&create, None) }.map_err(vk_error("vkCreateInstance"))?;
+        let guard = InstanceGuard(&instance);
+
+        let debug = if validation {
+            let loader = ash::ext::debug_utils::Instance::new(&entry, &instance);
+            let info = vk::DebugUtilsMessengerCreateInfoEXT {
+                p_next: std::ptr::null(),
+                ..messenger_info
+            };
+            // SAFETY: valid create info; the user pointer outlives the messenger (both live in Shared).
+            let messenger = unsafe { loader.create_debug_utils_messenger(&info, None) }
+                .map_err(vk_error("vkCreateDebugUtilsMessengerEXT"))?;
+            Some((loader, messenger))
+        } else {
+            None
+        };
+
+        let (physical, index) = match pick_physical(&instance, &selection) {
+            Ok(p) => p,
+            Err(e) => {
+                if let Some((loader, messenger)) = &debug {
+                    // SAFETY: created above, not used elsewhere.
+                    unsafe { loader.destroy_debug_utils_messenger(*messenger, None) };
+                }
+                return Err(e);
+            }
+        };
+        let made = make_device(&instance, physical, index);
+        let (device, queue, queue_family, info) = match made {
+            Ok(m) => m,
+            Err(e) => {
+                if let Some((loader, messenger)) = &debug {
+                    // SAFETY: created above, not used elsewhere.
+                    unsafe { loader.destroy_debug_utils_messenger(*messenger, None) };
+                }
+                return Err(e);
+            }
+        };
+        let allocator = Allocator::new(&AllocatorCreateDesc {
+            instance: instance.clone(),
+            device: device.clone(),
+            physical_device: physical,
+            debug_settings: Default::default(),
+            buffer_device_address: true,
+            allocation_sizes: Default::default(),
+        });
+        let allocator = match allocator {
+            Ok(a) => a,
+            Err(e) => {
+                // SAFETY: nothing was created from the device yet.
+                unsafe { device.destroy_device(None) };
+                if let Some((loader, messenger)) = &debug {
+                    // SAFETY: created above, not used elsewhere.
+                    unsafe { loader.destroy_debug_utils_messenger(*messenger, None) };
+                }
+                return Err(Error::OutOfMemory(format!("creating the allocator: {e}")));
+            }
+        };
+        std::mem::forget(guard);
+        log::info!(
+            "srug device #{}: {} ({:?}), driver {}, Vulkan {}, validation {}",
+            info.index,
+            info.name,
+            info.device_type,
+            info.driver,
+            info.api_version,
+            if validation { "on (with synchronization validation)" } else { "off" }
+        );
+        Ok(Self {
+            shared: Arc::new(Shared {
+                _entry: entry,
+                instance,
+                debug,
+                validation_log: log_box,
+                physical,
+                device,
+                queue: Mutex::new(queue),
+                queue_family,
+                allocator: Mutex::new(ManuallyDrop::new(allocator)),
+                tracker: Mutex::new(Tracker::default()),
+                info,
+                current_bytes: AtomicU64::new(0),
+                peak_bytes: AtomicU64::new(0),
+            }),
+        })
+    }
+
+    /// What the device is and can do.
+    pub fn info(&self) -> &DeviceInfo {
+        &self.shared.info
+    }
+
+    /// Whether the validation layer is running.
+    pub fn validation_enabled(&self) -> bool {
+        self.shared.validation_log.is_some()
+    }
+
+    /// Takes the validation messages emitted since the last call (warnings and
+    /// errors only). Tests fail on any.
+    pub fn take_validation_messages(&self) -> Vec<String> {
+        self.shared.take_validation_messages()
+    }
+
+    /// GPU memory allocated by srug now and at its peak.
+    pub fn memory_usage(&self) -> MemoryUsage {
+        MemoryUsage {
+            current_bytes: self.shared.current_bytes.load(Ordering::Relaxed),
+            peak_bytes: self.shared.peak_bytes.load(Ordering::Relaxed),
+        }
+    }
+
+    /// Restarts peak counting from the current usage.
+    pub fn reset_peak_memory(&self) {
+        let now = self.shared.current_bytes.load(Ordering::Relaxed);
+        self.shared.peak_bytes.store(now, Ordering::Relaxed);
+    }
+
+    /// Waits for all submitted work and frees every resource waiting on it.
+    pub fn wait_idle(&self) -> Result<()> {
+        let last = lock(&self.shared.tracker).submitted;
+        self.shared.maintain(Some(last))
+    }
+}
+
+/// Destroys the instance if device creation fails half-way.
+struct InstanceGuard<'a>(&'a ash::Instance);
+
+impl Drop for InstanceGuard<'_> {
+    fn drop(&mut self) {
+        // SAFETY: only reached on an error path, before anything else owns the instance.
+        unsafe { self.0.destroy_instance(None) };
+    }
+}
+
+fn pick_physical(instance: &ash::Instance, selection: &DeviceSelection) -> Result<(vk::PhysicalDevice, usize)> {
+    // SAFETY: valid instance.
+    let devices = unsafe { instance.enumerate_physical_devices() }.map_err(vk_error("vkEnumeratePhysicalDevices"))?;
+    let props: Vec<_> = devices
+        .iter()
+        // SAFETY: handles come from the enumeration above.
+        .map(|&pd| unsafe { instance.get_physical_device_properties(pd) })
+        .collect();
+    let usable = |i: usize| props[i].api_version >= vk::API_VERSION_1_2;
+    let listing = || {
+        props.iter().enumerate().map(|(i, p)| format!("#{i} {} ({:?})", name_of(p), p.device_type)).collect::<Vec<_>>().join(", ")
+    };
+    if devices.is_empty() {
+        return Err(Error::NoDevice("no Vulkan device found (install mesa-vulkan-drivers for lavapipe)".into()));
+    }
+    let chosen = match selection {
+        DeviceSelection::Auto => (0..devices.len()).filter(|&i| usable(i)).min_by_key(|&i| (type_rank(props[i].device_type), i)),
+        DeviceSelection::Gpu => (0..devices.len()).find(|&i| usable(i) && type_rank(props[i].device_type) <= 1),
+        DeviceSelection::Cpu => (0..devices.len()).find(|&i| usable(i) && props[i].device_type == vk::PhysicalDeviceType::CPU),
+        DeviceSelection::Index(n) => (*n < devices.len()).then_some(*n),
+        DeviceSelection::Name(s) => {
+            let s = s.to_lowercase();
+            (0..devices.len()).find(|&i| name_of(&props[i]).to_lowercase().contains(&s))
+        }
+    };
+    let i = chosen.ok_or_else(|| Error::NoDevice(format!("{selection:?} matches none of: {}", listing())))?;
+    if !usable(i) {
+        return Err(Error::NoDevice(format!(
+            "#{i} {} supports only Vulkan {}; srug needs 1.2",
+            name_of(&props[i]),
+            version_string(props[i].api_version)
+        )));
+    }
+    Ok((devices[i], i))
+}
+
+fn make_device(
+    instance: &ash::Instance,
+    physical: vk::PhysicalDevice,
+    index: usize,
+) -> Result<(ash::Device, vk::Queue, u32, DeviceInfo)> {
+    // SAFETY: `physical` comes from this instance.
+    let families = unsafe { instance.get_physical_device_queue_family_properties(physical) };
+    let family = families
+        .iter()
+        .position(|f| f.queue_flags.contains(vk::QueueFlags::COMPUTE) && f.timestamp_valid_bits > 0)
+        .or_else(|| families.iter().position(|f| f.queue_flags.contains(vk::QueueFlags::COMPUTE)))
+        .ok_or_else(|| Error::NoDevice("the device has no compute queue".into()))?;
+
+    let mut f11 = vk::PhysicalDeviceVulkan11Features::default();
+    let mut f12 = vk::PhysicalDeviceVulkan12Features::default();
+    let mut features = vk::PhysicalDeviceFeatures2::default().push_next(&mut f11).push_next(&mut f12);
+    // SAFETY: valid physical device and feature chain.
+    unsafe { instance.get_physical_device_features2(physical, &mut features) };
+    let base = features.features;
+    let (has_bda, has_f16, has_s16) = (f12.buffer_device_address, f12.shader_float16, f11.storage_buffer16_bit_access);
+    if has_bda == vk::FALSE {
+        return Err(Error::NoDevice("the device lacks bufferDeviceAddress, which srug needs for large scenes".into()));
+    }
+
+    let mut driver = vk::PhysicalDeviceDriverProperties::default();
+    let mut subgroup = vk::PhysicalDeviceSubgroupProperties::default();
+    let mut props2 = vk::PhysicalDeviceProperties2::default().push_next(&mut driver).push_next(&mut subgroup);
+    // SAFETY: valid physical device and property chain.
+    unsafe { instance.get_physical_device_properties2(physical, &mut props2) };
+    let props = props2.properties;
+    let limits = props.limits;
+    let info = DeviceInfo {
+        index,
+        name: name_of(&props),
+        driver: format!(
+            "{} {}",
+            driver.driver_name_as_c_str().map(|c| c.to_string_lossy().into_owned()).unwrap_or_default(),
+            driver.driver_info_as_c_str().map(|c| c.to_string_lossy().into_owned()).unwrap_or_default()
+        ),
+        device_type: props.device_type,
+        api_version: version_string(props.api_version),
+        max_storage_buffer_range: u64::from(limits.max_storage_buffer_range),
+        max_shared_memory: limits.max_compute_shared_memory_size,
+        max_workgroup_count: limits.max_compute_work_group_count,
+        subgroup_size: subgroup.subgroup_size,
+        timestamp_period_ns: f64::from(limits.timestamp_period),
+        timestamp_valid_bits: if limits.timestamp_compute_and_graphics == vk::TRUE {
+            families[family].timestamp_valid_bits
+        } else {
+            0
+        },
+        shader_float16: has_f16 == vk::TRUE,
+        storage_16bit: has_s16 == vk::TRUE,
+    };
+
+    let priorities = [1.0f32];
+    let queue_info = [vk::DeviceQueueCreateInfo::default().queue_family_index(family as u32).queue_priorities(&priorities)];
+    let mut en11 = vk::PhysicalDeviceVulkan11Features::default().storage_buffer16_bit_access(has_s16 == vk::TRUE);
+    let mut en12 = vk::PhysicalDeviceVulkan12Features::default()
+        .buffer_device_address(true)
+        .shader_float16(has_f16 == vk::TRUE);
+    let en_base = vk::PhysicalDeviceFeatures::default()
+        .shader_int64(base.shader_int64 == vk::TRUE)
+        .shader_int16(base.shader_int16 == vk::TRUE);
+    let create = vk::DeviceCreateInfo::default()
+        .queue_create_infos(&queue_info)
+        .enabled_features(&en_base)
+        .push_next(&mut en11)
+        .push_next(&mut en12);
+    // SAFETY: features were checked as supported; pointers refer to locals.
+    let device = unsafe { instance.create_device(physical, &create, None) }.map_err(vk_error("vkCreateDevice"))?;
+    // SAFETY: queue 0 of the family requested above.
+    let queue = unsafe { device.get_device_queue(family as u32, 0) };
+    Ok((device, queue, family as u32, info))
+}

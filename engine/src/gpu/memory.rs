@@ -1,0 +1,215 @@
+//! Buffers: named allocations through gpu-allocator, staged upload and readback.
+//!
+//! Invariants:
+//! - every allocation is named and counted in [`MemoryUsage`](super::MemoryUsage);
+//! - a dropped buffer is destroyed only after every submission made before the
+//!   drop has finished (see `Shared::retire`), so the GPU never reads freed memory;
+//! - storage buffers carry a device address, so kernels can reach buffers larger
+//!   than `maxStorageBufferRange` through `buffer_reference`.
+
+use std::sync::atomic::Ordering;
+use std::sync::Arc;
+
+use ash::vk;
+use bytemuck::Pod;
+use gpu_allocator::vulkan::{Allocation, AllocationCreateDesc, AllocationScheme};
+use gpu_allocator::MemoryLocation;
+
+use super::device::{lock, Device, Garbage, Shared};
+use crate::error::{vk_error, Error, Result};
+
+/// Bytes moved per staging round trip; bounds host memory for huge buffers.
+const STAGING_CHUNK: u64 = 64 << 20;
+
+/// Where a buffer lives and what it is for.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum MemoryKind {
+    /// Device-local storage buffer, reached by kernels; filled by staging.
+    Storage,
+    /// Host-visible staging memory for uploads.
+    Upload,
+    /// Host-visible memory for readback.
+    Readback,
+}
+
+/// A GPU buffer. Dropping it is safe at any time (destruction is deferred).
+pub struct Buffer {
+    pub(crate) shared: Arc<Shared>,
+    pub(crate) raw: vk::Buffer,
+    allocation: Option<Allocation>,
+    size: u64,
+    name: String,
+    address: u64,
+    kind: MemoryKind,
+}
+
+impl std::fmt::Debug for Buffer {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Buffer").field("name", &self.name).field("size", &self.size).finish()
+    }
+}
+
+impl Buffer {
+    /// Size in bytes as requested (the allocation may be larger).
+    pub fn size(&self) -> u64 {
+        self.size
+    }
+
+    /// The name given at creation.
+    pub fn name(&self) -> &str {
+        &self.name
+    }
+
+    /// Device address for `buffer_reference` access (0 for non-storage buffers).
+    pub fn device_address(&self) -> u64 {
+        self.address
+    }
+
+    /// The memory kind.
+    pub fn kind(&self) -> MemoryKind {
+        self.kind
+    }
+
+    fn mapped(&mut self) -> Result<&mut [u8]> {
+        let size = self.size as usize;
+        let name = self.name.clone();
+        self.allocation
+            .as_mut()
+            .and_then(|a| a.mapped_slice_mut())
+            .map(|s| &mut s[..size])
+            .ok_or_else(|| Error::InvalidArgument(format!("buffer {name} is not host-visible")))
+    }
+}
+
+impl Drop for Buffer {
+    fn drop(&mut self) {
+        if let Some(allocation) = self.allocation.take() {
+            self.shared.retire(Garbage::Buffer(self.raw, allocation));
+        }
+    }
+}
+
+impl Device {
+    /// Creates a buffer of `size` bytes (a zero size is allowed and allocates 4).
+    pub fn create_buffer(&self, name: &str, size: u64, kind: MemoryKind) -> Result<Buffer> {
+        let shared = &self.shared;
+        let vk_size = size.max(4).next_multiple_of(4);
+        let (usage, location) = match kind {
+            MemoryKind::Storage => (
+                vk::BufferUsageFlags::STORAGE_BUFFER
+                    | vk::BufferUsageFlags::TRANSFER_SRC
+                    | vk::BufferUsageFlags::TRANSFER_DST
+                    | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS,
+                MemoryLocation::GpuOnly,
+            ),
+            MemoryKind::Upload => (vk::BufferUsageFlags::TRANSFER_SRC, MemoryLocation::CpuToGpu),
+            MemoryKind::Readback => (vk::BufferUsageFlags::TRANSFER_DST, MemoryLocation::GpuToCpu),
+        };
+        let info = vk::BufferCreateInfo::default().size(vk_size).usage(usage).sharing_mode(vk::SharingMode::EXCLUSIVE);
+        // SAFETY: valid create info on a live device.
+        let raw = unsafe { shared.device.create_buffer(&info, None) }.map_err(vk_error("vkCreateBuffer"))?;
+        // SAFETY: `raw` was just created on this device.
+        let requirements = unsafe { shared.device.get_buffer_memory_requirements(raw) };
+        let allocation = lock(&shared.allocator).allocate(&AllocationCreateDesc {
+            name,
+            requirements,
+            location,
+            linear: true,
+            allocation_scheme: AllocationScheme::GpuAllocatorManaged,
+        });
+        let allocation = match allocation {
+            Ok(a) => a,
+            Err(e) => {
+                // SAFETY: unused buffer, created above.
+                unsafe { shared.device.destroy_buffer(raw, None) };
+                return Err(Error::OutOfMemory(format!("buffer {name} ({size} bytes): {e}")));
+            }
+        };
+        // SAFETY: memory and offset come from an allocation meeting the requirements.
+        let bound = unsafe { shared.device.bind_buffer_memory(raw, allocation.memory(), allocation.offset()) };
+        if let Err(e) = bound {
+            let _ = lock(&shared.allocator).free(allocation);
+            // SAFETY: unused buffer, created above.
+            unsafe { shared.device.destroy_buffer(raw, None) };
+            return Err(vk_error("vkBindBufferMemory")(e));
+        }
+        let bytes = allocation.size();
+        let now = shared.current_bytes.fetch_add(bytes, Ordering::Relaxed) + bytes;
+        shared.peak_bytes.fetch_max(now, Ordering::Relaxed);
+        let address = if kind == MemoryKind::Storage {
+            // SAFETY: the buffer has SHADER_DEVICE_ADDRESS usage and bound memory.
+            unsafe { shared.device.get_buffer_device_address(&vk::BufferDeviceAddressInfo::default().buffer(raw)) }
+        } else {
+            0
+        };
+        Ok(Buffer { shared: shared.clone(), raw, allocation: Some(allocation), size, name: name.to_string(), address, kind })
+    }
+
+    /// Creates a storage buffer holding `data`.
+    pub fn upload<T: Pod>(&self, name: &str, data: &[T]) -> Result<Buffer> {
+        let bytes: &[u8] = bytemuck::cast_slice(data);
+        let buffer = self.create_buffer(name, bytes.len() as u64, MemoryKind::Storage)?;
+        self.write_buffer(&buffer, 0, data)?;
+        Ok(buffer)
+    }
+
+    /// Creates a storage buffer of `count` elements of `T`, every 32-bit word set to `word`
+    /// (a sentinel, so "never written" differs from "wrote 0").
+    pub fn create_filled<T: Pod>(&self, name: &str, count: usize, word: u32) -> Result<Buffer> {
+        let size = (count as u64).checked_mul(std::mem::size_of::<T>() as u64).ok_or_else(|| {
+            Error::InvalidArgument(format!("buffer {name}: {count} elements overflow the address space"))
+        })?;
+        let buffer = self.create_buffer(name, size, MemoryKind::Storage)?;
+        self.run(|rec| rec.fill(&buffer, word))?;
+        Ok(buffer)
+    }
+
+    /// Copies `data` into `buffer` at `byte_offset`, through staging memory.
+    pub fn write_buffer<T: Pod>(&self, buffer: &Buffer, byte_offset: u64, data: &[T]) -> Result<()> {
+        let bytes: &[u8] = bytemuck::cast_slice(data);
+        let end = byte_offset.checked_add(bytes.len() as u64);
+        if end.is_none_or(|e| e > buffer.size) || byte_offset % 4 != 0 {
+            return Err(Error::InvalidArgument(format!(
+                "write of {} bytes at offset {byte_offset} into {} ({} bytes)",
+                bytes.len(),
+                buffer.name,
+                buffer.size
+            )));
+        }
+        if bytes.is_empty() {
+            return Ok(());
+        }
+        let chunk = STAGING_CHUNK.min(bytes.len() as u64);
+        let mut staging = self.create_buffer(&format!("{} (upload staging)", buffer.name), chunk, MemoryKind::Upload)?;
+        for (i, part) in bytes.chunks(chunk as usize).enumerate() {
+            staging.mapped()?[..part.len()].copy_from_slice(part);
+            let dst = byte_offset + i as u64 * chunk;
+            self.run(|rec| rec.copy(&staging, 0, buffer, dst, part.len() as u64))?;
+        }
+        Ok(())
+    }
+
+    /// Reads a whole buffer back as elements of `T`.
+    pub fn read_buffer<T: Pod>(&self, buffer: &Buffer) -> Result<Vec<T>> {
+        let elem = std::mem::size_of::<T>() as u64;
+        if elem == 0 || buffer.size % elem != 0 {
+            return Err(Error::InvalidArgument(format!(
+                "buffer {} holds {} bytes, not a whole number of {}-byte elements",
+                buffer.name, buffer.size, elem
+            )));
+        }
+        let mut out: Vec<T> = vec![T::zeroed(); (buffer.size / elem) as usize];
+        let dst: &mut [u8] = bytemuck::cast_slice_mut(&mut out);
+        if dst.is_empty() {
+            return Ok(out);
+        }
+        let chunk = STAGING_CHUNK.min(buffer.size);
+        let mut staging = self.create_buffer(&format!("{} (readback staging)", buffer.name), chunk, MemoryKind::Readback)?;
+        for (i, part) in dst.chunks_mut(chunk as usize).enumerate() {
+            let src = i as u64 * chunk;
+            self.run(|rec| rec.copy(buffer, src, &staging, 0, part.len() as u64))?;
+            part.copy_from_slice(&staging.mapped()?[..part.len()]);
+        }
+        Ok(out)
+    }
+}

@@ -1,0 +1,31 @@
+//! The Vulkan compute core: device, memory, kernels, recording and timing.
+//!
+//! This layer knows nothing of Gaussians. Its contract:
+//! - **Safety.** All `unsafe` Vulkan calls live here. Public types are safe to
+//!   use in any order: every object holds the device alive, and destruction of
+//!   buffers, pipelines and per-recording objects is deferred until the GPU has
+//!   finished every submission made before the drop.
+//! - **Errors.** Vulkan results become [`Error`](crate::Error) in one place
+//!   (`error::vk_error`); out-of-memory and device loss have their own variants.
+//! - **Synchronization.** Each recorded command is preceded by a global memory
+//!   barrier; each recording ends with a barrier toward host reads.
+//! - **Validation.** With [`DeviceOptions::validation`] (or `SRUG_VALIDATION=1`)
+//!   the Khronos layer runs with synchronization validation and every warning
+//!   or error it emits is kept for [`Device::take_validation_messages`].
+//! - **Large buffers.** Descriptor bindings are limited to
+//!   `maxStorageBufferRange` (128 MiB on lavapipe); larger data is reached by
+//!   device address (`shaders/include/address.glsl`).
+
+mod device;
+mod kernel;
+mod memory;
+mod recording;
+pub mod selftest;
+
+pub use device::{
+    AdapterSummary, Device, DeviceInfo, DeviceOptions, DeviceSelection, MemoryUsage, DEVICE_ENV, VALIDATION_ENV,
+};
+pub use kernel::{check_decl, Kernel, KernelDecl, SpecValue};
+pub use memory::{Buffer, MemoryKind};
+pub use recording::{grid_1d, Recording, StageTime, Submission, Timings};
+pub use srug_spirv::{kernels, BindingInfo, BindingKind, KernelInfo, SpecConstantInfo};

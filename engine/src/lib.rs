@@ -1,0 +1,12 @@
+//! srug renders and relights 3D Gaussian Splatting city scenes with Vulkan
+//! compute, following *SRUG: Shadow-Guided Relightable Urban Scene with
+//! Generation Model*.
+//!
+//! Data flows one way: [`scene`] → splat → G-buffers → shadow → shade → image.
+//! [`gpu`] is the Vulkan core underneath and knows nothing of Gaussians.
+
+pub mod error;
+pub mod gpu;
+pub mod scene;
+
+pub use error::{Error, Result};

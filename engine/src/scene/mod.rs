@@ -1,0 +1,5 @@
+//! Scenes. (being written)
+/// x
+#[derive(Debug, thiserror::Error)]
+#[error("x")]
+pub struct SceneError;

@@ -1,0 +1,33 @@
+#!/usr/bin/env bash
+# Installs what srug needs on Debian 12 and is missing: the Vulkan loader,
+# lavapipe (mesa-vulkan-drivers), the Khronos validation layer, and Debian's
+# static shaderc/glslang/SPIRV-Tools libraries. Idempotent; needs root (or sudo)
+# only when something is missing. Rust (cargo) must already be installed.
+set -euo pipefail
+
+packages=(
+  libvulkan1 libvulkan-dev mesa-vulkan-drivers vulkan-validationlayers vulkan-tools
+  libshaderc-dev glslang-dev spirv-tools pkg-config ca-certificates
+)
+missing=()
+for p in "${packages[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if ((${#missing[@]})); then
+  echo "srug setup: installing ${missing[*]}" >&2
+  SUDO=""
+  if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
+  export DEBIAN_FRONTEND=noninteractive
+  $SUDO apt-get update -qq
+  $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
+fi
+
+if ! command -v cargo >/dev/null 2>&1; then
+  for c in "$HOME/.cargo/bin/cargo" /usr/local/cargo/bin/cargo; do
+    if [ -x "$c" ]; then export PATH="$(dirname "$c"):$PATH"; break; fi
+  done
+fi
+if ! command -v cargo >/dev/null 2>&1; then
+  echo "srug setup: cargo not found; install a Rust toolchain (1.85 or newer) first" >&2
+  exit 1
+fi

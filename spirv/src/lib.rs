@@ -1,0 +1,63 @@
+//! srug's compute kernels as SPIR-V, with what the host needs to know about each.
+//!
+//! The build script compiles every `shaders/*.comp` with shaderc (GLSL 460,
+//! Vulkan 1.2, SPIR-V 1.5) and reflects the result: workgroup size,
+//! descriptor bindings, push-constant size and specialization constants. The
+//! engine checks the bindings it declares in Rust against this table when it
+//! builds a pipeline, so a shader and its host code cannot drift apart
+//! silently. A GLSL error fails the build with the file and line.
+
+/// What a descriptor binding holds, as the shader declares it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum BindingKind {
+    /// A `buffer` block; `read_only` when every member is `readonly`.
+    StorageBuffer {
+        /// The shader never writes through this binding.
+        read_only: bool,
+    },
+    /// A `uniform` block.
+    UniformBuffer,
+}
+
+/// One descriptor binding of a kernel.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct BindingInfo {
+    /// Descriptor set index.
+    pub set: u32,
+    /// Binding index within the set.
+    pub binding: u32,
+    /// What the binding holds.
+    pub kind: BindingKind,
+    /// The block's instance name in GLSL, or "" when the compiler dropped it.
+    pub name: &'static str,
+}
+
+/// One specialization constant of a kernel.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct SpecConstantInfo {
+    /// The `constant_id`.
+    pub id: u32,
+    /// The constant's GLSL name, or "" when the compiler dropped it.
+    pub name: &'static str,
+    /// The default value's 32 bits.
+    pub default_bits: u32,
+}
+
+/// A compiled kernel and its reflected interface.
+#[derive(Clone, Copy, Debug)]
+pub struct KernelInfo {
+    /// File stem of the GLSL source, e.g. `"core_affine"`.
+    pub name: &'static str,
+    /// SPIR-V words.
+    pub words: &'static [u32],
+    /// `local_size_x/y/z`.
+    pub workgroup_size: [u32; 3],
+    /// Descriptor bindings, sorted by (set, binding).
+    pub bindings: &'static [BindingInfo],
+    /// Size in bytes of the push-constant block, 0 when there is none.
+    pub push_constant_size: u32,
+    /// Specialization constants, sorted by id.
+    pub spec_constants: &'static [SpecConstantInfo],
+}
+
+include!(concat!(env!("OUT_DIR"), "/kernels.rs"));
