@@ -70,7 +70,7 @@ pub(crate) fn vk_error(call: &'static str) -> impl FnOnce(vk::Result) -> Error {
 
 impl Error {
     /// An [`Error::Io`] for `path`.
-    pub(crate) fn io(path: impl Into<PathBuf>) -> impl FnOnce(std::io::Error) -> Error {
+    pub fn io(path: impl Into<PathBuf>) -> impl FnOnce(std::io::Error) -> Error {
         let path = path.into();
         move |source| Error::Io { path, source }
     }

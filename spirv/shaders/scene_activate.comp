@@ -26,6 +26,8 @@ void main() {
     FloatsIn rot = FloatsIn(pc.rotations);
     vec3 s = exp(vec3(ls.v[3 * i], ls.v[3 * i + 1], ls.v[3 * i + 2]));
     vec4 q = vec4(rot.v[4 * i], rot.v[4 * i + 1], rot.v[4 * i + 2], rot.v[4 * i + 3]);
+    // Scale first so tiny quaternions do not underflow to a zero length.
+    q /= max(max(abs(q.x), abs(q.y)), max(abs(q.z), abs(q.w)));
     q /= length(q);
     float w = q.x, x = q.y, y = q.z, z = q.w;
     // Column-major: R[c] is column c.

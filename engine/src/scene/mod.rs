@@ -1,5 +1,326 @@
-//! Scenes. (being written)
-/// x
-#[derive(Debug, thiserror::Error)]
-#[error("x")]
-pub struct SceneError;
+//! Scenes of 3D Gaussians: the data model, file I/O, cameras and the demo city.
+//!
+//! Parameters are stored the way trainers write them, **before activation**:
+//! opacity as a logit, scale as a log, rotation as an unnormalized quaternion
+//! (w first), colour as spherical-harmonic coefficients, and the optional
+//! relighting attributes as logits (activated with a sigmoid). The stages that
+//! consume a scene activate on the GPU ([`activate`]).
+//!
+//! Invariant: a [`Scene`] that passed [`Scene::validate`] has consistent array
+//! lengths, finite values and non-zero quaternions; every loader validates.
+
+pub mod activate;
+pub mod camera;
+pub mod demo;
+pub mod ply;
+
+use std::fmt;
+
+pub use camera::{read_cameras_json, write_cameras_json, Camera, Projection};
+pub use ply::{read_ply, read_ply_bytes, write_ply, PlyFormat};
+
+/// A malformed scene or camera file: what is wrong and where.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct SceneError {
+    /// The file (or "<memory>").
+    pub path: String,
+    /// Zero-based data row (Gaussian or camera index), when one is at fault.
+    pub row: Option<usize>,
+    /// The property or field at fault, when one is.
+    pub property: Option<String>,
+    /// What is wrong.
+    pub message: String,
+}
+
+impl fmt::Display for SceneError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{}", self.path)?;
+        if let Some(row) = self.row {
+            write!(f, ": row {row}")?;
+        }
+        if let Some(p) = &self.property {
+            write!(f, ", property {p}")?;
+        }
+        write!(f, ": {}", self.message)
+    }
+}
+
+impl std::error::Error for SceneError {}
+
+impl SceneError {
+    /// An error about the whole file.
+    pub fn file(path: &str, message: impl Into<String>) -> Self {
+        Self { path: path.to_string(), row: None, property: None, message: message.into() }
+    }
+
+    /// An error about one value.
+    pub fn at(path: &str, row: usize, property: &str, message: impl Into<String>) -> Self {
+        Self { path: path.to_string(), row: Some(row), property: Some(property.to_string()), message: message.into() }
+    }
+}
+
+/// Optional per-Gaussian relighting attributes, stored as logits.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Materials {
+    /// Base colour (diffuse albedo), RGB logits.
+    pub albedo: Option<Vec<[f32; 3]>>,
+    /// Roughness logit.
+    pub roughness: Option<Vec<f32>>,
+    /// Metallic logit.
+    pub metallic: Option<Vec<f32>>,
+    /// Ambient-occlusion logit.
+    pub ao: Option<Vec<f32>>,
+    /// Fixed sun-visibility logit (the paper's V_f).
+    pub visibility: Option<Vec<f32>>,
+}
+
+/// Which attribute groups a scene has, so later stages run only what it requires.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct AttributeGroups {
+    /// Stored normals (nx, ny, nz).
+    pub normals: bool,
+    /// Albedo.
+    pub albedo: bool,
+    /// Roughness.
+    pub roughness: bool,
+    /// Metallic.
+    pub metallic: bool,
+    /// Ambient occlusion.
+    pub ao: bool,
+    /// Fixed visibility.
+    pub visibility: bool,
+}
+
+impl AttributeGroups {
+    /// Whether the scene can be shaded (needs at least an albedo).
+    pub fn shadeable(&self) -> bool {
+        self.albedo
+    }
+
+    /// Names of the groups present, for summaries.
+    pub fn names(&self) -> Vec<&'static str> {
+        [
+            (self.normals, "normals"),
+            (self.albedo, "albedo"),
+            (self.roughness, "roughness"),
+            (self.metallic, "metallic"),
+            (self.ao, "ao"),
+            (self.visibility, "visibility"),
+        ]
+        .into_iter()
+        .filter_map(|(on, n)| on.then_some(n))
+        .collect()
+    }
+}
+
+/// Number of SH coefficients per channel for a degree.
+pub fn sh_coefficients(degree: u32) -> usize {
+    ((degree + 1) * (degree + 1)) as usize
+}
+
+/// The SH band-0 constant: colour = C0·dc + 0.5.
+pub const SH_C0: f32 = 0.282_094_8;
+
+/// A scene of 3D Gaussians, parameters stored before activation.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Scene {
+    /// Centres.
+    pub means: Vec<[f32; 3]>,
+    /// Stored normals, when the file has them.
+    pub normals: Option<Vec<[f32; 3]>>,
+    /// Spherical-harmonic degree, 0 to 3.
+    pub sh_degree: u32,
+    /// SH coefficients, coefficient-major with RGB innermost:
+    /// `sh[(g * K + k) * 3 + c]` with `K = (degree + 1)²`.
+    pub sh: Vec<f32>,
+    /// Opacity logits.
+    pub opacity_logits: Vec<f32>,
+    /// Log scales along the local axes.
+    pub log_scales: Vec<[f32; 3]>,
+    /// Rotations as quaternions (w, x, y, z), not necessarily normalized.
+    pub rotations: Vec<[f32; 4]>,
+    /// Relighting attributes.
+    pub materials: Materials,
+    /// Names of properties a loader found but does not use.
+    pub extra_properties: Vec<String>,
+}
+
+/// Axis-aligned bounds of the Gaussian centres.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Bounds {
+    /// Minimum corner.
+    pub min: [f32; 3],
+    /// Maximum corner.
+    pub max: [f32; 3],
+}
+
+impl Scene {
+    /// Number of Gaussians.
+    pub fn len(&self) -> usize {
+        self.means.len()
+    }
+
+    /// Whether there are no Gaussians.
+    pub fn is_empty(&self) -> bool {
+        self.means.is_empty()
+    }
+
+    /// Which attribute groups are present.
+    pub fn attributes(&self) -> AttributeGroups {
+        let m = &self.materials;
+        AttributeGroups {
+            normals: self.normals.is_some(),
+            albedo: m.albedo.is_some(),
+            roughness: m.roughness.is_some(),
+            metallic: m.metallic.is_some(),
+            ao: m.ao.is_some(),
+            visibility: m.visibility.is_some(),
+        }
+    }
+
+    /// Bounds of the centres; `None` for an empty scene.
+    pub fn bounds(&self) -> Option<Bounds> {
+        let first = *self.means.first()?;
+        let mut b = Bounds { min: first, max: first };
+        for p in &self.means {
+            for a in 0..3 {
+                b.min[a] = b.min[a].min(p[a]);
+                b.max[a] = b.max[a].max(p[a]);
+            }
+        }
+        Some(b)
+    }
+
+    /// Floats stored per Gaussian on the GPU (parameters as uploaded).
+    pub fn floats_per_gaussian(&self) -> usize {
+        let a = self.attributes();
+        3 + 3 + 4 + 1
+            + 3 * sh_coefficients(self.sh_degree)
+            + if a.normals { 3 } else { 0 }
+            + if a.albedo { 3 } else { 0 }
+            + [a.roughness, a.metallic, a.ao, a.visibility].iter().filter(|x| **x).count()
+    }
+
+    /// GPU bytes the scene's parameters and their activations take
+    /// (covariance and opacity: 7 floats per Gaussian).
+    pub fn gpu_bytes(&self) -> u64 {
+        (self.len() as u64) * ((self.floats_per_gaussian() + 7) as u64) * 4
+    }
+
+    /// Checks lengths, finiteness and quaternions; `origin` names the source in errors.
+    pub fn validate(&self, origin: &str) -> Result<(), SceneError> {
+        let n = self.len();
+        let k = sh_coefficients(self.sh_degree);
+        if self.sh_degree > 3 {
+            return Err(SceneError::file(origin, format!("SH degree {} is not supported (0 to 3)", self.sh_degree)));
+        }
+        let mut lengths: Vec<(&str, usize, usize)> = vec![
+            ("opacity", self.opacity_logits.len(), n),
+            ("scale", self.log_scales.len(), n),
+            ("rot", self.rotations.len(), n),
+            ("sh", self.sh.len(), n * k * 3),
+        ];
+        let m = &self.materials;
+        if let Some(v) = &self.normals {
+            lengths.push(("normal", v.len(), n));
+        }
+        if let Some(v) = &m.albedo {
+            lengths.push(("albedo", v.len(), n));
+        }
+        for (name, v) in [("roughness", &m.roughness), ("metallic", &m.metallic), ("ao", &m.ao), ("visibility", &m.visibility)] {
+            if let Some(v) = v {
+                lengths.push((name, v.len(), n));
+            }
+        }
+        for (name, got, want) in lengths {
+            if got != want {
+                return Err(SceneError::file(origin, format!("{name} has {got} values, expected {want} for {n} Gaussians")));
+            }
+        }
+        let check = |row: usize, property: &str, v: f32| -> Result<(), SceneError> {
+            if v.is_finite() {
+                Ok(())
+            } else {
+                Err(SceneError::at(origin, row, property, format!("value is {v}")))
+            }
+        };
+        for i in 0..n {
+            for a in 0..3 {
+                check(i, ["x", "y", "z"][a], self.means[i][a])?;
+                check(i, ["scale_0", "scale_1", "scale_2"][a], self.log_scales[i][a])?;
+            }
+            for a in 0..4 {
+                check(i, ["rot_0", "rot_1", "rot_2", "rot_3"][a], self.rotations[i][a])?;
+            }
+            if self.rotations[i].iter().all(|c| *c == 0.0) {
+                return Err(SceneError::at(origin, i, "rot_0..rot_3", "rotation quaternion is zero"));
+            }
+            check(i, "opacity", self.opacity_logits[i])?;
+            for (j, v) in self.sh[i * k * 3..(i + 1) * k * 3].iter().enumerate() {
+                let (coef, channel) = (j / 3, j % 3);
+                if !v.is_finite() {
+                    let name = if coef == 0 {
+                        format!("f_dc_{channel}")
+                    } else {
+                        format!("f_rest_{}", channel * (k - 1) + coef - 1)
+                    };
+                    return Err(SceneError::at(origin, i, &name, format!("value is {v}")));
+                }
+            }
+            if let Some(v) = &self.normals {
+                for a in 0..3 {
+                    check(i, ["nx", "ny", "nz"][a], v[i][a])?;
+                }
+            }
+            if let Some(v) = &m.albedo {
+                for a in 0..3 {
+                    check(i, ["albedo_0", "albedo_1", "albedo_2"][a], v[i][a])?;
+                }
+            }
+            for (name, v) in [("roughness", &m.roughness), ("metallic", &m.metallic), ("ao", &m.ao), ("visibility", &m.visibility)] {
+                if let Some(v) = v {
+                    check(i, name, v[i])?;
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// A human-readable summary (what `srug info` prints).
+    pub fn summary(&self) -> String {
+        let mut s = format!("Gaussians: {}\nSH degree: {}\n", self.len(), self.sh_degree);
+        let groups = self.attributes().names();
+        s += &format!("attributes: {}\n", if groups.is_empty() { "none (plain 3DGS colour)".to_string() } else { groups.join(", ") });
+        if let Some(b) = self.bounds() {
+            s += &format!(
+                "bounds: [{:.3}, {:.3}, {:.3}] .. [{:.3}, {:.3}, {:.3}]\n",
+                b.min[0], b.min[1], b.min[2], b.max[0], b.max[1], b.max[2]
+            );
+        }
+        s += &format!(
+            "GPU memory: {} ({} floats per Gaussian + 7 activated)\n",
+            human_bytes(self.gpu_bytes()),
+            self.floats_per_gaussian()
+        );
+        if !self.extra_properties.is_empty() {
+            s += &format!("ignored properties: {}\n", self.extra_properties.join(", "));
+        }
+        s
+    }
+}
+
+/// Formats a byte count with a binary unit.
+pub fn human_bytes(bytes: u64) -> String {
+    const UNITS: [&str; 5] = ["B", "KiB", "MiB", "GiB", "TiB"];
+    let mut v = bytes as f64;
+    let mut u = 0;
+    while v >= 1024.0 && u + 1 < UNITS.len() {
+        v /= 1024.0;
+        u += 1;
+    }
+    if u == 0 {
+        format!("{bytes} B")
+    } else {
+        format!("{v:.2} {}", UNITS[u])
+    }
+}

@@ -1,0 +1,129 @@
+//! The scene on the GPU and its activation kernel.
+//!
+//! [`GpuScene`] holds the stored parameters in one storage buffer per
+//! attribute, reached by device address so a scene of several million
+//! Gaussians fits whatever the device's `maxStorageBufferRange`.
+//! [`activate`] runs `scene_activate.comp`: opacity = σ(logit), scale = exp,
+//! normalized quaternion, and the world covariance Σ = R S Sᵀ Rᵀ.
+//! [`activate_cpu`] is its f64 CPU twin.
+
+use bytemuck::{Pod, Zeroable};
+
+use super::Scene;
+use crate::error::Result;
+use crate::gpu::{kernels, Buffer, Device, Kernel, KernelDecl, Timings};
+
+/// A scene's stored parameters in GPU memory.
+pub struct GpuScene {
+    /// Number of Gaussians.
+    pub count: usize,
+    /// SH degree.
+    pub sh_degree: u32,
+    /// float[3N] centres.
+    pub means: Buffer,
+    /// float[3N] log scales.
+    pub log_scales: Buffer,
+    /// float[4N] quaternions (w, x, y, z).
+    pub rotations: Buffer,
+    /// float[N] opacity logits.
+    pub opacity_logits: Buffer,
+    /// float[3·K·N] SH coefficients, coefficient-major, RGB innermost.
+    pub sh: Buffer,
+}
+
+impl GpuScene {
+    /// Uploads the parameters the splatting stages need.
+    pub fn upload(device: &Device, scene: &Scene) -> Result<Self> {
+        Ok(Self {
+            count: scene.len(),
+            sh_degree: scene.sh_degree,
+            means: device.upload("scene means", &scene.means)?,
+            log_scales: device.upload("scene log scales", &scene.log_scales)?,
+            rotations: device.upload("scene rotations", &scene.rotations)?,
+            opacity_logits: device.upload("scene opacity logits", &scene.opacity_logits)?,
+            sh: device.upload("scene SH", &scene.sh)?,
+        })
+    }
+}
+
+/// Push constants of `scene_activate.comp` (keep in sync with its `Push` block).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+pub struct ActivatePush {
+    /// Address of float[3N] log scales.
+    pub log_scales: u64,
+    /// Address of float[4N] quaternions.
+    pub rotations: u64,
+    /// Address of float[N] opacity logits.
+    pub opacity_logits: u64,
+    /// Address of the float[6N] covariance output.
+    pub covariances: u64,
+    /// Address of the float[N] opacity output.
+    pub opacities: u64,
+    /// N.
+    pub count: u32,
+    /// Padding to the GLSL block size.
+    pub pad: u32,
+}
+const _: () = assert!(std::mem::size_of::<ActivatePush>() == 48);
+
+/// Activated parameters on the GPU.
+pub struct Activated {
+    /// float[6N]: Σ as (xx, xy, xz, yy, yz, zz).
+    pub covariances: Buffer,
+    /// float[N] opacities in (0, 1).
+    pub opacities: Buffer,
+    /// GPU time of the kernel.
+    pub timings: Timings,
+}
+
+/// Builds the activation kernel.
+pub fn activate_kernel(device: &Device) -> Result<Kernel> {
+    Kernel::new(
+        device,
+        &kernels::SCENE_ACTIVATE,
+        &KernelDecl { bindings: &[], push_constant_size: std::mem::size_of::<ActivatePush>(), specialization: &[] },
+    )
+}
+
+/// Activates `scene` on the GPU. Outputs are pre-filled with NaN so an
+/// element the kernel missed cannot pass for a value.
+pub fn activate(device: &Device, kernel: &Kernel, scene: &GpuScene) -> Result<Activated> {
+    const NAN: u32 = 0x7fc0_0000;
+    let covariances = device.create_filled::<[f32; 6]>("activated covariances", scene.count, NAN)?;
+    let opacities = device.create_filled::<f32>("activated opacities", scene.count, NAN)?;
+    let push = ActivatePush {
+        log_scales: scene.log_scales.device_address(),
+        rotations: scene.rotations.device_address(),
+        opacity_logits: scene.opacity_logits.device_address(),
+        covariances: covariances.device_address(),
+        opacities: opacities.device_address(),
+        count: scene.count as u32,
+        pad: 0,
+    };
+    let timings = device.run(|rec| {
+        rec.begin_stage("activate");
+        rec.dispatch_1d(kernel, &[], &push, scene.count as u64)
+    })?;
+    Ok(Activated { covariances, opacities, timings })
+}
+
+/// f64 CPU twin of `scene_activate.comp`: per Gaussian, (Σ as xx, xy, xz, yy, yz, zz; opacity).
+pub fn activate_cpu(scene: &Scene) -> Vec<([f64; 6], f64)> {
+    (0..scene.len())
+        .map(|i| {
+            let s = scene.log_scales[i].map(|v| f64::from(v).exp());
+            let q = scene.rotations[i].map(f64::from);
+            let norm = q.iter().map(|c| c * c).sum::<f64>().sqrt();
+            let [w, x, y, z] = q.map(|c| c / norm);
+            let r = [
+                [1.0 - 2.0 * (y * y + z * z), 2.0 * (x * y - w * z), 2.0 * (x * z + w * y)],
+                [2.0 * (x * y + w * z), 1.0 - 2.0 * (x * x + z * z), 2.0 * (y * z - w * x)],
+                [2.0 * (x * z - w * y), 2.0 * (y * z + w * x), 1.0 - 2.0 * (x * x + y * y)],
+            ];
+            let cov = |a: usize, b: usize| (0..3).map(|k| r[a][k] * s[k] * s[k] * r[b][k]).sum::<f64>();
+            let logit = f64::from(scene.opacity_logits[i]);
+            ([cov(0, 0), cov(0, 1), cov(0, 2), cov(1, 1), cov(1, 2), cov(2, 2)], 1.0 / (1.0 + (-logit).exp()))
+        })
+        .collect()
+}
