@@ -1,9 +1,9 @@
 #version 460
 // y = a·x + b (MODE 0) or y = a·x² + b (MODE 1) over bound buffers.
 // A core test kernel: push constants, a specialization constant, two bindings.
+#define WORKGROUP_SIZE_X 64
 #include "common.glsl"
 
-layout(local_size_x = 64) in;
 layout(constant_id = 0) const uint MODE = 0;
 
 layout(std430, set = 0, binding = 0) readonly buffer Input { float x[]; } src;

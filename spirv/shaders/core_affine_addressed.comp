@@ -1,10 +1,10 @@
 #version 460
 // y = a·x + b over buffers reached by device address, so either may exceed
 // maxStorageBufferRange. A core test kernel for large buffers.
+#define WORKGROUP_SIZE_X 64
 #include "common.glsl"
 #include "address.glsl"
 
-layout(local_size_x = 64) in;
 
 // Keep in sync with engine/src/gpu/selftest.rs `AffineAddressedPush`.
 layout(push_constant) uniform Push {

@@ -3,10 +3,10 @@
 // scale = exp(log_scale), q = normalize(rot), and the world covariance
 // Sigma = R S S^T R^T as (xx, xy, xz, yy, yz, zz).
 // CPU twin: engine/src/scene/activate.rs `activate_cpu`.
+#define WORKGROUP_SIZE_X 64
 #include "common.glsl"
 #include "address.glsl"
 
-layout(local_size_x = 64) in;
 
 // Keep in sync with engine/src/scene/activate.rs `ActivatePush`.
 layout(push_constant) uniform Push {

@@ -1,9 +1,25 @@
-//! The Vulkan core on the test device: kernels, constants, large buffers,
-//! timestamps, memory accounting, deferred destruction — all with validation on.
+//! The Vulkan core on the test device: kernels with push and specialization
+//! constants, binding checks, buffers above maxStorageBufferRange, timestamps,
+//! memory accounting and deferred destruction — all with validation on.
 
-use srug::gpu::selftest::{self, AffineAddressedPush, AffinePush};
-use srug::gpu::{self, kernels, BindingKind, Kernel, KernelDecl, MemoryKind, SpecValue};
+use srug::gpu::selftest::{self, affine_cpu, affine_kernel, AffineAddressedPush, AffinePush, AFFINE_BINDINGS};
+use srug::gpu::{self, kernels, BindingKind, Device, DeviceOptions, DeviceSelection, Kernel, KernelDecl, MemoryKind, SpecValue};
+use srug::Error;
 use srug_tests::{assert_no_validation_messages, device};
+
+const NAN: u32 = 0x7fc0_0000;
+
+/// Largest relative error of `got` against the f64 twin; NaN (the sentinel) counts as infinite.
+fn max_rel_error(got: &[f32], want: &[f64]) -> f64 {
+    assert_eq!(got.len(), want.len());
+    got.iter()
+        .zip(want)
+        .map(|(g, w)| {
+            let e = (f64::from(*g) - w).abs() / w.abs().max(1.0);
+            if e.is_nan() { f64::INFINITY } else { e }
+        })
+        .fold(0.0, f64::max)
+}
 
 #[test]
 fn selftest_matches_cpu_twin() {
@@ -11,4 +27,232 @@ fn selftest_matches_cpu_twin() {
     let report = selftest::run(&d, 10_000).unwrap();
     assert!(report.passed(), "max relative error {}", report.max_rel_error);
     assert_no_validation_messages(&d);
+}
+
+#[test]
+fn validation_messages_are_caught() {
+    // Proves the check used by every test can fail.
+    let d = device();
+    d.provoke_validation_message().unwrap();
+    let messages = d.take_validation_messages();
+    assert!(!messages.is_empty(), "an invalid call produced no validation message");
+    assert!(d.take_validation_messages().is_empty(), "messages are taken once");
+}
+
+#[test]
+fn kernel_push_and_specialization_constants() {
+    let d = device();
+    // Not multiples of the workgroup size (64), and enough workgroups for a
+    // three-row grid (a mis-indexed second row once passed a two-row test).
+    let limits = d.info().max_workgroup_count;
+    for n in [0usize, 1, 63, 65, 100_003, 2 * limits[0] as usize * 64 + 129] {
+        let x: Vec<f32> = (0..n).map(|i| ((i * 7919) % 2001) as f32 * 0.01 - 10.0).collect();
+        let input = d.upload("x", &x).unwrap();
+        for mode in [0u32, 1] {
+            let kernel = affine_kernel(&d, mode).unwrap();
+            let output = d.create_filled::<f32>("y", n, NAN).unwrap();
+            let push = AffinePush { a: -2.5, b: 0.75, count: n as u32, pad: 0 };
+            d.run(|rec| rec.dispatch_1d(&kernel, &[&input, &output], &push, n as u64)).unwrap();
+            let y: Vec<f32> = d.read_buffer(&output).unwrap();
+            let err = max_rel_error(&y, &affine_cpu(&x, push.a, push.b, mode));
+            // fp32: one rounding per operation, at most 3 operations.
+            assert!(err <= 4.0 * f64::from(f32::EPSILON), "n={n} mode={mode}: max relative error {err}");
+        }
+    }
+    assert_no_validation_messages(&d);
+}
+
+#[test]
+fn declarations_are_checked_against_spirv() {
+    let d = device();
+    let push = std::mem::size_of::<AffinePush>();
+    let bad_bindings = [BindingKind::StorageBuffer { read_only: false }, BindingKind::StorageBuffer { read_only: false }];
+    let cases: Vec<(&str, KernelDecl<'_>)> = vec![
+        ("read-only mismatch", KernelDecl { bindings: &bad_bindings, push_constant_size: push, specialization: &[] }),
+        ("too few bindings", KernelDecl { bindings: &AFFINE_BINDINGS[..1], push_constant_size: push, specialization: &[] }),
+        ("push size", KernelDecl { bindings: &AFFINE_BINDINGS, push_constant_size: push + 4, specialization: &[] }),
+        ("unknown constant_id", KernelDecl { bindings: &AFFINE_BINDINGS, push_constant_size: push, specialization: &[(9, SpecValue::U32(1))] }),
+    ];
+    for (what, decl) in cases {
+        match Kernel::new(&d, &kernels::CORE_AFFINE, &decl) {
+            Err(Error::Kernel { kernel, message }) => {
+                assert_eq!(kernel, "core_affine");
+                assert!(!message.is_empty(), "{what}");
+            }
+            other => panic!("{what}: expected a kernel error, got {other:?}"),
+        }
+    }
+    // Dispatch-time checks: wrong buffer count and wrong push-constant type.
+    let kernel = affine_kernel(&d, 0).unwrap();
+    let a = d.upload("a", &[1.0f32; 4]).unwrap();
+    let mut rec = d.begin().unwrap();
+    assert!(matches!(rec.dispatch(&kernel, &[&a], &AffinePush { a: 1.0, b: 0.0, count: 4, pad: 0 }, [1, 1, 1]), Err(Error::Kernel { .. })));
+    assert!(matches!(rec.dispatch(&kernel, &[&a, &a], &[0u32; 2], [1, 1, 1]), Err(Error::Kernel { .. })));
+    drop(rec);
+    // The table itself: every kernel reflects a workgroup size and set-0 bindings.
+    for k in kernels::ALL {
+        assert!(k.workgroup_size.iter().all(|s| *s >= 1), "{}", k.name);
+        assert!(k.bindings.iter().all(|b| b.set == 0), "{}", k.name);
+        assert!(!k.words.is_empty() && k.words[0] == 0x0723_0203, "{}: not SPIR-V", k.name);
+    }
+    assert_eq!(kernels::CORE_AFFINE.spec_constants[0].name, "MODE");
+    assert_eq!(kernels::CORE_AFFINE.push_constant_size, 16);
+    assert_no_validation_messages(&d);
+}
+
+#[test]
+fn buffers_above_max_storage_buffer_range() {
+    let d = device();
+    let range = d.info().max_storage_buffer_range;
+    // 32 MiB past the binding limit (160 MiB on lavapipe), and not a multiple of the staging chunk.
+    let n = ((range + (32 << 20)) / 4) as usize + 12_345;
+    let x: Vec<f32> = (0..n).map(|i| (i % 65_521) as f32 - 30_000.5).collect();
+
+    // Bit-exact round trip through staging.
+    let big = d.upload("big x", &x).unwrap();
+    assert!(big.size() > range);
+    let back: Vec<f32> = d.read_buffer(&big).unwrap();
+    assert!(back.iter().zip(&x).all(|(a, b)| a.to_bits() == b.to_bits()), "round trip above {range} bytes is not bit-exact");
+    drop(back);
+
+    // Binding it through a descriptor is refused with a clear error...
+    let kernel = affine_kernel(&d, 0).unwrap();
+    let out = d.create_buffer("big y", big.size(), MemoryKind::Storage).unwrap();
+    let mut rec = d.begin().unwrap();
+    match rec.dispatch_1d(&kernel, &[&big, &out], &AffinePush { a: 1.0, b: 0.0, count: n as u32, pad: 0 }, n as u64) {
+        Err(Error::Kernel { message, .. }) => assert!(message.contains("maxStorageBufferRange"), "{message}"),
+        other => panic!("expected a range error, got {other:?}"),
+    }
+    drop(rec);
+
+    // ...and reaching it by device address works.
+    let addressed = Kernel::new(
+        &d,
+        &kernels::CORE_AFFINE_ADDRESSED,
+        &KernelDecl { bindings: &[], push_constant_size: std::mem::size_of::<AffineAddressedPush>(), specialization: &[] },
+    )
+    .unwrap();
+    d.run(|rec| rec.fill(&out, NAN)).unwrap();
+    let push = AffineAddressedPush { x: big.device_address(), y: out.device_address(), a: 0.5, b: 3.0, count: n as u32, pad: 0 };
+    d.run(|rec| rec.dispatch_1d(&addressed, &[], &push, n as u64)).unwrap();
+    let y: Vec<f32> = d.read_buffer(&out).unwrap();
+    let err = max_rel_error(&y, &affine_cpu(&x, 0.5, 3.0, 0));
+    assert!(err <= 2.0 * f64::from(f32::EPSILON), "max relative error {err}");
+    assert_no_validation_messages(&d);
+}
+
+#[test]
+fn timestamps_time_each_stage() {
+    let d = device();
+    if d.info().timestamp_valid_bits == 0 {
+        eprintln!("skipped: the device has no timestamps on its compute queue");
+        return;
+    }
+    let n = 1 << 20;
+    let x = vec![1.0f32; n];
+    let input = d.upload("x", &x).unwrap();
+    let output = d.create_filled::<f32>("y", n, NAN).unwrap();
+    let k0 = affine_kernel(&d, 0).unwrap();
+    let k1 = affine_kernel(&d, 1).unwrap();
+    let push = AffinePush { a: 1.0, b: 1.0, count: n as u32, pad: 0 };
+    let timings = d
+        .run(|rec| {
+            rec.begin_stage("first");
+            rec.dispatch_1d(&k0, &[&input, &output], &push, n as u64)?;
+            rec.begin_stage("second");
+            for _ in 0..4 {
+                rec.dispatch_1d(&k1, &[&input, &output], &push, n as u64)?;
+            }
+            rec.end_stage();
+            rec.fill(&output, 0)
+        })
+        .unwrap();
+    let names: Vec<&str> = timings.stages.iter().map(|s| s.name.as_str()).collect();
+    assert_eq!(names, ["first", "second"]);
+    for s in &timings.stages {
+        assert!(s.seconds > 0.0 && s.seconds < 60.0, "{}: {} s", s.name, s.seconds);
+    }
+    // Four dispatches take longer than one (a weak ordering check, not a timing test).
+    assert!(timings.get("second").unwrap() > timings.get("first").unwrap() * 1.5, "{timings:?}");
+    assert_no_validation_messages(&d);
+}
+
+#[test]
+fn memory_accounting_and_deferred_destruction() {
+    let d = device();
+    d.wait_idle().unwrap();
+    let before = d.memory_usage();
+    d.reset_peak_memory();
+    let n = 1 << 22;
+    let x = vec![2.0f32; n];
+    let input = d.upload("x", &x).unwrap();
+    let output = d.create_filled::<f32>("y", n, NAN).unwrap();
+    let during = d.memory_usage();
+    assert!(during.current_bytes >= before.current_bytes + 2 * 4 * n as u64, "{before:?} -> {during:?}");
+    assert!(during.peak_bytes >= during.current_bytes);
+
+    // Submit, drop both buffers while the GPU may still run, then wait: the
+    // buffers must outlive the work (validation would report a use after free).
+    let kernel = affine_kernel(&d, 1).unwrap();
+    let mut rec = d.begin().unwrap();
+    rec.dispatch_1d(&kernel, &[&input, &output], &AffinePush { a: 1.0, b: 0.0, count: n as u32, pad: 0 }, n as u64).unwrap();
+    let submission = d.submit(rec).unwrap();
+    drop(input);
+    drop(output);
+    drop(kernel);
+    submission.wait().unwrap();
+    d.wait_idle().unwrap();
+    let after = d.memory_usage();
+    assert_eq!(after.current_bytes, before.current_bytes, "memory not returned");
+    assert!(after.peak_bytes >= during.current_bytes);
+
+    // A submission dropped without waiting is cleaned up too.
+    let tmp = d.create_filled::<f32>("tmp", 1024, 0).unwrap();
+    let mut rec = d.begin().unwrap();
+    rec.fill(&tmp, 1).unwrap();
+    drop(d.submit(rec).unwrap());
+    drop(tmp);
+    d.wait_idle().unwrap();
+    assert_eq!(d.memory_usage().current_bytes, before.current_bytes);
+    assert_no_validation_messages(&d);
+}
+
+#[test]
+fn device_selection() {
+    assert_eq!(DeviceSelection::parse("2"), DeviceSelection::Index(2));
+    assert_eq!(DeviceSelection::parse("GPU"), DeviceSelection::Gpu);
+    assert_eq!(DeviceSelection::parse(" cpu "), DeviceSelection::Cpu);
+    assert_eq!(DeviceSelection::parse(""), DeviceSelection::Auto);
+    assert_eq!(DeviceSelection::parse("llvmpipe"), DeviceSelection::Name("llvmpipe".into()));
+
+    let adapters = Device::list().unwrap();
+    assert!(!adapters.is_empty());
+    // Picking the first listed device by name and by index gives that device.
+    let first = &adapters[0];
+    for sel in [DeviceSelection::Index(0), DeviceSelection::Name(first.name.to_uppercase())] {
+        let d = Device::new(&DeviceOptions { selection: Some(sel), validation: Some(true) }).unwrap();
+        assert_eq!(d.info().name, first.name);
+        assert!(d.info().subgroup_size >= 1);
+        assert_no_validation_messages(&d);
+    }
+    for sel in [DeviceSelection::Index(adapters.len()), DeviceSelection::Name("no such device, surely".into())] {
+        match Device::new(&DeviceOptions { selection: Some(sel.clone()), validation: Some(false) }) {
+            Err(Error::NoDevice(m)) => assert!(m.contains(&first.name), "the error lists the devices: {m}"),
+            other => panic!("{sel:?}: expected NoDevice, got {other:?}"),
+        }
+    }
+}
+
+#[test]
+fn grid_1d_covers_every_invocation() {
+    let limits = [65_535, 65_535, 65_535];
+    assert_eq!(gpu::grid_1d(0, 64, limits), Some([0, 1, 1]));
+    assert_eq!(gpu::grid_1d(1, 64, limits), Some([1, 1, 1]));
+    assert_eq!(gpu::grid_1d(64 * 65_535 + 1, 64, limits), Some([65_535, 2, 1]));
+    for count in [1u64, 63, 64, 65, 10_000_000, 1 << 32] {
+        let [x, y, _] = gpu::grid_1d(count, 64, limits).unwrap();
+        let covered = u64::from(x) * u64::from(y) * 64;
+        assert!(covered >= count && covered - count < u64::from(x) * 64, "{count}: {x}x{y}");
+    }
+    assert_eq!(gpu::grid_1d(u64::MAX / 2, 64, limits), None);
 }

@@ -553,6 +553,19 @@ impl Device {
         self.shared.peak_bytes.store(now, Ordering::Relaxed);
     }
 
+    /// Makes one deliberately invalid (but harmless) Vulkan call: a buffer with
+    /// no usage flags. Tests use it to prove validation messages are caught.
+    #[doc(hidden)]
+    pub fn provoke_validation_message(&self) -> Result<()> {
+        let info = vk::BufferCreateInfo::default().size(16).usage(vk::BufferUsageFlags::empty());
+        // SAFETY: invalid usage on purpose; the driver accepts it and the buffer is destroyed at once.
+        unsafe {
+            let buffer = self.shared.device.create_buffer(&info, None).map_err(vk_error("vkCreateBuffer"))?;
+            self.shared.device.destroy_buffer(buffer, None);
+        }
+        Ok(())
+    }
+
     /// Waits for all submitted work and frees every resource waiting on it.
     pub fn wait_idle(&self) -> Result<()> {
         let last = lock(&self.shared.tracker).submitted;
