@@ -29,12 +29,35 @@ pub struct GpuScene {
     pub opacity_logits: Buffer,
     /// float[3·K·N] SH coefficients, coefficient-major, RGB innermost.
     pub sh: Buffer,
+    /// float[3N] stored normals, when the scene has them.
+    pub normals: Option<Buffer>,
+    /// float[3N] albedo logits, when present.
+    pub albedo: Option<Buffer>,
+    /// float[N] roughness logits, when present.
+    pub roughness: Option<Buffer>,
+    /// float[N] metallic logits, when present.
+    pub metallic: Option<Buffer>,
+    /// float[N] ambient-occlusion logits, when present.
+    pub ao: Option<Buffer>,
+    /// float[N] fixed-visibility logits, when present.
+    pub visibility: Option<Buffer>,
 }
 
 impl GpuScene {
-    /// Uploads the parameters the splatting stages need.
+    /// Uploads the scene's parameters; optional groups only when present
+    /// (their size is what [`Scene::gpu_bytes`] counts).
     pub fn upload(device: &Device, scene: &Scene) -> Result<Self> {
+        fn optional<T: bytemuck::Pod>(device: &Device, name: &str, data: &Option<Vec<T>>) -> Result<Option<Buffer>> {
+            data.as_ref().map(|v| device.upload(name, v)).transpose()
+        }
+        let m = &scene.materials;
         Ok(Self {
+            normals: optional(device, "scene normals", &scene.normals)?,
+            albedo: optional(device, "scene albedo", &m.albedo)?,
+            roughness: optional(device, "scene roughness", &m.roughness)?,
+            metallic: optional(device, "scene metallic", &m.metallic)?,
+            ao: optional(device, "scene ao", &m.ao)?,
+            visibility: optional(device, "scene visibility", &m.visibility)?,
             count: scene.len(),
             sh_degree: scene.sh_degree,
             means: device.upload("scene means", &scene.means)?,

@@ -208,7 +208,7 @@ pub fn demo_city(options: &DemoOptions) -> Result<DemoCity> {
     }
 
     // The tall tower behind the cameras, across the street's end.
-    let tower = Aabb { min: Vec3::new(-100.0, -10.0, 0.0), max: Vec3::new(-85.0, 10.0, 80.0) };
+    let tower = Aabb { min: Vec3::new(-100.0, -12.0, 0.0), max: Vec3::new(-85.0, 12.0, 80.0) };
     add_box(&mut surfaces, tower, Material::Tower, Material::Roof);
     occluders.push(tower);
 
@@ -239,7 +239,7 @@ pub fn demo_city(options: &DemoOptions) -> Result<DemoCity> {
 
     // Sun: from the west (behind the cameras), 25° up, slightly from the south.
     let elevation = 25.0f32.to_radians();
-    let sun_direction = Vec3::new(-elevation.cos(), -0.15 * elevation.cos(), elevation.sin()).normalize();
+    let sun_direction = Vec3::new(-elevation.cos(), -0.05 * elevation.cos(), elevation.sin()).normalize();
 
     // Gaussians per surface, proportional to area (largest remainder).
     let total_area: f32 = surfaces.iter().map(Surface::area).sum();

@@ -1,0 +1,105 @@
+//! The scene on the GPU: activation against its f64 CPU twin on random
+//! scenes with extreme values, the real trained scene, and a demo city of
+//! three million SH-3 Gaussians (whose SH buffer exceeds maxStorageBufferRange).
+
+use rand::{Rng, SeedableRng};
+use rand_pcg::Pcg64Mcg;
+use srug::gpu::Device;
+use srug::scene::activate::{activate, activate_cpu, activate_kernel, GpuScene};
+use srug::scene::demo::{demo_city, DemoOptions};
+use srug::scene::{read_ply, sh_coefficients, Scene};
+use srug_tests::{assert_no_validation_messages, device, failure_dir};
+
+/// Covariance error relative to the Gaussian's largest covariance entry, and
+/// absolute opacity error. fp32 (a few roundings of ~6e-8) gives ~1e-6.
+const COV_TOLERANCE: f64 = 1e-5;
+const OPACITY_TOLERANCE: f64 = 1e-6;
+
+fn check_activation(d: &Device, scene: &Scene, label: &str, stride: usize) {
+    let gpu_scene = GpuScene::upload(d, scene).unwrap();
+    let kernel = activate_kernel(d).unwrap();
+    let out = activate(d, &kernel, &gpu_scene).unwrap();
+    let cov: Vec<[f32; 6]> = d.read_buffer(&out.covariances).unwrap();
+    let opacity: Vec<f32> = d.read_buffer(&out.opacities).unwrap();
+    assert_eq!(cov.len(), scene.len());
+    let twin = activate_cpu(scene);
+    let mut worst = (0.0f64, 0usize);
+    let mut worst_opacity = 0.0f64;
+    for i in (0..scene.len()).step_by(stride) {
+        let (c, o) = twin[i];
+        let scale = c.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        for a in 0..6 {
+            let e = (f64::from(cov[i][a]) - c[a]).abs() / scale;
+            let e = if e.is_nan() { f64::INFINITY } else { e };
+            if e > worst.0 {
+                worst = (e, i);
+            }
+        }
+        let e = (f64::from(opacity[i]) - o).abs();
+        worst_opacity = worst_opacity.max(if e.is_nan() { f64::INFINITY } else { e });
+    }
+    if worst.0 > COV_TOLERANCE || worst_opacity > OPACITY_TOLERANCE {
+        let i = worst.1;
+        let dump = failure_dir().join(format!("activation_{label}.txt"));
+        let _ = std::fs::write(&dump, format!("gaussian {i}\ngpu {:?}\ncpu {:?}\nlog_scale {:?} rot {:?}\n", cov[i], twin[i], scene.log_scales[i], scene.rotations[i]));
+        panic!("{label}: covariance error {:.2e} at {i}, opacity error {worst_opacity:.2e} (dump: {})", worst.0, dump.display());
+    }
+}
+
+fn random_scene(n: usize, sh_degree: u32, seed: u64) -> Scene {
+    let mut rng = Pcg64Mcg::seed_from_u64(seed);
+    let k = sh_coefficients(sh_degree);
+    let mut s = Scene { sh_degree, ..Scene::default() };
+    for i in 0..n {
+        s.means.push([rng.random_range(-100.0..100.0), rng.random_range(-100.0..100.0), rng.random_range(-100.0..100.0)]);
+        // Scales from 1e-8 to 1e4 (log −18.4 … 9.2) and anisotropy up to 1e12.
+        s.log_scales.push([rng.random_range(-18.4..9.2), rng.random_range(-18.4..9.2), rng.random_range(-18.4..9.2)]);
+        let mut q = [rng.random_range(-1.0..1.0f32), rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0)];
+        match i % 5 {
+            0 => q = q.map(|c| c * 1e-20), // tiny but non-zero
+            1 => q = q.map(|c| c * 1e15),
+            2 => q = [0.0, 0.0, 0.0, -1e-30],
+            _ => {}
+        }
+        s.rotations.push(q);
+        // Opacity logits to ±100: σ must not overflow.
+        s.opacity_logits.push(rng.random_range(-100.0..100.0));
+        s.sh.extend((0..k * 3).map(|_| rng.random_range(-1.0..1.0f32)));
+    }
+    s.validate("random").unwrap();
+    s
+}
+
+#[test]
+fn activation_matches_cpu_twin_on_random_extremes() {
+    let d = device();
+    for (n, degree) in [(1usize, 0u32), (63, 1), (10_007, 3)] {
+        check_activation(&d, &random_scene(n, degree, n as u64), &format!("random_{n}"), 1);
+    }
+    assert_no_validation_messages(&d);
+}
+
+#[test]
+fn activation_on_the_real_trained_scene() {
+    let Some(data) = srug_tests::shared_data() else {
+        eprintln!("skipped: ../shared/data is absent");
+        return;
+    };
+    let d = device();
+    let scene = read_ply(data.join("scenes").join("trained_iter7000.ply")).unwrap();
+    check_activation(&d, &scene, "trained", 1);
+    assert_no_validation_messages(&d);
+}
+
+#[test]
+fn three_million_gaussians_fit_on_the_gpu() {
+    let d = device();
+    let city = demo_city(&DemoOptions { seed: 5, gaussians: 3_000_000, sh_degree: 3 }).unwrap();
+    let sh_bytes = (city.scene.sh.len() * 4) as u64;
+    assert!(sh_bytes > d.info().max_storage_buffer_range, "the test must exceed the binding limit");
+    d.reset_peak_memory();
+    check_activation(&d, &city.scene, "demo_3m", 7);
+    let peak = d.memory_usage().peak_bytes;
+    assert!(peak >= city.scene.gpu_bytes(), "peak {peak} below the scene's own size {}", city.scene.gpu_bytes());
+    assert_no_validation_messages(&d);
+}
