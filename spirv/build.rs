@@ -60,7 +60,11 @@ fn main() {
         all.push(ident);
     }
     let _ = writeln!(table, "    /// All kernels, in file-name order.");
-    let _ = writeln!(table, "    pub const ALL: &[&KernelInfo] = &[{}];", all.iter().map(|i| format!("&{i}")).collect::<Vec<_>>().join(", "));
+    let _ = writeln!(
+        table,
+        "    pub const ALL: &[&KernelInfo] = &[{}];",
+        all.iter().map(|i| format!("&{i}")).collect::<Vec<_>>().join(", ")
+    );
     table.push_str("}\n");
     std::fs::write(out_dir.join("kernels.rs"), table).unwrap_or_else(|e| fail(&format!("cannot write table: {e}")));
 }
@@ -86,8 +90,8 @@ fn walk(dir: &Path) -> Vec<PathBuf> {
 }
 
 fn reflect_words(words: &[u32], path: &Path) -> Reflected {
-    let module =
-        rspirv::dr::load_words(words).unwrap_or_else(|e| fail(&format!("{}: cannot parse SPIR-V: {e}", path.display())));
+    let module = rspirv::dr::load_words(words)
+        .unwrap_or_else(|e| fail(&format!("{}: cannot parse SPIR-V: {e}", path.display())));
     reflect(&module).unwrap_or_else(|e| fail(&format!("{}: {e}", path.display())))
 }
 
@@ -97,7 +101,8 @@ fn compile(
     shader_dir: &Path,
     level: shaderc::OptimizationLevel,
 ) -> Vec<u32> {
-    let source = std::fs::read_to_string(path).unwrap_or_else(|e| fail(&format!("cannot read {}: {e}", path.display())));
+    let source =
+        std::fs::read_to_string(path).unwrap_or_else(|e| fail(&format!("cannot read {}: {e}", path.display())));
     let mut options = shaderc::CompileOptions::new().unwrap_or_else(|e| fail(&format!("shaderc options: {e}")));
     options.set_target_env(shaderc::TargetEnv::Vulkan, shaderc::EnvVersion::Vulkan1_2 as u32);
     options.set_target_spirv(shaderc::SpirvVersion::V1_5);
@@ -171,7 +176,9 @@ fn collect_decorations(module: &Module) -> Decorations {
     for inst in &module.annotations {
         match inst.class.opcode {
             Op::Decorate => {
-                if let (Some(target), Some(Operand::Decoration(dec))) = (inst.operands.first().and_then(id), inst.operands.get(1)) {
+                if let (Some(target), Some(Operand::Decoration(dec))) =
+                    (inst.operands.first().and_then(id), inst.operands.get(1))
+                {
                     let args = inst.operands[2..].iter().filter_map(lit).collect();
                     d.on_id.insert((target, *dec), args);
                 }
@@ -196,10 +203,15 @@ fn reflect(module: &Module) -> Result<Reflected, String> {
         .debug_names
         .iter()
         .filter(|i| i.class.opcode == Op::Name)
-        .filter_map(|i| Some((i.operands.first().and_then(id)?, match i.operands.get(1)? {
-            Operand::LiteralString(s) => s.clone(),
-            _ => return None,
-        })))
+        .filter_map(|i| {
+            Some((
+                i.operands.first().and_then(id)?,
+                match i.operands.get(1)? {
+                    Operand::LiteralString(s) => s.clone(),
+                    _ => return None,
+                },
+            ))
+        })
         .collect();
     let defs: HashMap<u32, &Instruction> =
         module.types_global_values.iter().filter_map(|i| i.result_id.map(|r| (r, i))).collect();
@@ -230,7 +242,11 @@ fn reflect(module: &Module) -> Result<Reflected, String> {
             .ok_or("variable without pointer type")?;
         match class {
             StorageClass::StorageBuffer | StorageClass::Uniform => {
-                let set = decorations.on_id.get(&(var, Decoration::DescriptorSet)).and_then(|v| v.first().copied()).unwrap_or(0);
+                let set = decorations
+                    .on_id
+                    .get(&(var, Decoration::DescriptorSet))
+                    .and_then(|v| v.first().copied())
+                    .unwrap_or(0);
                 let binding = decorations
                     .on_id
                     .get(&(var, Decoration::Binding))
@@ -243,8 +259,13 @@ fn reflect(module: &Module) -> Result<Reflected, String> {
                     let members = defs.get(&struct_id).map(|s| s.operands.len() as u32).unwrap_or(0);
                     let var_ro = decorations.on_id.contains_key(&(var, Decoration::NonWritable));
                     let all_ro = members > 0
-                        && (0..members).all(|m| decorations.on_member.contains_key(&(struct_id, m, Decoration::NonWritable)));
-                    if var_ro || all_ro { "BindingKind::StorageBuffer { read_only: true }" } else { "BindingKind::StorageBuffer { read_only: false }" }
+                        && (0..members)
+                            .all(|m| decorations.on_member.contains_key(&(struct_id, m, Decoration::NonWritable)));
+                    if var_ro || all_ro {
+                        "BindingKind::StorageBuffer { read_only: true }"
+                    } else {
+                        "BindingKind::StorageBuffer { read_only: false }"
+                    }
                 } else {
                     "BindingKind::UniformBuffer"
                 };
@@ -294,12 +315,21 @@ fn type_size(t: u32, defs: &HashMap<u32, &Instruction>, dec: &Decorations) -> Re
         Op::TypeInt | Op::TypeFloat => op.first().and_then(lit).ok_or("bad scalar")? / 8,
         Op::TypeBool => 4,
         Op::TypeVector => {
-            type_size(op.first().and_then(id).ok_or("bad vector")?, defs, dec)? * op.get(1).and_then(lit).ok_or("bad vector")?
+            type_size(op.first().and_then(id).ok_or("bad vector")?, defs, dec)?
+                * op.get(1).and_then(lit).ok_or("bad vector")?
         }
         Op::TypeArray => {
-            let stride = dec.on_id.get(&(t, Decoration::ArrayStride)).and_then(|v| v.first().copied()).ok_or("array without stride")?;
+            let stride = dec
+                .on_id
+                .get(&(t, Decoration::ArrayStride))
+                .and_then(|v| v.first().copied())
+                .ok_or("array without stride")?;
             let len_id = op.get(1).and_then(id).ok_or("bad array")?;
-            let len = defs.get(&len_id).and_then(|c| c.operands.first()).and_then(lit).ok_or("array length is not a constant")?;
+            let len = defs
+                .get(&len_id)
+                .and_then(|c| c.operands.first())
+                .and_then(lit)
+                .ok_or("array length is not a constant")?;
             stride * len
         }
         Op::TypeStruct => {
@@ -336,7 +366,9 @@ fn write_kernel(out: &mut String, ident: &str, stem: &str, words: &[u32], info: 
     let bindings: Vec<String> = info
         .bindings
         .iter()
-        .map(|b| format!("BindingInfo {{ set: {}, binding: {}, kind: {}, name: {:?} }}", b.set, b.binding, b.kind, b.name))
+        .map(|b| {
+            format!("BindingInfo {{ set: {}, binding: {}, kind: {}, name: {:?} }}", b.set, b.binding, b.kind, b.name)
+        })
         .collect();
     let specs: Vec<String> = info
         .specs

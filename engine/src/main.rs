@@ -49,7 +49,9 @@ enum Command {
 }
 
 fn main() -> ExitCode {
-    env_logger::Builder::from_env(env_logger::Env::default().default_filter_or("srug=info")).format_timestamp(None).init();
+    env_logger::Builder::from_env(env_logger::Env::default().default_filter_or("srug=info"))
+        .format_timestamp(None)
+        .init();
     let cli = Cli::parse();
     match run(cli) {
         Ok(()) => ExitCode::SUCCESS,
@@ -62,7 +64,10 @@ fn main() -> ExitCode {
 
 fn spinner(message: &str) -> ProgressBar {
     let bar = ProgressBar::new_spinner();
-    bar.set_style(ProgressStyle::with_template("{spinner} {msg} [{elapsed}]").unwrap_or_else(|_| ProgressStyle::default_spinner()));
+    bar.set_style(
+        ProgressStyle::with_template("{spinner} {msg} [{elapsed}]")
+            .unwrap_or_else(|_| ProgressStyle::default_spinner()),
+    );
     bar.set_message(message.to_string());
     bar.enable_steady_tick(Duration::from_millis(120));
     bar
@@ -112,7 +117,10 @@ fn run(cli: Cli) -> srug::Result<()> {
 
             let device = open_device(&cli.device, cli.validation)?;
             let info = device.info();
-            println!("device: {} ({:?}), driver {}, Vulkan {}, subgroup {}", info.name, info.device_type, info.driver, info.api_version, info.subgroup_size);
+            println!(
+                "device: {} ({:?}), driver {}, Vulkan {}, subgroup {}",
+                info.name, info.device_type, info.driver, info.api_version, info.subgroup_size
+            );
 
             let report = gpu::selftest::run(&device, 1 << 20)?;
             println!(
@@ -120,7 +128,12 @@ fn run(cli: Cli) -> srug::Result<()> {
                 if report.passed() { "passed" } else { "FAILED" },
                 report.elements,
                 report.max_rel_error,
-                report.stage_seconds.iter().map(|(n, s)| format!("{n} {:.3} ms", s * 1e3)).collect::<Vec<_>>().join(", ")
+                report
+                    .stage_seconds
+                    .iter()
+                    .map(|(n, s)| format!("{n} {:.3} ms", s * 1e3))
+                    .collect::<Vec<_>>()
+                    .join(", ")
             );
 
             let bar = spinner("uploading and activating the scene on the GPU");

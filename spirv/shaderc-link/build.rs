@@ -5,8 +5,7 @@
 //! shaderc links through this crate, so the directives reach its own link.
 
 fn main() {
-    let dir = std::env::var("SHADERC_LIB_DIR")
-        .unwrap_or_else(|_| "/usr/lib/x86_64-linux-gnu".to_string());
+    let dir = std::env::var("SHADERC_LIB_DIR").unwrap_or_else(|_| "/usr/lib/x86_64-linux-gnu".to_string());
     println!("cargo:rerun-if-env-changed=SHADERC_LIB_DIR");
     println!("cargo:rustc-link-search=native={dir}");
     // Order matters for static archives: users before what they use.

@@ -2,8 +2,12 @@
 //! constants, binding checks, buffers above maxStorageBufferRange, timestamps,
 //! memory accounting and deferred destruction — all with validation on.
 
+#![allow(clippy::unwrap_used, clippy::expect_used, reason = "a failed unwrap is a failed test")]
+
 use srug::gpu::selftest::{self, affine_cpu, affine_kernel, AffineAddressedPush, AffinePush, AFFINE_BINDINGS};
-use srug::gpu::{self, kernels, BindingKind, Device, DeviceOptions, DeviceSelection, Kernel, KernelDecl, MemoryKind, SpecValue};
+use srug::gpu::{
+    self, kernels, BindingKind, Device, DeviceOptions, DeviceSelection, Kernel, KernelDecl, MemoryKind, SpecValue,
+};
 use srug::Error;
 use srug_tests::{assert_no_validation_messages, device};
 
@@ -16,7 +20,11 @@ fn max_rel_error(got: &[f32], want: &[f64]) -> f64 {
         .zip(want)
         .map(|(g, w)| {
             let e = (f64::from(*g) - w).abs() / w.abs().max(1.0);
-            if e.is_nan() { f64::INFINITY } else { e }
+            if e.is_nan() {
+                f64::INFINITY
+            } else {
+                e
+            }
         })
         .fold(0.0, f64::max)
 }
@@ -66,12 +74,23 @@ fn kernel_push_and_specialization_constants() {
 fn declarations_are_checked_against_spirv() {
     let d = device();
     let push = std::mem::size_of::<AffinePush>();
-    let bad_bindings = [BindingKind::StorageBuffer { read_only: false }, BindingKind::StorageBuffer { read_only: false }];
+    let bad_bindings =
+        [BindingKind::StorageBuffer { read_only: false }, BindingKind::StorageBuffer { read_only: false }];
     let cases: Vec<(&str, KernelDecl<'_>)> = vec![
         ("read-only mismatch", KernelDecl { bindings: &bad_bindings, push_constant_size: push, specialization: &[] }),
-        ("too few bindings", KernelDecl { bindings: &AFFINE_BINDINGS[..1], push_constant_size: push, specialization: &[] }),
+        (
+            "too few bindings",
+            KernelDecl { bindings: &AFFINE_BINDINGS[..1], push_constant_size: push, specialization: &[] },
+        ),
         ("push size", KernelDecl { bindings: &AFFINE_BINDINGS, push_constant_size: push + 4, specialization: &[] }),
-        ("unknown constant_id", KernelDecl { bindings: &AFFINE_BINDINGS, push_constant_size: push, specialization: &[(9, SpecValue::U32(1))] }),
+        (
+            "unknown constant_id",
+            KernelDecl {
+                bindings: &AFFINE_BINDINGS,
+                push_constant_size: push,
+                specialization: &[(9, SpecValue::U32(1))],
+            },
+        ),
     ];
     for (what, decl) in cases {
         match Kernel::new(&d, &kernels::CORE_AFFINE, &decl) {
@@ -86,7 +105,10 @@ fn declarations_are_checked_against_spirv() {
     let kernel = affine_kernel(&d, 0).unwrap();
     let a = d.upload("a", &[1.0f32; 4]).unwrap();
     let mut rec = d.begin().unwrap();
-    assert!(matches!(rec.dispatch(&kernel, &[&a], &AffinePush { a: 1.0, b: 0.0, count: 4, pad: 0 }, [1, 1, 1]), Err(Error::Kernel { .. })));
+    assert!(matches!(
+        rec.dispatch(&kernel, &[&a], &AffinePush { a: 1.0, b: 0.0, count: 4, pad: 0 }, [1, 1, 1]),
+        Err(Error::Kernel { .. })
+    ));
     assert!(matches!(rec.dispatch(&kernel, &[&a, &a], &[0u32; 2], [1, 1, 1]), Err(Error::Kernel { .. })));
     drop(rec);
     // The table itself: every kernel reflects a workgroup size and set-0 bindings.
@@ -112,7 +134,10 @@ fn buffers_above_max_storage_buffer_range() {
     let big = d.upload("big x", &x).unwrap();
     assert!(big.size() > range);
     let back: Vec<f32> = d.read_buffer(&big).unwrap();
-    assert!(back.iter().zip(&x).all(|(a, b)| a.to_bits() == b.to_bits()), "round trip above {range} bytes is not bit-exact");
+    assert!(
+        back.iter().zip(&x).all(|(a, b)| a.to_bits() == b.to_bits()),
+        "round trip above {range} bytes is not bit-exact"
+    );
     drop(back);
 
     // Binding it through a descriptor is refused with a clear error...
@@ -129,11 +154,22 @@ fn buffers_above_max_storage_buffer_range() {
     let addressed = Kernel::new(
         &d,
         &kernels::CORE_AFFINE_ADDRESSED,
-        &KernelDecl { bindings: &[], push_constant_size: std::mem::size_of::<AffineAddressedPush>(), specialization: &[] },
+        &KernelDecl {
+            bindings: &[],
+            push_constant_size: std::mem::size_of::<AffineAddressedPush>(),
+            specialization: &[],
+        },
     )
     .unwrap();
     d.run(|rec| rec.fill(&out, NAN)).unwrap();
-    let push = AffineAddressedPush { x: big.device_address(), y: out.device_address(), a: 0.5, b: 3.0, count: n as u32, pad: 0 };
+    let push = AffineAddressedPush {
+        x: big.device_address(),
+        y: out.device_address(),
+        a: 0.5,
+        b: 3.0,
+        count: n as u32,
+        pad: 0,
+    };
     d.run(|rec| rec.dispatch_1d(&addressed, &[], &push, n as u64)).unwrap();
     let y: Vec<f32> = d.read_buffer(&out).unwrap();
     let err = max_rel_error(&y, &affine_cpu(&x, 0.5, 3.0, 0));
@@ -195,7 +231,8 @@ fn memory_accounting_and_deferred_destruction() {
     // buffers must outlive the work (validation would report a use after free).
     let kernel = affine_kernel(&d, 1).unwrap();
     let mut rec = d.begin().unwrap();
-    rec.dispatch_1d(&kernel, &[&input, &output], &AffinePush { a: 1.0, b: 0.0, count: n as u32, pad: 0 }, n as u64).unwrap();
+    rec.dispatch_1d(&kernel, &[&input, &output], &AffinePush { a: 1.0, b: 0.0, count: n as u32, pad: 0 }, n as u64)
+        .unwrap();
     let submission = d.submit(rec).unwrap();
     drop(input);
     drop(output);

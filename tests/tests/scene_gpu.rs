@@ -2,6 +2,8 @@
 //! scenes with extreme values, the real trained scene, and a demo city of
 //! three million SH-3 Gaussians (whose SH buffer exceeds maxStorageBufferRange).
 
+#![allow(clippy::unwrap_used, clippy::expect_used, reason = "a failed unwrap is a failed test")]
+
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64Mcg;
 use srug::gpu::Device;
@@ -41,8 +43,18 @@ fn check_activation(d: &Device, scene: &Scene, label: &str, stride: usize) {
     if worst.0 > COV_TOLERANCE || worst_opacity > OPACITY_TOLERANCE {
         let i = worst.1;
         let dump = failure_dir().join(format!("activation_{label}.txt"));
-        let _ = std::fs::write(&dump, format!("gaussian {i}\ngpu {:?}\ncpu {:?}\nlog_scale {:?} rot {:?}\n", cov[i], twin[i], scene.log_scales[i], scene.rotations[i]));
-        panic!("{label}: covariance error {:.2e} at {i}, opacity error {worst_opacity:.2e} (dump: {})", worst.0, dump.display());
+        let _ = std::fs::write(
+            &dump,
+            format!(
+                "gaussian {i}\ngpu {:?}\ncpu {:?}\nlog_scale {:?} rot {:?}\n",
+                cov[i], twin[i], scene.log_scales[i], scene.rotations[i]
+            ),
+        );
+        panic!(
+            "{label}: covariance error {:.2e} at {i}, opacity error {worst_opacity:.2e} (dump: {})",
+            worst.0,
+            dump.display()
+        );
     }
 }
 
@@ -51,10 +63,19 @@ fn random_scene(n: usize, sh_degree: u32, seed: u64) -> Scene {
     let k = sh_coefficients(sh_degree);
     let mut s = Scene { sh_degree, ..Scene::default() };
     for i in 0..n {
-        s.means.push([rng.random_range(-100.0..100.0), rng.random_range(-100.0..100.0), rng.random_range(-100.0..100.0)]);
+        s.means.push([
+            rng.random_range(-100.0..100.0),
+            rng.random_range(-100.0..100.0),
+            rng.random_range(-100.0..100.0),
+        ]);
         // Scales from 1e-8 to 1e4 (log −18.4 … 9.2) and anisotropy up to 1e12.
         s.log_scales.push([rng.random_range(-18.4..9.2), rng.random_range(-18.4..9.2), rng.random_range(-18.4..9.2)]);
-        let mut q = [rng.random_range(-1.0..1.0f32), rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0)];
+        let mut q = [
+            rng.random_range(-1.0..1.0f32),
+            rng.random_range(-1.0..1.0),
+            rng.random_range(-1.0..1.0),
+            rng.random_range(-1.0..1.0),
+        ];
         match i % 5 {
             0 => q = q.map(|c| c * 1e-20), // tiny but non-zero
             1 => q = q.map(|c| c * 1e15),

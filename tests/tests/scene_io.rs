@@ -1,6 +1,8 @@
 //! Scene I/O: PLY round trips, property order and spellings, every bad-input
 //! case, cameras.json, the real trained scene, and the demo city.
 
+#![allow(clippy::unwrap_used, clippy::expect_used, reason = "a failed unwrap is a failed test")]
+
 use std::fmt::Write as _;
 
 use glam::Vec3;
@@ -9,7 +11,9 @@ use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64Mcg;
 use srug::scene::camera::parse_cameras_json;
 use srug::scene::demo::{demo_city, DemoOptions};
-use srug::scene::{read_cameras_json, read_ply, read_ply_bytes, write_cameras_json, write_ply, PlyFormat, Scene, SceneError};
+use srug::scene::{
+    read_cameras_json, read_ply, read_ply_bytes, write_cameras_json, write_ply, PlyFormat, Scene, SceneError,
+};
 use srug::Error;
 
 fn small_demo(sh_degree: u32) -> Scene {
@@ -75,7 +79,8 @@ fn ply_with(names: &[String], rows: &[Vec<f32>]) -> Vec<u8> {
 }
 
 fn standard_names(rest: usize) -> Vec<String> {
-    let mut names: Vec<String> = ["x", "y", "z", "nx", "ny", "nz", "f_dc_0", "f_dc_1", "f_dc_2"].map(String::from).to_vec();
+    let mut names: Vec<String> =
+        ["x", "y", "z", "nx", "ny", "nz", "f_dc_0", "f_dc_1", "f_dc_2"].map(String::from).to_vec();
     names.extend((0..rest).map(|i| format!("f_rest_{i}")));
     names.extend(["opacity", "scale_0", "scale_1", "scale_2", "rot_0", "rot_1", "rot_2", "rot_3"].map(String::from));
     names
@@ -89,7 +94,9 @@ fn random_rows(n: usize, props: usize, seed: u64) -> Vec<Vec<f32>> {
 #[test]
 fn properties_found_by_name_in_any_order() {
     let mut names = standard_names(9);
-    names.extend(["albedo_0", "albedo_1", "albedo_2", "roughness", "metallic", "mystery", "semantic_id"].map(String::from));
+    names.extend(
+        ["albedo_0", "albedo_1", "albedo_2", "roughness", "metallic", "mystery", "semantic_id"].map(String::from),
+    );
     let rows = random_rows(50, names.len(), 1);
     let reference = read_ply_bytes(&ply_with(&names, &rows), "ordered").unwrap();
     assert_eq!(reference.sh_degree, 1);
@@ -117,7 +124,9 @@ fn properties_found_by_name_in_any_order() {
 
 #[test]
 fn material_spellings_of_relightable_codes() {
-    for (spelling, extra) in [("albedo_", vec!["roughness", "metallic"]), ("base_color_", vec!["roughness"]), ("albedo", vec![])] {
+    for (spelling, extra) in
+        [("albedo_", vec!["roughness", "metallic"]), ("base_color_", vec!["roughness"]), ("albedo", vec![])]
+    {
         let mut names = standard_names(0);
         names.extend((0..3).map(|i| format!("{spelling}{i}")));
         names.extend(extra.iter().map(|s| s.to_string()));
@@ -173,7 +182,8 @@ fn bad_ply_inputs_give_clear_errors() {
     // Missing required property.
     let without: Vec<String> = names.iter().filter(|n| *n != "opacity").cloned().collect();
     let col = names.iter().position(|n| n == "opacity").unwrap();
-    let rows_without: Vec<Vec<f32>> = rows.iter().map(|r| r.iter().enumerate().filter(|(i, _)| *i != col).map(|(_, v)| *v).collect()).collect();
+    let rows_without: Vec<Vec<f32>> =
+        rows.iter().map(|r| r.iter().enumerate().filter(|(i, _)| *i != col).map(|(_, v)| *v).collect()).collect();
     expect_error(&ply_with(&without, &rows_without), None, Some("opacity"), "missing");
 
     // NaN and Inf values, named by row and property.
@@ -288,10 +298,22 @@ fn cameras_json_round_trip_and_errors() {
     let cases = [
         ("[{\"id\": 0,", "malformed"),
         ("{}", "malformed"),
-        (r#"[{"id": 0, "img_name": "a", "width": 64, "height": 32, "position": [1, 2, 3], "fx": 50, "fy": 50}]"#, "rotation"),
-        (r#"[{"id": 0, "img_name": "a", "width": 0, "height": 32, "position": [1, 2, 3], "rotation": [[1,0,0],[0,1,0],[0,0,1]], "fx": 50, "fy": 50}]"#, "empty"),
-        (r#"[{"id": 0, "img_name": "a", "width": 8, "height": 32, "position": [1, 2, 3], "rotation": [[2,0,0],[0,1,0],[0,0,1]], "fx": 50, "fy": 50}]"#, "not a rotation"),
-        (r#"[{"id": 0, "img_name": "a", "width": 8, "height": 32, "position": [1, 2, 3], "rotation": [[1,0,0],[0,1,0],[0,0,1]], "fx": -5, "fy": 50}]"#, "focal"),
+        (
+            r#"[{"id": 0, "img_name": "a", "width": 64, "height": 32, "position": [1, 2, 3], "fx": 50, "fy": 50}]"#,
+            "rotation",
+        ),
+        (
+            r#"[{"id": 0, "img_name": "a", "width": 0, "height": 32, "position": [1, 2, 3], "rotation": [[1,0,0],[0,1,0],[0,0,1]], "fx": 50, "fy": 50}]"#,
+            "empty",
+        ),
+        (
+            r#"[{"id": 0, "img_name": "a", "width": 8, "height": 32, "position": [1, 2, 3], "rotation": [[2,0,0],[0,1,0],[0,0,1]], "fx": 50, "fy": 50}]"#,
+            "not a rotation",
+        ),
+        (
+            r#"[{"id": 0, "img_name": "a", "width": 8, "height": 32, "position": [1, 2, 3], "rotation": [[1,0,0],[0,1,0],[0,0,1]], "fx": -5, "fy": 50}]"#,
+            "focal",
+        ),
     ];
     for (text, want) in cases {
         match parse_cameras_json(text, "bad.json") {
@@ -347,7 +369,14 @@ fn demo_city_is_deterministic_and_complete() {
         let a = demo_city(&DemoOptions { seed: 11, gaussians: n, sh_degree: 2 }).unwrap();
         assert_eq!(a.scene.len(), n, "exact Gaussian count");
         let attributes = a.scene.attributes();
-        assert!(attributes.normals && attributes.albedo && attributes.roughness && attributes.metallic && attributes.ao && attributes.visibility);
+        assert!(
+            attributes.normals
+                && attributes.albedo
+                && attributes.roughness
+                && attributes.metallic
+                && attributes.ao
+                && attributes.visibility
+        );
         a.scene.validate("demo").unwrap();
         let b = demo_city(&DemoOptions { seed: 11, gaussians: n, sh_degree: 2 }).unwrap();
         assert!(bits_equal(&a.scene, &b.scene), "same seed, different scene");
@@ -361,7 +390,14 @@ fn demo_city_is_deterministic_and_complete() {
     // Windows: some Gaussians are metallic and smooth.
     let m = &a.scene.materials;
     let sigmoid = |x: f32| 1.0 / (1.0 + (-x).exp());
-    let windows = m.metallic.as_ref().unwrap().iter().zip(m.roughness.as_ref().unwrap()).filter(|(mt, r)| sigmoid(**mt) > 0.8 && sigmoid(**r) < 0.15).count();
+    let windows = m
+        .metallic
+        .as_ref()
+        .unwrap()
+        .iter()
+        .zip(m.roughness.as_ref().unwrap())
+        .filter(|(mt, r)| sigmoid(**mt) > 0.8 && sigmoid(**r) < 0.15)
+        .count();
     assert!(windows > 100, "{windows} window Gaussians");
 }
 
@@ -371,7 +407,8 @@ fn demo_tower_is_out_of_view_and_its_shadow_in_view() {
     let tower = city.offscreen_tower;
     assert!(tower.max.z - tower.min.z >= 60.0, "the tower is tall");
     let inside = |p: Vec3| (0..3).all(|a| p[a] >= tower.min[a] - 1e-3 && p[a] <= tower.max[a] + 1e-3);
-    let tower_points: Vec<Vec3> = city.scene.means.iter().map(|m| Vec3::from_array(*m)).filter(|p| inside(*p)).collect();
+    let tower_points: Vec<Vec3> =
+        city.scene.means.iter().map(|m| Vec3::from_array(*m)).filter(|p| inside(*p)).collect();
     assert!(tower_points.len() > 100);
     for (i, cam) in city.cameras.iter().enumerate() {
         assert!(tower_points.iter().all(|p| !cam.sees(*p)), "camera {i} sees the tower");

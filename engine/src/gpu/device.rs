@@ -106,11 +106,7 @@ struct ValidationLog {
 /// Something to destroy once the GPU has finished the submission it may be used in.
 pub(crate) enum Garbage {
     Buffer(vk::Buffer, Allocation),
-    Pipeline {
-        pipeline: vk::Pipeline,
-        layout: vk::PipelineLayout,
-        set_layout: Option<vk::DescriptorSetLayout>,
-    },
+    Pipeline { pipeline: vk::Pipeline, layout: vk::PipelineLayout, set_layout: Option<vk::DescriptorSetLayout> },
     Transient(super::recording::Transient),
 }
 
@@ -302,11 +298,10 @@ unsafe extern "system" fn on_validation_message(
             .map(|d| CStr::from_ptr(d.p_message).to_string_lossy().into_owned())
             .unwrap_or_default()
     };
-    let counts = severity.intersects(
-        vk::DebugUtilsMessageSeverityFlagsEXT::WARNING | vk::DebugUtilsMessageSeverityFlagsEXT::ERROR,
-    ) && types.intersects(
-        vk::DebugUtilsMessageTypeFlagsEXT::VALIDATION | vk::DebugUtilsMessageTypeFlagsEXT::PERFORMANCE,
-    );
+    let counts = severity
+        .intersects(vk::DebugUtilsMessageSeverityFlagsEXT::WARNING | vk::DebugUtilsMessageSeverityFlagsEXT::ERROR)
+        && types
+            .intersects(vk::DebugUtilsMessageTypeFlagsEXT::VALIDATION | vk::DebugUtilsMessageTypeFlagsEXT::PERFORMANCE);
     if counts {
         log::error!("Vulkan validation: {text}");
         // SAFETY: `user` is the ValidationLog boxed in Shared, which outlives the messenger.
@@ -405,9 +400,9 @@ impl Device {
             extensions.push(ash::ext::validation_features::NAME.as_ptr());
         }
         let log_box: Option<Box<ValidationLog>> = validation.then(Box::default);
-        let user_ptr = log_box.as_ref().map_or(std::ptr::null_mut(), |b| {
-            std::ptr::from_ref::<ValidationLog>(b).cast_mut().cast::<c_void>()
-        });
+        let user_ptr = log_box
+            .as_ref()
+            .map_or(std::ptr::null_mut(), |b| std::ptr::from_ref::<ValidationLog>(b).cast_mut().cast::<c_void>());
         let mut messenger_info = vk::DebugUtilsMessengerCreateInfoEXT::default()
             .message_severity(
                 vk::DebugUtilsMessageSeverityFlagsEXT::WARNING
@@ -442,10 +437,7 @@ impl Device {
 
         let debug = if validation {
             let loader = ash::ext::debug_utils::Instance::new(&entry, &instance);
-            let info = vk::DebugUtilsMessengerCreateInfoEXT {
-                p_next: std::ptr::null(),
-                ..messenger_info
-            };
+            let info = vk::DebugUtilsMessengerCreateInfoEXT { p_next: std::ptr::null(), ..messenger_info };
             // SAFETY: valid create info; the user pointer outlives the messenger (both live in Shared).
             let messenger = unsafe { loader.create_debug_utils_messenger(&info, None) }
                 .map_err(vk_error("vkCreateDebugUtilsMessengerEXT"))?;
@@ -593,15 +585,24 @@ fn pick_physical(instance: &ash::Instance, selection: &DeviceSelection) -> Resul
         .collect();
     let usable = |i: usize| props[i].api_version >= vk::API_VERSION_1_2;
     let listing = || {
-        props.iter().enumerate().map(|(i, p)| format!("#{i} {} ({:?})", name_of(p), p.device_type)).collect::<Vec<_>>().join(", ")
+        props
+            .iter()
+            .enumerate()
+            .map(|(i, p)| format!("#{i} {} ({:?})", name_of(p), p.device_type))
+            .collect::<Vec<_>>()
+            .join(", ")
     };
     if devices.is_empty() {
         return Err(Error::NoDevice("no Vulkan device found (install mesa-vulkan-drivers for lavapipe)".into()));
     }
     let chosen = match selection {
-        DeviceSelection::Auto => (0..devices.len()).filter(|&i| usable(i)).min_by_key(|&i| (type_rank(props[i].device_type), i)),
+        DeviceSelection::Auto => {
+            (0..devices.len()).filter(|&i| usable(i)).min_by_key(|&i| (type_rank(props[i].device_type), i))
+        }
         DeviceSelection::Gpu => (0..devices.len()).find(|&i| usable(i) && type_rank(props[i].device_type) <= 1),
-        DeviceSelection::Cpu => (0..devices.len()).find(|&i| usable(i) && props[i].device_type == vk::PhysicalDeviceType::CPU),
+        DeviceSelection::Cpu => {
+            (0..devices.len()).find(|&i| usable(i) && props[i].device_type == vk::PhysicalDeviceType::CPU)
+        }
         DeviceSelection::Index(n) => (*n < devices.len()).then_some(*n),
         DeviceSelection::Name(s) => {
             let s = s.to_lowercase();
@@ -675,11 +676,11 @@ fn make_device(
     };
 
     let priorities = [1.0f32];
-    let queue_info = [vk::DeviceQueueCreateInfo::default().queue_family_index(family as u32).queue_priorities(&priorities)];
+    let queue_info =
+        [vk::DeviceQueueCreateInfo::default().queue_family_index(family as u32).queue_priorities(&priorities)];
     let mut en11 = vk::PhysicalDeviceVulkan11Features::default().storage_buffer16_bit_access(has_s16 == vk::TRUE);
-    let mut en12 = vk::PhysicalDeviceVulkan12Features::default()
-        .buffer_device_address(true)
-        .shader_float16(has_f16 == vk::TRUE);
+    let mut en12 =
+        vk::PhysicalDeviceVulkan12Features::default().buffer_device_address(true).shader_float16(has_f16 == vk::TRUE);
     let en_base = vk::PhysicalDeviceFeatures::default()
         .shader_int64(base.shader_int64 == vk::TRUE)
         .shader_int16(base.shader_int16 == vk::TRUE);

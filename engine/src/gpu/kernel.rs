@@ -75,10 +75,16 @@ pub fn check_decl(info: &KernelInfo, decl: &KernelDecl<'_>) -> Result<(), String
     }
     for (i, (declared, actual)) in decl.bindings.iter().zip(info.bindings).enumerate() {
         if actual.binding != i as u32 {
-            return Err(format!("bindings must be 0..n without gaps; found binding {} at position {i}", actual.binding));
+            return Err(format!(
+                "bindings must be 0..n without gaps; found binding {} at position {i}",
+                actual.binding
+            ));
         }
         if declared != &actual.kind {
-            return Err(format!("binding {i} ({}) is {:?} in the SPIR-V but {declared:?} in Rust", actual.name, actual.kind));
+            return Err(format!(
+                "binding {i} ({}) is {:?} in the SPIR-V but {declared:?} in Rust",
+                actual.name, actual.kind
+            ));
         }
     }
     if decl.push_constant_size != info.push_constant_size as usize {
@@ -125,7 +131,10 @@ impl Kernel {
                 .collect();
             let info = vk::DescriptorSetLayoutCreateInfo::default().bindings(&bindings);
             // SAFETY: valid create info.
-            Some(unsafe { d.create_descriptor_set_layout(&info, None) }.map_err(vk_error("vkCreateDescriptorSetLayout"))?)
+            Some(
+                unsafe { d.create_descriptor_set_layout(&info, None) }
+                    .map_err(vk_error("vkCreateDescriptorSetLayout"))?,
+            )
         };
         let mut kernel = Kernel {
             shared: shared.clone(),
@@ -137,12 +146,17 @@ impl Kernel {
             descriptor_types,
         };
         let set_layouts: Vec<_> = set_layout.into_iter().collect();
-        let ranges = [vk::PushConstantRange { stage_flags: vk::ShaderStageFlags::COMPUTE, offset: 0, size: info.push_constant_size }];
+        let ranges = [vk::PushConstantRange {
+            stage_flags: vk::ShaderStageFlags::COMPUTE,
+            offset: 0,
+            size: info.push_constant_size,
+        }];
         let layout_info = vk::PipelineLayoutCreateInfo::default()
             .set_layouts(&set_layouts)
             .push_constant_ranges(if info.push_constant_size > 0 { &ranges } else { &[] });
         // SAFETY: valid create info; on error `kernel`'s Drop destroys what exists.
-        kernel.layout = unsafe { d.create_pipeline_layout(&layout_info, None) }.map_err(vk_error("vkCreatePipelineLayout"))?;
+        kernel.layout =
+            unsafe { d.create_pipeline_layout(&layout_info, None) }.map_err(vk_error("vkCreatePipelineLayout"))?;
         let module_info = vk::ShaderModuleCreateInfo::default().code(info.words);
         // SAFETY: the words are SPIR-V produced by shaderc at build time.
         let module = unsafe { d.create_shader_module(&module_info, None) }.map_err(vk_error("vkCreateShaderModule"))?;
@@ -176,6 +190,10 @@ impl Kernel {
 
 impl Drop for Kernel {
     fn drop(&mut self) {
-        self.shared.retire(Garbage::Pipeline { pipeline: self.pipeline, layout: self.layout, set_layout: self.set_layout });
+        self.shared.retire(Garbage::Pipeline {
+            pipeline: self.pipeline,
+            layout: self.layout,
+            set_layout: self.set_layout,
+        });
     }
 }

@@ -142,7 +142,15 @@ impl Device {
         } else {
             0
         };
-        Ok(Buffer { shared: shared.clone(), raw, allocation: Some(allocation), size, name: name.to_string(), address, kind })
+        Ok(Buffer {
+            shared: shared.clone(),
+            raw,
+            allocation: Some(allocation),
+            size,
+            name: name.to_string(),
+            address,
+            kind,
+        })
     }
 
     /// Creates a storage buffer holding `data`.
@@ -180,7 +188,8 @@ impl Device {
             return Ok(());
         }
         let chunk = STAGING_CHUNK.min(bytes.len() as u64);
-        let mut staging = self.create_buffer(&format!("{} (upload staging)", buffer.name), chunk, MemoryKind::Upload)?;
+        let mut staging =
+            self.create_buffer(&format!("{} (upload staging)", buffer.name), chunk, MemoryKind::Upload)?;
         for (i, part) in bytes.chunks(chunk as usize).enumerate() {
             staging.mapped()?[..part.len()].copy_from_slice(part);
             let dst = byte_offset + i as u64 * chunk;
@@ -204,7 +213,8 @@ impl Device {
             return Ok(out);
         }
         let chunk = STAGING_CHUNK.min(buffer.size);
-        let mut staging = self.create_buffer(&format!("{} (readback staging)", buffer.name), chunk, MemoryKind::Readback)?;
+        let mut staging =
+            self.create_buffer(&format!("{} (readback staging)", buffer.name), chunk, MemoryKind::Readback)?;
         for (i, part) in dst.chunks_mut(chunk as usize).enumerate() {
             let src = i as u64 * chunk;
             self.run(|rec| rec.copy(buffer, src, &staging, 0, part.len() as u64))?;

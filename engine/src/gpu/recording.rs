@@ -102,7 +102,8 @@ impl Device {
             .queue_family_index(self.shared.queue_family)
             .flags(vk::CommandPoolCreateFlags::TRANSIENT);
         // SAFETY: valid create info on a live device.
-        let command_pool = unsafe { d.create_command_pool(&pool_info, None) }.map_err(vk_error("vkCreateCommandPool"))?;
+        let command_pool =
+            unsafe { d.create_command_pool(&pool_info, None) }.map_err(vk_error("vkCreateCommandPool"))?;
         let mut transient = Transient { command_pool, descriptor_pools: Vec::new(), query_pool: None };
         let alloc = vk::CommandBufferAllocateInfo::default()
             .command_pool(command_pool)
@@ -227,10 +228,8 @@ impl Submission {
                 let count = self.stages.len() as u32 * 2;
                 let mut ticks = vec![0u64; count as usize];
                 // SAFETY: the submission finished; these queries were written by it.
-                unsafe {
-                    shared.device.get_query_pool_results(pool, 0, &mut ticks, vk::QueryResultFlags::TYPE_64)
-                }
-                .map_err(vk_error("vkGetQueryPoolResults"))?;
+                unsafe { shared.device.get_query_pool_results(pool, 0, &mut ticks, vk::QueryResultFlags::TYPE_64) }
+                    .map_err(vk_error("vkGetQueryPoolResults"))?;
                 let bits = shared.info.timestamp_valid_bits;
                 let mask = if bits >= 64 { u64::MAX } else { (1u64 << bits) - 1 };
                 let period = shared.info.timestamp_period_ns;
@@ -335,7 +334,14 @@ impl<'a> Recording<'a> {
     }
 
     /// Copies `size` bytes between buffers.
-    pub fn copy(&mut self, src: &'a Buffer, src_offset: u64, dst: &'a Buffer, dst_offset: u64, size: u64) -> Result<()> {
+    pub fn copy(
+        &mut self,
+        src: &'a Buffer,
+        src_offset: u64,
+        dst: &'a Buffer,
+        dst_offset: u64,
+        size: u64,
+    ) -> Result<()> {
         self.check_device(src)?;
         self.check_device(dst)?;
         let fits = |off: u64, b: &Buffer| off.checked_add(size).is_some_and(|e| e <= b.size());
@@ -366,14 +372,24 @@ impl<'a> Recording<'a> {
 
     /// Records a dispatch of `groups` workgroups with `bindings` bound in order
     /// (set 0, bindings 0..n) and `push` as the push constants.
-    pub fn dispatch<P: Pod>(&mut self, kernel: &'a Kernel, bindings: &[&'a Buffer], push: &P, groups: [u32; 3]) -> Result<()> {
+    pub fn dispatch<P: Pod>(
+        &mut self,
+        kernel: &'a Kernel,
+        bindings: &[&'a Buffer],
+        push: &P,
+        groups: [u32; 3],
+    ) -> Result<()> {
         let name = kernel.info.name;
         let err = |message: String| Error::Kernel { kernel: name, message };
         if !std::sync::Arc::ptr_eq(&kernel.shared, &self.device.shared) {
             return Err(err("belongs to another device".into()));
         }
         if bindings.len() != kernel.info.bindings.len() {
-            return Err(err(format!("{} buffers given, {} bindings declared", bindings.len(), kernel.info.bindings.len())));
+            return Err(err(format!(
+                "{} buffers given, {} bindings declared",
+                bindings.len(),
+                kernel.info.bindings.len()
+            )));
         }
         if std::mem::size_of::<P>() != kernel.push_constant_size as usize {
             return Err(err(format!(
@@ -433,7 +449,13 @@ impl<'a> Recording<'a> {
                 d.cmd_bind_descriptor_sets(self.cmd, vk::PipelineBindPoint::COMPUTE, kernel.layout, 0, &[set], &[]);
             }
             if kernel.push_constant_size > 0 {
-                d.cmd_push_constants(self.cmd, kernel.layout, vk::ShaderStageFlags::COMPUTE, 0, bytemuck::bytes_of(push));
+                d.cmd_push_constants(
+                    self.cmd,
+                    kernel.layout,
+                    vk::ShaderStageFlags::COMPUTE,
+                    0,
+                    bytemuck::bytes_of(push),
+                );
             }
             d.cmd_dispatch(self.cmd, groups[0], groups[1], groups[2]);
         }
@@ -443,15 +465,25 @@ impl<'a> Recording<'a> {
     /// Dispatches enough workgroups for `count` invocations in x, laid out as a
     /// 2D grid when one row would exceed the workgroup-count limit. Shaders
     /// index with `linear_index()` from `common.glsl` and bound-check `count`.
-    pub fn dispatch_1d<P: Pod>(&mut self, kernel: &'a Kernel, bindings: &[&'a Buffer], push: &P, count: u64) -> Result<()> {
+    pub fn dispatch_1d<P: Pod>(
+        &mut self,
+        kernel: &'a Kernel,
+        bindings: &[&'a Buffer],
+        push: &P,
+        count: u64,
+    ) -> Result<()> {
         let groups = grid_1d(count, kernel.info.workgroup_size[0], self.device.shared.info.max_workgroup_count)
-            .ok_or_else(|| Error::Kernel { kernel: kernel.info.name, message: format!("{count} invocations exceed the dispatch limits") })?;
+            .ok_or_else(|| Error::Kernel {
+                kernel: kernel.info.name,
+                message: format!("{count} invocations exceed the dispatch limits"),
+            })?;
         self.dispatch(kernel, bindings, push, groups)
     }
 
     fn allocate_set(&mut self, layout: vk::DescriptorSetLayout, descriptors: u32) -> Result<vk::DescriptorSet> {
         let d = &self.device.shared.device;
-        let transient = self.transient.as_mut().ok_or_else(|| Error::InvalidArgument("recording already submitted".into()))?;
+        let transient =
+            self.transient.as_mut().ok_or_else(|| Error::InvalidArgument("recording already submitted".into()))?;
         if let Some(&pool) = transient.descriptor_pools.last() {
             let layouts = [layout];
             let info = vk::DescriptorSetAllocateInfo::default().descriptor_pool(pool).set_layouts(&layouts);
@@ -463,7 +495,10 @@ impl<'a> Recording<'a> {
             }
         }
         let sizes = [
-            vk::DescriptorPoolSize { ty: vk::DescriptorType::STORAGE_BUFFER, descriptor_count: DESCRIPTORS_PER_POOL.max(descriptors) },
+            vk::DescriptorPoolSize {
+                ty: vk::DescriptorType::STORAGE_BUFFER,
+                descriptor_count: DESCRIPTORS_PER_POOL.max(descriptors),
+            },
             vk::DescriptorPoolSize { ty: vk::DescriptorType::UNIFORM_BUFFER, descriptor_count: SETS_PER_POOL },
         ];
         let info = vk::DescriptorPoolCreateInfo::default().max_sets(SETS_PER_POOL).pool_sizes(&sizes);

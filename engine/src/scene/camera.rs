@@ -71,7 +71,9 @@ impl Camera {
     pub fn look_at(eye: Vec3, target: Vec3, up: Vec3, fov_x_degrees: f32, width: u32, height: u32) -> Result<Self> {
         let rotation = look_rotation(eye, target, up)?;
         if !(fov_x_degrees > 0.0 && fov_x_degrees < 180.0) || width == 0 || height == 0 {
-            return Err(Error::InvalidArgument(format!("fov {fov_x_degrees}° / size {width}x{height} is not a camera")));
+            return Err(Error::InvalidArgument(format!(
+                "fov {fov_x_degrees}° / size {width}x{height} is not a camera"
+            )));
         }
         let fx = width as f32 * 0.5 / (fov_x_degrees.to_radians() * 0.5).tan();
         Ok(Self {
@@ -177,9 +179,13 @@ fn from_json(e: &JsonCamera, i: usize, origin: &str) -> Result<Camera, SceneErro
         Vec3::new(r[0][1] as f32, r[1][1] as f32, r[2][1] as f32),
         Vec3::new(r[0][2] as f32, r[1][2] as f32, r[2][2] as f32),
     );
-    let orthonormality = (rotation.transpose() * rotation - Mat3::IDENTITY).to_cols_array().iter().fold(0.0f32, |m, v| m.max(v.abs()));
+    let orthonormality =
+        (rotation.transpose() * rotation - Mat3::IDENTITY).to_cols_array().iter().fold(0.0f32, |m, v| m.max(v.abs()));
     if orthonormality > 1e-3 || rotation.determinant() < 0.0 {
-        return Err(bad("rotation", format!("is not a rotation (|RᵀR − I| = {orthonormality:.2e}, det = {:.3})", rotation.determinant())));
+        return Err(bad(
+            "rotation",
+            format!("is not a rotation (|RᵀR − I| = {orthonormality:.2e}, det = {:.3})", rotation.determinant()),
+        ));
     }
     Ok(Camera {
         name: e.img_name.clone(),
@@ -187,7 +193,12 @@ fn from_json(e: &JsonCamera, i: usize, origin: &str) -> Result<Camera, SceneErro
         height: e.height,
         rotation,
         position: Vec3::new(e.position[0] as f32, e.position[1] as f32, e.position[2] as f32),
-        projection: Projection::Pinhole { fx: e.fx as f32, fy: e.fy as f32, cx: e.width as f32 * 0.5, cy: e.height as f32 * 0.5 },
+        projection: Projection::Pinhole {
+            fx: e.fx as f32,
+            fy: e.fy as f32,
+            cx: e.width as f32 * 0.5,
+            cy: e.height as f32 * 0.5,
+        },
         near: DEFAULT_NEAR,
         far: DEFAULT_FAR,
     })
@@ -199,7 +210,9 @@ pub fn write_cameras_json(path: impl AsRef<Path>, cameras: &[Camera]) -> Result<
     let mut entries = Vec::with_capacity(cameras.len());
     for (i, c) in cameras.iter().enumerate() {
         let Projection::Pinhole { fx, fy, .. } = c.projection else {
-            return Err(Error::InvalidArgument(format!("camera {i} is orthographic; cameras.json holds pinhole cameras")));
+            return Err(Error::InvalidArgument(format!(
+                "camera {i} is orthographic; cameras.json holds pinhole cameras"
+            )));
         };
         let r = c.rotation;
         entries.push(JsonCamera {

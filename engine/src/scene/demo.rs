@@ -52,7 +52,13 @@ impl Aabb {
     /// The eight corners.
     pub fn corners(&self) -> [Vec3; 8] {
         let (a, b) = (self.min, self.max);
-        [0, 1, 2, 3, 4, 5, 6, 7].map(|i| Vec3::new(if i & 1 == 0 { a.x } else { b.x }, if i & 2 == 0 { a.y } else { b.y }, if i & 4 == 0 { a.z } else { b.z }))
+        [0, 1, 2, 3, 4, 5, 6, 7].map(|i| {
+            Vec3::new(
+                if i & 1 == 0 { a.x } else { b.x },
+                if i & 2 == 0 { a.y } else { b.y },
+                if i & 4 == 0 { a.z } else { b.z },
+            )
+        })
     }
 
     /// Whether the ray `o + t·d`, t > 0, hits the box.
@@ -118,11 +124,17 @@ impl Surface {
 
 /// Surface properties at a point: albedo, roughness, metallic.
 fn shade(material: Material, p: Vec3, rng: &mut Pcg64Mcg) -> (Vec3, f32, f32) {
-    let jitter = |rng: &mut Pcg64Mcg, c: Vec3, amount: f32| (c * (1.0 + rng.random_range(-amount..amount))).clamp(Vec3::splat(0.01), Vec3::splat(0.98));
+    let jitter = |rng: &mut Pcg64Mcg, c: Vec3, amount: f32| {
+        (c * (1.0 + rng.random_range(-amount..amount))).clamp(Vec3::splat(0.01), Vec3::splat(0.98))
+    };
     match material {
         Material::Road => {
             let marking = p.y.abs() < 0.12 && (p.x.rem_euclid(6.0)) < 3.0;
-            if marking { (jitter(rng, Vec3::splat(0.8), 0.05), 0.6, 0.0) } else { (jitter(rng, Vec3::splat(0.08), 0.2), 0.9, 0.0) }
+            if marking {
+                (jitter(rng, Vec3::splat(0.8), 0.05), 0.6, 0.0)
+            } else {
+                (jitter(rng, Vec3::splat(0.08), 0.2), 0.9, 0.0)
+            }
         }
         Material::Sidewalk => (jitter(rng, Vec3::new(0.45, 0.44, 0.42), 0.1), 0.8, 0.0),
         Material::Roof => (jitter(rng, Vec3::splat(0.25), 0.15), 0.85, 0.0),
@@ -172,7 +184,10 @@ fn add_box(out: &mut Vec<Surface>, b: Aabb, walls: Material, roof: Material) {
 /// Generates the demo city.
 pub fn demo_city(options: &DemoOptions) -> Result<DemoCity> {
     if options.gaussians < 1000 {
-        return Err(Error::InvalidArgument(format!("the demo needs at least 1000 Gaussians, not {}", options.gaussians)));
+        return Err(Error::InvalidArgument(format!(
+            "the demo needs at least 1000 Gaussians, not {}",
+            options.gaussians
+        )));
     }
     if options.sh_degree > 3 {
         return Err(Error::InvalidArgument(format!("SH degree {} is not supported (0 to 3)", options.sh_degree)));
@@ -185,10 +200,20 @@ pub fn demo_city(options: &DemoOptions) -> Result<DemoCity> {
 
     // Ground: road and raised sidewalks.
     let rect = |origin: Vec3, u: Vec3, v: Vec3, material| Surface { shape: Shape::Rect { origin, u, v }, material };
-    surfaces.push(rect(Vec3::new(x0, -5.0, 0.0), Vec3::new(x1 - x0, 0.0, 0.0), Vec3::new(0.0, 10.0, 0.0), Material::Road));
+    surfaces.push(rect(
+        Vec3::new(x0, -5.0, 0.0),
+        Vec3::new(x1 - x0, 0.0, 0.0),
+        Vec3::new(0.0, 10.0, 0.0),
+        Material::Road,
+    ));
     for side in [-1.0f32, 1.0] {
         let y = if side > 0.0 { 5.0 } else { -8.0 };
-        surfaces.push(rect(Vec3::new(x0, y, 0.15), Vec3::new(x1 - x0, 0.0, 0.0), Vec3::new(0.0, 3.0, 0.0), Material::Sidewalk));
+        surfaces.push(rect(
+            Vec3::new(x0, y, 0.15),
+            Vec3::new(x1 - x0, 0.0, 0.0),
+            Vec3::new(0.0, 3.0, 0.0),
+            Material::Sidewalk,
+        ));
     }
 
     // Building blocks on both sides.
@@ -200,7 +225,8 @@ pub fn demo_city(options: &DemoOptions) -> Result<DemoCity> {
             let height = rng.random_range(10.0..35.0f32);
             let (ya, yb) = if side > 0.0 { (8.0, 8.0 + depth) } else { (-8.0 - depth, -8.0) };
             let b = Aabb { min: Vec3::new(x, ya, 0.0), max: Vec3::new(x + width, yb, height) };
-            let color = Vec3::new(rng.random_range(0.35..0.75), rng.random_range(0.3..0.65), rng.random_range(0.25..0.6));
+            let color =
+                Vec3::new(rng.random_range(0.35..0.75), rng.random_range(0.3..0.65), rng.random_range(0.25..0.6));
             add_box(&mut surfaces, b, Material::Facade { color, seed: rng.random_range(0..1000) }, Material::Roof);
             occluders.push(b);
             x += width + rng.random_range(2.0..4.0f32);
@@ -217,7 +243,12 @@ pub fn demo_city(options: &DemoOptions) -> Result<DemoCity> {
         let x = -30.0 + i as f32 * 18.0 + rng.random_range(-4.0..4.0f32);
         let y = if i % 2 == 0 { -2.5 } else { 2.5 };
         let body = Aabb { min: Vec3::new(x, y - 0.9, 0.2), max: Vec3::new(x + 4.2, y + 0.9, 1.5) };
-        let color = [Vec3::new(0.7, 0.05, 0.05), Vec3::new(0.05, 0.15, 0.6), Vec3::new(0.8, 0.8, 0.8), Vec3::new(0.1, 0.1, 0.1)][i % 4];
+        let color = [
+            Vec3::new(0.7, 0.05, 0.05),
+            Vec3::new(0.05, 0.15, 0.6),
+            Vec3::new(0.8, 0.8, 0.8),
+            Vec3::new(0.1, 0.1, 0.1),
+        ][i % 4];
         add_box(&mut surfaces, body, Material::CarBody { color }, Material::CarBody { color });
         occluders.push(body);
     }
@@ -288,7 +319,10 @@ pub fn demo_city(options: &DemoOptions) -> Result<DemoCity> {
         for j in 0..count {
             let (p, normal, tangent) = match surface.shape {
                 Shape::Rect { origin, u, v } => {
-                    let (a, b) = (((j % cols) as f32 + rng.random::<f32>()) / cols as f32, ((j / cols) as f32 + rng.random::<f32>()) / rows as f32);
+                    let (a, b) = (
+                        ((j % cols) as f32 + rng.random::<f32>()) / cols as f32,
+                        ((j / cols) as f32 + rng.random::<f32>()) / rows as f32,
+                    );
                     (origin + u * a + v * b.min(1.0), u.cross(v).normalize(), u.normalize())
                 }
                 Shape::Sphere { center, radius } => {
@@ -334,7 +368,9 @@ pub fn demo_city(options: &DemoOptions) -> Result<DemoCity> {
                     scene.sh.push(rng.random_range(-glint..glint));
                 }
             }
-            if let (Some(a), Some(r), Some(mt), Some(o), Some(v)) = (&mut m.albedo, &mut m.roughness, &mut m.metallic, &mut m.ao, &mut m.visibility) {
+            if let (Some(a), Some(r), Some(mt), Some(o), Some(v)) =
+                (&mut m.albedo, &mut m.roughness, &mut m.metallic, &mut m.ao, &mut m.visibility)
+            {
                 a.push(albedo.to_array().map(logit));
                 r.push(logit(roughness));
                 mt.push(logit(metallic));

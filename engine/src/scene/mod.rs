@@ -183,9 +183,9 @@ impl Scene {
         let first = *self.means.first()?;
         let mut b = Bounds { min: first, max: first };
         for p in &self.means {
-            for a in 0..3 {
-                b.min[a] = b.min[a].min(p[a]);
-                b.max[a] = b.max[a].max(p[a]);
+            for ((lo, hi), v) in b.min.iter_mut().zip(b.max.iter_mut()).zip(p) {
+                *lo = lo.min(*v);
+                *hi = hi.max(*v);
             }
         }
         Some(b)
@@ -194,7 +194,9 @@ impl Scene {
     /// Floats stored per Gaussian on the GPU (parameters as uploaded).
     pub fn floats_per_gaussian(&self) -> usize {
         let a = self.attributes();
-        3 + 3 + 4 + 1
+        3 + 3
+            + 4
+            + 1
             + 3 * sh_coefficients(self.sh_degree)
             + if a.normals { 3 } else { 0 }
             + if a.albedo { 3 } else { 0 }
@@ -227,14 +229,19 @@ impl Scene {
         if let Some(v) = &m.albedo {
             lengths.push(("albedo", v.len(), n));
         }
-        for (name, v) in [("roughness", &m.roughness), ("metallic", &m.metallic), ("ao", &m.ao), ("visibility", &m.visibility)] {
+        for (name, v) in
+            [("roughness", &m.roughness), ("metallic", &m.metallic), ("ao", &m.ao), ("visibility", &m.visibility)]
+        {
             if let Some(v) = v {
                 lengths.push((name, v.len(), n));
             }
         }
         for (name, got, want) in lengths {
             if got != want {
-                return Err(SceneError::file(origin, format!("{name} has {got} values, expected {want} for {n} Gaussians")));
+                return Err(SceneError::file(
+                    origin,
+                    format!("{name} has {got} values, expected {want} for {n} Gaussians"),
+                ));
             }
         }
         let check = |row: usize, property: &str, v: f32| -> Result<(), SceneError> {
@@ -277,7 +284,9 @@ impl Scene {
                     check(i, ["albedo_0", "albedo_1", "albedo_2"][a], v[i][a])?;
                 }
             }
-            for (name, v) in [("roughness", &m.roughness), ("metallic", &m.metallic), ("ao", &m.ao), ("visibility", &m.visibility)] {
+            for (name, v) in
+                [("roughness", &m.roughness), ("metallic", &m.metallic), ("ao", &m.ao), ("visibility", &m.visibility)]
+            {
                 if let Some(v) = v {
                     check(i, name, v[i])?;
                 }
@@ -290,7 +299,10 @@ impl Scene {
     pub fn summary(&self) -> String {
         let mut s = format!("Gaussians: {}\nSH degree: {}\n", self.len(), self.sh_degree);
         let groups = self.attributes().names();
-        s += &format!("attributes: {}\n", if groups.is_empty() { "none (plain 3DGS colour)".to_string() } else { groups.join(", ") });
+        s += &format!(
+            "attributes: {}\n",
+            if groups.is_empty() { "none (plain 3DGS colour)".to_string() } else { groups.join(", ") }
+        );
         if let Some(b) = self.bounds() {
             s += &format!(
                 "bounds: [{:.3}, {:.3}, {:.3}] .. [{:.3}, {:.3}, {:.3}]\n",

@@ -68,7 +68,11 @@ impl ScalarType {
             ($t:ty, $n:literal) => {{
                 let mut a = [0u8; $n];
                 a.copy_from_slice(&b[..$n]);
-                if big { <$t>::from_be_bytes(a) } else { <$t>::from_le_bytes(a) }
+                if big {
+                    <$t>::from_be_bytes(a)
+                } else {
+                    <$t>::from_le_bytes(a)
+                }
             }};
         }
         match self {
@@ -113,7 +117,10 @@ fn parse_header(bytes: &[u8], path: &str) -> Result<Header, SceneError> {
         return Err(err("not a PLY file (it does not start with \"ply\")".into()));
     }
     let end = find(bytes, b"end_header").ok_or_else(|| err("PLY header has no end_header".into()))?;
-    let newline = bytes[end..].iter().position(|&c| c == b'\n').ok_or_else(|| err("end_header is not followed by a newline".into()))?;
+    let newline = bytes[end..]
+        .iter()
+        .position(|&c| c == b'\n')
+        .ok_or_else(|| err("end_header is not followed by a newline".into()))?;
     let data_start = end + newline + 1;
     let text = std::str::from_utf8(&bytes[..end]).map_err(|_| err("PLY header is not text".into()))?;
     let mut format = None;
@@ -202,7 +209,8 @@ pub fn read_ply_bytes(bytes: &[u8], origin: &str) -> Result<Scene, SceneError> {
     match header.format {
         PlyFormat::BinaryLittleEndian | PlyFormat::BinaryBigEndian => {
             let big = header.format == PlyFormat::BinaryBigEndian;
-            let need = n.checked_mul(header.stride).ok_or_else(|| SceneError::file(origin, "vertex count overflows"))?;
+            let need =
+                n.checked_mul(header.stride).ok_or_else(|| SceneError::file(origin, "vertex count overflows"))?;
             if data.len() < need {
                 let row = data.len() / header.stride.max(1);
                 let within = data.len() % header.stride.max(1);
@@ -240,13 +248,20 @@ pub fn read_ply_bytes(bytes: &[u8], origin: &str) -> Result<Scene, SceneError> {
             let mut lines = text.lines().filter(|l| !l.trim().is_empty());
             for row in 0..n {
                 let line = lines.next().ok_or_else(|| {
-                    SceneError::at(origin, row, &header.properties.first().map_or(String::new(), |p| p.name.clone()),
-                        format!("file is truncated: data ends in row {row} of {n} declared vertices"))
+                    SceneError::at(
+                        origin,
+                        row,
+                        &header.properties.first().map_or(String::new(), |p| p.name.clone()),
+                        format!("file is truncated: data ends in row {row} of {n} declared vertices"),
+                    )
                 })?;
                 let mut tokens = line.split_whitespace();
                 for (i, p) in header.properties.iter().enumerate() {
-                    let token = tokens.next().ok_or_else(|| SceneError::at(origin, row, &p.name, "row has too few values"))?;
-                    let v = p.ty.parse_ascii(token).ok_or_else(|| SceneError::at(origin, row, &p.name, format!("cannot parse \"{token}\"")))?;
+                    let token =
+                        tokens.next().ok_or_else(|| SceneError::at(origin, row, &p.name, "row has too few values"))?;
+                    let v =
+                        p.ty.parse_ascii(token)
+                            .ok_or_else(|| SceneError::at(origin, row, &p.name, format!("cannot parse \"{token}\"")))?;
                     columns[i].push(v);
                 }
                 if tokens.next().is_some() {
@@ -254,7 +269,10 @@ pub fn read_ply_bytes(bytes: &[u8], origin: &str) -> Result<Scene, SceneError> {
                 }
             }
             if !header.more_elements && lines.next().is_some() {
-                return Err(SceneError::file(origin, format!("vertex count does not match the data: more than {n} rows follow the header")));
+                return Err(SceneError::file(
+                    origin,
+                    format!("vertex count does not match the data: more than {n} rows follow the header"),
+                ));
             }
         }
     }
@@ -262,20 +280,33 @@ pub fn read_ply_bytes(bytes: &[u8], origin: &str) -> Result<Scene, SceneError> {
 }
 
 fn assemble(header: &Header, columns: Vec<Vec<f32>>, origin: &str) -> Result<Scene, SceneError> {
-    let mut by_name: HashMap<&str, usize> = header.properties.iter().enumerate().map(|(i, p)| (p.name.as_str(), i)).collect();
+    let mut by_name: HashMap<&str, usize> =
+        header.properties.iter().enumerate().map(|(i, p)| (p.name.as_str(), i)).collect();
     let mut columns: Vec<Option<Vec<f32>>> = columns.into_iter().map(Some).collect();
     let mut take = |name: &str| -> Option<Vec<f32>> { by_name.remove(name).and_then(|i| columns[i].take()) };
     let require = |take: &mut dyn FnMut(&str) -> Option<Vec<f32>>, name: &str| {
-        take(name).ok_or_else(|| SceneError { path: origin.into(), row: None, property: Some(name.into()), message: "required property is missing".into() })
+        take(name).ok_or_else(|| SceneError {
+            path: origin.into(),
+            row: None,
+            property: Some(name.into()),
+            message: "required property is missing".into(),
+        })
     };
     let n = header.count;
-    let zip3 = |a: Vec<f32>, b: Vec<f32>, c: Vec<f32>| -> Vec<[f32; 3]> { (0..n).map(|i| [a[i], b[i], c[i]]).collect() };
+    let zip3 =
+        |a: Vec<f32>, b: Vec<f32>, c: Vec<f32>| -> Vec<[f32; 3]> { (0..n).map(|i| [a[i], b[i], c[i]]).collect() };
 
     let means = zip3(require(&mut take, "x")?, require(&mut take, "y")?, require(&mut take, "z")?);
     let dc = [require(&mut take, "f_dc_0")?, require(&mut take, "f_dc_1")?, require(&mut take, "f_dc_2")?];
     let opacity_logits = require(&mut take, "opacity")?;
-    let log_scales = zip3(require(&mut take, "scale_0")?, require(&mut take, "scale_1")?, require(&mut take, "scale_2")?);
-    let r = [require(&mut take, "rot_0")?, require(&mut take, "rot_1")?, require(&mut take, "rot_2")?, require(&mut take, "rot_3")?];
+    let log_scales =
+        zip3(require(&mut take, "scale_0")?, require(&mut take, "scale_1")?, require(&mut take, "scale_2")?);
+    let r = [
+        require(&mut take, "rot_0")?,
+        require(&mut take, "rot_1")?,
+        require(&mut take, "rot_2")?,
+        require(&mut take, "rot_3")?,
+    ];
     let rotations = (0..n).map(|i| [r[0][i], r[1][i], r[2][i], r[3][i]]).collect();
 
     // f_rest_*: channel-major, 3·((d+1)² − 1) of them.
@@ -285,7 +316,12 @@ fn assemble(header: &Header, columns: Vec<Vec<f32>>, origin: &str) -> Result<Sce
         9 => 1,
         24 => 2,
         45 => 3,
-        c => return Err(SceneError::file(origin, format!("unsupported SH count: {c} f_rest properties (expected 0, 9, 24 or 45)"))),
+        c => {
+            return Err(SceneError::file(
+                origin,
+                format!("unsupported SH count: {c} f_rest properties (expected 0, 9, 24 or 45)"),
+            ))
+        }
     };
     let k = sh_coefficients(sh_degree);
     let mut rest = Vec::with_capacity(rest_count);
@@ -326,9 +362,17 @@ fn assemble(header: &Header, columns: Vec<Vec<f32>>, origin: &str) -> Result<Sce
             return Err(SceneError::file(origin, format!("albedo needs all of {}", names.join(", "))));
         }
     }
-    let materials = Materials { albedo, roughness: take("roughness"), metallic: take("metallic"), ao: take("ao"), visibility: take("visibility") };
-    let extra_properties = header.properties.iter().filter(|p| by_name.contains_key(p.name.as_str())).map(|p| p.name.clone()).collect();
-    let scene = Scene { means, normals, sh_degree, sh, opacity_logits, log_scales, rotations, materials, extra_properties };
+    let materials = Materials {
+        albedo,
+        roughness: take("roughness"),
+        metallic: take("metallic"),
+        ao: take("ao"),
+        visibility: take("visibility"),
+    };
+    let extra_properties =
+        header.properties.iter().filter(|p| by_name.contains_key(p.name.as_str())).map(|p| p.name.clone()).collect();
+    let scene =
+        Scene { means, normals, sh_degree, sh, opacity_logits, log_scales, rotations, materials, extra_properties };
     scene.validate(origin)?;
     Ok(scene)
 }
@@ -353,7 +397,9 @@ fn property_names(scene: &Scene) -> Vec<String> {
     if m.albedo.is_some() {
         names.extend((0..3).map(|i| format!("albedo_{i}")));
     }
-    for (name, v) in [("roughness", &m.roughness), ("metallic", &m.metallic), ("ao", &m.ao), ("visibility", &m.visibility)] {
+    for (name, v) in
+        [("roughness", &m.roughness), ("metallic", &m.metallic), ("ao", &m.ao), ("visibility", &m.visibility)]
+    {
         if v.is_some() {
             names.push(name.into());
         }
