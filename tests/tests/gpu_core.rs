@@ -293,3 +293,18 @@ fn grid_1d_covers_every_invocation() {
     }
     assert_eq!(gpu::grid_1d(u64::MAX / 2, 64, limits), None);
 }
+
+#[test]
+fn impossible_allocations_are_errors() {
+    // Validation off: exceeding the heap is what this test does on purpose.
+    let d = Device::new(&DeviceOptions { selection: None, validation: Some(false) }).unwrap();
+    match d.create_buffer("too big", 1 << 44, MemoryKind::Storage) {
+        Err(Error::OutOfMemory(m)) => assert!(m.contains("too big"), "{m}"),
+        other => panic!("expected out-of-memory, got {other:?}"),
+    }
+    // The device still works afterwards.
+    assert!(selftest::run(&d, 1000).unwrap().passed());
+    assert_eq!(d.memory_usage().current_bytes, 0);
+    let n = usize::MAX / 2;
+    assert!(matches!(d.create_filled::<[f32; 4]>("overflow", n, 0), Err(Error::InvalidArgument(_))));
+}

@@ -107,7 +107,11 @@ impl Device {
         };
         let info = vk::BufferCreateInfo::default().size(vk_size).usage(usage).sharing_mode(vk::SharingMode::EXCLUSIVE);
         // SAFETY: valid create info on a live device.
-        let raw = unsafe { shared.device.create_buffer(&info, None) }.map_err(vk_error("vkCreateBuffer"))?;
+        let raw =
+            unsafe { shared.device.create_buffer(&info, None) }.map_err(|e| match vk_error("vkCreateBuffer")(e) {
+                Error::OutOfMemory(m) => Error::OutOfMemory(format!("buffer {name} ({size} bytes): {m}")),
+                other => other,
+            })?;
         // SAFETY: `raw` was just created on this device.
         let requirements = unsafe { shared.device.get_buffer_memory_requirements(raw) };
         let allocation = lock(&shared.allocator).allocate(&AllocationCreateDesc {
