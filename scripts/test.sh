@@ -5,7 +5,14 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 source scripts/setup.sh
 export SRUG_VALIDATION=1
-# lavapipe: use both cores for the rasterizer threads.
+# lavapipe: use both cores for its rasterizer threads.
 export LP_NUM_THREADS="${LP_NUM_THREADS:-2}"
 cargo build --locked --workspace --all-targets
-cargo test --locked --workspace -- --test-threads=2
+log=$(mktemp)
+trap 'rm -f "$log"' EXIT
+status=0
+cargo test --locked --workspace --lib --bins --tests -- --test-threads=2 2>&1 | tee "$log" || status=$?
+# One plain closing line with the totals over every test binary.
+awk '/^test result:/ { for (i = 1; i <= NF; i++) { if ($(i+1) ~ /^passed/) p += $i; if ($(i+1) ~ /^failed/) f += $i } }
+     END { printf "srug tests: %d passed, %d failed\n", p, f }' "$log"
+exit "$status"

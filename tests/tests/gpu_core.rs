@@ -45,6 +45,12 @@ fn validation_messages_are_caught() {
     let messages = d.take_validation_messages();
     assert!(!messages.is_empty(), "an invalid call produced no validation message");
     assert!(d.take_validation_messages().is_empty(), "messages are taken once");
+
+    // Synchronization validation is on: an unsynchronized write-after-write is reported.
+    let scratch = d.create_buffer("scratch", 256, MemoryKind::Storage).unwrap();
+    d.run(|rec| rec.fill_twice_without_barrier(&scratch)).unwrap();
+    let messages = d.take_validation_messages();
+    assert!(messages.iter().any(|m| m.contains("SYNC-HAZARD")), "no hazard reported: {messages:?}");
 }
 
 #[test]

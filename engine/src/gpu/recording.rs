@@ -333,6 +333,16 @@ impl<'a> Recording<'a> {
         Ok(())
     }
 
+    /// Two fills of one buffer with no barrier between them: a write-after-write
+    /// hazard that synchronization validation must report. Tests only.
+    #[doc(hidden)]
+    pub fn fill_twice_without_barrier(&mut self, buffer: &'a Buffer) -> Result<()> {
+        self.fill(buffer, 0)?;
+        // SAFETY: a valid command; the missing barrier is the point (a data race on a scratch buffer).
+        unsafe { self.device.shared.device.cmd_fill_buffer(self.cmd, buffer.raw, 0, vk::WHOLE_SIZE, 1) };
+        Ok(())
+    }
+
     /// Copies `size` bytes between buffers.
     pub fn copy(
         &mut self,
