@@ -425,3 +425,34 @@ fn demo_tower_is_out_of_view_and_its_shadow_in_view() {
     }
     assert!(city.sun_direction.z > 0.0 && (city.sun_direction.length() - 1.0).abs() < 1e-5);
 }
+
+#[test]
+fn pinhole_and_orthographic_projections() {
+    use srug::scene::Camera;
+    // Pinhole: a point on the optical axis lands on the principal point; 90° fov maps x = z to the edge.
+    let cam = Camera::look_at(Vec3::ZERO, Vec3::X, Vec3::Z, 90.0, 200, 100).unwrap();
+    assert!((cam.fov_x_degrees().unwrap() - 90.0).abs() < 1e-4);
+    let centre = cam.project(cam.world_to_camera(Vec3::new(5.0, 0.0, 0.0)));
+    assert!((centre - glam::Vec2::new(100.0, 50.0)).length() < 1e-4);
+    // World +z (up) is image up (smaller v); world −y is image right (OpenCV axes).
+    let up = cam.project(cam.world_to_camera(Vec3::new(5.0, 0.0, 1.0)));
+    assert!(up.y < 50.0);
+    let right = cam.project(cam.world_to_camera(Vec3::new(5.0, -5.0, 0.0)));
+    assert!((right.x - 200.0).abs() < 1e-3, "{right}");
+    assert!(cam.sees(Vec3::new(5.0, 0.0, 0.0)) && !cam.sees(Vec3::new(-5.0, 0.0, 0.0)));
+
+    // Orthographic from the sun: parallel rays, pixels per unit from the extent.
+    let sun =
+        Camera::orthographic(Vec3::new(0.0, 0.0, 100.0), -Vec3::Z, Vec3::Y, 40.0, 20.0, 400, 200, 0.0, 200.0).unwrap();
+    let a = sun.world_to_camera(Vec3::new(10.0, 5.0, 0.0));
+    assert!((a.z - 100.0).abs() < 1e-4, "depth along the light direction: {a}");
+    let pa = sun.project(a);
+    let pb = sun.project(sun.world_to_camera(Vec3::new(10.0, 5.0, -50.0)));
+    assert!((pa - pb).length() < 1e-4, "parallel projection ignores depth");
+    assert!(
+        ((pa - glam::Vec2::new(200.0, 100.0)).length() - (10.0f32.powi(2) + 5.0f32.powi(2)).sqrt() * 10.0).abs() < 1e-3
+    );
+    assert!(sun.fov_x_degrees().is_none());
+    assert!(Camera::orthographic(Vec3::ZERO, Vec3::ZERO, Vec3::Z, 1.0, 1.0, 1, 1, 0.0, 1.0).is_err());
+    assert!(Camera::look_at(Vec3::ZERO, Vec3::Z, Vec3::Z, 60.0, 10, 10).is_err(), "up parallel to view");
+}

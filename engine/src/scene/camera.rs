@@ -88,6 +88,45 @@ impl Camera {
         })
     }
 
+    /// An orthographic camera at `eye` looking along `direction`, covering
+    /// `extent_x` × `extent_y` world units with a `width` × `height` image
+    /// (the sun's shadow-map camera). Depth runs from `near` to `far` along `direction`.
+    #[allow(clippy::too_many_arguments, reason = "a camera is defined by this many independent quantities")]
+    pub fn orthographic(
+        eye: Vec3,
+        direction: Vec3,
+        up: Vec3,
+        extent_x: f32,
+        extent_y: f32,
+        width: u32,
+        height: u32,
+        near: f32,
+        far: f32,
+    ) -> Result<Self> {
+        let rotation = look_rotation(eye, eye + direction, up)?;
+        let valid = extent_x > 0.0 && extent_y > 0.0 && extent_x.is_finite() && extent_y.is_finite() && near < far;
+        if !valid || width == 0 || height == 0 {
+            return Err(Error::InvalidArgument(format!(
+                "orthographic extent {extent_x}x{extent_y}, size {width}x{height}, depth {near}..{far} is not a camera"
+            )));
+        }
+        Ok(Self {
+            name: String::new(),
+            width,
+            height,
+            rotation,
+            position: eye,
+            projection: Projection::Orthographic {
+                sx: width as f32 / extent_x,
+                sy: height as f32 / extent_y,
+                cx: width as f32 * 0.5,
+                cy: height as f32 * 0.5,
+            },
+            near,
+            far,
+        })
+    }
+
     /// World to camera coordinates.
     pub fn world_to_camera(&self, p: Vec3) -> Vec3 {
         self.rotation.transpose() * (p - self.position)

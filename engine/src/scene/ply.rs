@@ -265,7 +265,12 @@ pub fn read_ply_bytes(bytes: &[u8], origin: &str) -> Result<Scene, SceneError> {
                     columns[i].push(v);
                 }
                 if tokens.next().is_some() {
-                    return Err(SceneError::at(origin, row, "", format!("row has more than {nprops} values")));
+                    return Err(SceneError {
+                        path: origin.into(),
+                        row: Some(row),
+                        property: None,
+                        message: format!("row has more than {nprops} values"),
+                    });
                 }
             }
             if !header.more_elements && lines.next().is_some() {
