@@ -8,5 +8,6 @@
 pub mod error;
 pub mod gpu;
 pub mod scene;
+pub mod splat;
 
 pub use error::{Error, Result};

@@ -472,6 +472,29 @@ impl<'a> Recording<'a> {
         Ok(())
     }
 
+    /// Keeps buffers that kernels reach by device address borrowed until
+    /// submission, so they cannot be dropped while the commands still refer to
+    /// them (descriptor-bound buffers are kept by [`Recording::dispatch`] itself).
+    pub fn keep(&mut self, buffers: &[&'a Buffer]) -> Result<()> {
+        buffers.iter().try_for_each(|b| self.check_device(b))
+    }
+
+    /// Dispatches `groups` workgroups laid out as a 2D grid (x first); shaders
+    /// index their workgroup with `block_index()` from `common.glsl`.
+    pub fn dispatch_groups<P: Pod>(
+        &mut self,
+        kernel: &'a Kernel,
+        bindings: &[&'a Buffer],
+        push: &P,
+        groups: u64,
+    ) -> Result<()> {
+        let grid = grid_1d(groups, 1, self.device.shared.info.max_workgroup_count).ok_or_else(|| Error::Kernel {
+            kernel: kernel.info.name,
+            message: format!("{groups} workgroups exceed the dispatch limits"),
+        })?;
+        self.dispatch(kernel, bindings, push, grid)
+    }
+
     /// Dispatches enough workgroups for `count` invocations in x, laid out as a
     /// 2D grid when one row would exceed the workgroup-count limit. Shaders
     /// index with `linear_index()` from `common.glsl` and bound-check `count`.

@@ -11,4 +11,8 @@ layout(buffer_reference, std430, buffer_reference_align = 4) writeonly buffer Fl
 layout(buffer_reference, std430, buffer_reference_align = 4) readonly buffer UintsIn { uint v[]; };
 layout(buffer_reference, std430, buffer_reference_align = 4) writeonly buffer UintsOut { uint v[]; };
 
+layout(buffer_reference, std430, buffer_reference_align = 4) buffer Uints { uint v[]; };
+layout(buffer_reference, std430, buffer_reference_align = 8) readonly buffer Uvec2sIn { uvec2 v[]; };
+layout(buffer_reference, std430, buffer_reference_align = 8) writeonly buffer Uvec2sOut { uvec2 v[]; };
+
 #endif

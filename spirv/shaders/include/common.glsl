@@ -7,6 +7,11 @@
 
 #ifndef WORKGROUP_SIZE_X
 #error "define WORKGROUP_SIZE_X before including common.glsl"
+// Workgroup index in a 2D grid of workgroups (see linear_index).
+uint block_index() {
+    return gl_WorkGroupID.x + gl_WorkGroupID.y * gl_NumWorkGroups.x;
+}
+
 #endif
 layout(local_size_x = WORKGROUP_SIZE_X) in;
 
@@ -14,6 +19,11 @@ layout(local_size_x = WORKGROUP_SIZE_X) in;
 // the host side is `Recording::dispatch_1d` (keep in sync).
 uint linear_index() {
     return gl_GlobalInvocationID.x + gl_GlobalInvocationID.y * gl_NumWorkGroups.x * WORKGROUP_SIZE_X;
+}
+
+// Workgroup index in a 2D grid of workgroups (see linear_index).
+uint block_index() {
+    return gl_WorkGroupID.x + gl_WorkGroupID.y * gl_NumWorkGroups.x;
 }
 
 #endif

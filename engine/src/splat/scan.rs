@@ -1,0 +1,129 @@
+//! Exclusive prefix sum of `u32` on the GPU (reduce-then-scan).
+//!
+//! Level one scans blocks of [`SCAN_BLOCK`] values in place and writes block
+//! totals; the totals are scanned the same way (recursively); level three adds
+//! each block's offset back. No workgroup waits on another, so no
+//! forward-progress guarantee is needed. Sums wrap modulo 2³² like `u32`.
+
+use bytemuck::{Pod, Zeroable};
+
+use crate::error::Result;
+use crate::gpu::{kernels, Buffer, Device, Kernel, KernelDecl, MemoryKind, Recording};
+
+/// Values scanned per workgroup (keep in sync with `scan_blocks.comp`).
+pub const SCAN_BLOCK: u64 = 1024;
+
+/// Push constants of `scan_blocks.comp` and `scan_add.comp` (keep in sync with their `Push` blocks).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+pub struct ScanPush {
+    /// Address of the values, scanned in place.
+    pub data: u64,
+    /// Address of the block totals.
+    pub sums: u64,
+    /// Number of values.
+    pub count: u32,
+    /// Whether to write block totals.
+    pub write_sums: u32,
+}
+const _: () = assert!(std::mem::size_of::<ScanPush>() == 24);
+
+/// The scan kernels and their scratch memory.
+pub struct Scan {
+    blocks: Kernel,
+    add: Kernel,
+    /// Block totals for each level above the first.
+    levels: Vec<Buffer>,
+    capacity: u64,
+}
+
+fn addressed(device: &Device, info: &'static srug_spirv::KernelInfo, push: usize) -> Result<Kernel> {
+    Kernel::new(device, info, &KernelDecl { bindings: &[], push_constant_size: push, specialization: &[] })
+}
+
+impl Scan {
+    /// Builds the kernels.
+    pub fn new(device: &Device) -> Result<Self> {
+        Ok(Self {
+            blocks: addressed(device, &kernels::SCAN_BLOCKS, std::mem::size_of::<ScanPush>())?,
+            add: addressed(device, &kernels::SCAN_ADD, std::mem::size_of::<ScanPush>())?,
+            levels: Vec::new(),
+            capacity: 0,
+        })
+    }
+
+    /// Makes sure scratch memory fits scans of up to `count` values.
+    pub fn reserve(&mut self, device: &Device, count: u64) -> Result<()> {
+        if count <= self.capacity {
+            return Ok(());
+        }
+        self.levels.clear();
+        let mut n = count;
+        while n > SCAN_BLOCK {
+            n = n.div_ceil(SCAN_BLOCK);
+            self.levels.push(device.create_buffer(
+                &format!("scan level {}", self.levels.len() + 1),
+                n * 4,
+                MemoryKind::Storage,
+            )?);
+        }
+        self.capacity = count;
+        Ok(())
+    }
+
+    /// GPU bytes of scratch memory held.
+    pub fn scratch_bytes(&self) -> u64 {
+        self.levels.iter().map(Buffer::size).sum()
+    }
+
+    /// Records an in-place exclusive scan of the first `count` u32 of `data`.
+    /// Call [`Scan::reserve`] with at least `count` first.
+    pub fn record<'a>(&'a self, rec: &mut Recording<'a>, data: &'a Buffer, count: u64) -> Result<()> {
+        if count > self.capacity || count * 4 > data.size() || count > u64::from(u32::MAX) {
+            return Err(crate::Error::InvalidArgument(format!(
+                "scan of {count} values: scratch holds {}, buffer {} holds {} bytes",
+                self.capacity,
+                data.name(),
+                data.size()
+            )));
+        }
+        rec.keep(&[data])?;
+        self.record_level(rec, data.device_address(), count, 0)
+    }
+
+    fn record_level<'a>(&'a self, rec: &mut Recording<'a>, data: u64, count: u64, level: usize) -> Result<()> {
+        if count == 0 {
+            return Ok(());
+        }
+        let blocks = count.div_ceil(SCAN_BLOCK);
+        let sums = self.levels.get(level).filter(|_| blocks > 1);
+        if let Some(s) = sums {
+            rec.keep(&[s])?;
+        }
+        let push = ScanPush {
+            data,
+            sums: sums.map_or(0, Buffer::device_address),
+            count: count as u32,
+            write_sums: u32::from(sums.is_some()),
+        };
+        rec.dispatch_groups(&self.blocks, &[], &push, blocks)?;
+        if let Some(s) = sums {
+            self.record_level(rec, s.device_address(), blocks, level + 1)?;
+            rec.dispatch_1d(&self.add, &[], &push, count)?;
+        }
+        Ok(())
+    }
+}
+
+/// CPU twin: exclusive prefix sum with wrapping addition.
+pub fn exclusive_scan_cpu(values: &[u32]) -> Vec<u32> {
+    let mut running = 0u32;
+    values
+        .iter()
+        .map(|v| {
+            let out = running;
+            running = running.wrapping_add(*v);
+            out
+        })
+        .collect()
+}

@@ -1,0 +1,155 @@
+//! Stable LSD radix sort of (64-bit key, u32 value) pairs on the GPU.
+//!
+//! Each pass sorts one 4-bit digit in three steps: a per-block histogram
+//! (`sort_histogram.comp`), an exclusive scan of the digit-major histogram
+//! ([`Scan`]), and a stable scatter (`sort_scatter.comp`). Only
+//! `ceil(bits / 4)` passes run, so callers sort just the bits in use. The
+//! kernels use no subgroup operations and no workgroup waits on another, so
+//! the sort is correct for any subgroup size (lavapipe's is 8) and needs no
+//! forward-progress guarantee. Keys are stored as `[low, high]` u32 pairs.
+
+use bytemuck::{Pod, Zeroable};
+
+use super::scan::Scan;
+use crate::error::{Error, Result};
+use crate::gpu::{kernels, Buffer, Device, Kernel, KernelDecl, MemoryKind, Recording};
+
+/// Keys per workgroup (keep in sync with the sort kernels' `SORT_BLOCK`).
+pub const SORT_BLOCK: u64 = 1024;
+/// Bits per pass (keep in sync with `RADIX` = 16).
+pub const DIGIT_BITS: u32 = 4;
+const RADIX: u64 = 16;
+
+/// Push constants of `sort_histogram.comp` and `sort_scatter.comp` (keep in sync with their `Push` blocks).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+pub struct SortPush {
+    /// Address of the input keys (`[u32; 2]` each).
+    pub keys_in: u64,
+    /// Address of the input values.
+    pub values_in: u64,
+    /// Address of the output keys.
+    pub keys_out: u64,
+    /// Address of the output values.
+    pub values_out: u64,
+    /// Address of the digit-major histogram.
+    pub hist: u64,
+    /// Number of pairs.
+    pub count: u32,
+    /// Bit position of this pass's digit.
+    pub shift: u32,
+    /// Number of blocks.
+    pub blocks: u32,
+    /// Mask of this pass's digit: 15, or fewer bits on the last pass.
+    pub digit_mask: u32,
+}
+const _: () = assert!(std::mem::size_of::<SortPush>() == 56);
+
+/// The sort kernels and their scratch memory.
+pub struct RadixSort {
+    histogram: Kernel,
+    scatter: Kernel,
+    scan: Scan,
+    keys_tmp: Option<Buffer>,
+    values_tmp: Option<Buffer>,
+    hist: Option<Buffer>,
+    capacity: u64,
+}
+
+impl RadixSort {
+    /// Builds the kernels.
+    pub fn new(device: &Device) -> Result<Self> {
+        let decl =
+            KernelDecl { bindings: &[], push_constant_size: std::mem::size_of::<SortPush>(), specialization: &[] };
+        Ok(Self {
+            histogram: Kernel::new(device, &kernels::SORT_HISTOGRAM, &decl)?,
+            scatter: Kernel::new(device, &kernels::SORT_SCATTER, &decl)?,
+            scan: Scan::new(device)?,
+            keys_tmp: None,
+            values_tmp: None,
+            hist: None,
+            capacity: 0,
+        })
+    }
+
+    /// Makes sure scratch memory fits sorts of up to `count` pairs.
+    pub fn reserve(&mut self, device: &Device, count: u64) -> Result<()> {
+        if count <= self.capacity {
+            return Ok(());
+        }
+        if count > u64::from(u32::MAX) {
+            return Err(Error::InvalidArgument(format!("cannot sort {count} pairs (at most 2³² − 1)")));
+        }
+        let blocks = count.div_ceil(SORT_BLOCK);
+        self.keys_tmp = Some(device.create_buffer("sort keys (ping-pong)", count * 8, MemoryKind::Storage)?);
+        self.values_tmp = Some(device.create_buffer("sort values (ping-pong)", count * 4, MemoryKind::Storage)?);
+        self.hist = Some(device.create_buffer("sort histogram", RADIX * blocks * 4, MemoryKind::Storage)?);
+        self.scan.reserve(device, RADIX * blocks)?;
+        self.capacity = count;
+        Ok(())
+    }
+
+    /// GPU bytes of scratch memory held.
+    pub fn scratch_bytes(&self) -> u64 {
+        [&self.keys_tmp, &self.values_tmp, &self.hist].iter().filter_map(|b| b.as_ref().map(Buffer::size)).sum::<u64>()
+            + self.scan.scratch_bytes()
+    }
+
+    /// Records a stable sort of the first `count` pairs of `keys` (`[u32; 2]`
+    /// each, low word first) and `values` by the low `bits` bits of the keys.
+    /// The result is left in `keys` and `values`.
+    pub fn record<'a>(
+        &'a self,
+        rec: &mut Recording<'a>,
+        keys: &'a Buffer,
+        values: &'a Buffer,
+        count: u64,
+        bits: u32,
+    ) -> Result<()> {
+        let (Some(keys_tmp), Some(values_tmp), Some(hist)) = (&self.keys_tmp, &self.values_tmp, &self.hist) else {
+            return if count == 0 {
+                Ok(())
+            } else {
+                Err(Error::InvalidArgument("RadixSort::reserve was not called".into()))
+            };
+        };
+        if count > self.capacity || keys.size() < count * 8 || values.size() < count * 4 || bits > 64 {
+            return Err(Error::InvalidArgument(format!(
+                "sort of {count} pairs on {bits} bits: capacity {}, keys {} bytes, values {} bytes",
+                self.capacity,
+                keys.size(),
+                values.size()
+            )));
+        }
+        if count <= 1 || bits == 0 {
+            return Ok(());
+        }
+        rec.keep(&[keys, values, keys_tmp, values_tmp, hist])?;
+        let blocks = count.div_ceil(SORT_BLOCK);
+        let passes = bits.div_ceil(DIGIT_BITS);
+        let mut src = (keys.device_address(), values.device_address());
+        let mut dst = (keys_tmp.device_address(), values_tmp.device_address());
+        for pass in 0..passes {
+            let push = SortPush {
+                keys_in: src.0,
+                values_in: src.1,
+                keys_out: dst.0,
+                values_out: dst.1,
+                hist: hist.device_address(),
+                count: count as u32,
+                shift: pass * DIGIT_BITS,
+                blocks: blocks as u32,
+                digit_mask: (1u32 << DIGIT_BITS.min(bits - pass * DIGIT_BITS)) - 1,
+            };
+            rec.dispatch_groups(&self.histogram, &[], &push, blocks)?;
+            self.scan.record(rec, hist, RADIX * blocks)?;
+            rec.dispatch_groups(&self.scatter, &[], &push, blocks)?;
+            std::mem::swap(&mut src, &mut dst);
+        }
+        if passes % 2 == 1 {
+            rec.copy(keys_tmp, 0, keys, 0, count * 8)?;
+            rec.copy(values_tmp, 0, values, 0, count * 4)?;
+        }
+        Ok(())
+    }
+}

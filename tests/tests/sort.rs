@@ -1,0 +1,103 @@
+//! The GPU prefix sum and radix sort against the CPU: std's stable sort on
+//! the masked key (so stability is checked through the values), for random
+//! keys, duplicates, all-equal keys, lengths 0, 1, non-multiples of the block,
+//! and more than 16 million keys.
+
+#![allow(clippy::unwrap_used, clippy::expect_used, reason = "a failed unwrap is a failed test")]
+
+use rand::{Rng, SeedableRng};
+use rand_pcg::Pcg64Mcg;
+use srug::gpu::{Device, MemoryKind};
+use srug::splat::scan::{exclusive_scan_cpu, Scan};
+use srug::splat::sort::RadixSort;
+use srug_tests::{assert_no_validation_messages, device};
+
+fn gpu_scan(d: &Device, scan: &mut Scan, values: &[u32]) -> Vec<u32> {
+    let buffer = d.upload("scan data", values).unwrap();
+    scan.reserve(d, values.len() as u64).unwrap();
+    d.run(|rec| scan.record(rec, &buffer, values.len() as u64)).unwrap();
+    d.read_buffer(&buffer).unwrap()
+}
+
+#[test]
+fn exclusive_scan_matches_cpu() {
+    let d = device();
+    let mut scan = Scan::new(&d).unwrap();
+    let mut rng = Pcg64Mcg::seed_from_u64(1);
+    // Three levels at 1024·1024 + 1; wrapping sums with large values.
+    for n in [1usize, 2, 1023, 1024, 1025, 5_000, 1_048_577] {
+        let values: Vec<u32> = (0..n).map(|_| rng.random_range(0..100)).collect();
+        assert_eq!(gpu_scan(&d, &mut scan, &values), exclusive_scan_cpu(&values), "n = {n}");
+    }
+    let big: Vec<u32> = (0..3000).map(|_| rng.random::<u32>()).collect();
+    assert_eq!(gpu_scan(&d, &mut scan, &big), exclusive_scan_cpu(&big), "wrapping");
+    // Zero values: nothing to do, no error.
+    let empty = d.create_buffer("empty", 0, MemoryKind::Storage).unwrap();
+    d.run(|rec| scan.record(rec, &empty, 0)).unwrap();
+    assert_no_validation_messages(&d);
+}
+
+/// Sorts on the GPU; returns (keys, values).
+fn gpu_sort(d: &Device, sort: &mut RadixSort, keys: &[[u32; 2]], bits: u32) -> (Vec<[u32; 2]>, Vec<u32>) {
+    let n = keys.len();
+    let values: Vec<u32> = (0..n as u32).collect();
+    let kb = d.upload("keys", keys).unwrap();
+    let vb = d.upload("values", &values).unwrap();
+    sort.reserve(d, n as u64).unwrap();
+    d.run(|rec| sort.record(rec, &kb, &vb, n as u64, bits)).unwrap();
+    (d.read_buffer(&kb).unwrap(), d.read_buffer(&vb).unwrap())
+}
+
+fn check_sort(d: &Device, sort: &mut RadixSort, keys: &[[u32; 2]], bits: u32, label: &str) {
+    let (got_keys, got_values) = gpu_sort(d, sort, keys, bits);
+    let mask = if bits >= 64 { u64::MAX } else { (1u64 << bits) - 1 };
+    let key64 = |k: [u32; 2]| (u64::from(k[1]) << 32 | u64::from(k[0])) & mask;
+    let mut want: Vec<u32> = (0..keys.len() as u32).collect();
+    want.sort_by_key(|&i| key64(keys[i as usize])); // std's stable sort
+    if got_values != want {
+        let first = got_values.iter().zip(&want).position(|(a, b)| a != b).unwrap_or(0);
+        panic!("{label}: order differs first at {first}: got value {} want {}", got_values[first], want[first]);
+    }
+    // Keys travel with their values, untouched (all 64 bits).
+    assert!(got_values.iter().zip(&got_keys).all(|(&v, k)| keys[v as usize] == *k), "{label}: keys were altered");
+}
+
+#[test]
+fn radix_sort_matches_std_sort() {
+    let d = device();
+    let mut sort = RadixSort::new(&d).unwrap();
+    let mut rng = Pcg64Mcg::seed_from_u64(2);
+    let random =
+        |rng: &mut Pcg64Mcg, n: usize| -> Vec<[u32; 2]> { (0..n).map(|_| [rng.random(), rng.random()]).collect() };
+    for n in [0usize, 1, 2, 63, 64, 1023, 1024, 1025, 4097, 100_003] {
+        check_sort(&d, &mut sort, &random(&mut rng, n), 64, &format!("random n={n}"));
+    }
+    // Only the bits in use: keys with junk above `bits` sort by the low bits alone, stably.
+    for bits in [1u32, 13, 32, 42] {
+        check_sort(&d, &mut sort, &random(&mut rng, 30_001), bits, &format!("bits={bits}"));
+    }
+    // Duplicates (stability), all-equal keys, already sorted, reversed.
+    let dups: Vec<[u32; 2]> = (0..50_000).map(|_| [rng.random_range(0..7), rng.random_range(0..3)]).collect();
+    check_sort(&d, &mut sort, &dups, 64, "duplicates");
+    check_sort(&d, &mut sort, &vec![[0xdead_beef, 0x1234]; 20_000], 64, "all equal");
+    let sorted: Vec<[u32; 2]> = (0..20_000u32).map(|i| [i * 3, i / 100]).collect();
+    check_sort(&d, &mut sort, &sorted, 40, "sorted");
+    let reversed: Vec<[u32; 2]> = sorted.iter().rev().copied().collect();
+    check_sort(&d, &mut sort, &reversed, 40, "reversed");
+    // Splat-like keys: tile id above positive float depth bits.
+    let splat: Vec<[u32; 2]> =
+        (0..60_000).map(|_| [rng.random_range(0.01f32..500.0).to_bits(), rng.random_range(0..1320)]).collect();
+    check_sort(&d, &mut sort, &splat, 32 + 11, "tile|depth keys");
+    assert_no_validation_messages(&d);
+}
+
+#[test]
+fn radix_sort_more_than_16_million_keys() {
+    let d = device();
+    let mut sort = RadixSort::new(&d).unwrap();
+    let mut rng = Pcg64Mcg::seed_from_u64(3);
+    let n = (1usize << 24) + 4_321;
+    let keys: Vec<[u32; 2]> = (0..n).map(|_| [rng.random(), rng.random_range(0..256)]).collect();
+    check_sort(&d, &mut sort, &keys, 40, "16M+");
+    assert_no_validation_messages(&d);
+}
