@@ -35,3 +35,29 @@ pub fn failure_dir() -> PathBuf {
     let _ = std::fs::create_dir_all(&dir);
     dir
 }
+
+/// Saves GPU, CPU and |difference| images of a channel (`k` floats per pixel)
+/// as PGM/PPM under [`failure_dir`]; returns where.
+pub fn save_comparison(label: &str, width: u32, height: u32, k: usize, gpu: &[f32], cpu: &[f32]) -> String {
+    let dir = failure_dir();
+    let scale = cpu.iter().chain(gpu).filter(|v| v.is_finite()).fold(1e-12f32, |m, v| m.max(v.abs()));
+    let write = |name: &str, values: &mut dyn Iterator<Item = f32>| {
+        let channels = if k == 3 { 3 } else { 1 };
+        let magic = if channels == 3 { "P6" } else { "P5" };
+        let mut bytes = format!("{magic}\n{width} {height}\n255\n").into_bytes();
+        let mut n = 0;
+        for (i, v) in values.enumerate() {
+            if k == 3 || i % k == 0 {
+                bytes.push((v / scale * 255.0).clamp(0.0, 255.0) as u8);
+                n += 1;
+            }
+        }
+        let _ = n;
+        let path = dir.join(format!("{label}_{name}.{}", if channels == 3 { "ppm" } else { "pgm" }));
+        let _ = std::fs::write(&path, bytes);
+    };
+    write("gpu", &mut gpu.iter().map(|v| if v.is_finite() { v.abs() } else { scale }));
+    write("cpu", &mut cpu.iter().map(|v| v.abs()));
+    write("diff", &mut gpu.iter().zip(cpu).map(|(a, b)| if a.is_finite() { (a - b).abs() * 10.0 } else { scale }));
+    dir.join(label).display().to_string() + "_{gpu,cpu,diff}"
+}

@@ -97,6 +97,7 @@ impl Device {
         let (usage, location) = match kind {
             MemoryKind::Storage => (
                 vk::BufferUsageFlags::STORAGE_BUFFER
+                    | vk::BufferUsageFlags::UNIFORM_BUFFER
                     | vk::BufferUsageFlags::TRANSFER_SRC
                     | vk::BufferUsageFlags::TRANSFER_DST
                     | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS,
@@ -200,6 +201,18 @@ impl Device {
             self.run(|rec| rec.copy(&staging, 0, buffer, dst, part.len() as u64))?;
         }
         Ok(())
+    }
+
+    /// Reads `count` elements of `T` starting at element `first`.
+    pub fn read_range<T: Pod>(&self, buffer: &Buffer, first: u64, count: u64) -> Result<Vec<T>> {
+        let elem = std::mem::size_of::<T>() as u64;
+        let (start, len) = (first * elem, count * elem);
+        if start.checked_add(len).is_none_or(|end| end > buffer.size) || elem == 0 {
+            return Err(Error::InvalidArgument(format!("read of {count} elements at {first} from {}", buffer.name)));
+        }
+        let part = self.create_buffer(&format!("{} (range)", buffer.name), len, MemoryKind::Storage)?;
+        self.run(|rec| rec.copy(buffer, start, &part, 0, len))?;
+        self.read_buffer(&part)
     }
 
     /// Reads a whole buffer back as elements of `T`.

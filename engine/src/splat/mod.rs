@@ -1,8 +1,556 @@
 //! Tile-sorted splatting: the forward renderer and its G-buffers.
 //!
-//! Being built bottom-up: the prefix sum ([`scan`]) and the radix sort
-//! ([`sort`]) the tile binning needs are here; preprocessing, key emission,
-//! tile ranges and blending follow.
+//! Stages (each a kernel in `spirv/shaders/splat_*.comp`, each timed):
+//! 1. **preprocess**, one invocation per Gaussian: activation, near/far
+//!    culling, 3D covariance, EWA projection with the Jacobian clamped beyond
+//!    the image, +0.3 px² dilation, culling of degenerate and non-finite
+//!    values, conic, radius 3·sqrt(λ_max), SH colour, tile rectangle;
+//! 2. **scan** of per-Gaussian tile counts, then **keys**: one
+//!    `tile << 32 | depth bits` key per (Gaussian, tile);
+//! 3. **sort**: the stable radix sort over the bits in use only;
+//! 4. **ranges**: each tile's slice of the sorted pairs;
+//! 5. **blend**: per-pixel front-to-back blending into the requested channels.
+//!
+//! Conventions follow the INRIA and gsplat rasterizers (NOTES.md §3): pixel
+//! centres at +0.5, α = min(0.99, o·exp(−σ)), skip α < 1/255, stop when
+//! T·(1−α) < 1e-4. rgb is composited over the background; every other blended
+//! channel is Σ wᵢ xᵢ (premultiplied by alpha; divide by alpha for the mean).
+//! [`cpu`] is the f64 twin of every stage.
 
+pub mod cpu;
 pub mod scan;
 pub mod sort;
+
+use std::collections::HashMap;
+
+use bytemuck::{Pod, Zeroable};
+
+use self::scan::Scan;
+use self::sort::RadixSort;
+use crate::error::{Error, Result};
+use crate::gpu::{kernels, BindingKind, Buffer, Device, Kernel, KernelDecl, MemoryKind, SpecValue, Timings};
+use crate::scene::activate::GpuScene;
+use crate::scene::{Camera, Projection};
+
+/// Tile edge in pixels (keep in sync with `TILE` in `splat.glsl`).
+pub const TILE: u32 = 16;
+/// Bytes of one projected splat (keep in sync with `Splat` in `splat.glsl`).
+pub const SPLAT_BYTES: u64 = 64;
+/// Bytes of one splat's features (three vec4).
+pub const FEATURE_BYTES: u64 = 48;
+
+/// Which G-buffer channels to blend besides rgb and alpha (always produced).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub struct Channels {
+    /// Expected depth Σ wᵢ zᵢ.
+    pub depth: bool,
+    /// Depth where transmittance first falls to 0.5.
+    pub median_depth: bool,
+    /// World-space normal Σ wᵢ nᵢ.
+    pub normal: bool,
+    /// Albedo.
+    pub albedo: bool,
+    /// Roughness.
+    pub roughness: bool,
+    /// Metallic.
+    pub metallic: bool,
+    /// Ambient occlusion.
+    pub ao: bool,
+    /// Fixed sun visibility.
+    pub visibility: bool,
+}
+
+impl Channels {
+    /// Every channel.
+    pub const ALL: Channels = Channels {
+        depth: true,
+        median_depth: true,
+        normal: true,
+        albedo: true,
+        roughness: true,
+        metallic: true,
+        ao: true,
+        visibility: true,
+    };
+
+    /// The `CHANNELS` specialization constant of `splat_blend.comp`.
+    pub fn bits(&self) -> u32 {
+        [
+            self.depth,
+            self.median_depth,
+            self.normal,
+            self.albedo,
+            self.roughness,
+            self.metallic,
+            self.ao,
+            self.visibility,
+        ]
+        .iter()
+        .enumerate()
+        .map(|(i, on)| u32::from(*on) << i)
+        .sum()
+    }
+
+    /// Whether per-splat features (normal or materials) are needed.
+    pub fn needs_features(&self) -> bool {
+        self.bits() & 0b1111_1100 != 0
+    }
+
+    /// Parses a comma-separated list (`rgb` and `alpha` are accepted and always on;
+    /// `materials` means albedo, roughness, metallic, ao and visibility; `all` everything).
+    pub fn parse(list: &str) -> Result<Self> {
+        let mut c = Channels::default();
+        for item in list.split(',').map(str::trim).filter(|s| !s.is_empty()) {
+            match item {
+                "rgb" | "alpha" => {}
+                "depth" => c.depth = true,
+                "median_depth" | "median" => c.median_depth = true,
+                "normal" => c.normal = true,
+                "albedo" => c.albedo = true,
+                "roughness" => c.roughness = true,
+                "metallic" => c.metallic = true,
+                "ao" => c.ao = true,
+                "visibility" => c.visibility = true,
+                "materials" => {
+                    c = Channels { albedo: true, roughness: true, metallic: true, ao: true, visibility: true, ..c }
+                }
+                "all" => c = Channels::ALL,
+                other => {
+                    return Err(Error::InvalidArgument(format!(
+                        "unknown channel \"{other}\" (rgb, alpha, depth, median_depth, normal, albedo, roughness, \
+                         metallic, ao, visibility, materials, all)"
+                    )))
+                }
+            }
+        }
+        Ok(c)
+    }
+}
+
+/// Where splat normals come from.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum NormalSource {
+    /// Each Gaussian's shortest axis.
+    #[default]
+    ShortestAxis,
+    /// The stored normal where present and non-zero, else the shortest axis.
+    Stored,
+}
+
+/// What to render.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SplatSettings {
+    /// Background colour behind rgb.
+    pub background: [f32; 3],
+    /// Channels besides rgb and alpha.
+    pub channels: Channels,
+    /// Where normals come from.
+    pub normal_source: NormalSource,
+    /// Fill every output with this 32-bit word before blending (tests use NaN,
+    /// so a pixel the kernel never wrote cannot pass for a value).
+    pub prefill: Option<u32>,
+}
+
+impl Default for SplatSettings {
+    fn default() -> Self {
+        Self {
+            background: [0.0; 3],
+            channels: Channels::default(),
+            normal_source: NormalSource::default(),
+            prefill: None,
+        }
+    }
+}
+
+/// G-buffers on the host; planar per channel, row-major, rgb/normal/albedo interleaved by 3.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct GBuffer {
+    /// Width in pixels.
+    pub width: u32,
+    /// Height in pixels.
+    pub height: u32,
+    /// Colour over the background, 3 floats per pixel.
+    pub rgb: Vec<f32>,
+    /// 1 − final transmittance.
+    pub alpha: Vec<f32>,
+    /// Σ wᵢ zᵢ.
+    pub depth: Option<Vec<f32>>,
+    /// Depth where T first falls to 0.5 (0 where it never does).
+    pub median_depth: Option<Vec<f32>>,
+    /// Σ wᵢ nᵢ, 3 floats per pixel.
+    pub normal: Option<Vec<f32>>,
+    /// Σ wᵢ albedoᵢ, 3 floats per pixel.
+    pub albedo: Option<Vec<f32>>,
+    /// Σ wᵢ roughnessᵢ.
+    pub roughness: Option<Vec<f32>>,
+    /// Σ wᵢ metallicᵢ.
+    pub metallic: Option<Vec<f32>>,
+    /// Σ wᵢ aoᵢ.
+    pub ao: Option<Vec<f32>>,
+    /// Σ wᵢ visibilityᵢ.
+    pub visibility: Option<Vec<f32>>,
+}
+
+impl GBuffer {
+    /// The channels present as (name, values, floats per pixel), rgb and alpha first.
+    pub fn channels(&self) -> Vec<(&'static str, &[f32], usize)> {
+        let mut out = vec![("rgb", self.rgb.as_slice(), 3), ("alpha", self.alpha.as_slice(), 1)];
+        let optional: [(&'static str, &Option<Vec<f32>>, usize); 8] = [
+            ("depth", &self.depth, 1),
+            ("median_depth", &self.median_depth, 1),
+            ("normal", &self.normal, 3),
+            ("albedo", &self.albedo, 3),
+            ("roughness", &self.roughness, 1),
+            ("metallic", &self.metallic, 1),
+            ("ao", &self.ao, 1),
+            ("visibility", &self.visibility, 1),
+        ];
+        out.extend(optional.into_iter().filter_map(|(n, v, k)| v.as_deref().map(|v| (n, v, k))));
+        out
+    }
+}
+
+/// Frame parameters shared by every splat kernel (keep in sync with `Frame` in
+/// `splat.glsl`; std140 with vec4/uvec4 members only, addresses as (low, high) pairs).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+pub struct FrameUniform {
+    rot: [[f32; 4]; 3],
+    translation: [f32; 4],
+    intrinsics: [f32; 4],
+    clip: [f32; 4],
+    eye: [f32; 4],
+    view_dir: [f32; 4],
+    background: [f32; 4],
+    size: [u32; 4],
+    counts: [u32; 4],
+    scene: [[u64; 2]; 6],
+    work: [[u64; 2]; 3],
+    out: [[u64; 2]; 5],
+}
+const _: () = assert!(std::mem::size_of::<FrameUniform>() == 25 * 16);
+
+fn address(b: &Option<Buffer>) -> u64 {
+    b.as_ref().map_or(0, Buffer::device_address)
+}
+
+/// G-buffers on the GPU.
+pub struct GpuGBuffer {
+    /// Width in pixels.
+    pub width: u32,
+    /// Height in pixels.
+    pub height: u32,
+    /// float[3P].
+    pub rgb: Buffer,
+    /// float[P].
+    pub alpha: Buffer,
+    /// Optional channels, as in [`GBuffer`].
+    pub depth: Option<Buffer>,
+    /// Median depth.
+    pub median_depth: Option<Buffer>,
+    /// Normal, float[3P].
+    pub normal: Option<Buffer>,
+    /// Albedo, float[3P].
+    pub albedo: Option<Buffer>,
+    /// Roughness.
+    pub roughness: Option<Buffer>,
+    /// Metallic.
+    pub metallic: Option<Buffer>,
+    /// Ambient occlusion.
+    pub ao: Option<Buffer>,
+    /// Visibility.
+    pub visibility: Option<Buffer>,
+}
+
+impl GpuGBuffer {
+    /// Reads every channel back.
+    pub fn read(&self, device: &Device) -> Result<GBuffer> {
+        let opt = |b: &Option<Buffer>| b.as_ref().map(|b| device.read_buffer::<f32>(b)).transpose();
+        Ok(GBuffer {
+            width: self.width,
+            height: self.height,
+            rgb: device.read_buffer(&self.rgb)?,
+            alpha: device.read_buffer(&self.alpha)?,
+            depth: opt(&self.depth)?,
+            median_depth: opt(&self.median_depth)?,
+            normal: opt(&self.normal)?,
+            albedo: opt(&self.albedo)?,
+            roughness: opt(&self.roughness)?,
+            metallic: opt(&self.metallic)?,
+            ao: opt(&self.ao)?,
+            visibility: opt(&self.visibility)?,
+        })
+    }
+
+    /// GPU bytes held by the channels.
+    pub fn bytes(&self) -> u64 {
+        let opt = [
+            &self.depth,
+            &self.median_depth,
+            &self.normal,
+            &self.albedo,
+            &self.roughness,
+            &self.metallic,
+            &self.ao,
+            &self.visibility,
+        ];
+        self.rgb.size() + self.alpha.size() + opt.iter().filter_map(|b| b.as_ref().map(Buffer::size)).sum::<u64>()
+    }
+}
+
+/// What one render did, besides its G-buffers.
+#[derive(Clone, Debug, Default)]
+pub struct SplatStats {
+    /// Per-stage GPU times.
+    pub timings: Timings,
+    /// (Gaussian, tile) pairs sorted.
+    pub pairs: u64,
+    /// Key bits sorted.
+    pub key_bits: u32,
+    /// GPU bytes of per-frame working memory (splats, features, keys, sort scratch, ranges).
+    pub working_bytes: u64,
+}
+
+/// The splatting pipeline: kernels (one variant per channel set, built on
+/// first use) and the sort's scratch memory, reused across frames.
+pub struct Splatter {
+    device: Device,
+    preprocess: HashMap<bool, Kernel>,
+    keys: Kernel,
+    ranges: Kernel,
+    blend: HashMap<u32, Kernel>,
+    scan: Scan,
+    sort: RadixSort,
+}
+
+const FRAME_BINDING: [BindingKind; 1] = [BindingKind::UniformBuffer];
+
+fn frame_kernel(device: &Device, info: &'static srug_spirv::KernelInfo, spec: &[(u32, SpecValue)]) -> Result<Kernel> {
+    Kernel::new(device, info, &KernelDecl { bindings: &FRAME_BINDING, push_constant_size: 0, specialization: spec })
+}
+
+/// Camera parameters for the frame uniform.
+fn camera_frame(camera: &Camera, frame: &mut FrameUniform) -> Result<()> {
+    if camera.width == 0 || camera.height == 0 {
+        return Err(Error::InvalidArgument(format!("image size {}x{} is empty", camera.width, camera.height)));
+    }
+    let r = camera.rotation;
+    let w = r.transpose();
+    let t = -(w * camera.position);
+    for (row, col) in frame.rot.iter_mut().zip([r.x_axis, r.y_axis, r.z_axis]) {
+        *row = [col.x, col.y, col.z, 0.0];
+    }
+    let (kind, k, limits) = match camera.projection {
+        Projection::Pinhole { fx, fy, cx, cy } => {
+            (0.0, [fx, fy, cx, cy], [1.3 * 0.5 * camera.width as f32 / fx, 1.3 * 0.5 * camera.height as f32 / fy])
+        }
+        Projection::Orthographic { sx, sy, cx, cy } => (1.0, [sx, sy, cx, cy], [0.0, 0.0]),
+    };
+    frame.translation = [t.x, t.y, t.z, kind];
+    frame.intrinsics = k;
+    frame.clip = [camera.near, camera.far, limits[0], limits[1]];
+    frame.eye = [camera.position.x, camera.position.y, camera.position.z, 0.0];
+    frame.view_dir = [r.z_axis.x, r.z_axis.y, r.z_axis.z, 0.0];
+    let valid = frame.translation.iter().chain(&frame.intrinsics).chain(&frame.clip).all(|v| v.is_finite());
+    if !valid || !(camera.near < camera.far) {
+        return Err(Error::InvalidArgument("the camera has non-finite or inverted parameters".into()));
+    }
+    Ok(())
+}
+
+impl Splatter {
+    /// Builds the fixed kernels; channel variants are built on first use.
+    pub fn new(device: &Device) -> Result<Self> {
+        Ok(Self {
+            device: device.clone(),
+            preprocess: HashMap::new(),
+            keys: frame_kernel(device, &kernels::SPLAT_KEYS, &[])?,
+            ranges: frame_kernel(device, &kernels::SPLAT_RANGES, &[])?,
+            blend: HashMap::new(),
+            scan: Scan::new(device)?,
+            sort: RadixSort::new(device)?,
+        })
+    }
+
+    /// Renders `scene` from `camera` into new G-buffers.
+    pub fn render(
+        &mut self,
+        scene: &GpuScene,
+        camera: &Camera,
+        settings: &SplatSettings,
+    ) -> Result<(GpuGBuffer, SplatStats)> {
+        let device = self.device.clone();
+        let ch = settings.channels;
+        let missing = [
+            (ch.albedo, &scene.albedo, "albedo"),
+            (ch.roughness, &scene.roughness, "roughness"),
+            (ch.metallic, &scene.metallic, "metallic"),
+            (ch.ao, &scene.ao, "ao"),
+            (ch.visibility, &scene.visibility, "visibility"),
+        ];
+        if let Some((_, _, name)) = missing.iter().find(|(want, have, _)| *want && have.is_none()) {
+            return Err(Error::InvalidArgument(format!("channel {name} was requested but the scene has no {name}")));
+        }
+        let features = ch.needs_features();
+        if !self.preprocess.contains_key(&features) {
+            let k = frame_kernel(&device, &kernels::SPLAT_PREPROCESS, &[(0, SpecValue::Bool(features))])?;
+            self.preprocess.insert(features, k);
+        }
+        if !self.blend.contains_key(&ch.bits()) {
+            let k = frame_kernel(&device, &kernels::SPLAT_BLEND, &[(0, SpecValue::U32(ch.bits()))])?;
+            self.blend.insert(ch.bits(), k);
+        }
+
+        let n = scene.count as u64;
+        if n >= u64::from(u32::MAX) {
+            return Err(Error::InvalidArgument(format!("{n} Gaussians exceed the 2³² − 1 the kernels index")));
+        }
+        let (w, h) = (camera.width, camera.height);
+        let (tiles_x, tiles_y) = (w.div_ceil(TILE), h.div_ceil(TILE));
+        let tiles = u64::from(tiles_x) * u64::from(tiles_y);
+        let pixels = u64::from(w) * u64::from(h);
+        if tiles >= 1 << 32 || pixels * 3 >= 1 << 32 {
+            return Err(Error::InvalidArgument(format!("image {w}x{h} is too large")));
+        }
+        let mut frame = FrameUniform::zeroed();
+        camera_frame(camera, &mut frame)?;
+        frame.background = [settings.background[0], settings.background[1], settings.background[2], 0.0];
+        frame.size = [w, h, tiles_x, tiles_y];
+        frame.counts = [n as u32, scene.sh_degree, u32::from(settings.normal_source == NormalSource::Stored), 0];
+
+        let f = |name: &str, floats: u64| device.create_buffer(name, floats * 4, MemoryKind::Storage);
+        let opt = |on: bool, name: &str, floats: u64| on.then(|| f(name, floats)).transpose();
+        let out = GpuGBuffer {
+            width: w,
+            height: h,
+            rgb: f("gbuffer rgb", 3 * pixels)?,
+            alpha: f("gbuffer alpha", pixels)?,
+            depth: opt(ch.depth, "gbuffer depth", pixels)?,
+            median_depth: opt(ch.median_depth, "gbuffer median depth", pixels)?,
+            normal: opt(ch.normal, "gbuffer normal", 3 * pixels)?,
+            albedo: opt(ch.albedo, "gbuffer albedo", 3 * pixels)?,
+            roughness: opt(ch.roughness, "gbuffer roughness", pixels)?,
+            metallic: opt(ch.metallic, "gbuffer metallic", pixels)?,
+            ao: opt(ch.ao, "gbuffer ao", pixels)?,
+            visibility: opt(ch.visibility, "gbuffer visibility", pixels)?,
+        };
+        let splats = device.create_buffer("splats", n * SPLAT_BYTES, MemoryKind::Storage)?;
+        let feature_buf = features
+            .then(|| device.create_buffer("splat features", n * FEATURE_BYTES, MemoryKind::Storage))
+            .transpose()?;
+        let tile_counts = device.create_buffer("tile counts", (n + 1) * 4, MemoryKind::Storage)?;
+        let ranges = device.create_buffer("tile ranges", tiles * 8, MemoryKind::Storage)?;
+        frame.scene = [
+            [scene.means.device_address(), scene.log_scales.device_address()],
+            [scene.rotations.device_address(), scene.opacity_logits.device_address()],
+            [scene.sh.device_address(), address(&scene.normals)],
+            [address(&scene.albedo), address(&scene.roughness)],
+            [address(&scene.metallic), address(&scene.ao)],
+            [address(&scene.visibility), splats.device_address()],
+        ];
+        frame.work = [
+            [address(&feature_buf), tile_counts.device_address()],
+            [0, 0],
+            [ranges.device_address(), out.rgb.device_address()],
+        ];
+        frame.out = [
+            [out.alpha.device_address(), address(&out.depth)],
+            [address(&out.median_depth), address(&out.normal)],
+            [address(&out.albedo), address(&out.roughness)],
+            [address(&out.metallic), address(&out.ao)],
+            [address(&out.visibility), 0],
+        ];
+        let uniform = device.upload("splat frame", bytemuck::bytes_of(&frame))?;
+        self.scan.reserve(&device, n + 1)?;
+
+        // Phase 1: preprocess and scan the tile counts; the total sizes phase 2.
+        let scene_buffers: Vec<&Buffer> =
+            [&scene.means, &scene.log_scales, &scene.rotations, &scene.opacity_logits, &scene.sh]
+                .into_iter()
+                .chain(
+                    [&scene.normals, &scene.albedo, &scene.roughness, &scene.metallic, &scene.ao, &scene.visibility]
+                        .into_iter()
+                        .flatten(),
+                )
+                .collect();
+        let preprocess = &self.preprocess[&features];
+        let scan = &self.scan;
+        let mut timings = device.run(|rec| {
+            rec.keep(&scene_buffers)?;
+            rec.keep(&[&splats, &tile_counts])?;
+            if let Some(fb) = &feature_buf {
+                rec.keep(&[fb])?;
+            }
+            rec.begin_stage("preprocess");
+            rec.fill(&tile_counts, 0)?;
+            rec.dispatch_1d(preprocess, &[&uniform], &(), n)?;
+            rec.begin_stage("scan");
+            scan.record(rec, &tile_counts, n + 1)
+        })?;
+        let pairs = u64::from(device.read_range::<u32>(&tile_counts, n, 1)?[0]);
+
+        // Phase 2: keys, sort, ranges, blend.
+        let keys = device.create_buffer("sort keys", pairs * 8, MemoryKind::Storage)?;
+        let values = device.create_buffer("sort values", pairs * 4, MemoryKind::Storage)?;
+        self.sort.reserve(&device, pairs)?;
+        frame.counts[3] = pairs as u32;
+        frame.work[1] = [keys.device_address(), values.device_address()];
+        device.write_buffer(&uniform, 0, bytemuck::bytes_of(&frame))?;
+        let key_bits = 32 + (64 - (tiles.max(2) - 1).leading_zeros());
+        let (sort, keys_kernel, ranges_kernel, blend) = (&self.sort, &self.keys, &self.ranges, &self.blend[&ch.bits()]);
+        let outputs: Vec<&Buffer> = [&out.rgb, &out.alpha]
+            .into_iter()
+            .chain(
+                [
+                    &out.depth,
+                    &out.median_depth,
+                    &out.normal,
+                    &out.albedo,
+                    &out.roughness,
+                    &out.metallic,
+                    &out.ao,
+                    &out.visibility,
+                ]
+                .into_iter()
+                .flatten(),
+            )
+            .collect();
+        let phase2 = device.run(|rec| {
+            rec.keep(&[&splats, &tile_counts, &keys, &values, &ranges])?;
+            rec.keep(&outputs)?;
+            if let Some(fb) = &feature_buf {
+                rec.keep(&[fb])?;
+            }
+            if let Some(word) = settings.prefill {
+                for b in &outputs {
+                    rec.fill(b, word)?;
+                }
+            }
+            if pairs > 0 {
+                rec.begin_stage("keys");
+                rec.dispatch_1d(keys_kernel, &[&uniform], &(), n)?;
+                rec.begin_stage("sort");
+                sort.record(rec, &keys, &values, pairs, key_bits)?;
+            }
+            rec.begin_stage("ranges");
+            rec.fill(&ranges, 0)?;
+            if pairs > 0 {
+                rec.dispatch_1d(ranges_kernel, &[&uniform], &(), pairs)?;
+            }
+            rec.begin_stage("blend");
+            rec.dispatch_groups(blend, &[&uniform], &(), tiles)?;
+            rec.end_stage();
+            Ok(())
+        })?;
+        timings.stages.extend(phase2.stages);
+        let working_bytes = splats.size()
+            + feature_buf.as_ref().map_or(0, Buffer::size)
+            + tile_counts.size()
+            + keys.size()
+            + values.size()
+            + ranges.size()
+            + self.sort.scratch_bytes()
+            + self.scan.scratch_bytes();
+        Ok((out, SplatStats { timings, pairs, key_bits, working_bytes }))
+    }
+}

@@ -1,0 +1,296 @@
+//! The f64 CPU twin of the splatting pipeline: plain, obvious code with the
+//! same inputs and the same conventions as the kernels, for tests.
+//!
+//! Per-tile order is (f32 depth bits, Gaussian index), which is what the GPU's
+//! stable sort of keys emitted in Gaussian order produces.
+
+use glam::{DMat3, DVec2, DVec3};
+
+use super::{GBuffer, NormalSource, SplatSettings, TILE};
+use crate::scene::{sh_coefficients, Camera, Projection, Scene};
+
+/// One projected Gaussian.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CpuSplat {
+    /// Pixel coordinates of the centre.
+    pub mean: DVec2,
+    /// Camera z.
+    pub depth: f64,
+    /// Activated opacity.
+    pub opacity: f64,
+    /// Inverse 2D covariance (a, b, c).
+    pub conic: [f64; 3],
+    /// Radius in pixels.
+    pub radius: f64,
+    /// SH colour.
+    pub color: DVec3,
+    /// Tile rectangle [x0, y0, x1, y1).
+    pub rect: [u32; 4],
+    /// normal.xyz, roughness, albedo.rgb, metallic, ao, visibility.
+    pub features: [f64; 10],
+}
+
+const C0: f64 = 0.282_094_791_773_878_14;
+const C1: f64 = 0.488_602_511_902_919_9;
+const C2: [f64; 5] = [
+    1.092_548_430_592_079_2,
+    -1.092_548_430_592_079_2,
+    0.315_391_565_252_520_05,
+    -1.092_548_430_592_079_2,
+    0.546_274_215_296_039_6,
+];
+const C3: [f64; 7] = [
+    -0.590_043_589_926_643_5,
+    2.890_611_442_640_554,
+    -0.457_045_799_464_465_8,
+    0.373_176_332_590_115_4,
+    -0.457_045_799_464_465_8,
+    1.445_305_721_320_277,
+    -0.590_043_589_926_643_5,
+];
+
+/// SH basis value `k` for unit direction `d` (3DGS convention).
+pub fn sh_basis(k: usize, d: DVec3) -> f64 {
+    let (x, y, z) = (d.x, d.y, d.z);
+    let (xx, yy, zz) = (x * x, y * y, z * z);
+    match k {
+        0 => C0,
+        1 => -C1 * y,
+        2 => C1 * z,
+        3 => -C1 * x,
+        4 => C2[0] * x * y,
+        5 => C2[1] * y * z,
+        6 => C2[2] * (2.0 * zz - xx - yy),
+        7 => C2[3] * x * z,
+        8 => C2[4] * (xx - yy),
+        9 => C3[0] * y * (3.0 * xx - yy),
+        10 => C3[1] * x * y * z,
+        11 => C3[2] * y * (4.0 * zz - xx - yy),
+        12 => C3[3] * z * (2.0 * zz - 3.0 * xx - 3.0 * yy),
+        13 => C3[4] * x * (4.0 * zz - xx - yy),
+        14 => C3[5] * z * (xx - yy),
+        _ => C3[6] * x * (xx - 3.0 * yy),
+    }
+}
+
+fn sigmoid(x: f64) -> f64 {
+    1.0 / (1.0 + (-x).exp())
+}
+
+/// Stage 1 for one Gaussian; `None` when culled.
+pub fn preprocess_one(scene: &Scene, i: usize, camera: &Camera, normal_source: NormalSource) -> Option<CpuSplat> {
+    let p = DVec3::from_array(scene.means[i].map(f64::from));
+    let r_c2w = camera.rotation.as_dmat3();
+    let w = r_c2w.transpose();
+    let t = w * (p - camera.position.as_dvec3());
+    let (near, far) = (f64::from(camera.near), f64::from(camera.far));
+    if !(t.z > near && t.z < far) {
+        return None;
+    }
+    let s = DVec3::from_array(scene.log_scales[i].map(|v| f64::from(v).exp()));
+    let q = scene.rotations[i].map(f64::from);
+    let norm = q.iter().map(|c| c * c).sum::<f64>().sqrt();
+    let [qw, qx, qy, qz] = q.map(|c| c / norm);
+    let rot = DMat3::from_cols(
+        DVec3::new(1.0 - 2.0 * (qy * qy + qz * qz), 2.0 * (qx * qy + qw * qz), 2.0 * (qx * qz - qw * qy)),
+        DVec3::new(2.0 * (qx * qy - qw * qz), 1.0 - 2.0 * (qx * qx + qz * qz), 2.0 * (qy * qz + qw * qx)),
+        DVec3::new(2.0 * (qx * qz + qw * qy), 2.0 * (qy * qz - qw * qx), 1.0 - 2.0 * (qx * qx + qy * qy)),
+    );
+    let m = rot * DMat3::from_diagonal(s);
+    let cov_cam = w * (m * m.transpose()) * w.transpose();
+
+    let (mean, j) = match camera.projection {
+        Projection::Pinhole { fx, fy, cx, cy } => {
+            let (fx, fy, cx, cy) = (f64::from(fx), f64::from(fy), f64::from(cx), f64::from(cy));
+            let limx = 1.3 * 0.5 * f64::from(camera.width) / fx;
+            let limy = 1.3 * 0.5 * f64::from(camera.height) / fy;
+            let tx = (t.x / t.z).clamp(-limx, limx) * t.z;
+            let ty = (t.y / t.z).clamp(-limy, limy) * t.z;
+            let j = DMat3::from_cols(
+                DVec3::new(fx / t.z, 0.0, 0.0),
+                DVec3::new(0.0, fy / t.z, 0.0),
+                DVec3::new(-fx * tx / (t.z * t.z), -fy * ty / (t.z * t.z), 0.0),
+            );
+            (DVec2::new(fx * t.x / t.z + cx, fy * t.y / t.z + cy), j)
+        }
+        Projection::Orthographic { sx, sy, cx, cy } => {
+            let (sx, sy) = (f64::from(sx), f64::from(sy));
+            let j = DMat3::from_cols(DVec3::new(sx, 0.0, 0.0), DVec3::new(0.0, sy, 0.0), DVec3::ZERO);
+            (DVec2::new(sx * t.x + f64::from(cx), sy * t.y + f64::from(cy)), j)
+        }
+    };
+    let cov2 = j * cov_cam * j.transpose();
+    let (a, b, c) = (cov2.x_axis.x + 0.3, cov2.y_axis.x, cov2.y_axis.y + 0.3);
+    let det = a * c - b * b;
+    if !(det > 0.0) || !det.is_finite() || !mean.is_finite() {
+        return None;
+    }
+    let conic = [c / det, -b / det, a / det];
+    let mid = 0.5 * (a + c);
+    let lambda = mid + (mid * mid - det).max(0.1).sqrt();
+    let radius = (3.0 * lambda.sqrt()).ceil();
+    if !radius.is_finite() || conic.iter().any(|v| !v.is_finite()) {
+        return None;
+    }
+    let tiles = DVec2::new(f64::from(camera.width.div_ceil(TILE)), f64::from(camera.height.div_ceil(TILE)));
+    let tile = f64::from(TILE);
+    let lo = ((mean - radius) / tile).floor().clamp(DVec2::ZERO, tiles);
+    let hi = (((mean + radius) / tile).floor() + 1.0).clamp(DVec2::ZERO, tiles);
+    let rect = [lo.x as u32, lo.y as u32, hi.x as u32, hi.y as u32];
+    if rect[2] <= rect[0] || rect[3] <= rect[1] {
+        return None;
+    }
+    let ortho = matches!(camera.projection, Projection::Orthographic { .. });
+    let view_dir = r_c2w.z_axis;
+    let dir = if ortho { view_dir } else { (p - camera.position.as_dvec3()).normalize() };
+    let k = sh_coefficients(scene.sh_degree);
+    let mut color = DVec3::ZERO;
+    for coef in 0..k {
+        let o = (i * k + coef) * 3;
+        color += sh_basis(coef, dir)
+            * DVec3::new(f64::from(scene.sh[o]), f64::from(scene.sh[o + 1]), f64::from(scene.sh[o + 2]));
+    }
+    let color = (color + 0.5).max(DVec3::ZERO);
+
+    let mut n = DVec3::ZERO;
+    if normal_source == NormalSource::Stored {
+        if let Some(normals) = &scene.normals {
+            n = DVec3::from_array(normals[i].map(f64::from));
+        }
+    }
+    if n == DVec3::ZERO {
+        n = if s.x <= s.y && s.x <= s.z {
+            rot.x_axis
+        } else if s.y <= s.z {
+            rot.y_axis
+        } else {
+            rot.z_axis
+        };
+    }
+    let mut n = n.normalize();
+    let toward = if ortho { -view_dir } else { camera.position.as_dvec3() - p };
+    if n.dot(toward) < 0.0 {
+        n = -n;
+    }
+    let m = &scene.materials;
+    let one = |v: &Option<Vec<f32>>| v.as_ref().map_or(0.0, |v| sigmoid(f64::from(v[i])));
+    let albedo = m.albedo.as_ref().map_or([0.0; 3], |a| a[i].map(|v| sigmoid(f64::from(v))));
+    let features = [
+        n.x,
+        n.y,
+        n.z,
+        one(&m.roughness),
+        albedo[0],
+        albedo[1],
+        albedo[2],
+        one(&m.metallic),
+        one(&m.ao),
+        one(&m.visibility),
+    ];
+    Some(CpuSplat {
+        mean,
+        depth: t.z,
+        opacity: sigmoid(f64::from(scene.opacity_logits[i])),
+        conic,
+        radius,
+        color,
+        rect,
+        features,
+    })
+}
+
+/// Stages 1–5 on the CPU.
+pub fn render_cpu(scene: &Scene, camera: &Camera, settings: &SplatSettings) -> GBuffer {
+    let (w, h) = (camera.width as usize, camera.height as usize);
+    let tiles_x = camera.width.div_ceil(TILE) as usize;
+    let tiles_y = camera.height.div_ceil(TILE) as usize;
+    let splats: Vec<Option<CpuSplat>> =
+        (0..scene.len()).map(|i| preprocess_one(scene, i, camera, settings.normal_source)).collect();
+    let mut lists: Vec<Vec<(u32, usize)>> = vec![Vec::new(); tiles_x * tiles_y];
+    for (i, s) in splats.iter().enumerate() {
+        if let Some(s) = s {
+            for ty in s.rect[1]..s.rect[3] {
+                for tx in s.rect[0]..s.rect[2] {
+                    lists[ty as usize * tiles_x + tx as usize].push(((s.depth as f32).to_bits(), i));
+                }
+            }
+        }
+    }
+    for l in &mut lists {
+        l.sort_unstable();
+    }
+    let ch = settings.channels;
+    let p = w * h;
+    let opt = |on: bool, k: usize| on.then(|| vec![0.0f32; k * p]);
+    let mut g = GBuffer {
+        width: camera.width,
+        height: camera.height,
+        rgb: vec![0.0; 3 * p],
+        alpha: vec![0.0; p],
+        depth: opt(ch.depth, 1),
+        median_depth: opt(ch.median_depth, 1),
+        normal: opt(ch.normal, 3),
+        albedo: opt(ch.albedo, 3),
+        roughness: opt(ch.roughness, 1),
+        metallic: opt(ch.metallic, 1),
+        ao: opt(ch.ao, 1),
+        visibility: opt(ch.visibility, 1),
+    };
+    let bg = DVec3::from_array(settings.background.map(f64::from));
+    for y in 0..h {
+        for x in 0..w {
+            let list = &lists[(y / TILE as usize) * tiles_x + x / TILE as usize];
+            let centre = DVec2::new(x as f64 + 0.5, y as f64 + 0.5);
+            let mut t = 1.0f64;
+            let mut rgb = DVec3::ZERO;
+            let (mut depth, mut median) = (0.0, 0.0);
+            let mut feat = [0.0f64; 10];
+            for &(_, i) in list {
+                let Some(s) = &splats[i] else { continue };
+                let d = s.mean - centre;
+                let power = -0.5 * (s.conic[0] * d.x * d.x + s.conic[2] * d.y * d.y) - s.conic[1] * d.x * d.y;
+                if power > 0.0 {
+                    continue;
+                }
+                let alpha = (s.opacity * power.exp()).min(0.99);
+                if alpha < 1.0 / 255.0 {
+                    continue;
+                }
+                let next = t * (1.0 - alpha);
+                if next < 1e-4 {
+                    break;
+                }
+                let wgt = alpha * t;
+                rgb += wgt * s.color;
+                depth += wgt * s.depth;
+                if t > 0.5 && next <= 0.5 {
+                    median = s.depth;
+                }
+                for (f, v) in feat.iter_mut().zip(s.features) {
+                    *f += wgt * v;
+                }
+                t = next;
+            }
+            let px = y * w + x;
+            let c = rgb + t * bg;
+            g.rgb[3 * px..3 * px + 3].copy_from_slice(&[c.x as f32, c.y as f32, c.z as f32]);
+            g.alpha[px] = (1.0 - t) as f32;
+            let put = |v: &mut Option<Vec<f32>>, vals: &[f64]| {
+                if let Some(v) = v {
+                    for (k, val) in vals.iter().enumerate() {
+                        v[vals.len() * px + k] = *val as f32;
+                    }
+                }
+            };
+            put(&mut g.depth, &[depth]);
+            put(&mut g.median_depth, &[median]);
+            put(&mut g.normal, &feat[0..3]);
+            put(&mut g.roughness, &feat[3..4]);
+            put(&mut g.albedo, &feat[4..7]);
+            put(&mut g.metallic, &feat[7..8]);
+            put(&mut g.ao, &feat[8..9]);
+            put(&mut g.visibility, &feat[9..10]);
+        }
+    }
+    g
+}

@@ -1,0 +1,17 @@
+#version 460
+// Splatting stage 4: each tile's [start, end) in the sorted pairs.
+// Ranges are zero-filled before, so tiles without pairs stay empty.
+#define WORKGROUP_SIZE_X 64
+#include "common.glsl"
+#include "splat.glsl"
+
+void main() {
+    uint i = linear_index();
+    uint n = frame.counts.w;
+    if (i >= n) return;
+    Uvec2s keys = Uvec2s(frame.work1.xy);
+    Uvec2s ranges = Uvec2s(frame.work2.xy);
+    uint tile = keys.v[i].y;
+    if (i == 0u || keys.v[i - 1u].y != tile) ranges.v[tile].x = i;
+    if (i + 1u == n || keys.v[i + 1u].y != tile) ranges.v[tile].y = i + 1u;
+}
