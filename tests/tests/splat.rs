@@ -13,7 +13,7 @@ use srug::scene::demo::{demo_city, DemoOptions};
 use srug::scene::{read_ply, sh_coefficients, Camera, Scene};
 use srug::splat::cpu::render_cpu;
 use srug::splat::{Channels, GBuffer, NormalSource, SplatSettings, Splatter};
-use srug_tests::{assert_no_validation_messages, device, failure_dir, save_comparison};
+use srug_tests::{assert_no_validation_messages, device, save_comparison};
 
 const NAN: u32 = 0x7fc0_0000;
 /// rgb must agree with the CPU twin to this PSNR (peak 1).
@@ -140,5 +140,129 @@ fn demo_city_matches_cpu_twin_in_every_channel() {
     let g = render_both(&d, &mut splatter, &city.scene, &cam, &all_settings(), "demo");
     let covered = g.alpha.iter().filter(|a| **a > 0.5).count();
     assert!(covered * 10 > g.alpha.len() * 9, "the street should cover the view: {covered} of {}", g.alpha.len());
+    assert_no_validation_messages(&d);
+}
+
+#[test]
+fn real_trained_scene_matches_cpu_twin() {
+    let Some(data) = srug_tests::shared_data() else {
+        eprintln!("skipped: ../shared/data is absent");
+        return;
+    };
+    let d = device();
+    let mut splatter = Splatter::new(&d).unwrap();
+    let scene = read_ply(data.join("scenes").join("trained_iter7000.ply")).unwrap();
+    // Look from the median centre toward the densest side (the file ships no cameras).
+    let mut xs: Vec<Vec3> = scene.means.iter().map(|m| Vec3::from_array(*m)).collect();
+    xs.sort_by(|a, b| a.x.total_cmp(&b.x));
+    let centre = xs[xs.len() / 2];
+    let settings = SplatSettings {
+        channels: Channels { depth: true, median_depth: true, normal: true, ..Channels::default() },
+        ..all_settings()
+    };
+    let mut covered = 0;
+    for dir in [Vec3::X, -Vec3::X, Vec3::Y, -Vec3::Y] {
+        let cam = Camera::look_at(centre - dir * 50.0, centre, Vec3::Z, 60.0, 240, 136).unwrap();
+        let g = render_both(&d, &mut splatter, &scene, &cam, &settings, &format!("trained_{dir}"));
+        covered += g.alpha.iter().filter(|a| **a > 0.1).count();
+    }
+    assert!(covered > 1000, "the trained scene should be visible from somewhere: {covered} pixels");
+    assert_no_validation_messages(&d);
+}
+
+fn one_gaussian(mean: [f32; 3], log_scale: f32, opacity_logit: f32) -> Scene {
+    Scene {
+        means: vec![mean],
+        sh_degree: 0,
+        sh: vec![0.5, 0.2, -0.3],
+        opacity_logits: vec![opacity_logit],
+        log_scales: vec![[log_scale; 3]],
+        rotations: vec![[1.0, 0.0, 0.0, 0.0]],
+        ..Scene::default()
+    }
+}
+
+#[test]
+fn extremes_give_finite_outputs() {
+    let d = device();
+    let mut splatter = Splatter::new(&d).unwrap();
+    let settings = SplatSettings {
+        channels: Channels { depth: true, median_depth: true, normal: true, ..Channels::default() },
+        ..all_settings()
+    };
+    let cam = Camera::look_at(Vec3::ZERO, Vec3::Y, Vec3::Z, 60.0, 64, 48).unwrap();
+    let near = cam.near;
+    let cases: Vec<(&str, Scene)> = vec![
+        ("behind the camera", one_gaussian([0.0, -3.0, 0.0], -1.0, 2.0)),
+        ("at the camera", one_gaussian([0.0, 0.0, 0.0], -1.0, 2.0)),
+        ("at the near plane", one_gaussian([0.0, near, 0.0], -1.0, 2.0)),
+        ("just past the near plane", one_gaussian([0.0, near * 1.01, 0.0], -5.0, 2.0)),
+        ("scale 1e-8", one_gaussian([0.0, 3.0, 0.0], (1e-8f32).ln(), 2.0)),
+        ("scale 1e4", one_gaussian([0.0, 3.0, 0.0], (1e4f32).ln(), 2.0)),
+        ("opacity 0", one_gaussian([0.0, 3.0, 0.0], -1.0, -100.0)),
+        ("opacity 1", one_gaussian([0.0, 3.0, 0.0], -1.0, 100.0)),
+        ("camera inside", one_gaussian([0.0, 0.5, 0.0], 1.0, 2.0)),
+        ("far beyond", one_gaussian([0.0, 1e6, 0.0], -1.0, 2.0)),
+        ("nothing", Scene { sh_degree: 0, ..Scene::default() }),
+    ];
+    for (label, scene) in &cases {
+        scene.validate(label).unwrap();
+        render_both(&d, &mut splatter, scene, &cam, &settings, label);
+    }
+    // 1×1 and 16384-wide images.
+    let scene = random_scene(300, 1, 9, 2.0);
+    for (w, h) in [(1u32, 1u32), (16_384, 8)] {
+        let cam = Camera::look_at(Vec3::new(0.0, -6.0, 0.0), Vec3::ZERO, Vec3::Z, 90.0, w, h).unwrap();
+        render_both(&d, &mut splatter, &scene, &cam, &settings, &format!("{w}x{h}"));
+    }
+    assert_no_validation_messages(&d);
+}
+
+#[test]
+fn orthographic_camera_matches_cpu_twin() {
+    let d = device();
+    let mut splatter = Splatter::new(&d).unwrap();
+    let scene = random_scene(2000, 2, 4, 3.0);
+    let sun = Camera::orthographic(
+        Vec3::new(0.0, 0.0, 20.0),
+        Vec3::new(0.3, 0.1, -1.0),
+        Vec3::Y,
+        10.0,
+        8.0,
+        128,
+        96,
+        0.0,
+        50.0,
+    )
+    .unwrap();
+    let settings = SplatSettings {
+        channels: Channels { depth: true, median_depth: true, ..Channels::default() },
+        ..all_settings()
+    };
+    let g = render_both(&d, &mut splatter, &scene, &sun, &settings, "orthographic");
+    assert!(g.alpha.iter().any(|a| *a > 0.5));
+    assert_no_validation_messages(&d);
+}
+
+#[test]
+fn requested_channels_only_and_missing_attributes_refused() {
+    let d = device();
+    let mut splatter = Splatter::new(&d).unwrap();
+    let scene = random_scene(100, 0, 5, 2.0);
+    let gpu_scene = GpuScene::upload(&d, &scene).unwrap();
+    let cam = Camera::look_at(Vec3::new(0.0, -6.0, 0.0), Vec3::ZERO, Vec3::Z, 70.0, 32, 32).unwrap();
+    let (out, _) = splatter.render(&gpu_scene, &cam, &SplatSettings::default()).unwrap();
+    assert!(out.depth.is_none() && out.normal.is_none() && out.albedo.is_none(), "unrequested channels were allocated");
+    assert_eq!(out.bytes(), 4 * 32 * 32 * 4);
+    let settings =
+        SplatSettings { channels: Channels { albedo: true, ..Channels::default() }, ..SplatSettings::default() };
+    match splatter.render(&gpu_scene, &cam, &settings) {
+        Err(srug::Error::InvalidArgument(m)) => assert!(m.contains("albedo"), "{m}"),
+        other => panic!("expected a refusal, got {:?}", other.map(|_| ())),
+    }
+    assert!(
+        Channels::parse("rgb,depth,normal").unwrap() == Channels { depth: true, normal: true, ..Channels::default() }
+    );
+    assert!(Channels::parse("rgb,bogus").is_err());
     assert_no_validation_messages(&d);
 }

@@ -122,7 +122,7 @@ pub fn preprocess_one(scene: &Scene, i: usize, camera: &Camera, normal_source: N
     let cov2 = j * cov_cam * j.transpose();
     let (a, b, c) = (cov2.x_axis.x + 0.3, cov2.y_axis.x, cov2.y_axis.y + 0.3);
     let det = a * c - b * b;
-    if !(det > 0.0) || !det.is_finite() || !mean.is_finite() {
+    if det.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) || !det.is_finite() || !mean.is_finite() {
         return None;
     }
     let conic = [c / det, -b / det, a / det];

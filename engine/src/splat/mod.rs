@@ -352,7 +352,7 @@ fn camera_frame(camera: &Camera, frame: &mut FrameUniform) -> Result<()> {
     frame.eye = [camera.position.x, camera.position.y, camera.position.z, 0.0];
     frame.view_dir = [r.z_axis.x, r.z_axis.y, r.z_axis.z, 0.0];
     let valid = frame.translation.iter().chain(&frame.intrinsics).chain(&frame.clip).all(|v| v.is_finite());
-    if !valid || !(camera.near < camera.far) {
+    if !valid || camera.near.partial_cmp(&camera.far) != Some(std::cmp::Ordering::Less) {
         return Err(Error::InvalidArgument("the camera has non-finite or inverted parameters".into()));
     }
     Ok(())
@@ -392,13 +392,11 @@ impl Splatter {
             return Err(Error::InvalidArgument(format!("channel {name} was requested but the scene has no {name}")));
         }
         let features = ch.needs_features();
-        if !self.preprocess.contains_key(&features) {
-            let k = frame_kernel(&device, &kernels::SPLAT_PREPROCESS, &[(0, SpecValue::Bool(features))])?;
-            self.preprocess.insert(features, k);
+        if let std::collections::hash_map::Entry::Vacant(e) = self.preprocess.entry(features) {
+            e.insert(frame_kernel(&device, &kernels::SPLAT_PREPROCESS, &[(0, SpecValue::Bool(features))])?);
         }
-        if !self.blend.contains_key(&ch.bits()) {
-            let k = frame_kernel(&device, &kernels::SPLAT_BLEND, &[(0, SpecValue::U32(ch.bits()))])?;
-            self.blend.insert(ch.bits(), k);
+        if let std::collections::hash_map::Entry::Vacant(e) = self.blend.entry(ch.bits()) {
+            e.insert(frame_kernel(&device, &kernels::SPLAT_BLEND, &[(0, SpecValue::U32(ch.bits()))])?);
         }
 
         let n = scene.count as u64;
