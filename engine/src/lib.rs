@@ -7,6 +7,7 @@
 
 pub mod error;
 pub mod gpu;
+pub mod output;
 pub mod scene;
 pub mod splat;
 

@@ -7,7 +7,9 @@ use std::time::{Duration, Instant};
 use clap::{Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
 use srug::gpu::{self, Device, DeviceOptions, DeviceSelection};
-use srug::scene::{self, activate, demo, human_bytes, PlyFormat};
+use srug::output;
+use srug::scene::{self, activate, demo, human_bytes, PlyFormat, Projection};
+use srug::splat::{Channels, NormalSource, SplatSettings, Splatter};
 
 #[derive(Parser)]
 #[command(name = "srug", version, about = "Render and relight 3D Gaussian Splatting city scenes with Vulkan compute")]
@@ -31,7 +33,46 @@ enum Command {
     },
     /// List the Vulkan devices.
     Devices,
-    /// The main job on the built-in demo city: generate it, write it, and check the GPU on it.
+    /// Render a scene into G-buffers: PNG (rgb) for viewing, multi-channel float EXR for data.
+    Render {
+        /// A 3DGS PLY file.
+        scene: PathBuf,
+        /// INRIA cameras.json; without it, the look-at options define one camera.
+        #[arg(long)]
+        cameras: Option<PathBuf>,
+        /// Render only this camera (default: every camera, numbered outputs).
+        #[arg(long)]
+        index: Option<usize>,
+        /// Output size WxH (intrinsics scaled to match); required with look-at cameras.
+        #[arg(long)]
+        size: Option<String>,
+        /// Output file, .png or .exr.
+        #[arg(long)]
+        out: PathBuf,
+        /// Channels besides rgb and alpha: depth, median_depth, normal, albedo, roughness,
+        /// metallic, ao, visibility, materials, all (EXR holds them all; PNG shows rgb).
+        #[arg(long, default_value = "rgb")]
+        channels: String,
+        /// Look-at camera: eye position x,y,z.
+        #[arg(long)]
+        eye: Option<String>,
+        /// Look-at camera: target x,y,z.
+        #[arg(long, default_value = "0,0,0")]
+        target: String,
+        /// Look-at camera: up vector x,y,z.
+        #[arg(long, default_value = "0,0,1")]
+        up: String,
+        /// Look-at camera: horizontal field of view in degrees.
+        #[arg(long, default_value_t = 60.0)]
+        fov: f32,
+        /// Background colour r,g,b.
+        #[arg(long, default_value = "0,0,0")]
+        background: String,
+        /// Normals from each Gaussian's stored normal where present (default: shortest axis).
+        #[arg(long)]
+        stored_normals: bool,
+    },
+    /// The main job on the built-in demo city: generate it, write it, check the GPU on it, and render it.
     Demo {
         /// Number of Gaussians.
         #[arg(long, default_value_t = 200_000)]
@@ -80,6 +121,49 @@ fn open_device(cli_device: &Option<String>, validation: bool) -> srug::Result<De
     })
 }
 
+fn parse_vec3(text: &str) -> srug::Result<glam::Vec3> {
+    let v: Vec<f32> = text
+        .split(',')
+        .map(|p| p.trim().parse::<f32>())
+        .collect::<Result<_, _>>()
+        .map_err(|_| srug::Error::InvalidArgument(format!("\"{text}\" is not three comma-separated numbers")))?;
+    match v.as_slice() {
+        [x, y, z] if v.iter().all(|c| c.is_finite()) => Ok(glam::Vec3::new(*x, *y, *z)),
+        _ => Err(srug::Error::InvalidArgument(format!("\"{text}\" is not three finite numbers"))),
+    }
+}
+
+fn parse_size(text: &str) -> srug::Result<(u32, u32)> {
+    let bad = || srug::Error::InvalidArgument(format!("size \"{text}\" is not WxH"));
+    let (w, h) = text.split_once(['x', 'X']).ok_or_else(bad)?;
+    let (w, h): (u32, u32) = (w.trim().parse().map_err(|_| bad())?, h.trim().parse().map_err(|_| bad())?);
+    if w == 0 || h == 0 {
+        return Err(bad());
+    }
+    Ok((w, h))
+}
+
+/// The camera with its image resized to w×h (intrinsics scaled).
+fn resized(c: &scene::Camera, w: u32, h: u32) -> scene::Camera {
+    let (sx, sy) = (w as f32 / c.width as f32, h as f32 / c.height as f32);
+    let projection = match c.projection {
+        Projection::Pinhole { fx, fy, cx, cy } => {
+            Projection::Pinhole { fx: fx * sx, fy: fy * sy, cx: cx * sx, cy: cy * sy }
+        }
+        Projection::Orthographic { sx: ox, sy: oy, cx, cy } => {
+            Projection::Orthographic { sx: ox * sx, sy: oy * sy, cx: cx * sx, cy: cy * sy }
+        }
+    };
+    scene::Camera { width: w, height: h, projection, ..c.clone() }
+}
+
+/// `out.png` → `out_003.png`.
+fn numbered(out: &std::path::Path, i: usize) -> PathBuf {
+    let stem = out.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+    let ext = out.extension().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+    out.with_file_name(format!("{stem}_{i:03}.{ext}"))
+}
+
 fn run(cli: Cli) -> srug::Result<()> {
     match cli.command {
         Command::Info { scene: path } => {
@@ -89,6 +173,89 @@ fn run(cli: Cli) -> srug::Result<()> {
             let scene = scene?;
             println!("{}", path.display());
             print!("{}", scene.summary());
+            Ok(())
+        }
+        Command::Render {
+            scene: path,
+            cameras,
+            index,
+            size,
+            out,
+            channels,
+            eye,
+            target,
+            up,
+            fov,
+            background,
+            stored_normals,
+        } => {
+            let channels = Channels::parse(&channels)?;
+            let is_exr = match out.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).as_deref() {
+                Some("png") => false,
+                Some("exr") => true,
+                _ => {
+                    return Err(srug::Error::InvalidArgument(format!(
+                        "{}: the output must end in .png or .exr",
+                        out.display()
+                    )))
+                }
+            };
+            let size = size.as_deref().map(parse_size).transpose()?;
+            let mut cams = match (&cameras, &eye) {
+                (Some(c), _) => scene::read_cameras_json(c)?,
+                (None, Some(eye)) => {
+                    let (w, h) =
+                        size.ok_or_else(|| srug::Error::InvalidArgument("--size is required with --eye".into()))?;
+                    vec![scene::Camera::look_at(parse_vec3(eye)?, parse_vec3(&target)?, parse_vec3(&up)?, fov, w, h)?]
+                }
+                (None, None) => return Err(srug::Error::InvalidArgument("give --cameras or --eye".into())),
+            };
+            if let Some(i) = index {
+                let n = cams.len();
+                cams = vec![cams
+                    .into_iter()
+                    .nth(i)
+                    .ok_or_else(|| srug::Error::InvalidArgument(format!("--index {i}: there are {n} cameras")))?];
+            }
+            if let (Some((w, h)), Some(_)) = (size, &cameras) {
+                for c in &mut cams {
+                    *c = resized(c, w, h);
+                }
+            }
+            let scene = scene::read_ply(&path)?;
+            let device = open_device(&cli.device, cli.validation)?;
+            let gpu_scene = activate::GpuScene::upload(&device, &scene)?;
+            let mut splatter = Splatter::new(&device)?;
+            let settings = SplatSettings {
+                background: parse_vec3(&background)?.to_array(),
+                channels,
+                normal_source: if stored_normals { NormalSource::Stored } else { NormalSource::ShortestAxis },
+                prefill: None,
+            };
+            let bar = if cams.len() > 1 { ProgressBar::new(cams.len() as u64) } else { ProgressBar::hidden() };
+            bar.set_style(
+                ProgressStyle::with_template("{bar:40} {pos}/{len} cameras [{elapsed} < {eta}]")
+                    .unwrap_or_else(|_| ProgressStyle::default_bar()),
+            );
+            for (i, cam) in cams.iter().enumerate() {
+                let target = if cams.len() > 1 { numbered(&out, index.unwrap_or(i)) } else { out.clone() };
+                let (gpu, stats) = splatter.render(&gpu_scene, cam, &settings)?;
+                let g = gpu.read(&device)?;
+                if is_exr {
+                    output::write_exr(&target, &g)?;
+                } else {
+                    output::write_png(&target, g.width, g.height, &g.rgb)?;
+                }
+                bar.inc(1);
+                bar.println(format!(
+                    "{} ({}x{}, {:.1} ms GPU)",
+                    target.display(),
+                    g.width,
+                    g.height,
+                    stats.timings.total_seconds() * 1e3
+                ));
+            }
+            bar.finish_and_clear();
             Ok(())
         }
         Command::Devices => {
@@ -159,6 +326,27 @@ fn run(cli: Cli) -> srug::Result<()> {
                 max_err,
                 activated.timings.total_seconds() * 1e3
             );
+            let mut splatter = Splatter::new(&device)?;
+            let settings = SplatSettings { background: [0.55, 0.7, 0.9], ..SplatSettings::default() };
+            let (gbuffer, stats) = splatter.render(&gpu_scene, &city.cameras[0], &settings)?;
+            let g = gbuffer.read(&device)?;
+            let image = out.join("demo_city.png");
+            output::write_png(&image, g.width, g.height, &g.rgb)?;
+            println!(
+                "rendered camera {} ({}x{}): {} pairs sorted on {} bits; GPU {}",
+                city.cameras[0].name,
+                g.width,
+                g.height,
+                stats.pairs,
+                stats.key_bits,
+                stats
+                    .timings
+                    .stages
+                    .iter()
+                    .map(|s| format!("{} {:.2} ms", s.name, s.seconds * 1e3))
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            );
             let mem = device.memory_usage();
             println!("GPU memory: {} in use, {} peak", human_bytes(mem.current_bytes), human_bytes(mem.peak_bytes));
             let messages = device.take_validation_messages();
@@ -167,6 +355,7 @@ fn run(cli: Cli) -> srug::Result<()> {
             }
             println!("scene: {}", ply.display());
             println!("cameras: {}", cameras.display());
+            println!("image: {}", image.display());
             if !report.passed() || !ok || !messages.is_empty() {
                 return Err(srug::Error::InvalidArgument("the GPU disagreed with the CPU twin (see above)".into()));
             }
