@@ -54,13 +54,13 @@ enum Command {
         #[arg(long, default_value = "rgb")]
         channels: String,
         /// Look-at camera: eye position x,y,z.
-        #[arg(long)]
+        #[arg(long, allow_hyphen_values = true)]
         eye: Option<String>,
         /// Look-at camera: target x,y,z.
-        #[arg(long, default_value = "0,0,0")]
+        #[arg(long, default_value = "0,0,0", allow_hyphen_values = true)]
         target: String,
         /// Look-at camera: up vector x,y,z.
-        #[arg(long, default_value = "0,0,1")]
+        #[arg(long, default_value = "0,0,1", allow_hyphen_values = true)]
         up: String,
         /// Look-at camera: horizontal field of view in degrees.
         #[arg(long, default_value_t = 60.0)]

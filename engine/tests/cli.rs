@@ -31,6 +31,63 @@ fn demo_generates_writes_and_checks_the_gpu() {
     }
     let ply = dir.path().join("demo_city.ply");
     assert!(ply.is_file() && dir.path().join("cameras.json").is_file());
+    let png = image::open(dir.path().join("demo_city.png")).unwrap().to_rgb8();
+    assert_eq!(png.dimensions(), (704, 192));
+    let distinct: std::collections::HashSet<[u8; 3]> = png.pixels().map(|p| p.0).collect();
+    assert!(distinct.len() > 100, "the render is nearly flat: {} colours", distinct.len());
+
+    // Render every default camera as EXR with G-buffer channels, and one as PNG at another size.
+    let cams = dir.path().join("cameras.json");
+    let exr_out = dir.path().join("frame.exr");
+    let o = srug(&[
+        "render",
+        ply.to_str().unwrap(),
+        "--cameras",
+        cams.to_str().unwrap(),
+        "--out",
+        exr_out.to_str().unwrap(),
+        "--channels",
+        "depth,normal,materials",
+        "--size",
+        "176x48",
+        "--validation",
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    for i in 0..4 {
+        let path = dir.path().join(format!("frame_{i:03}.exr"));
+        let image = exr::prelude::read_all_flat_layers_from_file(&path).unwrap();
+        let names: Vec<String> = image.layer_data[0].channel_data.list.iter().map(|c| c.name.to_string()).collect();
+        for want in ["R", "G", "B", "A", "Z", "normal.X", "albedo.R", "roughness.Y", "visibility.Y"] {
+            assert!(names.iter().any(|n| n == want), "{path:?} lacks {want}: {names:?}");
+        }
+        assert_eq!(image.layer_data[0].size.0, 176);
+    }
+    let png_out = dir.path().join("one.png");
+    let o = srug(&[
+        "render",
+        ply.to_str().unwrap(),
+        "--cameras",
+        cams.to_str().unwrap(),
+        "--index",
+        "2",
+        "--out",
+        png_out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success() && png_out.is_file(), "{}", text(&o));
+    let o = srug(&[
+        "render",
+        ply.to_str().unwrap(),
+        "--eye",
+        "-40,-2,1.6",
+        "--target",
+        "0,0,1",
+        "--size",
+        "64x32",
+        "--out",
+        png_out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    assert_eq!(image::open(&png_out).unwrap().width(), 64);
 
     // `info` on what the demo wrote.
     let o = srug(&["info", ply.to_str().unwrap()]);
@@ -79,4 +136,23 @@ fn bad_input_fails_with_a_clear_message() {
     assert_eq!(o.status.code(), Some(1));
     assert!(text(&o).contains("at least 1000"), "{}", text(&o));
     assert!(!dir.path().join("demo_city.ply").exists(), "nothing written on failure");
+
+    let o = srug(&["render", not_ply.to_str().unwrap(), "--eye", "1,2,3", "--size", "8x8", "--out", "x.jpg"]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(text(&o).contains(".png or .exr"), "{}", text(&o));
+    let o = srug(&["render", not_ply.to_str().unwrap(), "--eye", "1,2", "--size", "8x8", "--out", "x.png"]);
+    assert!(text(&o).contains("three"), "{}", text(&o));
+    let o = srug(&[
+        "render",
+        not_ply.to_str().unwrap(),
+        "--eye",
+        "1,2,3",
+        "--size",
+        "8x8",
+        "--channels",
+        "rgb,shiny",
+        "--out",
+        "x.png",
+    ]);
+    assert!(text(&o).contains("unknown channel"), "{}", text(&o));
 }
