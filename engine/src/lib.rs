@@ -5,6 +5,7 @@
 //! Data flows one way: [`scene`] → splat → G-buffers → shadow → shade → image.
 //! [`gpu`] is the Vulkan core underneath and knows nothing of Gaussians.
 
+pub mod bench;
 pub mod error;
 pub mod gpu;
 pub mod output;

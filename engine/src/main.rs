@@ -33,6 +33,11 @@ enum Command {
     },
     /// List the Vulkan devices.
     Devices,
+    /// Benchmarks (GPU timestamps; markdown tables on stdout).
+    Bench {
+        #[command(subcommand)]
+        what: BenchKind,
+    },
     /// Render a scene into G-buffers: PNG (rgb) for viewing, multi-channel float EXR for data.
     Render {
         /// A 3DGS PLY file.
@@ -86,6 +91,25 @@ enum Command {
         /// Output folder for demo_city.ply and cameras.json.
         #[arg(long, default_value = "out/demo")]
         out: PathBuf,
+    },
+}
+
+#[derive(Subcommand)]
+enum BenchKind {
+    /// Per-stage splatting times on the demo city; GPU sort against sort_unstable; FMA peak.
+    Splat {
+        /// Gaussian counts, comma-separated.
+        #[arg(long, default_value = "100000,1000000,3000000")]
+        gaussians: String,
+        /// Image sizes, comma-separated WxH.
+        #[arg(long, default_value = "704x192,1408x384")]
+        sizes: String,
+        /// Repeats per setting (medians are reported).
+        #[arg(long, default_value_t = 3)]
+        repeats: usize,
+        /// Keys for the sort comparison.
+        #[arg(long, default_value_t = 4_000_000)]
+        sort_keys: usize,
     },
 }
 
@@ -256,6 +280,59 @@ fn run(cli: Cli) -> srug::Result<()> {
                 ));
             }
             bar.finish_and_clear();
+            Ok(())
+        }
+        Command::Bench { what: BenchKind::Splat { gaussians, sizes, repeats, sort_keys } } => {
+            let counts: Vec<usize> =
+                gaussians.split(',').map(|t| t.trim().parse::<usize>()).collect::<Result<_, _>>().map_err(|_| {
+                    srug::Error::InvalidArgument(format!("--gaussians \"{gaussians}\" is not a list of counts"))
+                })?;
+            let sizes: Vec<(u32, u32)> = sizes.split(',').map(parse_size).collect::<srug::Result<_>>()?;
+            let device = open_device(&cli.device, cli.validation)?;
+            let info = device.info();
+            let peak = srug::bench::fma_peak_gflops(&device, 5)?;
+            println!("device: {} ({}), measured FMA peak {peak:.1} GFLOP/s\n", info.name, info.driver);
+            let bar = spinner("benchmarking");
+            let rows = srug::bench::splat_bench(&device, &counts, &sizes, repeats, |m| bar.set_message(m.to_string()))?;
+            bar.set_message("sorting");
+            let sort = srug::bench::sort_bench(&device, sort_keys, 32 + 11, repeats)?;
+            bar.finish_and_clear();
+            let stage_names: Vec<String> =
+                rows.first().map(|r| r.stages.iter().map(|s| s.0.clone()).collect()).unwrap_or_default();
+            println!(
+                "| Gaussians | size | {} | total ms | pairs | working MiB | scene MiB | G-buffer MiB |",
+                stage_names.join(" ms | ") + " ms"
+            );
+            println!("|---:|---|{}---:|---:|---:|---:|---:|", "---:|".repeat(stage_names.len()));
+            for r in &rows {
+                let stages: Vec<String> = stage_names
+                    .iter()
+                    .map(|n| {
+                        r.stages.iter().find(|s| &s.0 == n).map_or("-".to_string(), |s| format!("{:.1}", s.1 * 1e3))
+                    })
+                    .collect();
+                let mib = |b: u64| b as f64 / (1u64 << 20) as f64;
+                println!(
+                    "| {} | {}x{} | {} | {:.1} | {} | {:.1} | {:.1} | {:.1} |",
+                    r.gaussians,
+                    r.width,
+                    r.height,
+                    stages.join(" | "),
+                    r.total() * 1e3,
+                    r.pairs,
+                    mib(r.working_bytes),
+                    mib(r.scene_bytes),
+                    mib(r.gbuffer_bytes)
+                );
+            }
+            println!(
+                "\nsort, {} keys on {} bits: GPU {:.1} M keys/s, CPU sort_unstable {:.1} M keys/s (ratio {:.2})",
+                sort.keys,
+                sort.bits,
+                sort.gpu_keys_per_second * 1e-6,
+                sort.cpu_keys_per_second * 1e-6,
+                sort.gpu_keys_per_second / sort.cpu_keys_per_second
+            );
             Ok(())
         }
         Command::Devices => {

@@ -156,3 +156,28 @@ fn bad_input_fails_with_a_clear_message() {
     ]);
     assert!(text(&o).contains("unknown channel"), "{}", text(&o));
 }
+
+#[test]
+fn bench_splat_prints_its_tables() {
+    let o = srug(&[
+        "bench",
+        "splat",
+        "--gaussians",
+        "2000",
+        "--sizes",
+        "64x32,48x16",
+        "--repeats",
+        "1",
+        "--sort-keys",
+        "5000",
+    ]);
+    let t = text(&o);
+    assert!(o.status.success(), "{t}");
+    assert!(t.contains("measured FMA peak"), "{t}");
+    for want in ["| 2000 | 64x32 |", "| 2000 | 48x16 |", "preprocess ms", "sort ms", "blend ms", "GPU", "sort_unstable"]
+    {
+        assert!(t.contains(want), "missing {want:?} in:\n{t}");
+    }
+    let o = srug(&["bench", "splat", "--sizes", "64by32"]);
+    assert_eq!(o.status.code(), Some(1));
+}

@@ -1,0 +1,191 @@
+//! Benchmarks run by `srug bench`: measured with GPU timestamps, never with
+//! timed tests. Each run measures the device's FMA peak itself, so kernel
+//! efficiency is reported against a ceiling taken on the same machine, now.
+
+use std::time::Instant;
+
+use bytemuck::{Pod, Zeroable};
+
+use crate::error::Result;
+use crate::gpu::{kernels, Device, Kernel, KernelDecl, MemoryKind};
+use crate::scene::activate::GpuScene;
+use crate::scene::demo::{demo_city, DemoOptions};
+use crate::scene::{Camera, Projection};
+use crate::splat::sort::RadixSort;
+use crate::splat::{SplatSettings, Splatter};
+
+/// Push constants of `bench_fma.comp` (keep in sync with its `Push` block).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+pub struct FmaPush {
+    /// Address of the output floats.
+    pub out: u64,
+    /// Loop iterations per invocation.
+    pub iterations: u32,
+    /// Invocations.
+    pub count: u32,
+}
+
+/// Measures the device's FMA throughput in GFLOP/s (best of `repeats`).
+pub fn fma_peak_gflops(device: &Device, repeats: usize) -> Result<f64> {
+    let kernel = Kernel::new(
+        device,
+        &kernels::BENCH_FMA,
+        &KernelDecl { bindings: &[], push_constant_size: std::mem::size_of::<FmaPush>(), specialization: &[] },
+    )?;
+    let count = 1u32 << 16;
+    let iterations = 2048u32;
+    let out = device.create_buffer("fma probe", u64::from(count) * 4, MemoryKind::Storage)?;
+    let push = FmaPush { out: out.device_address(), iterations, count };
+    let mut best = 0.0f64;
+    for _ in 0..repeats.max(1) {
+        let t = device.run(|rec| {
+            rec.keep(&[&out])?;
+            rec.begin_stage("fma");
+            rec.dispatch_1d(&kernel, &[], &push, u64::from(count))
+        })?;
+        let seconds = t.get("fma").unwrap_or(f64::NAN);
+        let flops = f64::from(count) * f64::from(iterations) * 64.0;
+        best = best.max(flops / seconds * 1e-9);
+    }
+    Ok(best)
+}
+
+/// One row of the splat benchmark.
+#[derive(Clone, Debug)]
+pub struct SplatBenchRow {
+    /// Gaussians in the demo city.
+    pub gaussians: usize,
+    /// Image size.
+    pub width: u32,
+    /// Image size.
+    pub height: u32,
+    /// Median GPU seconds per stage over the repeats, in pipeline order.
+    pub stages: Vec<(String, f64)>,
+    /// (Gaussian, tile) pairs sorted.
+    pub pairs: u64,
+    /// Bytes of per-frame working memory.
+    pub working_bytes: u64,
+    /// Bytes of the scene's parameters on the GPU.
+    pub scene_bytes: u64,
+    /// Bytes of the G-buffers.
+    pub gbuffer_bytes: u64,
+}
+
+impl SplatBenchRow {
+    /// Sum of the stage medians.
+    pub fn total(&self) -> f64 {
+        self.stages.iter().map(|s| s.1).sum()
+    }
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v.get(v.len() / 2).copied().unwrap_or(f64::NAN)
+}
+
+/// The demo's first camera at `width`×`height`.
+fn demo_camera(camera: &Camera, width: u32, height: u32) -> Camera {
+    let (sx, sy) = (width as f32 / camera.width as f32, height as f32 / camera.height as f32);
+    let projection = match camera.projection {
+        Projection::Pinhole { fx, fy, cx, cy } => {
+            Projection::Pinhole { fx: fx * sx, fy: fy * sy, cx: cx * sx, cy: cy * sy }
+        }
+        p => p,
+    };
+    Camera { width, height, projection, ..camera.clone() }
+}
+
+/// Renders the demo city at each Gaussian count and size; per-stage medians.
+pub fn splat_bench(
+    device: &Device,
+    counts: &[usize],
+    sizes: &[(u32, u32)],
+    repeats: usize,
+    mut progress: impl FnMut(&str),
+) -> Result<Vec<SplatBenchRow>> {
+    let mut rows = Vec::new();
+    let mut splatter = Splatter::new(device)?;
+    for &n in counts {
+        progress(&format!("generating the demo city with {n} Gaussians"));
+        let city = demo_city(&DemoOptions { seed: 7, gaussians: n, sh_degree: 1 })?;
+        let scene = GpuScene::upload(device, &city.scene)?;
+        for &(w, h) in sizes {
+            progress(&format!("{n} Gaussians at {w}x{h}"));
+            let cam = demo_camera(&city.cameras[0], w, h);
+            let mut per_stage: Vec<(String, Vec<f64>)> = Vec::new();
+            let mut last = None;
+            for _ in 0..repeats.max(1) {
+                let (g, stats) = splatter.render(&scene, &cam, &SplatSettings::default())?;
+                for s in &stats.timings.stages {
+                    match per_stage.iter_mut().find(|(name, _)| *name == s.name) {
+                        Some((_, v)) => v.push(s.seconds),
+                        None => per_stage.push((s.name.clone(), vec![s.seconds])),
+                    }
+                }
+                last = Some((g.bytes(), stats));
+            }
+            let Some((gbuffer_bytes, stats)) = last else { continue };
+            rows.push(SplatBenchRow {
+                gaussians: n,
+                width: w,
+                height: h,
+                stages: per_stage.into_iter().map(|(n, v)| (n, median(v))).collect(),
+                pairs: stats.pairs,
+                working_bytes: stats.working_bytes,
+                scene_bytes: city.scene.gpu_bytes(),
+                gbuffer_bytes,
+            });
+        }
+    }
+    Ok(rows)
+}
+
+/// GPU radix sort against `sort_unstable` on the CPU, same keys, same run.
+#[derive(Clone, Copy, Debug)]
+pub struct SortBench {
+    /// Keys sorted.
+    pub keys: usize,
+    /// Key bits sorted.
+    pub bits: u32,
+    /// GPU keys per second (median).
+    pub gpu_keys_per_second: f64,
+    /// CPU `sort_unstable` keys per second (median), on 64-bit (key, value) words.
+    pub cpu_keys_per_second: f64,
+}
+
+/// Sorts `n` random splat-like keys on `bits` bits on the GPU and with `sort_unstable`.
+pub fn sort_bench(device: &Device, n: usize, bits: u32, repeats: usize) -> Result<SortBench> {
+    let mut state = 0x9e37_79b9_7f4a_7c15u64;
+    let mut next = || {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        state
+    };
+    let mask = if bits >= 64 { u64::MAX } else { (1u64 << bits) - 1 };
+    let keys64: Vec<u64> = (0..n).map(|_| next() & mask).collect();
+    let keys: Vec<[u32; 2]> = keys64.iter().map(|k| [*k as u32, (*k >> 32) as u32]).collect();
+    let values: Vec<u32> = (0..n as u32).collect();
+    let kb = device.upload("bench keys", &keys)?;
+    let vb = device.upload("bench values", &values)?;
+    let mut sort = RadixSort::new(device)?;
+    sort.reserve(device, n as u64)?;
+    let mut gpu = Vec::new();
+    let mut cpu = Vec::new();
+    for _ in 0..repeats.max(1) {
+        device.write_buffer(&kb, 0, &keys)?;
+        let t = device.run(|rec| {
+            rec.begin_stage("sort");
+            sort.record(rec, &kb, &vb, n as u64, bits)
+        })?;
+        gpu.push(n as f64 / t.get("sort").unwrap_or(f64::NAN));
+        // The CPU sorts (key, value) packed the same way the GPU carries them.
+        let mut pairs: Vec<(u64, u32)> = keys64.iter().copied().zip(values.iter().copied()).collect();
+        let started = Instant::now();
+        pairs.sort_unstable_by_key(|p| p.0);
+        cpu.push(n as f64 / started.elapsed().as_secs_f64());
+        std::hint::black_box(&pairs);
+    }
+    Ok(SortBench { keys: n, bits, gpu_keys_per_second: median(gpu), cpu_keys_per_second: median(cpu) })
+}
