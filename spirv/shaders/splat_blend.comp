@@ -37,18 +37,19 @@ void main() {
     float rough = 0.0, metal = 0.0, ao = 0.0, vis = 0.0;
     for (uint j = range.x; j < range.y; j++) {
         uint g = values.v[j];
-        Splat s = splats.v[g];
-        vec2 d = s.mean - centre;
-        float power = -0.5 * (s.conic.x * d.x * d.x + s.conic.z * d.y * d.y) - s.conic.y * d.x * d.y;
+        vec4 head = splats.v[g].head;  // mean, depth, opacity
+        vec4 conic = splats.v[g].conic;
+        vec2 d = head.xy - centre;
+        float power = -0.5 * (conic.x * d.x * d.x + conic.z * d.y * d.y) - conic.y * d.x * d.y;
         if (power > 0.0) continue;
-        float alpha = min(0.99, s.opacity * exp(power));
+        float alpha = min(0.99, head.w * exp(power));
         if (alpha < 1.0 / 255.0) continue;
         float next_T = T * (1.0 - alpha);
         if (next_T < 1e-4) break;
         float w = alpha * T;
-        rgb += w * s.color.rgb;
-        if ((CHANNELS & 1u) != 0u) depth += w * s.depth;
-        if ((CHANNELS & 2u) != 0u && T > 0.5 && next_T <= 0.5) median = s.depth;
+        rgb += w * splats.v[g].color.rgb;
+        if ((CHANNELS & 1u) != 0u) depth += w * head.z;
+        if ((CHANNELS & 2u) != 0u && T > 0.5 && next_T <= 0.5) median = head.z;
         if (FEATURES) {
             vec4 f0 = features.v[3 * g], f1 = features.v[3 * g + 1], f2 = features.v[3 * g + 2];
             normal += w * f0.xyz;

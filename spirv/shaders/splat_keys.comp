@@ -11,7 +11,7 @@ void main() {
     if (i >= frame.counts.x) return;
     Splat s = Splats(frame.scene5.zw).v[i];
     uint offset = Uints(frame.work0.zw).v[i];
-    uint depth_bits = floatBitsToUint(s.depth);
+    uint depth_bits = floatBitsToUint(s.head.z);
     Uvec2s keys = Uvec2s(frame.work1.xy);
     Uints values = Uints(frame.work1.zw);
     for (uint y = s.rect.y; y < s.rect.w; y++) {

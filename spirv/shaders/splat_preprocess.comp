@@ -95,7 +95,7 @@ void main() {
     color = max(color + 0.5, vec3(0.0));
 
     float opacity = sigmoid(FloatsIn(frame.scene1.zw).v[i]);
-    Splats(frame.scene5.zw).v[i] = Splat(mean, t.z, opacity, vec4(conic, radius), vec4(color, 0.0), rect);
+    Splats(frame.scene5.zw).v[i] = Splat(vec4(mean, t.z, opacity), vec4(conic, radius), vec4(color, 0.0), rect);
     Uints(frame.work0.zw).v[i] = count;
 
     if (WRITE_FEATURES) {

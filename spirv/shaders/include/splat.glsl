@@ -36,9 +36,7 @@ layout(std140, set = 0, binding = 0) uniform Frame {
 
 // One projected Gaussian, 64 bytes. Keep in sync with engine/src/splat/mod.rs `SPLAT_BYTES`.
 struct Splat {
-    vec2 mean;      // pixel coordinates (pixel centres at +0.5)
-    float depth;    // camera z
-    float opacity;  // sigmoid(logit)
+    vec4 head;      // mean (pixel coordinates, centres at +0.5), camera z, opacity
     vec4 conic;     // inverse 2D covariance (a, b, c), radius
     vec4 color;     // rgb, unused
     uvec4 rect;     // tile rectangle [x0, y0, x1, y1)
