@@ -10,7 +10,6 @@ use crate::error::Result;
 use crate::gpu::{kernels, Device, Kernel, KernelDecl, MemoryKind};
 use crate::scene::activate::GpuScene;
 use crate::scene::demo::{demo_city, DemoOptions};
-use crate::scene::{Camera, Projection};
 use crate::splat::sort::RadixSort;
 use crate::splat::{SplatSettings, Splatter};
 
@@ -84,18 +83,6 @@ fn median(mut v: Vec<f64>) -> f64 {
     v.get(v.len() / 2).copied().unwrap_or(f64::NAN)
 }
 
-/// The demo's first camera at `width`×`height`.
-fn demo_camera(camera: &Camera, width: u32, height: u32) -> Camera {
-    let (sx, sy) = (width as f32 / camera.width as f32, height as f32 / camera.height as f32);
-    let projection = match camera.projection {
-        Projection::Pinhole { fx, fy, cx, cy } => {
-            Projection::Pinhole { fx: fx * sx, fy: fy * sy, cx: cx * sx, cy: cy * sy }
-        }
-        p => p,
-    };
-    Camera { width, height, projection, ..camera.clone() }
-}
-
 /// Renders the demo city at each Gaussian count and size; per-stage medians.
 pub fn splat_bench(
     device: &Device,
@@ -112,7 +99,7 @@ pub fn splat_bench(
         let scene = GpuScene::upload(device, &city.scene)?;
         for &(w, h) in sizes {
             progress(&format!("{n} Gaussians at {w}x{h}"));
-            let cam = demo_camera(&city.cameras[0], w, h);
+            let cam = city.cameras[0].resized(w, h);
             let mut per_stage: Vec<(String, Vec<f64>)> = Vec::new();
             let mut last = None;
             for _ in 0..repeats.max(1) {

@@ -8,7 +8,7 @@ use clap::{Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
 use srug::gpu::{self, Device, DeviceOptions, DeviceSelection};
 use srug::output;
-use srug::scene::{self, activate, demo, human_bytes, PlyFormat, Projection};
+use srug::scene::{self, activate, demo, human_bytes, PlyFormat};
 use srug::splat::{Channels, NormalSource, SplatSettings, Splatter};
 
 #[derive(Parser)]
@@ -167,20 +167,6 @@ fn parse_size(text: &str) -> srug::Result<(u32, u32)> {
     Ok((w, h))
 }
 
-/// The camera with its image resized to w×h (intrinsics scaled).
-fn resized(c: &scene::Camera, w: u32, h: u32) -> scene::Camera {
-    let (sx, sy) = (w as f32 / c.width as f32, h as f32 / c.height as f32);
-    let projection = match c.projection {
-        Projection::Pinhole { fx, fy, cx, cy } => {
-            Projection::Pinhole { fx: fx * sx, fy: fy * sy, cx: cx * sx, cy: cy * sy }
-        }
-        Projection::Orthographic { sx: ox, sy: oy, cx, cy } => {
-            Projection::Orthographic { sx: ox * sx, sy: oy * sy, cx: cx * sx, cy: cy * sy }
-        }
-    };
-    scene::Camera { width: w, height: h, projection, ..c.clone() }
-}
-
 /// `out.png` → `out_003.png`.
 fn numbered(out: &std::path::Path, i: usize) -> PathBuf {
     let stem = out.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
@@ -243,7 +229,7 @@ fn run(cli: Cli) -> srug::Result<()> {
             }
             if let (Some((w, h)), Some(_)) = (size, &cameras) {
                 for c in &mut cams {
-                    *c = resized(c, w, h);
+                    *c = c.resized(w, h);
                 }
             }
             let scene = scene::read_ply(&path)?;

@@ -45,14 +45,11 @@ pub fn save_comparison(label: &str, width: u32, height: u32, k: usize, gpu: &[f3
         let channels = if k == 3 { 3 } else { 1 };
         let magic = if channels == 3 { "P6" } else { "P5" };
         let mut bytes = format!("{magic}\n{width} {height}\n255\n").into_bytes();
-        let mut n = 0;
         for (i, v) in values.enumerate() {
             if k == 3 || i % k == 0 {
                 bytes.push((v / scale * 255.0).clamp(0.0, 255.0) as u8);
-                n += 1;
             }
         }
-        let _ = n;
         let path = dir.join(format!("{label}_{name}.{}", if channels == 3 { "ppm" } else { "pgm" }));
         let _ = std::fs::write(&path, bytes);
     };

@@ -131,12 +131,7 @@ fn demo_city_matches_cpu_twin_in_every_channel() {
     let d = device();
     let mut splatter = Splatter::new(&d).unwrap();
     let city = demo_city(&DemoOptions { seed: 7, gaussians: 60_000, sh_degree: 2 }).unwrap();
-    let mut cam = city.cameras[1].clone();
-    cam.width = 352;
-    cam.height = 96;
-    if let srug::scene::Projection::Pinhole { fx, fy, cx, cy } = cam.projection {
-        cam.projection = srug::scene::Projection::Pinhole { fx: fx / 2.0, fy: fy / 2.0, cx: cx / 2.0, cy: cy / 2.0 };
-    }
+    let cam = city.cameras[1].resized(352, 96);
     let g = render_both(&d, &mut splatter, &city.scene, &cam, &all_settings(), "demo");
     let covered = g.alpha.iter().filter(|a| **a > 0.5).count();
     assert!(covered * 10 > g.alpha.len() * 9, "the street should cover the view: {covered} of {}", g.alpha.len());

@@ -127,6 +127,20 @@ impl Camera {
         })
     }
 
+    /// The same camera with its image resized to `width`×`height` (intrinsics scaled).
+    pub fn resized(&self, width: u32, height: u32) -> Self {
+        let (kx, ky) = (width as f32 / self.width as f32, height as f32 / self.height as f32);
+        let projection = match self.projection {
+            Projection::Pinhole { fx, fy, cx, cy } => {
+                Projection::Pinhole { fx: fx * kx, fy: fy * ky, cx: cx * kx, cy: cy * ky }
+            }
+            Projection::Orthographic { sx, sy, cx, cy } => {
+                Projection::Orthographic { sx: sx * kx, sy: sy * ky, cx: cx * kx, cy: cy * ky }
+            }
+        };
+        Self { width, height, projection, ..self.clone() }
+    }
+
     /// World to camera coordinates.
     pub fn world_to_camera(&self, p: Vec3) -> Vec3 {
         self.rotation.transpose() * (p - self.position)
