@@ -38,10 +38,10 @@ void main() {
     if (t < RADIX) counts[t] = 0;
     barrier();
     Uvec2sIn keys = Uvec2sIn(pc.keys_in);
-    uint base = block * SORT_BLOCK + t * ITEMS;
-    for (uint i = 0; i < ITEMS; i++) {
-        if (base + i < pc.count) atomicAdd(counts[digit_of(keys.v[base + i])], 1u);
-    }
+    uint base = block * SORT_BLOCK;
+    uint n = min(uint(SORT_BLOCK), pc.count - base);
+    // Coalesced: lane t takes items t, t + 64, ...
+    for (uint i = t; i < n; i += WORKGROUP_SIZE_X) atomicAdd(counts[digit_of(keys.v[base + i])], 1u);
     barrier();
     if (t < RADIX) Uints(pc.hist).v[t * pc.blocks + block] = counts[t];
 }

@@ -2,7 +2,7 @@
 // Splatting stage 1, one invocation per Gaussian: activation, culling, EWA
 // projection, conic, radius, SH colour, tile rectangle and count, and (when
 // asked) the per-splat features. Culled Gaussians get a tile count of 0.
-// CPU twin: engine/src/splat/cpu.rs `preprocess_cpu`.
+// CPU twin: engine/src/splat/cpu.rs `preprocess_one`.
 #define WORKGROUP_SIZE_X 64
 #include "common.glsl"
 #include "splat.glsl"

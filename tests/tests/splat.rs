@@ -132,9 +132,21 @@ fn demo_city_matches_cpu_twin_in_every_channel() {
     let mut splatter = Splatter::new(&d).unwrap();
     let city = demo_city(&DemoOptions { seed: 7, gaussians: 60_000, sh_degree: 2 }).unwrap();
     let cam = city.cameras[1].resized(352, 96);
-    let g = render_both(&d, &mut splatter, &city.scene, &cam, &all_settings(), "demo");
-    let covered = g.alpha.iter().filter(|a| **a > 0.5).count();
-    assert!(covered * 10 > g.alpha.len() * 9, "the street should cover the view: {covered} of {}", g.alpha.len());
+    // Both blend variants: per-subgroup loads (where supported) and per-invocation loads.
+    let variants = if d.info().subgroup_ballot { vec![true, false] } else { vec![false] };
+    for subgroup_loads in variants {
+        splatter.set_subgroup_loads(subgroup_loads).unwrap();
+        let g = render_both(
+            &d,
+            &mut splatter,
+            &city.scene,
+            &cam,
+            &all_settings(),
+            &format!("demo_subgroup_{subgroup_loads}"),
+        );
+        let covered = g.alpha.iter().filter(|a| **a > 0.5).count();
+        assert!(covered * 10 > g.alpha.len() * 9, "the street should cover the view: {covered} of {}", g.alpha.len());
+    }
     assert_no_validation_messages(&d);
 }
 

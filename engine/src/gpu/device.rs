@@ -78,6 +78,8 @@ pub struct DeviceInfo {
     pub max_workgroup_count: [u32; 3],
     /// Subgroup size (8 on lavapipe; never assume 32).
     pub subgroup_size: u32,
+    /// Subgroup ballot operations (elect, broadcast) in compute shaders.
+    pub subgroup_ballot: bool,
     /// Nanoseconds per timestamp tick.
     pub timestamp_period_ns: f64,
     /// Valid bits of a timestamp on the compute queue; 0 when unsupported.
@@ -665,6 +667,10 @@ fn make_device(
         max_shared_memory: limits.max_compute_shared_memory_size,
         max_workgroup_count: limits.max_compute_work_group_count,
         subgroup_size: subgroup.subgroup_size,
+        subgroup_ballot: subgroup.supported_stages.contains(vk::ShaderStageFlags::COMPUTE)
+            && subgroup
+                .supported_operations
+                .contains(vk::SubgroupFeatureFlags::BASIC | vk::SubgroupFeatureFlags::BALLOT),
         timestamp_period_ns: f64::from(limits.timestamp_period),
         timestamp_valid_bits: if limits.timestamp_compute_and_graphics == vk::TRUE {
             families[family].timestamp_valid_bits

@@ -318,7 +318,8 @@ pub struct Splatter {
     preprocess: HashMap<bool, Kernel>,
     keys: Kernel,
     ranges: Kernel,
-    blend: HashMap<u32, Kernel>,
+    blend: HashMap<(u32, bool), Kernel>,
+    subgroup_loads: bool,
     scan: Scan,
     sort: RadixSort,
 }
@@ -367,9 +368,25 @@ impl Splatter {
             keys: frame_kernel(device, &kernels::SPLAT_KEYS, &[])?,
             ranges: frame_kernel(device, &kernels::SPLAT_RANGES, &[])?,
             blend: HashMap::new(),
+            subgroup_loads: device.info().subgroup_ballot,
             scan: Scan::new(device)?,
             sort: RadixSort::new(device)?,
         })
+    }
+
+    /// Whether the blend loads each splat once per subgroup (the default where
+    /// the device has subgroup ballot) or once per invocation.
+    pub fn subgroup_loads(&self) -> bool {
+        self.subgroup_loads
+    }
+
+    /// Chooses the blend variant; subgroup loads need subgroup ballot support.
+    pub fn set_subgroup_loads(&mut self, on: bool) -> Result<()> {
+        if on && !self.device.info().subgroup_ballot {
+            return Err(Error::InvalidArgument("the device lacks subgroup ballot in compute shaders".into()));
+        }
+        self.subgroup_loads = on;
+        Ok(())
     }
 
     /// Renders `scene` from `camera` into new G-buffers.
@@ -395,8 +412,10 @@ impl Splatter {
         if let std::collections::hash_map::Entry::Vacant(e) = self.preprocess.entry(features) {
             e.insert(frame_kernel(&device, &kernels::SPLAT_PREPROCESS, &[(0, SpecValue::Bool(features))])?);
         }
-        if let std::collections::hash_map::Entry::Vacant(e) = self.blend.entry(ch.bits()) {
-            e.insert(frame_kernel(&device, &kernels::SPLAT_BLEND, &[(0, SpecValue::U32(ch.bits()))])?);
+        let blend_key = (ch.bits(), self.subgroup_loads);
+        if let std::collections::hash_map::Entry::Vacant(e) = self.blend.entry(blend_key) {
+            let info = if self.subgroup_loads { &kernels::SPLAT_BLEND } else { &kernels::SPLAT_BLEND_PORTABLE };
+            e.insert(frame_kernel(&device, info, &[(0, SpecValue::U32(ch.bits()))])?);
         }
 
         let n = scene.count as u64;
@@ -495,7 +514,7 @@ impl Splatter {
         frame.work[1] = [keys.device_address(), values.device_address()];
         device.write_buffer(&uniform, 0, bytemuck::bytes_of(&frame))?;
         let key_bits = 32 + (64 - (tiles.max(2) - 1).leading_zeros());
-        let (sort, keys_kernel, ranges_kernel, blend) = (&self.sort, &self.keys, &self.ranges, &self.blend[&ch.bits()]);
+        let (sort, keys_kernel, ranges_kernel, blend) = (&self.sort, &self.keys, &self.ranges, &self.blend[&blend_key]);
         let outputs: Vec<&Buffer> = [&out.rgb, &out.alpha]
             .into_iter()
             .chain(
