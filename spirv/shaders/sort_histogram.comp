@@ -3,8 +3,11 @@
 // hist[digit * blocks + block] = count (digit-major, so one exclusive scan of
 // hist gives every (digit, block) its output start). No subgroup operations
 // and no cross-workgroup waiting: correct for any subgroup size and without
-// forward-progress guarantees.
+// forward-progress guarantees. Per-thread counts come from unrolled
+// compare-and-add in registers (see sort_scatter.comp), then 16 threads sum
+// the rows.
 // CPU reference: std sort (tests), engine/src/splat/sort.rs.
+#extension GL_EXT_control_flow_attributes : require
 #define WORKGROUP_SIZE_X 64
 #include "common.glsl"
 #include "address.glsl"
@@ -12,6 +15,7 @@
 #define ITEMS 16
 #define SORT_BLOCK (WORKGROUP_SIZE_X * ITEMS)
 #define RADIX 16
+#define NONE 0xffffffffu
 
 // Keep in sync with engine/src/splat/sort.rs `SortPush`.
 layout(push_constant) uniform Push {
@@ -21,12 +25,12 @@ layout(push_constant) uniform Push {
     uvec2 values_out;
     uvec2 hist;       // uint[RADIX * blocks]
     uint count;
-    uint shift;       // digit = (key >> shift) & 15, over the 64-bit key
+    uint shift;       // digit = (key >> shift) & digit_mask, over the 64-bit key
     uint blocks;
     uint digit_mask;  // 15, or fewer bits on the last pass
 } pc;
 
-shared uint counts[RADIX];
+shared uint table[RADIX][WORKGROUP_SIZE_X];
 
 uint digit_of(uvec2 key) {
     return (pc.shift < 32 ? key.x >> pc.shift : key.y >> (pc.shift - 32)) & pc.digit_mask;
@@ -35,13 +39,21 @@ uint digit_of(uvec2 key) {
 void main() {
     uint block = block_index();
     uint t = gl_LocalInvocationID.x;
-    if (t < RADIX) counts[t] = 0;
-    barrier();
     Uvec2sIn keys = Uvec2sIn(pc.keys_in);
-    uint base = block * SORT_BLOCK;
-    uint n = min(uint(SORT_BLOCK), pc.count - base);
-    // Coalesced: lane t takes items t, t + 64, ...
-    for (uint i = t; i < n; i += WORKGROUP_SIZE_X) atomicAdd(counts[digit_of(keys.v[base + i])], 1u);
+    uint base = block * SORT_BLOCK + t * ITEMS;
+    uint dig[ITEMS];
+    [[unroll]] for (uint i = 0; i < ITEMS; i++) {
+        dig[i] = base + i < pc.count ? digit_of(keys.v[base + i]) : NONE;
+    }
+    [[unroll]] for (uint d = 0; d < RADIX; d++) {
+        uint c = 0;
+        [[unroll]] for (uint i = 0; i < ITEMS; i++) c += dig[i] == d ? 1u : 0u;
+        table[d][t] = c;
+    }
     barrier();
-    if (t < RADIX) Uints(pc.hist).v[t * pc.blocks + block] = counts[t];
+    if (t < RADIX) {
+        uint total = 0;
+        for (uint j = 0; j < WORKGROUP_SIZE_X; j++) total += table[t][j];
+        Uints(pc.hist).v[t * pc.blocks + block] = total;
+    }
 }

@@ -1,7 +1,12 @@
 #version 460
 // Radix sort pass, step 3 (after the histogram scan): stable scatter.
-// Each thread owns ITEMS consecutive keys; per-digit counts are scanned across
-// the workgroup's threads in shared memory, so equal digits keep their order.
+// Each thread owns ITEMS consecutive keys. Per-digit counts and each item's
+// rank among earlier equal digits come from fully unrolled compare-and-add
+// over the thread's own items (registers only: dynamically indexed private
+// arrays are slow on CPU implementations such as lavapipe); per-digit counts
+// are scanned across the workgroup's threads in shared memory, so equal
+// digits keep their order.
+#extension GL_EXT_control_flow_attributes : require
 #define WORKGROUP_SIZE_X 64
 #include "common.glsl"
 #include "address.glsl"
@@ -9,6 +14,7 @@
 #define ITEMS 16
 #define SORT_BLOCK (WORKGROUP_SIZE_X * ITEMS)
 #define RADIX 16
+#define NONE 0xffffffffu
 
 // Keep in sync with engine/src/splat/sort.rs `SortPush`.
 layout(push_constant) uniform Push {
@@ -35,15 +41,17 @@ void main() {
     Uvec2sIn keys = Uvec2sIn(pc.keys_in);
     uint base = block * SORT_BLOCK + t * ITEMS;
     uvec2 k[ITEMS];
-    uint local_count[RADIX];
-    for (uint d = 0; d < RADIX; d++) local_count[d] = 0;
-    for (uint i = 0; i < ITEMS; i++) {
-        if (base + i < pc.count) {
-            k[i] = keys.v[base + i];
-            local_count[digit_of(k[i])]++;
-        }
+    uint dig[ITEMS];
+    [[unroll]] for (uint i = 0; i < ITEMS; i++) {
+        bool valid = base + i < pc.count;
+        k[i] = valid ? keys.v[base + i] : uvec2(0u);
+        dig[i] = valid ? digit_of(k[i]) : NONE;
     }
-    for (uint d = 0; d < RADIX; d++) table[d][t] = local_count[d];
+    [[unroll]] for (uint d = 0; d < RADIX; d++) {
+        uint c = 0;
+        [[unroll]] for (uint i = 0; i < ITEMS; i++) c += dig[i] == d ? 1u : 0u;
+        table[d][t] = c;
+    }
     barrier();
     // Exclusive scan of each digit's row across threads (one thread per digit).
     if (t < RADIX) {
@@ -55,13 +63,12 @@ void main() {
         }
     }
     barrier();
-    uint next[RADIX];
-    for (uint d = 0; d < RADIX; d++) next[d] = table[d][t];
     UintsIn values = UintsIn(pc.values_in);
-    for (uint i = 0; i < ITEMS; i++) {
-        if (base + i < pc.count) {
-            uint d = digit_of(k[i]);
-            uint dst = next[d]++;
+    [[unroll]] for (uint i = 0; i < ITEMS; i++) {
+        if (dig[i] != NONE) {
+            uint earlier = 0;
+            [[unroll]] for (uint j = 0; j < i; j++) earlier += dig[j] == dig[i] ? 1u : 0u;
+            uint dst = table[dig[i]][t] + earlier;
             Uvec2sOut(pc.keys_out).v[dst] = k[i];
             UintsOut(pc.values_out).v[dst] = values.v[base + i];
         }
