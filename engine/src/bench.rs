@@ -50,6 +50,12 @@ pub fn fma_peak_gflops(device: &Device, repeats: usize) -> Result<f64> {
     Ok(best)
 }
 
+/// Flops the blend spends per evaluated (pixel, splat) pair: offset (2), the
+/// conic's quadratic form (9), opacity scale (1); `exp` and `min` not counted.
+pub const BLEND_FLOPS_PER_EVALUATION: u64 = 12;
+/// Further flops per contributing pair: transmittance (2), weight (1), rgb (6).
+pub const BLEND_FLOPS_PER_CONTRIBUTION: u64 = 9;
+
 /// One row of the splat benchmark.
 #[derive(Clone, Debug)]
 pub struct SplatBenchRow {
@@ -69,12 +75,24 @@ pub struct SplatBenchRow {
     pub scene_bytes: u64,
     /// Bytes of the G-buffers.
     pub gbuffer_bytes: u64,
+    /// (pixel, splat) pairs the blend evaluated, counted by the CPU twin's replay.
+    pub blend_evaluations: u64,
+    /// Pairs that contributed to a pixel.
+    pub blend_contributions: u64,
 }
 
 impl SplatBenchRow {
     /// Sum of the stage medians.
     pub fn total(&self) -> f64 {
         self.stages.iter().map(|s| s.1).sum()
+    }
+
+    /// Achieved blend GFLOP/s under the stated flop counts.
+    pub fn blend_gflops(&self) -> f64 {
+        let flops = self.blend_evaluations * BLEND_FLOPS_PER_EVALUATION
+            + self.blend_contributions * BLEND_FLOPS_PER_CONTRIBUTION;
+        let seconds = self.stages.iter().find(|s| s.0 == "blend").map_or(f64::NAN, |s| s.1);
+        flops as f64 / seconds * 1e-9
     }
 }
 
@@ -113,6 +131,8 @@ pub fn splat_bench(
                 last = Some((g.bytes(), stats));
             }
             let Some((gbuffer_bytes, stats)) = last else { continue };
+            progress(&format!("{n} Gaussians at {w}x{h}: counting blend work on the CPU"));
+            let (blend_evaluations, blend_contributions) = crate::splat::cpu::blend_work(&city.scene, &cam);
             rows.push(SplatBenchRow {
                 gaussians: n,
                 width: w,
@@ -122,6 +142,8 @@ pub fn splat_bench(
                 working_bytes: stats.working_bytes,
                 scene_bytes: city.scene.gpu_bytes(),
                 gbuffer_bytes,
+                blend_evaluations,
+                blend_contributions,
             });
         }
     }

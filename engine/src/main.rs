@@ -286,10 +286,10 @@ fn run(cli: Cli) -> srug::Result<()> {
             let stage_names: Vec<String> =
                 rows.first().map(|r| r.stages.iter().map(|s| s.0.clone()).collect()).unwrap_or_default();
             println!(
-                "| Gaussians | size | {} | total ms | pairs | working MiB | scene MiB | G-buffer MiB |",
+                "| Gaussians | size | {} | total ms | pairs | working MiB | scene MiB | G-buffer MiB | blend evals (M) | blend GFLOP/s | % of FMA peak |",
                 stage_names.join(" ms | ") + " ms"
             );
-            println!("|---:|---|{}---:|---:|---:|---:|---:|", "---:|".repeat(stage_names.len()));
+            println!("|---:|---|{}---:|---:|---:|---:|---:|---:|---:|---:|", "---:|".repeat(stage_names.len()));
             for r in &rows {
                 let stages: Vec<String> = stage_names
                     .iter()
@@ -299,7 +299,7 @@ fn run(cli: Cli) -> srug::Result<()> {
                     .collect();
                 let mib = |b: u64| b as f64 / (1u64 << 20) as f64;
                 println!(
-                    "| {} | {}x{} | {} | {:.1} | {} | {:.1} | {:.1} | {:.1} |",
+                    "| {} | {}x{} | {} | {:.1} | {} | {:.1} | {:.1} | {:.1} | {:.1} | {:.2} | {:.1} |",
                     r.gaussians,
                     r.width,
                     r.height,
@@ -308,11 +308,19 @@ fn run(cli: Cli) -> srug::Result<()> {
                     r.pairs,
                     mib(r.working_bytes),
                     mib(r.scene_bytes),
-                    mib(r.gbuffer_bytes)
+                    mib(r.gbuffer_bytes),
+                    r.blend_evaluations as f64 * 1e-6,
+                    r.blend_gflops(),
+                    r.blend_gflops() / peak * 100.0
                 );
             }
             println!(
-                "\nsort, {} keys on {} bits: GPU {:.1} M keys/s, CPU sort_unstable {:.1} M keys/s (ratio {:.2})",
+                "\nblend flops: {} per evaluated pair + {} per contributing pair (exp not counted); pairs counted by replaying the blend on the CPU twin",
+                srug::bench::BLEND_FLOPS_PER_EVALUATION,
+                srug::bench::BLEND_FLOPS_PER_CONTRIBUTION
+            );
+            println!(
+                "sort, {} keys on {} bits: GPU {:.1} M keys/s, CPU sort_unstable {:.1} M keys/s (ratio {:.2})",
                 sort.keys,
                 sort.bits,
                 sort.gpu_keys_per_second * 1e-6,

@@ -199,13 +199,10 @@ pub fn preprocess_one(scene: &Scene, i: usize, camera: &Camera, normal_source: N
     })
 }
 
-/// Stages 1–5 on the CPU.
-pub fn render_cpu(scene: &Scene, camera: &Camera, settings: &SplatSettings) -> GBuffer {
-    let (w, h) = (camera.width as usize, camera.height as usize);
+/// Per-tile lists of visible splats in blend order: (f32 depth bits, index).
+fn tile_lists(splats: &[Option<CpuSplat>], camera: &Camera) -> Vec<Vec<(u32, usize)>> {
     let tiles_x = camera.width.div_ceil(TILE) as usize;
     let tiles_y = camera.height.div_ceil(TILE) as usize;
-    let splats: Vec<Option<CpuSplat>> =
-        (0..scene.len()).map(|i| preprocess_one(scene, i, camera, settings.normal_source)).collect();
     let mut lists: Vec<Vec<(u32, usize)>> = vec![Vec::new(); tiles_x * tiles_y];
     for (i, s) in splats.iter().enumerate() {
         if let Some(s) = s {
@@ -219,6 +216,52 @@ pub fn render_cpu(scene: &Scene, camera: &Camera, settings: &SplatSettings) -> G
     for l in &mut lists {
         l.sort_unstable();
     }
+    lists
+}
+
+/// Work the blend does, counted by replaying it: (pixel, splat) pairs
+/// evaluated, and those that contributed. For benchmarks' flop accounting.
+pub fn blend_work(scene: &Scene, camera: &Camera) -> (u64, u64) {
+    let splats: Vec<Option<CpuSplat>> =
+        (0..scene.len()).map(|i| preprocess_one(scene, i, camera, NormalSource::ShortestAxis)).collect();
+    let lists = tile_lists(&splats, camera);
+    let tiles_x = camera.width.div_ceil(TILE) as usize;
+    let (mut evaluated, mut contributed) = (0u64, 0u64);
+    for y in 0..camera.height as usize {
+        for x in 0..camera.width as usize {
+            let centre = DVec2::new(x as f64 + 0.5, y as f64 + 0.5);
+            let mut t = 1.0f64;
+            for &(_, i) in &lists[(y / TILE as usize) * tiles_x + x / TILE as usize] {
+                let Some(s) = &splats[i] else { continue };
+                evaluated += 1;
+                let d = s.mean - centre;
+                let power = -0.5 * (s.conic[0] * d.x * d.x + s.conic[2] * d.y * d.y) - s.conic[1] * d.x * d.y;
+                if power > 0.0 {
+                    continue;
+                }
+                let alpha = (s.opacity * power.exp()).min(0.99);
+                if alpha < 1.0 / 255.0 {
+                    continue;
+                }
+                let next = t * (1.0 - alpha);
+                if next < 1e-4 {
+                    break;
+                }
+                contributed += 1;
+                t = next;
+            }
+        }
+    }
+    (evaluated, contributed)
+}
+
+/// Stages 1–5 on the CPU.
+pub fn render_cpu(scene: &Scene, camera: &Camera, settings: &SplatSettings) -> GBuffer {
+    let (w, h) = (camera.width as usize, camera.height as usize);
+    let tiles_x = camera.width.div_ceil(TILE) as usize;
+    let splats: Vec<Option<CpuSplat>> =
+        (0..scene.len()).map(|i| preprocess_one(scene, i, camera, settings.normal_source)).collect();
+    let lists = tile_lists(&splats, camera);
     let ch = settings.channels;
     let p = w * h;
     let opt = |on: bool, k: usize| on.then(|| vec![0.0f32; k * p]);
