@@ -11,7 +11,7 @@ use crate::gpu::{kernels, Device, Kernel, KernelDecl, MemoryKind};
 use crate::scene::activate::GpuScene;
 use crate::scene::demo::{demo_city, DemoOptions};
 use crate::splat::sort::RadixSort;
-use crate::splat::{SplatSettings, Splatter};
+use crate::splat::{BlendVariant, SplatSettings, Splatter};
 
 /// Push constants of `bench_fma.comp` (keep in sync with its `Push` block).
 #[repr(C)]
@@ -101,16 +101,21 @@ fn median(mut v: Vec<f64>) -> f64 {
     v.get(v.len() / 2).copied().unwrap_or(f64::NAN)
 }
 
-/// Renders the demo city at each Gaussian count and size; per-stage medians.
+/// Renders the demo city at each Gaussian count and size (with `blend`, or the
+/// device's default blend variant); per-stage medians.
 pub fn splat_bench(
     device: &Device,
     counts: &[usize],
     sizes: &[(u32, u32)],
     repeats: usize,
+    blend: Option<BlendVariant>,
     mut progress: impl FnMut(&str),
 ) -> Result<Vec<SplatBenchRow>> {
     let mut rows = Vec::new();
     let mut splatter = Splatter::new(device)?;
+    if let Some(variant) = blend {
+        splatter.set_blend_variant(variant)?;
+    }
     for &n in counts {
         progress(&format!("generating the demo city with {n} Gaussians"));
         let city = demo_city(&DemoOptions { seed: 7, gaussians: n, sh_degree: 1 })?;

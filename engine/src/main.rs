@@ -110,6 +110,9 @@ enum BenchKind {
         /// Keys for the sort comparison.
         #[arg(long, default_value_t = 4_000_000)]
         sort_keys: usize,
+        /// Blend variant: per-pixel, subgroup or batched (default: subgroup where supported).
+        #[arg(long)]
+        blend: Option<String>,
     },
 }
 
@@ -268,7 +271,8 @@ fn run(cli: Cli) -> srug::Result<()> {
             bar.finish_and_clear();
             Ok(())
         }
-        Command::Bench { what: BenchKind::Splat { gaussians, sizes, repeats, sort_keys } } => {
+        Command::Bench { what: BenchKind::Splat { gaussians, sizes, repeats, sort_keys, blend } } => {
+            let blend = blend.as_deref().map(srug::splat::BlendVariant::parse).transpose()?;
             let counts: Vec<usize> =
                 gaussians.split(',').map(|t| t.trim().parse::<usize>()).collect::<Result<_, _>>().map_err(|_| {
                     srug::Error::InvalidArgument(format!("--gaussians \"{gaussians}\" is not a list of counts"))
@@ -279,7 +283,8 @@ fn run(cli: Cli) -> srug::Result<()> {
             let peak = srug::bench::fma_peak_gflops(&device, 5)?;
             println!("device: {} ({}), measured FMA peak {peak:.1} GFLOP/s\n", info.name, info.driver);
             let bar = spinner("benchmarking");
-            let rows = srug::bench::splat_bench(&device, &counts, &sizes, repeats, |m| bar.set_message(m.to_string()))?;
+            let rows =
+                srug::bench::splat_bench(&device, &counts, &sizes, repeats, blend, |m| bar.set_message(m.to_string()))?;
             bar.set_message("sorting");
             let sort = srug::bench::sort_bench(&device, sort_keys, 32 + 11, repeats)?;
             bar.finish_and_clear();

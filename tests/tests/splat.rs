@@ -12,7 +12,7 @@ use srug::scene::activate::GpuScene;
 use srug::scene::demo::{demo_city, DemoOptions};
 use srug::scene::{read_ply, sh_coefficients, Camera, Scene};
 use srug::splat::cpu::render_cpu;
-use srug::splat::{Channels, GBuffer, NormalSource, SplatSettings, Splatter};
+use srug::splat::{BlendVariant, Channels, GBuffer, NormalSource, SplatSettings, Splatter};
 use srug_tests::{assert_no_validation_messages, device, save_comparison};
 
 const NAN: u32 = 0x7fc0_0000;
@@ -132,18 +132,14 @@ fn demo_city_matches_cpu_twin_in_every_channel() {
     let mut splatter = Splatter::new(&d).unwrap();
     let city = demo_city(&DemoOptions { seed: 7, gaussians: 60_000, sh_degree: 2 }).unwrap();
     let cam = city.cameras[1].resized(352, 96);
-    // Both blend variants: per-subgroup loads (where supported) and per-invocation loads.
-    let variants = if d.info().subgroup_ballot { vec![true, false] } else { vec![false] };
-    for subgroup_loads in variants {
-        splatter.set_subgroup_loads(subgroup_loads).unwrap();
-        let g = render_both(
-            &d,
-            &mut splatter,
-            &city.scene,
-            &cam,
-            &all_settings(),
-            &format!("demo_subgroup_{subgroup_loads}"),
-        );
+    // Every blend variant (subgroup loads where the device supports them).
+    let mut variants = vec![BlendVariant::PerPixel, BlendVariant::SharedBatches];
+    if d.info().subgroup_ballot {
+        variants.push(BlendVariant::SubgroupLoads);
+    }
+    for variant in variants {
+        splatter.set_blend_variant(variant).unwrap();
+        let g = render_both(&d, &mut splatter, &city.scene, &cam, &all_settings(), &format!("demo_{variant:?}"));
         let covered = g.alpha.iter().filter(|a| **a > 0.5).count();
         assert!(covered * 10 > g.alpha.len() * 9, "the street should cover the view: {covered} of {}", g.alpha.len());
     }
@@ -212,9 +208,12 @@ fn extremes_give_finite_outputs() {
         ("far beyond", one_gaussian([0.0, 1e6, 0.0], -1.0, 2.0)),
         ("nothing", Scene { sh_degree: 0, ..Scene::default() }),
     ];
-    for (label, scene) in &cases {
-        scene.validate(label).unwrap();
-        render_both(&d, &mut splatter, scene, &cam, &settings, label);
+    for variant in [BlendVariant::SharedBatches, splatter.blend_variant()] {
+        splatter.set_blend_variant(variant).unwrap();
+        for (label, scene) in &cases {
+            scene.validate(label).unwrap();
+            render_both(&d, &mut splatter, scene, &cam, &settings, &format!("{label} ({variant:?})"));
+        }
     }
     // 1×1 and 16384-wide images.
     let scene = random_scene(300, 1, 9, 2.0);

@@ -1,4 +1,4 @@
-// Body of splat_blend.comp and splat_blend_portable.comp (see their headers).
+// Body of the splat_blend*.comp variants (see their headers).
 #define WORKGROUP_SIZE_X 256
 #include "common.glsl"
 #include "splat.glsl"
@@ -8,24 +8,96 @@
 layout(constant_id = 0) const uint CHANNELS = 0;
 const bool FEATURES = (CHANNELS & 252u) != 0u;
 
+// What one pixel has accumulated so far.
+struct Accumulated {
+    float T;
+    vec3 rgb;
+    float depth, median;
+    vec3 normal, albedo;
+    float rough, metal, ao, vis;
+};
+
+// Blends splat g into `acc`; false once the pixel is done (T·(1−α) < 1e-4,
+// that splat excluded). Colour and features are loaded only when it contributes.
+bool blend_one(inout Accumulated acc, uint g, vec4 head, vec4 conic, vec2 centre) {
+    vec2 d = head.xy - centre;
+    float power = -0.5 * (conic.x * d.x * d.x + conic.z * d.y * d.y) - conic.y * d.x * d.y;
+    if (power > 0.0) return true;
+    float alpha = min(0.99, head.w * exp(power));
+    if (alpha < 1.0 / 255.0) return true;
+    float next_T = acc.T * (1.0 - alpha);
+    if (next_T < 1e-4) return false;
+    float w = alpha * acc.T;
+    acc.rgb += w * Splats(frame.scene5.zw).v[g].color.rgb;
+    if ((CHANNELS & 1u) != 0u) acc.depth += w * head.z;
+    if ((CHANNELS & 2u) != 0u && acc.T > 0.5 && next_T <= 0.5) acc.median = head.z;
+    if (FEATURES) {
+        Features features = Features(frame.work0.xy);
+        vec4 f0 = features.v[3 * g], f1 = features.v[3 * g + 1], f2 = features.v[3 * g + 2];
+        acc.normal += w * f0.xyz;
+        acc.rough += w * f0.w;
+        acc.albedo += w * f1.xyz;
+        acc.metal += w * f1.w;
+        acc.ao += w * f2.x;
+        acc.vis += w * f2.y;
+    }
+    acc.T = next_T;
+    return true;
+}
+
+#ifdef SHARED_BATCHES
+shared uint batch_g[WORKGROUP_SIZE_X];
+shared vec4 batch_head[WORKGROUP_SIZE_X];
+shared vec4 batch_conic[WORKGROUP_SIZE_X];
+shared uint done_count;
+#endif
+
 void main() {
     uint tile = block_index();
     uint tiles_x = frame.size.z;
     uint local = gl_LocalInvocationID.x;
     uvec2 pix = uvec2(tile % tiles_x, tile / tiles_x) * TILE + uvec2(local % TILE, local / TILE);
     bool inside = pix.x < frame.size.x && pix.y < frame.size.y;
-    if (!inside) return;
     vec2 centre = vec2(pix) + 0.5;
     uvec2 range = Uvec2s(frame.work2.xy).v[tile];
     Uints values = Uints(frame.work1.zw);
     Splats splats = Splats(frame.scene5.zw);
-    Features features = Features(frame.work0.xy);
+    Accumulated acc = Accumulated(1.0, vec3(0.0), 0.0, 0.0, vec3(0.0), vec3(0.0), 0.0, 0.0, 0.0, 0.0);
 
-    float T = 1.0;
-    vec3 rgb = vec3(0.0);
-    float depth = 0.0, median = 0.0;
-    vec3 normal = vec3(0.0), albedo = vec3(0.0);
-    float rough = 0.0, metal = 0.0, ao = 0.0, vis = 0.0;
+#ifdef SHARED_BATCHES
+    // Batches of WORKGROUP_SIZE_X splats staged in shared memory by the whole
+    // workgroup; every invocation takes part in every barrier (pixels outside
+    // the image and finished pixels only load), and the tile stops as soon as
+    // all its pixels are done.
+    bool done = !inside;
+    for (uint start = range.x; start < range.y; start += WORKGROUP_SIZE_X) {
+        if (local == 0u) done_count = 0u;
+        barrier();
+        if (done) atomicAdd(done_count, 1u);
+        barrier();
+        if (done_count == WORKGROUP_SIZE_X) break;
+        uint j = start + local;
+        if (j < range.y) {
+            uint g = values.v[j];
+            batch_g[local] = g;
+            batch_head[local] = splats.v[g].head;
+            batch_conic[local] = splats.v[g].conic;
+        }
+        barrier();
+        if (!done) {
+            uint n = min(uint(WORKGROUP_SIZE_X), range.y - start);
+            for (uint k = 0u; k < n; k++) {
+                if (!blend_one(acc, batch_g[k], batch_head[k], batch_conic[k], centre)) {
+                    done = true;
+                    break;
+                }
+            }
+        }
+        barrier();
+    }
+    if (!inside) return;
+#else
+    if (!inside) return;
     for (uint j = range.x; j < range.y; j++) {
 #ifdef SUBGROUP_LOADS
         // Every active lane reads the same splat: one elected lane loads, the
@@ -45,28 +117,14 @@ void main() {
         vec4 head = splats.v[g].head;  // mean, depth, opacity
         vec4 conic = splats.v[g].conic;
 #endif
-        vec2 d = head.xy - centre;
-        float power = -0.5 * (conic.x * d.x * d.x + conic.z * d.y * d.y) - conic.y * d.x * d.y;
-        if (power > 0.0) continue;
-        float alpha = min(0.99, head.w * exp(power));
-        if (alpha < 1.0 / 255.0) continue;
-        float next_T = T * (1.0 - alpha);
-        if (next_T < 1e-4) break;
-        float w = alpha * T;
-        rgb += w * splats.v[g].color.rgb;
-        if ((CHANNELS & 1u) != 0u) depth += w * head.z;
-        if ((CHANNELS & 2u) != 0u && T > 0.5 && next_T <= 0.5) median = head.z;
-        if (FEATURES) {
-            vec4 f0 = features.v[3 * g], f1 = features.v[3 * g + 1], f2 = features.v[3 * g + 2];
-            normal += w * f0.xyz;
-            rough += w * f0.w;
-            albedo += w * f1.xyz;
-            metal += w * f1.w;
-            ao += w * f2.x;
-            vis += w * f2.y;
-        }
-        T = next_T;
+        if (!blend_one(acc, g, head, conic, centre)) break;
     }
+#endif
+    float T = acc.T;
+    vec3 rgb = acc.rgb;
+    float depth = acc.depth, median = acc.median;
+    vec3 normal = acc.normal, albedo = acc.albedo;
+    float rough = acc.rough, metal = acc.metal, ao = acc.ao, vis = acc.vis;
     uint p = pix.y * frame.size.x + pix.x;
     vec3 color = rgb + T * frame.background.rgb;
     Floats out_rgb = Floats(frame.work2.zw);
