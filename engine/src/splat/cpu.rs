@@ -199,6 +199,18 @@ pub fn preprocess_one(scene: &Scene, i: usize, camera: &Camera, normal_source: N
     })
 }
 
+/// α of splat `s` at pixel centre `centre`: min(0.99, o·exp(−σ)); `None` where
+/// the blend skips it (σ < 0 or α < 1/255).
+fn splat_alpha(s: &CpuSplat, centre: DVec2) -> Option<f64> {
+    let d = s.mean - centre;
+    let power = -0.5 * (s.conic[0] * d.x * d.x + s.conic[2] * d.y * d.y) - s.conic[1] * d.x * d.y;
+    if power > 0.0 {
+        return None;
+    }
+    let alpha = (s.opacity * power.exp()).min(0.99);
+    (alpha >= 1.0 / 255.0).then_some(alpha)
+}
+
 /// Per-tile lists of visible splats in blend order: (f32 depth bits, index).
 fn tile_lists(splats: &[Option<CpuSplat>], camera: &Camera) -> Vec<Vec<(u32, usize)>> {
     let tiles_x = camera.width.div_ceil(TILE) as usize;
@@ -234,15 +246,7 @@ pub fn blend_work(scene: &Scene, camera: &Camera) -> (u64, u64) {
             for &(_, i) in &lists[(y / TILE as usize) * tiles_x + x / TILE as usize] {
                 let Some(s) = &splats[i] else { continue };
                 evaluated += 1;
-                let d = s.mean - centre;
-                let power = -0.5 * (s.conic[0] * d.x * d.x + s.conic[2] * d.y * d.y) - s.conic[1] * d.x * d.y;
-                if power > 0.0 {
-                    continue;
-                }
-                let alpha = (s.opacity * power.exp()).min(0.99);
-                if alpha < 1.0 / 255.0 {
-                    continue;
-                }
+                let Some(alpha) = splat_alpha(s, centre) else { continue };
                 let next = t * (1.0 - alpha);
                 if next < 1e-4 {
                     break;
@@ -290,15 +294,7 @@ pub fn render_cpu(scene: &Scene, camera: &Camera, settings: &SplatSettings) -> G
             let mut feat = [0.0f64; 10];
             for &(_, i) in list {
                 let Some(s) = &splats[i] else { continue };
-                let d = s.mean - centre;
-                let power = -0.5 * (s.conic[0] * d.x * d.x + s.conic[2] * d.y * d.y) - s.conic[1] * d.x * d.y;
-                if power > 0.0 {
-                    continue;
-                }
-                let alpha = (s.opacity * power.exp()).min(0.99);
-                if alpha < 1.0 / 255.0 {
-                    continue;
-                }
+                let Some(alpha) = splat_alpha(s, centre) else { continue };
                 let next = t * (1.0 - alpha);
                 if next < 1e-4 {
                     break;
