@@ -201,7 +201,7 @@ pub fn preprocess_one(scene: &Scene, i: usize, camera: &Camera, normal_source: N
 
 /// α of splat `s` at pixel centre `centre`: min(0.99, o·exp(−σ)); `None` where
 /// the blend skips it (σ < 0 or α < 1/255).
-fn splat_alpha(s: &CpuSplat, centre: DVec2) -> Option<f64> {
+pub(crate) fn splat_alpha(s: &CpuSplat, centre: DVec2) -> Option<f64> {
     let d = s.mean - centre;
     let power = -0.5 * (s.conic[0] * d.x * d.x + s.conic[2] * d.y * d.y) - s.conic[1] * d.x * d.y;
     if power > 0.0 {
@@ -212,7 +212,7 @@ fn splat_alpha(s: &CpuSplat, centre: DVec2) -> Option<f64> {
 }
 
 /// Per-tile lists of visible splats in blend order: (f32 depth bits, index).
-fn tile_lists(splats: &[Option<CpuSplat>], camera: &Camera) -> Vec<Vec<(u32, usize)>> {
+pub(crate) fn tile_lists(splats: &[Option<CpuSplat>], camera: &Camera) -> Vec<Vec<(u32, usize)>> {
     let tiles_x = camera.width.div_ceil(TILE) as usize;
     let tiles_y = camera.height.div_ceil(TILE) as usize;
     let mut lists: Vec<Vec<(u32, usize)>> = vec![Vec::new(); tiles_x * tiles_y];

@@ -339,6 +339,33 @@ pub struct SplatStats {
     pub working_bytes: u64,
 }
 
+/// One rendered frame with the per-frame buffers later stages walk again:
+/// the traced shadow reference and the backward pass read the projected
+/// splats, the sorted pair list and the per-tile ranges.
+pub struct SplatFrame {
+    /// The G-buffers.
+    pub gbuffer: GpuGBuffer,
+    /// What the render did.
+    pub stats: SplatStats,
+    /// The camera it was rendered from.
+    pub camera: Camera,
+    /// Projected splats, [`SPLAT_BYTES`] each (culled ones have an empty rectangle).
+    pub splats: Buffer,
+    /// Per-Gaussian offsets into the unsorted pair list (exclusive scan of tile counts), n + 1 values.
+    pub pair_offsets: Buffer,
+    /// Gaussian index of each sorted pair.
+    pub sorted_gaussians: Buffer,
+    /// Per-tile [start, end) into the sorted pairs, `uvec2` per tile.
+    pub ranges: Buffer,
+}
+
+impl SplatFrame {
+    /// Tiles across and down.
+    pub fn tiles(&self) -> (u32, u32) {
+        (self.camera.width.div_ceil(TILE), self.camera.height.div_ceil(TILE))
+    }
+}
+
 /// The splatting pipeline: kernels (one variant per channel set, built on
 /// first use) and the sort's scratch memory, reused across frames.
 pub struct Splatter {
@@ -428,6 +455,12 @@ impl Splatter {
         camera: &Camera,
         settings: &SplatSettings,
     ) -> Result<(GpuGBuffer, SplatStats)> {
+        let frame = self.render_frame(scene, camera, settings)?;
+        Ok((frame.gbuffer, frame.stats))
+    }
+
+    /// Renders like [`Splatter::render`] and keeps the per-frame buffers.
+    pub fn render_frame(&mut self, scene: &GpuScene, camera: &Camera, settings: &SplatSettings) -> Result<SplatFrame> {
         let device = self.device.clone();
         let ch = settings.channels;
         let missing = [
@@ -604,6 +637,14 @@ impl Splatter {
             + ranges.size()
             + self.sort.scratch_bytes()
             + self.scan.scratch_bytes();
-        Ok((out, SplatStats { timings, pairs, key_bits, working_bytes }))
+        Ok(SplatFrame {
+            gbuffer: out,
+            stats: SplatStats { timings, pairs, key_bits, working_bytes },
+            camera: camera.clone(),
+            splats,
+            pair_offsets: tile_counts,
+            sorted_gaussians: values,
+            ranges,
+        })
     }
 }

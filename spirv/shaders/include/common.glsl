@@ -7,11 +7,6 @@
 
 #ifndef WORKGROUP_SIZE_X
 #error "define WORKGROUP_SIZE_X before including common.glsl"
-// Workgroup index in a 2D grid of workgroups (see linear_index).
-uint block_index() {
-    return gl_WorkGroupID.x + gl_WorkGroupID.y * gl_NumWorkGroups.x;
-}
-
 #endif
 layout(local_size_x = WORKGROUP_SIZE_X) in;
 

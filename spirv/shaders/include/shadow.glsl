@@ -1,0 +1,100 @@
+// Shared by the shadow kernels: the shadow uniform, receiver reconstruction,
+// light-space projection, shadow-map sampling and the stable sigmoid.
+#ifndef SRUG_SHADOW_GLSL
+#define SRUG_SHADOW_GLSL
+#include "address.glsl"
+
+// Keep in sync with engine/src/shadow/mod.rs `ShadowUniform` (std140: vec4/uvec4 only).
+layout(std140, set = 0, binding = 0) uniform Shadow {
+    vec4 cam_rot0;     // camera-to-world rotation, rows
+    vec4 cam_rot1;
+    vec4 cam_rot2;
+    vec4 cam_pos;      // camera centre; w: 0 pinhole, 1 orthographic
+    vec4 cam_intr;     // fx, fy, cx, cy (orthographic: pixels per unit x, y, cx, cy)
+    vec4 light_rot0;   // world-to-light rotation, rows
+    vec4 light_rot1;
+    vec4 light_rot2;
+    vec4 light_t;      // world-to-light translation; w: depth of empty texels
+    vec4 light_intr;   // texels per unit x, y, cx, cy
+    uvec4 size;        // camera width, height, map width, height
+    vec4 params;       // k, bias, minimum alpha of a surface, unused
+    uvec4 modes;       // map depth (0 expected, 1 median), receiver depth (same), map tiles across, unused
+    uvec4 addr0;       // receiver depth, receiver alpha
+    uvec4 addr1;       // map depth, map alpha
+    uvec4 addr2;       // visibility out, dL/dV in
+    uvec4 addr3;       // splats, sorted gaussians (traced)
+    uvec4 addr4;       // ranges (traced), gradient out
+} shadow;
+
+// Depth of one pixel of a G-buffer: expected (Σwz / alpha) or median; false
+// where nothing (alpha below the minimum, or no median crossing) covers it.
+bool resolve_depth(uint mode, uvec2 depth_addr, uvec2 alpha_addr, uint p, out float z) {
+    if (mode == 1u) {
+        z = FloatsIn(depth_addr).v[p];
+        return z > 0.0;
+    }
+    float a = FloatsIn(alpha_addr).v[p];
+    z = FloatsIn(depth_addr).v[p] / a;
+    return a >= shadow.params.z;
+}
+
+// World point seen at receiver pixel p; false where there is no surface.
+bool receiver_point(uint p, out vec3 world) {
+    float z;
+    world = vec3(0.0);
+    if (!resolve_depth(shadow.modes.y, shadow.addr0.xy, shadow.addr0.zw, p, z)) return false;
+    uint w = shadow.size.x;
+    vec2 px = vec2(float(p % w), float(p / w)) + 0.5;
+    vec4 k = shadow.cam_intr;
+    vec3 c = shadow.cam_pos.w == 0.0 ? vec3((px - k.zw) / k.xy * z, z) : vec3((px - k.zw) / k.xy, z);
+    world = vec3(dot(shadow.cam_rot0.xyz, c), dot(shadow.cam_rot1.xyz, c), dot(shadow.cam_rot2.xyz, c))
+          + shadow.cam_pos.xyz;
+    return true;
+}
+
+// Light-space texel coordinates (centres at +0.5) and depth of a world point.
+vec3 light_coords(vec3 world) {
+    vec3 t = vec3(dot(shadow.light_rot0.xyz, world), dot(shadow.light_rot1.xyz, world),
+                  dot(shadow.light_rot2.xyz, world)) + shadow.light_t.xyz;
+    vec4 k = shadow.light_intr;
+    return vec3(k.xy * t.xy + k.zw, t.z);
+}
+
+// Depth z_s of one shadow-map texel; empty texels are at the light's far depth.
+float texel_depth(ivec2 t) {
+    uint i = uint(t.y) * shadow.size.z + uint(t.x);
+    float z;
+    return resolve_depth(shadow.modes.x, shadow.addr1.xy, shadow.addr1.zw, i, z) ? z : shadow.light_t.w;
+}
+
+// Bilinear footprint of light coordinates uv: the four texels (clamped to the
+// edge) and their weights, in the order (x0,y0), (x1,y0), (x0,y1), (x1,y1).
+void bilinear(vec2 uv, out ivec2 t[4], out vec4 w) {
+    vec2 s = uv - 0.5;
+    vec2 f = floor(s);
+    vec2 fr = s - f;
+    ivec2 hi = ivec2(shadow.size.zw) - 1;
+    ivec2 a = clamp(ivec2(f), ivec2(0), hi), b = clamp(ivec2(f) + 1, ivec2(0), hi);
+    t[0] = a; t[1] = ivec2(b.x, a.y); t[2] = ivec2(a.x, b.y); t[3] = b;
+    w = vec4((1.0 - fr.x) * (1.0 - fr.y), fr.x * (1.0 - fr.y), (1.0 - fr.x) * fr.y, fr.x * fr.y);
+}
+
+bool inside_map(vec2 uv) {
+    return uv.x >= 0.0 && uv.y >= 0.0 && uv.x < float(shadow.size.z) && uv.y < float(shadow.size.w);
+}
+
+// The shadow logit k·(z_s − z + bias), clamped to ±30 (σ is 1 − 9e-14 there;
+// the clamp keeps exp finite for any k); NaN-free for finite inputs.
+const float LOGIT_LIMIT = 30.0;
+float shadow_logit(float zs, float z) {
+    float x = shadow.params.x * (zs - z + shadow.params.y);
+    return clamp(x, -LOGIT_LIMIT, LOGIT_LIMIT);
+}
+
+// σ(x) without overflow: e = exp(−|x|) ≤ 1.
+float stable_sigmoid(float x) {
+    float e = exp(-abs(x));
+    return x >= 0.0 ? 1.0 / (1.0 + e) : e / (1.0 + e);
+}
+
+#endif

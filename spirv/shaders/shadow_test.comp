@@ -1,0 +1,28 @@
+#version 460
+// The sigmoid shadow test, one invocation per receiver pixel: the world point
+// from the camera G-buffer's depth, projected into light space; z_s sampled
+// bilinearly from the shadow map; V_e = σ(k·(z_s − z + bias)) in fp32 with
+// the logit clamped. Points outside the map and pixels without a surface are lit.
+// CPU twin: engine/src/shadow/cpu.rs `sigmoid_visibility_cpu`.
+#define WORKGROUP_SIZE_X 64
+#include "common.glsl"
+#include "shadow.glsl"
+
+void main() {
+    uint p = linear_index();
+    if (p >= shadow.size.x * shadow.size.y) return;
+    float v = 1.0;
+    vec3 world;
+    if (receiver_point(p, world)) {
+        vec3 l = light_coords(world);
+        if (inside_map(l.xy)) {
+            ivec2 t[4];
+            vec4 w;
+            bilinear(l.xy, t, w);
+            float zs = w.x * texel_depth(t[0]) + w.y * texel_depth(t[1]) + w.z * texel_depth(t[2])
+                     + w.w * texel_depth(t[3]);
+            v = stable_sigmoid(shadow_logit(zs, l.z));
+        }
+    }
+    FloatsOut(shadow.addr2.xy).v[p] = v;
+}

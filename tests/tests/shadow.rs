@@ -1,0 +1,296 @@
+//! Sun shadows against their f64 CPU twin and against the demo city's exact
+//! visibility: the sigmoid shadow test, the traced reference, the light
+//! camera, and the extremes (k from 1e-3 to 1e9, the sun at 0.01° and 90°,
+//! below the horizon, an empty shadow map). Outputs are pre-filled with NaN.
+
+#![allow(clippy::unwrap_used, clippy::expect_used, reason = "a failed unwrap is a failed test")]
+
+use glam::Vec3;
+use srug::gpu::Device;
+use srug::scene::activate::GpuScene;
+use srug::scene::demo::{demo_city, DemoCity, DemoOptions};
+use srug::scene::{Camera, Scene};
+use srug::shadow::cpu::{sigmoid_visibility_cpu, traced_visibility_cpu};
+use srug::shadow::{light_camera, DepthMode, ShadowFit, ShadowMap, ShadowPass, ShadowSettings, Sun, VisibilityKind};
+use srug::splat::{Channels, GBuffer, SplatSettings, Splatter};
+use srug_tests::{assert_no_validation_messages, device, save_comparison};
+
+const NAN: u32 = 0x7fc0_0000;
+
+struct Setup {
+    d: Device,
+    splatter: Splatter,
+    pass: ShadowPass,
+    demo: DemoCity,
+    gpu_scene: GpuScene,
+}
+
+fn setup(gaussians: usize) -> Setup {
+    let d = device();
+    let demo = demo_city(&DemoOptions { gaussians, ..DemoOptions::default() }).unwrap();
+    let gpu_scene = GpuScene::upload(&d, &demo.scene).unwrap();
+    Setup { splatter: Splatter::new(&d).unwrap(), pass: ShadowPass::new(&d).unwrap(), demo, gpu_scene, d }
+}
+
+fn settings(resolution: u32) -> ShadowSettings {
+    ShadowSettings { resolution, prefill: Some(NAN), ..ShadowSettings::default() }
+}
+
+/// Renders the receiver G-buffer (its depth channels plus the fixed visibility).
+fn receiver(s: &mut Setup, camera: &Camera, extra: Channels) -> (srug::splat::GpuGBuffer, GBuffer) {
+    let ch = Channels { depth: true, median_depth: true, ..extra };
+    let (g, _) = s
+        .splatter
+        .render(&s.gpu_scene, camera, &SplatSettings { channels: ch, prefill: Some(NAN), ..SplatSettings::default() })
+        .unwrap();
+    let host = g.read(&s.d).unwrap();
+    (g, host)
+}
+
+fn shadow_map(s: &mut Setup, sun: &Sun, st: &ShadowSettings, view: Option<&Camera>) -> ShadowMap {
+    let bounds = s.demo.scene.bounds().unwrap();
+    s.pass.shadow_map(&mut s.splatter, &s.gpu_scene, &bounds, sun, st, view).unwrap().expect("the sun is up")
+}
+
+fn max_diff(label: &str, camera: &Camera, gpu: &[f32], cpu: &[f64], tol: f64) -> f64 {
+    assert!(gpu.iter().all(|v| v.is_finite() && (0.0..=1.0).contains(v)), "{label}: non-finite or out-of-range V");
+    let cpu32: Vec<f32> = cpu.iter().map(|v| *v as f32).collect();
+    let err = gpu.iter().zip(cpu).map(|(a, b)| (f64::from(*a) - b).abs()).fold(0.0, f64::max);
+    if err > tol {
+        let saved = save_comparison(label, camera.width, camera.height, 1, gpu, &cpu32);
+        panic!("{label}: max |GPU − CPU| {err:.3e} > {tol:.1e} (images: {saved})");
+    }
+    err
+}
+
+/// Intersection over union of the shadowed sets (V < 0.5) over pixels with a surface.
+fn shadow_iou(a: &[f32], b: &[f32], alpha: &[f32]) -> f64 {
+    let (mut inter, mut union) = (0usize, 0usize);
+    for ((x, y), al) in a.iter().zip(b).zip(alpha) {
+        if *al < 0.5 {
+            continue;
+        }
+        let (sx, sy) = (*x < 0.5, *y < 0.5);
+        inter += usize::from(sx && sy);
+        union += usize::from(sx || sy);
+    }
+    if union == 0 {
+        1.0
+    } else {
+        inter as f64 / union as f64
+    }
+}
+
+#[test]
+fn sigmoid_test_and_traced_reference_match_cpu_twin() {
+    let mut s = setup(30_000);
+    let camera = s.demo.cameras[0].resized(176, 48);
+    let sun = Sun::from_direction(s.demo.sun_direction, [1.0; 3]).unwrap();
+    for (map_depth, fit) in [(DepthMode::Median, ShadowFit::SceneBounds), (DepthMode::Expected, ShadowFit::ViewFrustum)]
+    {
+        // k = 4 per metre keeps most receivers inside the sigmoid's transition, where
+        // a GPU/CPU difference would show.
+        let st = ShadowSettings { map_depth, fit, k: 4.0, ..settings(384) };
+        let (g, host) = receiver(&mut s, &camera, Channels::default());
+        let map = shadow_map(&mut s, &sun, &st, Some(&camera));
+        let depths = map.read_depth(&s.d, st.min_alpha).unwrap();
+        let label = format!("shadow_{map_depth:?}_{fit:?}");
+
+        let (v, _) = s.pass.visibility(&map, &g, &camera, &st, VisibilityKind::Sigmoid).unwrap();
+        let gpu: Vec<f32> = s.d.read_buffer(&v).unwrap();
+        let cpu = sigmoid_visibility_cpu(&map.camera, &depths, &camera, &host, &st);
+        // f32 reconstruction of the receiver point is good to ~1e-6 relative (~1e-4 m
+        // here); with k = 4 per metre that moves V by at most k/4 · 1e-4 = 1e-4.
+        let err = max_diff(&format!("{label}_sigmoid"), &camera, &gpu, &cpu, 1e-4);
+
+        let (t, _) = s.pass.visibility(&map, &g, &camera, &st, VisibilityKind::Traced).unwrap();
+        let traced: Vec<f32> = s.d.read_buffer(&t).unwrap();
+        let traced_cpu = traced_visibility_cpu(&s.demo.scene, &map.camera, &camera, &host, &st);
+        // The GPU projects splats in f32: α differs by ~1e-5 per splat, and a splat whose
+        // depth is within rounding of z − bias may be in or out. Count such pixels.
+        assert!(traced.iter().all(|v| v.is_finite() && (0.0..=1.0).contains(v)), "{label}: traced out of range");
+        let bad = traced.iter().zip(&traced_cpu).filter(|(a, b)| (f64::from(**a) - **b).abs() > 1e-3).count();
+        if bad * 200 > traced.len() {
+            let c32: Vec<f32> = traced_cpu.iter().map(|v| *v as f32).collect();
+            let saved = save_comparison(&format!("{label}_traced"), camera.width, camera.height, 1, &traced, &c32);
+            panic!("{label}: traced visibility: {bad} of {} pixels differ by > 1e-3 (images: {saved})", traced.len());
+        }
+        eprintln!("{label}: sigmoid max error {err:.2e}; traced: {bad} pixels off by > 1e-3");
+    }
+    assert_no_validation_messages(&s.d);
+}
+
+#[test]
+fn shadows_agree_with_the_demo_exact_visibility() {
+    // The demo's per-Gaussian visibility is exact (a ray toward the sun against the
+    // analytic boxes), so the rendered fixed visibility V_f is the ground truth the
+    // paper supervises with. Both shadow estimates must agree with it on most pixels.
+    let mut s = setup(120_000);
+    let camera = s.demo.cameras[0].resized(352, 96);
+    let sun = Sun::from_direction(s.demo.sun_direction, [1.0; 3]).unwrap();
+    let st = settings(1024);
+    let (g, host) = receiver(&mut s, &camera, Channels { visibility: true, ..Channels::default() });
+    let map = shadow_map(&mut s, &sun, &st, None);
+    let vf: Vec<f32> =
+        host.visibility.as_ref().unwrap().iter().zip(&host.alpha).map(|(v, a)| v / a.max(1e-6)).collect();
+    let (v, _) = s.pass.visibility(&map, &g, &camera, &st, VisibilityKind::Sigmoid).unwrap();
+    let ve: Vec<f32> = s.d.read_buffer(&v).unwrap();
+    let (t, _) = s.pass.visibility(&map, &g, &camera, &st, VisibilityKind::Traced).unwrap();
+    let vt: Vec<f32> = s.d.read_buffer(&t).unwrap();
+    let iou_e = shadow_iou(&ve, &vf, &host.alpha);
+    let iou_t = shadow_iou(&vt, &vf, &host.alpha);
+    let iou_et = shadow_iou(&ve, &vt, &host.alpha);
+    eprintln!("IoU(V_e, V_f) {iou_e:.3}, IoU(V_t, V_f) {iou_t:.3}, IoU(V_e, V_t) {iou_et:.3}");
+    let shadowed = vf.iter().zip(&host.alpha).filter(|(v, a)| **a >= 0.5 && **v < 0.5).count();
+    assert!(shadowed > 500, "the demo view should contain shadow ({shadowed} pixels)");
+    if iou_e < 0.8 || iou_t < 0.8 {
+        save_comparison("demo_ve_vs_vf", camera.width, camera.height, 1, &ve, &vf);
+        save_comparison("demo_vt_vs_vf", camera.width, camera.height, 1, &vt, &vf);
+        panic!("shadow IoU against the exact visibility too low: V_e {iou_e:.3}, V_t {iou_t:.3}");
+    }
+    assert_no_validation_messages(&s.d);
+}
+
+#[test]
+fn light_camera_covers_the_scene_and_the_frustum_fit_is_tighter() {
+    let demo = demo_city(&DemoOptions { gaussians: 5_000, ..DemoOptions::default() }).unwrap();
+    let bounds = demo.scene.bounds().unwrap();
+    for (az, el) in [(270.0, 25.0), (135.0, 0.01), (0.0, 90.0), (10.0, 60.0)] {
+        let sun = Sun::from_azimuth_elevation(az, el, [1.0; 3]).unwrap();
+        let cam = light_camera(&bounds, &sun, 512, ShadowFit::SceneBounds, None).unwrap();
+        assert_eq!(cam.width.max(cam.height), 512, "sun {az}/{el}: {}x{}", cam.width, cam.height);
+        assert!((cam.rotation.z_axis + sun.direction).length() < 1e-5, "looks along the sunlight");
+        for p in &demo.scene.means {
+            assert!(cam.sees(Vec3::from_array(*p)), "sun {az}/{el}: the light camera misses {p:?}");
+        }
+        let view = &demo.cameras[0];
+        let tight = light_camera(&bounds, &sun, 512, ShadowFit::ViewFrustum, Some(view)).unwrap();
+        let texel = |c: &Camera| match c.projection {
+            srug::scene::Projection::Orthographic { sx, .. } => 1.0 / sx,
+            srug::scene::Projection::Pinhole { .. } => unreachable!(),
+        };
+        assert!(texel(&tight) <= texel(&cam) * 1.0001, "frustum fit texel {} > {}", texel(&tight), texel(&cam));
+        // Every scene point the view sees projects inside the tight map.
+        for p in demo.scene.means.iter().map(|p| Vec3::from_array(*p)).filter(|p| view.sees(*p)) {
+            let l = tight.project(tight.world_to_camera(p));
+            assert!(l.x >= 0.0 && l.y >= 0.0 && l.x < tight.width as f32 && l.y < tight.height as f32);
+        }
+    }
+    let up = Sun::from_direction(Vec3::Z, [1.0; 3]).unwrap();
+    assert!(light_camera(&bounds, &up, 0, ShadowFit::SceneBounds, None).is_err(), "zero resolution");
+    assert!(light_camera(&bounds, &up, 64, ShadowFit::ViewFrustum, None).is_err(), "frustum fit without a view");
+}
+
+#[test]
+fn extremes_give_finite_visibility() {
+    let mut s = setup(8_000);
+    let camera = s.demo.cameras[0].resized(88, 24);
+    let (g, host) = receiver(&mut s, &camera, Channels::default());
+    // k from 1e-3 to 1e9 and the sun from grazing to overhead.
+    for el in [0.01f32, 25.0, 90.0] {
+        let sun = Sun::from_azimuth_elevation(265.0, el, [1.0; 3]).unwrap();
+        let base = settings(256);
+        let map = shadow_map(&mut s, &sun, &base, None);
+        let depths = map.read_depth(&s.d, base.min_alpha).unwrap();
+        for k in [1e-3f32, 1.0, 50.0, 1e4, 1e9] {
+            let st = ShadowSettings { k, ..base };
+            for kind in [VisibilityKind::Sigmoid, VisibilityKind::Traced] {
+                let (v, _) = s.pass.visibility(&map, &g, &camera, &st, kind).unwrap();
+                let v: Vec<f32> = s.d.read_buffer(&v).unwrap();
+                assert!(v.iter().all(|x| x.is_finite() && (0.0..=1.0).contains(x)), "el {el} k {k} {kind:?}");
+                // Below k = 50 per metre the f32/f64 difference (~1e-4 m in z) moves V by ≤ k/4 · 1e-4.
+                if kind == VisibilityKind::Sigmoid && k <= 50.0 {
+                    let cpu = sigmoid_visibility_cpu(&map.camera, &depths, &camera, &host, &st);
+                    max_diff(&format!("extreme_el{el}_k{k}"), &camera, &v, &cpu, 2e-3);
+                }
+            }
+        }
+    }
+    // A sun below the horizon: no pass, no sun light.
+    let below = Sun::from_azimuth_elevation(265.0, -3.0, [1.0; 3]).unwrap();
+    let bounds = s.demo.scene.bounds().unwrap();
+    let none = s.pass.shadow_map(&mut s.splatter, &s.gpu_scene, &bounds, &below, &settings(64), None).unwrap();
+    assert!(none.is_none());
+    assert!(s.pass.shadow_map(&mut s.splatter, &s.gpu_scene, &bounds, &below, &settings(0), None).is_err());
+    assert_no_validation_messages(&s.d);
+}
+
+#[test]
+fn empty_shadow_map_and_receivers_on_an_occluder() {
+    let d = device();
+    let mut splatter = Splatter::new(&d).unwrap();
+    let pass = ShadowPass::new(&d).unwrap();
+    // A ground plane of flat Gaussians under a transparent (opacity 0) floating slab:
+    // the shadow map of the slab is empty, so everything is lit; receivers lie
+    // exactly on the plane that is also the only occluder.
+    let mut scene = Scene::default();
+    // Splats 3 cm across: the bias (15 cm) exceeds their extent along the light, as it must
+    // for any surface to not shadow itself.
+    for i in 0..40 {
+        for j in 0..40 {
+            scene.means.push([i as f32 * 0.04 - 0.8, j as f32 * 0.04 - 0.8, 0.0]);
+            scene.log_scales.push([(0.03f32).ln(), (0.03f32).ln(), (1e-4f32).ln()]);
+            scene.rotations.push([1.0, 0.0, 0.0, 0.0]);
+            scene.opacity_logits.push(6.0);
+            scene.sh.extend([0.5, 0.5, 0.5]);
+        }
+    }
+    let mut slab = scene.clone();
+    for p in &mut slab.means {
+        p[2] = 5.0;
+    }
+    for o in &mut slab.opacity_logits {
+        *o = -40.0;
+    }
+    let mut both = scene.clone();
+    both.means.extend(&slab.means);
+    both.log_scales.extend(&slab.log_scales);
+    both.rotations.extend(&slab.rotations);
+    both.opacity_logits.extend(&slab.opacity_logits);
+    both.sh.extend(&slab.sh);
+    both.validate("test").unwrap();
+    let gpu_scene = GpuScene::upload(&d, &both).unwrap();
+    let camera = Camera::look_at(Vec3::new(0.0, -1.5, 0.8), Vec3::new(0.0, 0.0, 0.0), Vec3::Z, 60.0, 64, 48).unwrap();
+    let ch = Channels { depth: true, median_depth: true, ..Channels::default() };
+    let (g, host) = {
+        let (g, _) =
+            splatter.render(&gpu_scene, &camera, &SplatSettings { channels: ch, ..SplatSettings::default() }).unwrap();
+        let h = g.read(&d).unwrap();
+        (g, h)
+    };
+    let sun = Sun::from_azimuth_elevation(200.0, 50.0, [1.0; 3]).unwrap();
+    let bounds = both.bounds().unwrap();
+    for map_depth in [DepthMode::Median, DepthMode::Expected] {
+        let st = ShadowSettings { map_depth, ..settings(256) };
+        let map = pass.shadow_map(&mut splatter, &gpu_scene, &bounds, &sun, &st, None).unwrap().unwrap();
+        let (v, _) = pass.visibility(&map, &g, &camera, &st, VisibilityKind::Sigmoid).unwrap();
+        let v: Vec<f32> = d.read_buffer(&v).unwrap();
+        let (t, _) = pass.visibility(&map, &g, &camera, &st, VisibilityKind::Traced).unwrap();
+        let t: Vec<f32> = d.read_buffer(&t).unwrap();
+        // Receivers on the plane: lit by both (the bias keeps the plane from shadowing itself).
+        let covered: Vec<usize> = (0..host.alpha.len()).filter(|p| host.alpha[*p] > 0.9).collect();
+        assert!(covered.len() > 200, "the plane should fill the view");
+        let lit_e = covered.iter().filter(|p| v[**p] > 0.99).count();
+        let lit_t = covered.iter().filter(|p| t[**p] > 0.99).count();
+        assert!(
+            lit_e * 100 >= covered.len() * 98,
+            "{map_depth:?}: {lit_e} of {} receivers lit (sigmoid)",
+            covered.len()
+        );
+        assert_eq!(lit_t, covered.len(), "{map_depth:?}: traced must see nothing above the plane");
+
+        // The same map with no receivers at all: an empty shadow map of the slab alone.
+        let empty_scene = GpuScene::upload(&d, &slab).unwrap();
+        let empty = pass.shadow_map(&mut splatter, &empty_scene, &bounds, &sun, &st, None).unwrap().unwrap();
+        let depths = empty.read_depth(&d, st.min_alpha).unwrap();
+        assert!(depths.iter().all(|z| *z == empty.camera.far), "an empty map is at the far depth everywhere");
+        let (v, _) = pass.visibility(&empty, &g, &camera, &st, VisibilityKind::Sigmoid).unwrap();
+        let v: Vec<f32> = d.read_buffer(&v).unwrap();
+        assert!(v.iter().all(|x| *x > 0.99), "nothing casts a shadow in an empty map");
+    }
+    // Settings that cannot be used are refused with a message.
+    let bad = ShadowSettings { k: f32::NAN, ..settings(64) };
+    let err = pass.shadow_map(&mut splatter, &gpu_scene, &bounds, &sun, &bad, None).err().unwrap();
+    assert!(err.to_string().contains("k NaN"), "{err}");
+    assert_no_validation_messages(&d);
+}
