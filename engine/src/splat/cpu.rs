@@ -77,48 +77,74 @@ fn sigmoid(x: f64) -> f64 {
     1.0 / (1.0 + (-x).exp())
 }
 
-/// Stage 1 for one Gaussian; `None` when culled.
-pub fn preprocess_one(scene: &Scene, i: usize, camera: &Camera, normal_source: NormalSource) -> Option<CpuSplat> {
-    let p = DVec3::from_array(scene.means[i].map(f64::from));
+/// The differentiable parameters of one Gaussian in f64, as stored (before activation).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Gaussian64 {
+    /// World-space centre.
+    pub mean: DVec3,
+    /// Log of the three axis scales.
+    pub log_scale: DVec3,
+    /// Rotation quaternion (w, x, y, z), any non-zero length.
+    pub rotation: [f64; 4],
+    /// Opacity before the sigmoid.
+    pub opacity_logit: f64,
+}
+
+impl Gaussian64 {
+    /// Gaussian `i` of `scene`.
+    pub fn from_scene(scene: &Scene, i: usize) -> Self {
+        Self {
+            mean: DVec3::from_array(scene.means[i].map(f64::from)),
+            log_scale: DVec3::from_array(scene.log_scales[i].map(f64::from)),
+            rotation: scene.rotations[i].map(f64::from),
+            opacity_logit: f64::from(scene.opacity_logits[i]),
+        }
+    }
+
+    /// Rotation matrix of the normalised quaternion, columns as in `splat_preprocess.comp`.
+    pub fn rotation_matrix(&self) -> DMat3 {
+        let q = self.rotation;
+        let norm = q.iter().map(|c| c * c).sum::<f64>().sqrt();
+        let [qw, qx, qy, qz] = q.map(|c| c / norm);
+        DMat3::from_cols(
+            DVec3::new(1.0 - 2.0 * (qy * qy + qz * qz), 2.0 * (qx * qy + qw * qz), 2.0 * (qx * qz - qw * qy)),
+            DVec3::new(2.0 * (qx * qy - qw * qz), 1.0 - 2.0 * (qx * qx + qz * qz), 2.0 * (qy * qz + qw * qx)),
+            DVec3::new(2.0 * (qx * qz + qw * qy), 2.0 * (qy * qz - qw * qx), 1.0 - 2.0 * (qx * qx + qy * qy)),
+        )
+    }
+}
+
+/// The projected geometry of one Gaussian (the differentiable part of stage 1).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Projected {
+    /// Pixel coordinates of the centre.
+    pub mean: DVec2,
+    /// Camera z.
+    pub depth: f64,
+    /// Activated opacity.
+    pub opacity: f64,
+    /// Inverse 2D covariance (a, b, c).
+    pub conic: [f64; 3],
+    /// Radius in pixels.
+    pub radius: f64,
+    /// Tile rectangle [x0, y0, x1, y1).
+    pub rect: [u32; 4],
+}
+
+/// Projects one Gaussian: near/far culling, EWA with the clamped Jacobian,
+/// dilation, conic, radius and tile rectangle; `None` when culled.
+pub fn project(g: &Gaussian64, camera: &Camera) -> Option<Projected> {
     let r_c2w = camera.rotation.as_dmat3();
     let w = r_c2w.transpose();
-    let t = w * (p - camera.position.as_dvec3());
+    let t = w * (g.mean - camera.position.as_dvec3());
     let (near, far) = (f64::from(camera.near), f64::from(camera.far));
     if !(t.z > near && t.z < far) {
         return None;
     }
-    let s = DVec3::from_array(scene.log_scales[i].map(|v| f64::from(v).exp()));
-    let q = scene.rotations[i].map(f64::from);
-    let norm = q.iter().map(|c| c * c).sum::<f64>().sqrt();
-    let [qw, qx, qy, qz] = q.map(|c| c / norm);
-    let rot = DMat3::from_cols(
-        DVec3::new(1.0 - 2.0 * (qy * qy + qz * qz), 2.0 * (qx * qy + qw * qz), 2.0 * (qx * qz - qw * qy)),
-        DVec3::new(2.0 * (qx * qy - qw * qz), 1.0 - 2.0 * (qx * qx + qz * qz), 2.0 * (qy * qz + qw * qx)),
-        DVec3::new(2.0 * (qx * qz + qw * qy), 2.0 * (qy * qz - qw * qx), 1.0 - 2.0 * (qx * qx + qy * qy)),
-    );
-    let m = rot * DMat3::from_diagonal(s);
+    let s = DVec3::new(g.log_scale.x.exp(), g.log_scale.y.exp(), g.log_scale.z.exp());
+    let m = g.rotation_matrix() * DMat3::from_diagonal(s);
     let cov_cam = w * (m * m.transpose()) * w.transpose();
-
-    let (mean, j) = match camera.projection {
-        Projection::Pinhole { fx, fy, cx, cy } => {
-            let (fx, fy, cx, cy) = (f64::from(fx), f64::from(fy), f64::from(cx), f64::from(cy));
-            let limx = 1.3 * 0.5 * f64::from(camera.width) / fx;
-            let limy = 1.3 * 0.5 * f64::from(camera.height) / fy;
-            let tx = (t.x / t.z).clamp(-limx, limx) * t.z;
-            let ty = (t.y / t.z).clamp(-limy, limy) * t.z;
-            let j = DMat3::from_cols(
-                DVec3::new(fx / t.z, 0.0, 0.0),
-                DVec3::new(0.0, fy / t.z, 0.0),
-                DVec3::new(-fx * tx / (t.z * t.z), -fy * ty / (t.z * t.z), 0.0),
-            );
-            (DVec2::new(fx * t.x / t.z + cx, fy * t.y / t.z + cy), j)
-        }
-        Projection::Orthographic { sx, sy, cx, cy } => {
-            let (sx, sy) = (f64::from(sx), f64::from(sy));
-            let j = DMat3::from_cols(DVec3::new(sx, 0.0, 0.0), DVec3::new(0.0, sy, 0.0), DVec3::ZERO);
-            (DVec2::new(sx * t.x + f64::from(cx), sy * t.y + f64::from(cy)), j)
-        }
-    };
+    let (mean, j) = mean_and_jacobian(camera, t);
     let cov2 = j * cov_cam * j.transpose();
     let (a, b, c) = (cov2.x_axis.x + 0.3, cov2.y_axis.x, cov2.y_axis.y + 0.3);
     let det = a * c - b * b;
@@ -140,6 +166,63 @@ pub fn preprocess_one(scene: &Scene, i: usize, camera: &Camera, normal_source: N
     if rect[2] <= rect[0] || rect[3] <= rect[1] {
         return None;
     }
+    Some(Projected { mean, depth: t.z, opacity: sigmoid(g.opacity_logit), conic, radius, rect })
+}
+
+/// Pixel position of camera point `t` and the projection's Jacobian (rows 0
+/// and 1; the pinhole's clamped beyond 1.3× the half field of view).
+pub fn mean_and_jacobian(camera: &Camera, t: DVec3) -> (DVec2, DMat3) {
+    match camera.projection {
+        Projection::Pinhole { fx, fy, cx, cy } => {
+            let (fx, fy, cx, cy) = (f64::from(fx), f64::from(fy), f64::from(cx), f64::from(cy));
+            let (limx, limy) = jacobian_limits(camera);
+            let tx = (t.x / t.z).clamp(-limx, limx) * t.z;
+            let ty = (t.y / t.z).clamp(-limy, limy) * t.z;
+            let j = DMat3::from_cols(
+                DVec3::new(fx / t.z, 0.0, 0.0),
+                DVec3::new(0.0, fy / t.z, 0.0),
+                DVec3::new(-fx * tx / (t.z * t.z), -fy * ty / (t.z * t.z), 0.0),
+            );
+            (DVec2::new(fx * t.x / t.z + cx, fy * t.y / t.z + cy), j)
+        }
+        Projection::Orthographic { sx, sy, cx, cy } => {
+            let (sx, sy) = (f64::from(sx), f64::from(sy));
+            let j = DMat3::from_cols(DVec3::new(sx, 0.0, 0.0), DVec3::new(0.0, sy, 0.0), DVec3::ZERO);
+            (DVec2::new(sx * t.x + f64::from(cx), sy * t.y + f64::from(cy)), j)
+        }
+    }
+}
+
+/// Limits of x/z and y/z in the pinhole Jacobian.
+pub fn jacobian_limits(camera: &Camera) -> (f64, f64) {
+    match camera.projection {
+        Projection::Pinhole { fx, fy, .. } => {
+            (1.3 * 0.5 * f64::from(camera.width) / f64::from(fx), 1.3 * 0.5 * f64::from(camera.height) / f64::from(fy))
+        }
+        Projection::Orthographic { .. } => (f64::INFINITY, f64::INFINITY),
+    }
+}
+
+/// Stage 1 for one Gaussian; `None` when culled.
+pub fn preprocess_one(scene: &Scene, i: usize, camera: &Camera, normal_source: NormalSource) -> Option<CpuSplat> {
+    preprocess_with(&Gaussian64::from_scene(scene, i), scene, i, camera, normal_source)
+}
+
+/// Stage 1 for Gaussian `i` of `scene` with its geometry replaced by `g`
+/// (colour and materials still from `scene`); for finite differences.
+pub fn preprocess_with(
+    g: &Gaussian64,
+    scene: &Scene,
+    i: usize,
+    camera: &Camera,
+    normal_source: NormalSource,
+) -> Option<CpuSplat> {
+    let g = *g;
+    let pr = project(&g, camera)?;
+    let p = g.mean;
+    let r_c2w = camera.rotation.as_dmat3();
+    let s = DVec3::new(g.log_scale.x.exp(), g.log_scale.y.exp(), g.log_scale.z.exp());
+    let rot = g.rotation_matrix();
     let ortho = matches!(camera.projection, Projection::Orthographic { .. });
     let view_dir = r_c2w.z_axis;
     let dir = if ortho { view_dir } else { (p - camera.position.as_dvec3()).normalize() };
@@ -188,13 +271,13 @@ pub fn preprocess_one(scene: &Scene, i: usize, camera: &Camera, normal_source: N
         one(&m.visibility),
     ];
     Some(CpuSplat {
-        mean,
-        depth: t.z,
-        opacity: sigmoid(f64::from(scene.opacity_logits[i])),
-        conic,
-        radius,
+        mean: pr.mean,
+        depth: pr.depth,
+        opacity: pr.opacity,
+        conic: pr.conic,
+        radius: pr.radius,
         color,
-        rect,
+        rect: pr.rect,
         features,
     })
 }
@@ -259,6 +342,72 @@ pub fn blend_work(scene: &Scene, camera: &Camera) -> (u64, u64) {
     (evaluated, contributed)
 }
 
+/// Values blended per splat: rgb, depth, then the ten features (normal.xyz,
+/// roughness, albedo.rgb, metallic, ao, visibility).
+pub const VALUES: usize = 14;
+
+/// The blended values of a splat.
+pub fn splat_values(s: &CpuSplat) -> [f64; VALUES] {
+    let mut v = [0.0; VALUES];
+    v[..3].copy_from_slice(&s.color.to_array());
+    v[3] = s.depth;
+    v[4..].copy_from_slice(&s.features);
+    v
+}
+
+/// One splat that contributed to a pixel.
+#[derive(Clone, Copy, Debug)]
+pub struct Contribution {
+    /// Gaussian index.
+    pub index: usize,
+    /// Its α at the pixel.
+    pub alpha: f64,
+    /// Transmittance before it.
+    pub t_before: f64,
+}
+
+/// One pixel blended front to back in f64.
+#[derive(Clone, Debug)]
+pub struct PixelBlend {
+    /// Σ wᵢ xᵢ for each of the [`VALUES`] (no background).
+    pub values: [f64; VALUES],
+    /// Final transmittance.
+    pub t_final: f64,
+    /// Depth where T first falls to 0.5 (0 where it never does).
+    pub median: f64,
+    /// The splat giving the median depth.
+    pub median_index: Option<usize>,
+    /// Contributing splats in blend order.
+    pub contributions: Vec<Contribution>,
+}
+
+/// Blends the splats of `list` (blend order) at pixel centre `centre`.
+pub fn blend_pixel(list: &[(u32, usize)], splats: &[Option<CpuSplat>], centre: DVec2) -> PixelBlend {
+    let mut out =
+        PixelBlend { values: [0.0; VALUES], t_final: 1.0, median: 0.0, median_index: None, contributions: Vec::new() };
+    let mut t = 1.0f64;
+    for &(_, i) in list {
+        let Some(s) = &splats[i] else { continue };
+        let Some(alpha) = splat_alpha(s, centre) else { continue };
+        let next = t * (1.0 - alpha);
+        if next < 1e-4 {
+            break;
+        }
+        let w = alpha * t;
+        for (acc, x) in out.values.iter_mut().zip(splat_values(s)) {
+            *acc += w * x;
+        }
+        if t > 0.5 && next <= 0.5 {
+            out.median = s.depth;
+            out.median_index = Some(i);
+        }
+        out.contributions.push(Contribution { index: i, alpha, t_before: t });
+        t = next;
+    }
+    out.t_final = t;
+    out
+}
+
 /// Stages 1–5 on the CPU.
 pub fn render_cpu(scene: &Scene, camera: &Camera, settings: &SplatSettings) -> GBuffer {
     let (w, h) = (camera.width as usize, camera.height as usize);
@@ -283,37 +432,16 @@ pub fn render_cpu(scene: &Scene, camera: &Camera, settings: &SplatSettings) -> G
         ao: opt(ch.ao, 1),
         visibility: opt(ch.visibility, 1),
     };
-    let bg = DVec3::from_array(settings.background.map(f64::from));
+    let bg = settings.background.map(f64::from);
     for y in 0..h {
         for x in 0..w {
             let list = &lists[(y / TILE as usize) * tiles_x + x / TILE as usize];
-            let centre = DVec2::new(x as f64 + 0.5, y as f64 + 0.5);
-            let mut t = 1.0f64;
-            let mut rgb = DVec3::ZERO;
-            let (mut depth, mut median) = (0.0, 0.0);
-            let mut feat = [0.0f64; 10];
-            for &(_, i) in list {
-                let Some(s) = &splats[i] else { continue };
-                let Some(alpha) = splat_alpha(s, centre) else { continue };
-                let next = t * (1.0 - alpha);
-                if next < 1e-4 {
-                    break;
-                }
-                let wgt = alpha * t;
-                rgb += wgt * s.color;
-                depth += wgt * s.depth;
-                if t > 0.5 && next <= 0.5 {
-                    median = s.depth;
-                }
-                for (f, v) in feat.iter_mut().zip(s.features) {
-                    *f += wgt * v;
-                }
-                t = next;
-            }
+            let b = blend_pixel(list, &splats, DVec2::new(x as f64 + 0.5, y as f64 + 0.5));
             let px = y * w + x;
-            let c = rgb + t * bg;
-            g.rgb[3 * px..3 * px + 3].copy_from_slice(&[c.x as f32, c.y as f32, c.z as f32]);
-            g.alpha[px] = (1.0 - t) as f32;
+            for (c, out) in g.rgb[3 * px..3 * px + 3].iter_mut().enumerate() {
+                *out = (b.values[c] + b.t_final * bg[c]) as f32;
+            }
+            g.alpha[px] = (1.0 - b.t_final) as f32;
             let put = |v: &mut Option<Vec<f32>>, vals: &[f64]| {
                 if let Some(v) = v {
                     for (k, val) in vals.iter().enumerate() {
@@ -321,14 +449,15 @@ pub fn render_cpu(scene: &Scene, camera: &Camera, settings: &SplatSettings) -> G
                     }
                 }
             };
-            put(&mut g.depth, &[depth]);
-            put(&mut g.median_depth, &[median]);
-            put(&mut g.normal, &feat[0..3]);
-            put(&mut g.roughness, &feat[3..4]);
-            put(&mut g.albedo, &feat[4..7]);
-            put(&mut g.metallic, &feat[7..8]);
-            put(&mut g.ao, &feat[8..9]);
-            put(&mut g.visibility, &feat[9..10]);
+            let f = &b.values[4..];
+            put(&mut g.depth, &b.values[3..4]);
+            put(&mut g.median_depth, &[b.median]);
+            put(&mut g.normal, &f[0..3]);
+            put(&mut g.roughness, &f[3..4]);
+            put(&mut g.albedo, &f[4..7]);
+            put(&mut g.metallic, &f[7..8]);
+            put(&mut g.ao, &f[8..9]);
+            put(&mut g.visibility, &f[9..10]);
         }
     }
     g

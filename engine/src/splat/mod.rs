@@ -18,6 +18,7 @@
 //! [`cpu`] is the f64 twin of every stage.
 
 pub mod cpu;
+pub mod cpu_backward;
 pub mod scan;
 pub mod sort;
 
