@@ -242,6 +242,7 @@ pub fn project_backward(g: &Gaussian64, camera: &Camera, grad: &SplatGrad, norma
 
 #[cfg(test)]
 mod tests {
+    #![allow(clippy::unwrap_used, reason = "a failed unwrap is a failed test")]
     use glam::Vec3;
     use rand::{Rng, SeedableRng};
     use rand_pcg::Pcg64Mcg;
