@@ -10,7 +10,7 @@ use srug::gpu::Device;
 use srug::scene::activate::GpuScene;
 use srug::scene::demo::{demo_city, DemoCity, DemoOptions};
 use srug::scene::{Camera, Scene};
-use srug::shadow::cpu::{sigmoid_visibility_cpu, traced_visibility_cpu};
+use srug::shadow::cpu::{sigmoid_visibility_cpu, traced_visibility_cpu, DepthImage};
 use srug::shadow::{light_camera, DepthMode, ShadowFit, ShadowMap, ShadowPass, ShadowSettings, Sun, VisibilityKind};
 use srug::splat::{Channels, GBuffer, SplatSettings, Splatter};
 use srug_tests::{assert_no_validation_messages, device, save_comparison};
@@ -93,12 +93,13 @@ fn sigmoid_test_and_traced_reference_match_cpu_twin() {
         let st = ShadowSettings { map_depth, fit, k: 4.0, ..settings(384) };
         let (g, host) = receiver(&mut s, &camera, Channels::default());
         let map = shadow_map(&mut s, &sun, &st, Some(&camera));
-        let depths = map.read_depth(&s.d, st.min_alpha).unwrap();
+        let map_host = DepthImage::from_gbuffer(&map.frame.gbuffer.read(&s.d).unwrap());
+        let host = DepthImage::from_gbuffer(&host);
         let label = format!("shadow_{map_depth:?}_{fit:?}");
 
         let (v, _) = s.pass.visibility(&map, &g, &camera, &st, VisibilityKind::Sigmoid).unwrap();
         let gpu: Vec<f32> = s.d.read_buffer(&v).unwrap();
-        let cpu = sigmoid_visibility_cpu(&map.camera, &depths, &camera, &host, &st);
+        let cpu = sigmoid_visibility_cpu(&map.camera, &map_host, &camera, &host, &st);
         // f32 reconstruction of the receiver point is good to ~1e-6 relative (~1e-4 m
         // here); with k = 4 per metre that moves V by at most k/4 · 1e-4 = 1e-4.
         let err = max_diff(&format!("{label}_sigmoid"), &camera, &gpu, &cpu, 1e-4);
@@ -186,12 +187,13 @@ fn extremes_give_finite_visibility() {
     let mut s = setup(8_000);
     let camera = s.demo.cameras[0].resized(88, 24);
     let (g, host) = receiver(&mut s, &camera, Channels::default());
+    let host = DepthImage::from_gbuffer(&host);
     // k from 1e-3 to 1e9 and the sun from grazing to overhead.
     for el in [0.01f32, 25.0, 90.0] {
         let sun = Sun::from_azimuth_elevation(265.0, el, [1.0; 3]).unwrap();
         let base = settings(256);
         let map = shadow_map(&mut s, &sun, &base, None);
-        let depths = map.read_depth(&s.d, base.min_alpha).unwrap();
+        let map_host = DepthImage::from_gbuffer(&map.frame.gbuffer.read(&s.d).unwrap());
         for k in [1e-3f32, 1.0, 50.0, 1e4, 1e9] {
             let st = ShadowSettings { k, ..base };
             for kind in [VisibilityKind::Sigmoid, VisibilityKind::Traced] {
@@ -200,7 +202,7 @@ fn extremes_give_finite_visibility() {
                 assert!(v.iter().all(|x| x.is_finite() && (0.0..=1.0).contains(x)), "el {el} k {k} {kind:?}");
                 // Below k = 50 per metre the f32/f64 difference (~1e-4 m in z) moves V by ≤ k/4 · 1e-4.
                 if kind == VisibilityKind::Sigmoid && k <= 50.0 {
-                    let cpu = sigmoid_visibility_cpu(&map.camera, &depths, &camera, &host, &st);
+                    let cpu = sigmoid_visibility_cpu(&map.camera, &map_host, &camera, &host, &st);
                     max_diff(&format!("extreme_el{el}_k{k}"), &camera, &v, &cpu, 2e-3);
                 }
             }

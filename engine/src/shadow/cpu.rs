@@ -5,7 +5,8 @@ use glam::{DVec2, DVec3};
 
 use super::{DepthMode, ShadowSettings};
 use crate::scene::{Camera, Projection, Scene};
-use crate::splat::cpu::{preprocess_one, splat_alpha, tile_lists, CpuSplat};
+use crate::splat::cpu::{preprocess_one, splat_alpha, tile_lists, CpuSplat, PixelBlend, VALUES};
+use crate::splat::cpu_backward::PixelGrads;
 use crate::splat::{GBuffer, NormalSource, TILE};
 
 /// The logit clamp (keep in sync with `LOGIT_LIMIT` in `shadow.glsl`).
@@ -36,24 +37,73 @@ pub fn sigmoid_visibility(zs: f64, z: f64, k: f64, bias: f64) -> f64 {
     stable_sigmoid(shadow_logit(zs, z, k, bias))
 }
 
-/// Depth of one pixel: median, or expected normalised by alpha; `None`
-/// without a surface.
-fn pixel_depth(mode: DepthMode, g: &GBuffer, p: usize, min_alpha: f64) -> Option<f64> {
-    match mode {
-        DepthMode::Median => {
-            let z = f64::from(g.median_depth.as_ref()?[p]);
-            (z > 0.0).then_some(z)
+/// The depth channels of a rendered image in f64 (a receiver G-buffer or a
+/// shadow map): Σwz, alpha and median depth per pixel.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct DepthImage {
+    /// Width in pixels.
+    pub width: u32,
+    /// Height in pixels.
+    pub height: u32,
+    /// Σ wᵢ zᵢ (0 where not rendered).
+    pub depth_sum: Vec<f64>,
+    /// 1 − T.
+    pub alpha: Vec<f64>,
+    /// Median depth (0 where T never reaches 0.5, or not rendered).
+    pub median: Vec<f64>,
+}
+
+impl DepthImage {
+    /// From G-buffers read back from the GPU (missing channels read as 0).
+    pub fn from_gbuffer(g: &GBuffer) -> Self {
+        let n = g.alpha.len();
+        let wide =
+            |v: &Option<Vec<f32>>| v.as_ref().map_or(vec![0.0; n], |v| v.iter().map(|x| f64::from(*x)).collect());
+        Self {
+            width: g.width,
+            height: g.height,
+            depth_sum: wide(&g.depth),
+            alpha: g.alpha.iter().map(|x| f64::from(*x)).collect(),
+            median: wide(&g.median_depth),
         }
-        DepthMode::Expected => {
-            let a = f64::from(g.alpha[p]);
-            (a >= min_alpha).then(|| f64::from(g.depth.as_ref().map_or(f32::NAN, |d| d[p])) / a)
+    }
+
+    /// From the f64 twin's per-pixel blends.
+    pub fn from_blends(width: u32, height: u32, blends: &[PixelBlend]) -> Self {
+        Self {
+            width,
+            height,
+            depth_sum: blends.iter().map(|b| b.values[3]).collect(),
+            alpha: blends.iter().map(|b| 1.0 - b.t_final).collect(),
+            median: blends.iter().map(|b| b.median).collect(),
+        }
+    }
+
+    /// Depth of pixel `p`: median, or Σwz / alpha; `None` without a surface.
+    pub fn depth(&self, mode: DepthMode, p: usize, min_alpha: f64) -> Option<f64> {
+        match mode {
+            DepthMode::Median => (self.median[p] > 0.0).then_some(self.median[p]),
+            DepthMode::Expected => (self.alpha[p] >= min_alpha).then(|| self.depth_sum[p] / self.alpha[p]),
+        }
+    }
+
+    /// Adds dL/d(depth of pixel p) = `g` into per-pixel gradients of the channels.
+    fn depth_backward(&self, mode: DepthMode, p: usize, g: f64, out: &mut PixelGrads) {
+        match mode {
+            DepthMode::Median => out.median[p] += g,
+            DepthMode::Expected => {
+                let a = self.alpha[p];
+                out.values[p][3] += g / a;
+                out.alpha[p] -= g * self.depth_sum[p] / (a * a);
+            }
         }
     }
 }
 
 /// The shadow map's texel depths z_s (empty texels at `far`).
 pub fn resolve_depths(mode: DepthMode, map: &GBuffer, min_alpha: f32, far: f32) -> Vec<f32> {
-    (0..map.alpha.len()).map(|p| pixel_depth(mode, map, p, f64::from(min_alpha)).map_or(far, |z| z as f32)).collect()
+    let img = DepthImage::from_gbuffer(map);
+    (0..map.alpha.len()).map(|p| img.depth(mode, p, f64::from(min_alpha)).map_or(far, |z| z as f32)).collect()
 }
 
 /// World point seen at pixel `p` of `camera` at camera depth `z`.
@@ -100,33 +150,154 @@ pub fn bilinear(uv: DVec2, w: u32, h: u32) -> ([usize; 4], [f64; 4]) {
 pub fn receiver_in_light(
     light: &Camera,
     camera: &Camera,
-    receiver: &GBuffer,
+    receiver: &DepthImage,
     settings: &ShadowSettings,
     p: usize,
 ) -> Option<(DVec2, f64)> {
-    let z = pixel_depth(settings.receiver_depth, receiver, p, f64::from(settings.min_alpha))?;
+    let z = receiver.depth(settings.receiver_depth, p, f64::from(settings.min_alpha))?;
     let (uv, lz) = light_coords(light, unproject(camera, p, z));
     let inside = uv.x >= 0.0 && uv.y >= 0.0 && uv.x < f64::from(light.width) && uv.y < f64::from(light.height);
     inside.then_some((uv, lz))
 }
 
-/// The sigmoid shadow test for every receiver pixel, given the map's texel
-/// depths (from [`resolve_depths`]).
+/// Texel depths z_s of a shadow map (empty texels at the light's far depth).
+fn texel_depths(light: &Camera, map: &DepthImage, settings: &ShadowSettings) -> Vec<f64> {
+    (0..map.alpha.len())
+        .map(|i| map.depth(settings.map_depth, i, f64::from(settings.min_alpha)).unwrap_or(f64::from(light.far)))
+        .collect()
+}
+
+/// The sigmoid shadow test for every receiver pixel.
 pub fn sigmoid_visibility_cpu(
     light: &Camera,
-    map_depths: &[f32],
+    map: &DepthImage,
     camera: &Camera,
-    receiver: &GBuffer,
+    receiver: &DepthImage,
     settings: &ShadowSettings,
 ) -> Vec<f64> {
+    let zs_texels = texel_depths(light, map, settings);
     (0..receiver.alpha.len())
         .map(|p| {
             let Some((uv, z)) = receiver_in_light(light, camera, receiver, settings, p) else { return 1.0 };
             let (t, w) = bilinear(uv, light.width, light.height);
-            let zs: f64 = t.iter().zip(w).map(|(i, w)| w * f64::from(map_depths[*i])).sum();
+            let zs: f64 = t.iter().zip(w).map(|(i, w)| w * zs_texels[*i]).sum();
             sigmoid_visibility(zs, z, f64::from(settings.k), f64::from(settings.bias))
         })
         .collect()
+}
+
+/// What drives the shadow backward pass.
+#[derive(Clone, Copy, Debug)]
+pub enum VisibilityLoss<'a> {
+    /// Upstream gradients dL/dV_e per receiver pixel. Beyond the ±30 logit
+    /// clamp V_e is constant and the gradient is zero.
+    Upstream(&'a [f64]),
+    /// The paper's visibility loss: the mean over receivers with a surface
+    /// inside the map of BCE(V_e, V_f), V_f per pixel, in stable log-sigmoid form on the logit
+    /// (clamped to ±[`BCE_LOGIT_LIMIT`], so confidently wrong pixels keep their
+    /// gradient σ(x) − V_f).
+    Bce(&'a [f64]),
+}
+
+/// The logit clamp of the BCE loss (keep in sync with `shadow_backward.comp`).
+pub const BCE_LOGIT_LIMIT: f64 = 1e4;
+
+/// Gradients from the sigmoid shadow test.
+#[derive(Clone, Debug, Default)]
+pub struct ShadowGradients {
+    /// The BCE loss (0 for upstream gradients).
+    pub loss: f64,
+    /// dL/dk.
+    pub k: f64,
+    /// dL/dz_s per shadow-map texel.
+    pub texel_depth: Vec<f64>,
+    /// dL/dz per receiver pixel (its light-space depth, the map position held fixed).
+    pub light_depth: Vec<f64>,
+    /// dL/d the shadow map's channels (light image), for the splat backward.
+    pub map: PixelGrads,
+    /// dL/d the receiver G-buffer's depth channels (camera image), through
+    /// the receiver's light depth and its position in the map.
+    pub receiver: PixelGrads,
+}
+
+fn zero_grads(n: usize) -> PixelGrads {
+    PixelGrads { values: vec![[0.0; VALUES]; n], alpha: vec![0.0; n], median: vec![0.0; n] }
+}
+
+/// Backward of [`sigmoid_visibility_cpu`].
+pub fn sigmoid_backward_cpu(
+    light: &Camera,
+    map: &DepthImage,
+    camera: &Camera,
+    receiver: &DepthImage,
+    settings: &ShadowSettings,
+    loss: VisibilityLoss<'_>,
+) -> ShadowGradients {
+    let zs_texels = texel_depths(light, map, settings);
+    let (k, bias) = (f64::from(settings.k), f64::from(settings.bias));
+    let n = receiver.alpha.len();
+    let mut out = ShadowGradients {
+        texel_depth: vec![0.0; zs_texels.len()],
+        light_depth: vec![0.0; n],
+        map: zero_grads(zs_texels.len()),
+        receiver: zero_grads(n),
+        ..ShadowGradients::default()
+    };
+    let min_alpha = f64::from(settings.min_alpha);
+    let surfaces = (0..n).filter(|p| receiver_in_light(light, camera, receiver, settings, *p).is_some()).count();
+    let Projection::Orthographic { sx, sy, .. } = light.projection else {
+        unreachable!("light cameras are orthographic")
+    };
+    let light_w = light.rotation.as_dmat3().transpose();
+    for p in 0..n {
+        let Some((uv, z)) = receiver_in_light(light, camera, receiver, settings, p) else { continue };
+        let (t, w) = bilinear(uv, light.width, light.height);
+        let zs: f64 = t.iter().zip(w).map(|(i, w)| w * zs_texels[*i]).sum();
+        let raw = k * (zs - z + bias);
+        let d_logit = match loss {
+            VisibilityLoss::Upstream(g) => {
+                if raw.abs() >= LOGIT_LIMIT {
+                    continue;
+                }
+                let s = stable_sigmoid(raw);
+                g[p] * s * (1.0 - s)
+            }
+            VisibilityLoss::Bce(target) => {
+                let x = raw.clamp(-BCE_LOGIT_LIMIT, BCE_LOGIT_LIMIT);
+                let vf = target[p];
+                out.loss -= (vf * log_sigmoid(x) + (1.0 - vf) * log_sigmoid(-x)) / surfaces as f64;
+                if raw.abs() >= BCE_LOGIT_LIMIT {
+                    continue;
+                }
+                (stable_sigmoid(x) - vf) / surfaces as f64
+            }
+        };
+        let d_zs = d_logit * k;
+        let d_z = -d_logit * k;
+        out.k += d_logit * (zs - z + bias);
+        out.light_depth[p] = d_z;
+        for (i, wi) in t.iter().zip(w) {
+            out.texel_depth[*i] += d_zs * wi;
+        }
+        // The receiver's camera depth moves its world point along the pixel ray,
+        // which moves both its light depth and where it samples the map.
+        let s = uv - 0.5;
+        let f = s - s.floor();
+        let zt = t.map(|i| zs_texels[i]);
+        let d_zs_du = (zt[1] - zt[0]) * (1.0 - f.y) + (zt[3] - zt[2]) * f.y;
+        let d_zs_dv = (zt[2] - zt[0]) * (1.0 - f.x) + (zt[3] - zt[1]) * f.x;
+        let ray = unproject(camera, p, 1.0) - unproject(camera, p, 0.0);
+        let d_light = light_w * ray;
+        let d_uv = DVec2::new(f64::from(sx) * d_light.x, f64::from(sy) * d_light.y);
+        let d_camera_depth = d_z * d_light.z + d_zs * (d_zs_du * d_uv.x + d_zs_dv * d_uv.y);
+        receiver.depth_backward(settings.receiver_depth, p, d_camera_depth, &mut out.receiver);
+    }
+    for (i, g) in out.texel_depth.iter().enumerate() {
+        if *g != 0.0 && map.depth(settings.map_depth, i, min_alpha).is_some() {
+            map.depth_backward(settings.map_depth, i, *g, &mut out.map);
+        }
+    }
+    out
 }
 
 /// The traced reference for every receiver pixel: Π(1 − αᵢ) over the light
@@ -136,7 +307,7 @@ pub fn traced_visibility_cpu(
     scene: &Scene,
     light: &Camera,
     camera: &Camera,
-    receiver: &GBuffer,
+    receiver: &DepthImage,
     settings: &ShadowSettings,
 ) -> Vec<f64> {
     let splats: Vec<Option<CpuSplat>> =
@@ -167,7 +338,184 @@ pub fn traced_visibility_cpu(
 
 #[cfg(test)]
 mod tests {
+    #![allow(clippy::unwrap_used, reason = "a failed unwrap is a failed test")]
+    use glam::Vec3;
+    use rand::{Rng, SeedableRng};
+    use rand_pcg::Pcg64Mcg;
+
     use super::*;
+    use crate::scene::Scene;
+    use crate::shadow::{light_camera, ShadowFit, Sun};
+    use crate::splat::cpu::{render_blends, Gaussian64};
+    use crate::splat::cpu_backward::{blend_backward_cpu, project_backward, GaussianGrad};
+
+    /// A ground patch of flat Gaussians and a blob floating above it.
+    fn scene() -> Scene {
+        let mut rng = Pcg64Mcg::seed_from_u64(11);
+        let mut s = Scene::default();
+        for i in 0..7 {
+            for j in 0..7 {
+                // Jittered: a lattice aligned with texel edges puts kinks of the bilinear
+                // lookup within a finite-difference step.
+                let jitter = [rng.random_range(-0.03..0.03), rng.random_range(-0.03..0.03)];
+                s.means.push([
+                    i as f32 * 0.25 - 0.75 + jitter[0],
+                    j as f32 * 0.25 - 0.75 + jitter[1],
+                    rng.random_range(-0.01..0.01),
+                ]);
+                s.log_scales.push([(0.16f32).ln(), (0.16f32).ln(), (0.01f32).ln()]);
+                s.rotations.push([1.0, rng.random_range(-0.05..0.05), rng.random_range(-0.05..0.05), 0.1]);
+                s.opacity_logits.push(rng.random_range(1.0..3.0));
+                s.sh.extend([0.1, 0.1, 0.1]);
+            }
+        }
+        for _ in 0..5 {
+            s.means.push([rng.random_range(-0.3..0.1), rng.random_range(-0.2..0.2), rng.random_range(0.4..0.6)]);
+            s.log_scales.push([
+                rng.random_range(-2.3f32..-1.6),
+                rng.random_range(-2.3f32..-1.6),
+                rng.random_range(-2.3f32..-1.6),
+            ]);
+            s.rotations.push([
+                rng.random_range(0.3..1.0),
+                rng.random_range(-1.0..1.0),
+                rng.random_range(-1.0..1.0),
+                0.2,
+            ]);
+            s.opacity_logits.push(rng.random_range(0.0..2.0));
+            s.sh.extend([0.1, 0.1, 0.1]);
+        }
+        s
+    }
+
+    struct Chain {
+        scene: Scene,
+        light: Camera,
+        camera: Camera,
+        settings: ShadowSettings,
+    }
+
+    impl Chain {
+        fn images(&self, params: &[Gaussian64]) -> (DepthImage, DepthImage) {
+            let (_, lb) = render_blends(params, &self.scene, &self.light, NormalSource::ShortestAxis);
+            let (_, cb) = render_blends(params, &self.scene, &self.camera, NormalSource::ShortestAxis);
+            (
+                DepthImage::from_blends(self.light.width, self.light.height, &lb),
+                DepthImage::from_blends(self.camera.width, self.camera.height, &cb),
+            )
+        }
+
+        fn loss(&self, params: &[Gaussian64], loss: VisibilityLoss<'_>) -> f64 {
+            let (map, rec) = self.images(params);
+            match loss {
+                VisibilityLoss::Upstream(w) => {
+                    let v = sigmoid_visibility_cpu(&self.light, &map, &self.camera, &rec, &self.settings);
+                    v.iter().zip(w).map(|(a, b)| a * b).sum()
+                }
+                VisibilityLoss::Bce(_) => {
+                    sigmoid_backward_cpu(&self.light, &map, &self.camera, &rec, &self.settings, loss).loss
+                }
+            }
+        }
+
+        fn gradients(&self, params: &[Gaussian64], loss: VisibilityLoss<'_>) -> (Vec<GaussianGrad>, f64) {
+            let (map, rec) = self.images(params);
+            let g = sigmoid_backward_cpu(&self.light, &map, &self.camera, &rec, &self.settings, loss);
+            let mut out = vec![GaussianGrad::default(); params.len()];
+            for (cam, pg) in [(&self.light, &g.map), (&self.camera, &g.receiver)] {
+                let (splats, _) = render_blends(params, &self.scene, cam, NormalSource::ShortestAxis);
+                let sg = blend_backward_cpu(&splats, cam, [0.0; 3], pg);
+                for (i, p) in params.iter().enumerate() {
+                    let d = project_backward(p, cam, &sg[i], false);
+                    let o = &mut out[i];
+                    o.mean += d.mean;
+                    o.log_scale += d.log_scale;
+                    o.opacity_logit += d.opacity_logit;
+                    for k in 0..4 {
+                        o.rotation[k] += d.rotation[k];
+                    }
+                }
+            }
+            (out, g.k)
+        }
+    }
+
+    fn check_chain(map_depth: DepthMode, receiver_depth: DepthMode, bce: bool) {
+        let scene = scene();
+        let sun = Sun::from_azimuth_elevation(250.0, 50.0, [1.0; 3]).unwrap();
+        let light = light_camera(&scene.bounds().unwrap(), &sun, 40, ShadowFit::SceneBounds, None).unwrap();
+        let camera = Camera::look_at(Vec3::new(0.0, -2.2, 1.8), Vec3::ZERO, Vec3::Z, 55.0, 36, 28).unwrap();
+        let settings = ShadowSettings { k: 6.0, bias: 0.02, map_depth, receiver_depth, ..ShadowSettings::default() };
+        let chain = Chain { scene, light, camera, settings };
+        let params: Vec<Gaussian64> = (0..chain.scene.len()).map(|i| Gaussian64::from_scene(&chain.scene, i)).collect();
+        let mut rng = Pcg64Mcg::seed_from_u64(5);
+        let n = (chain.camera.width * chain.camera.height) as usize;
+        let data: Vec<f64> = (0..n).map(|_| rng.random_range(if bce { 0.0..1.0 } else { -1.0..1.0 })).collect();
+        let loss = if bce { VisibilityLoss::Bce(&data) } else { VisibilityLoss::Upstream(&data) };
+        let (grads, dk) = chain.gradients(&params, loss);
+        let h = 1e-6;
+        let fd = |perturb: &dyn Fn(&mut Vec<Gaussian64>, f64)| {
+            let mut plus = params.clone();
+            perturb(&mut plus, h);
+            let mut minus = params.clone();
+            perturb(&mut minus, -h);
+            (chain.loss(&plus, loss) - chain.loss(&minus, loss)) / (2.0 * h)
+        };
+        let mut checked = Vec::new();
+        for i in 0..params.len() {
+            let a = grads[i];
+            for c in 0..3 {
+                checked.push((i, "mean", a.mean[c], fd(&|p, d| p[i].mean[c] += d)));
+                checked.push((i, "log_scale", a.log_scale[c], fd(&|p, d| p[i].log_scale[c] += d)));
+            }
+            for c in 0..4 {
+                checked.push((i, "rotation", a.rotation[c], fd(&|p, d| p[i].rotation[c] += d)));
+            }
+            checked.push((i, "opacity_logit", a.opacity_logit, fd(&|p, d| p[i].opacity_logit += d)));
+        }
+        let scale = checked.iter().fold(0.0f64, |m, c| m.max(c.3.abs()));
+        let mut significant = 0;
+        for (i, name, a, f) in &checked {
+            // Relative error ≤ 1e-3 against the larger of |fd| and 1e-4 of the largest
+            // derivative (below that, rounding in the summed loss, ~1e-14, divided by the
+            // step dominates the finite difference).
+            let err = (a - f).abs() / f.abs().max(1e-4 * scale);
+            assert!(err <= 1e-3, "Gaussian {i} {name}: analytic {a:.9e}, finite difference {f:.9e}");
+            significant += usize::from(f.abs() > 1e-3 * scale);
+        }
+        // The blob (the last five) must receive gradient from the shadow it casts.
+        let blob = checked.iter().filter(|c| c.0 >= 49 && c.3.abs() > 1e-3 * scale).count();
+        assert!(blob >= 20, "only {blob} blob derivatives are significant");
+        assert!(significant >= 100, "only {significant} significant derivatives");
+        // dL/dk by finite differences of k.
+        let mut shifted = chain.settings;
+        let hk = 1e-6 * f64::from(shifted.k);
+        let base = shifted.k;
+        let loss_k = |k: f64, st: &mut ShadowSettings| {
+            st.k = k as f32;
+            let c = Chain {
+                scene: chain.scene.clone(),
+                light: chain.light.clone(),
+                camera: chain.camera.clone(),
+                settings: *st,
+            };
+            c.loss(&params, loss)
+        };
+        // k is f32 in the settings: use a step that f32 represents exactly.
+        let kp = f64::from(base) + hk;
+        let km = f64::from(base) - hk;
+        let (kp32, km32) = (f64::from(kp as f32), f64::from(km as f32));
+        let fd_k = (loss_k(kp32, &mut shifted) - loss_k(km32, &mut shifted)) / (kp32 - km32);
+        assert!((dk - fd_k).abs() <= 1e-3 * fd_k.abs().max(1e-9), "dL/dk {dk:.9e} vs finite difference {fd_k:.9e}");
+        eprintln!("{map_depth:?}/{receiver_depth:?}/bce {bce}: {significant} significant derivatives, dL/dk {dk:.4e}");
+    }
+
+    #[test]
+    fn shadow_chain_gradients_match_finite_differences() {
+        check_chain(DepthMode::Median, DepthMode::Expected, false);
+        check_chain(DepthMode::Expected, DepthMode::Expected, false);
+        check_chain(DepthMode::Expected, DepthMode::Median, true);
+    }
 
     #[test]
     fn sigmoid_is_stable_and_exact_at_the_extremes() {

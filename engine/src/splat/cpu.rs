@@ -408,6 +408,29 @@ pub fn blend_pixel(list: &[(u32, usize)], splats: &[Option<CpuSplat>], centre: D
     out
 }
 
+/// Stages 1–5 in f64 for geometry `params` (colour and materials from
+/// `scene`): the projected splats and every pixel's blend, row-major.
+pub fn render_blends(
+    params: &[Gaussian64],
+    scene: &Scene,
+    camera: &Camera,
+    normal_source: NormalSource,
+) -> (Vec<Option<CpuSplat>>, Vec<PixelBlend>) {
+    let splats: Vec<Option<CpuSplat>> =
+        params.iter().enumerate().map(|(i, g)| preprocess_with(g, scene, i, camera, normal_source)).collect();
+    let lists = tile_lists(&splats, camera);
+    let tiles_x = camera.width.div_ceil(TILE) as usize;
+    let w = camera.width as usize;
+    let blends = (0..w * camera.height as usize)
+        .map(|p| {
+            let (x, y) = (p % w, p / w);
+            let list = &lists[(y / TILE as usize) * tiles_x + x / TILE as usize];
+            blend_pixel(list, &splats, DVec2::new(x as f64 + 0.5, y as f64 + 0.5))
+        })
+        .collect();
+    (splats, blends)
+}
+
 /// Stages 1–5 on the CPU.
 pub fn render_cpu(scene: &Scene, camera: &Camera, settings: &SplatSettings) -> GBuffer {
     let (w, h) = (camera.width as usize, camera.height as usize);

@@ -249,7 +249,7 @@ mod tests {
 
     use super::*;
     use crate::scene::Scene;
-    use crate::splat::cpu::preprocess_with;
+    use crate::splat::cpu::{preprocess_with, render_blends};
     use crate::splat::NormalSource;
 
     /// A few overlapping Gaussians in front of the camera, with normals from rotation.
@@ -276,22 +276,9 @@ mod tests {
 
     /// L = Σ_p weights·(values, alpha, median) over the image.
     fn loss(params: &[Gaussian64], scene: &Scene, camera: &Camera, bg: [f64; 3], wts: &PixelGrads) -> f64 {
-        let splats: Vec<Option<CpuSplat>> = params
-            .iter()
-            .enumerate()
-            .map(|(i, g)| preprocess_with(g, scene, i, camera, NormalSource::ShortestAxis))
-            .collect();
-        let lists = tile_lists(&splats, camera);
-        let tiles_x = camera.width.div_ceil(TILE) as usize;
-        let w = camera.width as usize;
+        let (_, blends) = render_blends(params, scene, camera, NormalSource::ShortestAxis);
         let mut total = 0.0;
-        for p in 0..(camera.width * camera.height) as usize {
-            let (x, y) = (p % w, p / w);
-            let b = blend_pixel(
-                &lists[(y / TILE as usize) * tiles_x + x / TILE as usize],
-                &splats,
-                DVec2::new(x as f64 + 0.5, y as f64 + 0.5),
-            );
+        for (p, b) in blends.iter().enumerate() {
             let mut v = b.values;
             for c in 0..3 {
                 v[c] += b.t_final * bg[c];
