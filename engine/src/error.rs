@@ -39,6 +39,9 @@ pub enum Error {
         /// What disagrees.
         message: String,
     },
+    /// The device lacks a feature an operation needs.
+    #[error("unsupported on this device: {0}")]
+    Unsupported(String),
     /// An argument is outside what the API accepts.
     #[error("invalid argument: {0}")]
     InvalidArgument(String),

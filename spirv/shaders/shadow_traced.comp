@@ -30,12 +30,9 @@ void main() {
                 uint g = order.v[j];
                 vec4 head = splats.v[g].head;
                 if (head.z >= limit) break;
-                vec4 conic = splats.v[g].conic;
-                vec2 d = head.xy - centre;
-                float power = -0.5 * (conic.x * d.x * d.x + conic.z * d.y * d.y) - conic.y * d.x * d.y;
-                if (power > 0.0) continue;
-                float alpha = min(0.99, head.w * exp(power));
-                if (alpha < 1.0 / 255.0) continue;
+                float alpha, gauss;
+                vec2 d;
+                if (!splat_alpha(head, splats.v[g].conic, centre, alpha, gauss, d)) continue;
                 T *= 1.0 - alpha;
                 if (T < 1e-4) { T = 0.0; break; }
             }

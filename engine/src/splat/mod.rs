@@ -17,6 +17,7 @@
 //! channel is Σ wᵢ xᵢ (premultiplied by alpha; divide by alpha for the mean).
 //! [`cpu`] is the f64 twin of every stage.
 
+pub mod backward;
 pub mod cpu;
 pub mod cpu_backward;
 pub mod scan;
@@ -358,6 +359,14 @@ pub struct SplatFrame {
     pub sorted_gaussians: Buffer,
     /// Per-tile [start, end) into the sorted pairs, `uvec2` per tile.
     pub ranges: Buffer,
+    /// Per-splat features (normal, materials) when any feature channel was rendered.
+    pub features: Option<Buffer>,
+    /// The frame uniform (camera, sizes, every address above), for the backward pass.
+    pub uniform: Buffer,
+    /// Address of the scene's means, to check the backward pass gets the same scene.
+    pub(crate) scene_means: u64,
+    /// Gaussians in the scene.
+    pub(crate) gaussians: u64,
 }
 
 impl SplatFrame {
@@ -378,6 +387,7 @@ pub struct Splatter {
     blend_variant: BlendVariant,
     scan: Scan,
     sort: RadixSort,
+    backward: HashMap<u32, backward::BackwardKernels>,
 }
 
 const FRAME_BINDING: [BindingKind; 1] = [BindingKind::UniformBuffer];
@@ -431,6 +441,7 @@ impl Splatter {
             },
             scan: Scan::new(device)?,
             sort: RadixSort::new(device)?,
+            backward: HashMap::new(),
         })
     }
 
@@ -646,6 +657,10 @@ impl Splatter {
             pair_offsets: tile_counts,
             sorted_gaussians: values,
             ranges,
+            features: feature_buf,
+            uniform,
+            scene_means: scene.means.device_address(),
+            gaussians: n,
         })
     }
 }

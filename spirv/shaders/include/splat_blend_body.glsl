@@ -20,11 +20,9 @@ struct Accumulated {
 // Blends splat g into `acc`; false once the pixel is done (T·(1−α) < 1e-4,
 // that splat excluded). Colour and features are loaded only when it contributes.
 bool blend_one(inout Accumulated acc, uint g, vec4 head, vec4 conic, vec2 centre) {
-    vec2 d = head.xy - centre;
-    float power = -0.5 * (conic.x * d.x * d.x + conic.z * d.y * d.y) - conic.y * d.x * d.y;
-    if (power > 0.0) return true;
-    float alpha = min(0.99, head.w * exp(power));
-    if (alpha < 1.0 / 255.0) return true;
+    float alpha, gauss;
+    vec2 d;
+    if (!splat_alpha(head, conic, centre, alpha, gauss, d)) return true;
     float next_T = acc.T * (1.0 - alpha);
     if (next_T < 1e-4) return false;
     float w = alpha * acc.T;

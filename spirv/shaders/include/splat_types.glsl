@@ -19,4 +19,17 @@ layout(buffer_reference, std430, buffer_reference_align = 16) buffer Features { 
 layout(buffer_reference, std430, buffer_reference_align = 8) buffer Uvec2s { uvec2 v[]; };
 layout(buffer_reference, std430, buffer_reference_align = 4) buffer Floats { float v[]; };
 
+
+// α of a splat at `centre` as the blend computes it: min(0.99, o·exp(−σ));
+// false where the blend skips the splat (σ < 0 or α < 1/255). The blend, its
+// backward and the traced shadow pass all call this, so they agree bit for bit.
+// `gauss` is exp(−σ) and `d` the centre's offset (mean − centre).
+bool splat_alpha(vec4 head, vec4 conic, vec2 centre, out float alpha, out float gauss, out vec2 d) {
+    d = head.xy - centre;
+    float power = -0.5 * (conic.x * d.x * d.x + conic.z * d.y * d.y) - conic.y * d.x * d.y;
+    gauss = exp(min(power, 0.0));
+    alpha = min(0.99, head.w * gauss);
+    return power <= 0.0 && alpha >= 1.0 / 255.0;
+}
+
 #endif

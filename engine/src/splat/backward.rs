@@ -1,0 +1,272 @@
+//! The splatting backward pass: per-pixel loss gradients of any blended
+//! G-buffer channel → gradients of every Gaussian's stored parameters.
+//!
+//! Two kernels, no atomics, deterministic: `splat_backward_tiles.comp` (one
+//! workgroup per tile) replays each pixel's blend, walks it back to front
+//! (NOTES.md §4) and sums the tile's pixels per splat into one record per
+//! (tile, splat) pair; `splat_backward_gaussians.comp` (one invocation per
+//! Gaussian) sums its records in order and chains them through the
+//! projection. The records sit where the forward's scan put the pairs
+//! (pair_offsets[g] + the tile's place in the splat's rectangle), so no
+//! second sort is needed. The tile kernel needs subgroup arithmetic and a
+//! subgroup size of at least 4 (it keeps one partial sum per subgroup).
+//!
+//! What is not differentiated is listed in [`super::cpu_backward`], the f64 twin.
+
+use bytemuck::{Pod, Zeroable};
+
+use super::{SplatFrame, Splatter};
+use crate::error::{Error, Result};
+use crate::gpu::{kernels, BindingKind, Buffer, Device, Kernel, KernelDecl, MemoryKind, SpecValue, Timings};
+use crate::scene::activate::GpuScene;
+
+/// Per-pixel loss gradients of the blended channels (layout as
+/// [`super::GpuGBuffer`]: planar, rgb/normal/albedo 3 floats per pixel).
+/// Absent channels have zero gradient and cost nothing.
+#[derive(Default)]
+pub struct BlendGrads {
+    /// dL/d rgb (composited over the background).
+    pub rgb: Option<Buffer>,
+    /// dL/d alpha.
+    pub alpha: Option<Buffer>,
+    /// dL/d Σwz.
+    pub depth: Option<Buffer>,
+    /// dL/d median depth.
+    pub median_depth: Option<Buffer>,
+    /// dL/d Σw·normal.
+    pub normal: Option<Buffer>,
+    /// dL/d Σw·albedo.
+    pub albedo: Option<Buffer>,
+    /// dL/d Σw·roughness.
+    pub roughness: Option<Buffer>,
+    /// dL/d Σw·metallic.
+    pub metallic: Option<Buffer>,
+    /// dL/d Σw·ao.
+    pub ao: Option<Buffer>,
+    /// dL/d Σw·visibility.
+    pub visibility: Option<Buffer>,
+}
+
+impl BlendGrads {
+    /// The `GRADS` specialization constant (keep in sync with `splat_backward.glsl`).
+    pub fn bits(&self) -> u32 {
+        [
+            &self.depth,
+            &self.median_depth,
+            &self.normal,
+            &self.albedo,
+            &self.roughness,
+            &self.metallic,
+            &self.ao,
+            &self.visibility,
+            &self.rgb,
+            &self.alpha,
+        ]
+        .iter()
+        .enumerate()
+        .map(|(i, b)| u32::from(b.is_some()) << i)
+        .sum()
+    }
+
+    fn buffers(&self) -> Vec<(&Buffer, u64, &'static str)> {
+        [
+            (&self.rgb, 3, "rgb"),
+            (&self.alpha, 1, "alpha"),
+            (&self.depth, 1, "depth"),
+            (&self.median_depth, 1, "median depth"),
+            (&self.normal, 3, "normal"),
+            (&self.albedo, 3, "albedo"),
+            (&self.roughness, 1, "roughness"),
+            (&self.metallic, 1, "metallic"),
+            (&self.ao, 1, "ao"),
+            (&self.visibility, 1, "visibility"),
+        ]
+        .into_iter()
+        .filter_map(|(b, k, n)| b.as_ref().map(|b| (b, k, n)))
+        .collect()
+    }
+}
+
+/// Gradients of every Gaussian's stored parameters, on the GPU.
+pub struct GaussianGradients {
+    /// dL/d mean, 3 floats each.
+    pub means: Buffer,
+    /// dL/d log-scale, 3 floats each.
+    pub log_scales: Buffer,
+    /// dL/d quaternion (w, x, y, z), 4 floats each.
+    pub rotations: Buffer,
+    /// dL/d opacity logit.
+    pub opacity_logits: Buffer,
+    /// dL/d blended values when asked for: 16 floats each (rgb, 0, normal.xyz,
+    /// roughness, albedo.rgb, metallic, ao, visibility, 0, 0).
+    pub values: Option<Buffer>,
+    /// GPU time of the two kernels.
+    pub timings: Timings,
+}
+
+/// [`GaussianGradients`] on the host.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct HostGaussianGradients {
+    /// dL/d mean.
+    pub means: Vec<[f32; 3]>,
+    /// dL/d log-scale.
+    pub log_scales: Vec<[f32; 3]>,
+    /// dL/d quaternion.
+    pub rotations: Vec<[f32; 4]>,
+    /// dL/d opacity logit.
+    pub opacity_logits: Vec<f32>,
+    /// dL/d blended values, 16 per Gaussian.
+    pub values: Option<Vec<[f32; 16]>>,
+}
+
+impl GaussianGradients {
+    /// Reads the gradients back.
+    pub fn read(&self, device: &Device) -> Result<HostGaussianGradients> {
+        Ok(HostGaussianGradients {
+            means: device.read_buffer(&self.means)?,
+            log_scales: device.read_buffer(&self.log_scales)?,
+            rotations: device.read_buffer(&self.rotations)?,
+            opacity_logits: device.read_buffer(&self.opacity_logits)?,
+            values: self.values.as_ref().map(|v| device.read_buffer(v)).transpose()?,
+        })
+    }
+}
+
+/// Addresses for the backward kernels (keep in sync with `Backward` in
+/// `splat_backward.glsl`; std140, uvec4 members, addresses as (low, high)).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+pub struct BackwardUniform {
+    inputs: [[u64; 2]; 5],
+    pairs: [u64; 2],
+    outputs: [[u64; 2]; 3],
+}
+const _: () = assert!(std::mem::size_of::<BackwardUniform>() == 9 * 16);
+
+/// Floats per (tile, splat) record for gradient set `bits` (keep in sync with `STRIDE`).
+fn record_stride(bits: u32) -> u64 {
+    8 + if bits & 256 != 0 { 4 } else { 0 } + if bits & 252 != 0 { 12 } else { 0 }
+}
+
+fn address(b: &Option<Buffer>) -> u64 {
+    b.as_ref().map_or(0, Buffer::device_address)
+}
+
+/// The two backward kernels for one gradient set.
+pub(super) struct BackwardKernels {
+    tiles: Kernel,
+    gaussians: Kernel,
+}
+
+impl Splatter {
+    /// Gradients of every Gaussian of `scene` from per-pixel gradients of
+    /// `frame`'s blended channels. `frame` must have been rendered from this
+    /// `scene`, with the features when feature gradients are given.
+    /// `with_values` also returns the per-Gaussian gradients of the blended values.
+    pub fn backward(
+        &mut self,
+        frame: &SplatFrame,
+        scene: &GpuScene,
+        grads: &BlendGrads,
+        with_values: bool,
+    ) -> Result<GaussianGradients> {
+        let device = self.device.clone();
+        let info = device.info();
+        if !info.subgroup_arithmetic || info.subgroup_size < 4 {
+            return Err(Error::Unsupported(format!(
+                "the splat backward pass needs subgroup arithmetic and a subgroup size of at least 4 \
+                 (this device: arithmetic {}, size {})",
+                info.subgroup_arithmetic, info.subgroup_size
+            )));
+        }
+        if frame.scene_means != scene.means.device_address() || frame.gaussians != scene.count as u64 {
+            return Err(Error::InvalidArgument("the splat frame was rendered from another scene".into()));
+        }
+        let pixels = u64::from(frame.camera.width) * u64::from(frame.camera.height);
+        for (b, k, name) in grads.buffers() {
+            if b.size() < k * pixels * 4 {
+                return Err(Error::InvalidArgument(format!(
+                    "gradient of {name} holds {} bytes; the {}x{} frame needs {}",
+                    b.size(),
+                    frame.camera.width,
+                    frame.camera.height,
+                    k * pixels * 4
+                )));
+            }
+        }
+        let bits = grads.bits();
+        if bits & 252 != 0 && frame.features.is_none() {
+            return Err(Error::InvalidArgument(
+                "feature gradients need a frame rendered with a feature channel (normal or materials)".into(),
+            ));
+        }
+        if let std::collections::hash_map::Entry::Vacant(e) = self.backward.entry(bits) {
+            let spec = [(0, SpecValue::U32(bits))];
+            let with_spec = KernelDecl {
+                bindings: &[BindingKind::UniformBuffer, BindingKind::UniformBuffer],
+                push_constant_size: 0,
+                specialization: &spec,
+            };
+            e.insert(BackwardKernels {
+                tiles: Kernel::new(&device, &kernels::SPLAT_BACKWARD_TILES, &with_spec)?,
+                gaussians: Kernel::new(&device, &kernels::SPLAT_BACKWARD_GAUSSIANS, &with_spec)?,
+            });
+        }
+        let k = &self.backward[&bits];
+        let n = frame.gaussians;
+        let stride = record_stride(bits);
+        let pairs =
+            device.create_buffer("backward pair records", frame.stats.pairs * stride * 4, MemoryKind::Storage)?;
+        let f = |name: &str, floats: u64| device.create_buffer(name, n * floats * 4, MemoryKind::Storage);
+        let out = GaussianGradients {
+            means: f("dL/d means", 3)?,
+            log_scales: f("dL/d log-scales", 3)?,
+            rotations: f("dL/d rotations", 4)?,
+            opacity_logits: f("dL/d opacity logits", 1)?,
+            values: with_values.then(|| f("dL/d values", 16)).transpose()?,
+            timings: Timings::default(),
+        };
+        let u = BackwardUniform {
+            inputs: [
+                [address(&grads.rgb), address(&grads.alpha)],
+                [address(&grads.depth), address(&grads.median_depth)],
+                [address(&grads.normal), address(&grads.albedo)],
+                [address(&grads.roughness), address(&grads.metallic)],
+                [address(&grads.ao), address(&grads.visibility)],
+            ],
+            pairs: [pairs.device_address(), 0],
+            outputs: [
+                [out.means.device_address(), out.log_scales.device_address()],
+                [out.rotations.device_address(), out.opacity_logits.device_address()],
+                [address(&out.values), 0],
+            ],
+        };
+        let uniform = device.upload("backward uniform", bytemuck::bytes_of(&u))?;
+        let (tiles_x, tiles_y) = frame.tiles();
+        let scene_buffers: Vec<&Buffer> =
+            [&scene.means, &scene.log_scales, &scene.rotations, &scene.opacity_logits, &scene.sh]
+                .into_iter()
+                .chain(scene.normals.as_ref())
+                .collect();
+        let inputs: Vec<&Buffer> = grads.buffers().into_iter().map(|(b, _, _)| b).collect();
+        let outputs: Vec<&Buffer> =
+            [&out.means, &out.log_scales, &out.rotations, &out.opacity_logits].into_iter().chain(&out.values).collect();
+        let timings = device.run(|rec| {
+            rec.keep(&scene_buffers)?;
+            rec.keep(&inputs)?;
+            rec.keep(&outputs)?;
+            rec.keep(&[&frame.splats, &frame.pair_offsets, &frame.sorted_gaussians, &frame.ranges, &pairs])?;
+            if let Some(fb) = &frame.features {
+                rec.keep(&[fb])?;
+            }
+            rec.begin_stage("backward blend");
+            rec.fill(&pairs, 0)?;
+            rec.dispatch_groups(&k.tiles, &[&frame.uniform, &uniform], &(), u64::from(tiles_x) * u64::from(tiles_y))?;
+            rec.begin_stage("backward projection");
+            rec.dispatch_1d(&k.gaussians, &[&frame.uniform, &uniform], &(), n)?;
+            rec.end_stage();
+            Ok(())
+        })?;
+        Ok(GaussianGradients { timings, ..out })
+    }
+}

@@ -1,0 +1,252 @@
+//! The splatting backward pass on the GPU against its f64 CPU twin (itself
+//! checked against central finite differences in `srug::splat::cpu_backward`)
+//! and directly against central finite differences of the CPU forward:
+//! every parameter family, every blended channel, pinhole and orthographic.
+
+#![allow(clippy::unwrap_used, clippy::expect_used, reason = "a failed unwrap is a failed test")]
+
+use glam::{DVec3, Vec3};
+use rand::{Rng, SeedableRng};
+use rand_pcg::Pcg64Mcg;
+use srug::gpu::{Device, MemoryKind};
+use srug::scene::activate::GpuScene;
+use srug::scene::{Camera, Materials, Scene};
+use srug::splat::backward::{BlendGrads, HostGaussianGradients};
+use srug::splat::cpu::{preprocess_one, render_blends, CpuSplat, Gaussian64};
+use srug::splat::cpu_backward::{blend_backward_cpu, project_backward, GaussianGrad, PixelGrads};
+use srug::splat::{Channels, NormalSource, SplatSettings, Splatter};
+use srug_tests::{assert_no_validation_messages, device};
+
+fn scene(n: usize, seed: u64) -> Scene {
+    let mut rng = Pcg64Mcg::seed_from_u64(seed);
+    let mut s = Scene::default();
+    let mut m = Materials {
+        albedo: Some(Vec::new()),
+        roughness: Some(Vec::new()),
+        metallic: Some(Vec::new()),
+        ao: Some(Vec::new()),
+        visibility: Some(Vec::new()),
+    };
+    for _ in 0..n {
+        s.means.push([rng.random_range(-1.0..1.0), rng.random_range(-0.7..0.7), rng.random_range(-0.5..0.5)]);
+        s.log_scales.push([rng.random_range(-2.5..-1.0), rng.random_range(-2.5..-1.0), rng.random_range(-2.5..-1.0)]);
+        s.rotations.push([rng.random_range(0.2..1.0), rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0), 0.3]);
+        s.opacity_logits.push(rng.random_range(-1.0..2.5));
+        s.sh.extend([rng.random_range(-0.5..0.5), rng.random_range(-0.5..0.5), rng.random_range(-0.5..0.5)]);
+        m.albedo.as_mut().unwrap().push([rng.random_range(-2.0..2.0); 3]);
+        for v in [&mut m.roughness, &mut m.metallic, &mut m.ao, &mut m.visibility] {
+            v.as_mut().unwrap().push(rng.random_range(-2.0..2.0));
+        }
+    }
+    s.materials = m;
+    s
+}
+
+/// Random per-pixel gradients for every channel, as host f64 and as GPU buffers.
+fn random_grads(d: &Device, pixels: usize, seed: u64) -> (PixelGrads, BlendGrads) {
+    let mut rng = Pcg64Mcg::seed_from_u64(seed);
+    let host = PixelGrads {
+        values: (0..pixels).map(|_| std::array::from_fn(|_| rng.random_range(-1.0..1.0))).collect(),
+        alpha: (0..pixels).map(|_| rng.random_range(-1.0..1.0)).collect(),
+        median: (0..pixels).map(|_| rng.random_range(-1.0..1.0)).collect(),
+    };
+    let planar = |range: std::ops::Range<usize>| -> Vec<f32> {
+        host.values.iter().flat_map(|v| v[range.clone()].iter().map(|x| *x as f32).collect::<Vec<_>>()).collect()
+    };
+    let up = |name: &str, v: Vec<f32>| Some(d.upload(name, &v).unwrap());
+    let grads = BlendGrads {
+        rgb: up("d rgb", planar(0..3)),
+        alpha: up("d alpha", host.alpha.iter().map(|x| *x as f32).collect()),
+        depth: up("d depth", planar(3..4)),
+        median_depth: up("d median", host.median.iter().map(|x| *x as f32).collect()),
+        normal: up("d normal", planar(4..7)),
+        roughness: up("d roughness", planar(7..8)),
+        albedo: up("d albedo", planar(8..11)),
+        metallic: up("d metallic", planar(11..12)),
+        ao: up("d ao", planar(12..13)),
+        visibility: up("d visibility", planar(13..14)),
+    };
+    (host, grads)
+}
+
+fn gpu_gradients(
+    d: &Device,
+    scene: &Scene,
+    camera: &Camera,
+    bg: [f32; 3],
+    grads: &BlendGrads,
+) -> HostGaussianGradients {
+    let mut splatter = Splatter::new(d).unwrap();
+    let gpu_scene = GpuScene::upload(d, scene).unwrap();
+    let settings = SplatSettings { background: bg, channels: Channels::ALL, ..SplatSettings::default() };
+    let frame = splatter.render_frame(&gpu_scene, camera, &settings).unwrap();
+    let out = splatter.backward(&frame, &gpu_scene, grads, true).unwrap();
+    out.read(d).unwrap()
+}
+
+fn flatten(g: &GaussianGrad) -> [(usize, f64); 11] {
+    let m = g.mean;
+    let s = g.log_scale;
+    let r = g.rotation;
+    [
+        (0, m.x),
+        (0, m.y),
+        (0, m.z),
+        (1, s.x),
+        (1, s.y),
+        (1, s.z),
+        (2, r[0]),
+        (2, r[1]),
+        (2, r[2]),
+        (2, r[3]),
+        (3, g.opacity_logit),
+    ]
+}
+
+fn flatten_gpu(h: &HostGaussianGradients, i: usize) -> [f64; 11] {
+    let m = h.means[i].map(f64::from);
+    let s = h.log_scales[i].map(f64::from);
+    let r = h.rotations[i].map(f64::from);
+    [m[0], m[1], m[2], s[0], s[1], s[2], r[0], r[1], r[2], r[3], f64::from(h.opacity_logits[i])]
+}
+
+const FAMILIES: [&str; 4] = ["mean", "log_scale", "rotation", "opacity_logit"];
+
+/// Every GPU gradient within relative error `tol` of the CPU value, relative to
+/// the larger of |CPU| and 1% of the family's largest |CPU| (below that, fp32
+/// rounding of sums dominated by the largest terms is what is measured).
+fn compare(label: &str, gpu: &HostGaussianGradients, cpu: &[GaussianGrad], tol: f64) {
+    let mut family_max = [0.0f64; 4];
+    for g in cpu {
+        for (f, v) in flatten(g) {
+            family_max[f] = family_max[f].max(v.abs());
+        }
+    }
+    let mut worst = [0.0f64; 4];
+    for (i, c) in cpu.iter().enumerate() {
+        for ((f, cv), gv) in flatten(c).into_iter().zip(flatten_gpu(gpu, i)) {
+            assert!(gv.is_finite(), "{label}: Gaussian {i} {} is not finite", FAMILIES[f]);
+            let err = (gv - cv).abs() / cv.abs().max(1e-2 * family_max[f]).max(1e-30);
+            worst[f] = worst[f].max(err);
+            assert!(err <= tol, "{label}: Gaussian {i} {}: GPU {gv:.6e}, CPU {cv:.6e}", FAMILIES[f]);
+        }
+    }
+    assert!(family_max.iter().all(|m| *m > 0.0), "{label}: a parameter family got no gradient at all");
+    eprintln!("{label}: worst relative error per family {worst:?}");
+}
+
+fn cpu_gradients(scene: &Scene, camera: &Camera, bg: [f32; 3], host: &PixelGrads) -> Vec<GaussianGrad> {
+    let splats: Vec<Option<CpuSplat>> =
+        (0..scene.len()).map(|i| preprocess_one(scene, i, camera, NormalSource::ShortestAxis)).collect();
+    let sg = blend_backward_cpu(&splats, camera, bg.map(f64::from), host);
+    (0..scene.len()).map(|i| project_backward(&Gaussian64::from_scene(scene, i), camera, &sg[i], true)).collect()
+}
+
+#[test]
+fn gpu_backward_matches_cpu_twin_in_every_channel() {
+    let d = device();
+    let bg = [0.2, 0.4, 0.7];
+    let cameras = [
+        ("pinhole", Camera::look_at(Vec3::new(0.3, -0.2, -3.0), Vec3::ZERO, Vec3::Y, 50.0, 75, 53).unwrap()),
+        ("narrow", Camera::look_at(Vec3::new(0.0, 0.0, -3.0), Vec3::ZERO, Vec3::Y, 20.0, 64, 40).unwrap()),
+        (
+            "orthographic",
+            Camera::orthographic(Vec3::new(0.0, 0.0, -3.0), Vec3::Z, Vec3::Y, 2.6, 2.0, 67, 51, 0.01, 10.0).unwrap(),
+        ),
+    ];
+    for (seed, (name, camera)) in cameras.iter().enumerate() {
+        let scene = scene(300, seed as u64);
+        let pixels = (camera.width * camera.height) as usize;
+        let (host, grads) = random_grads(&d, pixels, 100 + seed as u64);
+        let gpu = gpu_gradients(&d, &scene, camera, bg, &grads);
+        let cpu = cpu_gradients(&scene, camera, bg, &host);
+        // fp32 on the GPU (transmittance recovered by division, long sums) against f64.
+        compare(name, &gpu, &cpu, 1e-3);
+        // Value gradients (rgb and features) are returned per Gaussian.
+        let values = gpu.values.as_ref().expect("asked for value gradients");
+        assert!(values.iter().all(|v| v.iter().all(|x| x.is_finite())));
+        assert!(values.iter().any(|v| v[4] != 0.0 && v[0] != 0.0), "{name}: no value gradients");
+    }
+    assert_no_validation_messages(&d);
+}
+
+#[test]
+fn gpu_backward_matches_central_finite_differences() {
+    // A small scene so the f64 forward can be rerun for every parameter.
+    let d = device();
+    let scene = scene(16, 9);
+    let camera = Camera::look_at(Vec3::new(0.3, -0.2, -3.0), Vec3::ZERO, Vec3::Y, 50.0, 40, 28).unwrap();
+    let pixels = (camera.width * camera.height) as usize;
+    let (host, grads) = random_grads(&d, pixels, 77);
+    let bg = [0.1, 0.2, 0.3];
+    let gpu = gpu_gradients(&d, &scene, &camera, bg, &grads);
+    let params: Vec<Gaussian64> = (0..scene.len()).map(|i| Gaussian64::from_scene(&scene, i)).collect();
+    let loss = |p: &[Gaussian64]| -> f64 {
+        let (_, blends) = render_blends(p, &scene, &camera, NormalSource::ShortestAxis);
+        let mut total = 0.0;
+        for (px, b) in blends.iter().enumerate() {
+            for (k, (v, w)) in b.values.iter().zip(&host.values[px]).enumerate() {
+                let composited = v + bg.get(k).map_or(0.0, |c| b.t_final * f64::from(*c));
+                total += composited * w;
+            }
+            total += (1.0 - b.t_final) * host.alpha[px] + b.median * host.median[px];
+        }
+        total
+    };
+    let h = 1e-6;
+    let mut fd = Vec::new();
+    for i in 0..params.len() {
+        let mut g = GaussianGrad::default();
+        let diff = |f: &dyn Fn(&mut Gaussian64, f64)| {
+            let (mut a, mut b) = (params.clone(), params.clone());
+            f(&mut a[i], h);
+            f(&mut b[i], -h);
+            (loss(&a) - loss(&b)) / (2.0 * h)
+        };
+        let mut m = DVec3::ZERO;
+        let mut s = DVec3::ZERO;
+        for k in 0..3 {
+            m[k] = diff(&|p, e| p.mean[k] += e);
+            s[k] = diff(&|p, e| p.log_scale[k] += e);
+        }
+        g.mean = m;
+        g.log_scale = s;
+        for k in 0..4 {
+            g.rotation[k] = diff(&|p, e| p.rotation[k] += e);
+        }
+        g.opacity_logit = diff(&|p, e| p.opacity_logit += e);
+        fd.push(g);
+    }
+    compare("finite differences", &gpu, &fd, 1e-3);
+    assert_no_validation_messages(&d);
+}
+
+#[test]
+fn backward_refuses_mismatched_inputs() {
+    let d = device();
+    let s = scene(50, 1);
+    let camera = Camera::look_at(Vec3::new(0.0, 0.0, -3.0), Vec3::ZERO, Vec3::Y, 50.0, 32, 32).unwrap();
+    let mut splatter = Splatter::new(&d).unwrap();
+    let gpu_scene = GpuScene::upload(&d, &s).unwrap();
+    let other = GpuScene::upload(&d, &s).unwrap();
+    let frame = splatter.render_frame(&gpu_scene, &camera, &SplatSettings::default()).unwrap();
+    let short =
+        BlendGrads { alpha: Some(d.create_buffer("short", 16, MemoryKind::Storage).unwrap()), ..BlendGrads::default() };
+    let e = splatter.backward(&frame, &gpu_scene, &short, false).err().unwrap().to_string();
+    assert!(e.contains("alpha") && e.contains("needs"), "{e}");
+    let ok = BlendGrads {
+        alpha: Some(d.create_filled::<f32>("ones", 32 * 32, 1.0f32.to_bits()).unwrap()),
+        ..BlendGrads::default()
+    };
+    let e = splatter.backward(&frame, &other, &ok, false).err().unwrap().to_string();
+    assert!(e.contains("another scene"), "{e}");
+    let features =
+        BlendGrads { normal: Some(d.create_filled::<f32>("n", 3 * 32 * 32, 0).unwrap()), ..BlendGrads::default() };
+    let e = splatter.backward(&frame, &gpu_scene, &features, false).err().unwrap().to_string();
+    assert!(e.contains("feature"), "{e}");
+    // Zero upstream gradient gives exactly zero gradients.
+    let zero = BlendGrads { alpha: Some(d.create_filled::<f32>("zero", 32 * 32, 0).unwrap()), ..BlendGrads::default() };
+    let g = splatter.backward(&frame, &gpu_scene, &zero, false).unwrap().read(&d).unwrap();
+    assert!(g.means.iter().flatten().chain(g.opacity_logits.iter()).all(|v| *v == 0.0));
+    assert_no_validation_messages(&d);
+}
