@@ -21,6 +21,7 @@
 //!
 //! [`cpu`] is the f64 twin.
 
+pub mod backward;
 pub mod cpu;
 pub mod sun;
 
@@ -29,9 +30,10 @@ use glam::Vec3;
 
 pub use self::sun::{solar_position, SolarPosition, Sun, UtcTime};
 use crate::error::{Error, Result};
-use crate::gpu::{kernels, BindingKind, Buffer, Device, Kernel, KernelDecl, MemoryKind, Timings};
+use crate::gpu::{kernels, BindingKind, Buffer, Device, Kernel, KernelDecl, MemoryKind, SpecValue, Timings};
 use crate::scene::activate::GpuScene;
 use crate::scene::{Bounds, Camera, Projection};
+use crate::splat::sort::RadixSort;
 use crate::splat::{Channels, GpuGBuffer, SplatFrame, SplatSettings, Splatter};
 
 /// Which depth a G-buffer gives for shadows.
@@ -286,11 +288,16 @@ fn intrinsics(camera: &Camera) -> ([f32; 4], f32) {
     }
 }
 
-/// The shadow kernels.
+/// The shadow kernels (forward and backward) and the backward's sort scratch.
 pub struct ShadowPass {
     device: Device,
     test: Kernel,
     traced: Kernel,
+    backward_upstream: Kernel,
+    backward_bce: Kernel,
+    bins: Kernel,
+    gather: Kernel,
+    sort: RadixSort,
 }
 
 /// Which visibility [`ShadowPass::visibility`] computes.
@@ -306,10 +313,33 @@ impl ShadowPass {
     /// Builds the kernels.
     pub fn new(device: &Device) -> Result<Self> {
         let decl = KernelDecl { bindings: &[BindingKind::UniformBuffer], push_constant_size: 0, specialization: &[] };
+        let two = [BindingKind::UniformBuffer, BindingKind::UniformBuffer];
+        let backward = |loss: u32| {
+            let spec = [(0, SpecValue::U32(loss))];
+            Kernel::new(
+                device,
+                &kernels::SHADOW_BACKWARD,
+                &KernelDecl { bindings: &two, push_constant_size: 4, specialization: &spec },
+            )
+        };
+        let plain = KernelDecl { bindings: &two, push_constant_size: 0, specialization: &[] };
         Ok(Self {
             device: device.clone(),
             test: Kernel::new(device, &kernels::SHADOW_TEST, &decl)?,
             traced: Kernel::new(device, &kernels::SHADOW_TRACED, &decl)?,
+            backward_upstream: backward(0)?,
+            backward_bce: backward(1)?,
+            bins: Kernel::new(
+                device,
+                &kernels::SHADOW_BINS,
+                &KernelDecl {
+                    bindings: &[],
+                    push_constant_size: std::mem::size_of::<backward::BinsPush>(),
+                    specialization: &[],
+                },
+            )?,
+            gather: Kernel::new(device, &kernels::SHADOW_TEXEL_GRADS, &plain)?,
+            sort: RadixSort::new(device)?,
         })
     }
 
@@ -349,58 +379,12 @@ impl ShadowPass {
         settings: &ShadowSettings,
         kind: VisibilityKind,
     ) -> Result<(Buffer, Timings)> {
-        settings.validate()?;
         let device = &self.device;
-        if (gbuffer.width, gbuffer.height) != (camera.width, camera.height) {
-            return Err(Error::InvalidArgument(format!(
-                "G-buffer {}x{} does not match camera {}x{}",
-                gbuffer.width, gbuffer.height, camera.width, camera.height
-            )));
-        }
-        let receiver_depth = match settings.receiver_depth {
-            DepthMode::Median => gbuffer.median_depth.as_ref(),
-            DepthMode::Expected => gbuffer.depth.as_ref(),
-        }
-        .ok_or_else(|| {
-            Error::InvalidArgument(format!(
-                "the receiver G-buffer lacks the {:?} depth channel the shadow settings ask for",
-                settings.receiver_depth
-            ))
-        })?;
-        let g = &map.frame.gbuffer;
-        let map_depth = match map.depth {
-            DepthMode::Median => g.median_depth.as_ref(),
-            DepthMode::Expected => g.depth.as_ref(),
-        }
-        .ok_or_else(|| Error::InvalidArgument("the shadow map lacks its depth channel".into()))?;
         let pixels = u64::from(camera.width) * u64::from(camera.height);
         let out = device.create_buffer("visibility", pixels * 4, MemoryKind::Storage)?;
-        let mut u = ShadowUniform::zeroed();
-        let r = camera.rotation;
-        for (row, i) in u.cam_rot.iter_mut().zip(0..3) {
-            *row = [r.x_axis[i], r.y_axis[i], r.z_axis[i], 0.0];
-        }
-        let (cam_k, cam_kind) = intrinsics(camera);
-        u.cam_pos = [camera.position.x, camera.position.y, camera.position.z, cam_kind];
-        u.cam_intr = cam_k;
-        let l = &map.camera;
-        let w = l.rotation.transpose();
-        for (row, i) in u.light_rot.iter_mut().zip(0..3) {
-            *row = [w.x_axis[i], w.y_axis[i], w.z_axis[i], 0.0];
-        }
-        let t = -(w * l.position);
-        u.light_t = [t.x, t.y, t.z, l.far];
-        u.light_intr = intrinsics(l).0;
-        u.size = [camera.width, camera.height, l.width, l.height];
-        u.params = [settings.k, settings.bias, settings.min_alpha, 0.0];
-        u.modes = [map.depth.code(), settings.receiver_depth.code(), map.frame.tiles().0, 0];
-        u.addr = [
-            [receiver_depth.device_address(), gbuffer.alpha.device_address()],
-            [map_depth.device_address(), g.alpha.device_address()],
-            [out.device_address(), 0],
-            [map.frame.splats.device_address(), map.frame.sorted_gaussians.device_address()],
-            [map.frame.ranges.device_address(), 0],
-        ];
+        let (u, inputs) = shadow_uniform(map, gbuffer, camera, settings, out.device_address())?;
+        let ShadowInputs { receiver_depth, map_depth } = inputs;
+        let g = &map.frame.gbuffer;
         let uniform = device.upload("shadow uniform", bytemuck::bytes_of(&u))?;
         let (kernel, stage) = match kind {
             VisibilityKind::Sigmoid => (&self.test, "sigmoid shadow test"),
@@ -421,4 +405,77 @@ impl ShadowPass {
         })?;
         Ok((out, timings))
     }
+}
+
+/// The receiver's and the map's depth buffers the settings select.
+struct ShadowInputs<'a> {
+    receiver_depth: &'a Buffer,
+    map_depth: &'a Buffer,
+}
+
+/// The shadow kernels' uniform for `map`, receivers `gbuffer` seen from
+/// `camera`, and `settings`; `out` is the visibility output (0 for none).
+fn shadow_uniform<'a>(
+    map: &'a ShadowMap,
+    gbuffer: &'a GpuGBuffer,
+    camera: &Camera,
+    settings: &ShadowSettings,
+    out: u64,
+) -> Result<(ShadowUniform, ShadowInputs<'a>)> {
+    settings.validate()?;
+    if (gbuffer.width, gbuffer.height) != (camera.width, camera.height) {
+        return Err(Error::InvalidArgument(format!(
+            "G-buffer {}x{} does not match camera {}x{}",
+            gbuffer.width, gbuffer.height, camera.width, camera.height
+        )));
+    }
+    if settings.map_depth != map.depth {
+        return Err(Error::InvalidArgument(format!(
+            "the shadow map holds {:?} depth; the settings ask for {:?}",
+            map.depth, settings.map_depth
+        )));
+    }
+    let receiver_depth = match settings.receiver_depth {
+        DepthMode::Median => gbuffer.median_depth.as_ref(),
+        DepthMode::Expected => gbuffer.depth.as_ref(),
+    }
+    .ok_or_else(|| {
+        Error::InvalidArgument(format!(
+            "the receiver G-buffer lacks the {:?} depth channel the shadow settings ask for",
+            settings.receiver_depth
+        ))
+    })?;
+    let g = &map.frame.gbuffer;
+    let map_depth = match map.depth {
+        DepthMode::Median => g.median_depth.as_ref(),
+        DepthMode::Expected => g.depth.as_ref(),
+    }
+    .ok_or_else(|| Error::InvalidArgument("the shadow map lacks its depth channel".into()))?;
+    let mut u = ShadowUniform::zeroed();
+    let r = camera.rotation;
+    for (row, i) in u.cam_rot.iter_mut().zip(0..3) {
+        *row = [r.x_axis[i], r.y_axis[i], r.z_axis[i], 0.0];
+    }
+    let (cam_k, cam_kind) = intrinsics(camera);
+    u.cam_pos = [camera.position.x, camera.position.y, camera.position.z, cam_kind];
+    u.cam_intr = cam_k;
+    let l = &map.camera;
+    let w = l.rotation.transpose();
+    for (row, i) in u.light_rot.iter_mut().zip(0..3) {
+        *row = [w.x_axis[i], w.y_axis[i], w.z_axis[i], 0.0];
+    }
+    let t = -(w * l.position);
+    u.light_t = [t.x, t.y, t.z, l.far];
+    u.light_intr = intrinsics(l).0;
+    u.size = [camera.width, camera.height, l.width, l.height];
+    u.params = [settings.k, settings.bias, settings.min_alpha, 0.0];
+    u.modes = [map.depth.code(), settings.receiver_depth.code(), map.frame.tiles().0, 0];
+    u.addr = [
+        [receiver_depth.device_address(), gbuffer.alpha.device_address()],
+        [map_depth.device_address(), g.alpha.device_address()],
+        [out, 0],
+        [map.frame.splats.device_address(), map.frame.sorted_gaussians.device_address()],
+        [map.frame.ranges.device_address(), 0],
+    ];
+    Ok((u, ShadowInputs { receiver_depth, map_depth }))
 }

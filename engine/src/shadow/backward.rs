@@ -1,0 +1,201 @@
+//! The sigmoid shadow test's backward pass on the GPU.
+//!
+//! Per receiver pixel (`shadow_backward.comp`): dL/dx from upstream dL/dV or
+//! from the paper's BCE visibility loss, then dL/dk, dL/dz, the receiver
+//! G-buffer's depth gradients, and dL/dz_s to spread over the pixel's four
+//! bilinear texels. The spread is a gather, not an atomic scatter: pixels are
+//! sorted (stable radix sort) by the first texel of their footprint
+//! (`shadow_bins.comp` finds each texel's run) and each texel sums the runs
+//! of itself and its three up-left neighbours in a fixed order
+//! (`shadow_texel_grads.comp`), so gradients are bit-for-bit repeatable.
+//! The results are [`BlendGrads`] for the shadow map's and the receivers'
+//! splat frames: [`crate::splat::Splatter::backward`] takes them to the Gaussians.
+
+use bytemuck::{Pod, Zeroable};
+
+use super::{shadow_uniform, DepthMode, ShadowMap, ShadowPass, ShadowSettings};
+use crate::error::{Error, Result};
+use crate::gpu::{Buffer, MemoryKind, Timings};
+use crate::scene::Camera;
+use crate::splat::backward::BlendGrads;
+use crate::splat::GpuGBuffer;
+
+/// What drives the backward pass (per receiver pixel, float each).
+#[derive(Clone, Copy)]
+pub enum GpuVisibilityLoss<'a> {
+    /// Upstream gradients dL/dV_e.
+    Upstream(&'a Buffer),
+    /// The visibility loss: mean BCE(V_e, V_f) over receivers with a surface
+    /// inside the map, given V_f (see [`super::cpu::VisibilityLoss::Bce`]).
+    Bce(&'a Buffer),
+}
+
+/// Gradients from the sigmoid shadow test.
+pub struct ShadowBackward {
+    /// For the shadow map's splat frame (its depth channel, and alpha for expected depth).
+    pub map: BlendGrads,
+    /// For the receivers' splat frame.
+    pub receiver: BlendGrads,
+    /// dL/dz_s per shadow-map texel.
+    pub texel_depth: Buffer,
+    /// dL/dz per receiver pixel (light-space depth, map position held fixed).
+    pub light_depth: Buffer,
+    /// dL/dk.
+    pub k: f64,
+    /// The BCE loss (0 with upstream gradients).
+    pub loss: f64,
+    /// Receivers with a surface inside the map.
+    pub receivers: u32,
+    /// GPU time per stage.
+    pub timings: Timings,
+}
+
+/// Addresses for the backward kernels (keep in sync with `ShadowBackward` in
+/// `shadow_backward.glsl`; std140, uvec4 members).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+struct ShadowBackwardUniform {
+    addr: [[u64; 2]; 7],
+    counts: [u32; 4],
+}
+const _: () = assert!(std::mem::size_of::<ShadowBackwardUniform>() == 8 * 16);
+
+/// Push constants of `shadow_bins.comp` (keep in sync with its `Push` block).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+pub(super) struct BinsPush {
+    keys: u64,
+    ranges: u64,
+    count: u32,
+    none: u32,
+}
+const _: () = assert!(std::mem::size_of::<BinsPush>() == 24);
+
+fn depth_grads(mode: DepthMode, depth: Buffer, alpha: Option<Buffer>) -> BlendGrads {
+    match mode {
+        DepthMode::Median => BlendGrads { median_depth: Some(depth), ..BlendGrads::default() },
+        DepthMode::Expected => BlendGrads { depth: Some(depth), alpha, ..BlendGrads::default() },
+    }
+}
+
+impl ShadowPass {
+    /// Backward of [`ShadowPass::visibility`] with [`super::VisibilityKind::Sigmoid`].
+    pub fn backward(
+        &mut self,
+        map: &ShadowMap,
+        gbuffer: &GpuGBuffer,
+        camera: &Camera,
+        settings: &ShadowSettings,
+        loss: GpuVisibilityLoss<'_>,
+    ) -> Result<ShadowBackward> {
+        let device = self.device.clone();
+        let (u, inputs) = shadow_uniform(map, gbuffer, camera, settings, 0)?;
+        let pixels = u64::from(camera.width) * u64::from(camera.height);
+        let texels = u64::from(map.camera.width) * u64::from(map.camera.height);
+        let (upstream, bce) = match loss {
+            GpuVisibilityLoss::Upstream(b) => (b, false),
+            GpuVisibilityLoss::Bce(b) => (b, true),
+        };
+        if upstream.size() < pixels * 4 {
+            return Err(Error::InvalidArgument(format!(
+                "the visibility gradient/target holds {} bytes; {}x{} receivers need {}",
+                upstream.size(),
+                camera.width,
+                camera.height,
+                pixels * 4
+            )));
+        }
+        if pixels >= u64::from(u32::MAX) || texels >= u64::from(u32::MAX) {
+            return Err(Error::InvalidArgument("image or shadow map too large for the backward pass".into()));
+        }
+        let f = |name: &str, n: u64| device.create_buffer(name, n * 4, MemoryKind::Storage);
+        let loss_px = f("shadow loss per pixel", pixels)?;
+        let dk_px = f("dL/dk per pixel", pixels)?;
+        let light_depth = f("dL/dz per pixel", pixels)?;
+        let receiver_depth = f("dL/d receiver depth", pixels)?;
+        let receiver_alpha =
+            (settings.receiver_depth == DepthMode::Expected).then(|| f("dL/d receiver alpha", pixels)).transpose()?;
+        let keys = f("shadow bin keys", 2 * pixels)?;
+        let order = f("shadow bin pixels", pixels)?;
+        let records = f("shadow pixel records", 4 * pixels)?;
+        let ranges = f("shadow bin ranges", 2 * texels)?;
+        let texel_depth = f("dL/dz_s", texels)?;
+        let map_depth = f("dL/d map depth", texels)?;
+        let map_alpha = (map.depth == DepthMode::Expected).then(|| f("dL/d map alpha", texels)).transpose()?;
+        let count = f("shadow receiver count", 1)?;
+        let addr = |b: &Buffer| b.device_address();
+        let opt = |b: &Option<Buffer>| b.as_ref().map_or(0, Buffer::device_address);
+        let bu = ShadowBackwardUniform {
+            addr: [
+                [addr(upstream), addr(&loss_px)],
+                [addr(&dk_px), addr(&light_depth)],
+                [addr(&receiver_depth), opt(&receiver_alpha)],
+                [addr(&keys), addr(&order)],
+                [addr(&records), addr(&ranges)],
+                [addr(&texel_depth), addr(&map_depth)],
+                [opt(&map_alpha), addr(&count)],
+            ],
+            counts: [pixels as u32, texels as u32, texels as u32, 0],
+        };
+        let shadow_u = device.upload("shadow uniform", bytemuck::bytes_of(&u))?;
+        let backward_u = device.upload("shadow backward uniform", bytemuck::bytes_of(&bu))?;
+        let key_bits = 64 - texels.leading_zeros();
+        self.sort.reserve(&device, pixels)?;
+        let kernel = if bce { &self.backward_bce } else { &self.backward_upstream };
+        let (bins, gather, sort) = (&self.bins, &self.gather, &self.sort);
+        let g = &map.frame.gbuffer;
+        let outputs: Vec<&Buffer> = [
+            &loss_px,
+            &dk_px,
+            &light_depth,
+            &receiver_depth,
+            &keys,
+            &order,
+            &records,
+            &ranges,
+            &texel_depth,
+            &map_depth,
+            &count,
+        ]
+        .into_iter()
+        .chain(receiver_alpha.as_ref())
+        .chain(map_alpha.as_ref())
+        .collect();
+        let timings = device.run(|rec| {
+            rec.keep(&[inputs.receiver_depth, &gbuffer.alpha, inputs.map_depth, &g.alpha, upstream])?;
+            rec.keep(&outputs)?;
+            let both = [&shadow_u, &backward_u];
+            rec.begin_stage("shadow backward");
+            rec.fill(&count, 0)?;
+            rec.dispatch_1d(kernel, &both, &0u32, pixels)?;
+            rec.dispatch_1d(kernel, &both, &1u32, pixels)?;
+            rec.begin_stage("shadow gradient gather");
+            sort.record(rec, &keys, &order, pixels, key_bits)?;
+            rec.fill(&ranges, 0)?;
+            let push = BinsPush {
+                keys: keys.device_address(),
+                ranges: ranges.device_address(),
+                count: pixels as u32,
+                none: texels as u32,
+            };
+            rec.dispatch_1d(bins, &[], &push, pixels)?;
+            rec.dispatch_1d(gather, &both, &(), texels)?;
+            rec.end_stage();
+            Ok(())
+        })?;
+        let sum = |b: &Buffer| -> Result<f64> { Ok(device.read_buffer::<f32>(b)?.iter().map(|v| f64::from(*v)).sum()) };
+        let k = sum(&dk_px)?;
+        let loss_value = if bce { sum(&loss_px)? } else { 0.0 };
+        let receivers = device.read_buffer::<u32>(&count)?[0];
+        Ok(ShadowBackward {
+            map: depth_grads(map.depth, map_depth, map_alpha),
+            receiver: depth_grads(settings.receiver_depth, receiver_depth, receiver_alpha),
+            texel_depth,
+            light_depth,
+            k,
+            loss: loss_value,
+            receivers,
+            timings,
+        })
+    }
+}

@@ -1,0 +1,53 @@
+#version 460
+// Shadow backward, gather: one invocation per shadow-map texel sums
+// w_k·dL/dz_s over the receiver pixels whose bilinear footprint holds it —
+// those binned at this texel and at its left, upper and upper-left
+// neighbours — in a fixed order (deterministic, no atomics). Then the texel's
+// depth z_s goes back to the map's channels: median depth directly, or
+// z_s = Σwz / alpha (empty texels, at the far depth, pass nothing).
+// CPU twin: engine/src/shadow/cpu.rs `sigmoid_backward_cpu`.
+#define WORKGROUP_SIZE_X 64
+#include "common.glsl"
+#include "shadow.glsl"
+#include "shadow_backward.glsl"
+
+void main() {
+    uint texel = linear_index();
+    if (texel >= sbw.counts.y) return;
+    uint mw = shadow.size.z;
+    ivec2 tt = ivec2(int(texel % mw), int(texel / mw));
+    Uvec2sIn ranges = Uvec2sIn(sbw.b4.zw);
+    UintsIn order = UintsIn(sbw.b3.zw);
+    Vec4s records = Vec4s(sbw.b4.xy);
+    float sum = 0.0;
+    for (int dy = 0; dy < 2; dy++) {
+        for (int dx = 0; dx < 2; dx++) {
+            ivec2 b = tt - ivec2(dx, dy);
+            if (b.x < 0 || b.y < 0) continue;
+            uvec2 range = ranges.v[uint(b.y) * mw + uint(b.x)];
+            for (uint j = range.x; j < range.y; j++) {
+                vec4 rec = records.v[order.v[j]];
+                ivec2 t[4];
+                vec4 w;
+                bilinear(rec.xy, t, w);
+                for (int k = 0; k < 4; k++) {
+                    if (t[k] == tt) sum += w[k] * rec.z;
+                }
+            }
+        }
+    }
+    FloatsOut(sbw.b5.xy).v[texel] = sum;
+    float g_depth = 0.0, g_alpha = 0.0;
+    float z;
+    if (sum != 0.0 && resolve_depth(shadow.modes.x, shadow.addr1.xy, shadow.addr1.zw, texel, z)) {
+        if (shadow.modes.x == 1u) {
+            g_depth = sum;
+        } else {
+            float a = FloatsIn(shadow.addr1.zw).v[texel];
+            g_depth = sum / a;
+            g_alpha = -sum * FloatsIn(shadow.addr1.xy).v[texel] / (a * a);
+        }
+    }
+    FloatsOut(sbw.b5.zw).v[texel] = g_depth;
+    if (shadow.modes.x == 0u) FloatsOut(sbw.b6.xy).v[texel] = g_alpha;
+}

@@ -1,0 +1,346 @@
+//! The sigmoid shadow test's backward pass on the GPU: against its f64 CPU
+//! twin on the demo city (same inputs: the GPU's G-buffers), end to end to the
+//! Gaussians against central finite differences of the f64 CPU pipeline, and
+//! finite at the extremes (k from 1e-3 to 1e9, depth differences of ±1e30, the
+//! sun at 0.01° and 90°, receivers on the occluder, an empty shadow map).
+
+#![allow(clippy::unwrap_used, clippy::expect_used, reason = "a failed unwrap is a failed test")]
+
+use glam::Vec3;
+use rand::{Rng, SeedableRng};
+use rand_pcg::Pcg64Mcg;
+use srug::gpu::{Buffer, Device};
+use srug::scene::activate::GpuScene;
+use srug::scene::demo::{demo_city, DemoOptions};
+use srug::scene::{Camera, Scene};
+use srug::shadow::backward::GpuVisibilityLoss;
+use srug::shadow::cpu::{sigmoid_backward_cpu, sigmoid_visibility_cpu, DepthImage, VisibilityLoss};
+use srug::shadow::{light_camera, DepthMode, ShadowFit, ShadowPass, ShadowSettings, Sun};
+use srug::splat::backward::HostGaussianGradients;
+use srug::splat::cpu::{render_blends, Gaussian64};
+use srug::splat::{Channels, NormalSource, SplatFrame, SplatSettings, Splatter};
+use srug_tests::{assert_no_validation_messages, device, save_comparison};
+
+fn read(d: &Device, b: &Option<Buffer>) -> Vec<f64> {
+    d.read_buffer::<f32>(b.as_ref().expect("gradient present")).unwrap().iter().map(|v| f64::from(*v)).collect()
+}
+
+/// |gpu − cpu| ≤ tol·max(|cpu|, floor·max|cpu|) everywhere.
+fn close(label: &str, gpu: &[f64], cpu: &[f64], tol: f64, floor: f64, size: (u32, u32)) {
+    assert_eq!(gpu.len(), cpu.len(), "{label}: lengths");
+    let scale = cpu.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    let mut worst = 0.0f64;
+    for (i, (g, c)) in gpu.iter().zip(cpu).enumerate() {
+        let err = (g - c).abs() / c.abs().max(floor * scale).max(1e-30);
+        worst = worst.max(err);
+        if err.is_nan() || err > tol {
+            let g32: Vec<f32> = gpu.iter().map(|v| *v as f32).collect();
+            let c32: Vec<f32> = cpu.iter().map(|v| *v as f32).collect();
+            let saved = save_comparison(label, size.0, size.1, 1, &g32, &c32);
+            panic!("{label}: element {i}: GPU {g:.6e}, CPU {c:.6e}, scale {scale:.3e} (images: {saved})");
+        }
+    }
+    eprintln!("{label}: worst relative error {worst:.2e} (scale {scale:.3e})");
+}
+
+#[test]
+fn shadow_backward_matches_cpu_twin() {
+    let d = device();
+    let demo = demo_city(&DemoOptions { gaussians: 30_000, ..DemoOptions::default() }).unwrap();
+    let gpu_scene = GpuScene::upload(&d, &demo.scene).unwrap();
+    let mut splatter = Splatter::new(&d).unwrap();
+    let mut pass = ShadowPass::new(&d).unwrap();
+    let camera = demo.cameras[0].resized(176, 48);
+    // A sun from the south-east: the default sun puts most of this view in the
+    // off-screen tower's shadow, far beyond the sigmoid's transition.
+    let sun = Sun::from_azimuth_elevation(150.0, 40.0, [1.0; 3]).unwrap();
+    let bounds = demo.scene.bounds().unwrap();
+    let ch = Channels { depth: true, median_depth: true, visibility: true, ..Channels::default() };
+    let receivers =
+        splatter.render_frame(&gpu_scene, &camera, &SplatSettings { channels: ch, ..Default::default() }).unwrap();
+    let host_rec = receivers.gbuffer.read(&d).unwrap();
+    let rec_img = DepthImage::from_gbuffer(&host_rec);
+    let pixels = (camera.width * camera.height) as usize;
+    let mut rng = Pcg64Mcg::seed_from_u64(3);
+    let upstream: Vec<f32> = (0..pixels).map(|_| rng.random_range(-1.0..1.0)).collect();
+    // V_f: the demo's exact visibility, alpha-normalised.
+    let vf: Vec<f32> = host_rec
+        .visibility
+        .as_ref()
+        .unwrap()
+        .iter()
+        .zip(&host_rec.alpha)
+        .map(|(v, a)| (v / a.max(1e-6)).clamp(0.0, 1.0))
+        .collect();
+    let upstream_buf = d.upload("dL/dV", &upstream).unwrap();
+    let vf_buf = d.upload("V_f", &vf).unwrap();
+    for (map_depth, receiver_depth, bce) in [
+        (DepthMode::Median, DepthMode::Expected, false),
+        (DepthMode::Expected, DepthMode::Median, false),
+        (DepthMode::Median, DepthMode::Expected, true),
+    ] {
+        let st = ShadowSettings { resolution: 384, k: 4.0, map_depth, receiver_depth, ..ShadowSettings::default() };
+        let map = pass.shadow_map(&mut splatter, &gpu_scene, &bounds, &sun, &st, None).unwrap().unwrap();
+        let map_img = DepthImage::from_gbuffer(&map.frame.gbuffer.read(&d).unwrap());
+        let loss = if bce { GpuVisibilityLoss::Bce(&vf_buf) } else { GpuVisibilityLoss::Upstream(&upstream_buf) };
+        let gpu = pass.backward(&map, &receivers.gbuffer, &camera, &st, loss).unwrap();
+        let up64: Vec<f64> = upstream.iter().map(|v| f64::from(*v)).collect();
+        let vf64: Vec<f64> = vf.iter().map(|v| f64::from(*v)).collect();
+        let cpu_loss = if bce { VisibilityLoss::Bce(&vf64) } else { VisibilityLoss::Upstream(&up64) };
+        let cpu = sigmoid_backward_cpu(&map.camera, &map_img, &camera, &rec_img, &st, cpu_loss);
+        let label = format!("{map_depth:?}_{receiver_depth:?}_bce{bce}");
+        let msize = (map.camera.width, map.camera.height);
+        let csize = (camera.width, camera.height);
+        // fp32 against f64 on the same inputs: 1e-2 relative, floor 1% of the largest value.
+        // Texel coordinates (hundreds of texels) carry ~3e-5 texel of fp32 rounding, which
+        // small bilinear weights and the city's depth edges (tens of metres per texel)
+        // amplify. The smooth scene below holds 1e-3 end to end.
+        let texel: Vec<f64> = d.read_buffer::<f32>(&gpu.texel_depth).unwrap().iter().map(|v| f64::from(*v)).collect();
+        close(&format!("{label}_texel_depth"), &texel, &cpu.texel_depth, 1e-2, 1e-2, msize);
+        let light: Vec<f64> = d.read_buffer::<f32>(&gpu.light_depth).unwrap().iter().map(|v| f64::from(*v)).collect();
+        close(&format!("{label}_light_depth"), &light, &cpu.light_depth, 1e-2, 1e-2, csize);
+        let (map_channel, rec_channel) = (map_depth, receiver_depth);
+        let pick = |g: &srug::splat::backward::BlendGrads, m: DepthMode| match m {
+            DepthMode::Median => read(&d, &g.median_depth),
+            DepthMode::Expected => read(&d, &g.depth),
+        };
+        let cpu_pick = |g: &srug::splat::cpu_backward::PixelGrads, m: DepthMode| -> Vec<f64> {
+            match m {
+                DepthMode::Median => g.median.clone(),
+                DepthMode::Expected => g.values.iter().map(|v| v[3]).collect(),
+            }
+        };
+        close(
+            &format!("{label}_map_depth"),
+            &pick(&gpu.map, map_channel),
+            &cpu_pick(&cpu.map, map_channel),
+            1e-2,
+            1e-2,
+            msize,
+        );
+        close(
+            &format!("{label}_receiver_depth"),
+            &pick(&gpu.receiver, rec_channel),
+            &cpu_pick(&cpu.receiver, rec_channel),
+            1e-2,
+            1e-2,
+            csize,
+        );
+        if map_channel == DepthMode::Expected {
+            close(&format!("{label}_map_alpha"), &read(&d, &gpu.map.alpha), &cpu.map.alpha, 1e-2, 1e-2, msize);
+        }
+        if rec_channel == DepthMode::Expected {
+            close(
+                &format!("{label}_receiver_alpha"),
+                &read(&d, &gpu.receiver.alpha),
+                &cpu.receiver.alpha,
+                1e-2,
+                1e-2,
+                csize,
+            );
+        }
+        // dL/dk sums signed per-pixel terms (random ±1 upstream) that cancel, each carrying
+        // fp32 rounding of z_s − z (~1e-5 m of ~100 m): 1e-2 relative.
+        assert!((gpu.k - cpu.k).abs() <= 1e-2 * cpu.k.abs().max(1e-6), "{label}: dL/dk GPU {} CPU {}", gpu.k, cpu.k);
+        assert!(
+            (gpu.loss - cpu.loss).abs() <= 1e-4 * cpu.loss.abs().max(1e-6),
+            "{label}: loss GPU {} CPU {}",
+            gpu.loss,
+            cpu.loss
+        );
+        assert!(cpu.texel_depth.iter().filter(|v| **v != 0.0).count() > 100, "{label}: too few texels with gradient");
+        // Deterministic: a second run gives the same bits.
+        let again = pass.backward(&map, &receivers.gbuffer, &camera, &st, loss).unwrap();
+        let texel2: Vec<f32> = d.read_buffer(&again.texel_depth).unwrap();
+        let texel1: Vec<f32> = d.read_buffer(&gpu.texel_depth).unwrap();
+        assert!(texel1.iter().zip(&texel2).all(|(a, b)| a.to_bits() == b.to_bits()), "{label}: not repeatable");
+        eprintln!("{label}: dL/dk {:.4e}, loss {:.4e}, {} receivers", gpu.k, gpu.loss, gpu.receivers);
+    }
+    assert_no_validation_messages(&d);
+}
+
+/// The ground-and-blob scene of the CPU chain test, with its cameras.
+fn blob_scene() -> (Scene, Camera, Camera) {
+    let mut rng = Pcg64Mcg::seed_from_u64(11);
+    let mut s = Scene::default();
+    for i in 0..7 {
+        for j in 0..7 {
+            s.means.push([
+                i as f32 * 0.25 - 0.75 + rng.random_range(-0.03..0.03),
+                j as f32 * 0.25 - 0.75 + rng.random_range(-0.03..0.03),
+                rng.random_range(-0.01..0.01),
+            ]);
+            s.log_scales.push([(0.16f32).ln(), (0.16f32).ln(), (0.01f32).ln()]);
+            s.rotations.push([1.0, rng.random_range(-0.05..0.05), rng.random_range(-0.05..0.05), 0.1]);
+            s.opacity_logits.push(rng.random_range(1.0..3.0));
+            s.sh.extend([0.1, 0.1, 0.1]);
+        }
+    }
+    for _ in 0..5 {
+        s.means.push([rng.random_range(-0.3..0.1), rng.random_range(-0.2..0.2), rng.random_range(0.4..0.6)]);
+        s.log_scales.push([rng.random_range(-2.3..-1.6), rng.random_range(-2.3..-1.6), rng.random_range(-2.3..-1.6)]);
+        s.rotations.push([rng.random_range(0.3..1.0), rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0), 0.2]);
+        s.opacity_logits.push(rng.random_range(0.0..2.0));
+        s.sh.extend([0.1, 0.1, 0.1]);
+    }
+    let sun = Sun::from_azimuth_elevation(250.0, 50.0, [1.0; 3]).unwrap();
+    let light = light_camera(&s.bounds().unwrap(), &sun, 40, ShadowFit::SceneBounds, None).unwrap();
+    let camera = Camera::look_at(Vec3::new(0.0, -2.2, 1.8), Vec3::ZERO, Vec3::Z, 55.0, 36, 28).unwrap();
+    (s, light, camera)
+}
+
+fn add(total: &mut HostGaussianGradients, g: &HostGaussianGradients) {
+    if total.means.is_empty() {
+        *total = g.clone();
+        return;
+    }
+    for i in 0..g.means.len() {
+        for c in 0..3 {
+            total.means[i][c] += g.means[i][c];
+            total.log_scales[i][c] += g.log_scales[i][c];
+        }
+        for c in 0..4 {
+            total.rotations[i][c] += g.rotations[i][c];
+        }
+        total.opacity_logits[i] += g.opacity_logits[i];
+    }
+}
+
+#[test]
+fn shadow_gradients_reach_the_gaussians_like_finite_differences() {
+    let d = device();
+    let (scene, light, camera) = blob_scene();
+    let sun = Sun::from_azimuth_elevation(250.0, 50.0, [1.0; 3]).unwrap();
+    let bounds = scene.bounds().unwrap();
+    let gpu_scene = GpuScene::upload(&d, &scene).unwrap();
+    let mut splatter = Splatter::new(&d).unwrap();
+    let mut pass = ShadowPass::new(&d).unwrap();
+    let mut rng = Pcg64Mcg::seed_from_u64(5);
+    let pixels = (camera.width * camera.height) as usize;
+    let weights: Vec<f64> = (0..pixels).map(|_| rng.random_range(-1.0..1.0)).collect();
+    let w32: Vec<f32> = weights.iter().map(|v| *v as f32).collect();
+    let upstream = d.upload("dL/dV", &w32).unwrap();
+    for (map_depth, receiver_depth) in
+        [(DepthMode::Median, DepthMode::Expected), (DepthMode::Expected, DepthMode::Expected)]
+    {
+        let st = ShadowSettings {
+            resolution: 40,
+            k: 6.0,
+            bias: 0.02,
+            map_depth,
+            receiver_depth,
+            ..ShadowSettings::default()
+        };
+        let map = pass.shadow_map(&mut splatter, &gpu_scene, &bounds, &sun, &st, None).unwrap().unwrap();
+        assert_eq!(map.camera, light, "the GPU path fits the same light camera");
+        let ch = Channels { depth: true, median_depth: true, ..Channels::default() };
+        let receivers: SplatFrame =
+            splatter.render_frame(&gpu_scene, &camera, &SplatSettings { channels: ch, ..Default::default() }).unwrap();
+        let sb = pass.backward(&map, &receivers.gbuffer, &camera, &st, GpuVisibilityLoss::Upstream(&upstream)).unwrap();
+        let mut total = HostGaussianGradients::default();
+        add(&mut total, &splatter.backward(&map.frame, &gpu_scene, &sb.map, false).unwrap().read(&d).unwrap());
+        add(&mut total, &splatter.backward(&receivers, &gpu_scene, &sb.receiver, false).unwrap().read(&d).unwrap());
+
+        // Central finite differences of the f64 CPU pipeline: L = Σ w·V_e.
+        let params: Vec<Gaussian64> = (0..scene.len()).map(|i| Gaussian64::from_scene(&scene, i)).collect();
+        let loss = |p: &[Gaussian64]| -> f64 {
+            let (_, lb) = render_blends(p, &scene, &light, NormalSource::ShortestAxis);
+            let (_, cb) = render_blends(p, &scene, &camera, NormalSource::ShortestAxis);
+            let m = DepthImage::from_blends(light.width, light.height, &lb);
+            let r = DepthImage::from_blends(camera.width, camera.height, &cb);
+            sigmoid_visibility_cpu(&light, &m, &camera, &r, &st).iter().zip(&weights).map(|(a, b)| a * b).sum()
+        };
+        let h = 1e-6;
+        let mut rows: Vec<(usize, usize, f64, f64)> = Vec::new(); // (Gaussian, family, gpu, fd)
+        for i in 0..params.len() {
+            let diff = |f: &dyn Fn(&mut Gaussian64, f64)| {
+                let (mut a, mut b) = (params.clone(), params.clone());
+                f(&mut a[i], h);
+                f(&mut b[i], -h);
+                (loss(&a) - loss(&b)) / (2.0 * h)
+            };
+            for c in 0..3 {
+                rows.push((i, 0, f64::from(total.means[i][c]), diff(&|p, e| p.mean[c] += e)));
+                rows.push((i, 1, f64::from(total.log_scales[i][c]), diff(&|p, e| p.log_scale[c] += e)));
+            }
+            for c in 0..4 {
+                rows.push((i, 2, f64::from(total.rotations[i][c]), diff(&|p, e| p.rotation[c] += e)));
+            }
+            rows.push((i, 3, f64::from(total.opacity_logits[i]), diff(&|p, e| p.opacity_logit += e)));
+        }
+        let names = ["mean", "log_scale", "rotation", "opacity_logit"];
+        for (fam, name) in names.iter().enumerate() {
+            let scale = rows.iter().filter(|r| r.1 == fam).fold(0.0f64, |m, r| m.max(r.3.abs()));
+            assert!(scale > 0.0, "{name}: no gradient");
+            let mut worst = 0.0f64;
+            for r in rows.iter().filter(|r| r.1 == fam) {
+                // Relative error ≤ 1e-3 above a floor of 1% of the family's largest derivative:
+                // the GPU is fp32 end to end (G-buffer depths, z_s − z + bias) while the finite
+                // differences are f64, so small derivatives carry fp32 rounding of large terms.
+                let err = (r.2 - r.3).abs() / r.3.abs().max(1e-2 * scale);
+                worst = worst.max(err);
+                assert!(
+                    err <= 1e-3,
+                    "{:?}: Gaussian {} {}: GPU {:.6e}, finite difference {:.6e}",
+                    map_depth,
+                    r.0,
+                    name,
+                    r.2,
+                    r.3
+                );
+            }
+            eprintln!("{map_depth:?}/{receiver_depth:?} {}: worst relative error {worst:.2e}", name);
+        }
+        let blob = rows.iter().filter(|r| r.0 >= 49 && r.3.abs() > 1e-6).count();
+        assert!(blob >= 20, "the floating blob must get gradient from its shadow ({blob})");
+    }
+    assert_no_validation_messages(&d);
+}
+
+#[test]
+fn shadow_backward_is_finite_at_the_extremes() {
+    let d = device();
+    let demo = demo_city(&DemoOptions { gaussians: 8_000, ..DemoOptions::default() }).unwrap();
+    let gpu_scene = GpuScene::upload(&d, &demo.scene).unwrap();
+    let mut splatter = Splatter::new(&d).unwrap();
+    let mut pass = ShadowPass::new(&d).unwrap();
+    let camera = demo.cameras[0].resized(88, 24);
+    let bounds = demo.scene.bounds().unwrap();
+    let ch = Channels { depth: true, median_depth: true, ..Channels::default() };
+    let receivers =
+        splatter.render_frame(&gpu_scene, &camera, &SplatSettings { channels: ch, ..Default::default() }).unwrap();
+    let pixels = (camera.width * camera.height) as usize;
+    let ones = d.upload("dL/dV", &vec![1.0f32; pixels]).unwrap();
+    let halves = d.upload("V_f", &vec![0.5f32; pixels]).unwrap();
+    for el in [0.01f32, 30.0, 90.0] {
+        let sun = Sun::from_azimuth_elevation(265.0, el, [1.0; 3]).unwrap();
+        // The map depends on neither k nor the bias.
+        let base = ShadowSettings { resolution: 128, ..ShadowSettings::default() };
+        let map = pass.shadow_map(&mut splatter, &gpu_scene, &bounds, &sun, &base, None).unwrap().unwrap();
+        for k in [1e-3f32, 1.0, 1e4, 1e9] {
+            for bias in [0.15f32, 1e30, -1e30] {
+                let st = ShadowSettings { k, bias, ..base };
+                for loss in [GpuVisibilityLoss::Upstream(&ones), GpuVisibilityLoss::Bce(&halves)] {
+                    let b = pass.backward(&map, &receivers.gbuffer, &camera, &st, loss).unwrap();
+                    let label = format!("el {el} k {k} bias {bias}");
+                    assert!(b.k.is_finite() && b.loss.is_finite(), "{label}: dk {} loss {}", b.k, b.loss);
+                    for v in [read(&d, &b.map.median_depth), read(&d, &b.receiver.depth), read(&d, &b.receiver.alpha)] {
+                        assert!(v.iter().all(|x| x.is_finite()), "{label}: non-finite gradient");
+                    }
+                    // On to the Gaussians at the extremes of k (the slow part; once each).
+                    if bias == 0.15 && (k == 1e-3 || k == 1e9) {
+                        let g = splatter.backward(&map.frame, &gpu_scene, &b.map, false).unwrap().read(&d).unwrap();
+                        assert!(g.means.iter().flatten().chain(&g.opacity_logits).all(|x| x.is_finite()), "{label}");
+                    }
+                    if bias.abs() == 1e30 {
+                        // Saturated everywhere: V is constant, so upstream gradients vanish.
+                        if matches!(loss, GpuVisibilityLoss::Upstream(_)) {
+                            assert_eq!(b.k, 0.0, "{label}");
+                        }
+                    }
+                }
+            }
+        }
+    }
+    assert_no_validation_messages(&d);
+}
