@@ -5,22 +5,38 @@
 // back to front (NOTES.md §4): T ← T / (1 − α); dL/dx = α·T·dL/dC;
 // dL/dα = Σ dL/dC·(x·T − S/(1 − α)) + (dL/dA − bg·dL/dC_rgb)·T_final/(1 − α);
 // S ← S + x·α·T; α clamped at 0.99 passes no geometric gradient. The tile's
-// pixels are summed per splat (subgroupAdd, then the subgroups in a fixed
-// order: deterministic) into that (tile, splat) pair's record, at
-// pair_offsets[g] + its tile's place in the splat's rectangle, so step 2 can
-// sum each Gaussian's records in order without atomics.
+// pixels are summed per splat in pixel order (deterministic) into that
+// (tile, splat) pair's record, at pair_offsets[g] + its tile's place in the
+// splat's rectangle, so step 2 can sum each Gaussian's records in order
+// without atomics.
 // CPU twin: engine/src/splat/cpu_backward.rs `blend_backward_cpu`.
 #extension GL_KHR_shader_subgroup_basic : require
-#extension GL_KHR_shader_subgroup_arithmetic : require
+#extension GL_KHR_shader_subgroup_ballot : require
 #define WORKGROUP_SIZE_X 256
 #include "common.glsl"
 #include "splat.glsl"
 #include "splat_backward.glsl"
 
-// Partial sums of each subgroup, double-buffered so one barrier per splat
-// suffices. At most 64 subgroups (the host requires a subgroup size ≥ 4).
-shared float partial[2][64][MAX_STRIDE];
+// Splats per barrier, set by the host so every pixel's terms for a batch fit
+// shared memory (BATCH × STRIDE × 256 floats).
+layout(constant_id = 1) const uint BATCH = 3;
+// Every pixel's terms per (splat of the batch, component); summed in pixel
+// order by one invocation per (splat, component): deterministic and cheap
+// (on lavapipe a subgroupAdd costs ~100 ns, a shared load ~1 ns).
+shared float terms[BATCH * STRIDE * WORKGROUP_SIZE_X];
 shared uint tile_end;
+
+// Whether blended value k (rgb, depth, ten features) has a gradient.
+bool value_used(uint k) {
+    if (k < 3u) return GRAD_RGB;
+    if (k == 3u) return (GRADS & 1u) != 0u;
+    if (k < 7u) return (GRADS & 4u) != 0u;
+    if (k == 7u) return (GRADS & 16u) != 0u;
+    if (k < 11u) return (GRADS & 8u) != 0u;
+    if (k == 11u) return (GRADS & 32u) != 0u;
+    if (k == 12u) return (GRADS & 64u) != 0u;
+    return (GRADS & 128u) != 0u;
+}
 
 float grad_in(uvec2 addr, uint i) { return FloatsIn(addr).v[i]; }
 
@@ -60,10 +76,17 @@ void main() {
     uint end = range.x, median_j = 0xffffffffu;
     if (inside) {
         for (uint j = range.x; j < range.y; j++) {
-            uint g = order.v[j];
+            vec4 head = vec4(0.0), conic = vec4(0.0);
+            if (subgroupElect()) {
+                uint g = order.v[j];
+                head = splats.v[g].head;
+                conic = splats.v[g].conic;
+            }
+            head = subgroupBroadcastFirst(head);
+            conic = subgroupBroadcastFirst(conic);
             float alpha, gauss;
             vec2 d;
-            if (!splat_alpha(splats.v[g].head, splats.v[g].conic, centre, alpha, gauss, d)) continue;
+            if (!splat_alpha(head, conic, centre, alpha, gauss, d)) continue;
             float next_T = T * (1.0 - alpha);
             if (next_T < 1e-4) break;
             if (T > 0.5 && next_T <= 0.5) median_j = j;
@@ -82,67 +105,82 @@ void main() {
     for (uint c = 0u; c < 3u; c++) bg_term -= frame.background[c] * dv[c];
     float behind[14];
     for (uint k = 0u; k < 14u; k++) behind[k] = 0.0;
-    uint subgroup = gl_SubgroupID;
 
-    for (uint j = last; j > range.x; ) {
-        j--;
-        uint g = order.v[j];
-        vec4 head = splats.v[g].head;
-        vec4 conic = splats.v[g].conic;
-        float r[MAX_STRIDE];
-        for (uint c = 0u; c < MAX_STRIDE; c++) r[c] = 0.0;
-        float alpha, gauss;
-        vec2 d;
-        if (j < end && splat_alpha(head, conic, centre, alpha, gauss, d)) {
-            T /= 1.0 - alpha;
-            float x[14];
-            vec3 color = splats.v[g].color.rgb;
-            x[0] = color.r; x[1] = color.g; x[2] = color.b; x[3] = head.z;
+    uint count = last - range.x;  // splats walked, back to front
+    for (uint base = 0u; base < count; base += BATCH) {
+        for (uint b = 0u; b < BATCH; b++) {
+            if (base + b >= count) break;  // uniform across the workgroup
+            uint j = last - 1u - (base + b);
+            // One lane loads, the subgroup shares (per-lane loads are slow on lavapipe).
+            uint g = 0u;
+            vec4 head = vec4(0.0), conic = vec4(0.0), color = vec4(0.0);
+            vec4 f0 = vec4(0.0), f1 = vec4(0.0), f2 = vec4(0.0);
+            if (subgroupElect()) {
+                g = order.v[j];
+                head = splats.v[g].head;
+                conic = splats.v[g].conic;
+                if (GRAD_RGB) color = splats.v[g].color;
+                if (GRAD_FEATURES) {
+                    f0 = features.v[3u * g];
+                    f1 = features.v[3u * g + 1u];
+                    f2 = features.v[3u * g + 2u];
+                }
+            }
+            g = subgroupBroadcastFirst(g);
+            head = subgroupBroadcastFirst(head);
+            conic = subgroupBroadcastFirst(conic);
+            if (GRAD_RGB) color = subgroupBroadcastFirst(color);
             if (GRAD_FEATURES) {
-                vec4 f0 = features.v[3u * g], f1 = features.v[3u * g + 1u], f2 = features.v[3u * g + 2u];
-                x[4] = f0.x; x[5] = f0.y; x[6] = f0.z; x[7] = f0.w;
-                x[8] = f1.x; x[9] = f1.y; x[10] = f1.z; x[11] = f1.w;
-                x[12] = f2.x; x[13] = f2.y;
-            } else {
-                for (uint k = 4u; k < 14u; k++) x[k] = 0.0;
+                f0 = subgroupBroadcastFirst(f0);
+                f1 = subgroupBroadcastFirst(f1);
+                f2 = subgroupBroadcastFirst(f2);
             }
-            float w = alpha * T;
-            float d_alpha = bg_term * t_final / (1.0 - alpha);
-            for (uint k = 0u; k < 14u; k++) {
-                d_alpha += dv[k] * (x[k] * T - behind[k] / (1.0 - alpha));
-                behind[k] += x[k] * w;
+            float r[MAX_STRIDE];
+            for (uint c = 0u; c < MAX_STRIDE; c++) r[c] = 0.0;
+            float alpha, gauss;
+            vec2 d;
+            if (j < end && splat_alpha(head, conic, centre, alpha, gauss, d)) {
+                T /= 1.0 - alpha;
+                float x[14] = float[14](color.r, color.g, color.b, head.z, f0.x, f0.y, f0.z, f0.w,
+                                        f1.x, f1.y, f1.z, f1.w, f2.x, f2.y);
+                float w = alpha * T;
+                float d_alpha = bg_term * t_final / (1.0 - alpha);
+                for (uint k = 0u; k < 14u; k++) {
+                    if (!value_used(k)) continue;
+                    d_alpha += dv[k] * (x[k] * T - behind[k] / (1.0 - alpha));
+                    behind[k] += x[k] * w;
+                }
+                if (head.w * gauss <= 0.99) {
+                    float d_power = alpha * d_alpha;
+                    r[0] = -(conic.x * d.x + conic.y * d.y) * d_power;
+                    r[1] = -(conic.y * d.x + conic.z * d.y) * d_power;
+                    r[2] = -0.5 * d.x * d.x * d_power;
+                    r[3] = -d.x * d.y * d_power;
+                    r[4] = -0.5 * d.y * d.y * d_power;
+                    r[5] = gauss * d_alpha;
+                }
+                r[6] = w * dv[3];
+                if (GRAD_RGB) { r[8] = w * dv[0]; r[9] = w * dv[1]; r[10] = w * dv[2]; }
+                if (GRAD_FEATURES) {
+                    uint o = GRAD_RGB ? 12u : 8u;
+                    for (uint k = 0u; k < 10u; k++) r[o + k] = w * dv[4u + k];
+                }
             }
-            if (head.w * gauss <= 0.99) {
-                float d_power = alpha * d_alpha;
-                r[0] = -(conic.x * d.x + conic.y * d.y) * d_power;
-                r[1] = -(conic.y * d.x + conic.z * d.y) * d_power;
-                r[2] = -0.5 * d.x * d.x * d_power;
-                r[3] = -d.x * d.y * d_power;
-                r[4] = -0.5 * d.y * d.y * d_power;
-                r[5] = gauss * d_alpha;
-            }
-            r[6] = w * dv[3];
-            if (GRAD_RGB) { r[8] = w * dv[0]; r[9] = w * dv[1]; r[10] = w * dv[2]; }
-            if (GRAD_FEATURES) {
-                uint o = GRAD_RGB ? 12u : 8u;
-                for (uint k = 0u; k < 10u; k++) r[o + k] = w * dv[4u + k];
-            }
-        }
-        if (j == median_j) r[6] += d_median;
-
-        // Sum over the tile: within subgroups, then subgroups in order.
-        uint buf = j & 1u;
-        for (uint c = 0u; c < STRIDE; c++) {
-            float s = subgroupAdd(r[c]);
-            if (subgroupElect()) partial[buf][subgroup][c] = s;
+            if (j == median_j) r[6] += d_median;
+            for (uint c = 0u; c < STRIDE; c++) terms[(b * STRIDE + c) * WORKGROUP_SIZE_X + local] = r[c];
         }
         barrier();
-        if (local < STRIDE) {
+        // One invocation per (splat of the batch, component) sums the pixels in order.
+        uint b = local / STRIDE, c = local % STRIDE;
+        if (b < BATCH && base + b < count) {
             float s = 0.0;
-            for (uint k = 0u; k < gl_NumSubgroups; k++) s += partial[buf][k][local];
+            uint at = (b * STRIDE + c) * WORKGROUP_SIZE_X;
+            for (uint k = 0u; k < WORKGROUP_SIZE_X; k++) s += terms[at + k];
+            uint g = order.v[last - 1u - (base + b)];
             uvec4 rect = splats.v[g].rect;
             uint slot = Uints(frame.work0.zw).v[g] + (tile_xy.y - rect.y) * (rect.z - rect.x) + (tile_xy.x - rect.x);
-            Floats(bwd.pairs.xy).v[slot * STRIDE + local] = s;
+            Floats(bwd.pairs.xy).v[slot * STRIDE + c] = s;
         }
+        barrier();
     }
 }

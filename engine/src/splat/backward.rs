@@ -3,13 +3,17 @@
 //!
 //! Two kernels, no atomics, deterministic: `splat_backward_tiles.comp` (one
 //! workgroup per tile) replays each pixel's blend, walks it back to front
-//! (NOTES.md §4) and sums the tile's pixels per splat into one record per
-//! (tile, splat) pair; `splat_backward_gaussians.comp` (one invocation per
-//! Gaussian) sums its records in order and chains them through the
-//! projection. The records sit where the forward's scan put the pairs
-//! (pair_offsets[g] + the tile's place in the splat's rectangle), so no
-//! second sort is needed. The tile kernel needs subgroup arithmetic and a
-//! subgroup size of at least 4 (it keeps one partial sum per subgroup).
+//! (NOTES.md §4) and sums the tile's pixels per splat, in pixel order through
+//! shared memory, into one record per (tile, splat) pair;
+//! `splat_backward_gaussians.comp` (one invocation per Gaussian) sums its
+//! records in order and chains them through the projection. The records sit
+//! where the forward's scan put the pairs (pair_offsets[g] + the tile's place
+//! in the splat's rectangle), so no second sort is needed. The tile kernel
+//! loads each splat once per subgroup (subgroup ballot).
+//!
+//! Cost on lavapipe: the barriers between batches of splats dominate (a
+//! barrier spills every invocation's state); subgroupAdd reductions were 3×
+//! slower there still.
 //!
 //! What is not differentiated is listed in [`super::cpu_backward`], the f64 twin.
 
@@ -171,13 +175,11 @@ impl Splatter {
         with_values: bool,
     ) -> Result<GaussianGradients> {
         let device = self.device.clone();
-        let info = device.info();
-        if !info.subgroup_arithmetic || info.subgroup_size < 4 {
-            return Err(Error::Unsupported(format!(
-                "the splat backward pass needs subgroup arithmetic and a subgroup size of at least 4 \
-                 (this device: arithmetic {}, size {})",
-                info.subgroup_arithmetic, info.subgroup_size
-            )));
+        let info = device.info().clone();
+        if !info.subgroup_ballot {
+            return Err(Error::Unsupported(
+                "the splat backward pass needs subgroup ballot (elect, broadcast) in compute shaders".into(),
+            ));
         }
         if frame.scene_means != scene.means.device_address() || frame.gaussians != scene.count as u64 {
             return Err(Error::InvalidArgument("the splat frame was rendered from another scene".into()));
@@ -201,7 +203,12 @@ impl Splatter {
             ));
         }
         if let std::collections::hash_map::Entry::Vacant(e) = self.backward.entry(bits) {
-            let spec = [(0, SpecValue::U32(bits))];
+            // Splats per barrier: as many as every pixel's terms (batch × stride × 256
+            // floats) fit in shared memory (within lavapipe's 32 KiB), at least 1.
+            let stride = record_stride(bits) as u32;
+            let shared_floats = (info.max_shared_memory.min(32 * 1024) - 64) / 4;
+            let batch = (shared_floats / (256 * stride)).max(1);
+            let spec = [(0, SpecValue::U32(bits)), (1, SpecValue::U32(batch))];
             let with_spec = KernelDecl {
                 bindings: &[BindingKind::UniformBuffer, BindingKind::UniformBuffer],
                 push_constant_size: 0,
@@ -209,7 +216,11 @@ impl Splatter {
             };
             e.insert(BackwardKernels {
                 tiles: Kernel::new(&device, &kernels::SPLAT_BACKWARD_TILES, &with_spec)?,
-                gaussians: Kernel::new(&device, &kernels::SPLAT_BACKWARD_GAUSSIANS, &with_spec)?,
+                gaussians: Kernel::new(
+                    &device,
+                    &kernels::SPLAT_BACKWARD_GAUSSIANS,
+                    &KernelDecl { specialization: &spec[..1], ..with_spec },
+                )?,
             });
         }
         let k = &self.backward[&bits];
