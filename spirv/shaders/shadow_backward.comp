@@ -3,7 +3,7 @@
 // x = k·(z_s − z + bias). With upstream gradients (LOSS = 0), dL/dx =
 // dL/dV·σ'(x), zero beyond the ±30 clamp where V is constant. With the
 // paper's visibility loss (LOSS = 1), L = mean BCE(σ(x), V_f) over receivers
-// with a surface inside the map, in log-sigmoid form on x clamped to ±1e4,
+// with a surface inside the map and V_f ≥ 0 (a negative V_f marks a pixel out), in log-sigmoid form on x clamped to ±1e4,
 // and dL/dx = (σ(x) − V_f)/N. Then dL/dz_s = k·dL/dx (spread over the four
 // bilinear texels by the gather kernel), dL/dz = −k·dL/dx, dL/dk = (z_s − z +
 // bias)·dL/dx, and the receiver's camera depth gets dL/dz·∂z/∂depth plus
@@ -34,6 +34,8 @@ void main() {
     bool valid = receiver_point(p, world);
     vec3 l = valid ? light_coords(world) : vec3(0.0);
     valid = valid && inside_map(l.xy);
+    // A negative BCE target marks a pixel the loss ignores.
+    if (LOSS != 0u) valid = valid && FloatsIn(sbw.b0.xy).v[p] >= 0.0;
     if (push.pass_index == 0u) {
         if (valid) atomicAdd(Uints(sbw.b6.zw).v[0], 1u);
         return;

@@ -3,8 +3,9 @@
 // w_k·dL/dz_s over the receiver pixels whose bilinear footprint holds it —
 // those binned at this texel and at its left, upper and upper-left
 // neighbours — in a fixed order (deterministic, no atomics). Then the texel's
-// depth z_s goes back to the map's channels: median depth directly, or
-// z_s = Σwz / alpha (empty texels, at the far depth, pass nothing).
+// depth z_s goes back to the map's channels: median depth directly,
+// z_s = Σwz / alpha (empty texels, at the far depth, pass nothing), or
+// z_s = Σwz + (1 − alpha)·far.
 // CPU twin: engine/src/shadow/cpu.rs `sigmoid_backward_cpu`.
 #define WORKGROUP_SIZE_X 64
 #include "common.glsl"
@@ -39,7 +40,11 @@ void main() {
     FloatsOut(sbw.b5.xy).v[texel] = sum;
     float g_depth = 0.0, g_alpha = 0.0;
     float z;
-    if (sum != 0.0 && resolve_depth(shadow.modes.x, shadow.addr1.xy, shadow.addr1.zw, texel, z)) {
+    if (sum != 0.0 && shadow.modes.x == 2u) {
+        // z_s = Σwz + (1 − alpha)·far.
+        g_depth = sum;
+        g_alpha = -sum * shadow.light_t.w;
+    } else if (sum != 0.0 && resolve_depth(shadow.modes.x, shadow.addr1.xy, shadow.addr1.zw, texel, z)) {
         if (shadow.modes.x == 1u) {
             g_depth = sum;
         } else {
@@ -49,5 +54,5 @@ void main() {
         }
     }
     FloatsOut(sbw.b5.zw).v[texel] = g_depth;
-    if (shadow.modes.x == 0u) FloatsOut(sbw.b6.xy).v[texel] = g_alpha;
+    if (shadow.modes.x != 1u) FloatsOut(sbw.b6.xy).v[texel] = g_alpha;
 }

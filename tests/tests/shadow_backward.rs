@@ -63,14 +63,15 @@ fn shadow_backward_matches_cpu_twin() {
     let pixels = (camera.width * camera.height) as usize;
     let mut rng = Pcg64Mcg::seed_from_u64(3);
     let upstream: Vec<f32> = (0..pixels).map(|_| rng.random_range(-1.0..1.0)).collect();
-    // V_f: the demo's exact visibility, alpha-normalised.
+    // V_f: the demo's exact visibility, alpha-normalised; every tenth pixel −1 (left out).
     let vf: Vec<f32> = host_rec
         .visibility
         .as_ref()
         .unwrap()
         .iter()
         .zip(&host_rec.alpha)
-        .map(|(v, a)| (v / a.max(1e-6)).clamp(0.0, 1.0))
+        .enumerate()
+        .map(|(i, (v, a))| if i % 10 == 3 { -1.0 } else { (v / a.max(1e-6)).clamp(0.0, 1.0) })
         .collect();
     let upstream_buf = d.upload("dL/dV", &upstream).unwrap();
     let vf_buf = d.upload("V_f", &vf).unwrap();
@@ -78,6 +79,7 @@ fn shadow_backward_matches_cpu_twin() {
         (DepthMode::Median, DepthMode::Expected, false),
         (DepthMode::Expected, DepthMode::Median, false),
         (DepthMode::Median, DepthMode::Expected, true),
+        (DepthMode::ExpectedOverFar, DepthMode::Expected, true),
     ] {
         let st = ShadowSettings { resolution: 384, k: 4.0, map_depth, receiver_depth, ..ShadowSettings::default() };
         let map = pass.shadow_map(&mut splatter, &gpu_scene, &bounds, &sun, &st, None).unwrap().unwrap();
@@ -102,12 +104,12 @@ fn shadow_backward_matches_cpu_twin() {
         let (map_channel, rec_channel) = (map_depth, receiver_depth);
         let pick = |g: &srug::splat::backward::BlendGrads, m: DepthMode| match m {
             DepthMode::Median => read(&d, &g.median_depth),
-            DepthMode::Expected => read(&d, &g.depth),
+            DepthMode::Expected | DepthMode::ExpectedOverFar => read(&d, &g.depth),
         };
         let cpu_pick = |g: &srug::splat::cpu_backward::PixelGrads, m: DepthMode| -> Vec<f64> {
             match m {
                 DepthMode::Median => g.median.clone(),
-                DepthMode::Expected => g.values.iter().map(|v| v[3]).collect(),
+                DepthMode::Expected | DepthMode::ExpectedOverFar => g.values.iter().map(|v| v[3]).collect(),
             }
         };
         close(
@@ -126,7 +128,7 @@ fn shadow_backward_matches_cpu_twin() {
             1e-2,
             csize,
         );
-        if map_channel == DepthMode::Expected {
+        if map_channel != DepthMode::Median {
             close(&format!("{label}_map_alpha"), &read(&d, &gpu.map.alpha), &cpu.map.alpha, 1e-2, 1e-2, msize);
         }
         if rec_channel == DepthMode::Expected {
@@ -220,9 +222,11 @@ fn shadow_gradients_reach_the_gaussians_like_finite_differences() {
     let weights: Vec<f64> = (0..pixels).map(|_| rng.random_range(-1.0..1.0)).collect();
     let w32: Vec<f32> = weights.iter().map(|v| *v as f32).collect();
     let upstream = d.upload("dL/dV", &w32).unwrap();
-    for (map_depth, receiver_depth) in
-        [(DepthMode::Median, DepthMode::Expected), (DepthMode::Expected, DepthMode::Expected)]
-    {
+    for (map_depth, receiver_depth) in [
+        (DepthMode::Median, DepthMode::Expected),
+        (DepthMode::Expected, DepthMode::Expected),
+        (DepthMode::ExpectedOverFar, DepthMode::Median),
+    ] {
         let st = ShadowSettings {
             resolution: 40,
             k: 6.0,

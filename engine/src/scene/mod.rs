@@ -191,6 +191,32 @@ impl Scene {
         Some(b)
     }
 
+    /// The Gaussians where `keep` is true, every attribute kept in step.
+    pub fn select(&self, keep: &[bool]) -> Scene {
+        fn pick<T: Copy>(v: &[T], keep: &[bool], per: usize) -> Vec<T> {
+            v.chunks(per).zip(keep).filter(|(_, k)| **k).flat_map(|(c, _)| c.iter().copied()).collect()
+        }
+        let k = 3 * sh_coefficients(self.sh_degree);
+        let m = &self.materials;
+        Scene {
+            means: pick(&self.means, keep, 1),
+            normals: self.normals.as_ref().map(|v| pick(v, keep, 1)),
+            sh_degree: self.sh_degree,
+            sh: pick(&self.sh, keep, k),
+            opacity_logits: pick(&self.opacity_logits, keep, 1),
+            log_scales: pick(&self.log_scales, keep, 1),
+            rotations: pick(&self.rotations, keep, 1),
+            materials: Materials {
+                albedo: m.albedo.as_ref().map(|v| pick(v, keep, 1)),
+                roughness: m.roughness.as_ref().map(|v| pick(v, keep, 1)),
+                metallic: m.metallic.as_ref().map(|v| pick(v, keep, 1)),
+                ao: m.ao.as_ref().map(|v| pick(v, keep, 1)),
+                visibility: m.visibility.as_ref().map(|v| pick(v, keep, 1)),
+            },
+            extra_properties: self.extra_properties.clone(),
+        }
+    }
+
     /// Floats stored per Gaussian on the GPU (parameters as uploaded).
     pub fn floats_per_gaussian(&self) -> usize {
         let a = self.attributes();

@@ -74,7 +74,9 @@ const _: () = assert!(std::mem::size_of::<BinsPush>() == 24);
 fn depth_grads(mode: DepthMode, depth: Buffer, alpha: Option<Buffer>) -> BlendGrads {
     match mode {
         DepthMode::Median => BlendGrads { median_depth: Some(depth), ..BlendGrads::default() },
-        DepthMode::Expected => BlendGrads { depth: Some(depth), alpha, ..BlendGrads::default() },
+        DepthMode::Expected | DepthMode::ExpectedOverFar => {
+            BlendGrads { depth: Some(depth), alpha, ..BlendGrads::default() }
+        }
     }
 }
 
@@ -121,7 +123,7 @@ impl ShadowPass {
         let ranges = f("shadow bin ranges", 2 * texels)?;
         let texel_depth = f("dL/dz_s", texels)?;
         let map_depth = f("dL/d map depth", texels)?;
-        let map_alpha = (map.depth == DepthMode::Expected).then(|| f("dL/d map alpha", texels)).transpose()?;
+        let map_alpha = (map.depth != DepthMode::Median).then(|| f("dL/d map alpha", texels)).transpose()?;
         let count = f("shadow receiver count", 1)?;
         let addr = |b: &Buffer| b.device_address();
         let opt = |b: &Option<Buffer>| b.as_ref().map_or(0, Buffer::device_address);

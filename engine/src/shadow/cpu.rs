@@ -79,22 +79,28 @@ impl DepthImage {
         }
     }
 
-    /// Depth of pixel `p`: median, or Σwz / alpha; `None` without a surface.
-    pub fn depth(&self, mode: DepthMode, p: usize, min_alpha: f64) -> Option<f64> {
+    /// Depth of pixel `p`: median, Σwz / alpha, or Σwz + T·far; `None` without
+    /// a surface (never for [`DepthMode::ExpectedOverFar`]).
+    pub fn depth(&self, mode: DepthMode, p: usize, min_alpha: f64, far: f64) -> Option<f64> {
         match mode {
             DepthMode::Median => (self.median[p] > 0.0).then_some(self.median[p]),
             DepthMode::Expected => (self.alpha[p] >= min_alpha).then(|| self.depth_sum[p] / self.alpha[p]),
+            DepthMode::ExpectedOverFar => Some(self.depth_sum[p] + (1.0 - self.alpha[p]) * far),
         }
     }
 
     /// Adds dL/d(depth of pixel p) = `g` into per-pixel gradients of the channels.
-    fn depth_backward(&self, mode: DepthMode, p: usize, g: f64, out: &mut PixelGrads) {
+    fn depth_backward(&self, mode: DepthMode, p: usize, g: f64, far: f64, out: &mut PixelGrads) {
         match mode {
             DepthMode::Median => out.median[p] += g,
             DepthMode::Expected => {
                 let a = self.alpha[p];
                 out.values[p][3] += g / a;
                 out.alpha[p] -= g * self.depth_sum[p] / (a * a);
+            }
+            DepthMode::ExpectedOverFar => {
+                out.values[p][3] += g;
+                out.alpha[p] -= g * far;
             }
         }
     }
@@ -103,7 +109,9 @@ impl DepthImage {
 /// The shadow map's texel depths z_s (empty texels at `far`).
 pub fn resolve_depths(mode: DepthMode, map: &GBuffer, min_alpha: f32, far: f32) -> Vec<f32> {
     let img = DepthImage::from_gbuffer(map);
-    (0..map.alpha.len()).map(|p| img.depth(mode, p, f64::from(min_alpha)).map_or(far, |z| z as f32)).collect()
+    (0..map.alpha.len())
+        .map(|p| img.depth(mode, p, f64::from(min_alpha), f64::from(far)).map_or(far, |z| z as f32))
+        .collect()
 }
 
 /// World point seen at pixel `p` of `camera` at camera depth `z`.
@@ -154,7 +162,7 @@ pub fn receiver_in_light(
     settings: &ShadowSettings,
     p: usize,
 ) -> Option<(DVec2, f64)> {
-    let z = receiver.depth(settings.receiver_depth, p, f64::from(settings.min_alpha))?;
+    let z = receiver.depth(settings.receiver_depth, p, f64::from(settings.min_alpha), 0.0)?;
     let (uv, lz) = light_coords(light, unproject(camera, p, z));
     let inside = uv.x >= 0.0 && uv.y >= 0.0 && uv.x < f64::from(light.width) && uv.y < f64::from(light.height);
     inside.then_some((uv, lz))
@@ -163,7 +171,10 @@ pub fn receiver_in_light(
 /// Texel depths z_s of a shadow map (empty texels at the light's far depth).
 fn texel_depths(light: &Camera, map: &DepthImage, settings: &ShadowSettings) -> Vec<f64> {
     (0..map.alpha.len())
-        .map(|i| map.depth(settings.map_depth, i, f64::from(settings.min_alpha)).unwrap_or(f64::from(light.far)))
+        .map(|i| {
+            let far = f64::from(light.far);
+            map.depth(settings.map_depth, i, f64::from(settings.min_alpha), far).unwrap_or(far)
+        })
         .collect()
 }
 
@@ -193,7 +204,8 @@ pub enum VisibilityLoss<'a> {
     /// clamp V_e is constant and the gradient is zero.
     Upstream(&'a [f64]),
     /// The paper's visibility loss: the mean over receivers with a surface
-    /// inside the map of BCE(V_e, V_f), V_f per pixel, in stable log-sigmoid form on the logit
+    /// inside the map of BCE(V_e, V_f), V_f per pixel (a negative V_f leaves
+    /// the pixel out), in stable log-sigmoid form on the logit
     /// (clamped to ±[`BCE_LOGIT_LIMIT`], so confidently wrong pixels keep their
     /// gradient σ(x) − V_f).
     Bce(&'a [f64]),
@@ -244,12 +256,20 @@ pub fn sigmoid_backward_cpu(
         ..ShadowGradients::default()
     };
     let min_alpha = f64::from(settings.min_alpha);
-    let surfaces = (0..n).filter(|p| receiver_in_light(light, camera, receiver, settings, *p).is_some()).count();
+    let counted = |p: usize| match loss {
+        VisibilityLoss::Bce(target) => target[p] >= 0.0,
+        VisibilityLoss::Upstream(_) => true,
+    };
+    let surfaces =
+        (0..n).filter(|p| counted(*p) && receiver_in_light(light, camera, receiver, settings, *p).is_some()).count();
     let Projection::Orthographic { sx, sy, .. } = light.projection else {
         unreachable!("light cameras are orthographic")
     };
     let light_w = light.rotation.as_dmat3().transpose();
     for p in 0..n {
+        if !counted(p) {
+            continue;
+        }
         let Some((uv, z)) = receiver_in_light(light, camera, receiver, settings, p) else { continue };
         let (t, w) = bilinear(uv, light.width, light.height);
         let zs: f64 = t.iter().zip(w).map(|(i, w)| w * zs_texels[*i]).sum();
@@ -290,11 +310,12 @@ pub fn sigmoid_backward_cpu(
         let d_light = light_w * ray;
         let d_uv = DVec2::new(f64::from(sx) * d_light.x, f64::from(sy) * d_light.y);
         let d_camera_depth = d_z * d_light.z + d_zs * (d_zs_du * d_uv.x + d_zs_dv * d_uv.y);
-        receiver.depth_backward(settings.receiver_depth, p, d_camera_depth, &mut out.receiver);
+        receiver.depth_backward(settings.receiver_depth, p, d_camera_depth, 0.0, &mut out.receiver);
     }
     for (i, g) in out.texel_depth.iter().enumerate() {
-        if *g != 0.0 && map.depth(settings.map_depth, i, min_alpha).is_some() {
-            map.depth_backward(settings.map_depth, i, *g, &mut out.map);
+        let far = f64::from(light.far);
+        if *g != 0.0 && map.depth(settings.map_depth, i, min_alpha, far).is_some() {
+            map.depth_backward(settings.map_depth, i, *g, far, &mut out.map);
         }
     }
     out
@@ -450,7 +471,10 @@ mod tests {
         let params: Vec<Gaussian64> = (0..chain.scene.len()).map(|i| Gaussian64::from_scene(&chain.scene, i)).collect();
         let mut rng = Pcg64Mcg::seed_from_u64(5);
         let n = (chain.camera.width * chain.camera.height) as usize;
-        let data: Vec<f64> = (0..n).map(|_| rng.random_range(if bce { 0.0..1.0 } else { -1.0..1.0 })).collect();
+        // BCE targets in [0, 1], a tenth of them negative (left out of the loss).
+        let data: Vec<f64> = (0..n)
+            .map(|i| if bce && i % 10 == 3 { -1.0 } else { rng.random_range(if bce { 0.0..1.0 } else { -1.0..1.0 }) })
+            .collect();
         let loss = if bce { VisibilityLoss::Bce(&data) } else { VisibilityLoss::Upstream(&data) };
         let (grads, dk) = chain.gradients(&params, loss);
         let h = 1e-6;
@@ -515,6 +539,7 @@ mod tests {
         check_chain(DepthMode::Median, DepthMode::Expected, false);
         check_chain(DepthMode::Expected, DepthMode::Expected, false);
         check_chain(DepthMode::Expected, DepthMode::Median, true);
+        check_chain(DepthMode::ExpectedOverFar, DepthMode::Expected, true);
     }
 
     #[test]

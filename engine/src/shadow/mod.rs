@@ -22,6 +22,7 @@
 //! [`cpu`] is the f64 twin.
 
 pub mod backward;
+pub mod completion;
 pub mod cpu;
 pub mod sun;
 
@@ -45,6 +46,11 @@ pub enum DepthMode {
     /// Alpha-normalised blended depth Σwz / Σw: smooth, differentiable, but
     /// mixes depths at silhouettes (light leaks, floating shadows).
     Expected,
+    /// Shadow maps only: blended depth with empty space at the light's far
+    /// plane, Σwz + T·far. Differentiable everywhere, also where nothing is
+    /// yet (faint Gaussians cast faint shadows), so optimisation can grow
+    /// occluders from nothing; a partly covered texel reads as partly far.
+    ExpectedOverFar,
 }
 
 impl DepthMode {
@@ -53,7 +59,10 @@ impl DepthMode {
         match text {
             "median" => Ok(Self::Median),
             "expected" => Ok(Self::Expected),
-            other => Err(Error::InvalidArgument(format!("depth mode \"{other}\" is not median or expected"))),
+            "expected-over-far" => Ok(Self::ExpectedOverFar),
+            other => Err(Error::InvalidArgument(format!(
+                "depth mode \"{other}\" is not median, expected or expected-over-far"
+            ))),
         }
     }
 
@@ -61,6 +70,7 @@ impl DepthMode {
         match self {
             Self::Expected => 0,
             Self::Median => 1,
+            Self::ExpectedOverFar => 2,
         }
     }
 }
@@ -123,14 +133,15 @@ impl ShadowSettings {
             && self.k > 0.0
             && self.bias.is_finite()
             && self.min_alpha > 0.0
-            && self.min_alpha <= 1.0;
+            && self.min_alpha <= 1.0
+            && self.receiver_depth != DepthMode::ExpectedOverFar;
         if ok {
             Ok(())
         } else {
             Err(Error::InvalidArgument(format!(
                 "shadow settings: resolution {} must be 1..=16384, k {} positive and finite, bias {} finite, \
-                 minimum alpha {} in (0, 1]",
-                self.resolution, self.k, self.bias, self.min_alpha
+                 minimum alpha {} in (0, 1], receiver depth {:?} median or expected",
+                self.resolution, self.k, self.bias, self.min_alpha, self.receiver_depth
             )))
         }
     }
@@ -144,7 +155,7 @@ impl ShadowSettings {
 fn depth_channels(mode: DepthMode) -> Channels {
     match mode {
         DepthMode::Median => Channels { median_depth: true, ..Channels::default() },
-        DepthMode::Expected => Channels { depth: true, ..Channels::default() },
+        DepthMode::Expected | DepthMode::ExpectedOverFar => Channels { depth: true, ..Channels::default() },
     }
 }
 
@@ -360,12 +371,31 @@ impl ShadowPass {
             return Ok(None);
         }
         let camera = light_camera(bounds, sun, settings.resolution, settings.fit, view)?;
+        self.shadow_map_from(splatter, scene, camera, sun, settings).map(Some)
+    }
+
+    /// Splats the scene into a shadow map from a given light camera (fixed
+    /// across optimisation steps, say); the sun must be above the horizon.
+    pub fn shadow_map_from(
+        &self,
+        splatter: &mut Splatter,
+        scene: &GpuScene,
+        camera: Camera,
+        sun: &Sun,
+        settings: &ShadowSettings,
+    ) -> Result<ShadowMap> {
+        settings.validate()?;
+        if !sun.above_horizon() || !matches!(camera.projection, Projection::Orthographic { .. }) {
+            return Err(Error::InvalidArgument(
+                "a shadow map needs a sun above the horizon and an orthographic camera".into(),
+            ));
+        }
         let splat = SplatSettings { channels: depth_channels(settings.map_depth), ..SplatSettings::default() };
         let mut frame = splatter.render_frame(scene, &camera, &splat)?;
         for stage in &mut frame.stats.timings.stages {
             stage.name = format!("shadow map {}", stage.name);
         }
-        Ok(Some(ShadowMap { camera, sun: *sun, depth: settings.map_depth, frame }))
+        Ok(ShadowMap { camera, sun: *sun, depth: settings.map_depth, frame })
     }
 
     /// Per-pixel visibility of the receivers in `gbuffer` (rendered from
@@ -437,7 +467,7 @@ fn shadow_uniform<'a>(
     }
     let receiver_depth = match settings.receiver_depth {
         DepthMode::Median => gbuffer.median_depth.as_ref(),
-        DepthMode::Expected => gbuffer.depth.as_ref(),
+        DepthMode::Expected | DepthMode::ExpectedOverFar => gbuffer.depth.as_ref(),
     }
     .ok_or_else(|| {
         Error::InvalidArgument(format!(
@@ -448,7 +478,7 @@ fn shadow_uniform<'a>(
     let g = &map.frame.gbuffer;
     let map_depth = match map.depth {
         DepthMode::Median => g.median_depth.as_ref(),
-        DepthMode::Expected => g.depth.as_ref(),
+        DepthMode::Expected | DepthMode::ExpectedOverFar => g.depth.as_ref(),
     }
     .ok_or_else(|| Error::InvalidArgument("the shadow map lacks its depth channel".into()))?;
     let mut u = ShadowUniform::zeroed();

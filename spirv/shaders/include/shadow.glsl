@@ -18,7 +18,7 @@ layout(std140, set = 0, binding = 0) uniform Shadow {
     vec4 light_intr;   // texels per unit x, y, cx, cy
     uvec4 size;        // camera width, height, map width, height
     vec4 params;       // k, bias, minimum alpha of a surface, unused
-    uvec4 modes;       // map depth (0 expected, 1 median), receiver depth (same), map tiles across, unused
+    uvec4 modes;       // map depth (0 expected, 1 median, 2 expected over far), receiver depth (0, 1), map tiles across, unused
     uvec4 addr0;       // receiver depth, receiver alpha
     uvec4 addr1;       // map depth, map alpha
     uvec4 addr2;       // visibility out, dL/dV in
@@ -60,11 +60,16 @@ vec3 light_coords(vec3 world) {
     return vec3(k.xy * t.xy + k.zw, t.z);
 }
 
-// Depth z_s of one shadow-map texel; empty texels are at the light's far depth.
+// Depth z_s of one shadow-map texel; empty texels are at the light's far
+// depth. Mode 2 (expected over far) is Σwz + T·far, defined everywhere.
 float texel_depth(ivec2 t) {
     uint i = uint(t.y) * shadow.size.z + uint(t.x);
+    float far = shadow.light_t.w;
+    if (shadow.modes.x == 2u) {
+        return FloatsIn(shadow.addr1.xy).v[i] + (1.0 - FloatsIn(shadow.addr1.zw).v[i]) * far;
+    }
     float z;
-    return resolve_depth(shadow.modes.x, shadow.addr1.xy, shadow.addr1.zw, i, z) ? z : shadow.light_t.w;
+    return resolve_depth(shadow.modes.x, shadow.addr1.xy, shadow.addr1.zw, i, z) ? z : far;
 }
 
 // Bilinear footprint of light coordinates uv: the four texels (clamped to the
