@@ -92,6 +92,43 @@ enum Command {
         #[arg(long, default_value = "out/demo")]
         out: PathBuf,
     },
+    /// Shadow-guided completion on the demo: remove the off-screen tower, then grow Gaussians
+    /// where no camera sees until they cast its shadow again (Adam on the shadow loss alone).
+    ShadowFit {
+        /// Demo city size.
+        #[arg(long, default_value_t = 40_000)]
+        gaussians: usize,
+        /// Demo seed.
+        #[arg(long, default_value_t = 7)]
+        seed: u64,
+        /// Adam steps.
+        #[arg(long, default_value_t = 60)]
+        steps: u32,
+        /// Gaussians added where no camera sees.
+        #[arg(long, default_value_t = 4000)]
+        added: usize,
+        /// Which demo camera receives the shadow.
+        #[arg(long, default_value_t = 0)]
+        camera: usize,
+        /// Receiver image size WxH.
+        #[arg(long, default_value = "352x96")]
+        size: String,
+        /// Sun azimuth, degrees from north toward east.
+        #[arg(long, default_value_t = 260.0)]
+        sun_azimuth: f32,
+        /// Sun elevation, degrees.
+        #[arg(long, default_value_t = 50.0)]
+        sun_elevation: f32,
+        /// Shadow-map resolution (longer side).
+        #[arg(long, default_value_t = 256)]
+        resolution: u32,
+        /// Sigmoid sharpness k per metre.
+        #[arg(long, default_value_t = 4.0)]
+        k: f32,
+        /// Output folder.
+        #[arg(long, default_value = "out/shadow-fit")]
+        out: PathBuf,
+    },
 }
 
 #[derive(Subcommand)]
@@ -332,6 +369,92 @@ fn run(cli: Cli) -> srug::Result<()> {
                 sort.cpu_keys_per_second * 1e-6,
                 sort.gpu_keys_per_second / sort.cpu_keys_per_second
             );
+            Ok(())
+        }
+        Command::ShadowFit {
+            gaussians,
+            seed,
+            steps,
+            added,
+            camera,
+            size,
+            sun_azimuth,
+            sun_elevation,
+            resolution,
+            k,
+            out,
+        } => {
+            use srug::shadow::completion::{complete_demo, CompletionSettings, DemoCompletion};
+            let mut settings = CompletionSettings { steps, gaussians: added, ..CompletionSettings::default() };
+            settings.shadow.resolution = resolution;
+            settings.shadow.k = k;
+            let options = DemoCompletion {
+                demo: demo::DemoOptions { gaussians, seed, ..demo::DemoOptions::default() },
+                camera,
+                size: parse_size(&size)?,
+                sun: (sun_azimuth, sun_elevation),
+                settings,
+            };
+            std::fs::create_dir_all(&out).map_err(srug::Error::io(&out))?;
+            let device = open_device(&cli.device, cli.validation)?;
+            let bar = ProgressBar::new(u64::from(steps) + 1);
+            bar.set_style(
+                ProgressStyle::with_template("{bar:30} {pos}/{len} {msg} [{elapsed}, ETA {eta}]")
+                    .unwrap_or_else(|_| ProgressStyle::default_bar()),
+            );
+            let mut lines = Vec::new();
+            let result = complete_demo(&device, &options, &mut |s| {
+                let line = format!(
+                    "step {:3}: loss {:.4}, shadow IoU {:.3}, missing-shadow IoU {:.3}",
+                    s.step, s.loss, s.iou, s.missing_iou
+                );
+                bar.println(&line);
+                bar.set_message(format!("IoU {:.3}", s.iou));
+                bar.inc(1);
+                lines.push(format!("{},{},{},{}", s.step, s.loss, s.iou, s.missing_iou));
+            });
+            bar.finish_and_clear();
+            let result = result?;
+            let c = &result.completion;
+            let (w, h) = (result.camera.width, result.camera.height);
+            let grey = |v: &[f32]| -> Vec<f32> { v.iter().flat_map(|x| [*x, *x, *x]).collect() };
+            for (name, v) in
+                [("target", &result.target), ("without", &c.without), ("before", &c.before), ("after", &c.after)]
+            {
+                output::write_png(out.join(format!("visibility_{name}.png")), w, h, &grey(v))?;
+            }
+            let ply = out.join("completed.ply");
+            scene::write_ply(&ply, &c.scene, PlyFormat::BinaryLittleEndian)?;
+            let csv = out.join("history.csv");
+            let text = format!("step,loss,shadow_iou,missing_shadow_iou\n{}\n", lines.join("\n"));
+            std::fs::write(&csv, text).map_err(srug::Error::io(&csv))?;
+            let (first, last) = (c.history.first(), c.history.last());
+            if let (Some(a), Some(b)) = (first, last) {
+                println!(
+                    "removed the off-screen tower ({} Gaussians); added {} where no camera sees",
+                    result.removed,
+                    c.scene.len() - c.first_added
+                );
+                println!(
+                    "shadow IoU: {:.3} without the tower, {:.3} at the start, {:.3} after {} steps",
+                    srug::shadow::completion::shadow_iou(&c.without, &result.target, &c.mask),
+                    a.iou,
+                    b.iou,
+                    b.step
+                );
+                println!(
+                    "missing-shadow IoU (receivers the scene alone leaves lit): {:.3} → {:.3}",
+                    a.missing_iou, b.missing_iou
+                );
+                println!("added Gaussians that ended inside a camera's view: {}", c.visible_added);
+            }
+            println!("images: {}/visibility_{{target,without,before,after}}.png", out.display());
+            println!("scene: {}", ply.display());
+            println!("history: {}", csv.display());
+            let messages = device.take_validation_messages();
+            if device.validation_enabled() {
+                println!("validation messages: {}", messages.len());
+            }
             Ok(())
         }
         Command::Devices => {

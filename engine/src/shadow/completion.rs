@@ -1,20 +1,24 @@
 //! Shadow-guided completion: Gaussians that no camera sees are optimised so
 //! the shadows they cast match a target (the paper's shadow guidance).
 //!
-//! Each step renders the receivers and the shadow map, takes the paper's
-//! visibility loss BCE(V_e, V_target) back through the sigmoid shadow test and
-//! both splats (shadow map and receivers) to the Gaussians, and moves only the
-//! added Gaussians with Adam. The light camera is fitted once, so the map's
-//! texels stay put while Gaussians move.
+//! The scene as given casts its shadows through a median-depth shadow map,
+//! rendered once (V_scene). The added Gaussians get their own shadow map in
+//! expected-over-far depth — differentiable even where they are still faint —
+//! from the same light camera, fitted once so texels stay put while Gaussians
+//! move; their visibility V_added multiplies (independent occluders):
+//! V = V_scene·V_added. Each step takes the paper's visibility loss
+//! BCE(V_added, V_target) over the receivers the scene leaves lit, back through
+//! the sigmoid shadow test and the added map's splat to the added Gaussians,
+//! and moves them with Adam.
 //!
 //! The initial Gaussians fill the region that can shadow the view but that no
 //! camera sees: the box spanned by the sun rays from every receiver in view,
-//! minus every point a camera sees. Their shadow covers most of the view at
-//! first, so the optimisation has to carve the occluder out of the cloud.
+//! minus every point a camera sees. The optimisation has to carve the
+//! occluder out of that cloud.
 //!
 //! The receivers are the input scene's, rendered once: the added Gaussians
-//! start outside every view (their centres, checked again at the end), so
-//! only the shadow map sees them and only its backward pass runs per step.
+//! start outside every view (their centres; [`Completion::visible_added`]
+//! counts those that end inside one).
 
 use glam::{DVec3, Vec3};
 use rand::{Rng, SeedableRng};
@@ -22,7 +26,7 @@ use rand_pcg::Pcg64Mcg;
 
 use super::backward::GpuVisibilityLoss;
 use super::cpu::{unproject, DepthImage};
-use super::{light_camera, ShadowFit, ShadowPass, ShadowSettings, Sun, VisibilityKind};
+use super::{light_camera, DepthMode, ShadowFit, ShadowPass, ShadowSettings, Sun, VisibilityKind};
 use crate::error::{Error, Result};
 use crate::gpu::Device;
 use crate::scene::activate::GpuScene;
@@ -36,10 +40,13 @@ pub struct CompletionSettings {
     pub steps: u32,
     /// Gaussians added.
     pub gaussians: usize,
-    /// The shadow test (resolution, k, bias, depth modes).
+    /// The shadow test (resolution, k, bias, the scene map's depth mode, receivers).
     pub shadow: ShadowSettings,
-    /// Learning rates: means (world units), log-scales, rotations, opacity logits.
+    /// Learning rates: means (in units of the initial Gaussian size), log-scales,
+    /// rotations, opacity logits.
     pub learning_rates: [f32; 4],
+    /// Initial opacity logit of the added Gaussians.
+    pub initial_opacity_logit: f32,
     /// Seed of the initial placement.
     pub seed: u64,
 }
@@ -48,17 +55,18 @@ impl Default for CompletionSettings {
     fn default() -> Self {
         Self {
             steps: 60,
-            gaussians: 3000,
+            gaussians: 4000,
             shadow: ShadowSettings {
                 resolution: 256,
                 k: 4.0,
                 bias: 0.3,
-                map_depth: super::DepthMode::Expected,
+                map_depth: super::DepthMode::Median,
                 receiver_depth: super::DepthMode::Expected,
                 fit: ShadowFit::ViewFrustum,
                 ..ShadowSettings::default()
             },
-            learning_rates: [0.5, 0.05, 0.02, 0.3],
+            learning_rates: [0.05, 0.05, 0.02, 0.2],
+            initial_opacity_logit: -4.0,
             seed: 1,
         }
     }
@@ -69,10 +77,13 @@ impl Default for CompletionSettings {
 pub struct CompletionStep {
     /// Step index (0 is the initial state).
     pub step: u32,
-    /// Mean BCE over receivers.
+    /// Mean BCE over the receivers the scene leaves lit.
     pub loss: f64,
-    /// IoU of the shadowed pixels (V < 0.5) against the target's.
+    /// IoU of the shadowed pixels (V < 0.5) against the target's, over every receiver.
     pub iou: f64,
+    /// The same over the receivers the scene alone leaves lit: how well the
+    /// missing shadow is recovered (0 for the scene alone).
+    pub missing_iou: f64,
 }
 
 /// What [`complete_from_shadow`] produced.
@@ -81,14 +92,18 @@ pub struct Completion {
     pub scene: Scene,
     /// Index of the first added Gaussian.
     pub first_added: usize,
-    /// Visibility before optimisation (the initial Gaussians in place).
-    pub before: Vec<f32>,
-    /// Visibility after.
-    pub after: Vec<f32>,
-    /// Visibility of the scene without any added Gaussians.
+    /// Visibility of the scene alone.
     pub without: Vec<f32>,
+    /// Visibility with the initial Gaussians.
+    pub before: Vec<f32>,
+    /// Visibility with the optimised Gaussians.
+    pub after: Vec<f32>,
+    /// Receivers with a surface (where IoU is measured).
+    pub mask: Vec<bool>,
     /// Per-step loss and IoU (the first entry is the initial state).
     pub history: Vec<CompletionStep>,
+    /// Added Gaussians whose centre ended inside a camera's view.
+    pub visible_added: usize,
 }
 
 /// IoU of the shadowed sets (V < 0.5) of `a` and `b` over pixels where `mask`.
@@ -158,6 +173,7 @@ pub fn complete_from_shadow(
         )));
     }
     let st = settings.shadow;
+    let added_st = ShadowSettings { map_depth: DepthMode::ExpectedOverFar, ..st };
     let mut splatter = Splatter::new(device)?;
     let mut pass = ShadowPass::new(device)?;
     let receiver_settings = SplatSettings {
@@ -165,7 +181,7 @@ pub fn complete_from_shadow(
         ..SplatSettings::default()
     };
 
-    // The scene as given: its receivers and its shadows.
+    // The scene as given: its receivers and its own shadows, once.
     let gpu = GpuScene::upload(device, scene)?;
     let receivers = splatter.render_frame(&gpu, camera, &receiver_settings)?;
     let host = receivers.gbuffer.read(device)?;
@@ -174,16 +190,17 @@ pub fn complete_from_shadow(
     let map = pass.shadow_map_from(&mut splatter, &gpu, light.clone(), sun, &st)?;
     let (v, _) = pass.visibility(&map, &receivers.gbuffer, camera, &st, VisibilityKind::Sigmoid)?;
     let without: Vec<f32> = device.read_buffer(&v)?;
+    drop(map);
     let mask: Vec<bool> = host.alpha.iter().map(|a| *a >= st.min_alpha).collect();
 
-    // Initial Gaussians: in the box of sun rays from receivers that miss their shadow.
+    // Initial Gaussians: in the box of sun rays from the receivers, where no camera sees.
     let img = DepthImage::from_gbuffer(&host);
     let mut lo = DVec3::splat(f64::MAX);
     let mut hi = DVec3::splat(f64::MIN);
     let d = sun.direction.as_dvec3();
     let reach = f64::from((Vec3::from_array(bounds.max) - Vec3::from_array(bounds.min)).length());
-    for p in 0..pixels {
-        if !mask[p] {
+    for (p, covered) in mask.iter().enumerate() {
+        if !covered {
             continue;
         }
         let Some(z) = img.depth(st.receiver_depth, p, f64::from(st.min_alpha), 0.0) else { continue };
@@ -197,13 +214,13 @@ pub fn complete_from_shadow(
     if lo.x > hi.x {
         return Err(Error::InvalidArgument("no receiver in view has a surface".into()));
     }
-    lo.z = lo.z.max(f64::from(bounds.min[2]));
-    hi.z = hi.z.min(f64::from(bounds.max[2]) + 0.5 * reach);
+    lo = lo.max(DVec3::from_array(bounds.min.map(f64::from)));
+    hi = hi.min(DVec3::from_array(bounds.max.map(f64::from)) + DVec3::new(0.0, 0.0, 0.5 * reach));
     let mut rng = Pcg64Mcg::seed_from_u64(settings.seed);
     let mut added = Scene { sh_degree: scene.sh_degree, ..Scene::default() };
     let k = sh_coefficients(scene.sh_degree);
-    let extent = (hi - lo).max_element();
-    let scale = (extent / (settings.gaussians as f64).cbrt()).max(1e-3) as f32;
+    let volume = (hi - lo).max(DVec3::splat(1e-3));
+    let scale = ((volume.x * volume.y * volume.z / settings.gaussians.max(1) as f64).cbrt()).max(1e-3) as f32;
     let mut tries = 0usize;
     while added.means.len() < settings.gaussians && tries < settings.gaussians * 200 {
         tries += 1;
@@ -218,18 +235,18 @@ pub fn complete_from_shadow(
         added.means.push(p.to_array());
         added.log_scales.push([scale.ln(); 3]);
         added.rotations.push([1.0, 0.0, 0.0, 0.0]);
-        added.opacity_logits.push(-5.0);
+        added.opacity_logits.push(settings.initial_opacity_logit);
         added.sh.extend(std::iter::repeat_n(0.0, 3 * k));
     }
     if added.means.is_empty() {
         return Err(Error::InvalidArgument("every point of the occluder region is seen by a camera".into()));
     }
-    let first_added = scene.len();
-    let mut full = scene.clone();
-    append(&mut full, &added);
-    let gpu = GpuScene::upload(device, &full)?;
-    let receiver_frame = receivers;
+    let added_gpu = GpuScene::upload(device, &added)?;
 
+    // The added Gaussians answer for the receivers the scene leaves lit.
+    let added_target: Vec<f32> = target.iter().zip(&without).map(|(t, w)| if *w >= 0.5 { *t } else { -1.0 }).collect();
+    let target_buf = device.upload("shadow target", &added_target)?;
+    let lit_mask: Vec<bool> = mask.iter().zip(&without).map(|(m, w)| *m && *w >= 0.5).collect();
     let n = added.means.len();
     let mut params: Vec<f32> = Vec::with_capacity(n * 11);
     for i in 0..n {
@@ -241,17 +258,15 @@ pub fn complete_from_shadow(
     let mut adam = Adam::new(params.len());
     let lrs = settings.learning_rates;
     let lr = |i: usize| match i % 11 {
-        0..=2 => lrs[0],
+        0..=2 => lrs[0] * scale,
         3..=5 => lrs[1],
         6..=9 => lrs[2],
         _ => lrs[3],
     };
-    let target_buf = device.upload("shadow target", target)?;
     let mut history = Vec::new();
     let mut before = Vec::new();
     let mut after = Vec::new();
     for step in 0..=settings.steps {
-        // Write the added Gaussians' parameters in place.
         let (mut m, mut ls, mut r, mut o) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
         for chunk in params.chunks(11) {
             m.extend_from_slice(&chunk[0..3]);
@@ -259,17 +274,22 @@ pub fn complete_from_shadow(
             r.extend_from_slice(&chunk[6..10]);
             o.push(chunk[10]);
         }
-        let at = first_added as u64;
-        device.write_buffer(&gpu.means, at * 12, &m)?;
-        device.write_buffer(&gpu.log_scales, at * 12, &ls)?;
-        device.write_buffer(&gpu.rotations, at * 16, &r)?;
-        device.write_buffer(&gpu.opacity_logits, at * 4, &o)?;
+        device.write_buffer(&added_gpu.means, 0, &m)?;
+        device.write_buffer(&added_gpu.log_scales, 0, &ls)?;
+        device.write_buffer(&added_gpu.rotations, 0, &r)?;
+        device.write_buffer(&added_gpu.opacity_logits, 0, &o)?;
 
-        let map = pass.shadow_map_from(&mut splatter, &gpu, light.clone(), sun, &st)?;
-        let (v, _) = pass.visibility(&map, &receiver_frame.gbuffer, camera, &st, VisibilityKind::Sigmoid)?;
-        let v: Vec<f32> = device.read_buffer(&v)?;
-        let b = pass.backward(&map, &receiver_frame.gbuffer, camera, &st, GpuVisibilityLoss::Bce(&target_buf))?;
-        let figures = CompletionStep { step, loss: b.loss, iou: shadow_iou(&v, target, &mask) };
+        let map = pass.shadow_map_from(&mut splatter, &added_gpu, light.clone(), sun, &added_st)?;
+        let (v, _) = pass.visibility(&map, &receivers.gbuffer, camera, &added_st, VisibilityKind::Sigmoid)?;
+        let v_added: Vec<f32> = device.read_buffer(&v)?;
+        let v: Vec<f32> = v_added.iter().zip(&without).map(|(a, b)| a * b).collect();
+        let b = pass.backward(&map, &receivers.gbuffer, camera, &added_st, GpuVisibilityLoss::Bce(&target_buf))?;
+        let figures = CompletionStep {
+            step,
+            loss: b.loss,
+            iou: shadow_iou(&v, target, &mask),
+            missing_iou: shadow_iou(&v, target, &lit_mask),
+        };
         progress(&figures);
         history.push(figures);
         if step == 0 {
@@ -279,16 +299,17 @@ pub fn complete_from_shadow(
             after = v;
             break;
         }
-        let g_map = splatter.backward(&map.frame, &gpu, &b.map, false)?.read(device)?;
+        let g = splatter.backward(&map.frame, &added_gpu, &b.map, false)?.read(device)?;
         let mut grads = vec![0.0f32; params.len()];
-        for (i, g) in grads.chunks_mut(11).enumerate() {
-            let j = first_added + i;
-            g[0..3].copy_from_slice(&g_map.means[j]);
-            g[3..6].copy_from_slice(&g_map.log_scales[j]);
-            g[6..10].copy_from_slice(&g_map.rotations[j]);
-            g[10] = g_map.opacity_logits[j];
+        for (i, gi) in grads.chunks_mut(11).enumerate() {
+            gi[0..3].copy_from_slice(&g.means[i]);
+            gi[3..6].copy_from_slice(&g.log_scales[i]);
+            gi[6..10].copy_from_slice(&g.rotations[i]);
+            gi[10] = g.opacity_logits[i];
         }
-        adam.step(&mut params, &grads, lr);
+        // Learning rates decay linearly to a tenth over the run.
+        let decay = 1.0 - 0.9 * step as f32 / settings.steps.max(1) as f32;
+        adam.step(&mut params, &grads, |i| lr(i) * decay);
         for chunk in params.chunks_mut(11) {
             for s in &mut chunk[3..6] {
                 *s = s.clamp((1e-2 * scale).ln(), (10.0 * scale).ln());
@@ -302,9 +323,12 @@ pub fn complete_from_shadow(
         added.rotations[i] = [chunk[6], chunk[7], chunk[8], chunk[9]];
         added.opacity_logits[i] = chunk[10];
     }
+    let visible_added =
+        added.means.iter().filter(|p| cameras.iter().chain([camera]).any(|c| c.sees(Vec3::from_array(**p)))).count();
+    let first_added = scene.len();
     let mut completed = scene.clone();
     append(&mut completed, &added);
-    Ok(Completion { scene: completed, first_added, before, after, without, history })
+    Ok(Completion { scene: completed, first_added, without, before, after, mask, history, visible_added })
 }
 
 /// Appends `b`'s Gaussians to `a` (optional attributes padded with neutral values).
@@ -341,4 +365,82 @@ pub fn without_offscreen_tower(demo: &crate::scene::demo::DemoCity) -> Scene {
         })
         .collect();
     demo.scene.select(&keep)
+}
+
+/// The demo's shadow-guided completion, as `srug shadow-fit` runs it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DemoCompletion {
+    /// Demo city size and seed.
+    pub demo: crate::scene::demo::DemoOptions,
+    /// Which default camera receives the shadow.
+    pub camera: usize,
+    /// Receiver image size.
+    pub size: (u32, u32),
+    /// Sun (azimuth, elevation) in degrees: the default puts the tower's shadow
+    /// on a lit part of the first camera's view.
+    pub sun: (f32, f32),
+    /// The optimisation.
+    pub settings: CompletionSettings,
+}
+
+impl Default for DemoCompletion {
+    fn default() -> Self {
+        Self {
+            demo: crate::scene::demo::DemoOptions { gaussians: 40_000, ..Default::default() },
+            camera: 0,
+            size: (352, 96),
+            sun: (260.0, 50.0),
+            settings: CompletionSettings::default(),
+        }
+    }
+}
+
+/// [`DemoCompletion`]'s problem and result.
+pub struct DemoCompletionResult {
+    /// The receiving camera.
+    pub camera: Camera,
+    /// The target visibility (the tower present).
+    pub target: Vec<f32>,
+    /// Gaussians removed with the tower.
+    pub removed: usize,
+    /// The completion.
+    pub completion: Completion,
+}
+
+/// Removes the demo's off-screen tower, renders the shadow it cast as the
+/// target, and completes the scene from that shadow.
+pub fn complete_demo(
+    device: &Device,
+    options: &DemoCompletion,
+    progress: &mut dyn FnMut(&CompletionStep),
+) -> Result<DemoCompletionResult> {
+    let demo = crate::scene::demo::demo_city(&options.demo)?;
+    let base = demo.cameras.get(options.camera).ok_or_else(|| {
+        Error::InvalidArgument(format!(
+            "camera {} does not exist (the demo has {})",
+            options.camera,
+            demo.cameras.len()
+        ))
+    })?;
+    let camera = base.resized(options.size.0, options.size.1);
+    let sun = Sun::from_azimuth_elevation(options.sun.0, options.sun.1, [1.0; 3])?;
+    if !sun.above_horizon() {
+        return Err(Error::InvalidArgument("the sun must be above the horizon to cast a shadow".into()));
+    }
+    let without = without_offscreen_tower(&demo);
+    let st = options.settings.shadow;
+    // The target: the full scene's shadow, from the light camera the completion will use.
+    let mut splatter = Splatter::new(device)?;
+    let pass = ShadowPass::new(device)?;
+    let full = GpuScene::upload(device, &demo.scene)?;
+    let channels = Channels { depth: true, median_depth: true, ..Channels::default() };
+    let receivers = splatter.render_frame(&full, &camera, &SplatSettings { channels, ..SplatSettings::default() })?;
+    let bounds = without.bounds().ok_or_else(|| Error::InvalidArgument("the demo is empty".into()))?;
+    let light = light_camera(&bounds, &sun, st.resolution, st.fit, Some(&camera))?;
+    let map = pass.shadow_map_from(&mut splatter, &full, light, &sun, &st)?;
+    let (v, _) = pass.visibility(&map, &receivers.gbuffer, &camera, &st, VisibilityKind::Sigmoid)?;
+    let target: Vec<f32> = device.read_buffer(&v)?;
+    let completion =
+        complete_from_shadow(device, &without, &camera, &demo.cameras, &sun, &target, &options.settings, progress)?;
+    Ok(DemoCompletionResult { camera, target, removed: demo.scene.len() - without.len(), completion })
 }

@@ -221,7 +221,9 @@ pub fn light_camera(
         width,
         height,
         near,
-        depth + 4.0 * near,
+        // One scene depth of empty space beyond the scene: what empty texels read as
+        // (expected-over-far maps then need about half coverage to cast a shadow).
+        2.0 * depth + 4.0 * near,
     )?;
     camera.name = "sun".into();
     Ok(camera)
