@@ -151,6 +151,27 @@ enum BenchKind {
         #[arg(long)]
         blend: Option<String>,
     },
+    /// Sigmoid shadow pass against the traced pass; shadow-map accuracy across resolution, k and depth mode.
+    Shadow {
+        /// Demo sizes for the speed table, comma-separated.
+        #[arg(long, default_value = "100000,1000000,3000000")]
+        gaussians: String,
+        /// Demo size for the accuracy table.
+        #[arg(long, default_value_t = 200_000)]
+        accuracy_gaussians: usize,
+        /// Shadow-map resolutions, comma-separated (the largest gives the traced reference).
+        #[arg(long, default_value = "256,512,1024,2048,4096")]
+        resolutions: String,
+        /// Sigmoid sharpness values k per metre, comma-separated.
+        #[arg(long, default_value = "5,50,500")]
+        ks: String,
+        /// Receiver image size WxH.
+        #[arg(long, default_value = "704x192")]
+        size: String,
+        /// Repeats per timing (medians are reported).
+        #[arg(long, default_value_t = 3)]
+        repeats: usize,
+    },
 }
 
 fn main() -> ExitCode {
@@ -371,6 +392,69 @@ fn run(cli: Cli) -> srug::Result<()> {
             );
             Ok(())
         }
+        Command::Bench {
+            what: BenchKind::Shadow { gaussians, accuracy_gaussians, resolutions, ks, size, repeats },
+        } => {
+            use srug::bench::shadow::{shadow_accuracy, shadow_speed, ShadowBenchSetup};
+            fn list<T: std::str::FromStr>(flag: &str, text: &str) -> srug::Result<Vec<T>> {
+                text.split(',').map(|t| t.trim().parse::<T>()).collect::<Result<_, _>>().map_err(|_| {
+                    srug::Error::InvalidArgument(format!(
+                        "--{flag} \"{text}\" is not a comma-separated list of numbers"
+                    ))
+                })
+            }
+            let counts: Vec<usize> = list("gaussians", &gaussians)?;
+            let resolutions: Vec<u32> = list("resolutions", &resolutions)?;
+            let ks: Vec<f32> = list("ks", &ks)?;
+            let setup = ShadowBenchSetup { size: parse_size(&size)?, sun: (260.0, 50.0), repeats };
+            let device = open_device(&cli.device, cli.validation)?;
+            let info = device.info();
+            println!(
+                "device: {} ({}); receivers {}x{} from demo camera 0; sun azimuth {}°, elevation {}°\n",
+                info.name, info.driver, setup.size.0, setup.size.1, setup.sun.0, setup.sun.1
+            );
+            let bar = spinner("benchmarking");
+            let default_resolution = srug::shadow::ShadowSettings::default().resolution;
+            let speed = shadow_speed(&device, &counts, default_resolution, &setup, |m| bar.set_message(m.to_string()))?;
+            let accuracy = shadow_accuracy(&device, accuracy_gaussians, &resolutions, &ks, &setup, |m| {
+                bar.set_message(m.to_string())
+            })?;
+            bar.finish_and_clear();
+            println!("| Gaussians | map | map pairs | map splat ms (once per sun) | sigmoid test ms | traced ms | traced / sigmoid |");
+            println!("|---:|---:|---:|---:|---:|---:|---:|");
+            for r in &speed {
+                println!(
+                    "| {} | {} | {} | {:.1} | {:.2} | {:.2} | {:.1}× |",
+                    r.gaussians,
+                    r.resolution,
+                    r.map_pairs,
+                    r.map_seconds * 1e3,
+                    r.sigmoid_seconds * 1e3,
+                    r.traced_seconds * 1e3,
+                    r.traced_seconds / r.sigmoid_seconds
+                );
+            }
+            println!(
+                "\naccuracy against the traced visibility ({} Gaussians, traced at {} texels):\n",
+                accuracy_gaussians,
+                resolutions.iter().max().copied().unwrap_or(0)
+            );
+            println!("| map | depth | k | IoU | mean abs(V_e - V_t) | sigmoid test ms | map splat ms |");
+            println!("|---:|---|---:|---:|---:|---:|---:|");
+            for r in &accuracy {
+                println!(
+                    "| {} | {:?} | {} | {:.3} | {:.4} | {:.2} | {:.1} |",
+                    r.resolution,
+                    r.depth,
+                    r.k,
+                    r.iou,
+                    r.mean_abs_diff,
+                    r.sigmoid_seconds * 1e3,
+                    r.map_seconds * 1e3
+                );
+            }
+            Ok(())
+        }
         Command::ShadowFit {
             gaussians,
             seed,
@@ -408,7 +492,11 @@ fn run(cli: Cli) -> srug::Result<()> {
                     "step {:3}: loss {:.4}, shadow IoU {:.3}, missing-shadow IoU {:.3}",
                     s.step, s.loss, s.iou, s.missing_iou
                 );
-                bar.println(&line);
+                if bar.is_hidden() {
+                    println!("{line}");
+                } else {
+                    bar.println(&line);
+                }
                 bar.set_message(format!("IoU {:.3}", s.iou));
                 bar.inc(1);
                 lines.push(format!("{},{},{},{}", s.step, s.loss, s.iou, s.missing_iou));
