@@ -114,10 +114,10 @@ enum Command {
         #[arg(long, default_value = "352x96")]
         size: String,
         /// Sun azimuth, degrees from north toward east.
-        #[arg(long, default_value_t = 260.0)]
+        #[arg(long, default_value_t = 260.0, allow_negative_numbers = true)]
         sun_azimuth: f32,
         /// Sun elevation, degrees.
-        #[arg(long, default_value_t = 50.0)]
+        #[arg(long, default_value_t = 50.0, allow_negative_numbers = true)]
         sun_elevation: f32,
         /// Shadow-map resolution (longer side).
         #[arg(long, default_value_t = 256)]

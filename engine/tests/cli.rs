@@ -181,3 +181,54 @@ fn bench_splat_prints_its_tables() {
     let o = srug(&["bench", "splat", "--sizes", "64by32"]);
     assert_eq!(o.status.code(), Some(1));
 }
+
+#[test]
+fn shadow_fit_writes_its_images_scene_and_history() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().to_str().unwrap();
+    let args = ["shadow-fit", "--gaussians", "8000", "--steps", "2", "--added", "300", "--size", "88x24"];
+    let o = srug(&[&args[..], &["--resolution", "64", "--out", out, "--validation"]].concat());
+    let t = text(&o);
+    assert!(o.status.success(), "{t}");
+    for want in ["step   0:", "step   2:", "shadow IoU:", "missing-shadow IoU", "validation messages: 0"] {
+        assert!(t.contains(want), "missing {want:?} in:\n{t}");
+    }
+    for name in ["target", "without", "before", "after"] {
+        let png = image::open(dir.path().join(format!("visibility_{name}.png"))).unwrap();
+        assert_eq!((png.width(), png.height()), (88, 24));
+    }
+    let scene = srug::scene::read_ply(dir.path().join("completed.ply")).unwrap();
+    assert!(scene.len() > 300);
+    let history = std::fs::read_to_string(dir.path().join("history.csv")).unwrap();
+    assert_eq!(history.lines().count(), 4, "header and three steps:\n{history}");
+    // A sun below the horizon casts no shadow: refused with a message.
+    let o = srug(&["shadow-fit", "--sun-elevation", "-5", "--gaussians", "2000", "--out", out]);
+    assert!(!o.status.success() && text(&o).contains("above the horizon"), "{}", text(&o));
+}
+
+#[test]
+fn bench_shadow_prints_its_tables() {
+    let o = srug(&[
+        "bench",
+        "shadow",
+        "--gaussians",
+        "5000",
+        "--accuracy-gaussians",
+        "5000",
+        "--resolutions",
+        "64,128",
+        "--ks",
+        "5",
+        "--size",
+        "88x24",
+        "--repeats",
+        "1",
+    ]);
+    let t = text(&o);
+    assert!(o.status.success(), "{t}");
+    for want in
+        ["| Gaussians | map | map pairs", "| map | depth | k | IoU", "| 128 | Median | 5 |", "| 64 | Expected | 5 |"]
+    {
+        assert!(t.contains(want), "missing {want:?} in:\n{t}");
+    }
+}
