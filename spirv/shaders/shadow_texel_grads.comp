@@ -4,8 +4,8 @@
 // those binned at this texel and at its left, upper and upper-left
 // neighbours — in a fixed order (deterministic, no atomics). Then the texel's
 // depth z_s goes back to the map's channels: median depth directly,
-// z_s = Σwz / alpha (empty texels, at the far depth, pass nothing), or
-// z_s = Σwz + (1 − alpha)·far.
+// z_s = Σwz / alpha (empty texels, at the empty depth, pass nothing), or
+// z_s = Σwz + (1 − alpha)·(empty depth).
 // CPU twin: engine/src/shadow/cpu.rs `sigmoid_backward_cpu`.
 #define WORKGROUP_SIZE_X 64
 #include "common.glsl"
@@ -41,9 +41,9 @@ void main() {
     float g_depth = 0.0, g_alpha = 0.0;
     float z;
     if (sum != 0.0 && shadow.modes.x == 2u) {
-        // z_s = Σwz + (1 − alpha)·far.
+        // z_s = Σwz + (1 − alpha)·empty depth.
         g_depth = sum;
-        g_alpha = -sum * shadow.light_t.w;
+        g_alpha = -sum * shadow.params.w;
     } else if (sum != 0.0 && resolve_depth(shadow.modes.x, shadow.addr1.xy, shadow.addr1.zw, texel, z)) {
         if (shadow.modes.x == 1u) {
             g_depth = sum;

@@ -10,6 +10,8 @@ use srug::gpu::Device;
 use srug::scene::activate::GpuScene;
 use srug::scene::demo::{demo_city, DemoCity, DemoOptions};
 use srug::scene::{Camera, Scene};
+use srug::shadow::backward::GpuVisibilityLoss;
+use srug::shadow::completion::shadow_iou;
 use srug::shadow::cpu::{sigmoid_visibility_cpu, traced_visibility_cpu, DepthImage};
 use srug::shadow::{light_camera, DepthMode, ShadowFit, ShadowMap, ShadowPass, ShadowSettings, Sun, VisibilityKind};
 use srug::splat::{Channels, GBuffer, SplatSettings, Splatter};
@@ -61,24 +63,6 @@ fn max_diff(label: &str, camera: &Camera, gpu: &[f32], cpu: &[f64], tol: f64) ->
         panic!("{label}: max |GPU − CPU| {err:.3e} > {tol:.1e} (images: {saved})");
     }
     err
-}
-
-/// Intersection over union of the shadowed sets (V < 0.5) over pixels with a surface.
-fn shadow_iou(a: &[f32], b: &[f32], alpha: &[f32]) -> f64 {
-    let (mut inter, mut union) = (0usize, 0usize);
-    for ((x, y), al) in a.iter().zip(b).zip(alpha) {
-        if *al < 0.5 {
-            continue;
-        }
-        let (sx, sy) = (*x < 0.5, *y < 0.5);
-        inter += usize::from(sx && sy);
-        union += usize::from(sx || sy);
-    }
-    if union == 0 {
-        1.0
-    } else {
-        inter as f64 / union as f64
-    }
 }
 
 #[test]
@@ -138,9 +122,10 @@ fn shadows_agree_with_the_demo_exact_visibility() {
     let ve: Vec<f32> = s.d.read_buffer(&v).unwrap();
     let (t, _) = s.pass.visibility(&map, &g, &camera, &st, VisibilityKind::Traced).unwrap();
     let vt: Vec<f32> = s.d.read_buffer(&t).unwrap();
-    let iou_e = shadow_iou(&ve, &vf, &host.alpha);
-    let iou_t = shadow_iou(&vt, &vf, &host.alpha);
-    let iou_et = shadow_iou(&ve, &vt, &host.alpha);
+    let surface: Vec<bool> = host.alpha.iter().map(|a| *a >= 0.5).collect();
+    let iou_e = shadow_iou(&ve, &vf, &surface);
+    let iou_t = shadow_iou(&vt, &vf, &surface);
+    let iou_et = shadow_iou(&ve, &vt, &surface);
     eprintln!("IoU(V_e, V_f) {iou_e:.3}, IoU(V_t, V_f) {iou_t:.3}, IoU(V_e, V_t) {iou_et:.3}");
     let shadowed = vf.iter().zip(&host.alpha).filter(|(v, a)| **a >= 0.5 && **v < 0.5).count();
     assert!(shadowed > 500, "the demo view should contain shadow ({shadowed} pixels)");
@@ -221,7 +206,7 @@ fn extremes_give_finite_visibility() {
 fn empty_shadow_map_and_receivers_on_an_occluder() {
     let d = device();
     let mut splatter = Splatter::new(&d).unwrap();
-    let pass = ShadowPass::new(&d).unwrap();
+    let mut pass = ShadowPass::new(&d).unwrap();
     // A ground plane of flat Gaussians under a transparent (opacity 0) floating slab:
     // the shadow map of the slab is empty, so everything is lit; receivers lie
     // exactly on the plane that is also the only occluder.
@@ -289,6 +274,16 @@ fn empty_shadow_map_and_receivers_on_an_occluder() {
         let (v, _) = pass.visibility(&empty, &g, &camera, &st, VisibilityKind::Sigmoid).unwrap();
         let v: Vec<f32> = d.read_buffer(&v).unwrap();
         assert!(v.iter().all(|x| *x > 0.99), "nothing casts a shadow in an empty map");
+        // Its backward: finite, and nothing to move (every receiver saturated lit).
+        let n = (camera.width * camera.height) as usize;
+        let ones = d.upload("dL/dV", &vec![1.0f32; n]).unwrap();
+        let halves = d.upload("V_f", &vec![0.5f32; n]).unwrap();
+        for loss in [GpuVisibilityLoss::Upstream(&ones), GpuVisibilityLoss::Bce(&halves)] {
+            let b = pass.backward(&empty, &g, &camera, &st, loss).unwrap();
+            assert!(b.k.is_finite() && b.loss.is_finite());
+            let texel: Vec<f32> = d.read_buffer(&b.texel_depth).unwrap();
+            assert!(texel.iter().all(|x| x.is_finite()), "{map_depth:?}: non-finite texel gradient");
+        }
     }
     // Settings that cannot be used are refused with a message.
     let bad = ShadowSettings { k: f32::NAN, ..settings(64) };

@@ -79,18 +79,18 @@ impl DepthImage {
         }
     }
 
-    /// Depth of pixel `p`: median, Σwz / alpha, or Σwz + T·far; `None` without
-    /// a surface (never for [`DepthMode::ExpectedOverFar`]).
-    pub fn depth(&self, mode: DepthMode, p: usize, min_alpha: f64, far: f64) -> Option<f64> {
+    /// Depth of pixel `p`: median, Σwz / alpha, or Σwz + T·`empty`; `None`
+    /// without a surface (never for [`DepthMode::ExpectedOverFar`]).
+    pub fn depth(&self, mode: DepthMode, p: usize, min_alpha: f64, empty: f64) -> Option<f64> {
         match mode {
             DepthMode::Median => (self.median[p] > 0.0).then_some(self.median[p]),
             DepthMode::Expected => (self.alpha[p] >= min_alpha).then(|| self.depth_sum[p] / self.alpha[p]),
-            DepthMode::ExpectedOverFar => Some(self.depth_sum[p] + (1.0 - self.alpha[p]) * far),
+            DepthMode::ExpectedOverFar => Some(self.depth_sum[p] + (1.0 - self.alpha[p]) * empty),
         }
     }
 
     /// Adds dL/d(depth of pixel p) = `g` into per-pixel gradients of the channels.
-    fn depth_backward(&self, mode: DepthMode, p: usize, g: f64, far: f64, out: &mut PixelGrads) {
+    fn depth_backward(&self, mode: DepthMode, p: usize, g: f64, empty: f64, out: &mut PixelGrads) {
         match mode {
             DepthMode::Median => out.median[p] += g,
             DepthMode::Expected => {
@@ -100,17 +100,17 @@ impl DepthImage {
             }
             DepthMode::ExpectedOverFar => {
                 out.values[p][3] += g;
-                out.alpha[p] -= g * far;
+                out.alpha[p] -= g * empty;
             }
         }
     }
 }
 
-/// The shadow map's texel depths z_s (empty texels at `far`).
-pub fn resolve_depths(mode: DepthMode, map: &GBuffer, min_alpha: f32, far: f32) -> Vec<f32> {
+/// The shadow map's texel depths z_s (empty texels at `empty`).
+pub fn resolve_depths(mode: DepthMode, map: &GBuffer, min_alpha: f32, empty: f32) -> Vec<f32> {
     let img = DepthImage::from_gbuffer(map);
     (0..map.alpha.len())
-        .map(|p| img.depth(mode, p, f64::from(min_alpha), f64::from(far)).map_or(far, |z| z as f32))
+        .map(|p| img.depth(mode, p, f64::from(min_alpha), f64::from(empty)).map_or(empty, |z| z as f32))
         .collect()
 }
 
@@ -168,12 +168,12 @@ pub fn receiver_in_light(
     inside.then_some((uv, lz))
 }
 
-/// Texel depths z_s of a shadow map (empty texels at the light's far depth).
+/// Texel depths z_s of a shadow map (empty texels at [`DepthMode::empty_depth`]).
 fn texel_depths(light: &Camera, map: &DepthImage, settings: &ShadowSettings) -> Vec<f64> {
     (0..map.alpha.len())
         .map(|i| {
-            let far = f64::from(light.far);
-            map.depth(settings.map_depth, i, f64::from(settings.min_alpha), far).unwrap_or(far)
+            let empty = f64::from(settings.map_depth.empty_depth(light.far));
+            map.depth(settings.map_depth, i, f64::from(settings.min_alpha), empty).unwrap_or(empty)
         })
         .collect()
 }
@@ -313,9 +313,9 @@ pub fn sigmoid_backward_cpu(
         receiver.depth_backward(settings.receiver_depth, p, d_camera_depth, 0.0, &mut out.receiver);
     }
     for (i, g) in out.texel_depth.iter().enumerate() {
-        let far = f64::from(light.far);
-        if *g != 0.0 && map.depth(settings.map_depth, i, min_alpha, far).is_some() {
-            map.depth_backward(settings.map_depth, i, *g, far, &mut out.map);
+        let empty = f64::from(settings.map_depth.empty_depth(light.far));
+        if *g != 0.0 && map.depth(settings.map_depth, i, min_alpha, empty).is_some() {
+            map.depth_backward(settings.map_depth, i, *g, empty, &mut out.map);
         }
     }
     out

@@ -46,10 +46,11 @@ pub enum DepthMode {
     /// Alpha-normalised blended depth Σwz / Σw: smooth, differentiable, but
     /// mixes depths at silhouettes (light leaks, floating shadows).
     Expected,
-    /// Shadow maps only: blended depth with empty space at the light's far
-    /// plane, Σwz + T·far. Differentiable everywhere, also where nothing is
-    /// yet (faint Gaussians cast faint shadows), so optimisation can grow
-    /// occluders from nothing; a partly covered texel reads as partly far.
+    /// Shadow maps only: blended depth with empty space one scene depth
+    /// beyond the light's far plane, Σwz + T·(2·far). Differentiable
+    /// everywhere, also where nothing is yet (faint Gaussians cast faint
+    /// shadows), so optimisation can grow occluders from nothing; a texel needs
+    /// about half coverage to shadow what lies behind it.
     ExpectedOverFar,
 }
 
@@ -63,6 +64,15 @@ impl DepthMode {
             other => Err(Error::InvalidArgument(format!(
                 "depth mode \"{other}\" is not median, expected or expected-over-far"
             ))),
+        }
+    }
+
+    /// The depth a texel with nothing in it reads as, for a light camera whose
+    /// far plane is `far`: `far` (median, expected), `2·far` (expected over far).
+    pub fn empty_depth(self, far: f32) -> f32 {
+        match self {
+            Self::ExpectedOverFar => 2.0 * far,
+            Self::Median | Self::Expected => far,
         }
     }
 
@@ -221,9 +231,7 @@ pub fn light_camera(
         width,
         height,
         near,
-        // One scene depth of empty space beyond the scene: what empty texels read as
-        // (expected-over-far maps then need about half coverage to cast a shadow).
-        2.0 * depth + 4.0 * near,
+        depth + 4.0 * near,
     )?;
     camera.name = "sun".into();
     Ok(camera)
@@ -269,10 +277,10 @@ pub struct ShadowMap {
 }
 
 impl ShadowMap {
-    /// The texels' depth z_s on the host (empty texels: the light's far depth).
+    /// The texels' depth z_s on the host (empty texels: [`DepthMode::empty_depth`]).
     pub fn read_depth(&self, device: &Device, min_alpha: f32) -> Result<Vec<f32>> {
         let g = self.frame.gbuffer.read(device)?;
-        Ok(cpu::resolve_depths(self.depth, &g, min_alpha, self.camera.far))
+        Ok(cpu::resolve_depths(self.depth, &g, min_alpha, self.depth.empty_depth(self.camera.far)))
     }
 }
 
@@ -500,7 +508,7 @@ fn shadow_uniform<'a>(
     u.light_t = [t.x, t.y, t.z, l.far];
     u.light_intr = intrinsics(l).0;
     u.size = [camera.width, camera.height, l.width, l.height];
-    u.params = [settings.k, settings.bias, settings.min_alpha, 0.0];
+    u.params = [settings.k, settings.bias, settings.min_alpha, map.depth.empty_depth(l.far)];
     u.modes = [map.depth.code(), settings.receiver_depth.code(), map.frame.tiles().0, 0];
     u.addr = [
         [receiver_depth.device_address(), gbuffer.alpha.device_address()],

@@ -14,10 +14,10 @@ layout(std140, set = 0, binding = 0) uniform Shadow {
     vec4 light_rot0;   // world-to-light rotation, rows
     vec4 light_rot1;
     vec4 light_rot2;
-    vec4 light_t;      // world-to-light translation; w: depth of empty texels
+    vec4 light_t;      // world-to-light translation; w: far plane
     vec4 light_intr;   // texels per unit x, y, cx, cy
     uvec4 size;        // camera width, height, map width, height
-    vec4 params;       // k, bias, minimum alpha of a surface, unused
+    vec4 params;       // k, bias, minimum alpha of a surface, depth of an empty texel
     uvec4 modes;       // map depth (0 expected, 1 median, 2 expected over far), receiver depth (0, 1), map tiles across, unused
     uvec4 addr0;       // receiver depth, receiver alpha
     uvec4 addr1;       // map depth, map alpha
@@ -60,11 +60,12 @@ vec3 light_coords(vec3 world) {
     return vec3(k.xy * t.xy + k.zw, t.z);
 }
 
-// Depth z_s of one shadow-map texel; empty texels are at the light's far
-// depth. Mode 2 (expected over far) is Σwz + T·far, defined everywhere.
+// Depth z_s of one shadow-map texel; empty texels read params.w (the light's
+// far depth; twice that in mode 2, expected over far: Σwz + T·empty, defined
+// everywhere).
 float texel_depth(ivec2 t) {
     uint i = uint(t.y) * shadow.size.z + uint(t.x);
-    float far = shadow.light_t.w;
+    float far = shadow.params.w;
     if (shadow.modes.x == 2u) {
         return FloatsIn(shadow.addr1.xy).v[i] + (1.0 - FloatsIn(shadow.addr1.zw).v[i]) * far;
     }
