@@ -28,15 +28,11 @@ fn shadow_fit_recovers_the_missing_shadow() {
         "IoU without {without:.3}, start {:.3}, end {:.3}; missing-shadow IoU {:.3} → {:.3}; visible added {}",
         first.iou, last.iou, first.missing_iou, last.missing_iou, c.visible_added
     );
-    // The missing shadow is recovered (a short run: the 60-step default reaches ~0.88).
-    assert!(last.missing_iou >= 0.6, "missing-shadow IoU {:.3}", last.missing_iou);
-    assert!(
-        last.missing_iou > first.missing_iou + 0.3,
-        "no progress: {:.3} → {:.3}",
-        first.missing_iou,
-        last.missing_iou
-    );
+    // The criterion: the shadow IoU rises from its starting value to ≥ 0.9 (here
+    // 0.82 → 0.99 in 16 steps), and the missing shadow itself is recovered (0 → 0.93).
+    assert!(first.iou < 0.9 && last.iou >= 0.9, "shadow IoU {:.3} → {:.3}", first.iou, last.iou);
     assert!(last.iou > without, "overall IoU {:.3} not above the scene alone ({without:.3})", last.iou);
+    assert!(last.missing_iou >= 0.85, "missing-shadow IoU {:.3}", last.missing_iou);
     assert!(last.loss < first.loss, "loss {} → {}", first.loss, last.loss);
     assert!(c.after.iter().all(|v| v.is_finite() && (0.0..=1.0).contains(v)));
     // The completed scene holds the input plus the added Gaussians and is valid.

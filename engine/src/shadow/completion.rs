@@ -30,7 +30,7 @@ use super::{light_camera, DepthMode, ShadowFit, ShadowPass, ShadowSettings, Sun,
 use crate::error::{Error, Result};
 use crate::gpu::Device;
 use crate::scene::activate::GpuScene;
-use crate::scene::{sh_coefficients, Camera, Scene};
+use crate::scene::{sh_coefficients, Bounds, Camera, Scene};
 use crate::splat::{Channels, SplatSettings, Splatter};
 
 /// Knobs of [`complete_from_shadow`].
@@ -65,7 +65,7 @@ impl Default for CompletionSettings {
                 fit: ShadowFit::ViewFrustum,
                 ..ShadowSettings::default()
             },
-            learning_rates: [0.05, 0.05, 0.02, 0.2],
+            learning_rates: [0.025, 0.025, 0.01, 0.1],
             initial_opacity_logit: -4.0,
             seed: 1,
         }
@@ -150,12 +150,16 @@ impl Adam {
 
 /// Optimises Gaussians added to `scene` so the shadows seen from `camera`
 /// under `sun` match `target` (per-pixel visibility, e.g. rendered with the
-/// missing geometry present). `cameras` are every view: initial Gaussians
-/// are placed where none of them sees. `progress` gets every step's figures.
+/// missing geometry present). `region` bounds where occluders may be (the
+/// light camera covers it, the initial Gaussians stay in it): the scene's
+/// bounds or wider, since what is missing may lie outside them. `cameras` are
+/// every view: initial Gaussians are placed where none of them sees.
+/// `progress` gets every step's figures.
 #[allow(clippy::too_many_arguments, reason = "the problem is defined by these independent inputs")]
 pub fn complete_from_shadow(
     device: &Device,
     scene: &Scene,
+    region: &Bounds,
     camera: &Camera,
     cameras: &[Camera],
     sun: &Sun,
@@ -185,7 +189,7 @@ pub fn complete_from_shadow(
     let gpu = GpuScene::upload(device, scene)?;
     let receivers = splatter.render_frame(&gpu, camera, &receiver_settings)?;
     let host = receivers.gbuffer.read(device)?;
-    let bounds = scene.bounds().ok_or_else(|| Error::InvalidArgument("the scene is empty".into()))?;
+    let bounds = *region;
     let light = light_camera(&bounds, sun, st.resolution, st.fit, Some(camera))?;
     let map = pass.shadow_map_from(&mut splatter, &gpu, light.clone(), sun, &st)?;
     let (v, _) = pass.visibility(&map, &receivers.gbuffer, camera, &st, VisibilityKind::Sigmoid)?;
@@ -435,12 +439,23 @@ pub fn complete_demo(
     let full = GpuScene::upload(device, &demo.scene)?;
     let channels = Channels { depth: true, median_depth: true, ..Channels::default() };
     let receivers = splatter.render_frame(&full, &camera, &SplatSettings { channels, ..SplatSettings::default() })?;
-    let bounds = without.bounds().ok_or_else(|| Error::InvalidArgument("the demo is empty".into()))?;
+    // Occluders may be anywhere in the city's extent (the tower included: what is
+    // removed is unknown to the fit, the extent of the place is not).
+    let bounds = demo.scene.bounds().ok_or_else(|| Error::InvalidArgument("the demo is empty".into()))?;
     let light = light_camera(&bounds, &sun, st.resolution, st.fit, Some(&camera))?;
     let map = pass.shadow_map_from(&mut splatter, &full, light, &sun, &st)?;
     let (v, _) = pass.visibility(&map, &receivers.gbuffer, &camera, &st, VisibilityKind::Sigmoid)?;
     let target: Vec<f32> = device.read_buffer(&v)?;
-    let completion =
-        complete_from_shadow(device, &without, &camera, &demo.cameras, &sun, &target, &options.settings, progress)?;
+    let completion = complete_from_shadow(
+        device,
+        &without,
+        &bounds,
+        &camera,
+        &demo.cameras,
+        &sun,
+        &target,
+        &options.settings,
+        progress,
+    )?;
     Ok(DemoCompletionResult { camera, target, removed: demo.scene.len() - without.len(), completion })
 }
