@@ -18,6 +18,7 @@ use srug::shadow::cpu::{sigmoid_backward_cpu, sigmoid_visibility_cpu, DepthImage
 use srug::shadow::{light_camera, DepthMode, ShadowFit, ShadowPass, ShadowSettings, Sun};
 use srug::splat::backward::HostGaussianGradients;
 use srug::splat::cpu::{render_blends, Gaussian64};
+use srug::splat::cpu_backward::{blend_backward_cpu, project_backward, GaussianGrad};
 use srug::splat::{Channels, NormalSource, SplatFrame, SplatSettings, Splatter};
 use srug_tests::{assert_no_validation_messages, device, save_comparison};
 
@@ -247,13 +248,8 @@ fn shadow_gradients_reach_the_gaussians_like_finite_differences() {
 
         // Central finite differences of the f64 CPU pipeline: L = Σ w·V_e.
         let params: Vec<Gaussian64> = (0..scene.len()).map(|i| Gaussian64::from_scene(&scene, i)).collect();
-        let loss = |p: &[Gaussian64]| -> f64 {
-            let (_, lb) = render_blends(p, &scene, &light, NormalSource::ShortestAxis);
-            let (_, cb) = render_blends(p, &scene, &camera, NormalSource::ShortestAxis);
-            let m = DepthImage::from_blends(light.width, light.height, &lb);
-            let r = DepthImage::from_blends(camera.width, camera.height, &cb);
-            sigmoid_visibility_cpu(&light, &m, &camera, &r, &st).iter().zip(&weights).map(|(a, b)| a * b).sum()
-        };
+        let chain = Chain { scene: scene.clone(), light: light.clone(), camera: camera.clone(), settings: st };
+        let loss = |p: &[Gaussian64]| chain.loss(p, VisibilityLoss::Upstream(&weights));
         let h = 1e-6;
         let mut rows: Vec<(usize, usize, f64, f64)> = Vec::new(); // (Gaussian, family, gpu, fd)
         for i in 0..params.len() {
@@ -347,4 +343,137 @@ fn shadow_backward_is_finite_at_the_extremes() {
         }
     }
     assert_no_validation_messages(&d);
+}
+
+/// The CPU pipeline of the shadow loss for the blob scene: f64 forward, twin backward.
+struct Chain {
+    scene: Scene,
+    light: Camera,
+    camera: Camera,
+    settings: ShadowSettings,
+}
+
+impl Chain {
+    fn images(&self, params: &[Gaussian64]) -> (DepthImage, DepthImage) {
+        let (_, lb) = render_blends(params, &self.scene, &self.light, NormalSource::ShortestAxis);
+        let (_, cb) = render_blends(params, &self.scene, &self.camera, NormalSource::ShortestAxis);
+        (
+            DepthImage::from_blends(self.light.width, self.light.height, &lb),
+            DepthImage::from_blends(self.camera.width, self.camera.height, &cb),
+        )
+    }
+
+    fn loss(&self, params: &[Gaussian64], loss: VisibilityLoss<'_>) -> f64 {
+        let (map, rec) = self.images(params);
+        match loss {
+            VisibilityLoss::Upstream(w) => {
+                let v = sigmoid_visibility_cpu(&self.light, &map, &self.camera, &rec, &self.settings);
+                v.iter().zip(w).map(|(a, b)| a * b).sum()
+            }
+            VisibilityLoss::Bce(_) => {
+                sigmoid_backward_cpu(&self.light, &map, &self.camera, &rec, &self.settings, loss).loss
+            }
+        }
+    }
+
+    fn gradients(&self, params: &[Gaussian64], loss: VisibilityLoss<'_>) -> (Vec<GaussianGrad>, f64) {
+        let (map, rec) = self.images(params);
+        let g = sigmoid_backward_cpu(&self.light, &map, &self.camera, &rec, &self.settings, loss);
+        let mut out = vec![GaussianGrad::default(); params.len()];
+        for (cam, pg) in [(&self.light, &g.map), (&self.camera, &g.receiver)] {
+            let (splats, _) = render_blends(params, &self.scene, cam, NormalSource::ShortestAxis);
+            let sg = blend_backward_cpu(&splats, cam, [0.0; 3], pg);
+            for (i, p) in params.iter().enumerate() {
+                let d = project_backward(p, cam, &sg[i], false);
+                let o = &mut out[i];
+                o.mean += d.mean;
+                o.log_scale += d.log_scale;
+                o.opacity_logit += d.opacity_logit;
+                for k in 0..4 {
+                    o.rotation[k] += d.rotation[k];
+                }
+            }
+        }
+        (out, g.k)
+    }
+}
+
+fn check_chain(map_depth: DepthMode, receiver_depth: DepthMode, bce: bool) {
+    let (scene, light, camera) = blob_scene();
+    let settings = ShadowSettings { k: 6.0, bias: 0.02, map_depth, receiver_depth, ..ShadowSettings::default() };
+    let chain = Chain { scene, light, camera, settings };
+    let params: Vec<Gaussian64> = (0..chain.scene.len()).map(|i| Gaussian64::from_scene(&chain.scene, i)).collect();
+    let mut rng = Pcg64Mcg::seed_from_u64(5);
+    let n = (chain.camera.width * chain.camera.height) as usize;
+    // BCE targets in [0, 1], a tenth of them negative (left out of the loss).
+    let data: Vec<f64> = (0..n)
+        .map(|i| if bce && i % 10 == 3 { -1.0 } else { rng.random_range(if bce { 0.0..1.0 } else { -1.0..1.0 }) })
+        .collect();
+    let loss = if bce { VisibilityLoss::Bce(&data) } else { VisibilityLoss::Upstream(&data) };
+    let (grads, dk) = chain.gradients(&params, loss);
+    let h = 1e-6;
+    let fd = |perturb: &dyn Fn(&mut Vec<Gaussian64>, f64)| {
+        let mut plus = params.clone();
+        perturb(&mut plus, h);
+        let mut minus = params.clone();
+        perturb(&mut minus, -h);
+        (chain.loss(&plus, loss) - chain.loss(&minus, loss)) / (2.0 * h)
+    };
+    let mut checked = Vec::new();
+    for i in 0..params.len() {
+        let a = grads[i];
+        for c in 0..3 {
+            checked.push((i, "mean", a.mean[c], fd(&|p, d| p[i].mean[c] += d)));
+            checked.push((i, "log_scale", a.log_scale[c], fd(&|p, d| p[i].log_scale[c] += d)));
+        }
+        for c in 0..4 {
+            checked.push((i, "rotation", a.rotation[c], fd(&|p, d| p[i].rotation[c] += d)));
+        }
+        checked.push((i, "opacity_logit", a.opacity_logit, fd(&|p, d| p[i].opacity_logit += d)));
+    }
+    let scale = checked.iter().fold(0.0f64, |m, c| m.max(c.3.abs()));
+    let mut significant = 0;
+    for (i, name, a, f) in &checked {
+        // Relative error ≤ 1e-3 against the larger of |fd| and 1e-4 of the largest
+        // derivative (below that, rounding in the summed loss, ~1e-14, divided by the
+        // step dominates the finite difference).
+        let err = (a - f).abs() / f.abs().max(1e-4 * scale);
+        assert!(err <= 1e-3, "Gaussian {i} {name}: analytic {a:.9e}, finite difference {f:.9e}");
+        significant += usize::from(f.abs() > 1e-3 * scale);
+    }
+    // The blob (the last five) must receive gradient from the shadow it casts.
+    let blob = checked.iter().filter(|c| c.0 >= 49 && c.3.abs() > 1e-3 * scale).count();
+    assert!(blob >= 20, "only {blob} blob derivatives are significant");
+    assert!(significant >= 100, "only {significant} significant derivatives");
+    // dL/dk by finite differences of k.
+    let mut shifted = chain.settings;
+    let hk = 1e-6 * f64::from(shifted.k);
+    let base = shifted.k;
+    let loss_k = |k: f64, st: &mut ShadowSettings| {
+        st.k = k as f32;
+        let c = Chain {
+            scene: chain.scene.clone(),
+            light: chain.light.clone(),
+            camera: chain.camera.clone(),
+            settings: *st,
+        };
+        c.loss(&params, loss)
+    };
+    // k is f32 in the settings: use a step that f32 represents exactly.
+    let kp = f64::from(base) + hk;
+    let km = f64::from(base) - hk;
+    let (kp32, km32) = (f64::from(kp as f32), f64::from(km as f32));
+    let fd_k = (loss_k(kp32, &mut shifted) - loss_k(km32, &mut shifted)) / (kp32 - km32);
+    assert!((dk - fd_k).abs() <= 1e-3 * fd_k.abs().max(1e-9), "dL/dk {dk:.9e} vs finite difference {fd_k:.9e}");
+    eprintln!("{map_depth:?}/{receiver_depth:?}/bce {bce}: {significant} significant derivatives, dL/dk {dk:.4e}");
+}
+
+/// The CPU twin's shadow chain (analytic, through both splats) against central
+/// finite differences of the f64 pipeline, for every map depth mode and the BCE loss.
+#[test]
+fn cpu_shadow_chain_gradients_match_finite_differences() {
+    check_chain(DepthMode::Median, DepthMode::Expected, false);
+    check_chain(DepthMode::Expected, DepthMode::Expected, false);
+    check_chain(DepthMode::Expected, DepthMode::Median, true);
+    check_chain(DepthMode::ExpectedOverFar, DepthMode::Expected, true);
 }

@@ -80,8 +80,6 @@ pub struct DeviceInfo {
     pub subgroup_size: u32,
     /// Subgroup ballot operations (elect, broadcast) in compute shaders.
     pub subgroup_ballot: bool,
-    /// Subgroup arithmetic (subgroupAdd) in compute shaders.
-    pub subgroup_arithmetic: bool,
     /// Nanoseconds per timestamp tick.
     pub timestamp_period_ns: f64,
     /// Valid bits of a timestamp on the compute queue; 0 when unsupported.
@@ -673,10 +671,6 @@ fn make_device(
             && subgroup
                 .supported_operations
                 .contains(vk::SubgroupFeatureFlags::BASIC | vk::SubgroupFeatureFlags::BALLOT),
-        subgroup_arithmetic: subgroup.supported_stages.contains(vk::ShaderStageFlags::COMPUTE)
-            && subgroup
-                .supported_operations
-                .contains(vk::SubgroupFeatureFlags::BASIC | vk::SubgroupFeatureFlags::ARITHMETIC),
         timestamp_period_ns: f64::from(limits.timestamp_period),
         timestamp_valid_bits: if limits.timestamp_compute_and_graphics == vk::TRUE {
             families[family].timestamp_valid_bits

@@ -362,6 +362,8 @@ pub struct SplatFrame {
     /// Per-splat features (normal, materials) when any feature channel was rendered.
     pub features: Option<Buffer>,
     /// The frame uniform (camera, sizes, every address above), for the backward pass.
+    /// Its sort-key address is stale: the keys are freed after the render and no
+    /// later kernel reads them.
     pub uniform: Buffer,
     /// Address of the scene's means, to check the backward pass gets the same scene.
     pub(crate) scene_means: u64,
