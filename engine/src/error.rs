@@ -48,6 +48,14 @@ pub enum Error {
     /// A scene or camera file is malformed.
     #[error(transparent)]
     Scene(#[from] crate::scene::SceneError),
+    /// An environment map is malformed or in a form srug cannot use.
+    #[error("environment map {origin}: {message}")]
+    Environment {
+        /// The file (or what the map was made from).
+        origin: String,
+        /// What is wrong.
+        message: String,
+    },
     /// A file could not be read or written.
     #[error("{}: {source}", path.display())]
     Io {

@@ -2,7 +2,7 @@
 //! compute, following *SRUG: Shadow-Guided Relightable Urban Scene with
 //! Generation Model*.
 //!
-//! Data flows one way: [`scene`] → [`splat`] → G-buffers → [`shadow`] → shade → image.
+//! Data flows one way: [`scene`] → [`splat`] → G-buffers → [`shadow`] → [`shade`] → image.
 //! [`gpu`] is the Vulkan core underneath and knows nothing of Gaussians.
 
 pub mod bench;
@@ -10,6 +10,7 @@ pub mod error;
 pub mod gpu;
 pub mod output;
 pub mod scene;
+pub mod shade;
 pub mod shadow;
 pub mod splat;
 

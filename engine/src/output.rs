@@ -21,6 +21,13 @@ fn finish(tmp: &Path, path: &Path, written: Result<()>) -> Result<()> {
     result
 }
 
+/// Writes `bytes` to `path` through a temporary file beside it.
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
+    let tmp = temp_beside(path);
+    let written = std::fs::write(&tmp, bytes).map_err(Error::io(&tmp));
+    finish(&tmp, path, written)
+}
+
 /// Writes interleaved RGB floats (display values in [0, 1]; clamped, rounded) as an 8-bit PNG.
 pub fn write_png(path: impl AsRef<Path>, width: u32, height: u32, rgb: &[f32]) -> Result<()> {
     let path = path.as_ref();

@@ -1,0 +1,419 @@
+//! Environment maps: lat-long RGB radiance on the host ([`EnvironmentMap`]),
+//! read from OpenEXR, Radiance .hdr or KTX2 files or made procedurally
+//! ([`super::sky`]), and prepared once on the GPU for split-sum lighting
+//! ([`EnvironmentPrep`] → [`PreparedEnvironment`]; the BRDF table is
+//! [`BrdfTable`], shared by every environment).
+//!
+//! Convention (keep in sync with `latlong.glsl`): world z up; column
+//! u = 0.5 + φ/2π with φ the azimuth from north (+y) toward east (+x); row
+//! v = 0.5 − θ/π with θ the elevation. The image centre looks north at the
+//! horizon; the top row is the zenith. Cube maps are read with cube +Y up
+//! (world +z), −Z north (world +y), +X east.
+//!
+//! Invariants: every texel is finite and ≥ 0 (lossy EXR compression leaves
+//! small negatives, which are clamped; NaN or infinite values are refused
+//! with the texel named).
+
+use std::path::Path;
+
+use bytemuck::{Pod, Zeroable};
+
+use crate::error::{Error, Result};
+use crate::gpu::{kernels, Buffer, Device, Kernel, KernelDecl, MemoryKind, SpecValue, Timings};
+
+/// Lat-long radiance, RGB floats, rows top (zenith) to bottom (nadir).
+#[derive(Clone, Debug, PartialEq)]
+pub struct EnvironmentMap {
+    /// Width in texels.
+    pub width: u32,
+    /// Height in texels.
+    pub height: u32,
+    /// 3 floats per texel, row-major.
+    pub rgb: Vec<f32>,
+}
+
+fn env_error(origin: &str, message: impl Into<String>) -> Error {
+    Error::Environment { origin: origin.to_string(), message: message.into() }
+}
+
+/// Largest accepted side, texels (a 16k×8k map is 1.5 GiB of f32).
+pub const MAX_SIDE: u32 = 16384;
+
+impl EnvironmentMap {
+    /// A map from raw texels: checks the size, refuses NaN or infinite values
+    /// (naming the texel) and clamps negatives to 0.
+    pub fn from_rgb(width: u32, height: u32, mut rgb: Vec<f32>, origin: &str) -> Result<Self> {
+        if width == 0 || height == 0 || width > MAX_SIDE || height > MAX_SIDE {
+            return Err(env_error(origin, format!("size {width}x{height} is outside 1..={MAX_SIDE}")));
+        }
+        if rgb.len() != 3 * width as usize * height as usize {
+            return Err(env_error(origin, format!("{} values for {width}x{height} RGB texels", rgb.len())));
+        }
+        if let Some(i) = rgb.iter().position(|v| !v.is_finite()) {
+            let t = i / 3;
+            return Err(env_error(
+                origin,
+                format!(
+                    "texel ({}, {}) channel {} is {} (environment radiance must be finite)",
+                    t % width as usize,
+                    t / width as usize,
+                    ["R", "G", "B"][i % 3],
+                    rgb[i]
+                ),
+            ));
+        }
+        for v in &mut rgb {
+            *v = v.max(0.0);
+        }
+        Ok(Self { width, height, rgb })
+    }
+
+    /// A constant environment (the white furnace uses radiance 1).
+    pub fn uniform(radiance: [f32; 3], width: u32, height: u32) -> Result<Self> {
+        let rgb = (0..width as usize * height as usize).flat_map(|_| radiance).collect();
+        Self::from_rgb(width, height, rgb, "uniform environment")
+    }
+
+    /// Reads `.exr` (any compression the exr crate reads, DWAB included), `.hdr`
+    /// (Radiance RGBE) or `.ktx2` (float formats, 2D lat-long or cube, zstd
+    /// supercompression; level 0 is used). Other files get an error naming why.
+    pub fn load(path: impl AsRef<Path>) -> Result<Self> {
+        let path = path.as_ref();
+        let origin = path.display().to_string();
+        let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).unwrap_or_default();
+        match ext.as_str() {
+            "exr" => read_exr(path, &origin),
+            "hdr" => {
+                let bytes = std::fs::read(path).map_err(Error::io(path))?;
+                read_hdr(&bytes, &origin)
+            }
+            "ktx2" => {
+                let bytes = std::fs::read(path).map_err(Error::io(path))?;
+                super::ktx::read_environment(&bytes, &origin)
+            }
+            other => Err(env_error(
+                &origin,
+                format!("unknown extension \".{other}\" (environment maps are .exr, .hdr or .ktx2)"),
+            )),
+        }
+    }
+
+    /// Texel (x, y) as RGB.
+    pub fn texel(&self, x: u32, y: u32) -> [f32; 3] {
+        let i = 3 * (y as usize * self.width as usize + x as usize);
+        [self.rgb[i], self.rgb[i + 1], self.rgb[i + 2]]
+    }
+
+    /// Largest channel value.
+    pub fn max_value(&self) -> f32 {
+        self.rgb.iter().copied().fold(0.0, f32::max)
+    }
+}
+
+fn read_exr(path: &Path, origin: &str) -> Result<EnvironmentMap> {
+    use exr::prelude::read_first_rgba_layer_from_file;
+    let image = read_first_rgba_layer_from_file(
+        path,
+        |resolution, _| (resolution.width(), vec![0.0f32; 3 * resolution.width() * resolution.height()]),
+        |(w, data): &mut (usize, Vec<f32>), pos, (r, g, b, _a): (f32, f32, f32, f32)| {
+            let i = 3 * (pos.y() * *w + pos.x());
+            data[i] = r;
+            data[i + 1] = g;
+            data[i + 2] = b;
+        },
+    )
+    .map_err(|e| match e {
+        exr::error::Error::Io(source) => Error::Io { path: path.to_path_buf(), source },
+        other => env_error(origin, format!("not a readable OpenEXR RGB image: {other}")),
+    })?;
+    let size = image.layer_data.size;
+    let (_, data) = image.layer_data.channel_data.pixels;
+    EnvironmentMap::from_rgb(size.width() as u32, size.height() as u32, data, origin)
+}
+
+/// Reads Radiance RGBE bytes.
+pub fn read_hdr(bytes: &[u8], origin: &str) -> Result<EnvironmentMap> {
+    let decoder = image::codecs::hdr::HdrDecoder::new(std::io::Cursor::new(bytes))
+        .map_err(|e| env_error(origin, format!("not a Radiance .hdr file: {e}")))?;
+    let img = image::DynamicImage::from_decoder(decoder)
+        .map_err(|e| env_error(origin, format!("corrupt Radiance .hdr data: {e}")))?
+        .to_rgb32f();
+    let (w, h) = img.dimensions();
+    EnvironmentMap::from_rgb(w, h, img.into_raw(), origin)
+}
+
+/// Which environment BRDF table.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum BrdfLut {
+    /// Schlick–Smith G with k = α/2 (Karis 2013, UE4).
+    #[default]
+    Karis,
+    /// Height-correlated Smith GGX (nvdiffrec and the relighting codes built on it).
+    HeightCorrelated,
+}
+
+impl BrdfLut {
+    /// Parses `karis` or `height-correlated`.
+    pub fn parse(text: &str) -> Result<Self> {
+        match text {
+            "karis" => Ok(Self::Karis),
+            "height-correlated" => Ok(Self::HeightCorrelated),
+            other => Err(Error::InvalidArgument(format!("BRDF table \"{other}\" is not karis or height-correlated"))),
+        }
+    }
+
+    /// The `VARIANT` specialization constant of `brdf_lut.comp`.
+    pub fn code(self) -> u32 {
+        match self {
+            Self::Karis => 0,
+            Self::HeightCorrelated => 1,
+        }
+    }
+}
+
+/// Sizes and sample counts of the environment preparation.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PrepareSettings {
+    /// Prefiltered levels (roughness l/(levels−1) at level l), at most the
+    /// pyramid's depth.
+    pub levels: u32,
+    /// GGX samples per prefiltered texel.
+    pub samples: u32,
+    /// Irradiance map size (lat-long).
+    pub irradiance_size: (u32, u32),
+    /// Widest pyramid level the irradiance sums over.
+    pub irradiance_source_width: u32,
+}
+
+impl Default for PrepareSettings {
+    fn default() -> Self {
+        Self { levels: 6, samples: 128, irradiance_size: (32, 16), irradiance_source_width: 64 }
+    }
+}
+
+/// An environment prepared for split-sum shading, on the GPU.
+pub struct PreparedEnvironment {
+    /// Level-0 size of the specular chain (the source map's).
+    pub base: (u32, u32),
+    /// Prefiltered levels; level l has size base >> l and roughness l/(levels−1).
+    pub levels: u32,
+    /// The specular chain, RGB floats, levels one after another.
+    pub specular: Buffer,
+    /// Irradiance map size.
+    pub irradiance_size: (u32, u32),
+    /// Irradiance E(n), RGB floats, lat-long.
+    pub irradiance: Buffer,
+    /// GPU time of the preparation (zero when loaded from a file).
+    pub timings: Timings,
+}
+
+/// Size of level `l` of a chain with level-0 size `base` (keep in sync with `level_size` in `latlong.glsl`).
+pub fn level_size(base: (u32, u32), l: u32) -> (u32, u32) {
+    ((base.0 >> l).max(1), (base.1 >> l).max(1))
+}
+
+/// Texel offset of level `l`.
+pub fn level_offset(base: (u32, u32), l: u32) -> u64 {
+    (0..l).map(|i| level_size(base, i)).map(|(w, h)| u64::from(w) * u64::from(h)).sum()
+}
+
+/// Pyramid depth: every level until the shorter side reaches 1 texel.
+pub fn pyramid_levels(base: (u32, u32)) -> u32 {
+    32 - base.0.min(base.1).max(1).leading_zeros()
+}
+
+impl PreparedEnvironment {
+    /// Reads the specular chain back, one `Vec` per level.
+    pub fn read_specular(&self, device: &Device) -> Result<Vec<Vec<f32>>> {
+        let all: Vec<f32> = device.read_buffer(&self.specular)?;
+        Ok((0..self.levels)
+            .map(|l| {
+                let (w, h) = level_size(self.base, l);
+                let o = 3 * level_offset(self.base, l) as usize;
+                all[o..o + 3 * (w * h) as usize].to_vec()
+            })
+            .collect())
+    }
+
+    /// GPU bytes held.
+    pub fn bytes(&self) -> u64 {
+        self.specular.size() + self.irradiance.size()
+    }
+}
+
+/// The environment BRDF table on the GPU: (A, B) for N·V = i/(size−1)
+/// (columns, clamped ≥ 1e-4) and roughness j/(size−1) (rows).
+pub struct BrdfTable {
+    /// Which G term.
+    pub variant: BrdfLut,
+    /// Texels per side.
+    pub size: u32,
+    /// Hammersley samples per texel.
+    pub samples: u32,
+    /// `vec2` per texel.
+    pub buffer: Buffer,
+    /// GPU time of the computation.
+    pub timings: Timings,
+}
+
+/// Push constants of `env_downsample.comp` (keep in sync).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+pub struct DownsamplePush {
+    src: u64,
+    dst: u64,
+    src_size: [u32; 2],
+    dst_size: [u32; 2],
+}
+const _: () = assert!(std::mem::size_of::<DownsamplePush>() == 32);
+
+/// Push constants of `env_prefilter.comp` (keep in sync).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+pub struct PrefilterPush {
+    pyramid: u64,
+    dst: u64,
+    base: [u32; 2],
+    dst_size: [u32; 2],
+    levels: u32,
+    roughness: f32,
+    samples: u32,
+    pad: u32,
+}
+const _: () = assert!(std::mem::size_of::<PrefilterPush>() == 48);
+
+/// Push constants of `env_irradiance.comp` (keep in sync; same layout as downsampling).
+pub type IrradiancePush = DownsamplePush;
+
+/// Push constants of `brdf_lut.comp` (keep in sync).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+pub struct LutPush {
+    dst: u64,
+    size: u32,
+    samples: u32,
+}
+const _: () = assert!(std::mem::size_of::<LutPush>() == 16);
+
+/// The environment-preparation kernels.
+pub struct EnvironmentPrep {
+    device: Device,
+    downsample: Kernel,
+    prefilter: Kernel,
+    irradiance: Kernel,
+    lut: [Kernel; 2],
+}
+
+fn push_kernel<P>(device: &Device, info: &'static srug_spirv::KernelInfo, spec: &[(u32, SpecValue)]) -> Result<Kernel> {
+    Kernel::new(
+        device,
+        info,
+        &KernelDecl { bindings: &[], push_constant_size: std::mem::size_of::<P>(), specialization: spec },
+    )
+}
+
+impl EnvironmentPrep {
+    /// Builds the kernels.
+    pub fn new(device: &Device) -> Result<Self> {
+        let lut = |v: BrdfLut| push_kernel::<LutPush>(device, &kernels::BRDF_LUT, &[(0, SpecValue::U32(v.code()))]);
+        Ok(Self {
+            device: device.clone(),
+            downsample: push_kernel::<DownsamplePush>(device, &kernels::ENV_DOWNSAMPLE, &[])?,
+            prefilter: push_kernel::<PrefilterPush>(device, &kernels::ENV_PREFILTER, &[])?,
+            irradiance: push_kernel::<IrradiancePush>(device, &kernels::ENV_IRRADIANCE, &[])?,
+            lut: [lut(BrdfLut::Karis)?, lut(BrdfLut::HeightCorrelated)?],
+        })
+    }
+
+    /// Computes the BRDF table (`size` ≥ 2 texels per side, `samples` ≥ 1).
+    pub fn brdf_table(&self, variant: BrdfLut, size: u32, samples: u32) -> Result<BrdfTable> {
+        if !(2..=4096).contains(&size) || samples == 0 {
+            return Err(Error::InvalidArgument(format!(
+                "BRDF table size {size} (2..=4096) or {samples} samples (≥ 1) out of range"
+            )));
+        }
+        let device = &self.device;
+        let buffer = device.create_buffer("brdf table", u64::from(size * size) * 8, MemoryKind::Storage)?;
+        let push = LutPush { dst: buffer.device_address(), size, samples };
+        let kernel = &self.lut[variant.code() as usize];
+        let timings = device.run(|rec| {
+            rec.keep(&[&buffer])?;
+            rec.begin_stage("brdf table");
+            rec.dispatch_1d(kernel, &[], &push, u64::from(size * size))?;
+            rec.end_stage();
+            Ok(())
+        })?;
+        Ok(BrdfTable { variant, size, samples, buffer, timings })
+    }
+
+    /// Prepares `env`: its box pyramid, the GGX-prefiltered chain and the
+    /// irradiance map, all on the GPU.
+    pub fn prepare(&self, env: &EnvironmentMap, settings: &PrepareSettings) -> Result<PreparedEnvironment> {
+        let (iw, ih) = settings.irradiance_size;
+        if settings.levels == 0 || settings.samples == 0 || iw == 0 || ih == 0 || iw > 1024 || ih > 1024 {
+            return Err(Error::InvalidArgument(format!("environment preparation settings out of range: {settings:?}")));
+        }
+        let device = &self.device;
+        let base = (env.width, env.height);
+        let pyramid_n = pyramid_levels(base);
+        let levels = settings.levels.min(pyramid_n);
+        let pyramid_texels = level_offset(base, pyramid_n);
+        let pyramid = device.create_buffer("environment pyramid", pyramid_texels * 12, MemoryKind::Storage)?;
+        device.write_buffer(&pyramid, 0, &env.rgb)?;
+        let specular =
+            device.create_buffer("prefiltered environment", level_offset(base, levels) * 12, MemoryKind::Storage)?;
+        let irradiance = device.create_buffer("irradiance", u64::from(iw * ih) * 12, MemoryKind::Storage)?;
+        let irr_level = Self::irradiance_level(base, settings);
+        let at = |b: &Buffer, l: u32| b.device_address() + 12 * level_offset(base, l);
+        let timings = device.run(|rec| {
+            rec.keep(&[&pyramid, &specular, &irradiance])?;
+            rec.begin_stage("environment pyramid");
+            for l in 1..pyramid_n {
+                let (s, d) = (level_size(base, l - 1), level_size(base, l));
+                let push = DownsamplePush {
+                    src: at(&pyramid, l - 1),
+                    dst: at(&pyramid, l),
+                    src_size: [s.0, s.1],
+                    dst_size: [d.0, d.1],
+                };
+                rec.dispatch_1d(&self.downsample, &[], &push, u64::from(d.0 * d.1))?;
+            }
+            rec.end_stage();
+            rec.begin_stage("specular prefilter");
+            rec.copy(&pyramid, 0, &specular, 0, u64::from(base.0 * base.1) * 12)?;
+            for l in 1..levels {
+                let d = level_size(base, l);
+                let push = PrefilterPush {
+                    pyramid: pyramid.device_address(),
+                    dst: at(&specular, l),
+                    base: [base.0, base.1],
+                    dst_size: [d.0, d.1],
+                    levels: pyramid_n,
+                    roughness: l as f32 / (levels - 1) as f32,
+                    samples: settings.samples,
+                    pad: 0,
+                };
+                rec.dispatch_1d(&self.prefilter, &[], &push, u64::from(d.0 * d.1))?;
+            }
+            rec.end_stage();
+            rec.begin_stage("irradiance");
+            let s = level_size(base, irr_level);
+            let push = IrradiancePush {
+                src: at(&pyramid, irr_level),
+                dst: irradiance.device_address(),
+                src_size: [s.0, s.1],
+                dst_size: [iw, ih],
+            };
+            rec.dispatch_1d(&self.irradiance, &[], &push, u64::from(iw * ih))?;
+            rec.end_stage();
+            Ok(())
+        })?;
+        Ok(PreparedEnvironment { base, levels, specular, irradiance_size: (iw, ih), irradiance, timings })
+    }
+
+    /// The pyramid level the irradiance is summed over, for the CPU twin.
+    pub fn irradiance_level(base: (u32, u32), settings: &PrepareSettings) -> u32 {
+        let n = pyramid_levels(base);
+        (0..n).find(|&l| level_size(base, l).0 <= settings.irradiance_source_width.max(1)).unwrap_or(n - 1)
+    }
+}
