@@ -509,8 +509,7 @@ fn splatted_sunlit_plane_matches_closed_form() {
         let dd = a2 / (pi * (noh * noh * (a2 - 1.0) + 1.0).powi(2));
         let k = (r + 1.0).powi(2) / 8.0;
         let gg = nov / (nov * (1.0 - k) + k) * nol / (nol * (1.0 - k) + k);
-        for c in 0..3 {
-            let a = f64::from(albedo[c]);
+        for (c, a) in albedo.iter().map(|&a| f64::from(a)).enumerate() {
             let f = 0.04 + 0.96 * (1.0 - voh).powi(5);
             let fr = a / pi + dd * f * gg / (4.0 * nol * nov);
             let expected = fr * 2.0 * nol * f64::from(host.alpha[p]);
