@@ -4,6 +4,8 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::{Duration, Instant};
 
+mod cli_relight;
+
 use clap::{Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
 use srug::gpu::{self, Device, DeviceOptions, DeviceSelection};
@@ -42,15 +44,8 @@ enum Command {
     Render {
         /// A 3DGS PLY file.
         scene: PathBuf,
-        /// INRIA cameras.json; without it, the look-at options define one camera.
-        #[arg(long)]
-        cameras: Option<PathBuf>,
-        /// Render only this camera (default: every camera, numbered outputs).
-        #[arg(long)]
-        index: Option<usize>,
-        /// Output size WxH (intrinsics scaled to match); required with look-at cameras.
-        #[arg(long)]
-        size: Option<String>,
+        #[command(flatten)]
+        view: cli_relight::CameraArgs,
         /// Output file, .png or .exr.
         #[arg(long)]
         out: PathBuf,
@@ -58,24 +53,47 @@ enum Command {
         /// metallic, ao, visibility, materials, all (EXR holds them all; PNG shows rgb).
         #[arg(long, default_value = "rgb")]
         channels: String,
-        /// Look-at camera: eye position x,y,z.
-        #[arg(long, allow_hyphen_values = true)]
-        eye: Option<String>,
-        /// Look-at camera: target x,y,z.
-        #[arg(long, default_value = "0,0,0", allow_hyphen_values = true)]
-        target: String,
-        /// Look-at camera: up vector x,y,z.
-        #[arg(long, default_value = "0,0,1", allow_hyphen_values = true)]
-        up: String,
-        /// Look-at camera: horizontal field of view in degrees.
-        #[arg(long, default_value_t = 60.0)]
-        fov: f32,
         /// Background colour r,g,b.
         #[arg(long, default_value = "0,0,0")]
         background: String,
         /// Normals from each Gaussian's stored normal where present (default: shortest axis).
         #[arg(long)]
         stored_normals: bool,
+    },
+    /// Relight a scene with materials: sun (Cook–Torrance, sigmoid shadow map) and sky
+    /// (split-sum image-based lighting); a sun path renders a time-lapse.
+    Relight {
+        /// A 3DGS PLY file with material attributes (albedo at least).
+        scene: PathBuf,
+        #[command(flatten)]
+        view: cli_relight::CameraArgs,
+        #[command(flatten)]
+        sun: cli_relight::SunArgs,
+        #[command(flatten)]
+        env: cli_relight::EnvArgs,
+        #[command(flatten)]
+        shade: cli_relight::ShadeArgs,
+        /// Output file: .png (display image) or .exr (linear radiance, L_sun, L_sky); numbered when several frames.
+        #[arg(long)]
+        out: PathBuf,
+    },
+    /// Prefilter an environment map once (GGX chain and irradiance) and save it as KTX2 files in a folder
+    /// that `--env` accepts.
+    Prefilter {
+        /// An .exr, .hdr or .ktx2 environment.
+        env: PathBuf,
+        /// Output folder (specular.ktx2, irradiance.ktx2).
+        #[arg(long)]
+        out: PathBuf,
+        /// Prefiltered levels (roughness level/(levels−1)).
+        #[arg(long, default_value_t = 6)]
+        levels: u32,
+        /// GGX samples per texel.
+        #[arg(long, default_value_t = 128)]
+        samples: u32,
+        /// Zstandard supercompression.
+        #[arg(long)]
+        zstd: bool,
     },
     /// The main job on the built-in demo city: generate it, write it, check the GPU on it, and render it.
     Demo {
@@ -246,53 +264,11 @@ fn run(cli: Cli) -> srug::Result<()> {
             print!("{}", scene.summary());
             Ok(())
         }
-        Command::Render {
-            scene: path,
-            cameras,
-            index,
-            size,
-            out,
-            channels,
-            eye,
-            target,
-            up,
-            fov,
-            background,
-            stored_normals,
-        } => {
+        Command::Render { scene: path, view, out, channels, background, stored_normals } => {
             let channels = Channels::parse(&channels)?;
-            let is_exr = match out.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).as_deref() {
-                Some("png") => false,
-                Some("exr") => true,
-                _ => {
-                    return Err(srug::Error::InvalidArgument(format!(
-                        "{}: the output must end in .png or .exr",
-                        out.display()
-                    )))
-                }
-            };
-            let size = size.as_deref().map(parse_size).transpose()?;
-            let mut cams = match (&cameras, &eye) {
-                (Some(c), _) => scene::read_cameras_json(c)?,
-                (None, Some(eye)) => {
-                    let (w, h) =
-                        size.ok_or_else(|| srug::Error::InvalidArgument("--size is required with --eye".into()))?;
-                    vec![scene::Camera::look_at(parse_vec3(eye)?, parse_vec3(&target)?, parse_vec3(&up)?, fov, w, h)?]
-                }
-                (None, None) => return Err(srug::Error::InvalidArgument("give --cameras or --eye".into())),
-            };
-            if let Some(i) = index {
-                let n = cams.len();
-                cams = vec![cams
-                    .into_iter()
-                    .nth(i)
-                    .ok_or_else(|| srug::Error::InvalidArgument(format!("--index {i}: there are {n} cameras")))?];
-            }
-            if let (Some((w, h)), Some(_)) = (size, &cameras) {
-                for c in &mut cams {
-                    *c = c.resized(w, h);
-                }
-            }
+            let is_exr = cli_relight::output_is_exr(&out)?;
+            let cams = view.resolve()?;
+            let index = view.index;
             let scene = scene::read_ply(&path)?;
             let device = open_device(&cli.device, cli.validation)?;
             let gpu_scene = activate::GpuScene::upload(&device, &scene)?;
@@ -328,6 +304,15 @@ fn run(cli: Cli) -> srug::Result<()> {
             }
             bar.finish_and_clear();
             Ok(())
+        }
+        Command::Relight { scene, view, sun, env, shade, out } => {
+            let device = open_device(&cli.device, cli.validation)?;
+            cli_relight::relight(&device, &scene, &view, &sun, &env, &shade, &out)
+        }
+        Command::Prefilter { env, out, levels, samples, zstd } => {
+            let device = open_device(&cli.device, cli.validation)?;
+            let settings = srug::shade::PrepareSettings { levels, samples, ..Default::default() };
+            cli_relight::prefilter(&device, &env, &out, &settings, zstd)
         }
         Command::Bench { what: BenchKind::Splat { gaussians, sizes, repeats, sort_keys, blend } } => {
             let blend = blend.as_deref().map(srug::splat::BlendVariant::parse).transpose()?;
@@ -634,6 +619,8 @@ fn run(cli: Cli) -> srug::Result<()> {
                     .collect::<Vec<_>>()
                     .join(", ")
             );
+            let relit = cli_relight::relight_demo(&device, &city, &gpu_scene, &out)?;
+            println!("{relit}");
             let mem = device.memory_usage();
             println!("GPU memory: {} in use, {} peak", human_bytes(mem.current_bytes), human_bytes(mem.peak_bytes));
             let messages = device.take_validation_messages();

@@ -61,13 +61,18 @@ fn exr_names(channel: &str, k: usize) -> Vec<String> {
 /// Writes every channel of `g` as 32-bit float channels of one EXR layer
 /// (R, G, B, A, Z, median_depth.Y, normal.X/Y/Z, albedo.R/G/B, roughness.Y, ...).
 pub fn write_exr(path: impl AsRef<Path>, g: &GBuffer) -> Result<()> {
+    write_exr_channels(path.as_ref(), g.width, g.height, &g.channels())
+}
+
+/// Writes named channels (`name`, values, floats per pixel) as 32-bit float
+/// channels of one EXR layer, named as [`write_exr`] names them.
+pub fn write_exr_channels(path: &Path, width: u32, height: u32, channels: &[(&str, &[f32], usize)]) -> Result<()> {
     use exr::prelude::{
         AnyChannel, AnyChannels, Encoding, FlatSamples, Image, Layer, LayerAttributes, Vec2, WritableImage,
     };
-    let path = path.as_ref();
-    let (w, h) = (g.width as usize, g.height as usize);
+    let (w, h) = (width as usize, height as usize);
     let mut list: Vec<AnyChannel<FlatSamples>> = Vec::new();
-    for (name, values, k) in g.channels() {
+    for &(name, values, k) in channels {
         if values.len() != k * w * h {
             return Err(Error::InvalidArgument(format!(
                 "channel {name} holds {} values, not {}",

@@ -621,3 +621,32 @@ fn ktx2_float_chains_round_trip_with_and_without_zstd() {
         assert!(read_environment(&bytes[..bytes.len() - 7], "mem").is_err());
     }
 }
+
+#[test]
+fn prepared_environment_and_brdf_table_round_trip_through_ktx2() {
+    let d = device();
+    let prep = EnvironmentPrep::new(&d).unwrap();
+    let settings = PrepareSettings { levels: 4, samples: 16, irradiance_size: (8, 4), irradiance_source_width: 16 };
+    let env = prep.prepare(&test_environment(32, 16), &settings).unwrap();
+    let brdf = prep.brdf_table(BrdfLut::HeightCorrelated, 17, 64).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    for zstd in [false, true] {
+        let sub = dir.path().join(format!("zstd_{zstd}"));
+        env.save(&d, &sub, zstd).unwrap();
+        let back = PreparedEnvironment::load(&d, &sub).unwrap();
+        assert_eq!((back.base, back.levels, back.irradiance_size), (env.base, env.levels, env.irradiance_size));
+        assert_eq!(back.read_specular(&d).unwrap(), env.read_specular(&d).unwrap());
+        assert_eq!(d.read_buffer::<f32>(&back.irradiance).unwrap(), d.read_buffer::<f32>(&env.irradiance).unwrap());
+    }
+    let path = dir.path().join("brdf.ktx2");
+    brdf.save(&d, &path).unwrap();
+    let back = BrdfTable::load(&d, &path).unwrap();
+    assert_eq!((back.variant, back.size, back.samples), (BrdfLut::HeightCorrelated, 17, 64));
+    assert_eq!(d.read_buffer::<f32>(&back.buffer).unwrap(), d.read_buffer::<f32>(&brdf.buffer).unwrap());
+    // A table is not an environment folder, and a missing folder is named.
+    std::fs::copy(&path, dir.path().join("zstd_false").join("specular.ktx2")).unwrap();
+    let e = PreparedEnvironment::load(&d, &dir.path().join("zstd_false")).err().unwrap().to_string();
+    assert!(e.contains("not a srug specular file"), "{e}");
+    assert!(PreparedEnvironment::load(&d, &dir.path().join("nowhere")).is_err());
+    assert_no_validation_messages(&d);
+}

@@ -417,3 +417,113 @@ impl EnvironmentPrep {
         (0..n).find(|&l| level_size(base, l).0 <= settings.irradiance_source_width.max(1)).unwrap_or(n - 1)
     }
 }
+
+/// File names of a prepared environment folder.
+pub const SPECULAR_FILE: &str = "specular.ktx2";
+/// Irradiance file in a prepared environment folder.
+pub const IRRADIANCE_FILE: &str = "irradiance.ktx2";
+
+fn metadata_value<'a>(chain: &'a super::ktx::ReadChain, key: &str) -> Option<&'a str> {
+    chain.metadata.iter().find(|(k, _)| k == key).map(|(_, v)| v.as_str())
+}
+
+fn read_chain(path: &Path, kind: &str, channels: usize) -> Result<super::ktx::ReadChain> {
+    let origin = path.display().to_string();
+    let bytes = std::fs::read(path).map_err(Error::io(path))?;
+    let chain = super::ktx::read_float_chain(&bytes, &origin)?;
+    if metadata_value(&chain, "srug.kind") != Some(kind) || chain.channels != channels {
+        return Err(env_error(&origin, format!("not a srug {kind} file (its srug.kind metadata or channels differ)")));
+    }
+    Ok(chain)
+}
+
+impl PreparedEnvironment {
+    /// Saves the prefiltered chain and the irradiance map as KTX2 files
+    /// ([`SPECULAR_FILE`], [`IRRADIANCE_FILE`]) in `dir`, so a map is prefiltered once.
+    pub fn save(&self, device: &Device, dir: &Path, zstd: bool) -> Result<()> {
+        use super::ktx::{write_float_chain, FloatChain};
+        std::fs::create_dir_all(dir).map_err(Error::io(dir))?;
+        let levels = self.read_specular(device)?;
+        let chain = FloatChain {
+            width: self.base.0,
+            height: self.base.1,
+            channels: 3,
+            levels: levels.iter().map(Vec::as_slice).collect(),
+            metadata: vec![
+                ("srug.kind".into(), "specular".into()),
+                ("srug.layout".into(), "lat-long, z up, u = 0.5 + azimuth/360 from north toward east".into()),
+                ("srug.roughness".into(), format!("level / {}", self.levels.saturating_sub(1))),
+            ],
+        };
+        write_float_chain(dir.join(SPECULAR_FILE), &chain, zstd)?;
+        let irr: Vec<f32> = device.read_buffer(&self.irradiance)?;
+        let chain = FloatChain {
+            width: self.irradiance_size.0,
+            height: self.irradiance_size.1,
+            channels: 3,
+            levels: vec![&irr],
+            metadata: vec![("srug.kind".into(), "irradiance".into())],
+        };
+        write_float_chain(dir.join(IRRADIANCE_FILE), &chain, zstd)
+    }
+
+    /// Loads a folder written by [`PreparedEnvironment::save`].
+    pub fn load(device: &Device, dir: &Path) -> Result<Self> {
+        let spec = read_chain(&dir.join(SPECULAR_FILE), "specular", 3)?;
+        let irr = read_chain(&dir.join(IRRADIANCE_FILE), "irradiance", 3)?;
+        let flat: Vec<f32> = spec.levels.concat();
+        if flat.iter().chain(&irr.levels[0]).any(|v| *v < 0.0) {
+            return Err(env_error(&dir.display().to_string(), "negative radiance in a prepared environment"));
+        }
+        Ok(Self {
+            base: (spec.width, spec.height),
+            levels: spec.levels.len() as u32,
+            specular: device.upload("prefiltered environment", &flat)?,
+            irradiance_size: (irr.width, irr.height),
+            irradiance: device.upload("irradiance", &irr.levels[0])?,
+            timings: Timings::default(),
+        })
+    }
+}
+
+impl BrdfTable {
+    /// Saves the table as a two-channel float KTX2 file.
+    pub fn save(&self, device: &Device, path: &Path) -> Result<()> {
+        use super::ktx::{write_float_chain, FloatChain};
+        let values: Vec<f32> = device.read_buffer(&self.buffer)?;
+        let chain = FloatChain {
+            width: self.size,
+            height: self.size,
+            channels: 2,
+            levels: vec![&values],
+            metadata: vec![
+                ("srug.kind".into(), "brdf".into()),
+                ("srug.brdf".into(), format!("{:?}", self.variant)),
+                ("srug.samples".into(), self.samples.to_string()),
+            ],
+        };
+        write_float_chain(path, &chain, false)
+    }
+
+    /// Loads a table written by [`BrdfTable::save`].
+    pub fn load(device: &Device, path: &Path) -> Result<Self> {
+        let chain = read_chain(path, "brdf", 2)?;
+        let origin = path.display().to_string();
+        let variant = match metadata_value(&chain, "srug.brdf") {
+            Some("Karis") => BrdfLut::Karis,
+            Some("HeightCorrelated") => BrdfLut::HeightCorrelated,
+            other => return Err(env_error(&origin, format!("unknown BRDF table variant {other:?}"))),
+        };
+        if chain.width != chain.height || chain.width < 2 {
+            return Err(env_error(&origin, format!("a BRDF table is square, ≥ 2: {}x{}", chain.width, chain.height)));
+        }
+        let samples = metadata_value(&chain, "srug.samples").and_then(|s| s.parse().ok()).unwrap_or(0);
+        Ok(Self {
+            variant,
+            size: chain.width,
+            samples,
+            buffer: device.upload("brdf table", &chain.levels[0])?,
+            timings: Timings::default(),
+        })
+    }
+}

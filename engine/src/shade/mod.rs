@@ -27,6 +27,7 @@
 pub mod cpu;
 pub mod env;
 pub mod ktx;
+pub mod relight;
 pub mod sky;
 
 use std::collections::HashMap;

@@ -29,7 +29,7 @@ pub mod sun;
 use bytemuck::{Pod, Zeroable};
 use glam::Vec3;
 
-pub use self::sun::{solar_position, SolarPosition, Sun, UtcTime};
+pub use self::sun::{solar_position, sun_path, SolarPosition, Sun, UtcTime};
 use crate::error::{Error, Result};
 use crate::gpu::{kernels, BindingKind, Buffer, Device, Kernel, KernelDecl, MemoryKind, SpecValue, Timings};
 use crate::scene::activate::GpuScene;

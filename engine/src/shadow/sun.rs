@@ -150,13 +150,37 @@ impl UtcTime {
     }
 
     /// The same instant `seconds` later, carrying whole days into the date.
-    fn shifted(self, seconds: f64) -> Self {
+    pub fn shifted(self, seconds: f64) -> Self {
         let total = self.seconds + seconds;
         let carry = (total / 86_400.0).floor();
         let mut t = from_days_since_1970(self.days_since_1970() + carry as i64);
         t.seconds = total - carry * 86_400.0;
         t
     }
+}
+
+/// `frames` evenly spaced instants from `start` to `end` (inclusive; one
+/// frame gives `start`) and the sun's position at each, seen from
+/// `latitude`, `longitude`: the sun path of a time-lapse.
+pub fn sun_path(
+    start: &UtcTime,
+    end: &UtcTime,
+    frames: u32,
+    latitude: f64,
+    longitude: f64,
+) -> Result<Vec<(UtcTime, SolarPosition)>> {
+    let span = (end.julian_date() - start.julian_date()) * 86_400.0;
+    if frames == 0 || span.is_nan() || span < 0.0 || span > 366.0 * 86_400.0 {
+        return Err(Error::InvalidArgument(format!(
+            "a sun path needs at least one frame and an end within a year after its start ({frames} frames, {span:.0} s)"
+        )));
+    }
+    (0..frames)
+        .map(|i| {
+            let t = start.shifted(if frames == 1 { 0.0 } else { span * f64::from(i) / f64::from(frames - 1) });
+            solar_position(&t, latitude, longitude).map(|p| (t, p))
+        })
+        .collect()
 }
 
 /// The date `days` after 1970-01-01 at midnight (civil_from_days).
