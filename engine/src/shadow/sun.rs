@@ -170,7 +170,7 @@ pub fn sun_path(
     longitude: f64,
 ) -> Result<Vec<(UtcTime, SolarPosition)>> {
     let span = (end.julian_date() - start.julian_date()) * 86_400.0;
-    if frames == 0 || span.is_nan() || span < 0.0 || span > 366.0 * 86_400.0 {
+    if frames == 0 || !(0.0..=366.0 * 86_400.0).contains(&span) {
         return Err(Error::InvalidArgument(format!(
             "a sun path needs at least one frame and an end within a year after its start ({frames} frames, {span:.0} s)"
         )));
