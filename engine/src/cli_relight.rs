@@ -268,8 +268,11 @@ impl ShadeArgs {
     }
 }
 
-/// Output kind from the file name.
+/// Output kind from the file name (`.png` or `.exr`); creates the output's folder.
 pub fn output_is_exr(out: &Path) -> Result<bool> {
+    if let Some(parent) = out.parent().filter(|p| !p.as_os_str().is_empty()) {
+        std::fs::create_dir_all(parent).map_err(Error::io(parent))?;
+    }
     match out.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).as_deref() {
         Some("png") => Ok(false),
         Some("exr") => Ok(true),
@@ -292,16 +295,27 @@ pub fn write_relit(path: &Path, exr: bool, image: &srug::shade::ShadedImage) -> 
     }
 }
 
+/// Arguments of `srug relight`.
+#[derive(clap::Args, Clone, Debug)]
+pub struct RelightArgs {
+    /// A 3DGS PLY file with material attributes (albedo at least).
+    pub scene: PathBuf,
+    #[command(flatten)]
+    pub view: CameraArgs,
+    #[command(flatten)]
+    pub sun: SunArgs,
+    #[command(flatten)]
+    pub env: EnvArgs,
+    #[command(flatten)]
+    pub shade: ShadeArgs,
+    /// Output file: .png (display image) or .exr (linear radiance, L_sun, L_sky); numbered when several frames.
+    #[arg(long)]
+    pub out: PathBuf,
+}
+
 /// `srug relight`.
-pub fn relight(
-    device: &Device,
-    scene_path: &Path,
-    view: &CameraArgs,
-    sun: &SunArgs,
-    env: &EnvArgs,
-    shade: &ShadeArgs,
-    out: &Path,
-) -> Result<()> {
+pub fn relight(device: &Device, args: &RelightArgs) -> Result<()> {
+    let RelightArgs { scene: scene_path, view, sun, env, shade, out } = args;
     let exr = output_is_exr(out)?;
     let cams = view.resolve()?;
     let suns = sun.resolve()?;

@@ -62,21 +62,7 @@ enum Command {
     },
     /// Relight a scene with materials: sun (Cook–Torrance, sigmoid shadow map) and sky
     /// (split-sum image-based lighting); a sun path renders a time-lapse.
-    Relight {
-        /// A 3DGS PLY file with material attributes (albedo at least).
-        scene: PathBuf,
-        #[command(flatten)]
-        view: cli_relight::CameraArgs,
-        #[command(flatten)]
-        sun: cli_relight::SunArgs,
-        #[command(flatten)]
-        env: cli_relight::EnvArgs,
-        #[command(flatten)]
-        shade: cli_relight::ShadeArgs,
-        /// Output file: .png (display image) or .exr (linear radiance, L_sun, L_sky); numbered when several frames.
-        #[arg(long)]
-        out: PathBuf,
-    },
+    Relight(Box<cli_relight::RelightArgs>),
     /// Prefilter an environment map once (GGX chain and irradiance) and save it as KTX2 files in a folder
     /// that `--env` accepts.
     Prefilter {
@@ -305,9 +291,9 @@ fn run(cli: Cli) -> srug::Result<()> {
             bar.finish_and_clear();
             Ok(())
         }
-        Command::Relight { scene, view, sun, env, shade, out } => {
+        Command::Relight(args) => {
             let device = open_device(&cli.device, cli.validation)?;
-            cli_relight::relight(&device, &scene, &view, &sun, &env, &shade, &out)
+            cli_relight::relight(&device, &args)
         }
         Command::Prefilter { env, out, levels, samples, zstd } => {
             let device = open_device(&cli.device, cli.validation)?;
