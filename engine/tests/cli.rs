@@ -26,6 +26,7 @@ fn demo_generates_writes_and_checks_the_gpu() {
         "scene activation on the GPU: matches",
         "validation messages: 0",
         "srug device #",
+        "relit street",
     ] {
         assert!(t.contains(want), "missing {want:?} in:\n{t}");
     }
@@ -35,6 +36,10 @@ fn demo_generates_writes_and_checks_the_gpu() {
     assert_eq!(png.dimensions(), (704, 192));
     let distinct: std::collections::HashSet<[u8; 3]> = png.pixels().map(|p| p.0).collect();
     assert!(distinct.len() > 100, "the render is nearly flat: {} colours", distinct.len());
+    let relit = image::open(dir.path().join("demo_relit.png")).unwrap().to_rgb8();
+    assert_eq!(relit.dimensions(), (704, 192));
+    let distinct: std::collections::HashSet<[u8; 3]> = relit.pixels().map(|p| p.0).collect();
+    assert!(distinct.len() > 100, "the relit street is nearly flat: {} colours", distinct.len());
 
     // Render every default camera as EXR with G-buffer channels, and one as PNG at another size.
     let cams = dir.path().join("cameras.json");
@@ -231,4 +236,90 @@ fn bench_shadow_prints_its_tables() {
     {
         assert!(t.contains(want), "missing {want:?} in:\n{t}");
     }
+}
+
+#[test]
+fn relight_renders_stills_time_lapses_and_prefiltered_environments() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().to_str().unwrap();
+    let o = srug(&["demo", "--gaussians", "10000", "--out", out]);
+    assert!(o.status.success(), "{}", text(&o));
+    let ply = dir.path().join("demo_city.ply");
+    let cams = dir.path().join("cameras.json");
+    let (ply, cams) = (ply.to_str().unwrap(), cams.to_str().unwrap());
+    // A still as EXR: linear radiance plus L_sun and L_sky.
+    let exr_out = dir.path().join("still.exr");
+    let common = ["--cameras", cams, "--index", "1", "--size", "176x48", "--shadow-resolution", "512", "--validation"];
+    let mut args = vec!["relight", ply, "--out", exr_out.to_str().unwrap(), "--sun-elevation", "35"];
+    args.extend(common);
+    let o = srug(&args);
+    assert!(o.status.success(), "{}", text(&o));
+    let image = exr::prelude::read_all_flat_layers_from_file(&exr_out).unwrap();
+    let names: Vec<String> = image.layer_data[0].channel_data.list.iter().map(|c| c.name.to_string()).collect();
+    for want in ["R", "G", "B", "sun.R", "sky.B"] {
+        assert!(names.iter().any(|n| n == want), "{names:?} lacks {want}");
+    }
+    // A time-lapse along the sun's path: night frames run no shadow pass.
+    let tl = dir.path().join("tl").join("day.png");
+    let mut args = vec![
+        "relight",
+        ply,
+        "--out",
+        tl.to_str().unwrap(),
+        "--sun-path",
+        "2026-06-21T00:00:00+02:00..2026-06-21T14:00:00+02:00",
+        "--frames",
+        "3",
+        "--latitude",
+        "48.85",
+        "--longitude",
+        "2.35",
+    ];
+    args.extend(common);
+    let o = srug(&args);
+    let t = text(&o);
+    assert!(o.status.success(), "{t}");
+    assert!(t.contains("(no shadow pass)"), "the midnight frame needs no shadow pass:\n{t}");
+    for i in 0..3 {
+        assert!(dir.path().join("tl").join(format!("day_{i:03}.png")).is_file());
+    }
+    // An environment file, prefiltered once into KTX2 and reused.
+    if let Some(data) = shared_data() {
+        let env = data.join("hdri").join("sunset.exr");
+        let pre = dir.path().join("sunset");
+        let o =
+            srug(&["prefilter", env.to_str().unwrap(), "--out", pre.to_str().unwrap(), "--zstd", "--samples", "32"]);
+        assert!(o.status.success(), "{}", text(&o));
+        assert!(pre.join("specular.ktx2").is_file() && pre.join("irradiance.ktx2").is_file());
+        let png = dir.path().join("sunset.png");
+        let mut args = vec!["relight", ply, "--out", png.to_str().unwrap(), "--env", pre.to_str().unwrap()];
+        args.extend(["--env-rotation", "90", "--brdf", "height-correlated", "--tone-map", "reinhard"]);
+        args.extend(common);
+        let o = srug(&args);
+        assert!(o.status.success() && png.is_file(), "{}", text(&o));
+    } else {
+        println!("skipped the environment-file part: ../shared/data is absent");
+    }
+    // Clear refusals.
+    let bad = |args: &[&str], want: &str| {
+        let o = srug(args);
+        let t = text(&o);
+        assert!(!o.status.success() && t.contains(want), "expected {want:?} in:\n{t}");
+    };
+    let png = dir.path().join("x.png");
+    let png = png.to_str().unwrap();
+    bad(&["relight", ply, "--cameras", cams, "--out", png, "--sun-time", "2026-06-21T12:00Z"], "--latitude");
+    bad(&["relight", ply, "--cameras", cams, "--out", png, "--env", "/nonexistent/sky.exr"], "sky.exr");
+    bad(&["relight", ply, "--cameras", cams, "--out", png, "--visibility", "sometimes"], "visibility");
+    bad(&["relight", ply, "--cameras", cams, "--out", png, "--tone-map", "filmic"], "tone map");
+    bad(&["relight", ply, "--cameras", cams, "--out", "x.jpg"], ".png or .exr");
+    if let Some(data) = shared_data() {
+        let trained = data.join("scenes").join("trained_iter7000.ply");
+        bad(&["relight", trained.to_str().unwrap(), "--eye", "100,0,0", "--size", "8x8", "--out", png], "no albedo");
+    }
+}
+
+fn shared_data() -> Option<PathBuf> {
+    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..").join("..").join("shared").join("data");
+    root.is_dir().then_some(root)
 }
