@@ -155,6 +155,21 @@ enum BenchKind {
         #[arg(long)]
         blend: Option<String>,
     },
+    /// Deferred shading time per frame per image size; one-time environment prefilter cost per size.
+    Shade {
+        /// Demo city size for the G-buffers.
+        #[arg(long, default_value_t = 200_000)]
+        gaussians: usize,
+        /// Image sizes, comma-separated WxH.
+        #[arg(long, default_value = "704x192,1408x384")]
+        sizes: String,
+        /// Environment sizes to prefilter, comma-separated WxH.
+        #[arg(long, default_value = "256x128,512x256,1024x512,2048x1024")]
+        env_sizes: String,
+        /// Repeats per timing (medians are reported).
+        #[arg(long, default_value_t = 3)]
+        repeats: usize,
+    },
     /// Sigmoid shadow pass against the traced pass; shadow-map accuracy across resolution, k and depth mode.
     Shadow {
         /// Demo sizes for the speed table, comma-separated.
@@ -361,6 +376,51 @@ fn run(cli: Cli) -> srug::Result<()> {
                 sort.cpu_keys_per_second * 1e-6,
                 sort.gpu_keys_per_second / sort.cpu_keys_per_second
             );
+            Ok(())
+        }
+        Command::Bench { what: BenchKind::Shade { gaussians, sizes, env_sizes, repeats } } => {
+            let sizes: Vec<(u32, u32)> = sizes.split(',').map(parse_size).collect::<srug::Result<_>>()?;
+            let env_sizes: Vec<(u32, u32)> = env_sizes.split(',').map(parse_size).collect::<srug::Result<_>>()?;
+            let device = open_device(&cli.device, cli.validation)?;
+            let info = device.info();
+            println!("device: {} ({}); G-buffers of demo camera 0 with {gaussians} Gaussians\n", info.name, info.driver);
+            let bar = spinner("benchmarking");
+            let r = srug::bench::shade::shade_bench(&device, gaussians, &sizes, &env_sizes, repeats, |m| {
+                bar.set_message(m.to_string())
+            })?;
+            bar.finish_and_clear();
+            println!("| size | shade lights ms | shade compose ms | shading ms per frame |");
+            println!("|---|---:|---:|---:|");
+            for row in &r.shading {
+                println!(
+                    "| {}x{} | {:.2} | {:.2} | {:.2} |",
+                    row.size.0,
+                    row.size.1,
+                    row.lights_seconds * 1e3,
+                    row.compose_seconds * 1e3,
+                    (row.lights_seconds + row.compose_seconds) * 1e3
+                );
+            }
+            println!("\none-time environment preparation (6 levels, 128 GGX samples per texel, 32x16 irradiance):\n");
+            println!("| environment | levels | pyramid ms | GGX prefilter ms | irradiance ms | total ms | GPU MiB |");
+            println!("|---|---:|---:|---:|---:|---:|---:|");
+            for row in &r.prefilter {
+                println!(
+                    "| {}x{} | {} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} |",
+                    row.size.0,
+                    row.size.1,
+                    row.levels,
+                    row.pyramid_seconds * 1e3,
+                    row.prefilter_seconds * 1e3,
+                    row.irradiance_seconds * 1e3,
+                    (row.pyramid_seconds + row.prefilter_seconds + row.irradiance_seconds) * 1e3,
+                    row.bytes as f64 / (1u64 << 20) as f64
+                );
+            }
+            println!();
+            for (variant, seconds) in &r.brdf_seconds {
+                println!("BRDF table {variant:?} (129x129, 1024 samples): {:.1} ms", seconds * 1e3);
+            }
             Ok(())
         }
         Command::Bench {

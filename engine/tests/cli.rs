@@ -323,3 +323,25 @@ fn shared_data() -> Option<PathBuf> {
     let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..").join("..").join("shared").join("data");
     root.is_dir().then_some(root)
 }
+
+#[test]
+fn bench_shade_prints_its_tables() {
+    let o = srug(&[
+        "bench",
+        "shade",
+        "--gaussians",
+        "5000",
+        "--sizes",
+        "64x32",
+        "--env-sizes",
+        "64x32",
+        "--repeats",
+        "1",
+        "--validation",
+    ]);
+    let t = text(&o);
+    assert!(o.status.success(), "{t}");
+    for want in ["| 64x32 |", "shade lights ms", "GGX prefilter ms", "BRDF table Karis", "BRDF table HeightCorrelated"] {
+        assert!(t.contains(want), "missing {want:?} in:\n{t}");
+    }
+}
