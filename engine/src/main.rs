@@ -383,7 +383,10 @@ fn run(cli: Cli) -> srug::Result<()> {
             let env_sizes: Vec<(u32, u32)> = env_sizes.split(',').map(parse_size).collect::<srug::Result<_>>()?;
             let device = open_device(&cli.device, cli.validation)?;
             let info = device.info();
-            println!("device: {} ({}); G-buffers of demo camera 0 with {gaussians} Gaussians\n", info.name, info.driver);
+            println!(
+                "device: {} ({}); G-buffers of demo camera 0 with {gaussians} Gaussians\n",
+                info.name, info.driver
+            );
             let bar = spinner("benchmarking");
             let r = srug::bench::shade::shade_bench(&device, gaussians, &sizes, &env_sizes, repeats, |m| {
                 bar.set_message(m.to_string())

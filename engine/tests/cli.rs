@@ -341,7 +341,8 @@ fn bench_shade_prints_its_tables() {
     ]);
     let t = text(&o);
     assert!(o.status.success(), "{t}");
-    for want in ["| 64x32 |", "shade lights ms", "GGX prefilter ms", "BRDF table Karis", "BRDF table HeightCorrelated"] {
+    for want in ["| 64x32 |", "shade lights ms", "GGX prefilter ms", "BRDF table Karis", "BRDF table HeightCorrelated"]
+    {
         assert!(t.contains(want), "missing {want:?} in:\n{t}");
     }
 }
