@@ -696,3 +696,41 @@ fn relit_demo_street_shows_the_offscreen_towers_shadow() {
     assert_eq!(brightened, 0, "an added occluder cannot brighten anything");
     assert_no_validation_messages(&d);
 }
+
+#[test]
+fn cube_map_resamples_onto_its_latlong_source() {
+    let Some(data) = srug_tests::shared_data() else {
+        println!("skipped: ../shared/data is absent");
+        return;
+    };
+    // The shared studio cube and the shared studio lat-long map come from the same HDRI.
+    let cube = EnvironmentMap::load(data.join("ktx2/studio_cube_rgba16f_mips.ktx2")).unwrap();
+    let latlong = EnvironmentMap::load(data.join("hdri/studio_256.hdr")).unwrap();
+    assert_eq!((cube.width, cube.height), (latlong.width, latlong.height));
+    let (w, h) = (cube.width as usize, cube.height as usize);
+    let lum = |e: &EnvironmentMap, x: usize, y: usize| {
+        let t = e.texel(x as u32, y as u32);
+        f64::from(t[0] + t[1] + t[2]).ln_1p()
+    };
+    // Mean squared log-luminance difference with the cube turned by `shift` columns, optionally mirrored.
+    let err = |shift: usize, mirror: bool| {
+        let mut e = 0.0;
+        for y in 0..h {
+            for x in 0..w {
+                let xc = if mirror { w - 1 - x } else { x };
+                e += (lum(&cube, (xc + shift) % w, y) - lum(&latlong, x, y)).powi(2);
+            }
+        }
+        e / (w * h) as f64
+    };
+    let aligned = err(0, false);
+    // Every mirrored placement, and rotations by more than 8 columns (11°).
+    let far = |s: usize| s.min(w - s) > 8;
+    let other = (0..w).flat_map(|s| [(s, true), (s, false)]).filter(|&(s, m)| m || far(s)).map(|(s, m)| err(s, m));
+    let best_other = other.fold(f64::INFINITY, f64::min);
+    println!(
+        "cube vs lat-long: {aligned:.4} as read, {best_other:.4} for the best mirror or rotation by more than 11°"
+    );
+    assert!(aligned < 0.05, "the cube map does not resample onto its source ({aligned})");
+    assert!(best_other > 2.0 * aligned, "orientation ambiguous: {aligned} vs {best_other}");
+}

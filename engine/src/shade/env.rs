@@ -7,8 +7,8 @@
 //! Convention (keep in sync with `latlong.glsl`): world z up; column
 //! u = 0.5 + φ/2π with φ the azimuth from north (+y) toward east (+x); row
 //! v = 0.5 − θ/π with θ the elevation. The image centre looks north at the
-//! horizon; the top row is the zenith. Cube maps are read with cube +Y up
-//! (world +z), −Z north (world +y), +X east.
+//! horizon; the top row is the zenith. Cube maps are read in the left-handed
+//! cube-map frame: cube +Y up (world +z), −Z north (world +y), +X west.
 //!
 //! Invariants: every texel is finite and ≥ 0 (lossy EXR compression leaves
 //! small negatives, which are clamped; NaN or infinite values are refused

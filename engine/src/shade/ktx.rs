@@ -147,9 +147,12 @@ pub fn latlong_direction(x: usize, y: usize, w: usize, h: usize) -> [f64; 3] {
 }
 
 /// Bilinear sample of a cube map (faces +X, −X, +Y, −Y, +Z, −Z, rows down)
-/// along world direction `d`, with cube +Y = world up, −Z = north, +X = east.
+/// along world direction `d`. Cube maps live in a left-handed frame: cube +Y
+/// is world up, −Z north and +X west, which makes a cube made from a lat-long
+/// map by the usual tools resample back to that map (checked on the shared
+/// studio cube against its lat-long source).
 fn cube_sample(texels: &[[f32; 3]], n: usize, d: [f64; 3]) -> [f32; 3] {
-    let (x, y, z) = (d[0], d[2], -d[1]);
+    let (x, y, z) = (-d[0], d[2], -d[1]);
     let (ax, ay, az) = (x.abs(), y.abs(), z.abs());
     // Major axis, then (sc, tc, ma) as in the Vulkan cube-map table.
     let (face, sc, tc, ma) = if ax >= ay && ax >= az {
