@@ -8,6 +8,7 @@
 pub mod bench;
 pub mod error;
 pub mod gpu;
+pub mod indirect;
 pub mod output;
 pub mod scene;
 pub mod shade;

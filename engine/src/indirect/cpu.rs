@@ -1,0 +1,134 @@
+//! The CPU twin of the U-Net: plain loops over f32 tensors with f64
+//! accumulation, the same layer order, padding, resize rule and activation
+//! as the kernels.
+
+use super::{layers, level_sizes, Activation, ConvWeights, UNetWeights};
+
+/// A CHW tensor.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Tensor {
+    /// Channels.
+    pub channels: usize,
+    /// Width.
+    pub width: usize,
+    /// Height.
+    pub height: usize,
+    /// `[c][y][x]`.
+    pub data: Vec<f64>,
+}
+
+impl Tensor {
+    /// A tensor from f32 values.
+    pub fn from_f32(channels: usize, width: usize, height: usize, data: &[f32]) -> Self {
+        Self { channels, width, height, data: data.iter().map(|&v| f64::from(v)).collect() }
+    }
+
+    fn at(&self, c: usize, x: usize, y: usize) -> f64 {
+        self.data[(c * self.height + y) * self.width + x]
+    }
+
+    /// Channel concatenation.
+    pub fn concat(&self, other: &Tensor) -> Tensor {
+        let mut data = self.data.clone();
+        data.extend(&other.data);
+        Tensor { channels: self.channels + other.channels, width: self.width, height: self.height, data }
+    }
+}
+
+fn activate(v: f64, act: Activation) -> f64 {
+    match act {
+        Activation::None => v,
+        Activation::Relu => v.max(0.0),
+        Activation::LeakyRelu => {
+            if v >= 0.0 {
+                v
+            } else {
+                0.01 * v
+            }
+        }
+    }
+}
+
+/// 3×3 convolution, padding 1, `stride`, bias and activation; output ceil(n/stride).
+pub fn conv3x3_cpu(x: &Tensor, l: &ConvWeights, stride: usize, act: Activation) -> Tensor {
+    assert_eq!(x.channels, l.in_channels, "conv input channels");
+    let (ow, oh) = (x.width.div_ceil(stride), x.height.div_ceil(stride));
+    let mut data = vec![0.0; l.out_channels * ow * oh];
+    for o in 0..l.out_channels {
+        for oy in 0..oh {
+            for ox in 0..ow {
+                let mut acc = f64::from(l.bias[o]);
+                for i in 0..l.in_channels {
+                    for ky in 0..3 {
+                        let iy = (oy * stride + ky) as isize - 1;
+                        if iy < 0 || iy >= x.height as isize {
+                            continue;
+                        }
+                        for kx in 0..3 {
+                            let ix = (ox * stride + kx) as isize - 1;
+                            if ix < 0 || ix >= x.width as isize {
+                                continue;
+                            }
+                            let w = f64::from(l.weight[((o * l.in_channels + i) * 3 + ky) * 3 + kx]);
+                            acc += w * x.at(i, ix as usize, iy as usize);
+                        }
+                    }
+                }
+                data[(o * oh + oy) * ow + ox] = activate(acc, act);
+            }
+        }
+    }
+    Tensor { channels: l.out_channels, width: ow, height: oh, data }
+}
+
+/// PyTorch's bilinear source index rule along one axis.
+fn source(d: usize, n_in: usize, n_out: usize, align_corners: bool) -> (usize, usize, f64) {
+    let s = if align_corners {
+        if n_out > 1 {
+            d as f64 * (n_in - 1) as f64 / (n_out - 1) as f64
+        } else {
+            0.0
+        }
+    } else {
+        ((d as f64 + 0.5) * n_in as f64 / n_out as f64 - 0.5).max(0.0)
+    };
+    let i0 = (s.floor() as usize).min(n_in - 1);
+    (i0, (i0 + 1).min(n_in - 1), s - i0 as f64)
+}
+
+/// Bilinear resize to `width`×`height` (`F.interpolate(mode="bilinear")`).
+pub fn upsample_cpu(x: &Tensor, width: usize, height: usize, align_corners: bool) -> Tensor {
+    let mut data = Vec::with_capacity(x.channels * width * height);
+    for c in 0..x.channels {
+        for y in 0..height {
+            let (y0, y1, ty) = source(y, x.height, height, align_corners);
+            for xo in 0..width {
+                let (x0, x1, tx) = source(xo, x.width, width, align_corners);
+                let top = x.at(c, x0, y0) * (1.0 - tx) + x.at(c, x1, y0) * tx;
+                let bottom = x.at(c, x0, y1) * (1.0 - tx) + x.at(c, x1, y1) * tx;
+                data.push(top * (1.0 - ty) + bottom * ty);
+            }
+        }
+    }
+    Tensor { channels: x.channels, width, height, data }
+}
+
+/// The whole network on one input.
+pub fn unet_cpu(weights: &UNetWeights, input: &Tensor) -> Tensor {
+    let c = &weights.config;
+    let names = layers(c);
+    let act = c.activation;
+    let conv = |i: usize, x: &Tensor, a: Activation| conv3x3_cpu(x, &weights.layers[i], names[i].3 as usize, a);
+    let s = level_sizes(input.width, input.height);
+    let mut f = vec![conv(0, input, act)];
+    for i in 1..5 {
+        let next = conv(i, &f[i - 1], act);
+        f.push(next);
+    }
+    let mut u = f[4].clone();
+    for (k, level) in [3usize, 2, 1, 0].into_iter().enumerate() {
+        let up = upsample_cpu(&u, s[level].0, s[level].1, c.align_corners);
+        u = conv(5 + k, &up.concat(&f[level]), act);
+    }
+    conv(9, &u, Activation::None)
+}

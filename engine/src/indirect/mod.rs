@@ -1,0 +1,673 @@
+//! Indirect light: the paper's U-Net, predicting L_ind from the G-buffers
+//! (normal, albedo, roughness, metallic, L_sun, L_sky), run in GLSL.
+//!
+//! The network (ten 3×3 convolutions, padding 1): `inc` (in → w0), `down1..4`
+//! (stride 2: w0 → w1 → w2 → w3 → w4), `up1..4` (bilinear resize to the
+//! skip's exact size, concatenation with the skip, conv: w4+w3 → w3,
+//! w3+w2 → w2, w2+w1 → w1, w1+w0 → w0), `outc` (w0 → out, no activation).
+//! The activation follows every other layer. Weights come from safetensors
+//! files with PyTorch state_dict names (`inc.weight`, `inc.bias`, ...) in OIHW
+//! layout, the architecture in the file's metadata ([`UNetConfig`]);
+//! `tools/indirect_unet.py` defines the same module in PyTorch and exports it.
+//!
+//! Kernels: `unet_conv.comp` (fused bias and activation, reading the two
+//! halves of a concatenation from separate tensors, so skips are never
+//! copied) and `unet_upsample.comp`. Tensors are CHW float32 (batch 1); every
+//! activation of a pass lives in one arena buffer reused across frames while
+//! the size allows. Any input size works (stride-2 outputs are ceil(n/2)).
+//! [`cpu`] is the f64-accumulating twin.
+
+pub mod cpu;
+
+use std::collections::HashMap;
+use std::path::Path;
+
+use bytemuck::{Pod, Zeroable};
+
+use crate::error::{Error, Result};
+use crate::gpu::{kernels, Buffer, Device, Kernel, KernelDecl, MemoryKind, SpecValue, Timings};
+
+/// Activation after every layer but the last.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum Activation {
+    /// Identity.
+    None,
+    /// max(x, 0).
+    #[default]
+    Relu,
+    /// x ≥ 0 ? x : 0.01·x.
+    LeakyRelu,
+}
+
+impl Activation {
+    /// Parses `none`, `relu` or `leaky_relu`.
+    pub fn parse(text: &str) -> Result<Self> {
+        match text {
+            "none" | "identity" => Ok(Self::None),
+            "relu" => Ok(Self::Relu),
+            "leaky_relu" => Ok(Self::LeakyRelu),
+            other => Err(Error::InvalidArgument(format!("activation \"{other}\" is not none, relu or leaky_relu"))),
+        }
+    }
+
+    /// The name written to metadata.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::None => "none",
+            Self::Relu => "relu",
+            Self::LeakyRelu => "leaky_relu",
+        }
+    }
+
+    fn code(self) -> u32 {
+        match self {
+            Self::None => 0,
+            Self::Relu => 1,
+            Self::LeakyRelu => 2,
+        }
+    }
+}
+
+/// The default input channel order: what the shading stage packs.
+pub const DEFAULT_INPUT_ORDER: [&str; 14] = [
+    "normal.x",
+    "normal.y",
+    "normal.z",
+    "albedo.r",
+    "albedo.g",
+    "albedo.b",
+    "roughness",
+    "metallic",
+    "sun.r",
+    "sun.g",
+    "sun.b",
+    "sky.r",
+    "sky.g",
+    "sky.b",
+];
+
+/// The architecture, from the weights file's metadata.
+#[derive(Clone, Debug, PartialEq)]
+pub struct UNetConfig {
+    /// Input channels.
+    pub in_channels: usize,
+    /// Widths w0..w4 of the five resolutions.
+    pub widths: [usize; 5],
+    /// Output channels (3: RGB L_ind).
+    pub out_channels: usize,
+    /// Activation.
+    pub activation: Activation,
+    /// `F.interpolate(..., align_corners=)`.
+    pub align_corners: bool,
+    /// Names of the input channels, in order.
+    pub input_order: Vec<String>,
+}
+
+impl Default for UNetConfig {
+    fn default() -> Self {
+        Self {
+            in_channels: 14,
+            widths: [32, 32, 64, 64, 128],
+            out_channels: 3,
+            activation: Activation::Relu,
+            align_corners: false,
+            input_order: DEFAULT_INPUT_ORDER.iter().map(|s| s.to_string()).collect(),
+        }
+    }
+}
+
+/// Layer names in execution order, with their (in, out) channels and stride.
+pub fn layers(c: &UNetConfig) -> Vec<(&'static str, usize, usize, u32)> {
+    let w = c.widths;
+    vec![
+        ("inc", c.in_channels, w[0], 1),
+        ("down1", w[0], w[1], 2),
+        ("down2", w[1], w[2], 2),
+        ("down3", w[2], w[3], 2),
+        ("down4", w[3], w[4], 2),
+        ("up1", w[4] + w[3], w[3], 1),
+        ("up2", w[3] + w[2], w[2], 1),
+        ("up3", w[2] + w[1], w[1], 1),
+        ("up4", w[1] + w[0], w[0], 1),
+        ("outc", w[0], c.out_channels, 1),
+    ]
+}
+
+impl UNetConfig {
+    /// The safetensors metadata describing this architecture.
+    pub fn metadata(&self) -> HashMap<String, String> {
+        let w: Vec<String> = self.widths.iter().map(usize::to_string).collect();
+        HashMap::from([
+            ("architecture".to_string(), "srug-indirect-unet".to_string()),
+            ("in_channels".to_string(), self.in_channels.to_string()),
+            ("widths".to_string(), w.join(",")),
+            ("out_channels".to_string(), self.out_channels.to_string()),
+            ("activation".to_string(), self.activation.name().to_string()),
+            ("align_corners".to_string(), self.align_corners.to_string()),
+            ("input_order".to_string(), self.input_order.join(",")),
+        ])
+    }
+
+    /// Reads the architecture from metadata (missing keys take the defaults,
+    /// except that a present key must parse).
+    pub fn from_metadata(meta: &HashMap<String, String>, origin: &str) -> Result<Self> {
+        let bad = |key: &str, v: &str| {
+            Error::InvalidArgument(format!("{origin}: metadata \"{key}\" = \"{v}\" cannot be read"))
+        };
+        let mut c = Self::default();
+        if let Some(a) = meta.get("architecture") {
+            if a != "srug-indirect-unet" {
+                return Err(Error::InvalidArgument(format!(
+                    "{origin}: architecture \"{a}\" is not srug-indirect-unet"
+                )));
+            }
+        }
+        let num = |key: &str, v: &str| v.trim().parse::<usize>().ok().filter(|n| *n > 0).ok_or_else(|| bad(key, v));
+        if let Some(v) = meta.get("in_channels") {
+            c.in_channels = num("in_channels", v)?;
+        }
+        if let Some(v) = meta.get("out_channels") {
+            c.out_channels = num("out_channels", v)?;
+        }
+        if let Some(v) = meta.get("widths") {
+            let w: Vec<usize> = v.split(',').map(|t| num("widths", t)).collect::<Result<_>>()?;
+            c.widths = w.try_into().map_err(|_| bad("widths", v))?;
+        }
+        if let Some(v) = meta.get("activation") {
+            c.activation = Activation::parse(v.trim()).map_err(|_| bad("activation", v))?;
+        }
+        if let Some(v) = meta.get("align_corners") {
+            c.align_corners = match v.trim().to_ascii_lowercase().as_str() {
+                "true" | "1" => true,
+                "false" | "0" => false,
+                _ => return Err(bad("align_corners", v)),
+            };
+        }
+        if let Some(v) = meta.get("input_order") {
+            c.input_order = v.split(',').map(|s| s.trim().to_string()).collect();
+        } else if c.in_channels != DEFAULT_INPUT_ORDER.len() {
+            c.input_order = (0..c.in_channels).map(|i| format!("input.{i}")).collect();
+        }
+        if c.input_order.len() != c.in_channels {
+            return Err(Error::InvalidArgument(format!(
+                "{origin}: input_order names {} channels, in_channels is {}",
+                c.input_order.len(),
+                c.in_channels
+            )));
+        }
+        if c.widths.iter().chain([&c.in_channels, &c.out_channels]).any(|&n| n > 4096) {
+            return Err(Error::InvalidArgument(format!("{origin}: a layer wider than 4096 channels")));
+        }
+        Ok(c)
+    }
+}
+
+/// One convolution's parameters (OIHW weights).
+#[derive(Clone, Debug, PartialEq)]
+pub struct ConvWeights {
+    /// Input channels.
+    pub in_channels: usize,
+    /// Output channels.
+    pub out_channels: usize,
+    /// `[out][in][3][3]`.
+    pub weight: Vec<f32>,
+    /// `[out]`.
+    pub bias: Vec<f32>,
+}
+
+/// A whole network's weights.
+#[derive(Clone, Debug, PartialEq)]
+pub struct UNetWeights {
+    /// Architecture.
+    pub config: UNetConfig,
+    /// The ten layers in [`layers`] order.
+    pub layers: Vec<ConvWeights>,
+}
+
+impl UNetWeights {
+    /// Random weights (He-uniform, bias ±0.1) for tests and benchmarks.
+    pub fn random(config: UNetConfig, seed: u64) -> Self {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(seed);
+        let layers = layers(&config)
+            .into_iter()
+            .map(|(_, ci, co, _)| {
+                let bound = (6.0 / (ci as f32 * 9.0)).sqrt();
+                ConvWeights {
+                    in_channels: ci,
+                    out_channels: co,
+                    weight: (0..co * ci * 9).map(|_| rng.random_range(-bound..bound)).collect(),
+                    bias: (0..co).map(|_| rng.random_range(-0.1..0.1)).collect(),
+                }
+            })
+            .collect();
+        Self { config, layers }
+    }
+
+    /// Reads a safetensors file (float32, float16 or bfloat16 tensors).
+    pub fn load(path: impl AsRef<Path>) -> Result<Self> {
+        let path = path.as_ref();
+        let bytes = std::fs::read(path).map_err(Error::io(path))?;
+        Self::from_bytes(&bytes, &path.display().to_string())
+    }
+
+    /// Parses safetensors bytes; a missing tensor or a shape mismatch is an
+    /// error naming the tensor.
+    pub fn from_bytes(bytes: &[u8], origin: &str) -> Result<Self> {
+        let bad = |m: String| Error::InvalidArgument(format!("{origin}: {m}"));
+        let (_, meta) =
+            safetensors::SafeTensors::read_metadata(bytes).map_err(|e| bad(format!("not a safetensors file: {e}")))?;
+        let config = UNetConfig::from_metadata(&meta.metadata().clone().unwrap_or_default(), origin)?;
+        let st = safetensors::SafeTensors::deserialize(bytes).map_err(|e| bad(format!("corrupt safetensors: {e}")))?;
+        let mut out = Vec::new();
+        for (name, ci, co, _) in layers(&config) {
+            let get = |suffix: &str, shape: &[usize]| -> Result<Vec<f32>> {
+                let key = format!("{name}.{suffix}");
+                let t = st.tensor(&key).map_err(|_| bad(format!("tensor \"{key}\" is missing")))?;
+                if t.shape() != shape {
+                    return Err(bad(format!("tensor \"{key}\" has shape {:?}, expected {shape:?}", t.shape())));
+                }
+                let v = tensor_f32(&t).map_err(|m| bad(format!("tensor \"{key}\": {m}")))?;
+                if let Some(i) = v.iter().position(|x| !x.is_finite()) {
+                    return Err(bad(format!("tensor \"{key}\" element {i} is {}", v[i])));
+                }
+                Ok(v)
+            };
+            out.push(ConvWeights {
+                in_channels: ci,
+                out_channels: co,
+                weight: get("weight", &[co, ci, 3, 3])?,
+                bias: get("bias", &[co])?,
+            });
+        }
+        Ok(Self { config, layers: out })
+    }
+
+    /// Serializes to safetensors bytes (float32, PyTorch names, metadata).
+    pub fn to_bytes(&self) -> Result<Vec<u8>> {
+        let names = layers(&self.config);
+        let mut tensors = Vec::new();
+        for ((name, ci, co, _), l) in names.iter().zip(&self.layers) {
+            tensors.push((format!("{name}.weight"), vec![*co, *ci, 3, 3], bytemuck::cast_slice(&l.weight).to_vec()));
+            tensors.push((format!("{name}.bias"), vec![*co], bytemuck::cast_slice(&l.bias).to_vec()));
+        }
+        let views: Vec<(String, safetensors::tensor::TensorView<'_>)> = tensors
+            .iter()
+            .map(|(n, s, d)| {
+                safetensors::tensor::TensorView::new(safetensors::Dtype::F32, s.clone(), d).map(|v| (n.clone(), v))
+            })
+            .collect::<Result<_, _>>()
+            .map_err(|e| Error::InvalidArgument(format!("cannot serialize weights: {e}")))?;
+        safetensors::serialize(views, Some(self.config.metadata()))
+            .map_err(|e| Error::InvalidArgument(format!("cannot serialize weights: {e}")))
+    }
+
+    /// Multiply-adds of one inference at `width`×`height`, ×2 for flops.
+    pub fn flops(&self, width: usize, height: usize) -> f64 {
+        let sizes = level_sizes(width, height);
+        let at = [0, 1, 2, 3, 4, 3, 2, 1, 0, 0];
+        layers(&self.config)
+            .iter()
+            .zip(at)
+            .map(|((_, ci, co, _), l)| 2.0 * 9.0 * (*ci * *co) as f64 * (sizes[l].0 * sizes[l].1) as f64)
+            .sum()
+    }
+}
+
+/// A float tensor's values as f32 (F32, F16 or BF16, little endian).
+pub fn tensor_f32(t: &safetensors::tensor::TensorView<'_>) -> std::result::Result<Vec<f32>, String> {
+    let d = t.data();
+    Ok(match t.dtype() {
+        safetensors::Dtype::F32 => d.chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect(),
+        safetensors::Dtype::F16 => d.chunks_exact(2).map(|b| half::f16::from_le_bytes([b[0], b[1]]).to_f32()).collect(),
+        safetensors::Dtype::BF16 => {
+            d.chunks_exact(2).map(|b| half::bf16::from_le_bytes([b[0], b[1]]).to_f32()).collect()
+        }
+        other => return Err(format!("dtype {other:?} is not a float type (F32, F16, BF16)")),
+    })
+}
+
+/// Sizes (width, height) of the five resolutions for an input size.
+pub fn level_sizes(width: usize, height: usize) -> [(usize, usize); 5] {
+    let mut s = [(width, height); 5];
+    for l in 1..5 {
+        s[l] = (s[l - 1].0.div_ceil(2), s[l - 1].1.div_ceil(2));
+    }
+    s
+}
+
+/// Push constants of `unet_conv.comp` (keep in sync).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+pub struct ConvPush {
+    a: u64,
+    b: u64,
+    w: u64,
+    bias: u64,
+    o: u64,
+    ca: u32,
+    cb: u32,
+    oc: u32,
+    pad0: u32,
+    in_size: [u32; 2],
+    out_size: [u32; 2],
+}
+const _: () = assert!(std::mem::size_of::<ConvPush>() == 72);
+
+/// Push constants of `unet_upsample.comp` (keep in sync).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+pub struct UpsamplePush {
+    src: u64,
+    dst: u64,
+    in_size: [u32; 2],
+    out_size: [u32; 2],
+    channels: u32,
+    align_corners: u32,
+}
+const _: () = assert!(std::mem::size_of::<UpsamplePush>() == 40);
+
+/// Packs OIHW weights as `[oc/8][ic][9][8]` and the bias padded to a multiple of 8.
+pub fn pack_conv(l: &ConvWeights) -> (Vec<f32>, Vec<f32>) {
+    let blocks = l.out_channels.div_ceil(8);
+    let mut w = vec![0.0f32; blocks * l.in_channels * 9 * 8];
+    for o in 0..l.out_channels {
+        for i in 0..l.in_channels {
+            for t in 0..9 {
+                w[(((o / 8) * l.in_channels + i) * 9 + t) * 8 + o % 8] = l.weight[(o * l.in_channels + i) * 9 + t];
+            }
+        }
+    }
+    let mut b = vec![0.0f32; blocks * 8];
+    b[..l.out_channels].copy_from_slice(&l.bias);
+    (w, b)
+}
+
+/// The network on the GPU: kernels, packed weights and the activation arena.
+pub struct UNet {
+    device: Device,
+    config: UNetConfig,
+    convs: HashMap<(u32, u32), Kernel>,
+    upsample: Kernel,
+    weights: Vec<(Buffer, Buffer)>,
+    arena: Option<Buffer>,
+    prefill: Option<u32>,
+}
+
+/// One inference's output and timings.
+pub struct UNetOutput {
+    /// CHW float32, `out_channels` × height × width.
+    pub output: Buffer,
+    /// Per-layer GPU times.
+    pub timings: Timings,
+}
+
+/// One convolution of a pass: inputs A and B (the concatenation), levels, output.
+#[derive(Clone, Copy)]
+struct Step {
+    layer: usize,
+    a: u64,
+    ca: usize,
+    b: u64,
+    cb: usize,
+    lin: usize,
+    lout: usize,
+    out: u64,
+}
+
+/// Offsets (in floats) of every tensor of a pass in the arena, and its total size.
+struct ArenaLayout {
+    f: [u64; 5],
+    u: [u64; 4],
+    resized: u64,
+    total: u64,
+}
+
+impl ArenaLayout {
+    fn new(c: &UNetConfig, width: usize, height: usize) -> Self {
+        let s = level_sizes(width, height);
+        let px = |l: usize| (s[l].0 * s[l].1) as u64;
+        let w = c.widths.map(|x| x as u64);
+        let mut at = 0u64;
+        let mut take = |n: u64| {
+            let o = at;
+            at += n.div_ceil(4) * 4;
+            o
+        };
+        let f = [0, 1, 2, 3, 4].map(|l| take(w[l] * px(l)));
+        // up1..up4 outputs: w3 at level 3, w2 at 2, w1 at 1, w0 at 0.
+        let u = [(3, 3), (2, 2), (1, 1), (0, 0)].map(|(wi, l)| take(w[wi] * px(l)));
+        // The resized tensor before each up conv: the previous level's channels at the skip's size.
+        let resized = take([w[4] * px(3), w[3] * px(2), w[2] * px(1), w[1] * px(0)].into_iter().max().unwrap_or(0));
+        Self { f, u, resized, total: at }
+    }
+}
+
+impl UNet {
+    /// Uploads the weights and builds the kernels.
+    pub fn new(device: &Device, weights: &UNetWeights) -> Result<Self> {
+        let config = weights.config.clone();
+        let expected = layers(&config);
+        if weights.layers.len() != expected.len()
+            || weights.layers.iter().zip(&expected).any(|(l, e)| {
+                (l.in_channels, l.out_channels) != (e.1, e.2) || l.weight.len() != e.1 * e.2 * 9 || l.bias.len() != e.2
+            })
+        {
+            return Err(Error::InvalidArgument("U-Net weights do not match their configuration".into()));
+        }
+        let mut convs = HashMap::new();
+        for key in [(1, config.activation.code()), (2, config.activation.code()), (1, 0)] {
+            if let std::collections::hash_map::Entry::Vacant(e) = convs.entry(key) {
+                e.insert(Kernel::new(
+                    device,
+                    &kernels::UNET_CONV,
+                    &KernelDecl {
+                        bindings: &[],
+                        push_constant_size: std::mem::size_of::<ConvPush>(),
+                        specialization: &[(0, SpecValue::U32(key.0)), (1, SpecValue::U32(key.1))],
+                    },
+                )?);
+            }
+        }
+        let upsample = Kernel::new(
+            device,
+            &kernels::UNET_UPSAMPLE,
+            &KernelDecl { bindings: &[], push_constant_size: std::mem::size_of::<UpsamplePush>(), specialization: &[] },
+        )?;
+        let weights = weights
+            .layers
+            .iter()
+            .zip(&expected)
+            .map(|(l, (name, ..))| {
+                let (w, b) = pack_conv(l);
+                Ok((device.upload(&format!("{name} weights"), &w)?, device.upload(&format!("{name} bias"), &b)?))
+            })
+            .collect::<Result<_>>()?;
+        Ok(Self { device: device.clone(), config, convs, upsample, weights, arena: None, prefill: None })
+    }
+
+    /// The architecture.
+    pub fn config(&self) -> &UNetConfig {
+        &self.config
+    }
+
+    /// Fill the arena and the output with this 32-bit word before each pass
+    /// (tests use NaN, so a value no kernel wrote cannot pass).
+    pub fn set_prefill(&mut self, word: Option<u32>) {
+        self.prefill = word;
+    }
+
+    /// Bytes of the arena held now (0 before the first pass); it grows only
+    /// when a larger input needs it.
+    pub fn arena_capacity(&self) -> u64 {
+        self.arena.as_ref().map_or(0, Buffer::size)
+    }
+
+    /// Bytes of the activation arena for an input size.
+    pub fn arena_bytes(&self, width: u32, height: u32) -> u64 {
+        ArenaLayout::new(&self.config, width as usize, height as usize).total * 4
+    }
+
+    /// GPU bytes of the packed weights.
+    pub fn weight_bytes(&self) -> u64 {
+        self.weights.iter().map(|(w, b)| w.size() + b.size()).sum()
+    }
+
+    /// Runs the network on `input` (CHW float32, `in_channels` × `height` × `width`).
+    pub fn infer(&mut self, input: &Buffer, width: u32, height: u32) -> Result<UNetOutput> {
+        let c = self.config.clone();
+        let (w, h) = (width as usize, height as usize);
+        if w == 0 || h == 0 || w > 16384 || h > 16384 {
+            return Err(Error::InvalidArgument(format!("U-Net input size {width}x{height} is outside 1..=16384")));
+        }
+        if input.size() < (c.in_channels * w * h * 4) as u64 {
+            return Err(Error::InvalidArgument(format!(
+                "U-Net input buffer holds {} bytes, {} channels at {width}x{height} need {}",
+                input.size(),
+                c.in_channels,
+                c.in_channels * w * h * 4
+            )));
+        }
+        let layout = ArenaLayout::new(&c, w, h);
+        let need = layout.total * 4;
+        if self.arena.as_ref().is_none_or(|a| a.size() < need) {
+            self.arena = None;
+            self.arena = Some(self.device.create_buffer("u-net arena", need, MemoryKind::Storage)?);
+        }
+        let arena = self.arena.as_ref().ok_or_else(|| Error::InvalidArgument("no arena".into()))?;
+        let output =
+            self.device.create_buffer("u-net output", (c.out_channels * w * h * 4) as u64, MemoryKind::Storage)?;
+        let base = arena.device_address();
+        let at = |floats: u64| base + floats * 4;
+        let s = level_sizes(w, h);
+        let size = |l: usize| [s[l].0 as u32, s[l].1 as u32];
+        let act = c.activation.code();
+        let kernel =
+            |stride: u32, a: u32| self.convs.get(&(stride, a)).ok_or_else(|| Error::InvalidArgument("kernel".into()));
+        let names = layers(&c);
+        let weights = &self.weights;
+        let upsample = &self.upsample;
+        let prefill = self.prefill;
+        let wd = c.widths;
+        let steps = [
+            Step {
+                layer: 0,
+                a: input.device_address(),
+                ca: c.in_channels,
+                b: 0,
+                cb: 0,
+                lin: 0,
+                lout: 0,
+                out: at(layout.f[0]),
+            },
+            Step { layer: 1, a: at(layout.f[0]), ca: wd[0], b: 0, cb: 0, lin: 0, lout: 1, out: at(layout.f[1]) },
+            Step { layer: 2, a: at(layout.f[1]), ca: wd[1], b: 0, cb: 0, lin: 1, lout: 2, out: at(layout.f[2]) },
+            Step { layer: 3, a: at(layout.f[2]), ca: wd[2], b: 0, cb: 0, lin: 2, lout: 3, out: at(layout.f[3]) },
+            Step { layer: 4, a: at(layout.f[3]), ca: wd[3], b: 0, cb: 0, lin: 3, lout: 4, out: at(layout.f[4]) },
+            Step {
+                layer: 5,
+                a: at(layout.resized),
+                ca: wd[4],
+                b: at(layout.f[3]),
+                cb: wd[3],
+                lin: 3,
+                lout: 3,
+                out: at(layout.u[0]),
+            },
+            Step {
+                layer: 6,
+                a: at(layout.resized),
+                ca: wd[3],
+                b: at(layout.f[2]),
+                cb: wd[2],
+                lin: 2,
+                lout: 2,
+                out: at(layout.u[1]),
+            },
+            Step {
+                layer: 7,
+                a: at(layout.resized),
+                ca: wd[2],
+                b: at(layout.f[1]),
+                cb: wd[1],
+                lin: 1,
+                lout: 1,
+                out: at(layout.u[2]),
+            },
+            Step {
+                layer: 8,
+                a: at(layout.resized),
+                ca: wd[1],
+                b: at(layout.f[0]),
+                cb: wd[0],
+                lin: 0,
+                lout: 0,
+                out: at(layout.u[3]),
+            },
+            Step {
+                layer: 9,
+                a: at(layout.u[3]),
+                ca: wd[0],
+                b: 0,
+                cb: 0,
+                lin: 0,
+                lout: 0,
+                out: output.device_address(),
+            },
+        ];
+        // What each up layer resizes first: (source address, channels, source level).
+        let resize_from = [
+            (at(layout.f[4]), wd[4], 4),
+            (at(layout.u[0]), wd[3], 3),
+            (at(layout.u[1]), wd[2], 2),
+            (at(layout.u[2]), wd[1], 1),
+        ];
+        let timings = self.device.run(|rec| {
+            rec.keep(&[input, arena, &output])?;
+            if let Some(word) = prefill {
+                rec.fill(arena, word)?;
+                rec.fill(&output, word)?;
+            }
+            for (wb, bb) in weights {
+                rec.keep(&[wb, bb])?;
+            }
+            for &Step { layer: li, a, ca, b, cb, lin, lout, out } in &steps {
+                let (name, _, co, stride) = names[li];
+                if (5..9).contains(&li) {
+                    let (src, ch, from) = resize_from[li - 5];
+                    let push = UpsamplePush {
+                        src,
+                        dst: at(layout.resized),
+                        in_size: size(from),
+                        out_size: size(lout),
+                        channels: ch as u32,
+                        align_corners: u32::from(c.align_corners),
+                    };
+                    rec.begin_stage(&format!("{name} resize"));
+                    rec.dispatch_1d(upsample, &[], &push, (ch * s[lout].0 * s[lout].1) as u64)?;
+                    rec.end_stage();
+                }
+                let (wbuf, bbuf) = &weights[li];
+                let push = ConvPush {
+                    a,
+                    b,
+                    w: wbuf.device_address(),
+                    bias: bbuf.device_address(),
+                    o: out,
+                    ca: ca as u32,
+                    cb: cb as u32,
+                    oc: co as u32,
+                    pad0: 0,
+                    in_size: size(lin),
+                    out_size: size(lout),
+                };
+                let k = kernel(stride, if li == 9 { 0 } else { act })?;
+                rec.begin_stage(name);
+                rec.dispatch_1d(k, &[], &push, (co.div_ceil(8) * s[lout].0 * s[lout].1) as u64)?;
+                rec.end_stage();
+            }
+            Ok(())
+        })?;
+        Ok(UNetOutput { output, timings })
+    }
+}

@@ -1,0 +1,134 @@
+//! The indirect-light U-Net against its CPU twin (f64 accumulation): random
+//! weights at odd and tiny sizes, widths 8 to 128, both align_corners
+//! conventions and every activation; zero weights; activations of 1e4; and
+//! the safetensors loader's errors. Outputs and the arena are pre-filled
+//! with NaN, so a value no kernel wrote fails.
+
+#![allow(clippy::unwrap_used, clippy::expect_used, reason = "a failed unwrap is a failed test")]
+
+use rand::{Rng, SeedableRng};
+use rand_pcg::Pcg64Mcg;
+use srug::gpu::Device;
+use srug::indirect::cpu::{unet_cpu, Tensor};
+use srug::indirect::{Activation, UNet, UNetConfig, UNetWeights};
+use srug_tests::{assert_no_validation_messages, device};
+
+const NAN: u32 = 0x7fc0_0000;
+
+fn run(d: &Device, weights: &UNetWeights, w: usize, h: usize, scale: f32, seed: u64) -> (Vec<f32>, Tensor) {
+    let mut rng = Pcg64Mcg::seed_from_u64(seed);
+    let c = weights.config.in_channels;
+    let input: Vec<f32> = (0..c * w * h).map(|_| rng.random_range(-1.0..1.0f32) * scale).collect();
+    let buffer = d.upload("input", &input).unwrap();
+    let mut net = UNet::new(d, weights).unwrap();
+    net.set_prefill(Some(NAN));
+    let out = net.infer(&buffer, w as u32, h as u32).unwrap();
+    let gpu: Vec<f32> = d.read_buffer(&out.output).unwrap();
+    let cpu = unet_cpu(weights, &Tensor::from_f32(c, w, h, &input));
+    (gpu, cpu)
+}
+
+fn max_abs(gpu: &[f32], cpu: &Tensor) -> f64 {
+    assert_eq!(gpu.len(), cpu.data.len());
+    assert!(gpu.iter().all(|v| v.is_finite()), "non-finite output (NaN sentinel left or overflow)");
+    gpu.iter().zip(&cpu.data).map(|(a, b)| (f64::from(*a) - b).abs()).fold(0.0, f64::max)
+}
+
+#[test]
+fn unet_matches_twin_at_odd_and_tiny_sizes() {
+    let d = device();
+    let cases = [
+        ([32usize, 32, 64, 64, 128], Activation::Relu, false, 37usize, 23usize),
+        ([8, 16, 32, 64, 128], Activation::LeakyRelu, true, 37, 23),
+        ([8, 8, 8, 8, 8], Activation::Relu, true, 1, 1),
+        ([8, 8, 16, 16, 16], Activation::None, false, 2, 2),
+        ([12, 20, 24, 40, 48], Activation::Relu, false, 17, 5),
+    ];
+    for (widths, activation, align_corners, w, h) in cases {
+        let config = UNetConfig { widths, activation, align_corners, ..UNetConfig::default() };
+        let weights = UNetWeights::random(config, 3);
+        let (gpu, cpu) = run(&d, &weights, w, h, 1.0, 7);
+        let err = max_abs(&gpu, &cpu);
+        let peak = cpu.data.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        println!("widths {widths:?} {activation:?} align_corners {align_corners} at {w}x{h}: max |GPU − CPU| {err:.2e} (outputs up to {peak:.2})");
+        assert!(err <= 1e-4, "fp32 U-Net differs from the twin by {err:e} (tolerance 1e-4)");
+        assert!(peak > 1e-3, "the outputs are all ~0: the check would prove nothing");
+    }
+    assert_no_validation_messages(&d);
+}
+
+#[test]
+fn zero_weights_large_activations_and_arena_reuse() {
+    let d = device();
+    let config = UNetConfig { widths: [8, 8, 16, 16, 32], ..UNetConfig::default() };
+    let mut zero = UNetWeights::random(config.clone(), 1);
+    for l in &mut zero.layers {
+        l.weight.iter_mut().for_each(|v| *v = 0.0);
+        l.bias.iter_mut().for_each(|v| *v = 0.0);
+    }
+    let (gpu, _) = run(&d, &zero, 9, 7, 1.0, 2);
+    assert!(gpu.iter().all(|v| *v == 0.0), "zero weights give exactly zero");
+    // Bias only: the output is outc's bias everywhere.
+    let mut bias_only = zero.clone();
+    bias_only.layers[9].bias = vec![0.25, -0.5, 1.0];
+    let (gpu, _) = run(&d, &bias_only, 9, 7, 1.0, 2);
+    for (c, b) in [0.25f32, -0.5, 1.0].iter().enumerate() {
+        assert!(gpu[c * 63..(c + 1) * 63].iter().all(|v| v == b), "channel {c} is not its bias");
+    }
+    // Activations of 1e4: finite, and still the twin's (relative 1e-5 of the output scale).
+    let weights = UNetWeights::random(config, 5);
+    let (gpu, cpu) = run(&d, &weights, 13, 11, 1e4, 3);
+    let peak = cpu.data.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    let err = max_abs(&gpu, &cpu);
+    println!("inputs of 1e4: outputs up to {peak:.3e}, max |GPU − CPU| {err:.2e}");
+    assert!(peak > 1e3 && err <= 1e-5 * peak, "large activations: error {err:e} of {peak:e}");
+    // The arena is sized once and reused for smaller inputs.
+    let mut net = UNet::new(&d, &weights).unwrap();
+    let input = d.upload("input", &vec![0.5f32; 14 * 40 * 30]).unwrap();
+    net.infer(&input, 40, 30).unwrap();
+    let held = net.arena_capacity();
+    assert_eq!(held, net.arena_bytes(40, 30));
+    net.infer(&input, 21, 13).unwrap();
+    assert_eq!(net.arena_capacity(), held, "a smaller pass reuses the arena");
+    println!("arena at 40x30: {held} bytes; at 704x192: {} bytes", net.arena_bytes(704, 192));
+    assert!(net.infer(&input, 100, 100).is_err(), "an input buffer too small for the size is refused");
+    assert!(net.infer(&input, 0, 4).is_err());
+    assert_no_validation_messages(&d);
+}
+
+#[test]
+fn safetensors_round_trip_and_clear_errors() {
+    let config = UNetConfig {
+        widths: [8, 8, 16, 16, 24],
+        activation: Activation::LeakyRelu,
+        align_corners: true,
+        ..UNetConfig::default()
+    };
+    let weights = UNetWeights::random(config, 9);
+    let bytes = weights.to_bytes().unwrap();
+    assert!(UNetWeights::from_bytes(&bytes, "mem").is_ok_and(|w| w == weights), "round trip");
+    let error = |b: &[u8]| match UNetWeights::from_bytes(b, "w.safetensors") {
+        Ok(_) => panic!("accepted a bad file"),
+        Err(e) => e.to_string(),
+    };
+    // Edits of the JSON header that keep its length.
+    let edit = |from: &str, to: &str| {
+        assert_eq!(from.len(), to.len());
+        let end = 8 + u64::from_le_bytes(bytes[..8].try_into().unwrap()) as usize;
+        let header = String::from_utf8(bytes[8..end].to_vec()).unwrap();
+        assert!(header.contains(from), "{from} not in the header");
+        let mut b = bytes.clone();
+        b.splice(8..end, header.replace(from, to).into_bytes());
+        b
+    };
+    // Metadata widths that disagree with the tensors: the error names the tensor and the shapes.
+    let msg = error(&edit("8,8,16,16,24", "8,8,16,16,32"));
+    assert!(msg.contains("w.safetensors") && msg.contains("down4.weight") && msg.contains("shape"), "{msg}");
+    let msg = error(&edit("\"up3.bias\"", "\"up3.biaz\""));
+    assert!(msg.contains("\"up3.bias\" is missing"), "{msg}");
+    let msg = error(&edit("\"leaky_relu\"", "\"sigmoidx__\""));
+    assert!(msg.contains("activation"), "{msg}");
+    assert!(error(b"not safetensors").contains("w.safetensors"));
+    let msg = UNetWeights::load("/nonexistent/w.safetensors").err().map(|e| e.to_string()).unwrap_or_default();
+    assert!(msg.contains("w.safetensors"), "{msg}");
+}
