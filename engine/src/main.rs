@@ -63,6 +63,19 @@ enum Command {
     /// Relight a scene with materials: sun (Cook–Torrance, sigmoid shadow map) and sky
     /// (split-sum image-based lighting); a sun path renders a time-lapse.
     Relight(Box<cli_relight::RelightArgs>),
+    /// Run the indirect-light U-Net once on an NCHW float32 tensor named `input`; writes `output`
+    /// (to check an exported network against PyTorch).
+    Unet {
+        /// Weights: safetensors with PyTorch state_dict names, the architecture in its metadata.
+        #[arg(long)]
+        weights: PathBuf,
+        /// Input safetensors with a tensor `input` of shape [1, C, H, W].
+        #[arg(long)]
+        input: PathBuf,
+        /// Output safetensors (tensor `output`, [1, 3, H, W] float32).
+        #[arg(long)]
+        out: PathBuf,
+    },
     /// Prefilter an environment map once (GGX chain and irradiance) and save it as KTX2 files in a folder
     /// that `--env` accepts.
     Prefilter {
@@ -309,6 +322,36 @@ fn run(cli: Cli) -> srug::Result<()> {
         Command::Relight(args) => {
             let device = open_device(&cli.device, cli.validation)?;
             cli_relight::relight(&device, &args)
+        }
+        Command::Unet { weights, input, out } => {
+            let net = srug::indirect::UNetWeights::load(&weights)?;
+            let bytes = std::fs::read(&input).map_err(srug::Error::io(&input))?;
+            let (c, h, w, values) = srug::indirect::read_tensor(&bytes, "input", &input.display().to_string())?;
+            if c != net.config.in_channels {
+                return Err(srug::Error::InvalidArgument(format!(
+                    "{}: input has {c} channels, the network takes {}",
+                    input.display(),
+                    net.config.in_channels
+                )));
+            }
+            let device = open_device(&cli.device, cli.validation)?;
+            let mut unet = srug::indirect::UNet::new(&device, &net)?;
+            let buffer = device.upload("u-net input", &values)?;
+            let result = unet.infer(&buffer, w as u32, h as u32)?;
+            let output: Vec<f32> = device.read_buffer(&result.output)?;
+            let bytes = srug::indirect::tensor_bytes("output", net.config.out_channels, h, w, &output)?;
+            output::write_atomic(&out, &bytes)?;
+            println!(
+                "{}: {}x{} in, {} out channels; {:.1} ms GPU, {:.2} GFLOP, arena {}",
+                out.display(),
+                w,
+                h,
+                net.config.out_channels,
+                result.timings.total_seconds() * 1e3,
+                net.flops(w, h) * 1e-9,
+                human_bytes(unet.arena_capacity())
+            );
+            Ok(())
         }
         Command::Prefilter { env, out, levels, samples, zstd } => {
             let device = open_device(&cli.device, cli.validation)?;

@@ -346,3 +346,34 @@ fn bench_shade_prints_its_tables() {
         assert!(t.contains(want), "missing {want:?} in:\n{t}");
     }
 }
+
+#[test]
+fn unet_runs_one_inference_between_safetensors_files() {
+    use srug::indirect::cpu::{unet_cpu, Tensor};
+    use srug::indirect::{read_tensor, tensor_bytes, UNetConfig, UNetWeights};
+    let dir = tempfile::tempdir().unwrap();
+    let config = UNetConfig { widths: [8, 8, 16, 16, 32], ..UNetConfig::default() };
+    let weights = UNetWeights::random(config, 4);
+    let wpath = dir.path().join("unet.safetensors");
+    std::fs::write(&wpath, weights.to_bytes().unwrap()).unwrap();
+    let (c, h, w) = (14, 23, 37);
+    let input: Vec<f32> = (0..c * h * w).map(|i| ((i * 7919) % 1000) as f32 / 500.0 - 1.0).collect();
+    let ipath = dir.path().join("in.safetensors");
+    std::fs::write(&ipath, tensor_bytes("input", c, h, w, &input).unwrap()).unwrap();
+    let opath = dir.path().join("out.safetensors");
+    let args = ["unet", "--weights", wpath.to_str().unwrap(), "--input", ipath.to_str().unwrap()];
+    let o = srug(&[&args[..], &["--out", opath.to_str().unwrap(), "--validation"]].concat());
+    assert!(o.status.success(), "{}", text(&o));
+    let (oc, oh, ow, out) = read_tensor(&std::fs::read(&opath).unwrap(), "output", "out").unwrap();
+    assert_eq!((oc, oh, ow), (3, h, w));
+    let cpu = unet_cpu(&weights, &Tensor::from_f32(c, w, h, &input));
+    let err = out.iter().zip(&cpu.data).map(|(a, b)| (f64::from(*a) - b).abs()).fold(0.0, f64::max);
+    assert!(err <= 1e-4, "srug unet differs from the twin by {err:e}");
+    // Wrong channel count and a missing tensor are refused clearly.
+    std::fs::write(&ipath, tensor_bytes("input", 5, h, w, &input[..5 * h * w]).unwrap()).unwrap();
+    let o = srug(&[&args[..], &["--out", opath.to_str().unwrap()]].concat());
+    assert!(!o.status.success() && text(&o).contains("5 channels"), "{}", text(&o));
+    std::fs::write(&ipath, tensor_bytes("x", c, h, w, &input).unwrap()).unwrap();
+    let o = srug(&[&args[..], &["--out", opath.to_str().unwrap()]].concat());
+    assert!(!o.status.success() && text(&o).contains("\"input\" is missing"), "{}", text(&o));
+}

@@ -671,3 +671,29 @@ impl UNet {
         Ok(UNetOutput { output, timings })
     }
 }
+
+/// Reads a tensor named `name` of shape `[1, C, H, W]` or `[C, H, W]` from
+/// safetensors bytes: (C, H, W, values).
+pub fn read_tensor(bytes: &[u8], name: &str, origin: &str) -> Result<(usize, usize, usize, Vec<f32>)> {
+    let bad = |m: String| Error::InvalidArgument(format!("{origin}: {m}"));
+    let st = safetensors::SafeTensors::deserialize(bytes).map_err(|e| bad(format!("not a safetensors file: {e}")))?;
+    let t = st.tensor(name).map_err(|_| bad(format!("tensor \"{name}\" is missing")))?;
+    let (c, h, w) = match t.shape() {
+        [1, c, h, w] | [c, h, w] => (*c, *h, *w),
+        other => return Err(bad(format!("tensor \"{name}\" has shape {other:?}, expected [1, C, H, W]"))),
+    };
+    let v = tensor_f32(&t).map_err(|m| bad(format!("tensor \"{name}\": {m}")))?;
+    if let Some(i) = v.iter().position(|x| !x.is_finite()) {
+        return Err(bad(format!("tensor \"{name}\" element {i} is {}", v[i])));
+    }
+    Ok((c, h, w, v))
+}
+
+/// Safetensors bytes holding one float32 tensor `name` of shape `[1, C, H, W]`.
+pub fn tensor_bytes(name: &str, c: usize, h: usize, w: usize, values: &[f32]) -> Result<Vec<u8>> {
+    let view =
+        safetensors::tensor::TensorView::new(safetensors::Dtype::F32, vec![1, c, h, w], bytemuck::cast_slice(values))
+            .map_err(|e| Error::InvalidArgument(format!("cannot serialize {name}: {e}")))?;
+    safetensors::serialize([(name.to_string(), view)], None)
+        .map_err(|e| Error::InvalidArgument(format!("cannot serialize {name}: {e}")))
+}
