@@ -281,15 +281,17 @@ pub fn output_is_exr(out: &Path) -> Result<bool> {
 }
 
 /// Writes a relit frame: PNG of the display image, or EXR with the linear
-/// radiance (R, G, B) plus L_sun and L_sky.
-pub fn write_relit(path: &Path, exr: bool, image: &srug::shade::ShadedImage) -> Result<()> {
+/// radiance (R, G, B) plus L_sun, L_sky and (planar) L_ind when it was computed.
+pub fn write_relit(path: &Path, exr: bool, image: &srug::shade::ShadedImage, indirect: Option<&[f32]>) -> Result<()> {
     if exr {
-        output::write_exr_channels(
-            path,
-            image.width,
-            image.height,
-            &[("rgb", &image.radiance, 3), ("sun", &image.sun, 3), ("sky", &image.sky, 3)],
-        )
+        let n = image.width as usize * image.height as usize;
+        let interleaved: Option<Vec<f32>> = indirect.map(|v| (0..3 * n).map(|i| v[(i % 3) * n + i / 3]).collect());
+        let mut channels: Vec<(&str, &[f32], usize)> =
+            vec![("rgb", &image.radiance, 3), ("sun", &image.sun, 3), ("sky", &image.sky, 3)];
+        if let Some(ind) = &interleaved {
+            channels.push(("indirect", ind, 3));
+        }
+        output::write_exr_channels(path, image.width, image.height, &channels)
     } else {
         output::write_png(path, image.width, image.height, &image.display)
     }
@@ -308,14 +310,17 @@ pub struct RelightArgs {
     pub env: EnvArgs,
     #[command(flatten)]
     pub shade: ShadeArgs,
-    /// Output file: .png (display image) or .exr (linear radiance, L_sun, L_sky); numbered when several frames.
+    /// Indirect-light network weights (safetensors); without them no indirect light is computed.
+    #[arg(long)]
+    pub indirect: Option<PathBuf>,
+    /// Output file: .png (display image) or .exr (linear radiance, L_sun, L_sky, L_ind); numbered when several frames.
     #[arg(long)]
     pub out: PathBuf,
 }
 
 /// `srug relight`.
 pub fn relight(device: &Device, args: &RelightArgs) -> Result<()> {
-    let RelightArgs { scene: scene_path, view, sun, env, shade, out } = args;
+    let RelightArgs { scene: scene_path, view, sun, env, shade, indirect, out } = args;
     let exr = output_is_exr(out)?;
     let cams = view.resolve()?;
     let suns = sun.resolve()?;
@@ -332,6 +337,10 @@ pub fn relight(device: &Device, args: &RelightArgs) -> Result<()> {
     let gpu_scene = activate::GpuScene::upload(device, &scene)?;
     let lights = Lights::new(device, env)?;
     let mut relighter = Relighter::new(device)?;
+    if let Some(path) = indirect {
+        let weights = srug::indirect::UNetWeights::load(path)?;
+        relighter.set_network(Some(srug::indirect::UNet::new(device, &weights)?));
+    }
     let mut settings = settings;
     settings.shade.env_rotation_degrees = env.env_rotation;
     settings.shade.env_intensity = env.env_intensity;
@@ -357,7 +366,8 @@ pub fn relight(device: &Device, args: &RelightArgs) -> Result<()> {
                 &settings,
             )?;
             let image = relit.shaded.read(device)?;
-            write_relit(&target, exr, &image)?;
+            let indirect = relit.shaded.indirect.as_ref().map(|b| device.read_buffer::<f32>(b)).transpose()?;
+            write_relit(&target, exr, &image, indirect.as_deref())?;
             let line = format!(
                 "{} camera {} {label}: {:.0} ms GPU{}",
                 target.display(),
@@ -436,7 +446,7 @@ pub fn relight_demo(
         relighter.render(gpu_scene, &attributes, &bounds, camera, Some(&sun), &environment, &lights.brdf, &settings)?;
     let image = relit.shaded.read(device)?;
     let path = out.join("demo_relit.png");
-    write_relit(&path, false, &image)?;
+    write_relit(&path, false, &image, None)?;
     let stages = relit
         .timings
         .stages

@@ -1,6 +1,6 @@
 #version 460
-// Deferred shading, one invocation per pixel: L_o = L_sun + L_sky (+ L_ind
-// when the indirect stage ran), composited over the background by alpha
+// Deferred shading, one invocation per pixel: L_o = L_sun + L_sky (+ L_ind,
+// planar RGB, when the indirect stage ran), composited over the background by alpha
 // (the environment along the view ray, or a colour), then exposure, tone
 // mapping and sRGB encoding for display. CPU twin: engine/src/shade/cpu.rs `compose_cpu`.
 #define WORKGROUP_SIZE_X 64
@@ -25,7 +25,12 @@ void main() {
     vec3 lo = vec3(0.0);
     if (alpha >= shade.env.w) {
         lo = read3(shade.addr5.zw, p) + read3(shade.addr6.xy, p);
-        if (has(shade.addr6.zw)) lo += read3(shade.addr6.zw, p);
+        if (has(shade.addr6.zw)) {
+            // L_ind is planar (CHW), as the indirect network writes it.
+            FloatsIn ind = FloatsIn(shade.addr6.zw);
+            uint n = shade.size.x * shade.size.y;
+            lo += vec3(ind.v[p], ind.v[n + p], ind.v[2u * n + p]);
+        }
     }
     vec3 bg = shade.background.w > 0.0
         ? latlong_sample(shade.addr4.xy, 0u, shade.env_size.xy, env_dir(pixel_ray(p))) * shade.env.z

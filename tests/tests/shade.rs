@@ -678,6 +678,7 @@ fn relit_demo_street_shows_the_offscreen_towers_shadow() {
         let f =
             relighter.render(&gs, &scene.attributes(), &bounds, &camera, Some(&sun), &env, &brdf, &settings).unwrap();
         assert!(f.shadow_pass_ran);
+        assert!(!f.timings.stages.iter().any(|t| t.name == "inc"), "no weights: no inference");
         f.shaded.read(&d).unwrap()
     };
     let with = render(&city.scene);
@@ -733,4 +734,49 @@ fn cube_map_resamples_onto_its_latlong_source() {
     );
     assert!(aligned < 0.05, "the cube map does not resample onto its source ({aligned})");
     assert!(best_other > 2.0 * aligned, "orientation ambiguous: {aligned} vs {best_other}");
+}
+
+#[test]
+fn shading_with_the_indirect_network_matches_twin() {
+    use srug::indirect::cpu::{pack_cpu, unet_cpu};
+    use srug::indirect::{UNet, UNetConfig, UNetWeights};
+    let (w, h) = (37u32, 23u32);
+    let camera = test_camera(w, h);
+    let host = random_gbuffer(w, h, &camera, 21);
+    let sun = Sun::from_azimuth_elevation(120.0, 35.0, [3.0; 3]).unwrap();
+    let mut s = lit(&test_environment(64, 32), BrdfLut::HeightCorrelated);
+    let g = upload(&s.d, &host);
+    let weights = UNetWeights::random(UNetConfig { widths: [8, 8, 16, 16, 32], ..UNetConfig::default() }, 8);
+    let mut net = UNet::new(&s.d, &weights).unwrap();
+    net.set_prefill(Some(NAN));
+    let inputs = ShadeInputs {
+        gbuffer: &g,
+        camera: &camera,
+        environment: &s.env,
+        brdf: &s.brdf,
+        sun: Some(&sun),
+        editable_visibility: None,
+        indirect: None,
+    };
+    let settings =
+        ShadeSettings { visibility: VisibilitySource::Fixed, prefill: Some(NAN), ..ShadeSettings::default() };
+    let frame = s.shader.shade_with_network(&inputs, &settings, &mut net).unwrap();
+    assert!(frame.timings.stages.iter().any(|t| t.name == "indirect input"), "the network ran");
+    let out = frame.read(&s.d).unwrap();
+    let gpu_ind: Vec<f32> = s.d.read_buffer(frame.indirect.as_ref().unwrap()).unwrap();
+    // The twin from the GPU's own L_sun and L_sky (each checked against the twin elsewhere).
+    let input = pack_cpu(&host, &out.sun, &out.sky, settings.min_alpha);
+    let ind = unet_cpu(&weights, &input);
+    let err = gpu_ind.iter().zip(&ind.data).map(|(a, b)| (f64::from(*a) - b).abs()).fold(0.0, f64::max);
+    println!("L_ind: max |GPU − CPU| {err:.2e}");
+    assert!(err <= 1e-4, "L_ind differs from the twin by {err:e}");
+    let ind32: Vec<f32> = ind.data.iter().map(|v| *v as f32).collect();
+    let t = tables(&s.d, &s.env, &s.brdf);
+    let cpu = shade_cpu(&host, &camera, &t, Some(&sun), &settings, None, Some(&ind32));
+    let e = rel_err("with_network_radiance", w, h, 3, &out.radiance, &cpu.radiance, 1e-4);
+    println!("radiance with L_ind: relative error {e:.1e}");
+    // Without the network, the same frame has no indirect light and runs no inference.
+    let plain = s.shader.shade(&inputs, &settings).unwrap();
+    assert!(plain.indirect.is_none() && !plain.timings.stages.iter().any(|t| t.name == "indirect input"));
+    assert_no_validation_messages(&s.d);
 }

@@ -132,3 +132,40 @@ pub fn unet_cpu(weights: &UNetWeights, input: &Tensor) -> Tensor {
     }
     conv(9, &u, Activation::None)
 }
+
+/// The network input from host deferred buffers (as `unet_pack.comp`): CHW,
+/// 14 channels; `sun` and `sky` are RGB per pixel.
+pub fn pack_cpu(g: &crate::splat::GBuffer, sun: &[f32], sky: &[f32], min_alpha: f32) -> Tensor {
+    let (w, h) = (g.width as usize, g.height as usize);
+    let n = w * h;
+    let mut data = vec![0.0f64; 14 * n];
+    for p in 0..n {
+        let a = f64::from(g.alpha[p]);
+        if a < f64::from(min_alpha) {
+            continue;
+        }
+        let ia = 1.0 / a;
+        let nv = g.normal.as_ref().map_or([0.0; 3], |v| [v[3 * p], v[3 * p + 1], v[3 * p + 2]].map(f64::from));
+        let len = (nv[0] * nv[0] + nv[1] * nv[1] + nv[2] * nv[2]).sqrt();
+        let mut v = [0.0f64; 14];
+        if len > 1e-12 {
+            for c in 0..3 {
+                v[c] = nv[c] / len;
+            }
+        }
+        let one = |b: &Option<Vec<f32>>, fallback: f64| {
+            b.as_ref().map_or(fallback, |b| (f64::from(b[p]) * ia).clamp(0.0, 1.0))
+        };
+        for c in 0..3 {
+            v[3 + c] = g.albedo.as_ref().map_or(0.0, |b| (f64::from(b[3 * p + c]) * ia).clamp(0.0, 1.0));
+            v[8 + c] = f64::from(sun[3 * p + c]);
+            v[11 + c] = f64::from(sky[3 * p + c]);
+        }
+        v[6] = one(&g.roughness, 1.0);
+        v[7] = one(&g.metallic, 0.0);
+        for (c, x) in v.iter().enumerate() {
+            data[c * n + p] = *x;
+        }
+    }
+    Tensor { channels: 14, width: w, height: h, data }
+}

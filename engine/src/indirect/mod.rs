@@ -383,12 +383,42 @@ pub fn pack_conv(l: &ConvWeights) -> (Vec<f32>, Vec<f32>) {
     (w, b)
 }
 
+/// Push constants of `unet_pack.comp` (keep in sync).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+pub struct PackPush {
+    normal: u64,
+    albedo: u64,
+    roughness: u64,
+    metallic: u64,
+    alpha: u64,
+    sun: u64,
+    sky: u64,
+    o: u64,
+    pixels: u32,
+    min_alpha: f32,
+}
+const _: () = assert!(std::mem::size_of::<PackPush>() == 72);
+
+/// The deferred buffers the network reads (see [`DEFAULT_INPUT_ORDER`]).
+pub struct NetworkInputs<'a> {
+    /// The camera's G-buffers (normal and albedo required).
+    pub gbuffer: &'a crate::splat::GpuGBuffer,
+    /// L_sun, RGB per pixel.
+    pub sun: &'a Buffer,
+    /// L_sky, RGB per pixel.
+    pub sky: &'a Buffer,
+    /// Alpha below which a pixel has no surface.
+    pub min_alpha: f32,
+}
+
 /// The network on the GPU: kernels, packed weights and the activation arena.
 pub struct UNet {
     device: Device,
     config: UNetConfig,
     convs: HashMap<(u32, u32), Kernel>,
     upsample: Kernel,
+    pack: Kernel,
     weights: Vec<(Buffer, Buffer)>,
     arena: Option<Buffer>,
     prefill: Option<u32>,
@@ -474,6 +504,11 @@ impl UNet {
             &kernels::UNET_UPSAMPLE,
             &KernelDecl { bindings: &[], push_constant_size: std::mem::size_of::<UpsamplePush>(), specialization: &[] },
         )?;
+        let pack = Kernel::new(
+            device,
+            &kernels::UNET_PACK,
+            &KernelDecl { bindings: &[], push_constant_size: std::mem::size_of::<PackPush>(), specialization: &[] },
+        )?;
         let weights = weights
             .layers
             .iter()
@@ -483,7 +518,7 @@ impl UNet {
                 Ok((device.upload(&format!("{name} weights"), &w)?, device.upload(&format!("{name} bias"), &b)?))
             })
             .collect::<Result<_>>()?;
-        Ok(Self { device: device.clone(), config, convs, upsample, weights, arena: None, prefill: None })
+        Ok(Self { device: device.clone(), config, convs, upsample, pack, weights, arena: None, prefill: None })
     }
 
     /// The architecture.
@@ -511,6 +546,55 @@ impl UNet {
     /// GPU bytes of the packed weights.
     pub fn weight_bytes(&self) -> u64 {
         self.weights.iter().map(|(w, b)| w.size() + b.size()).sum()
+    }
+
+    /// Predicts L_ind (CHW, 3 × pixels) from the deferred buffers: packs the
+    /// input in [`DEFAULT_INPUT_ORDER`], then runs the network. Refuses a
+    /// network whose metadata asks for another input order.
+    pub fn predict(&mut self, inputs: &NetworkInputs<'_>) -> Result<UNetOutput> {
+        if self.config.input_order.iter().map(String::as_str).ne(DEFAULT_INPUT_ORDER) || self.config.out_channels != 3 {
+            return Err(Error::InvalidArgument(format!(
+                "the shading stage feeds {} and reads 3 output channels; this network expects [{}] and gives {}",
+                DEFAULT_INPUT_ORDER.join(","),
+                self.config.input_order.join(","),
+                self.config.out_channels
+            )));
+        }
+        let g = inputs.gbuffer;
+        let (normal, albedo) = match (&g.normal, &g.albedo) {
+            (Some(n), Some(a)) => (n, a),
+            _ => return Err(Error::InvalidArgument("the indirect network needs normal and albedo G-buffers".into())),
+        };
+        let pixels = u64::from(g.width) * u64::from(g.height);
+        if inputs.sun.size() < pixels * 12 || inputs.sky.size() < pixels * 12 {
+            return Err(Error::InvalidArgument("L_sun or L_sky is smaller than the image".into()));
+        }
+        let packed = self.device.create_buffer("u-net input", pixels * 14 * 4, MemoryKind::Storage)?;
+        let opt = |b: &Option<Buffer>| b.as_ref().map_or(0, Buffer::device_address);
+        let push = PackPush {
+            normal: normal.device_address(),
+            albedo: albedo.device_address(),
+            roughness: opt(&g.roughness),
+            metallic: opt(&g.metallic),
+            alpha: g.alpha.device_address(),
+            sun: inputs.sun.device_address(),
+            sky: inputs.sky.device_address(),
+            o: packed.device_address(),
+            pixels: u32::try_from(pixels).map_err(|_| Error::InvalidArgument("image too large".into()))?,
+            min_alpha: inputs.min_alpha,
+        };
+        let pack = &self.pack;
+        let mut timings = self.device.run(|rec| {
+            rec.keep(&[normal, albedo, &g.alpha, inputs.sun, inputs.sky, &packed])?;
+            rec.keep(&[&g.roughness, &g.metallic].into_iter().filter_map(Option::as_ref).collect::<Vec<_>>())?;
+            rec.begin_stage("indirect input");
+            rec.dispatch_1d(pack, &[], &push, pixels)?;
+            rec.end_stage();
+            Ok(())
+        })?;
+        let out = self.infer(&packed, g.width, g.height)?;
+        timings.stages.extend(out.timings.stages);
+        Ok(UNetOutput { output: out.output, timings })
     }
 
     /// Runs the network on `input` (CHW float32, `in_channels` × `height` × `width`).

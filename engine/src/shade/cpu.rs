@@ -320,7 +320,7 @@ fn tone_map(c: f64, op: ToneMap) -> f64 {
 }
 
 /// Shades a host G-buffer like `shade_lights.comp` then `shade_compose.comp`.
-/// `editable` is V_e per pixel; `indirect` L_ind (RGB per pixel).
+/// `editable` is V_e per pixel; `indirect` L_ind (planar: R plane, G plane, B plane).
 pub fn shade_cpu(
     g: &GBuffer,
     camera: &Camera,
@@ -413,7 +413,7 @@ pub fn shade_cpu(
         if alpha_c >= min_alpha {
             lo = l_sun + l_sky;
             if let Some(ind) = indirect {
-                lo += DVec3::new(ind[3 * p].into(), ind[3 * p + 1].into(), ind[3 * p + 2].into());
+                lo += DVec3::new(ind[p].into(), ind[pixels + p].into(), ind[2 * pixels + p].into());
             }
         }
         let bg = match settings.background {

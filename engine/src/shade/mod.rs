@@ -237,7 +237,8 @@ pub struct ShadeInputs<'a> {
     pub sun: Option<&'a Sun>,
     /// V_e per pixel, required with [`VisibilitySource::Editable`] and a sun.
     pub editable_visibility: Option<&'a Buffer>,
-    /// L_ind per pixel (RGB floats), when the indirect stage ran.
+    /// L_ind computed elsewhere (planar RGB: three planes of floats); for the
+    /// network's own, see [`Shader::shade_with_network`].
     pub indirect: Option<&'a Buffer>,
 }
 
@@ -255,6 +256,8 @@ pub struct ShadedFrame {
     pub radiance: Buffer,
     /// Display values in [0, 1] (exposure, tone map, sRGB).
     pub display: Buffer,
+    /// L_ind predicted by the indirect network (planar RGB), when it ran.
+    pub indirect: Option<Buffer>,
     /// Per-stage GPU times.
     pub timings: Timings,
 }
@@ -420,6 +423,29 @@ impl Shader {
 
     /// Shades one frame: L_sun and L_sky, then the composite and display image.
     pub fn shade(&mut self, inputs: &ShadeInputs<'_>, settings: &ShadeSettings) -> Result<ShadedFrame> {
+        self.shade_impl(inputs, settings, None)
+    }
+
+    /// Shades one frame with the indirect network: L_sun and L_sky, the
+    /// network's L_ind from them and the G-buffers, then the composite.
+    pub fn shade_with_network(
+        &mut self,
+        inputs: &ShadeInputs<'_>,
+        settings: &ShadeSettings,
+        network: &mut crate::indirect::UNet,
+    ) -> Result<ShadedFrame> {
+        if inputs.indirect.is_some() {
+            return Err(Error::InvalidArgument("give either an L_ind buffer or a network, not both".into()));
+        }
+        self.shade_impl(inputs, settings, Some(network))
+    }
+
+    fn shade_impl(
+        &mut self,
+        inputs: &ShadeInputs<'_>,
+        settings: &ShadeSettings,
+        network: Option<&mut crate::indirect::UNet>,
+    ) -> Result<ShadedFrame> {
         let mut u = Self::uniform(inputs, settings)?;
         let device = self.device.clone();
         let g = inputs.gbuffer;
@@ -438,7 +464,6 @@ impl Shader {
             }
         };
         let lights: &Kernel = lights;
-        let compose = &self.compose;
         let mut reads: Vec<&Buffer> = vec![&g.alpha, &inputs.environment.specular, &inputs.environment.irradiance];
         reads.push(&inputs.brdf.buffer);
         reads.extend(
@@ -448,7 +473,7 @@ impl Shader {
         );
         reads.extend(inputs.editable_visibility);
         reads.extend(inputs.indirect);
-        let timings = device.run(|rec| {
+        let mut timings = device.run(|rec| {
             rec.keep(&reads)?;
             rec.keep(&[&sun, &sky, &radiance, &display])?;
             if let Some(word) = settings.prefill {
@@ -459,11 +484,29 @@ impl Shader {
             rec.begin_stage("shade lights");
             rec.dispatch_1d(lights, &[&uniform], &(), pixels)?;
             rec.end_stage();
+            Ok(())
+        })?;
+        let mut indirect = None;
+        if let Some(net) = network {
+            let inputs =
+                crate::indirect::NetworkInputs { gbuffer: g, sun: &sun, sky: &sky, min_alpha: settings.min_alpha };
+            let out = net.predict(&inputs)?;
+            timings.stages.extend(out.timings.stages);
+            u.addr[6][1] = out.output.device_address();
+            indirect = Some(out.output);
+        }
+        let uniform = device.upload("shade uniform", bytemuck::bytes_of(&u))?;
+        let compose = &self.compose;
+        let t = device.run(|rec| {
+            rec.keep(&reads)?;
+            rec.keep(&[&sun, &sky, &radiance, &display])?;
+            rec.keep(&indirect.iter().collect::<Vec<_>>())?;
             rec.begin_stage("shade compose");
             rec.dispatch_1d(compose, &[&uniform], &(), pixels)?;
             rec.end_stage();
             Ok(())
         })?;
-        Ok(ShadedFrame { width: g.width, height: g.height, sun, sky, radiance, display, timings })
+        timings.stages.extend(t.stages);
+        Ok(ShadedFrame { width: g.width, height: g.height, sun, sky, radiance, display, indirect, timings })
     }
 }

@@ -5,7 +5,7 @@
 //!
 //! Only what the inputs require runs: no sun above the horizon → no shadow
 //! map, no shadow test and no sun term; fixed or no visibility → no shadow
-//! pass; no indirect light → no indirect stage. A scene without albedo cannot
+//! pass; no network weights → no indirect stage. A scene without albedo cannot
 //! be shaded ([`Relighter::render`] refuses it; render its colour instead).
 
 use super::{BrdfTable, PreparedEnvironment, ShadeInputs, ShadeSettings, ShadedFrame, Shader, VisibilitySource};
@@ -42,12 +42,23 @@ pub struct Relighter {
     splatter: Splatter,
     shadows: ShadowPass,
     shader: Shader,
+    network: Option<crate::indirect::UNet>,
 }
 
 impl Relighter {
     /// Builds the kernels.
     pub fn new(device: &Device) -> Result<Self> {
-        Ok(Self { splatter: Splatter::new(device)?, shadows: ShadowPass::new(device)?, shader: Shader::new(device)? })
+        Ok(Self {
+            splatter: Splatter::new(device)?,
+            shadows: ShadowPass::new(device)?,
+            shader: Shader::new(device)?,
+            network: None,
+        })
+    }
+
+    /// The indirect-light network; with `None` (the default) no inference runs.
+    pub fn set_network(&mut self, network: Option<crate::indirect::UNet>) {
+        self.network = network;
     }
 
     /// The splatter, for plain renders of the same scene.
@@ -117,7 +128,10 @@ impl Relighter {
             editable_visibility: visibility.as_ref(),
             indirect: None,
         };
-        let shaded = self.shader.shade(&inputs, &shade)?;
+        let shaded = match self.network.as_mut() {
+            Some(net) => self.shader.shade_with_network(&inputs, &shade, net)?,
+            None => self.shader.shade(&inputs, &shade)?,
+        };
         timings.stages.extend(shaded.timings.stages.iter().cloned());
         Ok(RelitFrame { shaded, timings, shadow_pass_ran: visibility.is_some() })
     }

@@ -26,7 +26,7 @@ layout(std140, set = 0, binding = 0) uniform Shade {
     uvec4 addr3;        // editable visibility, alpha
     uvec4 addr4;        // specular chain, irradiance
     uvec4 addr5;        // BRDF table, L_sun
-    uvec4 addr6;        // L_sky, L_ind (0: none)
+    uvec4 addr6;        // L_sky, L_ind (planar RGB; 0: none)
     uvec4 addr7;        // radiance out, display out
 } shade;
 
