@@ -4,6 +4,7 @@
 
 pub mod shade;
 pub mod shadow;
+pub mod unet;
 
 use std::time::Instant;
 

@@ -168,6 +168,18 @@ enum BenchKind {
         #[arg(long)]
         blend: Option<String>,
     },
+    /// Indirect-light U-Net: time per inference per size and precision, GFLOP/s against the FMA peak.
+    Unet {
+        /// Widths w0..w4.
+        #[arg(long, default_value = "32,32,64,64,128")]
+        widths: String,
+        /// Image sizes, comma-separated WxH.
+        #[arg(long, default_value = "704x192,1408x384")]
+        sizes: String,
+        /// Repeats (medians reported).
+        #[arg(long, default_value_t = 3)]
+        repeats: usize,
+    },
     /// Deferred shading time per frame per image size; one-time environment prefilter cost per size.
     Shade {
         /// Demo city size for the G-buffers.
@@ -419,6 +431,52 @@ fn run(cli: Cli) -> srug::Result<()> {
                 sort.cpu_keys_per_second * 1e-6,
                 sort.gpu_keys_per_second / sort.cpu_keys_per_second
             );
+            Ok(())
+        }
+        Command::Bench { what: BenchKind::Unet { widths, sizes, repeats } } => {
+            let w: Vec<usize> =
+                widths.split(',').map(|t| t.trim().parse::<usize>()).collect::<Result<_, _>>().map_err(|_| {
+                    srug::Error::InvalidArgument(format!("--widths \"{widths}\" is not five comma-separated numbers"))
+                })?;
+            let w: [usize; 5] =
+                w.try_into().map_err(|_| srug::Error::InvalidArgument("--widths needs five numbers".into()))?;
+            let sizes: Vec<(u32, u32)> = sizes.split(',').map(parse_size).collect::<srug::Result<_>>()?;
+            let device = open_device(&cli.device, cli.validation)?;
+            let info = device.info();
+            let peak = srug::bench::fma_peak_gflops(&device, 5)?;
+            println!(
+                "device: {} ({}), measured FMA peak {peak:.1} GFLOP/s; widths {w:?}, 14 input channels\n",
+                info.name, info.driver
+            );
+            let bar = spinner("benchmarking");
+            let rows = srug::bench::unet::unet_bench(&device, w, &sizes, repeats, |m| bar.set_message(m.to_string()))?;
+            bar.finish_and_clear();
+            println!("| size | storage | ms (median) | ms (min) | GFLOP | GFLOP/s | % of FMA peak | arena MiB |");
+            println!("|---|---|---:|---:|---:|---:|---:|---:|");
+            for r in &rows {
+                let gflops = r.flops * 1e-9 / r.seconds;
+                println!(
+                    "| {}x{} | {} | {:.1} | {:.1} | {:.2} | {:.1} | {:.0}% | {:.1} |",
+                    r.size.0,
+                    r.size.1,
+                    r.precision,
+                    r.seconds * 1e3,
+                    r.min_seconds * 1e3,
+                    r.flops * 1e-9,
+                    gflops,
+                    gflops / peak * 100.0,
+                    r.arena_bytes as f64 / (1u64 << 20) as f64
+                );
+            }
+            for r in &rows {
+                println!(
+                    "\n{}x{} {} per layer: {}",
+                    r.size.0,
+                    r.size.1,
+                    r.precision,
+                    r.layers.iter().map(|(n, s)| format!("{n} {:.1} ms", s * 1e3)).collect::<Vec<_>>().join(", ")
+                );
+            }
             Ok(())
         }
         Command::Bench { what: BenchKind::Shade { gaussians, sizes, env_sizes, repeats } } => {

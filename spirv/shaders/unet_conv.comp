@@ -2,9 +2,17 @@
 // U-Net layer: 3×3 convolution, padding 1, stride STRIDE, fused bias and
 // activation, over the channel concatenation of two CHW tensors A and B
 // (B may be empty), so a skip connection needs no copy. One invocation per
-// output pixel and block of 8 output channels; weights are packed host-side
-// as [oc/8][ic][3·3][8] so each input value feeds 8 FMAs from two vec4
-// loads shared by every invocation of the block. fp32 accumulation.
+// output pixel and block of OCB output channels; the block is the
+// workgroup's y index, so its weights are dynamically uniform.
+//
+// Weights come through uniform buffers: lavapipe loads a uniform-buffer
+// element with a uniform index once per SIMD group, but gathers storage and
+// device-address loads lane by lane (6× slower here). A uniform buffer holds
+// 64 KiB, so a layer runs in passes over chunks of its input channels
+// [ic0, ic1): the first pass starts from the bias, later ones from the
+// output so far, the last applies the activation. Weights are packed
+// host-side per pass as [oc/OCB][ic - ic0][3·3][OCB]. fp32 accumulation.
+// Pixel blocks of 64 run along x, wrapping into z beyond the dispatch limit.
 // CPU twin: engine/src/indirect/cpu.rs `conv3x3_cpu`.
 #define WORKGROUP_SIZE_X 64
 #include "common.glsl"
@@ -13,66 +21,81 @@
 layout(constant_id = 0) const uint STRIDE = 1;
 // 0: none, 1: ReLU, 2: leaky ReLU (slope 0.01).
 layout(constant_id = 1) const uint ACT = 1;
+// Output channels per invocation: 8 or 16.
+layout(constant_id = 2) const uint OCB = 8;
 
-layout(buffer_reference, std430, buffer_reference_align = 16) readonly buffer Vec4sIn { vec4 v[]; };
+// Keep in sync with engine/src/indirect/mod.rs `CONV_UBO_VEC4S`.
+layout(std140, set = 0, binding = 0) uniform Weights { vec4 wts[4096]; };
+layout(std430, set = 0, binding = 1) readonly buffer Bias { vec4 bias[]; };
 
 // Keep in sync with engine/src/indirect/mod.rs `ConvPush`.
 layout(push_constant) uniform Push {
     uvec2 a;        // first input, ca channels
     uvec2 b;        // second input, cb channels (skip)
-    uvec2 w;        // packed weights
-    uvec2 bias;     // bias, padded to a multiple of 8
     uvec2 o;        // output, oc channels
     uint ca;
     uint cb;
     uint oc;
-    uint pad0;
+    uint ic0;       // this pass's input channels [ic0, ic1)
+    uint ic1;
+    uint flags;     // 1: first pass (start from the bias), 2: last pass (activate)
     uvec2 in_size;  // width, height
     uvec2 out_size;
 } pc;
 
 void main() {
-    uint i = linear_index();
     uint plane = pc.out_size.x * pc.out_size.y;
-    uint blocks = (pc.oc + 7u) / 8u;
-    if (i >= plane * blocks) return;
-    uint p = i % plane;
-    uint ob = i / plane;
+    uint p = (gl_WorkGroupID.x + gl_WorkGroupID.z * gl_NumWorkGroups.x) * WORKGROUP_SIZE_X + gl_LocalInvocationID.x;
+    uint ob = gl_WorkGroupID.y;
+    bool live = p < plane;
+    p = min(p, plane - 1u);
     int ox = int(p % pc.out_size.x), oy = int(p / pc.out_size.x);
-    Vec4sIn wts = Vec4sIn(pc.w);
-    Vec4sIn bias = Vec4sIn(pc.bias);
-    vec4 acc0 = bias.v[2u * ob], acc1 = bias.v[2u * ob + 1u];
-    uint cin = pc.ca + pc.cb;
-    uint in_plane = pc.in_size.x * pc.in_size.y;
-    int w = int(pc.in_size.x), h = int(pc.in_size.y);
-    for (uint ic = 0u; ic < cin; ++ic) {
-        FloatsIn src = ic < pc.ca ? FloatsIn(pc.a) : FloatsIn(pc.b);
-        uint base = (ic < pc.ca ? ic : ic - pc.ca) * in_plane;
-        uint wbase = ((ob * cin + ic) * 9u) * 2u;
-        for (int ky = 0; ky < 3; ++ky) {
-            int iy = oy * int(STRIDE) + ky - 1;
-            if (iy < 0 || iy >= h) continue;
-            for (int kx = 0; kx < 3; ++kx) {
-                int ix = ox * int(STRIDE) + kx - 1;
-                if (ix < 0 || ix >= w) continue;
-                float v = src.v[base + uint(iy * w + ix)];
-                uint t = wbase + uint(ky * 3 + kx) * 2u;
-                acc0 += v * wts.v[t];
-                acc1 += v * wts.v[t + 1u];
+    const uint Q = OCB / 4u;
+    FloatsOut o = FloatsOut(pc.o);
+    vec4 acc[4];
+    if ((pc.flags & 1u) != 0u) {
+        for (uint q = 0u; q < Q; ++q) acc[q] = bias[Q * ob + q];
+    } else {
+        FloatsIn prev = FloatsIn(pc.o);
+        for (uint q = 0u; q < Q; ++q) {
+            for (uint j = 0u; j < 4u; ++j) {
+                uint c = min(ob * OCB + 4u * q + j, pc.oc - 1u);
+                acc[q][j] = prev.v[c * plane + p];
             }
         }
     }
-    if (ACT == 1u) {
-        acc0 = max(acc0, 0.0);
-        acc1 = max(acc1, 0.0);
-    } else if (ACT == 2u) {
-        acc0 = mix(acc0 * 0.01, acc0, greaterThanEqual(acc0, vec4(0.0)));
-        acc1 = mix(acc1 * 0.01, acc1, greaterThanEqual(acc1, vec4(0.0)));
+    uint in_plane = pc.in_size.x * pc.in_size.y;
+    int w = int(pc.in_size.x), h = int(pc.in_size.y);
+    // Input channels per pass as packed (engine/src/indirect/mod.rs `pass_channels`).
+    uint chunk = 16384u / (gl_NumWorkGroups.y * OCB * 9u);
+    for (uint ic = pc.ic0; ic < pc.ic1; ++ic) {
+        FloatsIn src = ic < pc.ca ? FloatsIn(pc.a) : FloatsIn(pc.b);
+        uint base = (ic < pc.ca ? ic : ic - pc.ca) * in_plane;
+        uint wbase = ((ob * chunk + (ic - pc.ic0)) * 9u) * Q;
+        for (int ky = 0; ky < 3; ++ky) {
+            int iy = oy * int(STRIDE) + ky - 1;
+            bool row_in = iy >= 0 && iy < h;
+            for (int kx = 0; kx < 3; ++kx) {
+                int ix = ox * int(STRIDE) + kx - 1;
+                float v = row_in && ix >= 0 && ix < w ? src.v[base + uint(iy * w + ix)] : 0.0;
+                uint t = wbase + uint(ky * 3 + kx) * Q;
+                for (uint q = 0u; q < Q; ++q) acc[q] += v * wts[t + q];
+            }
+        }
     }
-    FloatsOut o = FloatsOut(pc.o);
-    float r[8] = float[8](acc0.x, acc0.y, acc0.z, acc0.w, acc1.x, acc1.y, acc1.z, acc1.w);
-    for (uint j = 0u; j < 8u; ++j) {
-        uint c = ob * 8u + j;
-        if (c < pc.oc) o.v[c * plane + p] = r[j];
+    if (!live) return;
+    for (uint q = 0u; q < Q; ++q) {
+        vec4 a = acc[q];
+        if ((pc.flags & 2u) != 0u) {
+            if (ACT == 1u) {
+                a = max(a, 0.0);
+            } else if (ACT == 2u) {
+                a = mix(a * 0.01, a, greaterThanEqual(a, vec4(0.0)));
+            }
+        }
+        for (uint j = 0u; j < 4u; ++j) {
+            uint c = ob * OCB + 4u * q + j;
+            if (c < pc.oc) o.v[c * plane + p] = a[j];
+        }
     }
 }

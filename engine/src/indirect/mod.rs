@@ -25,7 +25,7 @@ use std::path::Path;
 use bytemuck::{Pod, Zeroable};
 
 use crate::error::{Error, Result};
-use crate::gpu::{kernels, Buffer, Device, Kernel, KernelDecl, MemoryKind, SpecValue, Timings};
+use crate::gpu::{kernels, BindingKind, Buffer, Device, Kernel, KernelDecl, MemoryKind, SpecValue, Timings};
 
 /// Activation after every layer but the last.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
@@ -342,17 +342,22 @@ pub fn level_sizes(width: usize, height: usize) -> [(usize, usize); 5] {
 pub struct ConvPush {
     a: u64,
     b: u64,
-    w: u64,
-    bias: u64,
     o: u64,
     ca: u32,
     cb: u32,
     oc: u32,
-    pad0: u32,
+    ic0: u32,
+    ic1: u32,
+    flags: u32,
     in_size: [u32; 2],
     out_size: [u32; 2],
 }
-const _: () = assert!(std::mem::size_of::<ConvPush>() == 72);
+const _: () = assert!(std::mem::size_of::<ConvPush>() == 64);
+
+/// Floats in one weight pass's uniform buffer (64 KiB, the least
+/// `maxUniformBufferRange` Vulkan guarantees; keep in sync with `wts[4096]`
+/// vec4s in `unet_conv.comp`).
+pub const CONV_UBO_FLOATS: usize = 16384;
 
 /// Push constants of `unet_upsample.comp` (keep in sync).
 #[repr(C)]
@@ -367,18 +372,40 @@ pub struct UpsamplePush {
 }
 const _: () = assert!(std::mem::size_of::<UpsamplePush>() == 40);
 
-/// Packs OIHW weights as `[oc/8][ic][9][8]` and the bias padded to a multiple of 8.
-pub fn pack_conv(l: &ConvWeights) -> (Vec<f32>, Vec<f32>) {
-    let blocks = l.out_channels.div_ceil(8);
-    let mut w = vec![0.0f32; blocks * l.in_channels * 9 * 8];
+/// Output channels per invocation of a layer: 16 where it has that many, else 8
+/// (the `OCB` specialization constant of `unet_conv.comp`).
+pub fn channel_block(out_channels: usize) -> usize {
+    if out_channels >= 16 {
+        16
+    } else {
+        8
+    }
+}
+
+/// Input channels per pass of a layer with `out_channels`: as many as fit
+/// one uniform buffer with every output block.
+pub fn pass_channels(out_channels: usize) -> usize {
+    let ob = channel_block(out_channels);
+    CONV_UBO_FLOATS / (out_channels.div_ceil(ob) * ob * 9)
+}
+
+/// Packs OIHW weights per pass of [`pass_channels`] input channels, each
+/// `[oc/B][ic − ic0][9][B]` (B = [`channel_block`]) in a zero-padded buffer of
+/// [`CONV_UBO_FLOATS`]; and the bias padded to a multiple of B.
+pub fn pack_conv(l: &ConvWeights) -> (Vec<Vec<f32>>, Vec<f32>) {
+    let ob = channel_block(l.out_channels);
+    let chunk = pass_channels(l.out_channels).max(1);
+    let passes = l.in_channels.div_ceil(chunk);
+    let mut w = vec![vec![0.0f32; CONV_UBO_FLOATS]; passes];
     for o in 0..l.out_channels {
         for i in 0..l.in_channels {
+            let (k, il) = (i / chunk, i % chunk);
             for t in 0..9 {
-                w[(((o / 8) * l.in_channels + i) * 9 + t) * 8 + o % 8] = l.weight[(o * l.in_channels + i) * 9 + t];
+                w[k][(((o / ob) * chunk + il) * 9 + t) * ob + o % ob] = l.weight[(o * l.in_channels + i) * 9 + t];
             }
         }
     }
-    let mut b = vec![0.0f32; blocks * 8];
+    let mut b = vec![0.0f32; l.out_channels.div_ceil(ob) * ob];
     b[..l.out_channels].copy_from_slice(&l.bias);
     (w, b)
 }
@@ -416,12 +443,19 @@ pub struct NetworkInputs<'a> {
 pub struct UNet {
     device: Device,
     config: UNetConfig,
-    convs: HashMap<(u32, u32), Kernel>,
+    convs: HashMap<(u32, u32, u32), Kernel>,
     upsample: Kernel,
     pack: Kernel,
-    weights: Vec<(Buffer, Buffer)>,
+    weights: Vec<LayerBuffers>,
     arena: Option<Buffer>,
     prefill: Option<u32>,
+}
+
+/// One layer's weights on the GPU: a uniform buffer per pass, the bias.
+struct LayerBuffers {
+    passes: Vec<Buffer>,
+    bias: Buffer,
+    chunk: usize,
 }
 
 /// One inference's output and timings.
@@ -486,15 +520,27 @@ impl UNet {
             return Err(Error::InvalidArgument("U-Net weights do not match their configuration".into()));
         }
         let mut convs = HashMap::new();
-        for key in [(1, config.activation.code()), (2, config.activation.code()), (1, 0)] {
+        let keys: Vec<(u32, u32, u32)> = expected
+            .iter()
+            .enumerate()
+            .map(|(i, (_, _, co, stride))| {
+                let act = if i + 1 == expected.len() { 0 } else { config.activation.code() };
+                (*stride, act, channel_block(*co) as u32)
+            })
+            .collect();
+        for key in keys {
             if let std::collections::hash_map::Entry::Vacant(e) = convs.entry(key) {
                 e.insert(Kernel::new(
                     device,
                     &kernels::UNET_CONV,
                     &KernelDecl {
-                        bindings: &[],
+                        bindings: &[BindingKind::UniformBuffer, BindingKind::StorageBuffer { read_only: true }],
                         push_constant_size: std::mem::size_of::<ConvPush>(),
-                        specialization: &[(0, SpecValue::U32(key.0)), (1, SpecValue::U32(key.1))],
+                        specialization: &[
+                            (0, SpecValue::U32(key.0)),
+                            (1, SpecValue::U32(key.1)),
+                            (2, SpecValue::U32(key.2)),
+                        ],
                     },
                 )?);
             }
@@ -514,8 +560,14 @@ impl UNet {
             .iter()
             .zip(&expected)
             .map(|(l, (name, ..))| {
-                let (w, b) = pack_conv(l);
-                Ok((device.upload(&format!("{name} weights"), &w)?, device.upload(&format!("{name} bias"), &b)?))
+                let (passes, b) = pack_conv(l);
+                let passes = passes
+                    .iter()
+                    .enumerate()
+                    .map(|(k, w)| device.upload(&format!("{name} weights {k}"), w))
+                    .collect::<Result<_>>()?;
+                let bias = device.upload(&format!("{name} bias"), &b)?;
+                Ok(LayerBuffers { passes, bias, chunk: pass_channels(l.out_channels).max(1) })
             })
             .collect::<Result<_>>()?;
         Ok(Self { device: device.clone(), config, convs, upsample, pack, weights, arena: None, prefill: None })
@@ -545,7 +597,7 @@ impl UNet {
 
     /// GPU bytes of the packed weights.
     pub fn weight_bytes(&self) -> u64 {
-        self.weights.iter().map(|(w, b)| w.size() + b.size()).sum()
+        self.weights.iter().map(|l| l.passes.iter().map(Buffer::size).sum::<u64>() + l.bias.size()).sum()
     }
 
     /// Predicts L_ind (CHW, 3 × pixels) from the deferred buffers: packs the
@@ -626,8 +678,10 @@ impl UNet {
         let s = level_sizes(w, h);
         let size = |l: usize| [s[l].0 as u32, s[l].1 as u32];
         let act = c.activation.code();
-        let kernel =
-            |stride: u32, a: u32| self.convs.get(&(stride, a)).ok_or_else(|| Error::InvalidArgument("kernel".into()));
+        let kernel = |stride: u32, a: u32, b: u32| {
+            self.convs.get(&(stride, a, b)).ok_or_else(|| Error::InvalidArgument("missing U-Net kernel variant".into()))
+        };
+        let max_groups = self.device.info().max_workgroup_count;
         let names = layers(&c);
         let weights = &self.weights;
         let upsample = &self.upsample;
@@ -712,8 +766,8 @@ impl UNet {
                 rec.fill(arena, word)?;
                 rec.fill(&output, word)?;
             }
-            for (wb, bb) in weights {
-                rec.keep(&[wb, bb])?;
+            for l in weights {
+                rec.keep(&l.passes.iter().chain([&l.bias]).collect::<Vec<_>>())?;
             }
             for &Step { layer: li, a, ca, b, cb, lin, lout, out } in &steps {
                 let (name, _, co, stride) = names[li];
@@ -731,23 +785,36 @@ impl UNet {
                     rec.dispatch_1d(upsample, &[], &push, (ch * s[lout].0 * s[lout].1) as u64)?;
                     rec.end_stage();
                 }
-                let (wbuf, bbuf) = &weights[li];
-                let push = ConvPush {
-                    a,
-                    b,
-                    w: wbuf.device_address(),
-                    bias: bbuf.device_address(),
-                    o: out,
-                    ca: ca as u32,
-                    cb: cb as u32,
-                    oc: co as u32,
-                    pad0: 0,
-                    in_size: size(lin),
-                    out_size: size(lout),
-                };
-                let k = kernel(stride, if li == 9 { 0 } else { act })?;
+                let layer = &weights[li];
+                let ob = channel_block(co);
+                let k = kernel(stride, if li == 9 { 0 } else { act }, ob as u32)?;
+                let groups = (s[lout].0 * s[lout].1).div_ceil(64) as u32;
+                let gz = groups.div_ceil(max_groups[0]);
+                let grid = [groups.div_ceil(gz), co.div_ceil(ob) as u32, gz];
+                if grid[1] > max_groups[1] || grid[2] > max_groups[2] {
+                    return Err(Error::InvalidArgument(format!(
+                        "{name}: {grid:?} workgroups exceed the device's limits"
+                    )));
+                }
+                let cin = ca + cb;
                 rec.begin_stage(name);
-                rec.dispatch_1d(k, &[], &push, (co.div_ceil(8) * s[lout].0 * s[lout].1) as u64)?;
+                let last = layer.passes.len() - 1;
+                for (pass, ubo) in layer.passes.iter().enumerate() {
+                    let push = ConvPush {
+                        a,
+                        b,
+                        o: out,
+                        ca: ca as u32,
+                        cb: cb as u32,
+                        oc: co as u32,
+                        ic0: (pass * layer.chunk) as u32,
+                        ic1: ((pass + 1) * layer.chunk).min(cin) as u32,
+                        flags: u32::from(pass == 0) | u32::from(pass == last) << 1,
+                        in_size: size(lin),
+                        out_size: size(lout),
+                    };
+                    rec.dispatch(k, &[ubo, &layer.bias], &push, grid)?;
+                }
                 rec.end_stage();
             }
             Ok(())

@@ -1,0 +1,69 @@
+//! `srug bench unet`: one inference of the indirect-light U-Net (random
+//! weights of the given widths, 14 input channels) per image size and storage
+//! precision, per-layer GPU times, and achieved GFLOP/s against the FMA peak
+//! measured in the same run.
+
+use super::median;
+use crate::error::Result;
+use crate::gpu::Device;
+use crate::indirect::{UNet, UNetConfig, UNetWeights};
+
+/// One (size, precision) row.
+#[derive(Clone, Debug)]
+pub struct UNetRow {
+    /// Image size.
+    pub size: (u32, u32),
+    /// Storage precision label.
+    pub precision: &'static str,
+    /// Median seconds per inference.
+    pub seconds: f64,
+    /// Minimum seconds per inference.
+    pub min_seconds: f64,
+    /// Flops of one inference (2 per multiply-add).
+    pub flops: f64,
+    /// Per-layer median seconds, in execution order.
+    pub layers: Vec<(String, f64)>,
+    /// Activation arena bytes.
+    pub arena_bytes: u64,
+}
+
+/// Runs the benchmark.
+pub fn unet_bench(
+    device: &Device,
+    widths: [usize; 5],
+    sizes: &[(u32, u32)],
+    repeats: usize,
+    progress: impl Fn(&str),
+) -> Result<Vec<UNetRow>> {
+    let weights = UNetWeights::random(UNetConfig { widths, ..UNetConfig::default() }, 1);
+    let mut net = UNet::new(device, &weights)?;
+    let mut rows = Vec::new();
+    for &(w, h) in sizes {
+        progress(&format!("U-Net at {w}x{h}"));
+        let input = device.upload("u-net input", &vec![0.5f32; 14 * (w * h) as usize])?;
+        net.infer(&input, w, h)?;
+        let mut totals = Vec::new();
+        let mut per_layer: Vec<(String, Vec<f64>)> = Vec::new();
+        for _ in 0..repeats.max(1) {
+            let out = net.infer(&input, w, h)?;
+            totals.push(out.timings.total_seconds());
+            for (i, s) in out.timings.stages.iter().enumerate() {
+                if per_layer.len() <= i {
+                    per_layer.push((s.name.clone(), Vec::new()));
+                }
+                per_layer[i].1.push(s.seconds);
+            }
+        }
+        let min_seconds = totals.iter().copied().fold(f64::INFINITY, f64::min);
+        rows.push(UNetRow {
+            size: (w, h),
+            precision: "fp32",
+            seconds: median(totals),
+            min_seconds,
+            flops: weights.flops(w as usize, h as usize),
+            layers: per_layer.into_iter().map(|(n, v)| (n, median(v))).collect(),
+            arena_bytes: net.arena_bytes(w, h),
+        });
+    }
+    Ok(rows)
+}
