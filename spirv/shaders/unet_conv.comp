@@ -21,7 +21,7 @@
 layout(constant_id = 0) const uint STRIDE = 1;
 // 0: none, 1: ReLU, 2: leaky ReLU (slope 0.01).
 layout(constant_id = 1) const uint ACT = 1;
-// Output channels per invocation: 8 or 16.
+// Output channels per invocation: 8, 16 or 32.
 layout(constant_id = 2) const uint OCB = 8;
 
 // Keep in sync with engine/src/indirect/mod.rs `CONV_UBO_VEC4S`.
@@ -52,7 +52,7 @@ void main() {
     int ox = int(p % pc.out_size.x), oy = int(p / pc.out_size.x);
     const uint Q = OCB / 4u;
     FloatsOut o = FloatsOut(pc.o);
-    vec4 acc[4];
+    vec4 acc[8];
     if ((pc.flags & 1u) != 0u) {
         for (uint q = 0u; q < Q; ++q) acc[q] = bias[Q * ob + q];
     } else {

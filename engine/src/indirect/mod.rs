@@ -372,13 +372,15 @@ pub struct UpsamplePush {
 }
 const _: () = assert!(std::mem::size_of::<UpsamplePush>() == 40);
 
-/// Output channels per invocation of a layer: 16 where it has that many, else 8
-/// (the `OCB` specialization constant of `unet_conv.comp`).
+/// Output channels per invocation of a layer (the `OCB` specialization
+/// constant of `unet_conv.comp`): 32, 16 or 8, the most the layer fills.
+/// More channels per gathered input value is faster on lavapipe: at 352×96
+/// blocks of 8, 16 and 32 reached 1.6, 2.3 and 2.5 GFLOP/s.
 pub fn channel_block(out_channels: usize) -> usize {
-    if out_channels >= 16 {
-        16
-    } else {
-        8
+    match out_channels {
+        32.. => 32,
+        16..=31 => 16,
+        _ => 8,
     }
 }
 
