@@ -313,6 +313,9 @@ pub struct RelightArgs {
     /// Indirect-light network weights (safetensors); without them no indirect light is computed.
     #[arg(long)]
     pub indirect: Option<PathBuf>,
+    /// Activation storage of the indirect network: fp32 or fp16.
+    #[arg(long, default_value = "fp32")]
+    pub indirect_precision: String,
     /// Output file: .png (display image) or .exr (linear radiance, L_sun, L_sky, L_ind); numbered when several frames.
     #[arg(long)]
     pub out: PathBuf,
@@ -320,7 +323,8 @@ pub struct RelightArgs {
 
 /// `srug relight`.
 pub fn relight(device: &Device, args: &RelightArgs) -> Result<()> {
-    let RelightArgs { scene: scene_path, view, sun, env, shade, indirect, out } = args;
+    let RelightArgs { scene: scene_path, view, sun, env, shade, indirect, indirect_precision, out } = args;
+    let precision = srug::indirect::StoragePrecision::parse(indirect_precision)?;
     let exr = output_is_exr(out)?;
     let cams = view.resolve()?;
     let suns = sun.resolve()?;
@@ -339,7 +343,7 @@ pub fn relight(device: &Device, args: &RelightArgs) -> Result<()> {
     let mut relighter = Relighter::new(device)?;
     if let Some(path) = indirect {
         let weights = srug::indirect::UNetWeights::load(path)?;
-        relighter.set_network(Some(srug::indirect::UNet::new(device, &weights)?));
+        relighter.set_network(Some(srug::indirect::UNet::with_precision(device, &weights, precision)?));
     }
     let mut settings = settings;
     settings.shade.env_rotation_degrees = env.env_rotation;

@@ -75,6 +75,9 @@ enum Command {
         /// Output safetensors (tensor `output`, [1, 3, H, W] float32).
         #[arg(long)]
         out: PathBuf,
+        /// Activation storage between layers: fp32 or fp16 (arithmetic is fp32 either way).
+        #[arg(long, default_value = "fp32")]
+        precision: String,
     },
     /// Prefilter an environment map once (GGX chain and irradiance) and save it as KTX2 files in a folder
     /// that `--env` accepts.
@@ -335,7 +338,8 @@ fn run(cli: Cli) -> srug::Result<()> {
             let device = open_device(&cli.device, cli.validation)?;
             cli_relight::relight(&device, &args)
         }
-        Command::Unet { weights, input, out } => {
+        Command::Unet { weights, input, out, precision } => {
+            let precision = srug::indirect::StoragePrecision::parse(&precision)?;
             let net = srug::indirect::UNetWeights::load(&weights)?;
             let bytes = std::fs::read(&input).map_err(srug::Error::io(&input))?;
             let (c, h, w, values) = srug::indirect::read_tensor(&bytes, "input", &input.display().to_string())?;
@@ -347,7 +351,7 @@ fn run(cli: Cli) -> srug::Result<()> {
                 )));
             }
             let device = open_device(&cli.device, cli.validation)?;
-            let mut unet = srug::indirect::UNet::new(&device, &net)?;
+            let mut unet = srug::indirect::UNet::with_precision(&device, &net, precision)?;
             let buffer = device.upload("u-net input", &values)?;
             let result = unet.infer(&buffer, w as u32, h as u32)?;
             let output: Vec<f32> = device.read_buffer(&result.output)?;

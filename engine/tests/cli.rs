@@ -369,6 +369,13 @@ fn unet_runs_one_inference_between_safetensors_files() {
     let cpu = unet_cpu(&weights, &Tensor::from_f32(c, w, h, &input));
     let err = out.iter().zip(&cpu.data).map(|(a, b)| (f64::from(*a) - b).abs()).fold(0.0, f64::max);
     assert!(err <= 1e-4, "srug unet differs from the twin by {err:e}");
+    // fp16 activation storage: within 1e-2 of the output scale.
+    let o = srug(&[&args[..], &["--out", opath.to_str().unwrap(), "--precision", "fp16"]].concat());
+    assert!(o.status.success(), "{}", text(&o));
+    let (_, _, _, out16) = read_tensor(&std::fs::read(&opath).unwrap(), "output", "out").unwrap();
+    let peak = cpu.data.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    let err = out16.iter().zip(&cpu.data).map(|(a, b)| (f64::from(*a) - b).abs()).fold(0.0, f64::max);
+    assert!(err <= 1e-2 * peak, "fp16: {err:e} of {peak:e}");
     // Wrong channel count and a missing tensor are refused clearly.
     std::fs::write(&ipath, tensor_bytes("input", 5, h, w, &input[..5 * h * w]).unwrap()).unwrap();
     let o = srug(&[&args[..], &["--out", opath.to_str().unwrap()]].concat());
@@ -376,4 +383,14 @@ fn unet_runs_one_inference_between_safetensors_files() {
     std::fs::write(&ipath, tensor_bytes("x", c, h, w, &input).unwrap()).unwrap();
     let o = srug(&[&args[..], &["--out", opath.to_str().unwrap()]].concat());
     assert!(!o.status.success() && text(&o).contains("\"input\" is missing"), "{}", text(&o));
+}
+
+#[test]
+fn bench_unet_prints_its_table() {
+    let o = srug(&["bench", "unet", "--widths", "8,8,16,16,32", "--sizes", "37x23", "--repeats", "1", "--validation"]);
+    let t = text(&o);
+    assert!(o.status.success(), "{t}");
+    for want in ["| 37x23 | fp32 |", "% of FMA peak", "per layer: inc"] {
+        assert!(t.contains(want), "missing {want:?} in:\n{t}");
+    }
 }

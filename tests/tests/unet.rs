@@ -9,23 +9,37 @@
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64Mcg;
 use srug::gpu::Device;
-use srug::indirect::cpu::{unet_cpu, Tensor};
-use srug::indirect::{Activation, UNet, UNetConfig, UNetWeights};
+use srug::indirect::cpu::{unet_cpu, unet_cpu_stored, Tensor};
+use srug::indirect::{Activation, StoragePrecision, UNet, UNetConfig, UNetWeights};
 use srug_tests::{assert_no_validation_messages, device};
 
 const NAN: u32 = 0x7fc0_0000;
 
 fn run(d: &Device, weights: &UNetWeights, w: usize, h: usize, scale: f32, seed: u64) -> (Vec<f32>, Tensor) {
+    let (gpu, cpu, _) = run_with(d, weights, w, h, scale, seed, StoragePrecision::Fp32);
+    (gpu, cpu)
+}
+
+/// GPU output, the f64 twin, and the twin with fp16-rounded stored activations.
+fn run_with(
+    d: &Device,
+    weights: &UNetWeights,
+    w: usize,
+    h: usize,
+    scale: f32,
+    seed: u64,
+    precision: StoragePrecision,
+) -> (Vec<f32>, Tensor, Tensor) {
     let mut rng = Pcg64Mcg::seed_from_u64(seed);
     let c = weights.config.in_channels;
     let input: Vec<f32> = (0..c * w * h).map(|_| rng.random_range(-1.0..1.0f32) * scale).collect();
     let buffer = d.upload("input", &input).unwrap();
-    let mut net = UNet::new(d, weights).unwrap();
+    let mut net = UNet::with_precision(d, weights, precision).unwrap();
     net.set_prefill(Some(NAN));
     let out = net.infer(&buffer, w as u32, h as u32).unwrap();
     let gpu: Vec<f32> = d.read_buffer(&out.output).unwrap();
-    let cpu = unet_cpu(weights, &Tensor::from_f32(c, w, h, &input));
-    (gpu, cpu)
+    let x = Tensor::from_f32(c, w, h, &input);
+    (gpu, unet_cpu(weights, &x), unet_cpu_stored(weights, &x, true))
 }
 
 fn max_abs(gpu: &[f32], cpu: &Tensor) -> f64 {
@@ -131,4 +145,40 @@ fn safetensors_round_trip_and_clear_errors() {
     assert!(error(b"not safetensors").contains("w.safetensors"));
     let msg = UNetWeights::load("/nonexistent/w.safetensors").err().map(|e| e.to_string()).unwrap_or_default();
     assert!(msg.contains("w.safetensors"), "{msg}");
+}
+
+#[test]
+fn fp16_storage_matches_twin_within_its_precision() {
+    let d = device();
+    if !d.info().storage_16bit {
+        println!("skipped: the device has no 16-bit storage");
+        return;
+    }
+    let cases = [
+        ([32usize, 32, 64, 64, 128], Activation::Relu, false, 37usize, 23usize, 1.0f32),
+        ([8, 16, 32, 64, 128], Activation::LeakyRelu, true, 37, 23, 1.0),
+        ([8, 8, 8, 8, 8], Activation::Relu, true, 1, 1, 1.0),
+        ([8, 8, 16, 16, 16], Activation::None, false, 2, 2, 1.0),
+        ([16, 16, 32, 32, 64], Activation::Relu, false, 13, 11, 1e4),
+    ];
+    for (widths, activation, align_corners, w, h, scale) in cases {
+        let config = UNetConfig { widths, activation, align_corners, ..UNetConfig::default() };
+        let weights = UNetWeights::random(config, 3);
+        let (gpu, exact, rounded) = run_with(&d, &weights, w, h, scale, 7, StoragePrecision::Fp16);
+        let peak = exact.data.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        let rel = max_abs(&gpu, &exact) / peak;
+        // Against the twin that rounds what the kernels store: only fp32-vs-f64 arithmetic and
+        // rounding ties remain (one fp16 step of the largest stored value, relative).
+        let rel_rounded = max_abs(&gpu, &rounded) / peak;
+        println!("fp16 storage, widths {widths:?} at {w}x{h}, inputs ×{scale}: relative error {rel:.2e} (vs fp16-rounded twin {rel_rounded:.2e})");
+        assert!(rel <= 1e-2, "fp16 storage: relative error {rel:e} > 1e-2");
+        assert!(rel_rounded <= 2e-3, "fp16 storage vs the rounded twin: {rel_rounded:e} > 2e-3");
+    }
+    // The fp16 arena is about half the fp32 one.
+    let weights = UNetWeights::random(UNetConfig::default(), 1);
+    let a32 = UNet::new(&d, &weights).unwrap().arena_bytes(704, 192);
+    let a16 = UNet::with_precision(&d, &weights, StoragePrecision::Fp16).unwrap().arena_bytes(704, 192);
+    println!("arena at 704x192: fp32 {a32} bytes, fp16 {a16} bytes");
+    assert!(a16 < a32 * 7 / 10);
+    assert_no_validation_messages(&d);
 }

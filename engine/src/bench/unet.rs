@@ -6,7 +6,7 @@
 use super::median;
 use crate::error::Result;
 use crate::gpu::Device;
-use crate::indirect::{UNet, UNetConfig, UNetWeights};
+use crate::indirect::{StoragePrecision, UNet, UNetConfig, UNetWeights};
 
 /// One (size, precision) row.
 #[derive(Clone, Debug)]
@@ -36,34 +36,40 @@ pub fn unet_bench(
     progress: impl Fn(&str),
 ) -> Result<Vec<UNetRow>> {
     let weights = UNetWeights::random(UNetConfig { widths, ..UNetConfig::default() }, 1);
-    let mut net = UNet::new(device, &weights)?;
+    let mut precisions = vec![StoragePrecision::Fp32];
+    if device.info().storage_16bit {
+        precisions.push(StoragePrecision::Fp16);
+    }
     let mut rows = Vec::new();
     for &(w, h) in sizes {
-        progress(&format!("U-Net at {w}x{h}"));
-        let input = device.upload("u-net input", &vec![0.5f32; 14 * (w * h) as usize])?;
-        net.infer(&input, w, h)?;
-        let mut totals = Vec::new();
-        let mut per_layer: Vec<(String, Vec<f64>)> = Vec::new();
-        for _ in 0..repeats.max(1) {
-            let out = net.infer(&input, w, h)?;
-            totals.push(out.timings.total_seconds());
-            for (i, s) in out.timings.stages.iter().enumerate() {
-                if per_layer.len() <= i {
-                    per_layer.push((s.name.clone(), Vec::new()));
+        for &precision in &precisions {
+            let mut net = UNet::with_precision(device, &weights, precision)?;
+            progress(&format!("U-Net at {w}x{h}, {precision:?}"));
+            let input = device.upload("u-net input", &vec![0.5f32; 14 * (w * h) as usize])?;
+            net.infer(&input, w, h)?;
+            let mut totals = Vec::new();
+            let mut per_layer: Vec<(String, Vec<f64>)> = Vec::new();
+            for _ in 0..repeats.max(1) {
+                let out = net.infer(&input, w, h)?;
+                totals.push(out.timings.total_seconds());
+                for (i, s) in out.timings.stages.iter().enumerate() {
+                    if per_layer.len() <= i {
+                        per_layer.push((s.name.clone(), Vec::new()));
+                    }
+                    per_layer[i].1.push(s.seconds);
                 }
-                per_layer[i].1.push(s.seconds);
             }
+            let min_seconds = totals.iter().copied().fold(f64::INFINITY, f64::min);
+            rows.push(UNetRow {
+                size: (w, h),
+                precision: if precision == StoragePrecision::Fp16 { "fp16" } else { "fp32" },
+                seconds: median(totals),
+                min_seconds,
+                flops: weights.flops(w as usize, h as usize),
+                layers: per_layer.into_iter().map(|(n, v)| (n, median(v))).collect(),
+                arena_bytes: net.arena_bytes(w, h),
+            });
         }
-        let min_seconds = totals.iter().copied().fold(f64::INFINITY, f64::min);
-        rows.push(UNetRow {
-            size: (w, h),
-            precision: "fp32",
-            seconds: median(totals),
-            min_seconds,
-            flops: weights.flops(w as usize, h as usize),
-            layers: per_layer.into_iter().map(|(n, v)| (n, median(v))).collect(),
-            arena_bytes: net.arena_bytes(w, h),
-        });
     }
     Ok(rows)
 }

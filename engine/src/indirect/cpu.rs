@@ -115,10 +115,37 @@ pub fn upsample_cpu(x: &Tensor, width: usize, height: usize, align_corners: bool
 
 /// The whole network on one input.
 pub fn unet_cpu(weights: &UNetWeights, input: &Tensor) -> Tensor {
+    unet_cpu_stored(weights, input, false)
+}
+
+/// Rounds to the nearest fp16, saturating at ±65504 (as the fp16 kernels store).
+pub fn round_half(t: &mut Tensor) {
+    for v in &mut t.data {
+        *v = f64::from(half::f16::from_f64(v.clamp(-65504.0, 65504.0)).to_f32());
+    }
+}
+
+/// The network with every stored activation (each layer's output but the
+/// last, and each resized tensor) rounded to fp16 when `half`, as with
+/// fp16 storage; arithmetic stays f64.
+pub fn unet_cpu_stored(weights: &UNetWeights, input: &Tensor, half: bool) -> Tensor {
     let c = &weights.config;
     let names = layers(c);
     let act = c.activation;
-    let conv = |i: usize, x: &Tensor, a: Activation| conv3x3_cpu(x, &weights.layers[i], names[i].3 as usize, a);
+    let store = |mut t: Tensor| {
+        if half {
+            round_half(&mut t);
+        }
+        t
+    };
+    let conv = |i: usize, x: &Tensor, a: Activation| {
+        let y = conv3x3_cpu(x, &weights.layers[i], names[i].3 as usize, a);
+        if i + 1 < names.len() {
+            store(y)
+        } else {
+            y
+        }
+    };
     let s = level_sizes(input.width, input.height);
     let mut f = vec![conv(0, input, act)];
     for i in 1..5 {
@@ -127,7 +154,7 @@ pub fn unet_cpu(weights: &UNetWeights, input: &Tensor) -> Tensor {
     }
     let mut u = f[4].clone();
     for (k, level) in [3usize, 2, 1, 0].into_iter().enumerate() {
-        let up = upsample_cpu(&u, s[level].0, s[level].1, c.align_corners);
+        let up = store(upsample_cpu(&u, s[level].0, s[level].1, c.align_corners));
         u = conv(5 + k, &up.concat(&f[level]), act);
     }
     conv(9, &u, Activation::None)

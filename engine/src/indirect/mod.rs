@@ -343,6 +343,7 @@ pub struct ConvPush {
     a: u64,
     b: u64,
     o: u64,
+    partial: u64,
     ca: u32,
     cb: u32,
     oc: u32,
@@ -352,7 +353,7 @@ pub struct ConvPush {
     in_size: [u32; 2],
     out_size: [u32; 2],
 }
-const _: () = assert!(std::mem::size_of::<ConvPush>() == 64);
+const _: () = assert!(std::mem::size_of::<ConvPush>() == 72);
 
 /// Floats in one weight pass's uniform buffer (64 KiB, the least
 /// `maxUniformBufferRange` Vulkan guarantees; keep in sync with `wts[4096]`
@@ -445,13 +446,47 @@ pub struct NetworkInputs<'a> {
 pub struct UNet {
     device: Device,
     config: UNetConfig,
-    convs: HashMap<(u32, u32, u32), Kernel>,
+    precision: StoragePrecision,
+    convs: HashMap<ConvKey, Kernel>,
     upsample: Kernel,
     pack: Kernel,
     weights: Vec<LayerBuffers>,
     arena: Option<Buffer>,
     prefill: Option<u32>,
 }
+
+/// How activations are stored between layers; arithmetic is fp32 either way.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum StoragePrecision {
+    /// 32-bit floats.
+    #[default]
+    Fp32,
+    /// 16-bit floats (half the arena; needs the device's 16-bit storage).
+    /// The network's input and output stay fp32; weights stay fp32.
+    Fp16,
+}
+
+impl StoragePrecision {
+    /// Parses `fp32` or `fp16`.
+    pub fn parse(text: &str) -> Result<Self> {
+        match text {
+            "fp32" => Ok(Self::Fp32),
+            "fp16" => Ok(Self::Fp16),
+            other => Err(Error::InvalidArgument(format!("precision \"{other}\" is not fp32 or fp16"))),
+        }
+    }
+
+    /// Bytes per stored activation.
+    pub fn bytes(self) -> u64 {
+        match self {
+            Self::Fp32 => 4,
+            Self::Fp16 => 2,
+        }
+    }
+}
+
+/// A conv kernel variant: stride, activation, output block, input and output in fp16.
+type ConvKey = (u32, u32, u32, bool, bool);
 
 /// One layer's weights on the GPU: a uniform buffer per pass, the bias.
 struct LayerBuffers {
@@ -481,37 +516,55 @@ struct Step {
     out: u64,
 }
 
-/// Offsets (in floats) of every tensor of a pass in the arena, and its total size.
+/// Byte offsets of every tensor of a pass in the arena, and its total size.
 struct ArenaLayout {
     f: [u64; 5],
     u: [u64; 4],
     resized: u64,
+    partial: u64,
     total: u64,
 }
 
 impl ArenaLayout {
-    fn new(c: &UNetConfig, width: usize, height: usize) -> Self {
+    fn new(c: &UNetConfig, width: usize, height: usize, precision: StoragePrecision) -> Self {
         let s = level_sizes(width, height);
         let px = |l: usize| (s[l].0 * s[l].1) as u64;
         let w = c.widths.map(|x| x as u64);
+        let e = precision.bytes();
         let mut at = 0u64;
-        let mut take = |n: u64| {
+        let mut take = |bytes: u64| {
             let o = at;
-            at += n.div_ceil(4) * 4;
+            at += bytes.div_ceil(16) * 16;
             o
         };
-        let f = [0, 1, 2, 3, 4].map(|l| take(w[l] * px(l)));
+        let f = [0, 1, 2, 3, 4].map(|l| take(e * w[l] * px(l)));
         // up1..up4 outputs: w3 at level 3, w2 at 2, w1 at 1, w0 at 0.
-        let u = [(3, 3), (2, 2), (1, 1), (0, 0)].map(|(wi, l)| take(w[wi] * px(l)));
+        let u = [(3, 3), (2, 2), (1, 1), (0, 0)].map(|(wi, l)| take(e * w[wi] * px(l)));
         // The resized tensor before each up conv: the previous level's channels at the skip's size.
-        let resized = take([w[4] * px(3), w[3] * px(2), w[2] * px(1), w[1] * px(0)].into_iter().max().unwrap_or(0));
-        Self { f, u, resized, total: at }
+        let resized = take(e * [w[4] * px(3), w[3] * px(2), w[2] * px(1), w[1] * px(0)].into_iter().max().unwrap_or(0));
+        // fp32 partial sums of a layer run in several passes: its output channels at its resolution.
+        let at_level = [0, 1, 2, 3, 4, 3, 2, 1, 0, 0];
+        let partial = take(
+            4 * layers(c)
+                .iter()
+                .zip(at_level)
+                .filter(|((_, ci, co, _), _)| *ci > pass_channels(*co).max(1))
+                .map(|((_, _, co, _), l)| *co as u64 * px(l))
+                .max()
+                .unwrap_or(0),
+        );
+        Self { f, u, resized, partial, total: at }
     }
 }
 
 impl UNet {
-    /// Uploads the weights and builds the kernels.
+    /// Uploads the weights and builds the kernels (fp32 activations).
     pub fn new(device: &Device, weights: &UNetWeights) -> Result<Self> {
+        Self::with_precision(device, weights, StoragePrecision::Fp32)
+    }
+
+    /// Uploads the weights and builds the kernels for `precision`.
+    pub fn with_precision(device: &Device, weights: &UNetWeights, precision: StoragePrecision) -> Result<Self> {
         let config = weights.config.clone();
         let expected = layers(&config);
         if weights.layers.len() != expected.len()
@@ -521,35 +574,31 @@ impl UNet {
         {
             return Err(Error::InvalidArgument("U-Net weights do not match their configuration".into()));
         }
+        let half = precision == StoragePrecision::Fp16;
+        if half && !device.info().storage_16bit {
+            return Err(Error::Unsupported("fp16 activation storage needs storageBuffer16BitAccess".into()));
+        }
         let mut convs = HashMap::new();
-        let keys: Vec<(u32, u32, u32)> = expected
-            .iter()
-            .enumerate()
-            .map(|(i, (_, _, co, stride))| {
-                let act = if i + 1 == expected.len() { 0 } else { config.activation.code() };
-                (*stride, act, channel_block(*co) as u32)
-            })
-            .collect();
-        for key in keys {
+        for key in (0..expected.len()).map(|i| Self::conv_key(&config, i, half)) {
             if let std::collections::hash_map::Entry::Vacant(e) = convs.entry(key) {
+                let mut spec = vec![(0, SpecValue::U32(key.0)), (1, SpecValue::U32(key.1)), (2, SpecValue::U32(key.2))];
+                if half {
+                    spec.extend([(10, SpecValue::Bool(key.3)), (11, SpecValue::Bool(key.4))]);
+                }
                 e.insert(Kernel::new(
                     device,
-                    &kernels::UNET_CONV,
+                    if half { &kernels::UNET_CONV_HALF } else { &kernels::UNET_CONV },
                     &KernelDecl {
                         bindings: &[BindingKind::UniformBuffer, BindingKind::StorageBuffer { read_only: true }],
                         push_constant_size: std::mem::size_of::<ConvPush>(),
-                        specialization: &[
-                            (0, SpecValue::U32(key.0)),
-                            (1, SpecValue::U32(key.1)),
-                            (2, SpecValue::U32(key.2)),
-                        ],
+                        specialization: &spec,
                     },
                 )?);
             }
         }
         let upsample = Kernel::new(
             device,
-            &kernels::UNET_UPSAMPLE,
+            if half { &kernels::UNET_UPSAMPLE_HALF } else { &kernels::UNET_UPSAMPLE },
             &KernelDecl { bindings: &[], push_constant_size: std::mem::size_of::<UpsamplePush>(), specialization: &[] },
         )?;
         let pack = Kernel::new(
@@ -572,7 +621,27 @@ impl UNet {
                 Ok(LayerBuffers { passes, bias, chunk: pass_channels(l.out_channels).max(1) })
             })
             .collect::<Result<_>>()?;
-        Ok(Self { device: device.clone(), config, convs, upsample, pack, weights, arena: None, prefill: None })
+        Ok(Self {
+            device: device.clone(),
+            config,
+            precision,
+            convs,
+            upsample,
+            pack,
+            weights,
+            arena: None,
+            prefill: None,
+        })
+    }
+
+    /// The kernel variant of layer `i`: its stride, activation (none for the
+    /// last), output block, and fp16 input (not for the first) and output (not for the last).
+    fn conv_key(config: &UNetConfig, i: usize, half: bool) -> ConvKey {
+        let l = layers(config);
+        let (_, _, co, stride) = l[i];
+        let last = i + 1 == l.len();
+        let act = if last { 0 } else { config.activation.code() };
+        (stride, act, channel_block(co) as u32, half && i > 0, half && !last)
     }
 
     /// The architecture.
@@ -594,7 +663,12 @@ impl UNet {
 
     /// Bytes of the activation arena for an input size.
     pub fn arena_bytes(&self, width: u32, height: u32) -> u64 {
-        ArenaLayout::new(&self.config, width as usize, height as usize).total * 4
+        ArenaLayout::new(&self.config, width as usize, height as usize, self.precision).total
+    }
+
+    /// How activations are stored.
+    pub fn precision(&self) -> StoragePrecision {
+        self.precision
     }
 
     /// GPU bytes of the packed weights.
@@ -666,8 +740,8 @@ impl UNet {
                 c.in_channels * w * h * 4
             )));
         }
-        let layout = ArenaLayout::new(&c, w, h);
-        let need = layout.total * 4;
+        let layout = ArenaLayout::new(&c, w, h, self.precision);
+        let need = layout.total;
         if self.arena.as_ref().is_none_or(|a| a.size() < need) {
             self.arena = None;
             self.arena = Some(self.device.create_buffer("u-net arena", need, MemoryKind::Storage)?);
@@ -676,12 +750,15 @@ impl UNet {
         let output =
             self.device.create_buffer("u-net output", (c.out_channels * w * h * 4) as u64, MemoryKind::Storage)?;
         let base = arena.device_address();
-        let at = |floats: u64| base + floats * 4;
+        let at = |offset: u64| base + offset;
         let s = level_sizes(w, h);
         let size = |l: usize| [s[l].0 as u32, s[l].1 as u32];
-        let act = c.activation.code();
-        let kernel = |stride: u32, a: u32, b: u32| {
-            self.convs.get(&(stride, a, b)).ok_or_else(|| Error::InvalidArgument("missing U-Net kernel variant".into()))
+        let half = self.precision == StoragePrecision::Fp16;
+        let convs = &self.convs;
+        let kernel = |i: usize| {
+            convs
+                .get(&Self::conv_key(&c, i, half))
+                .ok_or_else(|| Error::InvalidArgument("missing U-Net kernel variant".into()))
         };
         let max_groups = self.device.info().max_workgroup_count;
         let names = layers(&c);
@@ -772,7 +849,7 @@ impl UNet {
                 rec.keep(&l.passes.iter().chain([&l.bias]).collect::<Vec<_>>())?;
             }
             for &Step { layer: li, a, ca, b, cb, lin, lout, out } in &steps {
-                let (name, _, co, stride) = names[li];
+                let (name, _, co, _) = names[li];
                 if (5..9).contains(&li) {
                     let (src, ch, from) = resize_from[li - 5];
                     let push = UpsamplePush {
@@ -789,7 +866,7 @@ impl UNet {
                 }
                 let layer = &weights[li];
                 let ob = channel_block(co);
-                let k = kernel(stride, if li == 9 { 0 } else { act }, ob as u32)?;
+                let k = kernel(li)?;
                 let groups = (s[lout].0 * s[lout].1).div_ceil(64) as u32;
                 let gz = groups.div_ceil(max_groups[0]);
                 let grid = [groups.div_ceil(gz), co.div_ceil(ob) as u32, gz];
@@ -806,6 +883,7 @@ impl UNet {
                         a,
                         b,
                         o: out,
+                        partial: at(layout.partial),
                         ca: ca as u32,
                         cb: cb as u32,
                         oc: co as u32,

@@ -1,0 +1,36 @@
+// Activation storage of the U-Net kernels: fp32, or fp16 with HALF_STORAGE
+// (IN_HALF / OUT_HALF specialization constants per layer). Needs
+// address.glsl.
+#ifndef SRUG_UNET_STORAGE_GLSL
+#define SRUG_UNET_STORAGE_GLSL
+
+#ifdef HALF_STORAGE
+#extension GL_EXT_shader_16bit_storage : require
+layout(buffer_reference, std430, buffer_reference_align = 2) readonly buffer HalfsIn { float16_t v[]; };
+layout(buffer_reference, std430, buffer_reference_align = 2) writeonly buffer HalfsOut { float16_t v[]; };
+layout(constant_id = 10) const bool IN_HALF = true;
+layout(constant_id = 11) const bool OUT_HALF = true;
+
+float load_input(uvec2 a, uint i) {
+    return IN_HALF ? float(HalfsIn(a).v[i]) : FloatsIn(a).v[i];
+}
+
+void store_output(uvec2 a, uint i, float v) {
+    if (OUT_HALF) {
+        // Saturate: fp16 storage holds ±65504 at most (no overflow to infinity).
+        HalfsOut(a).v[i] = float16_t(clamp(v, -65504.0, 65504.0));
+    } else {
+        FloatsOut(a).v[i] = v;
+    }
+}
+#else
+float load_input(uvec2 a, uint i) {
+    return FloatsIn(a).v[i];
+}
+
+void store_output(uvec2 a, uint i, float v) {
+    FloatsOut(a).v[i] = v;
+}
+#endif
+
+#endif

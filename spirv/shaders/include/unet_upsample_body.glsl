@@ -1,0 +1,44 @@
+// The body of unet_upsample.comp and unet_upsample_half.comp (see there).
+#define WORKGROUP_SIZE_X 64
+#include "common.glsl"
+#include "address.glsl"
+#include "unet_storage.glsl"
+
+// Keep in sync with engine/src/indirect/mod.rs `UpsamplePush`.
+layout(push_constant) uniform Push {
+    uvec2 src;
+    uvec2 dst;
+    uvec2 in_size;
+    uvec2 out_size;
+    uint channels;
+    uint align_corners;
+} pc;
+
+// Source coordinate and its two neighbours along one axis (PyTorch's rule).
+void source(uint d, uint n_in, uint n_out, out uint i0, out uint i1, out float t) {
+    float s;
+    if (pc.align_corners != 0u) {
+        s = n_out > 1u ? float(d) * float(n_in - 1u) / float(n_out - 1u) : 0.0;
+    } else {
+        s = max((float(d) + 0.5) * float(n_in) / float(n_out) - 0.5, 0.0);
+    }
+    i0 = min(uint(s), n_in - 1u);
+    i1 = min(i0 + 1u, n_in - 1u);
+    t = s - float(i0);
+}
+
+void main() {
+    uint i = linear_index();
+    uint plane = pc.out_size.x * pc.out_size.y;
+    if (i >= plane * pc.channels) return;
+    uint c = i / plane, p = i % plane;
+    uint x0, x1, y0, y1;
+    float tx, ty;
+    source(p % pc.out_size.x, pc.in_size.x, pc.out_size.x, x0, x1, tx);
+    source(p / pc.out_size.x, pc.in_size.y, pc.out_size.y, y0, y1, ty);
+    uint base = c * pc.in_size.x * pc.in_size.y;
+    float top = mix(load_input(pc.src, base + y0 * pc.in_size.x + x0), load_input(pc.src, base + y0 * pc.in_size.x + x1), tx);
+    float bottom =
+        mix(load_input(pc.src, base + y1 * pc.in_size.x + x0), load_input(pc.src, base + y1 * pc.in_size.x + x1), tx);
+    store_output(pc.dst, i, mix(top, bottom, ty));
+}
