@@ -259,6 +259,18 @@ fn relight_renders_stills_time_lapses_and_prefiltered_environments() {
     for want in ["R", "G", "B", "sun.R", "sky.B"] {
         assert!(names.iter().any(|n| n == want), "{names:?} lacks {want}");
     }
+    assert!(!names.iter().any(|n| n.starts_with("indirect")), "no weights: no indirect light");
+    // With network weights the indirect light is computed and written.
+    let config = srug::indirect::UNetConfig { widths: [8, 8, 16, 16, 32], ..Default::default() };
+    let wpath = dir.path().join("unet.safetensors");
+    std::fs::write(&wpath, srug::indirect::UNetWeights::random(config, 2).to_bytes().unwrap()).unwrap();
+    let mut args = vec!["relight", ply, "--out", exr_out.to_str().unwrap(), "--indirect", wpath.to_str().unwrap()];
+    args.extend(common);
+    let o = srug(&args);
+    assert!(o.status.success(), "{}", text(&o));
+    let image = exr::prelude::read_all_flat_layers_from_file(&exr_out).unwrap();
+    let names: Vec<String> = image.layer_data[0].channel_data.list.iter().map(|c| c.name.to_string()).collect();
+    assert!(names.iter().any(|n| n == "indirect.R"), "{names:?} lacks indirect.R");
     // A time-lapse along the sun's path: night frames run no shadow pass.
     let tl = dir.path().join("tl").join("day.png");
     let mut args = vec![
