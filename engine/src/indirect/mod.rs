@@ -766,72 +766,36 @@ impl UNet {
         let upsample = &self.upsample;
         let prefill = self.prefill;
         let wd = c.widths;
-        let steps = [
-            Step {
-                layer: 0,
-                a: input.device_address(),
-                ca: c.in_channels,
-                b: 0,
-                cb: 0,
-                lin: 0,
-                lout: 0,
-                out: at(layout.f[0]),
-            },
-            Step { layer: 1, a: at(layout.f[0]), ca: wd[0], b: 0, cb: 0, lin: 0, lout: 1, out: at(layout.f[1]) },
-            Step { layer: 2, a: at(layout.f[1]), ca: wd[1], b: 0, cb: 0, lin: 1, lout: 2, out: at(layout.f[2]) },
-            Step { layer: 3, a: at(layout.f[2]), ca: wd[2], b: 0, cb: 0, lin: 2, lout: 3, out: at(layout.f[3]) },
-            Step { layer: 4, a: at(layout.f[3]), ca: wd[3], b: 0, cb: 0, lin: 3, lout: 4, out: at(layout.f[4]) },
-            Step {
-                layer: 5,
+        // inc, the four downsamplings, the four up stages (resized ++ skip), outc.
+        let mut steps = vec![Step {
+            layer: 0,
+            a: input.device_address(),
+            ca: c.in_channels,
+            b: 0,
+            cb: 0,
+            lin: 0,
+            lout: 0,
+            out: at(layout.f[0]),
+        }];
+        for l in 1..5 {
+            let (a, ca, out) = (at(layout.f[l - 1]), wd[l - 1], at(layout.f[l]));
+            steps.push(Step { layer: l, a, ca, b: 0, cb: 0, lin: l - 1, lout: l, out });
+        }
+        for k in 0..4 {
+            let level = 3 - k;
+            steps.push(Step {
+                layer: 5 + k,
                 a: at(layout.resized),
-                ca: wd[4],
-                b: at(layout.f[3]),
-                cb: wd[3],
-                lin: 3,
-                lout: 3,
-                out: at(layout.u[0]),
-            },
-            Step {
-                layer: 6,
-                a: at(layout.resized),
-                ca: wd[3],
-                b: at(layout.f[2]),
-                cb: wd[2],
-                lin: 2,
-                lout: 2,
-                out: at(layout.u[1]),
-            },
-            Step {
-                layer: 7,
-                a: at(layout.resized),
-                ca: wd[2],
-                b: at(layout.f[1]),
-                cb: wd[1],
-                lin: 1,
-                lout: 1,
-                out: at(layout.u[2]),
-            },
-            Step {
-                layer: 8,
-                a: at(layout.resized),
-                ca: wd[1],
-                b: at(layout.f[0]),
-                cb: wd[0],
-                lin: 0,
-                lout: 0,
-                out: at(layout.u[3]),
-            },
-            Step {
-                layer: 9,
-                a: at(layout.u[3]),
-                ca: wd[0],
-                b: 0,
-                cb: 0,
-                lin: 0,
-                lout: 0,
-                out: output.device_address(),
-            },
-        ];
+                ca: wd[level + 1],
+                b: at(layout.f[level]),
+                cb: wd[level],
+                lin: level,
+                lout: level,
+                out: at(layout.u[k]),
+            });
+        }
+        let out = output.device_address();
+        steps.push(Step { layer: 9, a: at(layout.u[3]), ca: wd[0], b: 0, cb: 0, lin: 0, lout: 0, out });
         // What each up layer resizes first: (source address, channels, source level).
         let resize_from = [
             (at(layout.f[4]), wd[4], 4),
