@@ -259,6 +259,17 @@ fn test_camera(w: u32, h: u32) -> Camera {
     Camera::look_at(Vec3::new(0.0, -10.0, 3.0), Vec3::new(0.0, 0.0, 0.0), Vec3::Z, 70.0, w, h).unwrap()
 }
 
+/// Shading inputs without editable visibility or indirect light.
+fn inputs<'a>(
+    env: &'a PreparedEnvironment,
+    brdf: &'a BrdfTable,
+    gbuffer: &'a GpuGBuffer,
+    camera: &'a Camera,
+    sun: Option<&'a Sun>,
+) -> ShadeInputs<'a> {
+    ShadeInputs { gbuffer, camera, environment: env, brdf, sun, editable_visibility: None, indirect: None }
+}
+
 struct Lit {
     d: Device,
     shader: Shader,
@@ -336,13 +347,9 @@ fn shading_matches_twin_on_random_and_extreme_gbuffers() {
     ];
     for (label, settings, sun, with_indirect) in cases {
         let inputs = ShadeInputs {
-            gbuffer: &g,
-            camera: &camera,
-            environment: &s.env,
-            brdf: &s.brdf,
-            sun,
             editable_visibility: Some(&ev),
             indirect: with_indirect.then_some(&ind),
+            ..inputs(&s.env, &s.brdf, &g, &camera, sun)
         };
         let out = s.shader.shade(&inputs, &settings).unwrap().read(&s.d).unwrap();
         let cpu = shade_cpu(&host, &camera, &t, sun, &settings, Some(&editable), with_indirect.then_some(&indirect));
@@ -359,15 +366,7 @@ fn shading_matches_twin_on_random_and_extreme_gbuffers() {
         }
     }
     // Misuse: editable visibility without its buffer; a G-buffer without albedo.
-    let bad = ShadeInputs {
-        gbuffer: &g,
-        camera: &camera,
-        environment: &s.env,
-        brdf: &s.brdf,
-        sun: Some(&suns[0]),
-        editable_visibility: None,
-        indirect: None,
-    };
+    let bad = inputs(&s.env, &s.brdf, &g, &camera, Some(&suns[0]));
     assert!(s.shader.shade(&bad, &ShadeSettings::default()).is_err());
     let plain = GpuGBuffer { albedo: None, ..upload(&s.d, &host) };
     let no_albedo = ShadeInputs { gbuffer: &plain, ..bad };
@@ -403,15 +402,7 @@ fn white_furnace() {
             hm.metallic.as_mut().unwrap().iter_mut().for_each(|v| *v = m);
         }
         let gm = upload(&s.d, &hm);
-        let inputs = ShadeInputs {
-            gbuffer: if metallic.is_some() { &gm } else { &g },
-            camera: &camera,
-            environment: &s.env,
-            brdf: &s.brdf,
-            sun: None,
-            editable_visibility: None,
-            indirect: None,
-        };
+        let inputs = inputs(&s.env, &s.brdf, if metallic.is_some() { &gm } else { &g }, &camera, None);
         let settings = ShadeSettings { terms, prefill: Some(NAN), ..ShadeSettings::default() };
         s.shader.shade(&inputs, &settings).unwrap().read(&s.d).unwrap()
     };
@@ -470,15 +461,7 @@ fn splatted_sunlit_plane_matches_closed_form() {
         .render(&gpu_scene, &camera, &SplatSettings { channels: ch, prefill: Some(NAN), ..SplatSettings::default() })
         .unwrap();
     let sun = Sun::from_azimuth_elevation(200.0, 40.0, [2.0, 2.0, 2.0]).unwrap();
-    let inputs = ShadeInputs {
-        gbuffer: &g,
-        camera: &camera,
-        environment: &s.env,
-        brdf: &s.brdf,
-        sun: Some(&sun),
-        editable_visibility: None,
-        indirect: None,
-    };
+    let inputs = inputs(&s.env, &s.brdf, &g, &camera, Some(&sun));
     let settings = ShadeSettings {
         visibility: VisibilitySource::None,
         background: Background::Color([0.0; 3]),
@@ -749,15 +732,7 @@ fn shading_with_the_indirect_network_matches_twin() {
     let weights = UNetWeights::random(UNetConfig { widths: [8, 8, 16, 16, 32], ..UNetConfig::default() }, 8);
     let mut net = UNet::new(&s.d, &weights).unwrap();
     net.set_prefill(Some(NAN));
-    let inputs = ShadeInputs {
-        gbuffer: &g,
-        camera: &camera,
-        environment: &s.env,
-        brdf: &s.brdf,
-        sun: Some(&sun),
-        editable_visibility: None,
-        indirect: None,
-    };
+    let inputs = inputs(&s.env, &s.brdf, &g, &camera, Some(&sun));
     let settings =
         ShadeSettings { visibility: VisibilitySource::Fixed, prefill: Some(NAN), ..ShadeSettings::default() };
     let frame = s.shader.shade_with_network(&inputs, &settings, &mut net).unwrap();

@@ -495,7 +495,9 @@ impl Shader {
             u.addr[6][1] = out.output.device_address();
             indirect = Some(out.output);
         }
-        let uniform = device.upload("shade uniform", bytemuck::bytes_of(&u))?;
+        // The compose reads L_ind's address: a new uniform only when the network ran.
+        let uniform =
+            if indirect.is_some() { device.upload("shade uniform", bytemuck::bytes_of(&u))? } else { uniform };
         let compose = &self.compose;
         let t = device.run(|rec| {
             rec.keep(&reads)?;
