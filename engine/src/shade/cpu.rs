@@ -48,8 +48,10 @@ pub fn hammersley(i: u32, n: u32) -> (f64, f64) {
 /// GGX half vector around +z.
 pub fn sample_ggx(xi: (f64, f64), alpha: f64) -> DVec3 {
     let phi = 2.0 * PI * xi.0;
-    let cos_t = ((1.0 - xi.1) / (1.0 + (alpha * alpha - 1.0) * xi.1)).sqrt();
-    let sin_t = (1.0 - cos_t * cos_t).max(0.0).sqrt();
+    // tan²θ form, as brdf.glsl (keep in sync): exact at α = 0.
+    let tan2 = alpha * alpha * xi.1 / (1.0 - xi.1);
+    let cos_t = (1.0 + tan2).sqrt().recip();
+    let sin_t = tan2.sqrt() * cos_t;
     DVec3::new(sin_t * phi.cos(), sin_t * phi.sin(), cos_t)
 }
 

@@ -40,8 +40,11 @@ vec2 hammersley(uint i, uint n) {
 // GGX-distributed half vector around +z for a uniform point xi.
 vec3 sample_ggx(vec2 xi, float alpha) {
     float phi = 2.0 * PI * xi.x;
-    float cos_t = sqrt((1.0 - xi.y) / (1.0 + (alpha * alpha - 1.0) * xi.y));
-    float sin_t = sqrt(max(1.0 - cos_t * cos_t, 0.0));
+    // tan²θ = α²ξ/(1 − ξ): exact at α = 0 (sinθ from 1 − cos²θ is not: a cosθ off by one ulp tilts H by
+    // 3e-4 rad, which at grazing N·V swamps N·L). Hammersley ξ < 1. Keep in sync with shade/cpu.rs.
+    float tan2 = alpha * alpha * xi.y / (1.0 - xi.y);
+    float cos_t = inversesqrt(1.0 + tan2);
+    float sin_t = sqrt(tan2) * cos_t;
     return vec3(sin_t * cos(phi), sin_t * sin(phi), cos_t);
 }
 
