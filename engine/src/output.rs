@@ -28,14 +28,22 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     finish(&tmp, path, written)
 }
 
+/// A display value in [0, 1] as a byte: clamped and rounded; NaN and ±Inf become 0.
+pub fn display_byte(v: f32) -> u8 {
+    if v.is_finite() {
+        (v.clamp(0.0, 1.0) * 255.0).round() as u8
+    } else {
+        0
+    }
+}
+
 /// Writes interleaved RGB floats (display values in [0, 1]; clamped, rounded) as an 8-bit PNG.
 pub fn write_png(path: impl AsRef<Path>, width: u32, height: u32, rgb: &[f32]) -> Result<()> {
     let path = path.as_ref();
     if rgb.len() != 3 * width as usize * height as usize {
         return Err(Error::InvalidArgument(format!("{} values for a {width}x{height} RGB image", rgb.len())));
     }
-    let bytes: Vec<u8> =
-        rgb.iter().map(|v| if v.is_finite() { (v.clamp(0.0, 1.0) * 255.0).round() as u8 } else { 0 }).collect();
+    let bytes: Vec<u8> = rgb.iter().copied().map(display_byte).collect();
     let tmp = temp_beside(path);
     let written = image::RgbImage::from_raw(width, height, bytes)
         .ok_or_else(|| Error::InvalidArgument("image size mismatch".into()))

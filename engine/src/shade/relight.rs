@@ -14,7 +14,7 @@ use crate::gpu::{Device, Timings};
 use crate::scene::activate::GpuScene;
 use crate::scene::{AttributeGroups, Bounds, Camera};
 use crate::shadow::{ShadowPass, ShadowSettings, Sun, VisibilityKind};
-use crate::splat::{NormalSource, SplatSettings, Splatter};
+use crate::splat::{Channels, GpuGBuffer, NormalSource, SplatSettings, Splatter};
 
 /// Everything a relit frame depends on besides the scene and the camera.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -25,6 +25,8 @@ pub struct RelightSettings {
     pub shadow: ShadowSettings,
     /// Where normals come from.
     pub normal_source: NormalSource,
+    /// G-buffer channels to blend besides those the shading reads (for callers that read them).
+    pub extra_channels: Channels,
 }
 
 /// A relit frame.
@@ -35,6 +37,8 @@ pub struct RelitFrame {
     pub timings: Timings,
     /// Whether a shadow map was splatted and tested.
     pub shadow_pass_ran: bool,
+    /// The camera's G-buffers (the shading's channels and the extra ones asked for).
+    pub gbuffer: GpuGBuffer,
 }
 
 /// The relighting pipeline: splatting, shadows and shading kernels, reused across frames.
@@ -95,6 +99,8 @@ impl Relighter {
             shade.visibility = VisibilitySource::None;
         }
         let mut channels = shade.gbuffer_channels(attributes);
+        let extra = settings.extra_channels;
+        channels = Channels::from_bits(channels.bits() | extra.bits());
         if editable {
             let r = settings.shadow.receiver_channels();
             channels.depth |= r.depth;
@@ -133,6 +139,6 @@ impl Relighter {
             None => self.shader.shade(&inputs, &shade)?,
         };
         timings.stages.extend(shaded.timings.stages.iter().cloned());
-        Ok(RelitFrame { shaded, timings, shadow_pass_ran: visibility.is_some() })
+        Ok(RelitFrame { shaded, timings, shadow_pass_ran: visibility.is_some(), gbuffer })
     }
 }

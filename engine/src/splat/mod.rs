@@ -93,6 +93,21 @@ impl Channels {
         .sum()
     }
 
+    /// The inverse of [`Channels::bits`] (bits above 7 are ignored).
+    pub fn from_bits(bits: u32) -> Self {
+        let on = |i: u32| bits & (1 << i) != 0;
+        Channels {
+            depth: on(0),
+            median_depth: on(1),
+            normal: on(2),
+            albedo: on(3),
+            roughness: on(4),
+            metallic: on(5),
+            ao: on(6),
+            visibility: on(7),
+        }
+    }
+
     /// Whether per-splat features (normal or materials) are needed.
     pub fn needs_features(&self) -> bool {
         self.bits() & 0b1111_1100 != 0

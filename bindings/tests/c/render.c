@@ -1,0 +1,285 @@
+/* Renders the demo city through the C API, the way an embedding engine would.
+ *
+ * usage: render SCENE.ply CAMERA.txt OUT.rgba
+ * CAMERA.txt: width height fx fy cx cy, 16 camera-to-world floats (column-major,
+ * OpenCV axes), near far, sun azimuth, elevation. Writes the relit frame as
+ * tightly packed RGBA8 rows to OUT.rgba for the Rust test to compare with the
+ * Rust API's image. Checks along the way: scene from memory equals scene from
+ * file, the camera given as OpenGL matrices gives the same image, channels,
+ * timings, memory, the shadow forward/backward pass, two threads rendering at
+ * once, and zero validation messages. */
+#define _GNU_SOURCE /* dl_iterate_phdr, RTLD_NODELETE */
+#include <math.h>
+#include <pthread.h>
+#include <stdint.h>
+
+#include "check.h"
+
+typedef struct {
+  srug_renderer *renderer;
+  srug_scene *scene;
+  srug_status status;
+} job;
+
+static void *render_job(void *arg) {
+  job *j = arg;
+  j->status = srug_renderer_render(j->renderer, j->scene);
+  return NULL;
+}
+
+static unsigned char *read_file(const char *path, size_t *len) {
+  FILE *f = fopen(path, "rb");
+  REQUIRE(f != NULL);
+  REQUIRE(fseek(f, 0, SEEK_END) == 0);
+  long n = ftell(f);
+  REQUIRE(n > 0);
+  REQUIRE(fseek(f, 0, SEEK_SET) == 0);
+  unsigned char *data = malloc((size_t)n);
+  REQUIRE(data != NULL);
+  REQUIRE(fread(data, 1, (size_t)n, f) == (size_t)n);
+  fclose(f);
+  *len = (size_t)n;
+  return data;
+}
+
+/* Reads the frame as RGBA8 rows `stride` bytes apart and returns them tightly packed. */
+static unsigned char *read_rgba8(srug_renderer *r, uint32_t w, uint32_t h) {
+  size_t stride = (size_t)w * 4 + 12; /* padded rows, as a texture upload might have */
+  size_t len = stride * h;
+  unsigned char *padded = malloc(len);
+  unsigned char *tight = malloc((size_t)w * h * 4);
+  REQUIRE(padded != NULL && tight != NULL);
+  memset(padded, 0xAB, len);
+  CHECK(srug_renderer_read_image(r, SRUG_FORMAT_RGBA8_SRGB, padded, len, stride));
+  for (uint32_t y = 0; y < h; y++) {
+    memcpy(tight + (size_t)y * w * 4, padded + (size_t)y * stride, (size_t)w * 4);
+    for (size_t k = (size_t)w * 4; k < stride; k++) REQUIRE(padded[(size_t)y * stride + k] == 0xAB);
+  }
+  free(padded);
+  return tight;
+}
+
+static int max_difference(const unsigned char *a, const unsigned char *b, size_t n) {
+  int worst = 0;
+  for (size_t i = 0; i < n; i++) {
+    int d = abs((int)a[i] - (int)b[i]);
+    if (d > worst) worst = d;
+  }
+  return worst;
+}
+
+int main(int argc, char **argv) {
+  if (argc != 4) {
+    fprintf(stderr, "usage: %s SCENE.ply CAMERA.txt OUT.rgba\n", argv[0]);
+    return 2;
+  }
+  REQUIRE(srug_abi_version() == SRUG_ABI_VERSION);
+  printf("srug %s, ABI %u\n", srug_version(), srug_abi_version());
+
+  uint32_t w, h;
+  float fx, fy, cx, cy, c2w[16], near_plane, far_plane, azimuth, elevation;
+  FILE *cf = fopen(argv[2], "r");
+  REQUIRE(cf != NULL);
+  REQUIRE(fscanf(cf, "%u %u %f %f %f %f", &w, &h, &fx, &fy, &cx, &cy) == 6);
+  for (int i = 0; i < 16; i++) REQUIRE(fscanf(cf, "%f", &c2w[i]) == 1);
+  REQUIRE(fscanf(cf, "%f %f %f %f", &near_plane, &far_plane, &azimuth, &elevation) == 4);
+  fclose(cf);
+
+  srug_context *ctx = NULL;
+  CHECK(srug_context_create(NULL, SRUG_CONTEXT_VALIDATION, &ctx));
+  char name[256];
+  CHECK(srug_context_device_name(ctx, name, sizeof name, NULL));
+  printf("device: %s\n", name);
+
+  srug_scene *scene = NULL;
+  CHECK(srug_scene_from_file(ctx, argv[1], &scene));
+  size_t count = 0;
+  uint32_t materials = 0;
+  CHECK(srug_scene_info(scene, &count, &materials));
+  printf("scene: %zu Gaussians, materials %u\n", count, materials);
+  REQUIRE(count > 0 && materials == 1);
+
+  size_t ply_len = 0;
+  unsigned char *ply = read_file(argv[1], &ply_len);
+  srug_scene *from_memory = NULL;
+  CHECK(srug_scene_from_memory(ctx, ply, ply_len, &from_memory));
+  free(ply); /* the library copied it */
+
+  uint32_t channels = (1u << SRUG_CHANNEL_DEPTH) | (1u << SRUG_CHANNEL_NORMAL);
+  srug_renderer *r = NULL;
+  CHECK(srug_renderer_create(ctx, w, h, channels, &r));
+  CHECK(srug_renderer_set_camera(r, fx, fy, cx, cy, c2w, near_plane, far_plane));
+  const float sun[3] = {3.14159265f, 3.14159265f, 3.14159265f};
+  CHECK(srug_renderer_set_sun(r, azimuth, elevation, sun));
+  CHECK(srug_renderer_set_environment(r, NULL, 0.0f, 1.0f));
+  CHECK(srug_renderer_set_shadow(r, 2048, 50.0f, 0.5f));
+  CHECK(srug_renderer_set_exposure(r, 0.0f, SRUG_TONE_MAP_ACES));
+  CHECK(srug_renderer_render(r, scene));
+  unsigned char *image = read_rgba8(r, w, h);
+
+  FILE *out = fopen(argv[3], "wb");
+  REQUIRE(out != NULL);
+  REQUIRE(fwrite(image, 1, (size_t)w * h * 4, out) == (size_t)w * h * 4);
+  fclose(out);
+
+  /* Timings and memory. */
+  size_t stages = 0;
+  CHECK(srug_renderer_stage_count(r, &stages));
+  REQUIRE(stages > 0);
+  double total = 0.0;
+  for (size_t i = 0; i < stages; i++) {
+    char stage[128];
+    double seconds = -1.0;
+    CHECK(srug_renderer_stage(r, i, stage, sizeof stage, &seconds));
+    REQUIRE(seconds >= 0.0 && stage[0] != 0);
+    total += seconds;
+  }
+  printf("%zu GPU stages, %.1f ms\n", stages, total * 1e3);
+  uint64_t current = 0, peak = 0;
+  CHECK(srug_context_memory(ctx, &current, &peak));
+  printf("GPU memory: %.1f MiB now, %.1f MiB peak\n", current / 1048576.0, peak / 1048576.0);
+  REQUIRE(current > 0 && peak >= current);
+
+  /* Channels: depth and normal were asked for, L_sun comes with a relit frame. */
+  size_t pixels = (size_t)w * h;
+  float *values = malloc(pixels * 3 * sizeof(float));
+  REQUIRE(values != NULL);
+  REQUIRE(srug_channel_components(SRUG_CHANNEL_NORMAL) == 3);
+  CHECK(srug_renderer_read_channel(r, SRUG_CHANNEL_NORMAL, values, pixels * 3));
+  for (size_t i = 0; i < pixels * 3; i++) REQUIRE(isfinite(values[i]));
+  CHECK(srug_renderer_read_channel(r, SRUG_CHANNEL_DEPTH, values, pixels));
+  size_t covered = 0;
+  for (size_t i = 0; i < pixels; i++) {
+    REQUIRE(isfinite(values[i]) && values[i] >= 0.0f);
+    covered += values[i] > 0.0f;
+  }
+  REQUIRE(covered > pixels / 2);
+  CHECK(srug_renderer_read_channel(r, SRUG_CHANNEL_SUN_LIGHT, values, pixels * 3));
+  float brightest = 0.0f;
+  for (size_t i = 0; i < pixels * 3; i++) {
+    REQUIRE(isfinite(values[i]) && values[i] >= 0.0f);
+    if (values[i] > brightest) brightest = values[i];
+  }
+  REQUIRE(brightest > 0.0f);
+
+  /* Linear float image: finite, alpha equals the RGBA8 alpha within rounding. */
+  float *linear = malloc(pixels * 4 * sizeof(float));
+  REQUIRE(linear != NULL);
+  CHECK(srug_renderer_read_image(r, SRUG_FORMAT_RGBA32F_LINEAR, linear, pixels * 16, 0));
+  for (size_t i = 0; i < pixels; i++) {
+    for (int c = 0; c < 4; c++) REQUIRE(isfinite(linear[4 * i + c]));
+    REQUIRE(fabsf(linear[4 * i + 3] * 255.0f - (float)image[4 * i + 3]) <= 0.5f);
+  }
+  free(linear);
+
+  /* The scene parsed from memory renders the same image. */
+  CHECK(srug_renderer_render(r, from_memory));
+  unsigned char *again = read_rgba8(r, w, h);
+  REQUIRE(memcmp(image, again, pixels * 4) == 0);
+  free(again);
+
+  /* The same camera as OpenGL view and projection matrices. */
+  float view[16] = {0}, proj[16] = {0};
+  /* world-to-camera (GL) = diag(1, -1, -1) * inverse(c2w). */
+  for (int row = 0; row < 3; row++) {
+    float sign = row == 0 ? 1.0f : -1.0f;
+    float t = 0.0f;
+    for (int col = 0; col < 3; col++) {
+      view[col * 4 + row] = sign * c2w[row * 4 + col]; /* transpose of the rotation */
+      t -= c2w[row * 4 + col] * c2w[12 + col];
+    }
+    view[12 + row] = sign * t;
+  }
+  view[15] = 1.0f;
+  proj[0] = 2.0f * fx / (float)w;
+  proj[5] = 2.0f * fy / (float)h;
+  proj[8] = 1.0f - 2.0f * cx / (float)w;
+  proj[9] = 2.0f * cy / (float)h - 1.0f;
+  proj[10] = -(far_plane + near_plane) / (far_plane - near_plane);
+  proj[11] = -1.0f;
+  proj[14] = -2.0f * far_plane * near_plane / (far_plane - near_plane);
+  CHECK(srug_renderer_set_camera_matrices(r, view, proj));
+  CHECK(srug_renderer_render(r, scene));
+  unsigned char *from_matrices = read_rgba8(r, w, h);
+  int diff = max_difference(image, from_matrices, pixels * 4);
+  printf("camera from OpenGL matrices: max difference %d/255\n", diff);
+  REQUIRE(diff <= 2); /* the matrices go through float rounding */
+  free(from_matrices);
+  CHECK(srug_renderer_set_camera(r, fx, fy, cx, cy, c2w, near_plane, far_plane));
+
+  /* Two threads, two renderers, one context, rendering at once. */
+  srug_renderer *r2 = NULL;
+  CHECK(srug_renderer_create(ctx, w, h, 0, &r2));
+  CHECK(srug_renderer_set_camera(r2, fx, fy, cx, cy, c2w, near_plane, far_plane));
+  CHECK(srug_renderer_set_sun(r2, azimuth, elevation, sun));
+  job jobs[2] = {{r, scene, SRUG_ERROR_PANIC}, {r2, from_memory, SRUG_ERROR_PANIC}};
+  pthread_t threads[2];
+  for (int i = 0; i < 2; i++) REQUIRE(pthread_create(&threads[i], NULL, render_job, &jobs[i]) == 0);
+  for (int i = 0; i < 2; i++) REQUIRE(pthread_join(threads[i], NULL) == 0);
+  REQUIRE(jobs[0].status == SRUG_OK && jobs[1].status == SRUG_OK);
+  unsigned char *a = read_rgba8(r, w, h), *b = read_rgba8(r2, w, h);
+  REQUIRE(memcmp(a, image, pixels * 4) == 0 && memcmp(b, image, pixels * 4) == 0);
+  free(a);
+  free(b);
+  CHECK(srug_renderer_destroy(r2));
+
+  /* A training step's shadow pass: forward V, backward with dL/dV = 1 per pixel. */
+  float *visibility = malloc(pixels * sizeof(float));
+  float *dl_dv = malloc(pixels * sizeof(float));
+  REQUIRE(visibility != NULL && dl_dv != NULL);
+  CHECK(srug_renderer_shadow_forward(r, scene, visibility, pixels));
+  size_t shadowed = 0;
+  for (size_t i = 0; i < pixels; i++) {
+    REQUIRE(visibility[i] >= 0.0f && visibility[i] <= 1.0f);
+    shadowed += visibility[i] < 0.5f;
+    dl_dv[i] = 1.0f;
+  }
+  printf("shadow forward: %zu of %zu pixels shadowed\n", shadowed, pixels);
+  REQUIRE(shadowed > 0);
+  float *g = calloc(count * 11, sizeof(float));
+  REQUIRE(g != NULL);
+  srug_gaussian_gradients grads = {g, g + 3 * count, g + 6 * count, g + 10 * count, count};
+  CHECK(srug_renderer_shadow_backward(r, scene, dl_dv, pixels, &grads));
+  size_t nonzero = 0;
+  for (size_t i = 0; i < count * 11; i++) {
+    REQUIRE(isfinite(g[i]));
+    nonzero += g[i] != 0.0f;
+  }
+  printf("shadow backward: %zu of %zu gradient entries non-zero\n", nonzero, count * 11);
+  REQUIRE(nonzero > 0);
+
+  /* Moving the Gaussians invalidates the forward pass. */
+  float *means = calloc(count * 3, sizeof(float)), *ls = calloc(count * 3, sizeof(float));
+  float *rot = calloc(count * 4, sizeof(float)), *op = calloc(count, sizeof(float));
+  REQUIRE(means && ls && rot && op);
+  for (size_t i = 0; i < count; i++) {
+    means[3 * i] = (float)(i % 100);
+    ls[3 * i] = ls[3 * i + 1] = ls[3 * i + 2] = -1.0f;
+    rot[4 * i] = 1.0f;
+  }
+  CHECK(srug_scene_set_gaussians(from_memory, means, ls, rot, op, count));
+  CHECK(srug_renderer_shadow_forward(r, from_memory, visibility, pixels));
+  CHECK(srug_scene_set_gaussians(from_memory, means, ls, rot, op, count));
+  EXPECT(srug_renderer_shadow_backward(r, from_memory, dl_dv, pixels, &grads), SRUG_ERROR_WRONG_ORDER);
+  free(means);
+  free(ls);
+  free(rot);
+  free(op);
+
+  expect_no_validation_messages(ctx);
+  pin_loaded_modules();
+  free(g);
+  free(dl_dv);
+  free(visibility);
+  free(values);
+  free(image);
+  CHECK(srug_renderer_destroy(r));
+  CHECK(srug_scene_destroy(from_memory));
+  CHECK(srug_scene_destroy(scene));
+  CHECK(srug_context_destroy(ctx));
+  size_t live = 1;
+  CHECK(srug_live_handle_count(&live));
+  REQUIRE(live == 0);
+  printf("render: ok\n");
+  return 0;
+}
