@@ -186,3 +186,25 @@ fn python_ctypes_example_renders_a_frame() {
     assert!(varied > 352 * 96 / 2, "the frame is nearly uniform ({varied} pixels differ from the first)");
     assert!(stdout.contains("covered pixels"), "{stdout}");
 }
+
+#[test]
+fn minimal_example_links_against_the_static_library() {
+    let dir = tempfile::tempdir().unwrap();
+    let here = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
+    let exe = dir.path().join("minimal");
+    // The system libraries are what `cargo rustc -p srug-bindings --lib --crate-type staticlib
+    // -- --print native-static-libs` lists.
+    let output = Command::new("cc")
+        .args(["-std=c11", "-Wall", "-Wextra", "-Werror", "-pedantic"])
+        .arg("-I")
+        .arg(here.join("include"))
+        .arg(here.join("..").join("examples").join("minimal.c"))
+        .arg(library_dir().join("libsrug_c.a"))
+        .args(["-ldl", "-lgcc_s", "-lutil", "-lrt", "-lpthread", "-lm", "-o"])
+        .arg(&exe)
+        .output()
+        .unwrap();
+    assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+    let stdout = run(&exe, &[]);
+    assert!(stdout.contains("rendered 352x96"), "{stdout}");
+}

@@ -1,0 +1,124 @@
+//! The C API's shadow forward and backward entry points, called in-process,
+//! against the same computation through the Rust API: visibility and every
+//! Gaussian's gradient (occluder path + receiver path) must agree exactly,
+//! so the ABI's array layouts and its sum of the two paths are right. (The
+//! Rust path itself is checked against finite differences in shadow_backward.rs.)
+
+#![allow(clippy::unwrap_used, clippy::expect_used, reason = "test code: a failure should stop the test")]
+
+use std::ptr::null_mut;
+
+use glam::Vec3;
+use rand::{Rng, SeedableRng};
+use rand_pcg::Pcg64Mcg;
+use srug::scene::activate::GpuScene;
+use srug::scene::demo::{demo_city, DemoOptions};
+use srug::scene::Camera;
+use srug::shadow::backward::GpuVisibilityLoss;
+use srug::shadow::{DepthMode, ShadowPass, ShadowSettings, Sun, VisibilityKind};
+use srug::splat::{SplatSettings, Splatter};
+use srug_c::*;
+use srug_tests::{assert_no_validation_messages, device};
+
+fn ok(s: srug_status) {
+    if s != srug_status::SRUG_OK {
+        let mut buf = vec![0 as std::ffi::c_char; 1024];
+        // SAFETY: a local buffer of the stated length.
+        unsafe { srug_last_error(buf.as_mut_ptr(), buf.len(), null_mut()) };
+        // SAFETY: NUL-terminated by srug_last_error.
+        panic!("{s:?}: {}", unsafe { std::ffi::CStr::from_ptr(buf.as_ptr()) }.to_string_lossy());
+    }
+}
+
+#[test]
+fn abi_shadow_pass_matches_the_rust_api() {
+    let (w, h) = (96u32, 48u32);
+    let (eye, target, up) = ([-30.0f32, -2.0, 6.0], [10.0f32, -2.0, 2.0], [0.0f32, 0.0, 1.0]);
+    let (res, k, bias) = (256u32, 20.0f32, 0.5f32);
+    let pixels = (w * h) as usize;
+    let mut rng = Pcg64Mcg::seed_from_u64(3);
+    let dl_dv: Vec<f32> = (0..pixels).map(|_| rng.random_range(-1.0..1.0)).collect();
+
+    // Through the C API.
+    let (mut ctx, mut scene, mut r) = (null_mut(), null_mut(), null_mut());
+    let mut v_abi = vec![f32::NAN; pixels];
+    let mut count = 0usize;
+    // SAFETY: out-pointers to locals; arrays of the stated lengths.
+    unsafe {
+        ok(srug_context_create(std::ptr::null(), SRUG_CONTEXT_VALIDATION, &mut ctx));
+        ok(srug_scene_create_demo(ctx, 3000, 11, &mut scene));
+        ok(srug_scene_info(scene, &mut count, null_mut()));
+        ok(srug_renderer_create(ctx, w, h, 0, &mut r));
+        ok(srug_renderer_set_camera_look_at(r, eye.as_ptr(), target.as_ptr(), up.as_ptr(), 80.0));
+        ok(srug_renderer_set_sun(r, 250.0, 35.0, [1.0f32; 3].as_ptr()));
+        ok(srug_renderer_set_shadow(r, res, k, bias));
+        ok(srug_renderer_shadow_forward(r, scene, v_abi.as_mut_ptr(), pixels));
+    }
+    let mut g = vec![f32::NAN; count * 11];
+    let (gm, rest) = g.split_at_mut(3 * count);
+    let (gl, rest) = rest.split_at_mut(3 * count);
+    let (gr, go) = rest.split_at_mut(4 * count);
+    let grads = srug_gaussian_gradients {
+        means: gm.as_mut_ptr(),
+        log_scales: gl.as_mut_ptr(),
+        rotations: gr.as_mut_ptr(),
+        opacity_logits: go.as_mut_ptr(),
+        count,
+    };
+    let mut messages = 1usize;
+    // SAFETY: as above; `grads` points into `g`, alive until the end.
+    unsafe {
+        ok(srug_renderer_shadow_backward(r, scene, dl_dv.as_ptr(), pixels, &grads));
+        ok(srug_context_take_validation_messages(ctx, &mut messages, null_mut(), 0));
+        ok(srug_renderer_destroy(r));
+        ok(srug_scene_destroy(scene));
+        ok(srug_context_destroy(ctx));
+    }
+    assert_eq!(messages, 0, "validation messages through the C API");
+
+    // Through the Rust API.
+    let d = device();
+    let city = demo_city(&DemoOptions { seed: 11, gaussians: 3000, sh_degree: 1 }).unwrap();
+    let gpu = GpuScene::upload(&d, &city.scene).unwrap();
+    let camera = Camera::look_at(Vec3::from(eye), Vec3::from(target), Vec3::from(up), 80.0, w, h).unwrap();
+    let sun = Sun::from_azimuth_elevation(250.0, 35.0, [1.0; 3]).unwrap();
+    let st = ShadowSettings { resolution: res, k, bias, receiver_depth: DepthMode::Median, ..ShadowSettings::default() };
+    let mut splatter = Splatter::new(&d).unwrap();
+    let mut pass = ShadowPass::new(&d).unwrap();
+    let receivers = splatter
+        .render_frame(&gpu, &camera, &SplatSettings { channels: st.receiver_channels(), ..SplatSettings::default() })
+        .unwrap();
+    let bounds = city.scene.bounds().unwrap();
+    let map = pass.shadow_map(&mut splatter, &gpu, &bounds, &sun, &st, Some(&camera)).unwrap().unwrap();
+    let (v, _) = pass.visibility(&map, &receivers.gbuffer, &camera, &st, VisibilityKind::Sigmoid).unwrap();
+    let v_rust: Vec<f32> = d.read_buffer(&v).unwrap();
+    assert_eq!(v_abi, v_rust, "visibility through the C API differs");
+    let shadowed = v_rust.iter().filter(|v| **v < 0.5).count();
+    assert!(shadowed > 0 && shadowed < pixels, "{shadowed} of {pixels} shadowed: a degenerate view");
+
+    let up_buf = d.upload("dL/dV", &dl_dv).unwrap();
+    let b = pass.backward(&map, &receivers.gbuffer, &camera, &st, GpuVisibilityLoss::Upstream(&up_buf)).unwrap();
+    let a = splatter.backward(&map.frame, &gpu, &b.map, false).unwrap().read(&d).unwrap();
+    let c = splatter.backward(&receivers, &gpu, &b.receiver, false).unwrap().read(&d).unwrap();
+    assert_no_validation_messages(&d);
+    let mut nonzero = 0;
+    for i in 0..count {
+        let expect: Vec<f32> = (0..3)
+            .map(|j| a.means[i][j] + c.means[i][j])
+            .chain((0..3).map(|j| a.log_scales[i][j] + c.log_scales[i][j]))
+            .chain((0..4).map(|j| a.rotations[i][j] + c.rotations[i][j]))
+            .chain([a.opacity_logits[i] + c.opacity_logits[i]])
+            .collect();
+        let got: Vec<f32> = gm[3 * i..3 * i + 3]
+            .iter()
+            .chain(&gl[3 * i..3 * i + 3])
+            .chain(&gr[4 * i..4 * i + 4])
+            .chain([&go[i]])
+            .copied()
+            .collect();
+        assert_eq!(got, expect, "Gaussian {i}: gradients through the C API differ");
+        nonzero += expect.iter().filter(|v| **v != 0.0).count();
+    }
+    assert!(nonzero > 0, "no gradient reached any Gaussian");
+    println!("{count} Gaussians, {shadowed}/{pixels} shadowed pixels, {nonzero} non-zero gradient entries: identical");
+}
