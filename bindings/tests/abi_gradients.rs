@@ -82,7 +82,8 @@ fn abi_shadow_pass_matches_the_rust_api() {
     let gpu = GpuScene::upload(&d, &city.scene).unwrap();
     let camera = Camera::look_at(Vec3::from(eye), Vec3::from(target), Vec3::from(up), 80.0, w, h).unwrap();
     let sun = Sun::from_azimuth_elevation(250.0, 35.0, [1.0; 3]).unwrap();
-    let st = ShadowSettings { resolution: res, k, bias, receiver_depth: DepthMode::Median, ..ShadowSettings::default() };
+    let st =
+        ShadowSettings { resolution: res, k, bias, receiver_depth: DepthMode::Median, ..ShadowSettings::default() };
     let mut splatter = Splatter::new(&d).unwrap();
     let mut pass = ShadowPass::new(&d).unwrap();
     let receivers = splatter

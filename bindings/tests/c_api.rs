@@ -40,7 +40,9 @@ fn build(name: &str, out_dir: &Path) -> PathBuf {
         .arg("-o")
         .arg(&exe)
         .arg(format!("-L{}", lib.display()))
-        .arg(format!("-Wl,-rpath,{}", lib.display()))
+        // DT_RPATH (not RUNPATH) wins over LD_LIBRARY_PATH, whose cargo-set entries
+        // name target/<profile>, where a stale libsrug_c.so may lie.
+        .arg(format!("-Wl,--disable-new-dtags,-rpath,{}", lib.display()))
         .args(["-lsrug_c", "-lpthread", "-lm", "-ldl"])
         .output()
         .expect("cannot run cc (Debian: apt-get install gcc)");
@@ -58,9 +60,6 @@ fn run(exe: &Path, args: &[&Path]) -> String {
     let supp = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests").join("c").join("lsan.supp");
     let output = Command::new(exe)
         .args(args)
-        // cargo's LD_LIBRARY_PATH names target/<profile> too, whose libsrug_c.so may be
-        // stale; the program's run path names the one built with this test.
-        .env_remove("LD_LIBRARY_PATH")
         .env("ASAN_OPTIONS", "detect_leaks=1:halt_on_error=1:abort_on_error=0")
         .env("LSAN_OPTIONS", format!("suppressions={}:print_suppressions=0", supp.display()))
         .env("UBSAN_OPTIONS", "print_stacktrace=1:halt_on_error=1")

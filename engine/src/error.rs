@@ -75,6 +75,9 @@ pub(crate) fn vk_error(call: &'static str) -> impl FnOnce(vk::Result) -> Error {
         vk::Result::ERROR_OUT_OF_HOST_MEMORY => Error::OutOfMemory(format!("host memory ({call})")),
         vk::Result::ERROR_OUT_OF_DEVICE_MEMORY => Error::OutOfMemory(format!("device memory ({call})")),
         vk::Result::ERROR_DEVICE_LOST => Error::DeviceLost(call),
+        vk::Result::ERROR_LAYER_NOT_PRESENT => Error::MissingComponent(format!(
+            "{call}: a requested Vulkan layer is not installed (for validation: the vulkan-validationlayers package)"
+        )),
         result => Error::Vulkan { call, result },
     }
 }

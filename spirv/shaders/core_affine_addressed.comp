@@ -3,6 +3,7 @@
 // maxStorageBufferRange. A core test kernel for large buffers.
 #define WORKGROUP_SIZE_X 64
 #include "common.glsl"
+#define SRUG_ADDRESS_64
 #include "address.glsl"
 
 
@@ -19,5 +20,6 @@ layout(push_constant) uniform Push {
 void main() {
     uint i = linear_index();
     if (i >= pc.count) return;
-    FloatsOut(pc.y).v[i] = pc.a * FloatsIn(pc.x).v[i] + pc.b;
+    // 64-bit addresses: the test's buffers exceed 4 GiB on devices that bind 4 GiB.
+    FloatOut(element_address(pc.y, i, 4)).v = pc.a * FloatIn(element_address(pc.x, i, 4)).v + pc.b;
 }

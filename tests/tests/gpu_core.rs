@@ -180,8 +180,20 @@ fn buffers_above_max_storage_buffer_range() {
     };
     d.run(|rec| rec.dispatch_1d(&addressed, &[], &push, n as u64)).unwrap();
     let y: Vec<f32> = d.read_buffer(&out).unwrap();
-    let err = max_rel_error(&y, &affine_cpu(&x, 0.5, 3.0, 0));
-    assert!(err <= 2.0 * f64::from(f32::EPSILON), "max relative error {err}");
+    let expected = affine_cpu(&x, 0.5, 3.0, 0);
+    let err = max_rel_error(&y, &expected);
+    let first_bad = y.iter().zip(&expected).position(|(a, b)| (f64::from(*a) - b).abs() > 1e-6 * b.abs());
+    let bad = y.iter().zip(&expected).filter(|(a, b)| (f64::from(**a) - **b).abs() > 1e-6 * b.abs()).count();
+    let unwritten = y.iter().filter(|v| v.is_nan()).count();
+    let first_unwritten = y.iter().position(|v| v.is_nan());
+    assert!(
+        err <= 2.0 * f64::from(f32::EPSILON),
+        "max relative error {err}: {unwritten} of {n} unwritten (the first at index {first_unwritten:?}), \
+         {bad} wrong, the first at index {first_bad:?} (byte offset {:?}): {:?} instead of {:?}",
+        first_bad.map(|i| 4 * i as u64),
+        first_bad.map(|i| y[i]),
+        first_bad.map(|i| expected[i])
+    );
     assert_no_validation_messages(&d);
 }
 

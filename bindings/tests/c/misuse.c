@@ -38,7 +38,7 @@ int main(int argc, char **argv) {
   srug_context *none = NULL;
   EXPECT(srug_context_create("no such device name", SRUG_CONTEXT_VALIDATION, &none), SRUG_ERROR_NO_DEVICE);
   REQUIRE(none == NULL);
-  CHECK(srug_context_create("cpu", SRUG_CONTEXT_VALIDATION, &other));
+  CHECK(srug_context_create(NULL, SRUG_CONTEXT_VALIDATION, &other));
   EXPECT(srug_context_memory(ctx, NULL, NULL), SRUG_ERROR_NULL_POINTER);
   EXPECT(srug_scene_from_file(ctx, "/nonexistent/scene.ply", &scene), SRUG_ERROR_IO);
   EXPECT(srug_scene_from_file(ctx, NULL, &scene), SRUG_ERROR_NULL_POINTER);
