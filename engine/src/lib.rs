@@ -9,6 +9,7 @@ pub mod bench;
 pub mod error;
 pub mod gpu;
 pub mod indirect;
+pub mod metrics;
 pub mod output;
 pub mod scene;
 pub mod shade;

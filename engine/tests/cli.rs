@@ -406,3 +406,36 @@ fn bench_unet_prints_its_table() {
         assert!(t.contains(want), "missing {want:?} in:\n{t}");
     }
 }
+
+#[test]
+fn eval_reports_psnr_and_ssim_per_image_and_their_mean() {
+    let dir = tempfile::tempdir().unwrap();
+    let (refs, rendered) = (dir.path().join("ref"), dir.path().join("out"));
+    std::fs::create_dir_all(&refs).unwrap();
+    std::fs::create_dir_all(&rendered).unwrap();
+    let (w, h) = (32u32, 24u32);
+    let base: Vec<f32> = (0..w * h * 3).map(|i| ((i * 7919) % 251) as f32 / 250.0).collect();
+    // 16/255 higher everywhere (in 8 bits, after clamping at 1): PSNR about 24 dB.
+    let brighter: Vec<f32> = base.iter().map(|v| (v + 16.0 / 255.0).min(1.0)).collect();
+    srug::output::write_png(refs.join("a.png"), w, h, &base).unwrap();
+    srug::output::write_png(refs.join("b.png"), w, h, &base).unwrap();
+    srug::output::write_png(rendered.join("a.png"), w, h, &base).unwrap();
+    srug::output::write_png(rendered.join("b.png"), w, h, &brighter).unwrap();
+    srug::output::write_png(rendered.join("c.png"), w, h, &base).unwrap();
+    let csv = dir.path().join("eval.csv");
+    let o = srug(&["eval", refs.to_str().unwrap(), rendered.to_str().unwrap(), "--csv", csv.to_str().unwrap()]);
+    let t = text(&o);
+    assert!(o.status.success(), "{t}");
+    assert!(t.contains("| a | inf | 1.0000 |"), "{t}");
+    assert!(t.contains("c.png has no reference"), "{t}");
+    let csv = std::fs::read_to_string(&csv).unwrap();
+    let b: Vec<&str> = csv.lines().find(|l| l.starts_with("b,")).unwrap().split(',').collect();
+    let (p, s): (f64, f64) = (b[1].parse().unwrap(), b[2].parse().unwrap());
+    assert!(p > 20.0 && p < 26.0 && s < 1.0 && s > 0.5, "b: PSNR {p}, SSIM {s}");
+
+    // Different sizes are an error naming both files.
+    srug::output::write_png(rendered.join("a.png"), w, h + 1, &vec![0.5; (w * (h + 1) * 3) as usize]).unwrap();
+    let o = srug(&["eval", refs.join("a.png").to_str().unwrap(), rendered.join("a.png").to_str().unwrap()]);
+    let t = text(&o);
+    assert!(!o.status.success() && t.contains("differ in size") && t.contains("a.png"), "{t}");
+}
