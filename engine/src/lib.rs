@@ -11,6 +11,7 @@ pub mod gpu;
 pub mod indirect;
 pub mod metrics;
 pub mod output;
+pub mod plan;
 pub mod scene;
 pub mod shade;
 pub mod shadow;

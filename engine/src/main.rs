@@ -33,6 +33,26 @@ enum Command {
     Info {
         /// A 3DGS PLY file.
         scene: PathBuf,
+        /// Also list the stages, G-buffer channels, shader variants and GPU memory a relit
+        /// frame of the scene will take with the options below (nothing is rendered).
+        #[arg(long)]
+        plan: bool,
+        /// Image size of the planned frame.
+        #[arg(long, default_value = "704x192")]
+        size: String,
+        /// Extra G-buffer channels to keep (as for `srug render --channels`).
+        #[arg(long, default_value = "rgb")]
+        channels: String,
+        #[command(flatten)]
+        sun: cli_relight::SunArgs,
+        #[command(flatten)]
+        shade: cli_relight::ShadeArgs,
+        /// Indirect-light network weights (safetensors).
+        #[arg(long)]
+        indirect: Option<PathBuf>,
+        /// Activation storage of the indirect network: fp32 or fp16.
+        #[arg(long, default_value = "fp32")]
+        indirect_precision: String,
     },
     /// List the Vulkan devices.
     Devices,
@@ -299,13 +319,34 @@ fn numbered(out: &std::path::Path, i: usize) -> PathBuf {
 
 fn run(cli: Cli) -> srug::Result<()> {
     match cli.command {
-        Command::Info { scene: path } => {
+        Command::Info { scene: path, plan, size, channels, sun, shade, indirect, indirect_precision } => {
             let bar = spinner(&format!("reading {}", path.display()));
             let scene = scene::read_ply(&path);
             bar.finish_and_clear();
             let scene = scene?;
             println!("{}", path.display());
             print!("{}", scene.summary());
+            if plan {
+                let (width, height) = parse_size(&size)?;
+                let mut relight = shade.settings()?;
+                relight.extra_channels = Channels::parse(&channels)?;
+                let sun = sun.resolve()?.first().map(|(_, s)| *s);
+                let precision = srug::indirect::StoragePrecision::parse(&indirect_precision)?;
+                let weights = indirect.as_ref().map(srug::indirect::UNetWeights::load).transpose()?;
+                let device = open_device(&cli.device, cli.validation)?;
+                let blend = Splatter::new(&device)?.blend_variant();
+                let settings = srug::plan::PlanSettings {
+                    width,
+                    height,
+                    sun,
+                    relight,
+                    network: weights.as_ref().map(|w| (&w.config, precision)),
+                    blend,
+                };
+                let p = srug::plan::plan_frame(&scene, &settings)?;
+                println!("\nplan for a {width}x{height} frame on {}:", device.info().name);
+                print!("{}", p.text());
+            }
             Ok(())
         }
         Command::Render { scene: path, view, out, channels, background, stored_normals } => {

@@ -134,6 +134,16 @@ pub fn layers(c: &UNetConfig) -> Vec<(&'static str, usize, usize, u32)> {
 }
 
 impl UNetConfig {
+    /// Bytes of the activation arena for an input size (what [`UNet::arena_bytes`] reports).
+    pub fn arena_bytes(&self, width: u32, height: u32, precision: StoragePrecision) -> u64 {
+        ArenaLayout::new(self, width as usize, height as usize, precision).total
+    }
+
+    /// Weights and biases of the ten convolutions.
+    pub fn parameter_count(&self) -> u64 {
+        layers(self).iter().map(|&(_, cin, cout, _)| (cin * cout * 9 + cout) as u64).sum()
+    }
+
     /// The safetensors metadata describing this architecture.
     pub fn metadata(&self) -> HashMap<String, String> {
         let w: Vec<String> = self.widths.iter().map(usize::to_string).collect();

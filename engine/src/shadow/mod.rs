@@ -162,7 +162,8 @@ impl ShadowSettings {
     }
 }
 
-fn depth_channels(mode: DepthMode) -> Channels {
+/// The shadow map's G-buffer channel for a depth mode.
+pub fn depth_channels(mode: DepthMode) -> Channels {
     match mode {
         DepthMode::Median => Channels { median_depth: true, ..Channels::default() },
         DepthMode::Expected | DepthMode::ExpectedOverFar => Channels { depth: true, ..Channels::default() },

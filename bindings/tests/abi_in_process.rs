@@ -1,8 +1,9 @@
-//! The C API's shadow forward and backward entry points, called in-process,
-//! against the same computation through the Rust API: visibility and every
-//! Gaussian's gradient (occluder path + receiver path) must agree exactly,
-//! so the ABI's array layouts and its sum of the two paths are right. (The
-//! Rust path itself is checked against finite differences in shadow_backward.rs.)
+//! The C API called in-process against the Rust API: its shadow forward and
+//! backward give exactly the Rust API's visibility and every Gaussian's
+//! gradients (occluder path + receiver path), so the ABI's array layouts and
+//! its sum of the two paths are right (the Rust path itself is checked against
+//! finite differences in shadow_backward.rs); and a scene without materials
+//! renders its plain colour with nothing but splatting dispatched.
 
 #![allow(clippy::unwrap_used, clippy::expect_used, reason = "test code: a failure should stop the test")]
 
@@ -122,4 +123,59 @@ fn abi_shadow_pass_matches_the_rust_api() {
     }
     assert!(nonzero > 0, "no gradient reached any Gaussian");
     println!("{count} Gaussians, {shadowed}/{pixels} shadowed pixels, {nonzero} non-zero gradient entries: identical");
+}
+
+/// A scene without materials renders its plain 3DGS colour through the C API
+/// with no shading kernel dispatched (and no shadow pass, though a sun is set).
+#[test]
+fn abi_renders_plain_colour_without_materials() {
+    let mut city = demo_city(&DemoOptions { seed: 2, gaussians: 2000, sh_degree: 1 }).unwrap();
+    city.scene.materials = srug::scene::Materials::default();
+    let dir = tempfile::tempdir().unwrap();
+    let ply = dir.path().join("plain.ply");
+    srug::scene::write_ply(&ply, &city.scene, srug::scene::PlyFormat::BinaryLittleEndian).unwrap();
+    let bytes = std::fs::read(&ply).unwrap();
+    let (w, h) = (64u32, 32u32);
+    let (eye, target, up) = ([-30.0f32, -2.0, 6.0], [10.0f32, -2.0, 2.0], [0.0f32, 0.0, 1.0]);
+    let (mut ctx, mut scene, mut r) = (null_mut(), null_mut(), null_mut());
+    let mut image = vec![f32::NAN; (w * h * 4) as usize];
+    let (mut materials, mut stages) = (9u32, 0usize);
+    let mut names = Vec::new();
+    // SAFETY: out-pointers to locals; buffers of the stated lengths.
+    unsafe {
+        ok(srug_context_create(std::ptr::null(), SRUG_CONTEXT_VALIDATION, &mut ctx));
+        ok(srug_scene_from_memory(ctx, bytes.as_ptr(), bytes.len(), &mut scene));
+        ok(srug_scene_info(scene, null_mut(), &mut materials));
+        ok(srug_renderer_create(ctx, w, h, 0, &mut r));
+        ok(srug_renderer_set_camera_look_at(r, eye.as_ptr(), target.as_ptr(), up.as_ptr(), 80.0));
+        ok(srug_renderer_set_sun(r, 250.0, 35.0, [1.0f32; 3].as_ptr()));
+        ok(srug_renderer_render(r, scene));
+        ok(srug_renderer_read_image(r, SRUG_FORMAT_RGBA32F_LINEAR, image.as_mut_ptr().cast(), image.len() * 4, 0));
+        ok(srug_renderer_stage_count(r, &mut stages));
+        for i in 0..stages {
+            let mut name = [0 as std::ffi::c_char; 64];
+            let mut seconds = 0.0;
+            ok(srug_renderer_stage(r, i, name.as_mut_ptr(), name.len(), &mut seconds));
+            names.push(std::ffi::CStr::from_ptr(name.as_ptr()).to_string_lossy().into_owned());
+        }
+        let mut sun_light = vec![0.0f32; (w * h * 3) as usize];
+        let s = srug_renderer_read_channel(r, SRUG_CHANNEL_SUN_LIGHT, sun_light.as_mut_ptr(), sun_light.len());
+        assert_eq!(s, srug_status::SRUG_ERROR_WRONG_ORDER, "a plain frame has no L_sun");
+        ok(srug_renderer_destroy(r));
+        ok(srug_scene_destroy(scene));
+        ok(srug_context_destroy(ctx));
+    }
+    assert_eq!(materials, 0);
+    assert_eq!(names, ["preprocess", "scan", "keys", "sort", "ranges", "blend"], "only splatting ran");
+
+    // The image is the splatted colour, as the Rust API renders it.
+    let d = device();
+    let gpu = GpuScene::upload(&d, &srug::scene::read_ply(&ply).unwrap()).unwrap();
+    let camera = Camera::look_at(Vec3::from(eye), Vec3::from(target), Vec3::from(up), 80.0, w, h).unwrap();
+    let (g, _) = Splatter::new(&d).unwrap().render(&gpu, &camera, &SplatSettings::default()).unwrap();
+    let g = g.read(&d).unwrap();
+    let expect: Vec<f32> = g.rgb.chunks_exact(3).zip(&g.alpha).flat_map(|(c, a)| [c[0], c[1], c[2], *a]).collect();
+    assert_eq!(image, expect);
+    assert!(g.alpha.iter().any(|a| *a > 0.5), "the view shows the scene");
+    assert_no_validation_messages(&d);
 }

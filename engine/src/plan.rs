@@ -1,0 +1,192 @@
+//! What a frame of a scene will run, before anything runs (`srug info --plan`):
+//! its stages, the G-buffer channels and shader variants they use, and the GPU
+//! memory known ahead. It is built from [`RelightDecisions`], the same
+//! decisions [`crate::shade::relight::Relighter::render`] follows, so the plan
+//! and the renderer cannot disagree: no materials → plain colour and no
+//! shading; no sun above the horizon → no shadow pass; no network → no inference.
+
+use std::fmt::Write as _;
+
+use crate::error::Result;
+use crate::indirect::{StoragePrecision, UNetConfig};
+use crate::scene::{human_bytes, Scene};
+use crate::shade::relight::{RelightDecisions, RelightSettings};
+use crate::shadow::{depth_channels, light_camera, Sun};
+use crate::splat::{BlendVariant, Channels, FEATURE_BYTES, SPLAT_BYTES};
+
+/// What the plan is for.
+#[derive(Clone, Debug)]
+pub struct PlanSettings<'a> {
+    /// Image width in pixels.
+    pub width: u32,
+    /// Image height in pixels.
+    pub height: u32,
+    /// The sun (`None`, or below the horizon: no sun light).
+    pub sun: Option<Sun>,
+    /// Relighting settings.
+    pub relight: RelightSettings,
+    /// The indirect-light network, when weights are given.
+    pub network: Option<(&'a UNetConfig, StoragePrecision)>,
+    /// The blend kernel the device will use.
+    pub blend: BlendVariant,
+}
+
+/// One stage that will run.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PlannedStage {
+    /// What it is.
+    pub name: String,
+    /// Its kernels and their variants.
+    pub kernels: String,
+    /// GPU bytes it allocates that are known before rendering.
+    pub bytes: u64,
+    /// What else it allocates, in words, when that depends on the view.
+    pub note: String,
+}
+
+/// A frame's plan.
+#[derive(Clone, Debug)]
+pub struct FramePlan {
+    /// The decisions the renderer follows.
+    pub decisions: RelightDecisions,
+    /// Stages that run, in order.
+    pub stages: Vec<PlannedStage>,
+    /// Stages that do not run, each with the reason.
+    pub skipped: Vec<String>,
+    /// GPU bytes of the scene's parameters.
+    pub scene_bytes: u64,
+}
+
+impl FramePlan {
+    /// Scene plus every stage's known bytes.
+    pub fn known_bytes(&self) -> u64 {
+        self.scene_bytes + self.stages.iter().map(|s| s.bytes).sum::<u64>()
+    }
+
+    /// The plan as text for `srug info --plan`.
+    pub fn text(&self) -> String {
+        let mut t = String::new();
+        let _ = writeln!(t, "stages:");
+        for s in &self.stages {
+            let _ = writeln!(t, "  {:<22} {} ({}{})", s.name, s.kernels, human_bytes(s.bytes), s.note);
+        }
+        if !self.skipped.is_empty() {
+            let _ = writeln!(t, "not run:");
+            for s in &self.skipped {
+                let _ = writeln!(t, "  {s}");
+            }
+        }
+        let _ = writeln!(
+            t,
+            "GPU memory known ahead: {} (scene {})",
+            human_bytes(self.known_bytes()),
+            human_bytes(self.scene_bytes)
+        );
+        t
+    }
+}
+
+/// Channel names, rgb and alpha first.
+pub fn channel_names(c: Channels) -> Vec<&'static str> {
+    let mut v = vec!["rgb", "alpha"];
+    let named = [
+        (c.depth, "depth"),
+        (c.median_depth, "median_depth"),
+        (c.normal, "normal"),
+        (c.albedo, "albedo"),
+        (c.roughness, "roughness"),
+        (c.metallic, "metallic"),
+        (c.ao, "ao"),
+        (c.visibility, "visibility"),
+    ];
+    v.extend(named.iter().filter(|(on, _)| *on).map(|(_, n)| *n));
+    v
+}
+
+/// Floats per pixel of a G-buffer with these channels (rgb and alpha included).
+fn floats_per_pixel(c: Channels) -> u64 {
+    let three = [c.normal, c.albedo].iter().filter(|b| **b).count() as u64;
+    let one = [c.depth, c.median_depth, c.roughness, c.metallic, c.ao, c.visibility].iter().filter(|b| **b).count();
+    4 + 3 * three + one as u64
+}
+
+fn splat_stage(name: &str, n: u64, texels: u64, channels: Channels, blend: BlendVariant) -> PlannedStage {
+    let features = if channels.needs_features() { n * FEATURE_BYTES } else { 0 };
+    PlannedStage {
+        name: name.to_string(),
+        kernels: format!(
+            "preprocess, scan, keys, radix sort, ranges, blend {blend:?} with CHANNELS = {:#010b} [{}]",
+            channels.bits(),
+            channel_names(channels).join(", ")
+        ),
+        bytes: texels * floats_per_pixel(channels) * 4 + n * SPLAT_BYTES + features,
+        note: "; keys and sort scratch grow with the (Gaussian, tile) pairs".into(),
+    }
+}
+
+/// Plans a frame of `scene`.
+pub fn plan_frame(scene: &Scene, settings: &PlanSettings<'_>) -> Result<FramePlan> {
+    let attributes = scene.attributes();
+    let d = RelightDecisions::new(&attributes, settings.sun.as_ref(), &settings.relight)?;
+    let n = scene.len() as u64;
+    let pixels = u64::from(settings.width) * u64::from(settings.height);
+    let mut stages = vec![splat_stage("splat (camera)", n, pixels, d.channels, settings.blend)];
+    let mut skipped = Vec::new();
+    if !d.shading {
+        skipped.push("shading: the scene has no albedo attribute (its plain 3DGS colour is the image)".into());
+    }
+    match (d.shadow_pass, d.sun) {
+        (true, Some(sun)) => {
+            let st = &settings.relight.shadow;
+            let texels = scene
+                .bounds()
+                .and_then(|b| light_camera(&b, &sun, st.resolution, st.fit, None).ok())
+                .map_or(u64::from(st.resolution).pow(2), |c| u64::from(c.width) * u64::from(c.height));
+            stages.push(splat_stage("splat (shadow map)", n, texels, depth_channels(st.map_depth), settings.blend));
+            stages.push(PlannedStage {
+                name: "sigmoid shadow test".into(),
+                kernels: format!("shadow_test, k = {}, bias = {}", st.k, st.bias),
+                bytes: pixels * 4,
+                note: String::new(),
+            });
+        }
+        _ if d.shading => skipped.push(match (d.sun, settings.relight.shade.visibility) {
+            (None, _) => "shadow pass: no sun above the horizon (no sun light either)".into(),
+            (Some(_), v) => format!("shadow pass: visibility is {v:?}"),
+        }),
+        _ => {}
+    }
+    if d.shading {
+        stages.push(PlannedStage {
+            name: "shading".into(),
+            kernels: format!(
+                "shade_lights, shade_compose (sun {}, visibility {:?}, tone map {:?})",
+                if d.sun.is_some() { "on" } else { "off" },
+                d.visibility,
+                settings.relight.shade.tone_map
+            ),
+            // L_sun, L_sky, radiance and display, 3 floats each.
+            bytes: pixels * 48,
+            note: "; plus the prepared environment and the BRDF table, made once".into(),
+        });
+        match settings.network {
+            Some((config, precision)) => stages.push(PlannedStage {
+                name: "indirect light (U-Net)".into(),
+                kernels: format!(
+                    "unet_pack, unet_conv{} ×10, unet_upsample{} ×4 (widths {:?})",
+                    if precision == StoragePrecision::Fp16 { "_half" } else { "" },
+                    if precision == StoragePrecision::Fp16 { "_half" } else { "" },
+                    config.widths
+                ),
+                bytes: config.arena_bytes(settings.width, settings.height, precision)
+                    + pixels * (config.in_channels as u64 + 3) * 4
+                    + config.parameter_count() * 4,
+                note: format!("; {precision:?} activation arena, input, output, weights"),
+            }),
+            None => skipped.push("indirect light: no network weights".into()),
+        }
+    } else if settings.network.is_some() {
+        skipped.push("indirect light: nothing is shaded".into());
+    }
+    Ok(FramePlan { decisions: d, stages, skipped, scene_bytes: scene.gpu_bytes() })
+}

@@ -1,0 +1,109 @@
+//! Only what a scene requires runs, and `srug::plan` says so before it runs:
+//! the plan's decisions are checked against what the renderer dispatched
+//! (every dispatch is inside a timed stage, so the stage names list them).
+
+#![allow(clippy::unwrap_used, clippy::expect_used, reason = "test code: a failure should stop the test")]
+
+use srug::indirect::{StoragePrecision, UNet, UNetConfig, UNetWeights};
+use srug::plan::{plan_frame, PlanSettings};
+use srug::scene::activate::GpuScene;
+use srug::scene::demo::{demo_city, DemoOptions};
+use srug::shade::relight::{RelightSettings, Relighter};
+use srug::shade::{BrdfLut, EnvironmentPrep, PrepareSettings, ProceduralSky};
+use srug::shadow::Sun;
+use srug::splat::{BlendVariant, Channels, Splatter};
+use srug_tests::{assert_no_validation_messages, device};
+
+#[test]
+fn plan_matches_what_runs_and_nothing_unneeded_runs() {
+    let d = device();
+    let city = demo_city(&DemoOptions { seed: 4, gaussians: 5000, sh_degree: 1 }).unwrap();
+    let camera = city.cameras[0].resized(176, 48);
+    let gpu = GpuScene::upload(&d, &city.scene).unwrap();
+    let bounds = city.scene.bounds().unwrap();
+    let attributes = city.scene.attributes();
+    let prep = EnvironmentPrep::new(&d).unwrap();
+    let brdf = prep.brdf_table(BrdfLut::Karis, 33, 64).unwrap();
+    let small = PrepareSettings { samples: 16, ..PrepareSettings::default() };
+    let mut relighter = Relighter::new(&d).unwrap();
+    let blend = Splatter::new(&d).unwrap().blend_variant();
+    let config = UNetConfig { widths: [8, 8, 8, 8, 8], ..UNetConfig::default() };
+    let weights = UNetWeights::random(config.clone(), 3);
+    let mut settings = RelightSettings::default();
+    settings.shadow.resolution = 256;
+    settings.extra_channels = Channels { depth: true, ..Channels::default() };
+
+    let sun_up = Sun::from_azimuth_elevation(250.0, 40.0, [3.0; 3]).unwrap();
+    let sun_down = Sun::from_azimuth_elevation(250.0, -5.0, [3.0; 3]).unwrap();
+    for (sun, network) in [(Some(sun_up), false), (Some(sun_down), false), (None, true), (Some(sun_up), true)] {
+        let plan = plan_frame(
+            &city.scene,
+            &PlanSettings {
+                width: camera.width,
+                height: camera.height,
+                sun,
+                relight: settings,
+                network: network.then_some((&config, StoragePrecision::Fp32)),
+                blend,
+            },
+        )
+        .unwrap();
+        relighter.set_network(network.then(|| UNet::new(&d, &weights).unwrap()));
+        let sky = ProceduralSky::new(sun.map_or(sun_up.direction, |s| s.direction), 3.0).render().unwrap();
+        let env = prep.prepare(&sky, &small).unwrap();
+        let relit =
+            relighter.render(&gpu, &attributes, &bounds, &camera, sun.as_ref(), &env, &brdf, &settings).unwrap();
+        let names: Vec<&str> = relit.timings.stages.iter().map(|s| s.name.as_str()).collect();
+        let label = format!("sun {:?}, network {network}: stages {names:?}\n{}", sun.map(|s| s.direction), plan.text());
+        println!("{label}");
+        let has = |part: &str| names.iter().any(|n| n.contains(part));
+
+        let above = sun.is_some_and(|s| s.above_horizon());
+        assert!(plan.decisions.shading, "{label}");
+        assert_eq!(plan.decisions.shadow_pass, above, "{label}");
+        assert_eq!(relit.shadow_pass_ran, above, "{label}");
+        assert_eq!(has("shadow"), above, "shadow stages iff a sun is up: {label}");
+        assert_eq!(plan.stages.iter().any(|s| s.name.contains("shadow")), above, "{label}");
+        assert!(has("shade lights") && has("shade compose"), "{label}");
+        assert_eq!(has("indirect input"), network, "inference iff weights: {label}");
+        assert_eq!(plan.stages.iter().any(|s| s.name.contains("U-Net")), network, "{label}");
+        assert_eq!(relit.shaded.indirect.is_some(), network, "{label}");
+
+        // The G-buffer holds exactly the planned channels.
+        let g = &relit.gbuffer;
+        let made = Channels {
+            depth: g.depth.is_some(),
+            median_depth: g.median_depth.is_some(),
+            normal: g.normal.is_some(),
+            albedo: g.albedo.is_some(),
+            roughness: g.roughness.is_some(),
+            metallic: g.metallic.is_some(),
+            ao: g.ao.is_some(),
+            visibility: g.visibility.is_some(),
+        };
+        assert_eq!(made, plan.decisions.channels, "{label}");
+        assert!(made.depth, "the extra channel asked for is there");
+        assert!(plan.stages[0].bytes >= g.bytes(), "the camera stage's known bytes cover its G-buffer: {label}");
+    }
+
+    // Without materials: the plan shades nothing, and the relighter refuses rather than shade.
+    let mut plain = city.scene.clone();
+    plain.materials = srug::scene::Materials::default();
+    let plan = plan_frame(
+        &plain,
+        &PlanSettings {
+            width: 176,
+            height: 48,
+            sun: Some(sun_up),
+            relight: settings,
+            network: Some((&config, StoragePrecision::Fp32)),
+            blend: BlendVariant::PerPixel,
+        },
+    )
+    .unwrap();
+    assert!(!plan.decisions.shading && !plan.decisions.shadow_pass, "{}", plan.text());
+    assert_eq!(plan.stages.len(), 1, "only the splat runs:\n{}", plan.text());
+    assert!(plan.skipped.iter().any(|s| s.contains("no albedo")), "{}", plan.text());
+    assert_eq!(plan.decisions.channels, settings.extra_channels);
+    assert_no_validation_messages(&d);
+}
