@@ -13,7 +13,7 @@ use srug::gpu::{Device, DeviceOptions, DeviceSelection, Timings};
 use srug::scene::activate::GpuScene;
 use srug::scene::demo::{demo_city, DemoOptions};
 use srug::scene::{AttributeGroups, Bounds, Camera, Projection, Scene};
-use srug::shade::relight::{RelightSettings, Relighter};
+use srug::shade::relight::{RelightDecisions, RelightSettings, Relighter};
 use srug::shade::{
     BrdfLut, BrdfTable, EnvironmentMap, EnvironmentPrep, PrepareSettings, PreparedEnvironment, ProceduralSky,
     ShadedFrame, ToneMap,
@@ -728,7 +728,6 @@ pub(crate) struct RendererObject {
     device: Device,
     width: u32,
     height: u32,
-    channels: Channels,
     settings: RelightSettings,
     camera: Option<Camera>,
     sun: Option<Sun>,
@@ -814,7 +813,6 @@ pub unsafe extern "C" fn srug_renderer_create(
             device: c.device.clone(),
             width,
             height,
-            channels: settings.extra_channels,
             settings,
             camera: None,
             sun: None,
@@ -1112,12 +1110,14 @@ impl RendererObject {
         let camera = self.camera()?;
         self.frame = None;
         self.timings = None;
-        let sun = self.sun.filter(Sun::above_horizon);
-        let bounds = match (&scene.bounds, scene.attributes.shadeable()) {
+        // The renderer's own decisions (what `srug info --plan` reports).
+        let d = RelightDecisions::new(&scene.attributes, self.sun.as_ref(), &self.settings)?;
+        let sun = d.sun;
+        let bounds = match (&scene.bounds, d.shading) {
             (Some(b), true) => *b,
             _ => {
                 // No materials (or nothing at all): plain 3DGS colour, no shading kernels.
-                let settings = SplatSettings { channels: self.channels, ..SplatSettings::default() };
+                let settings = SplatSettings { channels: d.channels, ..SplatSettings::default() };
                 let (gbuffer, stats) = self.relighter.splatter().render(&scene.gpu, &camera, &settings)?;
                 self.frame = Some(Frame { gbuffer, shaded: None });
                 self.timings = Some(stats.timings);
