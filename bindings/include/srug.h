@@ -410,6 +410,18 @@ srug_status srug_renderer_set_shadow(srug_renderer *renderer,
                                      float k,
                                      float bias);
 
+// Applies a quality preset by name: `"fast"`, `"balanced"` (the default) or
+// `"reference"` (README: "Speed against accuracy"). It sets the shadow map
+// (resolution, k, bias, depth modes, sigmoid or traced test), the SH degree
+// and the render scale; exposure, tone map, channels and the sun are kept.
+// Below scale 1 the frame is rendered smaller and read back resampled
+// bilinearly to the renderer's size. `srug_renderer_set_shadow` after it
+// overrides its shadow values.
+//
+// # Safety
+// `name` a NUL-terminated string.
+srug_status srug_renderer_set_preset(srug_renderer *renderer, const char *name);
+
 // Exposure in stops and the tone map (`SRUG_TONE_MAP_*`) of the display image.
 srug_status srug_renderer_set_exposure(srug_renderer *renderer,
                                        float exposure_ev,

@@ -13,7 +13,7 @@ use srug::gpu::{Device, DeviceOptions, DeviceSelection, Timings};
 use srug::scene::activate::GpuScene;
 use srug::scene::demo::{demo_city, DemoOptions};
 use srug::scene::{AttributeGroups, Bounds, Camera, Projection, Scene};
-use srug::shade::relight::{RelightDecisions, RelightSettings, Relighter};
+use srug::shade::relight::{Preset, RelightDecisions, RelightSettings, Relighter};
 use srug::shade::{
     BrdfLut, BrdfTable, EnvironmentMap, EnvironmentPrep, PrepareSettings, PreparedEnvironment, ProceduralSky,
     ShadedFrame, ToneMap,
@@ -1076,6 +1076,34 @@ pub extern "C" fn srug_renderer_set_shadow(
     })
 }
 
+/// Applies a quality preset by name: `"fast"`, `"balanced"` (the default) or
+/// `"reference"` (README: "Speed against accuracy"). It sets the shadow map
+/// (resolution, k, bias, depth modes, sigmoid or traced test), the SH degree
+/// and the render scale; exposure, tone map, channels and the sun are kept.
+/// Below scale 1 the frame is rendered smaller and read back resampled
+/// bilinearly to the renderer's size. `srug_renderer_set_shadow` after it
+/// overrides its shadow values.
+///
+/// # Safety
+/// `name` a NUL-terminated string.
+#[no_mangle]
+pub unsafe extern "C" fn srug_renderer_set_preset(renderer: *mut srug_renderer, name: *const c_char) -> srug_status {
+    guard("srug_renderer_set_preset", || {
+        // SAFETY: the caller's contract.
+        let name = unsafe { text(name, "name") }?;
+        let preset = Preset::parse(name)?;
+        with_renderer(renderer, |r| {
+            let mut s = RelightSettings::preset(preset);
+            s.shade = r.settings.shade;
+            s.normal_source = r.settings.normal_source;
+            s.extra_channels = r.settings.extra_channels;
+            s.validate()?;
+            r.settings = s;
+            Ok(())
+        })
+    })
+}
+
 /// Exposure in stops and the tone map (`SRUG_TONE_MAP_*`) of the display image.
 #[no_mangle]
 pub extern "C" fn srug_renderer_set_exposure(
@@ -1117,7 +1145,12 @@ impl RendererObject {
             (Some(b), true) => *b,
             _ => {
                 // No materials (or nothing at all): plain 3DGS colour, no shading kernels.
-                let settings = SplatSettings { channels: d.channels, ..SplatSettings::default() };
+                let settings = SplatSettings {
+                    channels: d.channels,
+                    sh_degree: self.settings.sh_degree,
+                    ..SplatSettings::default()
+                };
+                let camera = self.settings.render_camera(&camera);
                 let (gbuffer, stats) = self.relighter.splatter().render(&scene.gpu, &camera, &settings)?;
                 self.frame = Some(Frame { gbuffer, shaded: None });
                 self.timings = Some(stats.timings);
@@ -1171,6 +1204,18 @@ impl RendererObject {
         self.timings.as_ref().ok_or_else(|| wrong_order("nothing rendered yet (srug_renderer_render first)"))
     }
 
+    /// A buffer of `frame` (`k` floats per pixel) at the renderer's size:
+    /// resampled bilinearly when the frame was rendered at a lower render scale.
+    fn read_full_size(&self, frame: &Frame, buffer: &srug::gpu::Buffer, k: usize) -> FfiResult<Vec<f32>> {
+        let values: Vec<f32> = self.device.read_buffer(buffer)?;
+        let size = (frame.gbuffer.width, frame.gbuffer.height);
+        if size == (self.width, self.height) {
+            return Ok(values);
+        }
+        let n = k * size.0 as usize * size.1 as usize;
+        Ok(srug::output::resample_bilinear(&values[..n.min(values.len())], size, k, (self.width, self.height))?)
+    }
+
     fn frame(&self) -> FfiResult<&Frame> {
         self.frame.as_ref().ok_or_else(|| wrong_order("nothing rendered yet (srug_renderer_render first)"))
     }
@@ -1204,7 +1249,7 @@ pub unsafe extern "C" fn srug_renderer_read_image(
         };
         with_renderer(renderer.cast_mut(), |r| {
             let f = r.frame()?;
-            let (w, h) = (f.gbuffer.width as usize, f.gbuffer.height as usize);
+            let (w, h) = (r.width as usize, r.height as usize);
             let row = w * pixel;
             let stride = if row_stride == 0 { row } else { row_stride };
             if stride < row {
@@ -1219,8 +1264,8 @@ pub unsafe extern "C" fn srug_renderer_read_image(
                 (Some(s), _) => &s.radiance,
                 (None, _) => &f.gbuffer.rgb,
             };
-            let colour: Vec<f32> = r.device.read_buffer(colour_buf)?;
-            let alpha: Vec<f32> = r.device.read_buffer(&f.gbuffer.alpha)?;
+            let colour = r.read_full_size(f, colour_buf, 3)?;
+            let alpha = r.read_full_size(f, &f.gbuffer.alpha, 1)?;
             // SAFETY: the caller's contract.
             let out = unsafe { slice_mut(dst.cast::<u8>(), dst_len, "dst") }?;
             for y in 0..h {
@@ -1287,11 +1332,11 @@ pub unsafe extern "C" fn srug_renderer_read_channel(
                      shading outputs exist only for scenes with materials)"
                 ))
             })?;
-            let needed = k * g.width as usize * g.height as usize;
+            let needed = k * r.width as usize * r.height as usize;
             if dst_len < needed {
                 return Err(too_small(needed, dst_len, "floats"));
             }
-            let values: Vec<f32> = r.device.read_buffer(buffer)?;
+            let values = r.read_full_size(f, buffer, k)?;
             // SAFETY: the caller's contract.
             let out = unsafe { slice_mut(dst, dst_len, "dst") }?;
             out[..needed].copy_from_slice(&values[..needed]);

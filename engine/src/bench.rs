@@ -2,8 +2,11 @@
 //! timed tests. Each run measures the device's FMA peak itself, so kernel
 //! efficiency is reported against a ceiling taken on the same machine, now.
 
+pub mod plot;
+pub mod scaling;
 pub mod shade;
 pub mod shadow;
+pub mod trade;
 pub mod unet;
 
 use std::time::Instant;

@@ -6,12 +6,12 @@ use std::path::{Path, PathBuf};
 use indicatif::{ProgressBar, ProgressStyle};
 use srug::gpu::Device;
 use srug::scene::{self, activate, Camera};
-use srug::shade::relight::{RelightSettings, Relighter};
+use srug::shade::relight::{Preset, RelightSettings, Relighter};
 use srug::shade::{
     Background, BrdfLut, BrdfTable, EnvironmentMap, EnvironmentPrep, PrepareSettings, PreparedEnvironment,
     ProceduralSky, ShadeSettings, ToneMap, VisibilitySource,
 };
-use srug::shadow::{sun_path, ShadowSettings, Sun, UtcTime};
+use srug::shadow::{sun_path, Sun, UtcTime, VisibilityKind};
 use srug::{output, Error, Result};
 
 /// Which cameras to render.
@@ -212,10 +212,14 @@ impl std::ops::Deref for EnvRef<'_> {
     }
 }
 
-/// Shading options.
+/// Shading options. Quality knobs default to the preset's values; explicit
+/// options override them.
 #[derive(clap::Args, Clone, Debug)]
 pub struct ShadeArgs {
-    /// Sun visibility: editable (sigmoid shadow map), fixed (the Gaussians' V_f) or none.
+    /// Quality preset: fast, balanced or reference (`srug bench trade` measures them).
+    #[arg(long, default_value = "balanced")]
+    pub preset: String,
+    /// Sun visibility: editable (shadow map), fixed (the Gaussians' V_f) or none.
     #[arg(long, default_value = "editable")]
     pub visibility: String,
     /// Exposure in stops.
@@ -227,25 +231,42 @@ pub struct ShadeArgs {
     /// Background r,g,b instead of the environment.
     #[arg(long)]
     pub background: Option<String>,
-    /// Shadow-map resolution.
-    #[arg(long, default_value_t = 2048)]
-    pub shadow_resolution: u32,
-    /// Sigmoid sharpness k per metre.
-    #[arg(long, default_value_t = 50.0)]
-    pub shadow_k: f32,
+    /// Shadow-map resolution [preset: fast 512, balanced 2048, reference 4096].
+    #[arg(long)]
+    pub shadow_resolution: Option<u32>,
+    /// Sigmoid sharpness k per metre [preset: 50].
+    #[arg(long)]
+    pub shadow_k: Option<f32>,
     /// Shadow depth bias, metres; at least the splats' extent along the light, or lit
-    /// surfaces shadow themselves (0.5 suits the demo city: 93% agreement with its exact shadows).
-    #[arg(long, default_value_t = 0.5, allow_negative_numbers = true)]
-    pub shadow_bias: f32,
-    /// Receiver depth for the shadow test: median or expected.
-    #[arg(long, default_value = "median")]
-    pub receiver_depth: String,
+    /// surfaces shadow themselves [preset: 0.5, which suits the demo city].
+    #[arg(long, allow_negative_numbers = true)]
+    pub shadow_bias: Option<f32>,
+    /// Receiver depth for the shadow test: median or expected [preset: median].
+    #[arg(long)]
+    pub receiver_depth: Option<String>,
+    /// Shadow test: sigmoid (differentiable) or traced (exact transmittance)
+    /// [preset: reference traced, else sigmoid].
+    #[arg(long)]
+    pub shadow_test: Option<String>,
+    /// Spherical-harmonic degree used for colour [preset: fast 0, else the scene's].
+    #[arg(long)]
+    pub sh_degree: Option<u32>,
+    /// Render at this fraction of the output size, then upsample bilinearly
+    /// [preset: fast 0.5, else 1].
+    #[arg(long)]
+    pub render_scale: Option<f32>,
 }
 
 impl ShadeArgs {
-    /// The relighting settings.
+    /// The preset named by `--preset`.
+    pub fn preset(&self) -> Result<Preset> {
+        Preset::parse(&self.preset)
+    }
+
+    /// The relighting settings: the preset's, with the options given on top.
     pub fn settings(&self) -> Result<RelightSettings> {
-        let shade = ShadeSettings {
+        let mut s = RelightSettings::preset(self.preset()?);
+        s.shade = ShadeSettings {
             visibility: VisibilitySource::parse(&self.visibility)?,
             exposure_ev: self.exposure,
             tone_map: ToneMap::parse(&self.tone_map)?,
@@ -255,16 +276,28 @@ impl ShadeArgs {
             },
             ..ShadeSettings::default()
         };
-        let shadow = ShadowSettings {
-            resolution: self.shadow_resolution,
-            k: self.shadow_k,
-            bias: self.shadow_bias,
-            receiver_depth: srug::shadow::DepthMode::parse(&self.receiver_depth)?,
-            ..ShadowSettings::default()
-        };
-        shadow.validate()?;
-        shade.validate()?;
-        Ok(RelightSettings { shade, shadow, ..RelightSettings::default() })
+        let sh = &mut s.shadow;
+        sh.resolution = self.shadow_resolution.unwrap_or(sh.resolution);
+        sh.k = self.shadow_k.unwrap_or(sh.k);
+        sh.bias = self.shadow_bias.unwrap_or(sh.bias);
+        if let Some(d) = &self.receiver_depth {
+            sh.receiver_depth = srug::shadow::DepthMode::parse(d)?;
+        }
+        if let Some(t) = &self.shadow_test {
+            s.visibility_kind = match t.as_str() {
+                "sigmoid" => VisibilityKind::Sigmoid,
+                "traced" => VisibilityKind::Traced,
+                other => {
+                    return Err(Error::InvalidArgument(format!("--shadow-test \"{other}\" is not sigmoid or traced")))
+                }
+            };
+        }
+        if self.sh_degree.is_some() {
+            s.sh_degree = self.sh_degree;
+        }
+        s.render_scale = self.render_scale.unwrap_or(s.render_scale);
+        s.validate()?;
+        Ok(s)
     }
 }
 
@@ -313,9 +346,9 @@ pub struct RelightArgs {
     /// Indirect-light network weights (safetensors); without them no indirect light is computed.
     #[arg(long)]
     pub indirect: Option<PathBuf>,
-    /// Activation storage of the indirect network: fp32 or fp16.
-    #[arg(long, default_value = "fp32")]
-    pub indirect_precision: String,
+    /// Activation storage of the indirect network: fp32 or fp16 [preset: fast fp16, else fp32].
+    #[arg(long)]
+    pub indirect_precision: Option<String>,
     /// Output file: .png (display image) or .exr (linear radiance, L_sun, L_sky, L_ind); numbered when several frames.
     #[arg(long)]
     pub out: PathBuf,
@@ -324,7 +357,10 @@ pub struct RelightArgs {
 /// `srug relight`.
 pub fn relight(device: &Device, args: &RelightArgs) -> Result<()> {
     let RelightArgs { scene: scene_path, view, sun, env, shade, indirect, indirect_precision, out } = args;
-    let precision = srug::indirect::StoragePrecision::parse(indirect_precision)?;
+    let precision = match indirect_precision {
+        Some(p) => srug::indirect::StoragePrecision::parse(p)?,
+        None => shade.preset()?.indirect_precision(),
+    };
     let exr = output_is_exr(out)?;
     let cams = view.resolve()?;
     let suns = sun.resolve()?;
@@ -369,8 +405,11 @@ pub fn relight(device: &Device, args: &RelightArgs) -> Result<()> {
                 &lights.brdf,
                 &settings,
             )?;
-            let image = relit.shaded.read(device)?;
-            let indirect = relit.shaded.indirect.as_ref().map(|b| device.read_buffer::<f32>(b)).transpose()?;
+            let image = relit.shaded.read(device)?.resampled(cam.width, cam.height)?;
+            let indirect = match &relit.shaded.indirect {
+                Some(b) => Some(resample_planar(&device.read_buffer::<f32>(b)?, &relit.shaded, cam)?),
+                None => None,
+            };
             write_relit(&target, exr, &image, indirect.as_deref())?;
             let line = format!(
                 "{} camera {} {label}: {:.0} ms GPU{}",
@@ -390,6 +429,19 @@ pub fn relight(device: &Device, args: &RelightArgs) -> Result<()> {
     }
     bar.finish_and_clear();
     Ok(())
+}
+
+/// Planar RGB `v` of `frame`'s size resampled to the camera's size.
+fn resample_planar(v: &[f32], frame: &srug::shade::ShadedFrame, cam: &Camera) -> Result<Vec<f32>> {
+    let n = frame.width as usize * frame.height as usize;
+    if (frame.width, frame.height) == (cam.width, cam.height) || v.len() != 3 * n {
+        return Ok(v.to_vec());
+    }
+    let mut out = Vec::new();
+    for plane in v.chunks_exact(n) {
+        out.extend(output::resample_bilinear(plane, (frame.width, frame.height), 1, (cam.width, cam.height))?);
+    }
+    Ok(out)
 }
 
 /// `srug prefilter`: prepares an environment once and saves it as KTX2.
@@ -432,14 +484,18 @@ pub fn relight_demo(
     let lights = Lights::new(device, &env)?;
     let environment = lights.environment(&sun)?;
     let shade = ShadeArgs {
+        preset: "balanced".into(),
         visibility: "editable".into(),
         exposure: 0.0,
         tone_map: "aces".into(),
         background: None,
-        shadow_resolution: 2048,
-        shadow_k: 50.0,
-        shadow_bias: 0.5,
-        receiver_depth: "median".into(),
+        shadow_resolution: None,
+        shadow_k: None,
+        shadow_bias: None,
+        receiver_depth: None,
+        shadow_test: None,
+        sh_degree: None,
+        render_scale: None,
     };
     let settings = shade.settings()?;
     let attributes = city.scene.attributes();

@@ -94,6 +94,9 @@ enum Command {
         /// Normals from each Gaussian's stored normal where present (default: shortest axis).
         #[arg(long)]
         stored_normals: bool,
+        /// Spherical-harmonic degree used for colour (default: the scene's).
+        #[arg(long)]
+        sh_degree: Option<u32>,
     },
     /// Relight a scene with materials: sun (Cook–Torrance, sigmoid shadow map) and sky
     /// (split-sum image-based lighting); a sun path renders a time-lapse.
@@ -233,6 +236,45 @@ enum BenchKind {
         #[arg(long, default_value_t = 3)]
         repeats: usize,
     },
+    /// Speed against accuracy of the quality knobs and the presets on a relit demo frame:
+    /// CSV, markdown table and a PNG plot with the Pareto front.
+    Trade {
+        /// Demo city size (SH degree 3, materials).
+        #[arg(long, default_value_t = 200_000)]
+        gaussians: usize,
+        /// Output size WxH.
+        #[arg(long, default_value = "704x192")]
+        size: String,
+        /// Frames per setting (median, min and max reported).
+        #[arg(long, default_value_t = 5)]
+        repeats: usize,
+        /// Indirect-light network: a safetensors file, `random` (seeded random weights of the
+        /// default architecture), or `none` (no inference, no fp16/fp32 row).
+        #[arg(long, default_value = "none")]
+        network: String,
+        /// Output folder for trade.csv, trade.md and trade.png.
+        #[arg(long, default_value = "out/bench-trade")]
+        out: PathBuf,
+    },
+    /// Relit frame time and GPU memory against Gaussian count and against pixel count, with
+    /// fitted log-log slopes (balanced preset, demo city).
+    Scaling {
+        /// Gaussian counts, comma-separated.
+        #[arg(long, default_value = "10000,30000,100000,300000,1000000,3000000")]
+        gaussians: String,
+        /// Image size of the Gaussian sweep.
+        #[arg(long, default_value = "704x192")]
+        size: String,
+        /// Image sizes of the pixel sweep, comma-separated.
+        #[arg(long, default_value = "176x48,352x96,704x192,1408x384,2816x768")]
+        sizes: String,
+        /// Gaussian count of the pixel sweep.
+        #[arg(long, default_value_t = 200_000)]
+        pixel_sweep_gaussians: usize,
+        /// Frames per point (medians reported).
+        #[arg(long, default_value_t = 3)]
+        repeats: usize,
+    },
     /// Sigmoid shadow pass against the traced pass; shadow-map accuracy across resolution, k and depth mode.
     Shadow {
         /// Demo sizes for the speed table, comma-separated.
@@ -349,7 +391,7 @@ fn run(cli: Cli) -> srug::Result<()> {
             }
             Ok(())
         }
-        Command::Render { scene: path, view, out, channels, background, stored_normals } => {
+        Command::Render { scene: path, view, out, channels, background, stored_normals, sh_degree } => {
             let channels = Channels::parse(&channels)?;
             let is_exr = cli_relight::output_is_exr(&out)?;
             let cams = view.resolve()?;
@@ -363,6 +405,7 @@ fn run(cli: Cli) -> srug::Result<()> {
                 channels,
                 normal_source: if stored_normals { NormalSource::Stored } else { NormalSource::ShortestAxis },
                 prefill: None,
+                sh_degree,
             };
             let bar = if cams.len() > 1 { ProgressBar::new(cams.len() as u64) } else { ProgressBar::hidden() };
             bar.set_style(
@@ -585,6 +628,72 @@ fn run(cli: Cli) -> srug::Result<()> {
             for (variant, seconds) in &r.brdf_seconds {
                 println!("BRDF table {variant:?} (129x129, 1024 samples): {:.1} ms", seconds * 1e3);
             }
+            Ok(())
+        }
+        Command::Bench { what: BenchKind::Trade { gaussians, size, repeats, network, out } } => {
+            use srug::bench::trade::{trade_bench, trade_csv, trade_markdown, TradeSetup};
+            let weights = match network.as_str() {
+                "none" => None,
+                "random" => Some(srug::indirect::UNetWeights::random(srug::indirect::UNetConfig::default(), 1)),
+                path => Some(srug::indirect::UNetWeights::load(path)?),
+            };
+            let setup =
+                TradeSetup { gaussians, size: parse_size(&size)?, sun: (260.0, 50.0), repeats, network: weights };
+            std::fs::create_dir_all(&out).map_err(srug::Error::io(&out))?;
+            let device = open_device(&cli.device, cli.validation)?;
+            let info = device.info();
+            let heading = format!(
+                "{} ({}): demo city {} Gaussians (SH 3), camera 0 at {}x{}, sun 260°/50°, procedural sky, network {}",
+                info.name, info.driver, gaussians, setup.size.0, setup.size.1, network
+            );
+            println!("{heading}\n");
+            let bar = spinner("benchmarking");
+            let rows = trade_bench(&device, &setup, |m| bar.set_message(m.to_string()));
+            bar.finish_and_clear();
+            let rows = rows?;
+            let table = trade_markdown(&rows);
+            print!("{table}");
+            srug::output::write_atomic(&out.join("trade.csv"), trade_csv(&rows).as_bytes())?;
+            srug::output::write_atomic(&out.join("trade.md"), format!("{heading}\n\n{table}").as_bytes())?;
+            let png = out.join("trade.png");
+            let title = format!("srug speed/accuracy, {} at {}x{}", info.name, setup.size.0, setup.size.1);
+            let text = srug::bench::plot::trade_plot(&png, &rows, &title)?;
+            println!(
+                "\nwritten: {}, {}, {}{}",
+                out.join("trade.csv").display(),
+                out.join("trade.md").display(),
+                png.display(),
+                if text { "" } else { " (no font found: the plot has no text; set SRUG_PLOT_FONT)" }
+            );
+            Ok(())
+        }
+        Command::Bench { what: BenchKind::Scaling { gaussians, size, sizes, pixel_sweep_gaussians, repeats } } => {
+            use srug::bench::scaling::{scaling_bench, scaling_markdown, ScalingSetup};
+            let counts =
+                gaussians.split(',').map(|t| t.trim().parse::<usize>()).collect::<Result<Vec<_>, _>>().map_err(
+                    |_| srug::Error::InvalidArgument(format!("--gaussians \"{gaussians}\" is not a list of counts")),
+                )?;
+            let setup = ScalingSetup {
+                counts,
+                size: parse_size(&size)?,
+                sizes: sizes.split(',').map(parse_size).collect::<srug::Result<_>>()?,
+                gaussians: pixel_sweep_gaussians,
+                repeats,
+            };
+            let device = open_device(&cli.device, cli.validation)?;
+            let info = device.info();
+            println!("{} ({}): relit demo frames, balanced preset, no network\n", info.name, info.driver);
+            let bar = spinner("benchmarking");
+            let result = scaling_bench(&device, &setup, |m| bar.set_message(m.to_string()));
+            bar.finish_and_clear();
+            let (by_count, by_size) = result?;
+            println!(
+                "against Gaussians at {}x{}:\n\n{}",
+                setup.size.0,
+                setup.size.1,
+                scaling_markdown(&by_count, false)
+            );
+            println!("against pixels with {} Gaussians:\n\n{}", setup.gaussians, scaling_markdown(&by_size, true));
             Ok(())
         }
         Command::Bench {

@@ -102,3 +102,41 @@ pub fn write_exr_channels(path: &Path, width: u32, height: u32, channels: &[(&st
         .map_err(|e| Error::Io { path: tmp.clone(), source: std::io::Error::other(e) });
     finish(&tmp, path, written)
 }
+
+/// Bilinear resampling of an interleaved image (`channels` floats per pixel,
+/// pixel centres at +0.5, edges clamped) from `width`×`height` to
+/// `new_width`×`new_height`. Upscales a frame rendered at a lower render scale.
+pub fn resample_bilinear(
+    src: &[f32],
+    (width, height): (u32, u32),
+    channels: usize,
+    (new_width, new_height): (u32, u32),
+) -> Result<Vec<f32>> {
+    let (w, h) = (width as usize, height as usize);
+    if w == 0 || h == 0 || new_width == 0 || new_height == 0 || src.len() != w * h * channels {
+        return Err(Error::InvalidArgument(format!(
+            "cannot resample {} values as a {width}x{height} image of {channels} channels to {new_width}x{new_height}",
+            src.len()
+        )));
+    }
+    let (sx, sy) = (f64::from(width) / f64::from(new_width), f64::from(height) / f64::from(new_height));
+    let axis = |i: u32, scale: f64, n: usize| {
+        let x = ((f64::from(i) + 0.5) * scale - 0.5).clamp(0.0, (n - 1) as f64);
+        let x0 = x.floor() as usize;
+        (x0, (x0 + 1).min(n - 1), x - x0 as f64)
+    };
+    let mut out = Vec::with_capacity(new_width as usize * new_height as usize * channels);
+    for y in 0..new_height {
+        let (y0, y1, fy) = axis(y, sy, h);
+        for x in 0..new_width {
+            let (x0, x1, fx) = axis(x, sx, w);
+            for c in 0..channels {
+                let at = |xx: usize, yy: usize| f64::from(src[(yy * w + xx) * channels + c]);
+                let top = at(x0, y0) * (1.0 - fx) + at(x1, y0) * fx;
+                let bottom = at(x0, y1) * (1.0 - fx) + at(x1, y1) * fx;
+                out.push((top * (1.0 - fy) + bottom * fy) as f32);
+            }
+        }
+    }
+    Ok(out)
+}

@@ -129,7 +129,10 @@ pub fn plan_frame(scene: &Scene, settings: &PlanSettings<'_>) -> Result<FramePla
     let attributes = scene.attributes();
     let d = RelightDecisions::new(&attributes, settings.sun.as_ref(), &settings.relight)?;
     let n = scene.len() as u64;
-    let pixels = u64::from(settings.width) * u64::from(settings.height);
+    settings.relight.validate()?;
+    // The frame is splatted and shaded at the render scale.
+    let (width, height) = settings.relight.render_size(settings.width, settings.height);
+    let pixels = u64::from(width) * u64::from(height);
     let mut stages = vec![splat_stage("splat (camera)", n, pixels, d.channels, settings.blend)];
     let mut skipped = Vec::new();
     if !d.shading {
@@ -143,9 +146,14 @@ pub fn plan_frame(scene: &Scene, settings: &PlanSettings<'_>) -> Result<FramePla
                 .and_then(|b| light_camera(&b, &sun, st.resolution, st.fit, None).ok())
                 .map_or(u64::from(st.resolution).pow(2), |c| u64::from(c.width) * u64::from(c.height));
             stages.push(splat_stage("splat (shadow map)", n, texels, depth_channels(st.map_depth), settings.blend));
+            let traced = settings.relight.visibility_kind == crate::shadow::VisibilityKind::Traced;
             stages.push(PlannedStage {
-                name: "sigmoid shadow test".into(),
-                kernels: format!("shadow_test, k = {}, bias = {}", st.k, st.bias),
+                name: if traced { "traced shadow test" } else { "sigmoid shadow test" }.into(),
+                kernels: if traced {
+                    format!("shadow_traced, bias = {}", st.bias)
+                } else {
+                    format!("shadow_test, k = {}, bias = {}", st.k, st.bias)
+                },
                 bytes: pixels * 4,
                 note: String::new(),
             });
@@ -178,7 +186,7 @@ pub fn plan_frame(scene: &Scene, settings: &PlanSettings<'_>) -> Result<FramePla
                     if precision == StoragePrecision::Fp16 { "_half" } else { "" },
                     config.widths
                 ),
-                bytes: config.arena_bytes(settings.width, settings.height, precision)
+                bytes: config.arena_bytes(width, height, precision)
                     + pixels * (config.in_channels as u64 + 3) * 4
                     + config.parameter_count() * 4,
                 note: format!("; {precision:?} activation arena, input, output, weights"),

@@ -85,10 +85,11 @@ void main() {
 
     // View-dependent colour.
     vec3 dir = ortho ? frame.view_dir.xyz : normalize(p - frame.eye.xyz);
-    uint K = (frame.counts.y + 1) * (frame.counts.y + 1);
+    uint stored = frame.counts.y & 255u, used = frame.counts.y >> 8;
+    uint K = (stored + 1) * (stored + 1);
     FloatsIn sh = FloatsIn(frame.scene2.xy);
     vec3 color = vec3(0.0);
-    for (uint j = 0; j < K; j++) {
+    for (uint j = 0; j < (used + 1) * (used + 1); j++) {
         uint o = (i * K + j) * 3;
         color += sh_basis(j, dir) * vec3(sh.v[o], sh.v[o + 1], sh.v[o + 2]);
     }

@@ -107,7 +107,31 @@ fn all_settings() -> SplatSettings {
         channels: Channels::ALL,
         normal_source: NormalSource::Stored,
         prefill: Some(NAN),
+        sh_degree: None,
     }
+}
+
+#[test]
+fn capped_sh_degree_matches_cpu_twin_and_changes_colour() {
+    let d = device();
+    let mut splatter = Splatter::new(&d).unwrap();
+    let scene = random_scene(3000, 3, 21, 2.0);
+    let cam = Camera::look_at(Vec3::new(0.0, -6.0, 0.5), Vec3::ZERO, Vec3::Z, 70.0, 96, 64).unwrap();
+    let base = SplatSettings { channels: Channels { depth: true, ..Channels::default() }, ..all_settings() };
+    let full = render_both(&d, &mut splatter, &scene, &cam, &base, "sh_full");
+    for degree in [0u32, 1, 2, 7] {
+        let settings = SplatSettings { sh_degree: Some(degree), ..base };
+        let capped = render_both(&d, &mut splatter, &scene, &cam, &settings, &format!("sh_cap_{degree}"));
+        let changed = capped.rgb.iter().zip(&full.rgb).filter(|(a, b)| (*a - *b).abs() > 1e-3).count();
+        if degree >= 3 {
+            assert_eq!(capped.rgb, full.rgb, "a cap at or above the scene's degree changes nothing");
+        } else {
+            assert!(changed > 100, "SH degree {degree}: only {changed} values changed");
+        }
+        // The twin's truncated scene is the file's coefficients cut short, not re-fitted.
+        assert_eq!(scene.with_sh_degree(degree.min(3)).sh.len(), 3000 * 3 * ((degree.min(3) as usize + 1).pow(2)));
+    }
+    assert_no_validation_messages(&d);
 }
 
 #[test]

@@ -97,6 +97,8 @@ int main(int argc, char **argv) {
   EXPECT(srug_renderer_set_sun(r, 0.0f, 30.0f, negative), SRUG_ERROR_INVALID_ARGUMENT);
   EXPECT(srug_renderer_set_shadow(r, 0, 50.0f, 0.5f), SRUG_ERROR_INVALID_ARGUMENT);
   EXPECT(srug_renderer_set_shadow(r, 1024, NAN, 0.5f), SRUG_ERROR_INVALID_ARGUMENT);
+  EXPECT(srug_renderer_set_preset(r, "fastest"), SRUG_ERROR_INVALID_ARGUMENT);
+  EXPECT(srug_renderer_set_preset(r, NULL), SRUG_ERROR_NULL_POINTER);
   EXPECT(srug_renderer_set_exposure(r, 0.0f, 77), SRUG_ERROR_INVALID_ARGUMENT);
   EXPECT(srug_renderer_set_environment(r, NULL, 0.0f, -1.0f), SRUG_ERROR_INVALID_ARGUMENT);
   float *means = calloc(count * 3, sizeof(float)), *ls = calloc(count * 3, sizeof(float));

@@ -178,6 +178,26 @@ int main(int argc, char **argv) {
   REQUIRE(memcmp(image, again, pixels * 4) == 0);
   free(again);
 
+  /* Presets: balanced is the renderer's default (same bytes); fast renders at half
+     size and reads back resampled to the full size, close to the balanced frame. */
+  CHECK(srug_renderer_set_preset(r, "balanced"));
+  CHECK(srug_renderer_render(r, scene));
+  again = read_rgba8(r, w, h);
+  REQUIRE(memcmp(image, again, pixels * 4) == 0);
+  free(again);
+  CHECK(srug_renderer_set_preset(r, "fast"));
+  CHECK(srug_renderer_render(r, scene));
+  unsigned char *fast = read_rgba8(r, w, h);
+  double fast_diff = 0.0;
+  for (size_t i = 0; i < pixels * 4; i++) fast_diff += fabs((double)fast[i] - (double)image[i]);
+  fast_diff /= (double)(pixels * 4);
+  printf("fast preset: mean |fast - balanced| = %.2f of 255\n", fast_diff);
+  REQUIRE(fast_diff > 0.0 && fast_diff < 20.0);
+  free(fast);
+  CHECK(srug_renderer_read_channel(r, SRUG_CHANNEL_DEPTH, values, pixels));
+  for (size_t i = 0; i < pixels; i++) REQUIRE(isfinite(values[i]) && values[i] >= 0.0f);
+  CHECK(srug_renderer_set_preset(r, "balanced"));
+
   /* The same camera as OpenGL view and projection matrices. */
   float view[16] = {0}, proj[16] = {0};
   /* world-to-camera (GL) = diag(1, -1, -1) * inverse(c2w). */

@@ -155,6 +155,17 @@ pub struct Bounds {
 }
 
 impl Scene {
+    /// A copy keeping spherical harmonics up to `degree` only (no change when
+    /// `degree` is at least the scene's).
+    pub fn with_sh_degree(&self, degree: u32) -> Scene {
+        if degree >= self.sh_degree {
+            return self.clone();
+        }
+        let (k_old, k_new) = (sh_coefficients(self.sh_degree), sh_coefficients(degree));
+        let sh = self.sh.chunks_exact(3 * k_old).flat_map(|g| g[..3 * k_new].iter().copied()).collect();
+        Scene { sh_degree: degree, sh, ..self.clone() }
+    }
+
     /// Number of Gaussians.
     pub fn len(&self) -> usize {
         self.means.len()

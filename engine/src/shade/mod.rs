@@ -279,6 +279,25 @@ pub struct ShadedImage {
     pub display: Vec<f32>,
 }
 
+impl ShadedImage {
+    /// Every output resampled bilinearly to `width`×`height` (a frame rendered
+    /// at a lower render scale brought to the camera's size).
+    pub fn resampled(&self, width: u32, height: u32) -> Result<ShadedImage> {
+        if (width, height) == (self.width, self.height) {
+            return Ok(self.clone());
+        }
+        let r = |v: &[f32]| crate::output::resample_bilinear(v, (self.width, self.height), 3, (width, height));
+        Ok(ShadedImage {
+            width,
+            height,
+            sun: r(&self.sun)?,
+            sky: r(&self.sky)?,
+            radiance: r(&self.radiance)?,
+            display: r(&self.display)?,
+        })
+    }
+}
+
 impl ShadedFrame {
     /// Reads every output back.
     pub fn read(&self, device: &Device) -> Result<ShadedImage> {

@@ -13,7 +13,7 @@ use crate::error::{Error, Result};
 use crate::gpu::{Device, Timings};
 use crate::scene::activate::GpuScene;
 use crate::scene::{AttributeGroups, Bounds, Camera};
-use crate::shadow::{ShadowPass, ShadowSettings, Sun, VisibilityKind};
+use crate::shadow::{DepthMode, ShadowPass, ShadowSettings, Sun, VisibilityKind};
 use crate::splat::{Channels, GpuGBuffer, NormalSource, SplatSettings, Splatter};
 
 /// Everything a relit frame depends on besides the scene and the camera.
@@ -27,6 +27,113 @@ pub struct RelightSettings {
     pub normal_source: NormalSource,
     /// G-buffer channels to blend besides those the shading reads (for callers that read them).
     pub extra_channels: Channels,
+    /// How editable visibility is computed: the sigmoid test (differentiable)
+    /// or the traced transmittance through the shadow map's splats (exact, slower).
+    pub visibility_kind: VisibilityKind,
+    /// Spherical-harmonic degree used for colour (`None`: the scene's).
+    pub sh_degree: Option<u32>,
+    /// The frame is rendered at this fraction of the camera's size in each
+    /// direction (0 < s ≤ 1; 0 means 1); [`ShadedImage::resampled`] brings it back.
+    pub render_scale: f32,
+}
+
+impl RelightSettings {
+    /// Checks the values.
+    pub fn validate(&self) -> Result<()> {
+        self.shade.validate()?;
+        self.shadow.validate()?;
+        if !(self.render_scale >= 0.0 && self.render_scale <= 1.0) {
+            return Err(Error::InvalidArgument(format!("render scale {} is not in (0, 1]", self.render_scale)));
+        }
+        if let Some(d) = self.sh_degree.filter(|d| *d > 3) {
+            return Err(Error::InvalidArgument(format!("SH degree {d} is not 0 to 3")));
+        }
+        Ok(())
+    }
+
+    /// The size a `width`×`height` frame is rendered at: scaled by the render scale, at least 1×1.
+    pub fn render_size(&self, width: u32, height: u32) -> (u32, u32) {
+        let s = if self.render_scale > 0.0 { self.render_scale } else { 1.0 };
+        let size = |n: u32| ((n as f32 * s).round() as u32).max(1);
+        (size(width), size(height))
+    }
+
+    /// The camera a frame is rendered with: `camera` at the render scale.
+    pub fn render_camera(&self, camera: &Camera) -> Camera {
+        let (w, h) = self.render_size(camera.width, camera.height);
+        if (w, h) == (camera.width, camera.height) {
+            return camera.clone();
+        }
+        camera.resized(w, h)
+    }
+
+    /// The settings of a named quality preset.
+    pub fn preset(preset: Preset) -> Self {
+        let mut s = RelightSettings::default();
+        s.shadow.bias = 0.5;
+        s.shadow.receiver_depth = DepthMode::Median;
+        match preset {
+            Preset::Fast => {
+                s.shadow.resolution = 512;
+                s.sh_degree = Some(0);
+                s.render_scale = 0.5;
+            }
+            Preset::Balanced => {
+                s.shadow.resolution = 2048;
+            }
+            Preset::Reference => {
+                s.shadow.resolution = 4096;
+                s.visibility_kind = VisibilityKind::Traced;
+            }
+        }
+        s
+    }
+}
+
+/// Named quality presets: points on the speed/accuracy curve `srug bench
+/// trade` measures (README: "Speed against accuracy").
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum Preset {
+    /// Half-resolution render, SH degree 0, a 512 shadow map, fp16 network activations.
+    Fast,
+    /// Full resolution, the scene's SH, a 2048 sigmoid shadow map, fp32 network.
+    #[default]
+    Balanced,
+    /// Full resolution, a 4096 shadow map with traced visibility, fp32 network:
+    /// the setting `srug bench trade` measures errors against.
+    Reference,
+}
+
+impl Preset {
+    /// Every preset, fastest first.
+    pub const ALL: [Preset; 3] = [Preset::Fast, Preset::Balanced, Preset::Reference];
+
+    /// Parses `fast`, `balanced` or `reference`.
+    pub fn parse(name: &str) -> Result<Self> {
+        match name.trim().to_ascii_lowercase().as_str() {
+            "fast" => Ok(Preset::Fast),
+            "balanced" => Ok(Preset::Balanced),
+            "reference" => Ok(Preset::Reference),
+            other => Err(Error::InvalidArgument(format!("preset \"{other}\" is not one of fast, balanced, reference"))),
+        }
+    }
+
+    /// The preset's name.
+    pub fn name(self) -> &'static str {
+        match self {
+            Preset::Fast => "fast",
+            Preset::Balanced => "balanced",
+            Preset::Reference => "reference",
+        }
+    }
+
+    /// Activation storage of the indirect network under this preset.
+    pub fn indirect_precision(self) -> crate::indirect::StoragePrecision {
+        match self {
+            Preset::Fast => crate::indirect::StoragePrecision::Fp16,
+            _ => crate::indirect::StoragePrecision::Fp32,
+        }
+    }
 }
 
 /// What a relit frame runs, decided from the scene's attributes, the sun and
@@ -89,6 +196,10 @@ pub struct RelitFrame {
     pub shadow_pass_ran: bool,
     /// The camera's G-buffers (the shading's channels and the extra ones asked for).
     pub gbuffer: GpuGBuffer,
+    /// Per-pixel sun visibility from the shadow pass, when it ran.
+    pub visibility: Option<crate::gpu::Buffer>,
+    /// (Gaussian, tile) pairs the camera splat sorted.
+    pub pairs: u64,
 }
 
 /// The relighting pipeline: splatting, shadows and shading kernels, reused across frames.
@@ -115,13 +226,19 @@ impl Relighter {
         self.network = network;
     }
 
+    /// Takes the indirect-light network out (none is left).
+    pub fn take_network(&mut self) -> Option<crate::indirect::UNet> {
+        self.network.take()
+    }
+
     /// The splatter, for plain renders of the same scene.
     pub fn splatter(&mut self) -> &mut Splatter {
         &mut self.splatter
     }
 
     /// Renders `camera` of `scene` (attribute groups `attributes`, bounds
-    /// `bounds` for the light camera) under `sun` and `environment`.
+    /// `bounds` for the light camera) under `sun` and `environment`, at the
+    /// settings' render scale (the frame's size is the scaled camera's).
     #[allow(clippy::too_many_arguments, reason = "the scene, the view and the lighting are separate inputs")]
     pub fn render(
         &mut self,
@@ -134,7 +251,9 @@ impl Relighter {
         brdf: &BrdfTable,
         settings: &RelightSettings,
     ) -> Result<RelitFrame> {
+        settings.validate()?;
         let d = RelightDecisions::new(attributes, sun, settings)?;
+        let camera = &settings.render_camera(camera);
         if !d.shading {
             return Err(Error::InvalidArgument(
                 "the scene has no albedo attribute: it cannot be relit (render its colour with `srug render`)".into(),
@@ -147,18 +266,26 @@ impl Relighter {
             channels,
             normal_source: settings.normal_source,
             prefill: shade.prefill,
+            sh_degree: settings.sh_degree,
             ..SplatSettings::default()
         };
         let (gbuffer, stats) = self.splatter.render(scene, camera, &splat)?;
-        let mut timings = stats.timings;
+        let (mut timings, pairs) = (stats.timings, stats.pairs);
         let mut visibility = None;
         if let (true, Some(s)) = (editable, sun) {
             let map = self
                 .shadows
                 .shadow_map(&mut self.splatter, scene, bounds, s, &settings.shadow, Some(camera))?
                 .ok_or_else(|| Error::InvalidArgument("the sun is below the horizon".into()))?;
-            timings.stages.extend(map.frame.stats.timings.stages.iter().cloned());
-            let (v, t) = self.shadows.visibility(&map, &gbuffer, camera, &settings.shadow, VisibilityKind::Sigmoid)?;
+            timings.stages.extend(
+                map.frame
+                    .stats
+                    .timings
+                    .stages
+                    .iter()
+                    .map(|st| crate::gpu::StageTime { name: format!("shadow map {}", st.name), ..st.clone() }),
+            );
+            let (v, t) = self.shadows.visibility(&map, &gbuffer, camera, &settings.shadow, settings.visibility_kind)?;
             timings.stages.extend(t.stages);
             visibility = Some(v);
         }
@@ -176,6 +303,6 @@ impl Relighter {
             None => self.shader.shade(&inputs, &shade)?,
         };
         timings.stages.extend(shaded.timings.stages.iter().cloned());
-        Ok(RelitFrame { shaded, timings, shadow_pass_ran: visibility.is_some(), gbuffer })
+        Ok(RelitFrame { shaded, timings, shadow_pass_ran: visibility.is_some(), gbuffer, visibility, pairs })
     }
 }

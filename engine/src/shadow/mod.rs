@@ -323,9 +323,10 @@ pub struct ShadowPass {
 }
 
 /// Which visibility [`ShadowPass::visibility`] computes.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum VisibilityKind {
     /// The sigmoid shadow test V_e.
+    #[default]
     Sigmoid,
     /// The traced transmittance V_t.
     Traced,

@@ -433,6 +433,14 @@ pub fn render_blends(
 
 /// Stages 1–5 on the CPU.
 pub fn render_cpu(scene: &Scene, camera: &Camera, settings: &SplatSettings) -> GBuffer {
+    let truncated;
+    let scene = match settings.sh_degree {
+        Some(d) if d < scene.sh_degree => {
+            truncated = scene.with_sh_degree(d);
+            &truncated
+        }
+        _ => scene,
+    };
     let (w, h) = (camera.width as usize, camera.height as usize);
     let tiles_x = camera.width.div_ceil(TILE) as usize;
     let splats: Vec<Option<CpuSplat>> =

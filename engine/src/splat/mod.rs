@@ -194,6 +194,9 @@ pub struct SplatSettings {
     /// Fill every output with this 32-bit word before blending (tests use NaN,
     /// so a pixel the kernel never wrote cannot pass for a value).
     pub prefill: Option<u32>,
+    /// Spherical-harmonic degree evaluated for colour, at most the scene's
+    /// (`None`: the scene's). Lower degrees drop view-dependent terms for speed.
+    pub sh_degree: Option<u32>,
 }
 
 impl Default for SplatSettings {
@@ -203,6 +206,7 @@ impl Default for SplatSettings {
             channels: Channels::default(),
             normal_source: NormalSource::default(),
             prefill: None,
+            sh_degree: None,
         }
     }
 }
@@ -531,7 +535,9 @@ impl Splatter {
         camera_frame(camera, &mut frame)?;
         frame.background = [settings.background[0], settings.background[1], settings.background[2], 0.0];
         frame.size = [w, h, tiles_x, tiles_y];
-        frame.counts = [n as u32, scene.sh_degree, u32::from(settings.normal_source == NormalSource::Stored), 0];
+        let sh_used = settings.sh_degree.map_or(scene.sh_degree, |d| d.min(scene.sh_degree));
+        frame.counts =
+            [n as u32, scene.sh_degree | sh_used << 8, u32::from(settings.normal_source == NormalSource::Stored), 0];
 
         let f = |name: &str, floats: u64| device.create_buffer(name, floats * 4, MemoryKind::Storage);
         let opt = |on: bool, name: &str, floats: u64| on.then(|| f(name, floats)).transpose();

@@ -16,7 +16,7 @@ layout(std140, set = 0, binding = 0) uniform Frame {
     vec4 view_dir;     // viewing direction (orthographic SH direction)
     vec4 background;   // rgb
     uvec4 size;        // width, height, tiles_x, tiles_y
-    uvec4 counts;      // gaussians, sh_degree, normal_source (0 shortest axis, 1 stored), pairs
+    uvec4 counts;      // gaussians, SH degree stored | used << 8, normal_source (0 shortest axis, 1 stored), pairs
     uvec4 scene0;      // means, log_scales
     uvec4 scene1;      // rotations, opacity_logits
     uvec4 scene2;      // sh, normals

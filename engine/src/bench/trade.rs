@@ -1,0 +1,367 @@
+//! `srug bench trade`: the speed/accuracy trade of the quality knobs.
+//!
+//! One relit frame of the demo city (SH degree 3, materials, sun and
+//! procedural sky) per setting. Each knob is varied alone from the balanced
+//! preset — shadow-map resolution, k, receiver and map depth modes, sigmoid
+//! against traced visibility, SH degree used, render scale, U-Net storage
+//! precision — and the three presets are measured as they are. For each
+//! setting: GPU frame time over the repeats (median, min, max; per-stage-group
+//! medians), the display image's PSNR and SSIM against the reference preset's
+//! image, and the shadow's IoU and mean |ΔV| against traced visibility from a
+//! 4096 map (receivers with a surface in the full-size frame).
+//!
+//! Frames rendered at a lower render scale are upsampled bilinearly on the
+//! host before they are compared; that upsampling is not in the frame time.
+//! The traced shadow test (and any visibility) at a lower scale is upsampled
+//! the same way before its IoU is taken.
+
+use super::median;
+use crate::error::{Error, Result};
+use crate::gpu::Device;
+use crate::indirect::{StoragePrecision, UNet, UNetWeights};
+use crate::metrics::{psnr, ssim, RgbImage};
+use crate::scene::activate::GpuScene;
+use crate::scene::demo::{demo_city, DemoOptions};
+use crate::shade::relight::{Preset, RelightSettings, Relighter};
+use crate::shade::{BrdfLut, EnvironmentPrep, PrepareSettings, ProceduralSky};
+use crate::shadow::completion::shadow_iou;
+use crate::shadow::{DepthMode, Sun, VisibilityKind};
+
+/// One setting to measure.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TradeSetting {
+    /// The knob varied (`preset` for the presets).
+    pub knob: &'static str,
+    /// The knob's value.
+    pub value: String,
+    /// The relighting settings.
+    pub settings: RelightSettings,
+    /// Activation storage of the network (when there is one).
+    pub precision: StoragePrecision,
+}
+
+/// The settings `srug bench trade` measures: the presets, then each knob
+/// varied alone from the balanced preset (values equal to balanced skipped).
+pub fn trade_settings(with_network: bool) -> Vec<TradeSetting> {
+    let base = RelightSettings::preset(Preset::Balanced);
+    let mut out: Vec<TradeSetting> = Preset::ALL
+        .iter()
+        .map(|p| TradeSetting {
+            knob: "preset",
+            value: p.name().into(),
+            settings: RelightSettings::preset(*p),
+            precision: p.indirect_precision(),
+        })
+        .collect();
+    let mut knob = |knob: &'static str, value: String, edit: &dyn Fn(&mut RelightSettings)| {
+        let mut settings = base;
+        edit(&mut settings);
+        if settings != base {
+            out.push(TradeSetting { knob, value, settings, precision: StoragePrecision::Fp32 });
+        }
+    };
+    for r in [256, 512, 1024, 4096] {
+        knob("shadow resolution", r.to_string(), &|s| s.shadow.resolution = r);
+    }
+    for k in [5.0f32, 20.0, 200.0, 1000.0] {
+        knob("k", k.to_string(), &|s| s.shadow.k = k);
+    }
+    knob("receiver depth", "expected".into(), &|s| s.shadow.receiver_depth = DepthMode::Expected);
+    knob("map depth", "expected".into(), &|s| s.shadow.map_depth = DepthMode::Expected);
+    knob("shadow test", "traced".into(), &|s| s.visibility_kind = VisibilityKind::Traced);
+    for d in [0u32, 1, 2] {
+        knob("SH degree", d.to_string(), &|s| s.sh_degree = Some(d));
+    }
+    for r in [0.25f32, 0.5, 0.75] {
+        knob("render scale", r.to_string(), &|s| s.render_scale = r);
+    }
+    if with_network {
+        out.push(TradeSetting {
+            knob: "U-Net storage",
+            value: "fp16".into(),
+            settings: base,
+            precision: StoragePrecision::Fp16,
+        });
+    }
+    out
+}
+
+/// What the trade benchmark renders.
+#[derive(Clone, Debug)]
+pub struct TradeSetup {
+    /// Gaussians in the demo city.
+    pub gaussians: usize,
+    /// Output size.
+    pub size: (u32, u32),
+    /// Sun azimuth and elevation, degrees.
+    pub sun: (f32, f32),
+    /// Frames per setting.
+    pub repeats: usize,
+    /// Indirect-light network weights; without them no inference runs.
+    pub network: Option<UNetWeights>,
+}
+
+/// One measured setting.
+#[derive(Clone, Debug)]
+pub struct TradeRow {
+    /// The setting.
+    pub setting: TradeSetting,
+    /// Frame GPU seconds: median, min, max over the repeats.
+    pub seconds: [f64; 3],
+    /// Median seconds per stage group (splat, shadow map, shadow test, shading, indirect).
+    pub groups: Vec<(&'static str, f64)>,
+    /// PSNR (dB) of the display image against the reference preset's (+∞ when equal).
+    pub psnr: f64,
+    /// SSIM against the reference preset's image.
+    pub ssim: f64,
+    /// PSNR of the plain 3DGS colour (the G-buffer's rgb, which the relit
+    /// image does not use) against the reference's: where the SH degree shows.
+    pub colour_psnr: f64,
+    /// IoU of the shadowed receivers (V < 0.5) against traced visibility (None: no shadow pass).
+    pub shadow_iou: Option<f64>,
+    /// Mean |V − V_traced| over receivers with a surface.
+    pub shadow_mean_abs_diff: Option<f64>,
+    /// Whether no other row is both faster (median) and more accurate (PSNR).
+    pub pareto: bool,
+}
+
+/// The stage group of a stage name.
+pub fn stage_group(name: &str) -> &'static str {
+    if name.starts_with("shadow map") {
+        "shadow map"
+    } else if name.contains("shadow") || name.contains("visibility") {
+        "shadow test"
+    } else if name.starts_with("shade") {
+        "shading"
+    } else if ["preprocess", "scan", "keys", "sort", "ranges", "blend"].contains(&name) {
+        "splat"
+    } else {
+        "indirect"
+    }
+}
+
+/// The stage groups in pipeline order.
+pub const STAGE_GROUPS: [&str; 5] = ["splat", "shadow map", "shadow test", "shading", "indirect"];
+
+struct Measured {
+    seconds: Vec<f64>,
+    groups: Vec<Vec<f64>>,
+    display: RgbImage,
+    colour: RgbImage,
+    visibility: Option<Vec<f32>>,
+    alpha: Vec<f32>,
+}
+
+/// Runs every setting of [`trade_settings`]; the reference preset first,
+/// since every error is measured against it.
+pub fn trade_bench(device: &Device, setup: &TradeSetup, mut progress: impl FnMut(&str)) -> Result<Vec<TradeRow>> {
+    let (width, height) = setup.size;
+    progress("generating the demo city");
+    let city = demo_city(&DemoOptions { seed: 7, gaussians: setup.gaussians, sh_degree: 3 })?;
+    let gpu = GpuScene::upload(device, &city.scene)?;
+    let attributes = city.scene.attributes();
+    let bounds = city.scene.bounds().ok_or_else(|| Error::InvalidArgument("the demo city is empty".into()))?;
+    let camera = city.cameras[0].resized(width, height);
+    let sun = Sun::from_azimuth_elevation(setup.sun.0, setup.sun.1, [std::f32::consts::PI; 3])?;
+    progress("preparing the sky");
+    let prep = EnvironmentPrep::new(device)?;
+    let brdf = prep.brdf_table(BrdfLut::Karis, 129, 1024)?;
+    let sky = ProceduralSky::new(sun.direction, sun.intensity[0]).render()?;
+    let env = prep.prepare(&sky, &PrepareSettings::default())?;
+    let mut relighter = Relighter::new(device)?;
+    let mut networks = Vec::new();
+    if let Some(w) = &setup.network {
+        for p in [StoragePrecision::Fp32, StoragePrecision::Fp16] {
+            if p == StoragePrecision::Fp16 && !device.info().storage_16bit {
+                continue;
+            }
+            networks.push((p, Some(UNet::with_precision(device, w, p)?)));
+        }
+    }
+    let mut settings = trade_settings(setup.network.is_some());
+    if !device.info().storage_16bit {
+        settings.retain(|s| s.knob != "U-Net storage");
+    }
+    let reference = RelightSettings::preset(Preset::Reference);
+
+    let mut measure = |setting: &TradeSetting, label: &str| -> Result<Measured> {
+        // The setting's precision, or fp32 where the device cannot store fp16.
+        let slot = match networks.iter().position(|(p, _)| *p == setting.precision) {
+            Some(i) => networks.get_mut(i),
+            None => networks.first_mut(),
+        };
+        if let Some((_, net)) = slot {
+            relighter.set_network(net.take());
+        }
+        let mut m = Measured {
+            seconds: Vec::new(),
+            groups: vec![Vec::new(); 5],
+            display: empty(),
+            colour: empty(),
+            visibility: None,
+            alpha: Vec::new(),
+        };
+        for r in 0..setup.repeats.max(1) {
+            progress(&format!("{label} ({}/{})", r + 1, setup.repeats.max(1)));
+            let relit =
+                relighter.render(&gpu, &attributes, &bounds, &camera, Some(&sun), &env, &brdf, &setting.settings)?;
+            m.seconds.push(relit.timings.total_seconds());
+            for (i, g) in STAGE_GROUPS.iter().enumerate() {
+                let t =
+                    relit.timings.stages.iter().filter(|s| stage_group(&s.name) == *g).fold(0.0, |a, s| a + s.seconds);
+                m.groups[i].push(t);
+            }
+            if r == 0 {
+                let image = relit.shaded.read(device)?.resampled(width, height)?;
+                m.display = RgbImage { width, height, rgb: image.display };
+                let size = (relit.shaded.width, relit.shaded.height);
+                let full = |v: &[f32]| crate::output::resample_bilinear(v, size, 1, (width, height));
+                if let Some(v) = &relit.visibility {
+                    m.visibility = Some(full(&device.read_buffer(v)?)?);
+                }
+                m.alpha = full(&device.read_buffer(&relit.gbuffer.alpha)?)?;
+                let rgb: Vec<f32> = device.read_buffer(&relit.gbuffer.rgb)?;
+                let rgb = crate::output::resample_bilinear(&rgb, size, 3, (width, height))?;
+                m.colour = RgbImage { width, height, rgb };
+            }
+        }
+        if let Some(net) = relighter.take_network() {
+            if let Some((_, slot)) = networks.iter_mut().find(|(p, _)| *p == net.precision()) {
+                *slot = Some(net);
+            }
+        }
+        Ok(m)
+    };
+
+    let reference_setting = TradeSetting {
+        knob: "preset",
+        value: "reference".into(),
+        settings: reference,
+        precision: StoragePrecision::Fp32,
+    };
+    let truth = measure(&reference_setting, "reference")?;
+    let traced = truth.visibility.clone();
+    // Receivers with a surface in the full-size reference frame.
+    let mask: Vec<bool> = truth.alpha.iter().map(|a| *a >= reference.shadow.min_alpha).collect();
+    let covered = mask.iter().filter(|m| **m).count().max(1);
+
+    let mut rows = Vec::new();
+    for setting in settings {
+        let label = format!("{} {}", setting.knob, setting.value);
+        let m = if setting == reference_setting { None } else { Some(measure(&setting, &label)?) };
+        let m = m.as_ref().unwrap_or(&truth);
+        let (shadow_iou_v, mad) = match (&m.visibility, &traced) {
+            (Some(v), Some(t)) => {
+                let diff: f64 =
+                    v.iter().zip(t).zip(&mask).filter(|(_, m)| **m).map(|((a, b), _)| f64::from((a - b).abs())).sum();
+                (Some(shadow_iou(v, t, &mask)), Some(diff / covered as f64))
+            }
+            _ => (None, None),
+        };
+        let mut sorted = m.seconds.clone();
+        sorted.sort_by(f64::total_cmp);
+        rows.push(TradeRow {
+            seconds: [median(m.seconds.clone()), sorted[0], sorted[sorted.len() - 1]],
+            groups: STAGE_GROUPS.iter().zip(&m.groups).map(|(g, v)| (*g, median(v.clone()))).collect(),
+            psnr: psnr(&m.display, &truth.display, 1.0)?,
+            ssim: ssim(&m.display, &truth.display, 1.0)?,
+            colour_psnr: psnr(&m.colour, &truth.colour, 1.0)?,
+            shadow_iou: shadow_iou_v,
+            shadow_mean_abs_diff: mad,
+            pareto: false,
+            setting,
+        });
+    }
+    mark_pareto(&mut rows);
+    Ok(rows)
+}
+
+fn empty() -> RgbImage {
+    RgbImage { width: 0, height: 0, rgb: Vec::new() }
+}
+
+/// Marks the rows no other row dominates (at least as fast and as accurate, better in one).
+pub fn mark_pareto(rows: &mut [TradeRow]) {
+    let points: Vec<(f64, f64)> = rows.iter().map(|r| (r.seconds[0], r.psnr)).collect();
+    for (i, r) in rows.iter_mut().enumerate() {
+        let (t, q) = points[i];
+        r.pareto = !points.iter().enumerate().any(|(j, &(tj, qj))| j != i && tj <= t && qj >= q && (tj < t || qj > q));
+    }
+}
+
+fn opt(v: Option<f64>, digits: usize) -> String {
+    v.map_or_else(|| "–".into(), |v| format!("{v:.digits$}"))
+}
+
+fn db(v: f64) -> String {
+    if v.is_infinite() {
+        "∞".into()
+    } else {
+        format!("{v:.2}")
+    }
+}
+
+/// The rows as CSV (seconds in milliseconds; `inf` PSNR for the reference).
+pub fn trade_csv(rows: &[TradeRow]) -> String {
+    let mut s = String::from("knob,value,median_ms,min_ms,max_ms");
+    for g in STAGE_GROUPS {
+        s += &format!(",{}_ms", g.replace(' ', "_"));
+    }
+    s += ",psnr_db,ssim,colour_psnr_db,shadow_iou,shadow_mean_abs_dv,pareto\n";
+    for r in rows {
+        s += &format!(
+            "{},{},{:.3},{:.3},{:.3}",
+            r.setting.knob,
+            r.setting.value,
+            r.seconds[0] * 1e3,
+            r.seconds[1] * 1e3,
+            r.seconds[2] * 1e3
+        );
+        for (_, t) in &r.groups {
+            s += &format!(",{:.3}", t * 1e3);
+        }
+        let csv_db = |v: f64| if v.is_infinite() { "inf".into() } else { format!("{v:.3}") };
+        s += &format!(
+            ",{},{:.5},{},{},{},{}\n",
+            csv_db(r.psnr),
+            r.ssim,
+            csv_db(r.colour_psnr),
+            opt(r.shadow_iou, 4).replace('–', ""),
+            opt(r.shadow_mean_abs_diff, 4).replace('–', ""),
+            r.pareto
+        );
+    }
+    s
+}
+
+/// The rows as a markdown table.
+pub fn trade_markdown(rows: &[TradeRow]) -> String {
+    let mut s = String::from(
+        "| knob | value | frame ms (median [min, max]) | splat | shadow map | shadow test | shading | indirect \
+         | PSNR dB | SSIM | colour PSNR dB | shadow IoU | mean abs dV | Pareto |\n\
+         |---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
+    );
+    for r in rows {
+        s += &format!(
+            "| {} | {} | {:.1} [{:.1}, {:.1}] |",
+            r.setting.knob,
+            r.setting.value,
+            r.seconds[0] * 1e3,
+            r.seconds[1] * 1e3,
+            r.seconds[2] * 1e3
+        );
+        for (_, t) in &r.groups {
+            s += &format!(" {:.1} |", t * 1e3);
+        }
+        s += &format!(
+            " {} | {:.4} | {} | {} | {} | {} |\n",
+            db(r.psnr),
+            r.ssim,
+            db(r.colour_psnr),
+            opt(r.shadow_iou, 3),
+            opt(r.shadow_mean_abs_diff, 4),
+            if r.pareto { "yes" } else { "" }
+        );
+    }
+    s
+}
