@@ -140,3 +140,25 @@ pub fn resample_bilinear(
     }
     Ok(out)
 }
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used, reason = "a failed unwrap is a failed test")]
+mod tests {
+    use super::resample_bilinear;
+
+    #[test]
+    fn bilinear_resampling_keeps_constants_and_linear_ramps() {
+        let constant = vec![0.25f32; 4 * 3 * 2];
+        let up = resample_bilinear(&constant, (4, 3), 2, (9, 7)).unwrap();
+        assert!(up.iter().all(|v| (*v - 0.25).abs() < 1e-7));
+        // A ramp in x at pixel centres upsampled ×2: interior samples stay on the ramp.
+        let ramp: Vec<f32> = (0..8).map(|x| x as f32 + 0.5).collect();
+        let up = resample_bilinear(&ramp, (8, 1), 1, (16, 1)).unwrap();
+        for (i, v) in up.iter().enumerate().skip(1).take(14) {
+            assert!((v - (i as f32 + 0.5) / 2.0).abs() < 1e-6, "{i}: {v}");
+        }
+        assert_eq!(resample_bilinear(&ramp, (8, 1), 1, (8, 1)).unwrap(), ramp);
+        assert!(resample_bilinear(&ramp, (4, 1), 1, (8, 1)).is_err(), "wrong length");
+        assert!(resample_bilinear(&ramp, (8, 1), 1, (0, 1)).is_err(), "empty target");
+    }
+}

@@ -439,3 +439,117 @@ fn eval_reports_psnr_and_ssim_per_image_and_their_mean() {
     let t = text(&o);
     assert!(!o.status.success() && t.contains("differ in size") && t.contains("a.png"), "{t}");
 }
+
+#[test]
+fn bench_trade_writes_csv_markdown_and_a_plot_with_the_pareto_front() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("trade");
+    let o = srug(&[
+        "bench",
+        "trade",
+        "--gaussians",
+        "2000",
+        "--size",
+        "48x16",
+        "--repeats",
+        "1",
+        "--network",
+        "random",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    let t = text(&o);
+    assert!(o.status.success(), "{t}");
+    let csv = std::fs::read_to_string(out.join("trade.csv")).unwrap();
+    let rows: Vec<Vec<&str>> = csv.lines().skip(1).map(|l| l.split(',').collect()).collect();
+    let header: Vec<&str> = csv.lines().next().unwrap().split(',').collect();
+    let col = |name: &str| header.iter().position(|h| *h == name).unwrap_or_else(|| panic!("no column {name}"));
+    let (knob, value, psnr, pareto, median) =
+        (col("knob"), col("value"), col("psnr_db"), col("pareto"), col("median_ms"));
+    // The presets, every knob and the fp16 network row.
+    for want in ["fast", "balanced", "reference"] {
+        assert!(rows.iter().any(|r| r[knob] == "preset" && r[value] == want), "no preset {want}:\n{csv}");
+    }
+    for want in ["shadow resolution", "k", "receiver depth", "map depth", "shadow test", "SH degree", "render scale"] {
+        assert!(rows.iter().any(|r| r[knob] == want), "no knob {want}:\n{csv}");
+    }
+    assert!(rows.iter().any(|r| r[knob] == "U-Net storage" && r[value] == "fp16") || t.contains("16-bit"));
+    // The reference is exact against itself and, being the most accurate, on the front.
+    let reference = rows.iter().find(|r| r[knob] == "preset" && r[value] == "reference").unwrap();
+    assert_eq!(reference[psnr], "inf");
+    assert_eq!(reference[pareto], "true");
+    for r in &rows {
+        let ms: f64 = r[median].parse().unwrap();
+        assert!(ms > 0.0 && ms.is_finite(), "{r:?}");
+        if r[psnr] != "inf" {
+            let p: f64 = r[psnr].parse().unwrap();
+            assert!(p.is_finite() && p > 5.0, "{r:?}");
+        }
+    }
+    // The fastest row is always on the front.
+    let fastest = rows.iter().min_by(|a, b| a[median].parse::<f64>().unwrap().total_cmp(&b[median].parse().unwrap()));
+    assert_eq!(fastest.unwrap()[pareto], "true");
+    let md = std::fs::read_to_string(out.join("trade.md")).unwrap();
+    assert!(md.contains("| knob | value | frame ms"), "{md}");
+    let png = image::open(out.join("trade.png")).unwrap();
+    assert_eq!((png.width(), png.height()), (1100, 700));
+    assert!(t.contains("trade.png"), "{t}");
+}
+
+#[test]
+fn relight_presets_and_quality_options() {
+    let dir = tempfile::tempdir().unwrap();
+    let demo = dir.path().join("demo");
+    let o = srug(&["demo", "--gaussians", "3000", "--out", demo.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", text(&o));
+    let scene = demo.join("demo_city.ply");
+    let cams = demo.join("cameras.json");
+    for (preset, extra) in [
+        ("fast", vec![]),
+        ("reference", vec![]),
+        ("balanced", vec!["--render-scale", "0.25", "--sh-degree", "0", "--shadow-test", "traced"]),
+    ] {
+        let out = dir.path().join(format!("{preset}.png"));
+        let mut args = vec![
+            "relight",
+            scene.to_str().unwrap(),
+            "--cameras",
+            cams.to_str().unwrap(),
+            "--index",
+            "0",
+            "--size",
+            "64x24",
+            "--preset",
+            preset,
+            "--out",
+            out.to_str().unwrap(),
+        ];
+        args.extend(extra);
+        let o = srug(&args);
+        assert!(o.status.success(), "{preset}: {}", text(&o));
+        let img = image::open(&out).unwrap();
+        assert_eq!((img.width(), img.height()), (64, 24), "{preset}: written at the camera's size");
+    }
+    let o = srug(&[
+        "relight",
+        scene.to_str().unwrap(),
+        "--cameras",
+        cams.to_str().unwrap(),
+        "--preset",
+        "best",
+        "--out",
+        "x.png",
+    ]);
+    assert!(!o.status.success() && text(&o).contains("preset \"best\""), "{}", text(&o));
+    let o = srug(&[
+        "relight",
+        scene.to_str().unwrap(),
+        "--cameras",
+        cams.to_str().unwrap(),
+        "--render-scale",
+        "1.5",
+        "--out",
+        "x.png",
+    ]);
+    assert!(!o.status.success() && text(&o).contains("render scale 1.5"), "{}", text(&o));
+}

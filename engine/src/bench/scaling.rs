@@ -174,3 +174,18 @@ pub fn scaling_markdown(rows: &[ScalingRow], by_pixels: bool) -> String {
     s += &format!(" {} | {} |\n", slope(&|r| r.scene_bytes as f64), slope(&|r| r.frame_bytes as f64));
     s
 }
+
+#[cfg(test)]
+mod tests {
+    use super::loglog_slope;
+
+    #[test]
+    fn slope_of_power_laws() {
+        let linear: Vec<(f64, f64)> = [1e4, 1e5, 1e6].iter().map(|x| (*x, 3.0 * x)).collect();
+        assert!((loglog_slope(&linear) - 1.0).abs() < 1e-12);
+        let sqrt: Vec<(f64, f64)> = [4.0, 16.0, 64.0, 256.0].iter().map(|x: &f64| (*x, 2.0 * x.sqrt())).collect();
+        assert!((loglog_slope(&sqrt) - 0.5).abs() < 1e-12);
+        assert!(loglog_slope(&[(1.0, 2.0)]).is_nan(), "one point has no slope");
+        assert!(loglog_slope(&[(1.0, 2.0), (1.0, 3.0)]).is_nan(), "one x has no slope");
+    }
+}

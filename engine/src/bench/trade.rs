@@ -365,3 +365,49 @@ pub fn trade_markdown(rows: &[TradeRow]) -> String {
     }
     s
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn row(ms: f64, psnr: f64) -> TradeRow {
+        TradeRow {
+            setting: trade_settings(false).remove(0),
+            seconds: [ms * 1e-3; 3],
+            groups: Vec::new(),
+            psnr,
+            ssim: 1.0,
+            colour_psnr: psnr,
+            shadow_iou: None,
+            shadow_mean_abs_diff: None,
+            pareto: false,
+        }
+    }
+
+    #[test]
+    fn pareto_front_keeps_only_undominated_rows() {
+        let mut rows =
+            vec![row(10.0, 30.0), row(20.0, 40.0), row(25.0, 35.0), row(30.0, f64::INFINITY), row(10.0, 25.0)];
+        mark_pareto(&mut rows);
+        let front: Vec<bool> = rows.iter().map(|r| r.pareto).collect();
+        assert_eq!(front, [true, true, false, true, false]);
+    }
+
+    #[test]
+    fn settings_vary_one_knob_from_balanced_and_skip_duplicates() {
+        let balanced = RelightSettings::preset(Preset::Balanced);
+        let all = trade_settings(true);
+        assert_eq!(all.iter().filter(|s| s.knob == "preset").count(), 3);
+        assert!(all.iter().any(|s| s.knob == "U-Net storage"));
+        assert!(!trade_settings(false).iter().any(|s| s.knob == "U-Net storage"));
+        for s in all.iter().filter(|s| s.knob != "preset" && s.knob != "U-Net storage") {
+            assert_ne!(s.settings, balanced, "{} {} repeats balanced", s.knob, s.value);
+        }
+        assert_eq!(stage_group("shadow map blend"), "shadow map");
+        assert_eq!(stage_group("sigmoid shadow test"), "shadow test");
+        assert_eq!(stage_group("traced visibility"), "shadow test");
+        assert_eq!(stage_group("shade lights"), "shading");
+        assert_eq!(stage_group("blend"), "splat");
+        assert_eq!(stage_group("down1"), "indirect");
+    }
+}
