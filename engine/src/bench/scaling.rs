@@ -9,7 +9,7 @@
 //! the scene's own parameter bytes.
 
 use super::median;
-use super::trade::{stage_group, STAGE_GROUPS};
+use super::trade::{group_seconds, STAGE_GROUPS};
 use crate::error::{Error, Result};
 use crate::gpu::Device;
 use crate::scene::activate::GpuScene;
@@ -103,13 +103,7 @@ pub fn scaling_bench(
                 frame_bytes = frame_bytes.max(device.memory_usage().peak_bytes.saturating_sub(before));
                 pairs = relit.pairs;
                 seconds.push(relit.timings.total_seconds());
-                for (i, g) in STAGE_GROUPS.iter().enumerate() {
-                    let t = relit
-                        .timings
-                        .stages
-                        .iter()
-                        .filter(|s| stage_group(&s.name) == *g)
-                        .fold(0.0, |a, s| a + s.seconds);
+                for (i, t) in group_seconds(&relit.timings).into_iter().enumerate() {
                     groups[i].push(t);
                 }
             }

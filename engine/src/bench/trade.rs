@@ -143,6 +143,17 @@ pub fn stage_group(name: &str) -> &'static str {
 /// The stage groups in pipeline order.
 pub const STAGE_GROUPS: [&str; 5] = ["splat", "shadow map", "shadow test", "shading", "indirect"];
 
+/// Seconds per stage group of one frame, in [`STAGE_GROUPS`] order.
+pub fn group_seconds(timings: &crate::gpu::Timings) -> [f64; 5] {
+    let mut out = [0.0; 5];
+    for s in &timings.stages {
+        if let Some(i) = STAGE_GROUPS.iter().position(|g| *g == stage_group(&s.name)) {
+            out[i] += s.seconds;
+        }
+    }
+    out
+}
+
 struct Measured {
     seconds: Vec<f64>,
     groups: Vec<Vec<f64>>,
@@ -206,9 +217,7 @@ pub fn trade_bench(device: &Device, setup: &TradeSetup, mut progress: impl FnMut
             let relit =
                 relighter.render(&gpu, &attributes, &bounds, &camera, Some(&sun), &env, &brdf, &setting.settings)?;
             m.seconds.push(relit.timings.total_seconds());
-            for (i, g) in STAGE_GROUPS.iter().enumerate() {
-                let t =
-                    relit.timings.stages.iter().filter(|s| stage_group(&s.name) == *g).fold(0.0, |a, s| a + s.seconds);
+            for (i, t) in group_seconds(&relit.timings).into_iter().enumerate() {
                 m.groups[i].push(t);
             }
             if r == 0 {
@@ -409,5 +418,10 @@ mod tests {
         assert_eq!(stage_group("shade lights"), "shading");
         assert_eq!(stage_group("blend"), "splat");
         assert_eq!(stage_group("down1"), "indirect");
+        let stage = |name: &str, seconds| crate::gpu::StageTime { name: name.into(), seconds };
+        let timings = crate::gpu::Timings {
+            stages: vec![stage("blend", 1.0), stage("shadow map blend", 2.0), stage("sort", 0.5), stage("inc", 4.0)],
+        };
+        assert_eq!(group_seconds(&timings), [1.5, 2.0, 0.0, 0.0, 4.0]);
     }
 }
