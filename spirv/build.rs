@@ -10,7 +10,7 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 use rspirv::dr::{Instruction, Module, Operand};
-use rspirv::spirv::{Decoration, ExecutionMode, Op, StorageClass};
+use rspirv::spirv::{BuiltIn, Decoration, ExecutionMode, Op, StorageClass};
 
 fn main() {
     // Keeps Debian's static glslang/SPIRV-Tools archives in this script's link.
@@ -145,6 +145,8 @@ struct Spec {
 
 struct Reflected {
     local_size: [u32; 3],
+    /// Per dimension, the `constant_id` that sets it (`local_size_*_id`).
+    local_size_ids: [Option<u32>; 3],
     bindings: Vec<Binding>,
     push_size: u32,
     specs: Vec<Spec>,
@@ -225,7 +227,25 @@ fn reflect(module: &Module) -> Result<Reflected, String> {
             }
         }
     }
-    let local_size = local_size.ok_or("no LocalSize execution mode (local_size_*_id is not supported)")?;
+    let mut local_size =
+        local_size.ok_or("no LocalSize execution mode (give local_size_* defaults with local_size_*_id)")?;
+    // `local_size_*_id`: the WorkgroupSize built-in is a spec-constant composite
+    // whose specialized components override LocalSize (SPIR-V 1.5 has no LocalSizeId).
+    let mut local_size_ids = [None; 3];
+    let builtin = module.annotations.iter().find_map(|inst| match inst.operands.as_slice() {
+        [Operand::IdRef(target), Operand::Decoration(Decoration::BuiltIn), Operand::BuiltIn(BuiltIn::WorkgroupSize)] => {
+            Some(*target)
+        }
+        _ => None,
+    });
+    if let Some(composite) = builtin.and_then(|t| defs.get(&t)) {
+        for (dim, part) in composite.operands.iter().filter_map(id).enumerate().take(3) {
+            let def = defs.get(&part).ok_or("workgroup size component is not a constant")?;
+            let value = def.operands.first().and_then(lit).ok_or("workgroup size component is not a literal")?;
+            local_size[dim] = value;
+            local_size_ids[dim] = decorations.on_id.get(&(part, Decoration::SpecId)).and_then(|v| v.first().copied());
+        }
+    }
 
     let mut bindings = Vec::new();
     let mut push_size = 0;
@@ -294,7 +314,7 @@ fn reflect(module: &Module) -> Result<Reflected, String> {
         }
     }
     specs.sort_by_key(|s| s.id);
-    Ok(Reflected { local_size, bindings, push_size, specs })
+    Ok(Reflected { local_size, local_size_ids, bindings, push_size, specs })
 }
 
 fn strip_arrays(mut t: u32, defs: &HashMap<u32, &Instruction>) -> u32 {
@@ -378,8 +398,9 @@ fn write_kernel(out: &mut String, ident: &str, stem: &str, words: &[u32], info: 
     let _ = writeln!(out, "    /// Kernel `shaders/{stem}.comp`.");
     let _ = writeln!(
         out,
-        "    pub const {ident}: KernelInfo = KernelInfo {{ name: {stem:?}, words: &{ident}_WORDS, workgroup_size: {:?}, bindings: &[{}], push_constant_size: {}, spec_constants: &[{}] }};",
+        "    pub const {ident}: KernelInfo = KernelInfo {{ name: {stem:?}, words: &{ident}_WORDS, workgroup_size: {:?}, workgroup_size_ids: {:?}, bindings: &[{}], push_constant_size: {}, spec_constants: &[{}] }};",
         info.local_size,
+        info.local_size_ids,
         bindings.join(", "),
         info.push_size,
         specs.join(", ")

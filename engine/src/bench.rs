@@ -109,15 +109,17 @@ fn median(mut v: Vec<f64>) -> f64 {
 }
 
 /// Renders the demo city at each Gaussian count and size (with `blend`, or the
-/// device's default blend variant); per-stage medians.
+/// device's default blend variant, and `tile`-pixel tiles); per-stage medians.
 pub fn splat_bench(
     device: &Device,
     counts: &[usize],
     sizes: &[(u32, u32)],
     repeats: usize,
     blend: Option<BlendVariant>,
+    tile: u32,
     mut progress: impl FnMut(&str),
 ) -> Result<Vec<SplatBenchRow>> {
+    let settings = SplatSettings { tile, ..SplatSettings::default() };
     let mut rows = Vec::new();
     let mut splatter = Splatter::new(device)?;
     if let Some(variant) = blend {
@@ -133,7 +135,7 @@ pub fn splat_bench(
             let mut per_stage: Vec<(String, Vec<f64>)> = Vec::new();
             let mut last = None;
             for _ in 0..repeats.max(1) {
-                let (g, stats) = splatter.render(&scene, &cam, &SplatSettings::default())?;
+                let (g, stats) = splatter.render(&scene, &cam, &settings)?;
                 for s in &stats.timings.stages {
                     match per_stage.iter_mut().find(|(name, _)| *name == s.name) {
                         Some((_, v)) => v.push(s.seconds),
@@ -144,7 +146,7 @@ pub fn splat_bench(
             }
             let Some((gbuffer_bytes, stats)) = last else { continue };
             progress(&format!("{n} Gaussians at {w}x{h}: counting blend work on the CPU"));
-            let (blend_evaluations, blend_contributions) = crate::splat::cpu::blend_work(&city.scene, &cam);
+            let (blend_evaluations, blend_contributions) = crate::splat::cpu::blend_work(&city.scene, &cam, tile);
             rows.push(SplatBenchRow {
                 gaussians: n,
                 width: w,

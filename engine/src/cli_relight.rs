@@ -255,6 +255,9 @@ pub struct ShadeArgs {
     /// [preset: fast 0.5, else 1].
     #[arg(long)]
     pub render_scale: Option<f32>,
+    /// Tile edge in pixels for the camera's and the shadow map's splatting: 8, 16 or 32 [preset: 16].
+    #[arg(long)]
+    pub tile: Option<u32>,
 }
 
 impl ShadeArgs {
@@ -296,6 +299,10 @@ impl ShadeArgs {
             s.sh_degree = self.sh_degree;
         }
         s.render_scale = self.render_scale.unwrap_or(s.render_scale);
+        if let Some(tile) = self.tile {
+            s.tile = tile;
+            s.shadow.tile = tile;
+        }
         s.validate()?;
         Ok(s)
     }
@@ -496,6 +503,7 @@ pub fn relight_demo(
         shadow_test: None,
         sh_degree: None,
         render_scale: None,
+        tile: None,
     };
     let settings = shade.settings()?;
     let attributes = city.scene.attributes();

@@ -97,6 +97,9 @@ enum Command {
         /// Spherical-harmonic degree used for colour (default: the scene's).
         #[arg(long)]
         sh_degree: Option<u32>,
+        /// Tile edge in pixels: 8, 16 or 32.
+        #[arg(long, default_value_t = srug::splat::DEFAULT_TILE)]
+        tile: u32,
     },
     /// Relight a scene with materials: sun (Cook–Torrance, sigmoid shadow map) and sky
     /// (split-sum image-based lighting); a sun path renders a time-lapse.
@@ -208,6 +211,9 @@ enum BenchKind {
         /// Blend variant: per-pixel, subgroup or batched (default: subgroup where supported).
         #[arg(long)]
         blend: Option<String>,
+        /// Tile edge in pixels: 8, 16 or 32.
+        #[arg(long, default_value_t = srug::splat::DEFAULT_TILE)]
+        tile: u32,
     },
     /// Indirect-light U-Net: time per inference per size and precision, GFLOP/s against the FMA peak.
     Unet {
@@ -391,7 +397,7 @@ fn run(cli: Cli) -> srug::Result<()> {
             }
             Ok(())
         }
-        Command::Render { scene: path, view, out, channels, background, stored_normals, sh_degree } => {
+        Command::Render { scene: path, view, out, channels, background, stored_normals, sh_degree, tile } => {
             let channels = Channels::parse(&channels)?;
             let is_exr = cli_relight::output_is_exr(&out)?;
             let cams = view.resolve()?;
@@ -406,6 +412,7 @@ fn run(cli: Cli) -> srug::Result<()> {
                 normal_source: if stored_normals { NormalSource::Stored } else { NormalSource::ShortestAxis },
                 prefill: None,
                 sh_degree,
+                tile,
             };
             let bar = if cams.len() > 1 { ProgressBar::new(cams.len() as u64) } else { ProgressBar::hidden() };
             bar.set_style(
@@ -473,8 +480,9 @@ fn run(cli: Cli) -> srug::Result<()> {
             let settings = srug::shade::PrepareSettings { levels, samples, ..Default::default() };
             cli_relight::prefilter(&device, &env, &out, &settings, zstd)
         }
-        Command::Bench { what: BenchKind::Splat { gaussians, sizes, repeats, sort_keys, blend } } => {
+        Command::Bench { what: BenchKind::Splat { gaussians, sizes, repeats, sort_keys, blend, tile } } => {
             let blend = blend.as_deref().map(srug::splat::BlendVariant::parse).transpose()?;
+            srug::splat::check_tile(tile)?;
             let counts: Vec<usize> =
                 gaussians.split(',').map(|t| t.trim().parse::<usize>()).collect::<Result<_, _>>().map_err(|_| {
                     srug::Error::InvalidArgument(format!("--gaussians \"{gaussians}\" is not a list of counts"))
@@ -485,8 +493,9 @@ fn run(cli: Cli) -> srug::Result<()> {
             let peak = srug::bench::fma_peak_gflops(&device, 5)?;
             println!("device: {} ({}), measured FMA peak {peak:.1} GFLOP/s\n", info.name, info.driver);
             let bar = spinner("benchmarking");
-            let rows =
-                srug::bench::splat_bench(&device, &counts, &sizes, repeats, blend, |m| bar.set_message(m.to_string()))?;
+            let rows = srug::bench::splat_bench(&device, &counts, &sizes, repeats, blend, tile, |m| {
+                bar.set_message(m.to_string())
+            })?;
             bar.set_message("sorting");
             let sort = srug::bench::sort_bench(&device, sort_keys, 32 + 11, repeats)?;
             bar.finish_and_clear();

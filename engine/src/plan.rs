@@ -110,12 +110,13 @@ fn floats_per_pixel(c: Channels) -> u64 {
     4 + 3 * three + one as u64
 }
 
-fn splat_stage(name: &str, n: u64, texels: u64, channels: Channels, blend: BlendVariant) -> PlannedStage {
+fn splat_stage(name: &str, n: u64, texels: u64, channels: Channels, blend: BlendVariant, tile: u32) -> PlannedStage {
     let features = if channels.needs_features() { n * FEATURE_BYTES } else { 0 };
     PlannedStage {
         name: name.to_string(),
         kernels: format!(
-            "preprocess, scan, keys, radix sort, ranges, blend {blend:?} with CHANNELS = {:#010b} [{}]",
+            "preprocess, scan, keys, radix sort, ranges, blend {blend:?} with CHANNELS = {:#010b} [{}], \
+             {tile}×{tile} tiles",
             channels.bits(),
             channel_names(channels).join(", ")
         ),
@@ -133,7 +134,7 @@ pub fn plan_frame(scene: &Scene, settings: &PlanSettings<'_>) -> Result<FramePla
     // The frame is splatted and shaded at the render scale.
     let (width, height) = settings.relight.render_size(settings.width, settings.height);
     let pixels = u64::from(width) * u64::from(height);
-    let mut stages = vec![splat_stage("splat (camera)", n, pixels, d.channels, settings.blend)];
+    let mut stages = vec![splat_stage("splat (camera)", n, pixels, d.channels, settings.blend, settings.relight.tile)];
     let mut skipped = Vec::new();
     if !d.shading {
         skipped.push("shading: the scene has no albedo attribute (its plain 3DGS colour is the image)".into());
@@ -145,7 +146,8 @@ pub fn plan_frame(scene: &Scene, settings: &PlanSettings<'_>) -> Result<FramePla
                 .bounds()
                 .and_then(|b| light_camera(&b, &sun, st.resolution, st.fit, None).ok())
                 .map_or(u64::from(st.resolution).pow(2), |c| u64::from(c.width) * u64::from(c.height));
-            stages.push(splat_stage("splat (shadow map)", n, texels, depth_channels(st.map_depth), settings.blend));
+            let map_channels = depth_channels(st.map_depth);
+            stages.push(splat_stage("splat (shadow map)", n, texels, map_channels, settings.blend, st.tile));
             let traced = settings.relight.visibility_kind == crate::shadow::VisibilityKind::Traced;
             stages.push(PlannedStage {
                 name: if traced { "traced shadow test" } else { "sigmoid shadow test" }.into(),

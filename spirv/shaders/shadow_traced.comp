@@ -20,7 +20,7 @@ void main() {
     if (receiver_point(p, world)) {
         vec3 l = light_coords(world);
         if (inside_map(l.xy)) {
-            uvec2 tile = uvec2(l.xy) / TILE;
+            uvec2 tile = uvec2(l.xy) / shadow.modes.w;  // the map's tile edge
             uvec2 range = Uvec2s(shadow.addr4.xy).v[tile.y * shadow.modes.z + tile.x];
             Splats splats = Splats(shadow.addr3.xy);
             Uints order = Uints(shadow.addr3.zw);

@@ -12,18 +12,18 @@
 // CPU twin: engine/src/splat/cpu_backward.rs `blend_backward_cpu`.
 #extension GL_KHR_shader_subgroup_basic : require
 #extension GL_KHR_shader_subgroup_ballot : require
-#define WORKGROUP_SIZE_X 256
+#define TILE_WORKGROUP
 #include "common.glsl"
 #include "splat.glsl"
 #include "splat_backward.glsl"
 
 // Splats per barrier, set by the host so every pixel's terms for a batch fit
-// shared memory (BATCH × STRIDE × 256 floats).
+// shared memory (BATCH × STRIDE × TILE_PIXELS floats) and BATCH × STRIDE ≤ TILE_PIXELS.
 layout(constant_id = 1) const uint BATCH = 3;
 // Every pixel's terms per (splat of the batch, component); summed in pixel
 // order by one invocation per (splat, component): deterministic and cheap
 // (on lavapipe a subgroupAdd costs ~100 ns, a shared load ~1 ns).
-shared float terms[BATCH * STRIDE * WORKGROUP_SIZE_X];
+shared float terms[BATCH * STRIDE * TILE_PIXELS];
 shared uint tile_end;
 
 // Whether blended value k (rgb, depth, ten features) has a gradient.
@@ -43,9 +43,9 @@ float grad_in(uvec2 addr, uint i) { return FloatsIn(addr).v[i]; }
 void main() {
     uint tile = block_index();
     uint tiles_x = frame.size.z;
-    uint local = gl_LocalInvocationID.x;
+    uint local = gl_LocalInvocationIndex;
     uvec2 tile_xy = uvec2(tile % tiles_x, tile / tiles_x);
-    uvec2 pix = tile_xy * TILE + uvec2(local % TILE, local / TILE);
+    uvec2 pix = tile_xy * TILE + gl_LocalInvocationID.xy;
     bool inside = pix.x < frame.size.x && pix.y < frame.size.y;
     uint p = pix.y * frame.size.x + pix.x;
     vec2 centre = vec2(pix) + 0.5;
@@ -167,15 +167,15 @@ void main() {
                 }
             }
             if (j == median_j) r[6] += d_median;
-            for (uint c = 0u; c < STRIDE; c++) terms[(b * STRIDE + c) * WORKGROUP_SIZE_X + local] = r[c];
+            for (uint c = 0u; c < STRIDE; c++) terms[(b * STRIDE + c) * TILE_PIXELS + local] = r[c];
         }
         barrier();
         // One invocation per (splat of the batch, component) sums the pixels in order.
         uint b = local / STRIDE, c = local % STRIDE;
         if (b < BATCH && base + b < count) {
             float s = 0.0;
-            uint at = (b * STRIDE + c) * WORKGROUP_SIZE_X;
-            for (uint k = 0u; k < WORKGROUP_SIZE_X; k++) s += terms[at + k];
+            uint at = (b * STRIDE + c) * TILE_PIXELS;
+            for (uint k = 0u; k < TILE_PIXELS; k++) s += terms[at + k];
             uint g = order.v[last - 1u - (base + b)];
             uvec4 rect = splats.v[g].rect;
             uint slot = Uints(frame.work0.zw).v[g] + (tile_xy.y - rect.y) * (rect.z - rect.x) + (tile_xy.x - rect.x);

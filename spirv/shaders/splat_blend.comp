@@ -1,5 +1,5 @@
 #version 460
-// Splatting stage 5: one workgroup per 16×16 tile, one invocation per pixel,
+// Splatting stage 5: one workgroup per tile (16×16 by default), one invocation per pixel,
 // front-to-back alpha blending over the tile's sorted splats. A pixel stops
 // once T·(1−α) < 1e-4 (that splat excluded); the workgroup ends when all its
 // pixels have. Reads splats from global memory (no shared-memory batches:

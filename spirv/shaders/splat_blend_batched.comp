@@ -1,5 +1,5 @@
 #version 460
-// splat_blend.comp staging splats in shared-memory batches of 256, with the
+// splat_blend.comp staging splats in shared-memory batches (up to 256), with the
 // whole tile stopping once all its pixels are done. Same inputs, outputs and
 // CPU twin. Barrier-heavy: measure it against the other variants per device.
 #define SHARED_BATCHES

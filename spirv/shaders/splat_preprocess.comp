@@ -9,6 +9,8 @@
 #include "sh.glsl"
 
 layout(constant_id = 0) const bool WRITE_FEATURES = false;
+// Tile edge in pixels (engine/src/splat/mod.rs `TILE_SPEC_IDS`; the blend's workgroup edge).
+layout(constant_id = 15) const uint TILE = 16u;
 
 float sigmoid(float x) {
     float e = exp(-abs(x));

@@ -50,8 +50,11 @@ pub struct KernelInfo {
     pub name: &'static str,
     /// SPIR-V words.
     pub words: &'static [u32],
-    /// `local_size_x/y/z`.
+    /// `local_size_x/y/z` (the defaults where a dimension is specialized).
     pub workgroup_size: [u32; 3],
+    /// Per dimension, the specialization constant that sets it
+    /// (`local_size_x_id` etc.), `None` where it is fixed.
+    pub workgroup_size_ids: [Option<u32>; 3],
     /// Descriptor bindings, sorted by (set, binding).
     pub bindings: &'static [BindingInfo],
     /// Size in bytes of the push-constant block, 0 when there is none.

@@ -6,7 +6,8 @@
 
 use srug::gpu::selftest::{self, affine_cpu, affine_kernel, AffineAddressedPush, AffinePush, AFFINE_BINDINGS};
 use srug::gpu::{
-    self, kernels, BindingKind, Device, DeviceOptions, DeviceSelection, Kernel, KernelDecl, MemoryKind, SpecValue,
+    self, kernels, specialized_workgroup_size, BindingKind, Device, DeviceOptions, DeviceSelection, Kernel, KernelDecl,
+    MemoryKind, SpecValue,
 };
 use srug::Error;
 use srug_tests::{assert_no_validation_messages, device};
@@ -127,6 +128,31 @@ fn declarations_are_checked_against_spirv() {
     }
     assert_eq!(kernels::CORE_AFFINE.spec_constants[0].name, "MODE");
     assert_eq!(kernels::CORE_AFFINE.push_constant_size, 16);
+    assert_eq!(kernels::CORE_AFFINE.workgroup_size_ids, [None; 3]);
+
+    // A specialized workgroup size (`local_size_x_id`): the per-tile blend, one
+    // invocation per pixel, its edge set by the tile-size constants 15 and 16.
+    let blend = &kernels::SPLAT_BLEND_PORTABLE;
+    assert_eq!(blend.workgroup_size, [16, 16, 1]);
+    assert_eq!(blend.workgroup_size_ids, [Some(15), Some(16), None]);
+    let frame = [BindingKind::UniformBuffer];
+    let spec = [(15, SpecValue::U32(8)), (16, SpecValue::U32(8))];
+    let decl = KernelDecl { bindings: &frame, push_constant_size: 0, specialization: &spec };
+    assert_eq!(specialized_workgroup_size(blend, &decl).unwrap(), [8, 8, 1]);
+    let k = Kernel::new(&d, blend, &decl).unwrap();
+    assert_eq!(k.workgroup_size(), [8, 8, 1]);
+    // A 2D workgroup cannot be dispatched as 1D work.
+    let u = d.upload("frame", &[0u32; 4]).unwrap();
+    let mut rec = d.begin().unwrap();
+    assert!(matches!(rec.dispatch_1d(&k, &[&u], &(), 64), Err(Error::Kernel { .. })));
+    drop(rec);
+    // Zero, or more invocations than the device allows, is refused before Vulkan sees it.
+    let zero = [(15, SpecValue::U32(0))];
+    assert!(specialized_workgroup_size(blend, &KernelDecl { specialization: &zero, ..decl }).is_err());
+    let edge = f64::from(d.info().max_workgroup_invocations).sqrt() as u32 + 1;
+    let huge = [(15, SpecValue::U32(edge)), (16, SpecValue::U32(edge))];
+    let e = Kernel::new(&d, blend, &KernelDecl { specialization: &huge, ..decl }).unwrap_err();
+    assert!(e.to_string().contains("exceeds this device's limits"), "{e}");
     assert_no_validation_messages(&d);
 }
 

@@ -70,16 +70,21 @@ fn sigmoid_test_and_traced_reference_match_cpu_twin() {
     let mut s = setup(30_000);
     let camera = s.demo.cameras[0].resized(176, 48);
     let sun = Sun::from_direction(s.demo.sun_direction, [1.0; 3]).unwrap();
-    for (map_depth, fit) in [(DepthMode::Median, ShadowFit::SceneBounds), (DepthMode::Expected, ShadowFit::ViewFrustum)]
-    {
+    // The traced pass walks the map's tile lists: every tile edge.
+    for (map_depth, fit, tile) in [
+        (DepthMode::Median, ShadowFit::SceneBounds, 16),
+        (DepthMode::Expected, ShadowFit::ViewFrustum, 16),
+        (DepthMode::Median, ShadowFit::SceneBounds, 8),
+        (DepthMode::Median, ShadowFit::ViewFrustum, 32),
+    ] {
         // k = 4 per metre keeps most receivers inside the sigmoid's transition, where
         // a GPU/CPU difference would show.
-        let st = ShadowSettings { map_depth, fit, k: 4.0, ..settings(384) };
+        let st = ShadowSettings { map_depth, fit, k: 4.0, tile, ..settings(384) };
         let (g, host) = receiver(&mut s, &camera, Channels::default());
         let map = shadow_map(&mut s, &sun, &st, Some(&camera));
         let map_host = DepthImage::from_gbuffer(&map.frame.gbuffer.read(&s.d).unwrap());
         let host = DepthImage::from_gbuffer(&host);
-        let label = format!("shadow_{map_depth:?}_{fit:?}");
+        let label = format!("shadow_{map_depth:?}_{fit:?}_tile{tile}");
 
         let (v, _) = s.pass.visibility(&map, &g, &camera, &st, VisibilityKind::Sigmoid).unwrap();
         let gpu: Vec<f32> = s.d.read_buffer(&v).unwrap();

@@ -19,7 +19,7 @@ use srug::shadow::{light_camera, DepthMode, ShadowFit, ShadowPass, ShadowSetting
 use srug::splat::backward::HostGaussianGradients;
 use srug::splat::cpu::{render_blends, Gaussian64};
 use srug::splat::cpu_backward::{blend_backward_cpu, project_backward, GaussianGrad};
-use srug::splat::{Channels, NormalSource, SplatFrame, SplatSettings, Splatter};
+use srug::splat::{Channels, NormalSource, SplatFrame, SplatSettings, Splatter, DEFAULT_TILE};
 use srug_tests::{assert_no_validation_messages, device, save_comparison};
 
 fn read(d: &Device, b: &Option<Buffer>) -> Vec<f64> {
@@ -355,8 +355,8 @@ struct Chain {
 
 impl Chain {
     fn images(&self, params: &[Gaussian64]) -> (DepthImage, DepthImage) {
-        let (_, lb) = render_blends(params, &self.scene, &self.light, NormalSource::ShortestAxis);
-        let (_, cb) = render_blends(params, &self.scene, &self.camera, NormalSource::ShortestAxis);
+        let (_, lb) = render_blends(params, &self.scene, &self.light, NormalSource::ShortestAxis, DEFAULT_TILE);
+        let (_, cb) = render_blends(params, &self.scene, &self.camera, NormalSource::ShortestAxis, DEFAULT_TILE);
         (
             DepthImage::from_blends(self.light.width, self.light.height, &lb),
             DepthImage::from_blends(self.camera.width, self.camera.height, &cb),
@@ -381,10 +381,10 @@ impl Chain {
         let g = sigmoid_backward_cpu(&self.light, &map, &self.camera, &rec, &self.settings, loss);
         let mut out = vec![GaussianGrad::default(); params.len()];
         for (cam, pg) in [(&self.light, &g.map), (&self.camera, &g.receiver)] {
-            let (splats, _) = render_blends(params, &self.scene, cam, NormalSource::ShortestAxis);
-            let sg = blend_backward_cpu(&splats, cam, [0.0; 3], pg);
+            let (splats, _) = render_blends(params, &self.scene, cam, NormalSource::ShortestAxis, DEFAULT_TILE);
+            let sg = blend_backward_cpu(&splats, cam, [0.0; 3], pg, DEFAULT_TILE);
             for (i, p) in params.iter().enumerate() {
-                let d = project_backward(p, cam, &sg[i], false);
+                let d = project_backward(p, cam, &sg[i], false, DEFAULT_TILE);
                 let o = &mut out[i];
                 o.mean += d.mean;
                 o.log_scale += d.log_scale;

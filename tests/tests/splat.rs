@@ -12,7 +12,7 @@ use srug::scene::activate::GpuScene;
 use srug::scene::demo::{demo_city, DemoOptions};
 use srug::scene::{read_ply, sh_coefficients, Camera, Scene};
 use srug::splat::cpu::render_cpu;
-use srug::splat::{BlendVariant, Channels, GBuffer, NormalSource, SplatSettings, Splatter};
+use srug::splat::{BlendVariant, Channels, GBuffer, NormalSource, SplatSettings, Splatter, DEFAULT_TILE, TILE_SIZES};
 use srug_tests::{assert_no_validation_messages, device, save_comparison};
 
 const NAN: u32 = 0x7fc0_0000;
@@ -108,6 +108,7 @@ fn all_settings() -> SplatSettings {
         normal_source: NormalSource::Stored,
         prefill: Some(NAN),
         sh_degree: None,
+        tile: DEFAULT_TILE,
     }
 }
 
@@ -130,6 +131,45 @@ fn capped_sh_degree_matches_cpu_twin_and_changes_colour() {
         }
         // The twin's truncated scene is the file's coefficients cut short, not re-fitted.
         assert_eq!(scene.with_sh_degree(degree.min(3)).sh.len(), 3000 * 3 * ((degree.min(3) as usize + 1).pow(2)));
+    }
+    assert_no_validation_messages(&d);
+}
+
+#[test]
+fn every_tile_size_matches_cpu_twin_in_every_variant() {
+    let d = device();
+    let mut splatter = Splatter::new(&d).unwrap();
+    let city = demo_city(&DemoOptions { seed: 7, gaussians: 30_000, sh_degree: 1 }).unwrap();
+    // Not a multiple of any tile edge, so every kernel meets partial tiles.
+    let cam = city.cameras[1].resized(203, 77);
+    let gpu_scene = GpuScene::upload(&d, &city.scene).unwrap();
+    let mut variants = vec![BlendVariant::PerPixel, BlendVariant::SharedBatches];
+    if d.info().subgroup_ballot {
+        variants.push(BlendVariant::SubgroupLoads);
+    }
+    let mut by_tile = Vec::new();
+    for tile in TILE_SIZES {
+        let settings = SplatSettings { tile, ..all_settings() };
+        for &variant in &variants {
+            splatter.set_blend_variant(variant).unwrap();
+            render_both(&d, &mut splatter, &city.scene, &cam, &settings, &format!("tile_{tile}_{variant:?}"));
+        }
+        let (out, stats) = splatter.render(&gpu_scene, &cam, &settings).unwrap();
+        by_tile.push((tile, out.read(&d).unwrap(), stats.pairs));
+    }
+    // Smaller tiles list each splat in more tiles, and the images agree closely:
+    // only splat tails beyond the 3σ rectangle, cut at different tile edges, differ.
+    for w in by_tile.windows(2) {
+        let ((t0, g0, p0), (t1, g1, p1)) = (&w[0], &w[1]);
+        assert!(p0 > p1, "tile {t0}: {p0} pairs, tile {t1}: {p1}");
+        let p = psnr(&g0.rgb, &g1.rgb);
+        assert!(p > 60.0, "tiles {t0} and {t1} differ by PSNR {p:.1} dB");
+        eprintln!("tiles {t0} and {t1}: {p0} and {p1} pairs, rgb PSNR {p:.1} dB");
+    }
+    for bad in [0u32, 4, 12, 64] {
+        let e = splatter.render(&gpu_scene, &cam, &SplatSettings { tile: bad, ..all_settings() }).err();
+        let text = e.map(|e| e.to_string()).unwrap_or_default();
+        assert!(text.contains(&format!("tile size {bad} is not one of")), "tile {bad}: {text:?}");
     }
     assert_no_validation_messages(&d);
 }

@@ -14,7 +14,7 @@ use srug::scene::{Camera, Materials, Scene};
 use srug::splat::backward::{BlendGrads, HostGaussianGradients};
 use srug::splat::cpu::{preprocess_one, render_blends, CpuSplat, Gaussian64};
 use srug::splat::cpu_backward::{blend_backward_cpu, project_backward, GaussianGrad, PixelGrads};
-use srug::splat::{Channels, NormalSource, SplatSettings, Splatter};
+use srug::splat::{Channels, NormalSource, SplatSettings, Splatter, DEFAULT_TILE, TILE_SIZES};
 use srug_tests::{assert_no_validation_messages, device};
 
 fn scene(n: usize, seed: u64) -> Scene {
@@ -76,12 +76,23 @@ fn gpu_gradients(
     bg: [f32; 3],
     grads: &BlendGrads,
 ) -> HostGaussianGradients {
+    gpu_gradients_tiled(d, scene, camera, bg, grads, DEFAULT_TILE).unwrap()
+}
+
+fn gpu_gradients_tiled(
+    d: &Device,
+    scene: &Scene,
+    camera: &Camera,
+    bg: [f32; 3],
+    grads: &BlendGrads,
+    tile: u32,
+) -> srug::Result<HostGaussianGradients> {
     let mut splatter = Splatter::new(d).unwrap();
     let gpu_scene = GpuScene::upload(d, scene).unwrap();
-    let settings = SplatSettings { background: bg, channels: Channels::ALL, ..SplatSettings::default() };
+    let settings = SplatSettings { background: bg, channels: Channels::ALL, tile, ..SplatSettings::default() };
     let frame = splatter.render_frame(&gpu_scene, camera, &settings).unwrap();
-    let out = splatter.backward(&frame, &gpu_scene, grads, true).unwrap();
-    out.read(d).unwrap()
+    let out = splatter.backward(&frame, &gpu_scene, grads, true)?;
+    Ok(out.read(d).unwrap())
 }
 
 fn flatten(g: &GaussianGrad) -> [(usize, f64); 11] {
@@ -136,10 +147,20 @@ fn compare(label: &str, gpu: &HostGaussianGradients, cpu: &[GaussianGrad], tol: 
 }
 
 fn cpu_gradients(scene: &Scene, camera: &Camera, bg: [f32; 3], host: &PixelGrads) -> Vec<GaussianGrad> {
+    cpu_gradients_tiled(scene, camera, bg, host, DEFAULT_TILE)
+}
+
+fn cpu_gradients_tiled(
+    scene: &Scene,
+    camera: &Camera,
+    bg: [f32; 3],
+    host: &PixelGrads,
+    tile: u32,
+) -> Vec<GaussianGrad> {
     let splats: Vec<Option<CpuSplat>> =
-        (0..scene.len()).map(|i| preprocess_one(scene, i, camera, NormalSource::ShortestAxis)).collect();
-    let sg = blend_backward_cpu(&splats, camera, bg.map(f64::from), host);
-    (0..scene.len()).map(|i| project_backward(&Gaussian64::from_scene(scene, i), camera, &sg[i], true)).collect()
+        (0..scene.len()).map(|i| preprocess_one(scene, i, camera, NormalSource::ShortestAxis, tile)).collect();
+    let sg = blend_backward_cpu(&splats, camera, bg.map(f64::from), host, tile);
+    (0..scene.len()).map(|i| project_backward(&Gaussian64::from_scene(scene, i), camera, &sg[i], true, tile)).collect()
 }
 
 #[test]
@@ -171,6 +192,38 @@ fn gpu_backward_matches_cpu_twin_in_every_channel() {
 }
 
 #[test]
+fn gpu_backward_matches_cpu_twin_at_every_tile_size() {
+    let d = device();
+    let bg = [0.2, 0.4, 0.7];
+    let camera = Camera::look_at(Vec3::new(0.3, -0.2, -3.0), Vec3::ZERO, Vec3::Y, 50.0, 75, 53).unwrap();
+    let scene = scene(300, 5);
+    let pixels = (camera.width * camera.height) as usize;
+    let (host, grads) = random_grads(&d, pixels, 105);
+    let mut ran = 0;
+    for tile in TILE_SIZES {
+        // Every pixel's terms of a batch of at least one splat: 24 floats per pixel with every channel.
+        let needed = tile * tile * 24 * 4 + 64;
+        match gpu_gradients_tiled(&d, &scene, &camera, bg, &grads, tile) {
+            Ok(gpu) => {
+                assert!(needed <= d.info().max_shared_memory, "tile {tile} ran with too little shared memory");
+                let cpu = cpu_gradients_tiled(&scene, &camera, bg, &host, tile);
+                compare(&format!("tile {tile}"), &gpu, &cpu, 1e-3);
+                ran += 1;
+            }
+            Err(e) => {
+                // Only for lack of shared memory (tile 32 on lavapipe's 32 KiB), with a clear message.
+                assert!(needed > d.info().max_shared_memory, "tile {tile}: {e}");
+                let text = e.to_string();
+                assert!(text.contains("shared memory") && text.contains("tile size 32"), "{text}");
+                eprintln!("tile {tile}: refused as expected: {text}");
+            }
+        }
+    }
+    assert!(ran >= 1, "no tile size ran");
+    assert_no_validation_messages(&d);
+}
+
+#[test]
 fn gpu_backward_matches_central_finite_differences() {
     // A small scene so the f64 forward can be rerun for every parameter.
     let d = device();
@@ -182,7 +235,7 @@ fn gpu_backward_matches_central_finite_differences() {
     let gpu = gpu_gradients(&d, &scene, &camera, bg, &grads);
     let params: Vec<Gaussian64> = (0..scene.len()).map(|i| Gaussian64::from_scene(&scene, i)).collect();
     let loss = |p: &[Gaussian64]| -> f64 {
-        let (_, blends) = render_blends(p, &scene, &camera, NormalSource::ShortestAxis);
+        let (_, blends) = render_blends(p, &scene, &camera, NormalSource::ShortestAxis, DEFAULT_TILE);
         let mut total = 0.0;
         for (px, b) in blends.iter().enumerate() {
             for (k, (v, w)) in b.values.iter().zip(&host.values[px]).enumerate() {

@@ -76,6 +76,10 @@ pub struct DeviceInfo {
     pub max_shared_memory: u32,
     /// `maxComputeWorkGroupCount`.
     pub max_workgroup_count: [u32; 3],
+    /// `maxComputeWorkGroupSize`.
+    pub max_workgroup_size: [u32; 3],
+    /// `maxComputeWorkGroupInvocations`.
+    pub max_workgroup_invocations: u32,
     /// Subgroup size (8 on lavapipe; never assume 32).
     pub subgroup_size: u32,
     /// Subgroup ballot operations (elect, broadcast) in compute shaders.
@@ -666,6 +670,8 @@ fn make_device(
         max_storage_buffer_range: u64::from(limits.max_storage_buffer_range),
         max_shared_memory: limits.max_compute_shared_memory_size,
         max_workgroup_count: limits.max_compute_work_group_count,
+        max_workgroup_size: limits.max_compute_work_group_size,
+        max_workgroup_invocations: limits.max_compute_work_group_invocations,
         subgroup_size: subgroup.subgroup_size,
         subgroup_ballot: subgroup.supported_stages.contains(vk::ShaderStageFlags::COMPUTE)
             && subgroup

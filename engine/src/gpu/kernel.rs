@@ -57,6 +57,8 @@ pub struct Kernel {
     pub(crate) pipeline: vk::Pipeline,
     pub(crate) push_constant_size: u32,
     pub(crate) descriptor_types: Vec<vk::DescriptorType>,
+    /// The workgroup size after specialization.
+    pub(crate) workgroup_size: [u32; 3],
 }
 
 impl std::fmt::Debug for Kernel {
@@ -101,10 +103,41 @@ pub fn check_decl(info: &KernelInfo, decl: &KernelDecl<'_>) -> Result<(), String
     Ok(())
 }
 
+/// The workgroup size `decl` specializes `info` to (`local_size_*_id`
+/// dimensions take their constant's value, the others the compiled size).
+pub fn specialized_workgroup_size(info: &KernelInfo, decl: &KernelDecl<'_>) -> Result<[u32; 3], String> {
+    let mut size = info.workgroup_size;
+    for (dim, spec_id) in info.workgroup_size_ids.iter().enumerate() {
+        let Some(spec_id) = spec_id else { continue };
+        if let Some((_, value)) = decl.specialization.iter().find(|(id, _)| id == spec_id) {
+            match value {
+                SpecValue::U32(v) if *v > 0 => size[dim] = *v,
+                other => return Err(format!("workgroup dimension {dim} (constant_id {spec_id}) set to {other:?}")),
+            }
+        }
+    }
+    Ok(size)
+}
+
 impl Kernel {
     /// Builds the pipeline for `info` with the variant `decl.specialization` picks.
     pub fn new(device: &Device, info: &'static KernelInfo, decl: &KernelDecl<'_>) -> Result<Self> {
         check_decl(info, decl).map_err(|message| Error::Kernel { kernel: info.name, message })?;
+        let workgroup_size =
+            specialized_workgroup_size(info, decl).map_err(|message| Error::Kernel { kernel: info.name, message })?;
+        let limits = device.info();
+        let invocations: u64 = workgroup_size.iter().map(|&s| u64::from(s)).product();
+        if workgroup_size.iter().zip(limits.max_workgroup_size).any(|(s, max)| *s > max)
+            || invocations > u64::from(limits.max_workgroup_invocations)
+        {
+            return Err(Error::Kernel {
+                kernel: info.name,
+                message: format!(
+                    "workgroup size {workgroup_size:?} exceeds this device's limits ({:?}, {} invocations)",
+                    limits.max_workgroup_size, limits.max_workgroup_invocations
+                ),
+            });
+        }
         let shared = &device.shared;
         let d = &shared.device;
         let descriptor_types: Vec<vk::DescriptorType> = info
@@ -144,6 +177,7 @@ impl Kernel {
             pipeline: vk::Pipeline::null(),
             push_constant_size: info.push_constant_size,
             descriptor_types,
+            workgroup_size,
         };
         let set_layouts: Vec<_> = set_layout.into_iter().collect();
         let ranges = [vk::PushConstantRange {
@@ -185,6 +219,11 @@ impl Kernel {
     /// The kernel's table entry.
     pub fn info(&self) -> &'static KernelInfo {
         self.info
+    }
+
+    /// The workgroup size this pipeline was specialized to.
+    pub fn workgroup_size(&self) -> [u32; 3] {
+        self.workgroup_size
     }
 }
 

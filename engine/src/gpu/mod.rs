@@ -25,7 +25,7 @@ pub mod selftest;
 pub use device::{
     AdapterSummary, Device, DeviceInfo, DeviceOptions, DeviceSelection, MemoryUsage, DEVICE_ENV, VALIDATION_ENV,
 };
-pub use kernel::{check_decl, Kernel, KernelDecl, SpecValue};
+pub use kernel::{check_decl, specialized_workgroup_size, Kernel, KernelDecl, SpecValue};
 pub use memory::{Buffer, MemoryKind};
 pub use recording::{grid_1d, Recording, StageTime, Submission, Timings};
 pub use srug_spirv::{kernels, BindingInfo, BindingKind, KernelInfo, SpecConstantInfo};

@@ -505,10 +505,18 @@ impl<'a> Recording<'a> {
         push: &P,
         count: u64,
     ) -> Result<()> {
-        let groups = grid_1d(count, kernel.info.workgroup_size[0], self.device.shared.info.max_workgroup_count)
-            .ok_or_else(|| Error::Kernel {
+        if kernel.workgroup_size[1] * kernel.workgroup_size[2] != 1 {
+            return Err(Error::Kernel {
                 kernel: kernel.info.name,
-                message: format!("{count} invocations exceed the dispatch limits"),
+                message: format!("workgroup size {:?} is not one-dimensional", kernel.workgroup_size),
+            });
+        }
+        let groups =
+            grid_1d(count, kernel.workgroup_size[0], self.device.shared.info.max_workgroup_count).ok_or_else(|| {
+                Error::Kernel {
+                    kernel: kernel.info.name,
+                    message: format!("{count} invocations exceed the dispatch limits"),
+                }
             })?;
         self.dispatch(kernel, bindings, push, groups)
     }

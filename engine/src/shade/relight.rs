@@ -17,7 +17,7 @@ use crate::shadow::{DepthMode, ShadowPass, ShadowSettings, Sun, VisibilityKind};
 use crate::splat::{Channels, GpuGBuffer, NormalSource, SplatSettings, Splatter};
 
 /// Everything a relit frame depends on besides the scene and the camera.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct RelightSettings {
     /// Shading knobs.
     pub shade: ShadeSettings,
@@ -35,6 +35,24 @@ pub struct RelightSettings {
     /// The frame is rendered at this fraction of the camera's size in each
     /// direction (0 < s ≤ 1; 0 means 1); [`ShadedImage::resampled`] brings it back.
     pub render_scale: f32,
+    /// Tile edge of the camera's splatting ([`crate::splat::TILE_SIZES`]); the
+    /// shadow map has its own, `shadow.tile`.
+    pub tile: u32,
+}
+
+impl Default for RelightSettings {
+    fn default() -> Self {
+        Self {
+            shade: ShadeSettings::default(),
+            shadow: ShadowSettings::default(),
+            normal_source: NormalSource::default(),
+            extra_channels: Channels::default(),
+            visibility_kind: VisibilityKind::default(),
+            sh_degree: None,
+            render_scale: 0.0,
+            tile: crate::splat::DEFAULT_TILE,
+        }
+    }
 }
 
 impl RelightSettings {
@@ -42,6 +60,7 @@ impl RelightSettings {
     pub fn validate(&self) -> Result<()> {
         self.shade.validate()?;
         self.shadow.validate()?;
+        crate::splat::check_tile(self.tile)?;
         if !(self.render_scale >= 0.0 && self.render_scale <= 1.0) {
             return Err(Error::InvalidArgument(format!("render scale {} is not in (0, 1]", self.render_scale)));
         }
@@ -267,6 +286,7 @@ impl Relighter {
             normal_source: settings.normal_source,
             prefill: shade.prefill,
             sh_degree: settings.sh_degree,
+            tile: settings.tile,
             ..SplatSettings::default()
         };
         let (gbuffer, stats) = self.splatter.render(scene, camera, &splat)?;

@@ -7,7 +7,7 @@ use super::{DepthMode, ShadowSettings};
 use crate::scene::{Camera, Projection, Scene};
 use crate::splat::cpu::{preprocess_one, splat_alpha, tile_lists, CpuSplat, PixelBlend, VALUES};
 use crate::splat::cpu_backward::PixelGrads;
-use crate::splat::{GBuffer, NormalSource, TILE};
+use crate::splat::{GBuffer, NormalSource};
 
 /// The logit clamp (keep in sync with `LOGIT_LIMIT` in `shadow.glsl`).
 pub const LOGIT_LIMIT: f64 = 30.0;
@@ -332,16 +332,14 @@ pub fn traced_visibility_cpu(
     settings: &ShadowSettings,
 ) -> Vec<f64> {
     let splats: Vec<Option<CpuSplat>> =
-        (0..scene.len()).map(|i| preprocess_one(scene, i, light, NormalSource::ShortestAxis)).collect();
-    let lists = tile_lists(&splats, light);
-    let tiles_x = light.width.div_ceil(TILE) as usize;
+        (0..scene.len()).map(|i| preprocess_one(scene, i, light, NormalSource::ShortestAxis, settings.tile)).collect();
+    let lists = tile_lists(&splats, light, settings.tile);
     (0..receiver.alpha.len())
         .map(|p| {
             let Some((uv, z)) = receiver_in_light(light, camera, receiver, settings, p) else { return 1.0 };
-            let tile = (uv.y as usize / TILE as usize) * tiles_x + uv.x as usize / TILE as usize;
             let limit = z - f64::from(settings.bias);
             let mut t = 1.0;
-            for &(_, i) in &lists[tile] {
+            for &(_, i) in lists.at(uv.x as usize, uv.y as usize) {
                 let Some(s) = &splats[i] else { continue };
                 if s.depth >= limit {
                     break;

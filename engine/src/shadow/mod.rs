@@ -117,6 +117,8 @@ pub struct ShadowSettings {
     /// Fill outputs with this 32-bit word first (tests use NaN, so an
     /// unwritten pixel cannot pass for a value).
     pub prefill: Option<u32>,
+    /// Tile edge of the shadow map's splatting ([`crate::splat::TILE_SIZES`]).
+    pub tile: u32,
 }
 
 impl Default for ShadowSettings {
@@ -130,6 +132,7 @@ impl Default for ShadowSettings {
             fit: ShadowFit::SceneBounds,
             min_alpha: 0.5,
             prefill: None,
+            tile: crate::splat::DEFAULT_TILE,
         }
     }
 }
@@ -137,6 +140,7 @@ impl Default for ShadowSettings {
 impl ShadowSettings {
     /// Checks the values.
     pub fn validate(&self) -> Result<()> {
+        crate::splat::check_tile(self.tile)?;
         let ok = self.resolution > 0
             && self.resolution <= 16384
             && self.k.is_finite()
@@ -402,7 +406,11 @@ impl ShadowPass {
                 "a shadow map needs a sun above the horizon and an orthographic camera".into(),
             ));
         }
-        let splat = SplatSettings { channels: depth_channels(settings.map_depth), ..SplatSettings::default() };
+        let splat = SplatSettings {
+            channels: depth_channels(settings.map_depth),
+            tile: settings.tile,
+            ..SplatSettings::default()
+        };
         let mut frame = splatter.render_frame(scene, &camera, &splat)?;
         for stage in &mut frame.stats.timings.stages {
             stage.name = format!("shadow map {}", stage.name);
@@ -511,7 +519,7 @@ fn shadow_uniform<'a>(
     u.light_intr = intrinsics(l).0;
     u.size = [camera.width, camera.height, l.width, l.height];
     u.params = [settings.k, settings.bias, settings.min_alpha, map.depth.empty_depth(l.far)];
-    u.modes = [map.depth.code(), settings.receiver_depth.code(), map.frame.tiles().0, 0];
+    u.modes = [map.depth.code(), settings.receiver_depth.code(), map.frame.tiles().0, map.frame.tile];
     u.addr = [
         [receiver_depth.device_address(), gbuffer.alpha.device_address()],
         [map_depth.device_address(), g.alpha.device_address()],

@@ -202,13 +202,24 @@ impl Splatter {
                 "feature gradients need a frame rendered with a feature channel (normal or materials)".into(),
             ));
         }
-        if let std::collections::hash_map::Entry::Vacant(e) = self.backward.entry(bits) {
-            // Splats per barrier: as many as every pixel's terms (batch × stride × 256
-            // floats) fit in shared memory (within lavapipe's 32 KiB), at least 1.
+        let tile = frame.tile;
+        if let std::collections::hash_map::Entry::Vacant(e) = self.backward.entry((bits, tile)) {
+            // Splats per barrier: as many as every pixel's terms (batch × stride ×
+            // tile² floats) fit in shared memory (32 KiB on lavapipe) and one
+            // invocation per (splat, component) can sum them (batch × stride ≤ tile²).
             let stride = record_stride(bits) as u32;
-            let shared_floats = (info.max_shared_memory.min(32 * 1024) - 64) / 4;
-            let batch = (shared_floats / (256 * stride)).max(1);
-            let spec = [(0, SpecValue::U32(bits)), (1, SpecValue::U32(batch))];
+            let shared = info.max_shared_memory;
+            let pixels = tile * tile;
+            let batch = ((shared - 64) / 4 / (pixels * stride)).min(pixels / stride);
+            if batch == 0 {
+                return Err(Error::Unsupported(format!(
+                    "the splat backward pass at tile size {tile} needs {} bytes of shared memory, more than the \
+                     {shared} it may use here; render the frame with a smaller tile",
+                    pixels * stride * 4 + 64
+                )));
+            }
+            let [x, y] = super::tile_spec(tile);
+            let spec = [(0, SpecValue::U32(bits)), (1, SpecValue::U32(batch)), x, y];
             let with_spec = KernelDecl {
                 bindings: &[BindingKind::UniformBuffer, BindingKind::UniformBuffer],
                 push_constant_size: 0,
@@ -223,7 +234,7 @@ impl Splatter {
                 )?,
             });
         }
-        let k = &self.backward[&bits];
+        let k = &self.backward[&(bits, tile)];
         let n = frame.gaussians;
         let stride = record_stride(bits);
         let pairs =

@@ -6,7 +6,7 @@
 
 use glam::{DMat3, DVec2, DVec3};
 
-use super::{GBuffer, NormalSource, SplatSettings, TILE};
+use super::{GBuffer, NormalSource, SplatSettings};
 use crate::scene::{sh_coefficients, Camera, Projection, Scene};
 
 /// One projected Gaussian.
@@ -132,8 +132,8 @@ pub struct Projected {
 }
 
 /// Projects one Gaussian: near/far culling, EWA with the clamped Jacobian,
-/// dilation, conic, radius and tile rectangle; `None` when culled.
-pub fn project(g: &Gaussian64, camera: &Camera) -> Option<Projected> {
+/// dilation, conic, radius and rectangle of `tile`-pixel tiles; `None` when culled.
+pub fn project(g: &Gaussian64, camera: &Camera, tile: u32) -> Option<Projected> {
     let r_c2w = camera.rotation.as_dmat3();
     let w = r_c2w.transpose();
     let t = w * (g.mean - camera.position.as_dvec3());
@@ -158,8 +158,8 @@ pub fn project(g: &Gaussian64, camera: &Camera) -> Option<Projected> {
     if !radius.is_finite() || conic.iter().any(|v| !v.is_finite()) {
         return None;
     }
-    let tiles = DVec2::new(f64::from(camera.width.div_ceil(TILE)), f64::from(camera.height.div_ceil(TILE)));
-    let tile = f64::from(TILE);
+    let tiles = DVec2::new(f64::from(camera.width.div_ceil(tile)), f64::from(camera.height.div_ceil(tile)));
+    let tile = f64::from(tile);
     let lo = ((mean - radius) / tile).floor().clamp(DVec2::ZERO, tiles);
     let hi = (((mean + radius) / tile).floor() + 1.0).clamp(DVec2::ZERO, tiles);
     let rect = [lo.x as u32, lo.y as u32, hi.x as u32, hi.y as u32];
@@ -203,9 +203,15 @@ pub fn jacobian_limits(camera: &Camera) -> (f64, f64) {
     }
 }
 
-/// Stage 1 for one Gaussian; `None` when culled.
-pub fn preprocess_one(scene: &Scene, i: usize, camera: &Camera, normal_source: NormalSource) -> Option<CpuSplat> {
-    preprocess_with(&Gaussian64::from_scene(scene, i), scene, i, camera, normal_source)
+/// Stage 1 for one Gaussian, with `tile`-pixel tiles; `None` when culled.
+pub fn preprocess_one(
+    scene: &Scene,
+    i: usize,
+    camera: &Camera,
+    normal_source: NormalSource,
+    tile: u32,
+) -> Option<CpuSplat> {
+    preprocess_with(&Gaussian64::from_scene(scene, i), scene, i, camera, normal_source, tile)
 }
 
 /// Stage 1 for Gaussian `i` of `scene` with its geometry replaced by `g`
@@ -216,9 +222,10 @@ pub fn preprocess_with(
     i: usize,
     camera: &Camera,
     normal_source: NormalSource,
+    tile: u32,
 ) -> Option<CpuSplat> {
     let g = *g;
-    let pr = project(&g, camera)?;
+    let pr = project(&g, camera, tile)?;
     let p = g.mean;
     let r_c2w = camera.rotation.as_dmat3();
     let s = DVec3::new(g.log_scale.x.exp(), g.log_scale.y.exp(), g.log_scale.z.exp());
@@ -294,10 +301,11 @@ pub(crate) fn splat_alpha(s: &CpuSplat, centre: DVec2) -> Option<f64> {
     (alpha >= 1.0 / 255.0).then_some(alpha)
 }
 
-/// Per-tile lists of visible splats in blend order: (f32 depth bits, index).
-pub(crate) fn tile_lists(splats: &[Option<CpuSplat>], camera: &Camera) -> Vec<Vec<(u32, usize)>> {
-    let tiles_x = camera.width.div_ceil(TILE) as usize;
-    let tiles_y = camera.height.div_ceil(TILE) as usize;
+/// Per-tile lists of visible splats in blend order: (f32 depth bits, index);
+/// `splats` projected with the same `tile`.
+pub(crate) fn tile_lists(splats: &[Option<CpuSplat>], camera: &Camera, tile: u32) -> TileLists {
+    let tiles_x = camera.width.div_ceil(tile) as usize;
+    let tiles_y = camera.height.div_ceil(tile) as usize;
     let mut lists: Vec<Vec<(u32, usize)>> = vec![Vec::new(); tiles_x * tiles_y];
     for (i, s) in splats.iter().enumerate() {
         if let Some(s) = s {
@@ -311,22 +319,35 @@ pub(crate) fn tile_lists(splats: &[Option<CpuSplat>], camera: &Camera) -> Vec<Ve
     for l in &mut lists {
         l.sort_unstable();
     }
-    lists
+    TileLists { lists, tiles_x, tile: tile as usize }
+}
+
+/// Per-tile splat lists, looked up by pixel.
+pub(crate) struct TileLists {
+    lists: Vec<Vec<(u32, usize)>>,
+    tiles_x: usize,
+    tile: usize,
+}
+
+impl TileLists {
+    /// The list of the tile holding pixel (x, y).
+    pub(crate) fn at(&self, x: usize, y: usize) -> &[(u32, usize)] {
+        &self.lists[(y / self.tile) * self.tiles_x + x / self.tile]
+    }
 }
 
 /// Work the blend does, counted by replaying it: (pixel, splat) pairs
 /// evaluated, and those that contributed. For benchmarks' flop accounting.
-pub fn blend_work(scene: &Scene, camera: &Camera) -> (u64, u64) {
+pub fn blend_work(scene: &Scene, camera: &Camera, tile: u32) -> (u64, u64) {
     let splats: Vec<Option<CpuSplat>> =
-        (0..scene.len()).map(|i| preprocess_one(scene, i, camera, NormalSource::ShortestAxis)).collect();
-    let lists = tile_lists(&splats, camera);
-    let tiles_x = camera.width.div_ceil(TILE) as usize;
+        (0..scene.len()).map(|i| preprocess_one(scene, i, camera, NormalSource::ShortestAxis, tile)).collect();
+    let lists = tile_lists(&splats, camera, tile);
     let (mut evaluated, mut contributed) = (0u64, 0u64);
     for y in 0..camera.height as usize {
         for x in 0..camera.width as usize {
             let centre = DVec2::new(x as f64 + 0.5, y as f64 + 0.5);
             let mut t = 1.0f64;
-            for &(_, i) in &lists[(y / TILE as usize) * tiles_x + x / TILE as usize] {
+            for &(_, i) in lists.at(x, y) {
                 let Some(s) = &splats[i] else { continue };
                 evaluated += 1;
                 let Some(alpha) = splat_alpha(s, centre) else { continue };
@@ -415,17 +436,16 @@ pub fn render_blends(
     scene: &Scene,
     camera: &Camera,
     normal_source: NormalSource,
+    tile: u32,
 ) -> (Vec<Option<CpuSplat>>, Vec<PixelBlend>) {
     let splats: Vec<Option<CpuSplat>> =
-        params.iter().enumerate().map(|(i, g)| preprocess_with(g, scene, i, camera, normal_source)).collect();
-    let lists = tile_lists(&splats, camera);
-    let tiles_x = camera.width.div_ceil(TILE) as usize;
+        params.iter().enumerate().map(|(i, g)| preprocess_with(g, scene, i, camera, normal_source, tile)).collect();
+    let lists = tile_lists(&splats, camera, tile);
     let w = camera.width as usize;
     let blends = (0..w * camera.height as usize)
         .map(|p| {
             let (x, y) = (p % w, p / w);
-            let list = &lists[(y / TILE as usize) * tiles_x + x / TILE as usize];
-            blend_pixel(list, &splats, DVec2::new(x as f64 + 0.5, y as f64 + 0.5))
+            blend_pixel(lists.at(x, y), &splats, DVec2::new(x as f64 + 0.5, y as f64 + 0.5))
         })
         .collect();
     (splats, blends)
@@ -442,10 +462,9 @@ pub fn render_cpu(scene: &Scene, camera: &Camera, settings: &SplatSettings) -> G
         _ => scene,
     };
     let (w, h) = (camera.width as usize, camera.height as usize);
-    let tiles_x = camera.width.div_ceil(TILE) as usize;
     let splats: Vec<Option<CpuSplat>> =
-        (0..scene.len()).map(|i| preprocess_one(scene, i, camera, settings.normal_source)).collect();
-    let lists = tile_lists(&splats, camera);
+        (0..scene.len()).map(|i| preprocess_one(scene, i, camera, settings.normal_source, settings.tile)).collect();
+    let lists = tile_lists(&splats, camera, settings.tile);
     let ch = settings.channels;
     let p = w * h;
     let opt = |on: bool, k: usize| on.then(|| vec![0.0f32; k * p]);
@@ -466,8 +485,7 @@ pub fn render_cpu(scene: &Scene, camera: &Camera, settings: &SplatSettings) -> G
     let bg = settings.background.map(f64::from);
     for y in 0..h {
         for x in 0..w {
-            let list = &lists[(y / TILE as usize) * tiles_x + x / TILE as usize];
-            let b = blend_pixel(list, &splats, DVec2::new(x as f64 + 0.5, y as f64 + 0.5));
+            let b = blend_pixel(lists.at(x, y), &splats, DVec2::new(x as f64 + 0.5, y as f64 + 0.5));
             let px = y * w + x;
             for (c, out) in g.rgb[3 * px..3 * px + 3].iter_mut().enumerate() {
                 *out = (b.values[c] + b.t_final * bg[c]) as f32;

@@ -15,7 +15,6 @@ use glam::{DMat2, DMat3, DVec2, DVec3};
 use super::cpu::{
     blend_pixel, mean_and_jacobian, project, splat_alpha, splat_values, tile_lists, CpuSplat, Gaussian64, VALUES,
 };
-use super::TILE;
 use crate::scene::{Camera, Projection};
 
 /// Loss gradients per pixel: d/d(Σwx) for the [`VALUES`] (rgb composited over
@@ -63,16 +62,16 @@ pub fn blend_backward_cpu(
     camera: &Camera,
     background: [f64; 3],
     grads: &PixelGrads,
+    tile: u32,
 ) -> Vec<SplatGrad> {
-    let lists = tile_lists(splats, camera);
-    let tiles_x = camera.width.div_ceil(TILE) as usize;
+    let lists = tile_lists(splats, camera, tile);
     let (w, h) = (camera.width as usize, camera.height as usize);
     let mut out = vec![SplatGrad::default(); splats.len()];
     for y in 0..h {
         for x in 0..w {
             let p = y * w + x;
             let centre = DVec2::new(x as f64 + 0.5, y as f64 + 0.5);
-            let b = blend_pixel(&lists[(y / TILE as usize) * tiles_x + x / TILE as usize], splats, centre);
+            let b = blend_pixel(lists.at(x, y), splats, centre);
             let dv = &grads.values[p];
             if let Some(m) = b.median_index {
                 out[m].values[3] += grads.median[p];
@@ -127,8 +126,14 @@ fn rotation_partials(q: [f64; 4]) -> [[[f64; 4]; 3]; 3] {
 /// Backward of [`project`] (and, with `normal_from_rotation`, of the
 /// shortest-axis normal): gradients of the stored parameters from a splat's
 /// gradients; zero where the Gaussian is culled.
-pub fn project_backward(g: &Gaussian64, camera: &Camera, grad: &SplatGrad, normal_from_rotation: bool) -> GaussianGrad {
-    let Some(pr) = project(g, camera) else { return GaussianGrad::default() };
+pub fn project_backward(
+    g: &Gaussian64,
+    camera: &Camera,
+    grad: &SplatGrad,
+    normal_from_rotation: bool,
+    tile: u32,
+) -> GaussianGrad {
+    let Some(pr) = project(g, camera, tile) else { return GaussianGrad::default() };
     let w = camera.rotation.as_dmat3().transpose();
     let t = w * (g.mean - camera.position.as_dvec3());
     let s = DVec3::new(g.log_scale.x.exp(), g.log_scale.y.exp(), g.log_scale.z.exp());
@@ -250,7 +255,7 @@ mod tests {
     use super::*;
     use crate::scene::Scene;
     use crate::splat::cpu::{preprocess_with, render_blends};
-    use crate::splat::NormalSource;
+    use crate::splat::{NormalSource, DEFAULT_TILE};
 
     /// A few overlapping Gaussians in front of the camera, with normals from rotation.
     fn scene(rng: &mut Pcg64Mcg, n: usize) -> Scene {
@@ -276,7 +281,7 @@ mod tests {
 
     /// L = Σ_p weights·(values, alpha, median) over the image.
     fn loss(params: &[Gaussian64], scene: &Scene, camera: &Camera, bg: [f64; 3], wts: &PixelGrads) -> f64 {
-        let (_, blends) = render_blends(params, scene, camera, NormalSource::ShortestAxis);
+        let (_, blends) = render_blends(params, scene, camera, NormalSource::ShortestAxis, DEFAULT_TILE);
         let mut total = 0.0;
         for (p, b) in blends.iter().enumerate() {
             let mut v = b.values;
@@ -303,13 +308,13 @@ mod tests {
         let splats: Vec<Option<CpuSplat>> = params
             .iter()
             .enumerate()
-            .map(|(i, g)| preprocess_with(g, &scene, i, camera, NormalSource::ShortestAxis))
+            .map(|(i, g)| preprocess_with(g, &scene, i, camera, NormalSource::ShortestAxis, DEFAULT_TILE))
             .collect();
-        let splat_grads = blend_backward_cpu(&splats, camera, bg, &wts);
+        let splat_grads = blend_backward_cpu(&splats, camera, bg, &wts, DEFAULT_TILE);
         let mut worst = 0.0f64;
         let mut significant = 0;
         for (i, g) in params.iter().enumerate() {
-            let analytic = project_backward(g, camera, &splat_grads[i], true);
+            let analytic = project_backward(g, camera, &splat_grads[i], true, DEFAULT_TILE);
             // Central differences, step 1e-6 (f64; far below any feature of the loss).
             let h = 1e-6;
             let fd = |perturb: &dyn Fn(&mut Gaussian64, f64)| {

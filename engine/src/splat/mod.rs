@@ -34,8 +34,31 @@ use crate::gpu::{kernels, BindingKind, Buffer, Device, Kernel, KernelDecl, Memor
 use crate::scene::activate::GpuScene;
 use crate::scene::{Camera, Projection};
 
-/// Tile edge in pixels (keep in sync with `TILE` in `splat.glsl`).
-pub const TILE: u32 = 16;
+/// The default tile edge in pixels ([`SplatSettings::tile`]).
+pub const DEFAULT_TILE: u32 = 16;
+/// Tile edges the kernels accept. The edge sets the blend's workgroup (one
+/// invocation per pixel, edge² of them), so it trades per-tile overhead and
+/// pairs sorted (smaller tiles: more pairs, tighter lists) against wasted
+/// work at splat edges (larger tiles: longer lists).
+pub const TILE_SIZES: [u32; 3] = [8, 16, 32];
+/// The `constant_id`s that carry the tile edge: the per-tile kernels'
+/// `local_size_x_id` and `local_size_y_id` (`common.glsl`, `TILE_WORKGROUP`);
+/// the preprocess reads the first as `TILE` (keep in sync).
+pub const TILE_SPEC_IDS: [u32; 2] = [15, 16];
+
+/// Checks a tile edge against [`TILE_SIZES`].
+pub fn check_tile(tile: u32) -> Result<()> {
+    if TILE_SIZES.contains(&tile) {
+        Ok(())
+    } else {
+        Err(Error::InvalidArgument(format!("tile size {tile} is not one of {TILE_SIZES:?}")))
+    }
+}
+
+/// The tile-edge specialization of a per-tile kernel.
+pub(crate) fn tile_spec(tile: u32) -> [(u32, SpecValue); 2] {
+    [(TILE_SPEC_IDS[0], SpecValue::U32(tile)), (TILE_SPEC_IDS[1], SpecValue::U32(tile))]
+}
 /// Bytes of one projected splat (keep in sync with `Splat` in `splat.glsl`).
 pub const SPLAT_BYTES: u64 = 64;
 /// Bytes of one splat's features (three vec4).
@@ -197,6 +220,10 @@ pub struct SplatSettings {
     /// Spherical-harmonic degree evaluated for colour, at most the scene's
     /// (`None`: the scene's). Lower degrees drop view-dependent terms for speed.
     pub sh_degree: Option<u32>,
+    /// Tile edge in pixels, one of [`TILE_SIZES`]. Splats are listed per tile
+    /// out to 3σ, so pixels see a splat's tail out to the tile's edge: the
+    /// image changes slightly (far below 1/255) with the tile, the cost more.
+    pub tile: u32,
 }
 
 impl Default for SplatSettings {
@@ -207,6 +234,7 @@ impl Default for SplatSettings {
             normal_source: NormalSource::default(),
             prefill: None,
             sh_degree: None,
+            tile: DEFAULT_TILE,
         }
     }
 }
@@ -388,12 +416,14 @@ pub struct SplatFrame {
     pub(crate) scene_means: u64,
     /// Gaussians in the scene.
     pub(crate) gaussians: u64,
+    /// Tile edge in pixels it was rendered with.
+    pub tile: u32,
 }
 
 impl SplatFrame {
     /// Tiles across and down.
     pub fn tiles(&self) -> (u32, u32) {
-        (self.camera.width.div_ceil(TILE), self.camera.height.div_ceil(TILE))
+        (self.camera.width.div_ceil(self.tile), self.camera.height.div_ceil(self.tile))
     }
 }
 
@@ -401,14 +431,14 @@ impl SplatFrame {
 /// first use) and the sort's scratch memory, reused across frames.
 pub struct Splatter {
     device: Device,
-    preprocess: HashMap<bool, Kernel>,
+    preprocess: HashMap<(bool, u32), Kernel>,
     keys: Kernel,
     ranges: Kernel,
-    blend: HashMap<(u32, BlendVariant), Kernel>,
+    blend: HashMap<(u32, BlendVariant, u32), Kernel>,
     blend_variant: BlendVariant,
     scan: Scan,
     sort: RadixSort,
-    backward: HashMap<u32, backward::BackwardKernels>,
+    backward: HashMap<(u32, u32), backward::BackwardKernels>,
 }
 
 const FRAME_BINDING: [BindingKind; 1] = [BindingKind::UniformBuffer];
@@ -506,18 +536,31 @@ impl Splatter {
         if let Some((_, _, name)) = missing.iter().find(|(want, have, _)| *want && have.is_none()) {
             return Err(Error::InvalidArgument(format!("channel {name} was requested but the scene has no {name}")));
         }
+        let tile = settings.tile;
+        check_tile(tile)?;
         let features = ch.needs_features();
-        if let std::collections::hash_map::Entry::Vacant(e) = self.preprocess.entry(features) {
-            e.insert(frame_kernel(&device, &kernels::SPLAT_PREPROCESS, &[(0, SpecValue::Bool(features))])?);
+        if let std::collections::hash_map::Entry::Vacant(e) = self.preprocess.entry((features, tile)) {
+            let spec = [(0, SpecValue::Bool(features)), tile_spec(tile)[0]];
+            e.insert(frame_kernel(&device, &kernels::SPLAT_PREPROCESS, &spec)?);
         }
-        let blend_key = (ch.bits(), self.blend_variant);
+        let blend_key = (ch.bits(), self.blend_variant, tile);
         if let std::collections::hash_map::Entry::Vacant(e) = self.blend.entry(blend_key) {
-            let info = match self.blend_variant {
-                BlendVariant::PerPixel => &kernels::SPLAT_BLEND_PORTABLE,
-                BlendVariant::SubgroupLoads => &kernels::SPLAT_BLEND,
-                BlendVariant::SharedBatches => &kernels::SPLAT_BLEND_BATCHED,
+            let [x, y] = tile_spec(tile);
+            let kernel = match self.blend_variant {
+                BlendVariant::PerPixel => {
+                    frame_kernel(&device, &kernels::SPLAT_BLEND_PORTABLE, &[(0, SpecValue::U32(ch.bits())), x, y])?
+                }
+                BlendVariant::SubgroupLoads => {
+                    frame_kernel(&device, &kernels::SPLAT_BLEND, &[(0, SpecValue::U32(ch.bits())), x, y])?
+                }
+                BlendVariant::SharedBatches => {
+                    // 36 bytes of shared memory per staged splat: at most 256 (9 KiB).
+                    let batch = (tile * tile).min(256);
+                    let spec = [(0, SpecValue::U32(ch.bits())), (1, SpecValue::U32(batch)), x, y];
+                    frame_kernel(&device, &kernels::SPLAT_BLEND_BATCHED, &spec)?
+                }
             };
-            e.insert(frame_kernel(&device, info, &[(0, SpecValue::U32(ch.bits()))])?);
+            e.insert(kernel);
         }
 
         let n = scene.count as u64;
@@ -525,7 +568,7 @@ impl Splatter {
             return Err(Error::InvalidArgument(format!("{n} Gaussians exceed the 2³² − 1 the kernels index")));
         }
         let (w, h) = (camera.width, camera.height);
-        let (tiles_x, tiles_y) = (w.div_ceil(TILE), h.div_ceil(TILE));
+        let (tiles_x, tiles_y) = (w.div_ceil(tile), h.div_ceil(tile));
         let tiles = u64::from(tiles_x) * u64::from(tiles_y);
         let pixels = u64::from(w) * u64::from(h);
         if tiles >= 1 << 32 || pixels * 3 >= 1 << 32 {
@@ -594,7 +637,7 @@ impl Splatter {
                         .flatten(),
                 )
                 .collect();
-        let preprocess = &self.preprocess[&features];
+        let preprocess = &self.preprocess[&(features, tile)];
         let scan = &self.scan;
         let mut timings = device.run(|rec| {
             rec.keep(&scene_buffers)?;
@@ -684,6 +727,7 @@ impl Splatter {
             uniform,
             scene_means: scene.means.device_address(),
             gaussians: n,
+            tile,
         })
     }
 }

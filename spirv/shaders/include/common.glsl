@@ -1,20 +1,30 @@
 // Shared helpers for every srug kernel. Include after #version and after
 // `#define WORKGROUP_SIZE_X n`; common.glsl declares the local size from it.
+// Per-tile kernels `#define TILE_WORKGROUP` instead: one invocation per pixel
+// of a TILE×TILE tile, the edge specialized by the host (constant_ids 15 and
+// 16, both the edge; keep in sync with engine/src/splat/mod.rs `TILE_SPEC_IDS`).
 // (gl_WorkGroupSize read before the layout declaration is (1,1,1) in GLSL,
 // which once silently broke 2D grids; a macro cannot be read too early.)
 #ifndef SRUG_COMMON_GLSL
 #define SRUG_COMMON_GLSL
 
-#ifndef WORKGROUP_SIZE_X
-#error "define WORKGROUP_SIZE_X before including common.glsl"
-#endif
+#if defined(TILE_WORKGROUP)
+layout(local_size_x = 16, local_size_y = 16, local_size_x_id = 15, local_size_y_id = 16) in;
+const uint TILE = gl_WorkGroupSize.x;
+const uint TILE_PIXELS = gl_WorkGroupSize.x * gl_WorkGroupSize.y;
+#elif defined(WORKGROUP_SIZE_X)
 layout(local_size_x = WORKGROUP_SIZE_X) in;
+#else
+#error "define WORKGROUP_SIZE_X or TILE_WORKGROUP before including common.glsl"
+#endif
 
 // 1D work is dispatched as a 2D grid so counts above 65535 workgroups fit;
 // the host side is `Recording::dispatch_1d` (keep in sync).
+#ifdef WORKGROUP_SIZE_X
 uint linear_index() {
     return gl_GlobalInvocationID.x + gl_GlobalInvocationID.y * gl_NumWorkGroups.x * WORKGROUP_SIZE_X;
 }
+#endif
 
 // Workgroup index in a 2D grid of workgroups (see linear_index).
 uint block_index() {

@@ -18,7 +18,7 @@ layout(std140, set = 0, binding = 0) uniform Shadow {
     vec4 light_intr;   // texels per unit x, y, cx, cy
     uvec4 size;        // camera width, height, map width, height
     vec4 params;       // k, bias, minimum alpha of a surface, depth of an empty texel
-    uvec4 modes;       // map depth (0 expected, 1 median, 2 expected over far), receiver depth (0, 1), map tiles across, unused
+    uvec4 modes;       // map depth (0 expected, 1 median, 2 expected over far), receiver depth (0, 1), map tiles across, map tile edge
     uvec4 addr0;       // receiver depth, receiver alpha
     uvec4 addr1;       // map depth, map alpha
     uvec4 addr2;       // visibility out, dL/dV in

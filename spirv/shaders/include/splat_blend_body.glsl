@@ -1,5 +1,6 @@
-// Body of the splat_blend*.comp variants (see their headers).
-#define WORKGROUP_SIZE_X 256
+// Body of the splat_blend*.comp variants (see their headers). One workgroup
+// per TILE×TILE tile (the edge is specialized), one invocation per pixel.
+#define TILE_WORKGROUP
 #include "common.glsl"
 #include "splat.glsl"
 
@@ -44,17 +45,20 @@ bool blend_one(inout Accumulated acc, uint g, vec4 head, vec4 conic, vec2 centre
 }
 
 #ifdef SHARED_BATCHES
-shared uint batch_g[WORKGROUP_SIZE_X];
-shared vec4 batch_head[WORKGROUP_SIZE_X];
-shared vec4 batch_conic[WORKGROUP_SIZE_X];
+// Splats staged per batch, at most TILE_PIXELS (the host keeps the batch
+// within shared memory: 36 bytes each).
+layout(constant_id = 1) const uint BLEND_BATCH = 256u;
+shared uint batch_g[BLEND_BATCH];
+shared vec4 batch_head[BLEND_BATCH];
+shared vec4 batch_conic[BLEND_BATCH];
 shared uint done_count;
 #endif
 
 void main() {
     uint tile = block_index();
     uint tiles_x = frame.size.z;
-    uint local = gl_LocalInvocationID.x;
-    uvec2 pix = uvec2(tile % tiles_x, tile / tiles_x) * TILE + uvec2(local % TILE, local / TILE);
+    uint local = gl_LocalInvocationIndex;
+    uvec2 pix = uvec2(tile % tiles_x, tile / tiles_x) * TILE + gl_LocalInvocationID.xy;
     bool inside = pix.x < frame.size.x && pix.y < frame.size.y;
     vec2 centre = vec2(pix) + 0.5;
     uvec2 range = Uvec2s(frame.work2.xy).v[tile];
@@ -63,19 +67,19 @@ void main() {
     Accumulated acc = Accumulated(1.0, vec3(0.0), 0.0, 0.0, vec3(0.0), vec3(0.0), 0.0, 0.0, 0.0, 0.0);
 
 #ifdef SHARED_BATCHES
-    // Batches of WORKGROUP_SIZE_X splats staged in shared memory by the whole
+    // Batches of BLEND_BATCH splats staged in shared memory by the whole
     // workgroup; every invocation takes part in every barrier (pixels outside
     // the image and finished pixels only load), and the tile stops as soon as
     // all its pixels are done.
     bool done = !inside;
-    for (uint start = range.x; start < range.y; start += WORKGROUP_SIZE_X) {
+    for (uint start = range.x; start < range.y; start += BLEND_BATCH) {
         if (local == 0u) done_count = 0u;
         barrier();
         if (done) atomicAdd(done_count, 1u);
         barrier();
-        if (done_count == WORKGROUP_SIZE_X) break;
+        if (done_count == TILE_PIXELS) break;
         uint j = start + local;
-        if (j < range.y) {
+        if (local < BLEND_BATCH && j < range.y) {
             uint g = values.v[j];
             batch_g[local] = g;
             batch_head[local] = splats.v[g].head;
@@ -83,7 +87,7 @@ void main() {
         }
         barrier();
         if (!done) {
-            uint n = min(uint(WORKGROUP_SIZE_X), range.y - start);
+            uint n = min(BLEND_BATCH, range.y - start);
             for (uint k = 0u; k < n; k++) {
                 if (!blend_one(acc, batch_g[k], batch_head[k], batch_conic[k], centre)) {
                     done = true;

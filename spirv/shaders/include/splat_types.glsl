@@ -4,8 +4,6 @@
 #define SRUG_SPLAT_TYPES_GLSL
 #include "address.glsl"
 
-#define TILE 16
-
 // One projected Gaussian, 64 bytes. Keep in sync with engine/src/splat/mod.rs `SPLAT_BYTES`.
 struct Splat {
     vec4 head;      // mean (pixel coordinates, centres at +0.5), camera z, opacity
