@@ -470,7 +470,16 @@ fn bench_trade_writes_csv_markdown_and_a_plot_with_the_pareto_front() {
     for want in ["fast", "balanced", "reference"] {
         assert!(rows.iter().any(|r| r[knob] == "preset" && r[value] == want), "no preset {want}:\n{csv}");
     }
-    for want in ["shadow resolution", "k", "receiver depth", "map depth", "shadow test", "SH degree", "render scale"] {
+    for want in [
+        "shadow resolution",
+        "k",
+        "receiver depth",
+        "map depth",
+        "shadow test",
+        "SH degree",
+        "render scale",
+        "tile size",
+    ] {
         assert!(rows.iter().any(|r| r[knob] == want), "no knob {want}:\n{csv}");
     }
     assert!(rows.iter().any(|r| r[knob] == "U-Net storage" && r[value] == "fp16") || t.contains("16-bit"));
@@ -508,6 +517,8 @@ fn relight_presets_and_quality_options() {
         ("fast", vec![]),
         ("reference", vec![]),
         ("balanced", vec!["--render-scale", "0.25", "--sh-degree", "0", "--shadow-test", "traced"]),
+        ("balanced", vec!["--tile", "8"]),
+        ("fast", vec!["--tile", "32"]),
     ] {
         let out = dir.path().join(format!("{preset}.png"));
         let mut args = vec![
@@ -552,4 +563,15 @@ fn relight_presets_and_quality_options() {
         "x.png",
     ]);
     assert!(!o.status.success() && text(&o).contains("render scale 1.5"), "{}", text(&o));
+    let o = srug(&[
+        "relight",
+        scene.to_str().unwrap(),
+        "--cameras",
+        cams.to_str().unwrap(),
+        "--tile",
+        "12",
+        "--out",
+        "x.png",
+    ]);
+    assert!(!o.status.success() && text(&o).contains("tile size 12 is not one of [8, 16, 32]"), "{}", text(&o));
 }

@@ -75,6 +75,12 @@ pub fn trade_settings(with_network: bool) -> Vec<TradeSetting> {
     for r in [0.25f32, 0.5, 0.75] {
         knob("render scale", r.to_string(), &|s| s.render_scale = r);
     }
+    for t in [8u32, 32] {
+        knob("tile size", t.to_string(), &|s| {
+            s.tile = t;
+            s.shadow.tile = t;
+        });
+    }
     if with_network {
         out.push(TradeSetting {
             knob: "U-Net storage",
@@ -408,6 +414,7 @@ mod tests {
         let all = trade_settings(true);
         assert_eq!(all.iter().filter(|s| s.knob == "preset").count(), 3);
         assert!(all.iter().any(|s| s.knob == "U-Net storage"));
+        assert_eq!(all.iter().filter(|s| s.knob == "tile size").map(|s| s.settings.tile).collect::<Vec<_>>(), [8, 32]);
         assert!(!trade_settings(false).iter().any(|s| s.knob == "U-Net storage"));
         for s in all.iter().filter(|s| s.knob != "preset" && s.knob != "U-Net storage") {
             assert_ne!(s.settings, balanced, "{} {} repeats balanced", s.knob, s.value);
