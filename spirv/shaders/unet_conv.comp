@@ -2,8 +2,8 @@
 // U-Net layer: 3×3 convolution, padding 1, stride STRIDE, fused bias and
 // activation, over the channel concatenation of two CHW tensors A and B
 // (B may be empty), so a skip connection needs no copy. One invocation per
-// output pixel and block of OCB output channels; the block is the
-// workgroup's y index, so its weights are dynamically uniform.
+// PX output pixels along x and block of OCB output channels; the block is
+// the workgroup's y index, so its weights are dynamically uniform.
 //
 // Weights come through uniform buffers: lavapipe loads a uniform-buffer
 // element with a uniform index once per SIMD group, but gathers storage and

@@ -384,15 +384,23 @@ pub struct UpsamplePush {
 const _: () = assert!(std::mem::size_of::<UpsamplePush>() == 40);
 
 /// Output channels per invocation of a layer (the `OCB` specialization
-/// constant of `unet_conv.comp`): 32, 16 or 8, the most the layer fills.
-/// More channels per gathered input value is faster on lavapipe: at 352×96
-/// blocks of 8, 16 and 32 reached 1.6, 2.3 and 2.5 GFLOP/s.
+/// constant of `unet_conv.comp`): 16, or 8 for layers narrower than 16.
+/// With [`pixel_block`] an invocation keeps 32 fp32 accumulators: on lavapipe
+/// every one is a SIMD register, and more spill. Measured at 352×96 (median of
+/// 2, default widths): 32 channels × 1 pixel 1.72 s, 8 × 4 1.44 s, 16 × 2 1.31 s;
+/// 64 accumulators (32 × 2, 16 × 4) 4.7–4.9 s.
 pub fn channel_block(out_channels: usize) -> usize {
-    match out_channels {
-        32.. => 32,
-        16..=31 => 16,
-        _ => 8,
+    if out_channels >= 16 {
+        16
+    } else {
+        8
     }
+}
+
+/// Output pixels per invocation along x (the `PX` specialization constant of
+/// `unet_conv.comp`, 1, 2 or 4): 32 accumulators with [`channel_block`].
+pub fn pixel_block(out_channels: usize) -> usize {
+    32 / channel_block(out_channels)
 }
 
 /// Input channels per pass of a layer with `out_channels`: as many as fit
@@ -496,7 +504,7 @@ impl StoragePrecision {
 }
 
 /// A conv kernel variant: stride, activation, output block, input and output in fp16.
-type ConvKey = (u32, u32, u32, bool, bool);
+type ConvKey = (u32, u32, u32, bool, bool, u32);
 
 /// One layer's weights on the GPU: a uniform buffer per pass, the bias.
 struct LayerBuffers {
@@ -591,7 +599,12 @@ impl UNet {
         let mut convs = HashMap::new();
         for key in (0..expected.len()).map(|i| Self::conv_key(&config, i, half)) {
             if let std::collections::hash_map::Entry::Vacant(e) = convs.entry(key) {
-                let mut spec = vec![(0, SpecValue::U32(key.0)), (1, SpecValue::U32(key.1)), (2, SpecValue::U32(key.2))];
+                let mut spec = vec![
+                    (0, SpecValue::U32(key.0)),
+                    (1, SpecValue::U32(key.1)),
+                    (2, SpecValue::U32(key.2)),
+                    (3, SpecValue::U32(key.5)),
+                ];
                 if half {
                     spec.extend([(10, SpecValue::Bool(key.3)), (11, SpecValue::Bool(key.4))]);
                 }
@@ -651,7 +664,7 @@ impl UNet {
         let (_, _, co, stride) = l[i];
         let last = i + 1 == l.len();
         let act = if last { 0 } else { config.activation.code() };
-        (stride, act, channel_block(co) as u32, half && i > 0, half && !last)
+        (stride, act, channel_block(co) as u32, half && i > 0, half && !last, pixel_block(co) as u32)
     }
 
     /// The architecture.
@@ -841,7 +854,7 @@ impl UNet {
                 let layer = &weights[li];
                 let ob = channel_block(co);
                 let k = kernel(li)?;
-                let groups = (s[lout].0 * s[lout].1).div_ceil(64) as u32;
+                let groups = (s[lout].0.div_ceil(pixel_block(co)) * s[lout].1).div_ceil(64) as u32;
                 let gz = groups.div_ceil(max_groups[0]);
                 let grid = [groups.div_ceil(gz), co.div_ceil(ob) as u32, gz];
                 if grid[1] > max_groups[1] || grid[2] > max_groups[2] {

@@ -9,6 +9,10 @@ layout(constant_id = 0) const uint STRIDE = 1;
 layout(constant_id = 1) const uint ACT = 1;
 // Output channels per invocation: 8, 16 or 32.
 layout(constant_id = 2) const uint OCB = 8;
+// Output pixels per invocation along x: 1, 2 or 4. Each weight read from the
+// uniform buffer feeds PX pixels and each input row segment is read once for
+// all of them (keep PX·OCB small: on lavapipe every accumulator is a register).
+layout(constant_id = 3) const uint PX = 1;
 
 // Keep in sync with engine/src/indirect/mod.rs `CONV_UBO_VEC4S`.
 layout(std140, set = 0, binding = 0) uniform Weights { vec4 wts[4096]; };
@@ -32,26 +36,36 @@ layout(push_constant) uniform Push {
 
 void main() {
     uint plane = pc.out_size.x * pc.out_size.y;
+    uint blocks_x = (pc.out_size.x + PX - 1u) / PX;
     uint p = (gl_WorkGroupID.x + gl_WorkGroupID.z * gl_NumWorkGroups.x) * WORKGROUP_SIZE_X + gl_LocalInvocationID.x;
     uint ob = gl_WorkGroupID.y;
-    bool live = p < plane;
-    p = min(p, plane - 1u);
-    int ox = int(p % pc.out_size.x), oy = int(p / pc.out_size.x);
+    bool live = p < blocks_x * pc.out_size.y;
+    p = min(p, blocks_x * pc.out_size.y - 1u);
+    int ox0 = int((p % blocks_x) * PX), oy = int(p / blocks_x);
+    int ow = int(pc.out_size.x);
     const uint Q = OCB / 4u;
+    // acc[x * Q + q]: pixel ox0 + x, channels ob·OCB + 4q .. + 3 (PX·OCB ≤ 32).
     vec4 acc[8];
-    if ((pc.flags & 1u) != 0u) {
-        for (uint q = 0u; q < Q; ++q) acc[q] = bias[Q * ob + q];
-    } else {
-        FloatsIn prev = FloatsIn(pc.partial);
-        for (uint q = 0u; q < Q; ++q) {
-            for (uint j = 0u; j < 4u; ++j) {
-                uint c = min(ob * OCB + 4u * q + j, pc.oc - 1u);
-                acc[q][j] = prev.v[c * plane + p];
+    for (uint x = 0u; x < PX; ++x) {
+        // Pixels past the row's end (a partial block) compute a clamped copy and are not stored.
+        uint px = uint(oy * ow + min(ox0 + int(x), ow - 1));
+        if ((pc.flags & 1u) != 0u) {
+            for (uint q = 0u; q < Q; ++q) acc[x * Q + q] = bias[Q * ob + q];
+        } else {
+            FloatsIn prev = FloatsIn(pc.partial);
+            for (uint q = 0u; q < Q; ++q) {
+                for (uint j = 0u; j < 4u; ++j) {
+                    uint c = min(ob * OCB + 4u * q + j, pc.oc - 1u);
+                    acc[x * Q + q][j] = prev.v[c * plane + px];
+                }
             }
         }
     }
     uint in_plane = pc.in_size.x * pc.in_size.y;
     int w = int(pc.in_size.x), h = int(pc.in_size.y);
+    // Input columns the block reads: ox0·S − 1 .. (ox0 + PX − 1)·S + 1.
+    const uint SPAN = (PX - 1u) * STRIDE + 3u;
+    int ix0 = ox0 * int(STRIDE) - 1;
     // Input channels per pass as packed (engine/src/indirect/mod.rs `pass_channels`).
     uint chunk = 16384u / (gl_NumWorkGroups.y * OCB * 9u);
     for (uint ic = pc.ic0; ic < pc.ic1; ++ic) {
@@ -61,32 +75,43 @@ void main() {
         for (int ky = 0; ky < 3; ++ky) {
             int iy = oy * int(STRIDE) + ky - 1;
             bool row_in = iy >= 0 && iy < h;
+            float row[9];  // SPAN ≤ 9: PX ≤ 4, STRIDE ≤ 2
+            for (uint k = 0u; k < SPAN; ++k) {
+                int ix = ix0 + int(k);
+                row[k] = row_in && ix >= 0 && ix < w ? load_input(src, base + uint(iy * w + ix)) : 0.0;
+            }
             for (int kx = 0; kx < 3; ++kx) {
-                int ix = ox * int(STRIDE) + kx - 1;
-                float v = row_in && ix >= 0 && ix < w ? load_input(src, base + uint(iy * w + ix)) : 0.0;
                 uint t = wbase + uint(ky * 3 + kx) * Q;
-                for (uint q = 0u; q < Q; ++q) acc[q] += v * wts[t + q];
+                for (uint q = 0u; q < Q; ++q) {
+                    vec4 wq = wts[t + q];
+                    for (uint x = 0u; x < PX; ++x) acc[x * Q + q] += row[x * STRIDE + uint(kx)] * wq;
+                }
             }
         }
     }
     if (!live) return;
     bool last = (pc.flags & 2u) != 0u;
-    for (uint q = 0u; q < Q; ++q) {
-        vec4 a = acc[q];
-        if (last) {
-            if (ACT == 1u) {
-                a = max(a, 0.0);
-            } else if (ACT == 2u) {
-                a = mix(a * 0.01, a, greaterThanEqual(a, vec4(0.0)));
-            }
-        }
-        for (uint j = 0u; j < 4u; ++j) {
-            uint c = ob * OCB + 4u * q + j;
-            if (c >= pc.oc) continue;
+    for (uint x = 0u; x < PX; ++x) {
+        int ox = ox0 + int(x);
+        if (ox >= ow) break;
+        uint px = uint(oy * ow + ox);
+        for (uint q = 0u; q < Q; ++q) {
+            vec4 a = acc[x * Q + q];
             if (last) {
-                store_output(pc.o, c * plane + p, a[j]);
-            } else {
-                FloatsOut(pc.partial).v[c * plane + p] = a[j];
+                if (ACT == 1u) {
+                    a = max(a, 0.0);
+                } else if (ACT == 2u) {
+                    a = mix(a * 0.01, a, greaterThanEqual(a, vec4(0.0)));
+                }
+            }
+            for (uint j = 0u; j < 4u; ++j) {
+                uint c = ob * OCB + 4u * q + j;
+                if (c >= pc.oc) continue;
+                if (last) {
+                    store_output(pc.o, c * plane + px, a[j]);
+                } else {
+                    FloatsOut(pc.partial).v[c * plane + px] = a[j];
+                }
             }
         }
     }
