@@ -545,22 +545,18 @@ impl Splatter {
         }
         let blend_key = (ch.bits(), self.blend_variant, tile);
         if let std::collections::hash_map::Entry::Vacant(e) = self.blend.entry(blend_key) {
-            let [x, y] = tile_spec(tile);
-            let kernel = match self.blend_variant {
-                BlendVariant::PerPixel => {
-                    frame_kernel(&device, &kernels::SPLAT_BLEND_PORTABLE, &[(0, SpecValue::U32(ch.bits())), x, y])?
-                }
-                BlendVariant::SubgroupLoads => {
-                    frame_kernel(&device, &kernels::SPLAT_BLEND, &[(0, SpecValue::U32(ch.bits())), x, y])?
-                }
-                BlendVariant::SharedBatches => {
-                    // 36 bytes of shared memory per staged splat: at most 256 (9 KiB).
-                    let batch = (tile * tile).min(256);
-                    let spec = [(0, SpecValue::U32(ch.bits())), (1, SpecValue::U32(batch)), x, y];
-                    frame_kernel(&device, &kernels::SPLAT_BLEND_BATCHED, &spec)?
-                }
+            let info = match self.blend_variant {
+                BlendVariant::PerPixel => &kernels::SPLAT_BLEND_PORTABLE,
+                BlendVariant::SubgroupLoads => &kernels::SPLAT_BLEND,
+                BlendVariant::SharedBatches => &kernels::SPLAT_BLEND_BATCHED,
             };
-            e.insert(kernel);
+            let mut spec = vec![(0, SpecValue::U32(ch.bits()))];
+            spec.extend(tile_spec(tile));
+            if self.blend_variant == BlendVariant::SharedBatches {
+                // 36 bytes of shared memory per staged splat: at most 256 (9 KiB).
+                spec.push((1, SpecValue::U32((tile * tile).min(256))));
+            }
+            e.insert(frame_kernel(&device, info, &spec)?);
         }
 
         let n = scene.count as u64;
