@@ -10,7 +10,7 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 use rspirv::dr::{Instruction, Module, Operand};
-use rspirv::spirv::{BuiltIn, Decoration, ExecutionMode, Op, StorageClass};
+use rspirv::spirv::{BuiltIn, Decoration, Dim, ExecutionMode, Op, StorageClass};
 
 fn main() {
     // Keeps Debian's static glslang/SPIRV-Tools archives in this script's link.
@@ -291,6 +291,32 @@ fn reflect(module: &Module) -> Result<Reflected, String> {
                 };
                 let name = names.get(&var).cloned().unwrap_or_default();
                 bindings.push(Binding { set, binding, kind, name });
+            }
+            StorageClass::UniformConstant => {
+                // `samplerBuffer`: a sampled image of dimension Buffer (a uniform texel buffer).
+                let image = defs
+                    .get(&pointee)
+                    .filter(|t| t.class.opcode == Op::TypeSampledImage)
+                    .and_then(|t| t.operands.first().and_then(id))
+                    .and_then(|i| defs.get(&i));
+                let is_buffer = image.is_some_and(|i| {
+                    i.class.opcode == Op::TypeImage && matches!(i.operands.get(1), Some(Operand::Dim(Dim::DimBuffer)))
+                });
+                if !is_buffer {
+                    return Err("only samplerBuffer is supported among opaque bindings".into());
+                }
+                let set = decorations
+                    .on_id
+                    .get(&(var, Decoration::DescriptorSet))
+                    .and_then(|v| v.first().copied())
+                    .unwrap_or(0);
+                let binding = decorations
+                    .on_id
+                    .get(&(var, Decoration::Binding))
+                    .and_then(|v| v.first().copied())
+                    .ok_or("samplerBuffer without a binding")?;
+                let name = names.get(&var).cloned().unwrap_or_default();
+                bindings.push(Binding { set, binding, kind: "BindingKind::UniformTexelBuffer", name });
             }
             StorageClass::PushConstant => {
                 push_size = type_size(pointee, &defs, &decorations)?;

@@ -17,6 +17,8 @@ pub enum BindingKind {
     },
     /// A `uniform` block.
     UniformBuffer,
+    /// A `samplerBuffer` (uniform texel buffer), read with `texelFetch`.
+    UniformTexelBuffer,
 }
 
 /// One descriptor binding of a kernel.

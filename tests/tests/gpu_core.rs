@@ -1,13 +1,14 @@
 //! The Vulkan core on the test device: kernels with push and specialization
-//! constants, binding checks, buffers above maxStorageBufferRange, timestamps,
-//! memory accounting and deferred destruction — all with validation on.
+//! constants, binding checks, buffers above maxStorageBufferRange, texel-buffer
+//! views, timestamps, memory accounting and deferred destruction — all with
+//! validation on.
 
 #![allow(clippy::unwrap_used, clippy::expect_used, reason = "a failed unwrap is a failed test")]
 
 use srug::gpu::selftest::{self, affine_cpu, affine_kernel, AffineAddressedPush, AffinePush, AFFINE_BINDINGS};
 use srug::gpu::{
-    self, kernels, specialized_workgroup_size, BindingKind, Device, DeviceOptions, DeviceSelection, Kernel, KernelDecl,
-    MemoryKind, SpecValue,
+    self, kernels, specialized_workgroup_size, Binding, BindingKind, Device, DeviceOptions, DeviceSelection, Kernel,
+    KernelDecl, MemoryKind, SpecValue, TexelFormat, Texels,
 };
 use srug::Error;
 use srug_tests::{assert_no_validation_messages, device};
@@ -353,4 +354,81 @@ fn impossible_allocations_are_errors() {
     assert_eq!(d.memory_usage().current_bytes, 0);
     let n = usize::MAX / 2;
     assert!(matches!(d.create_filled::<[f32; 4]>("overflow", n, 0), Err(Error::InvalidArgument(_))));
+}
+
+#[test]
+fn texel_buffer_views() {
+    let d = device();
+    let info = d.info().clone();
+    assert!(info.texel_formats.contains(&TexelFormat::R32Float), "R32F uniform texel buffers are mandatory in Vulkan");
+    assert_eq!(
+        kernels::CORE_TEXEL_COPY.bindings[0].kind,
+        BindingKind::UniformTexelBuffer,
+        "the build script reflects samplerBuffer"
+    );
+    let decl = KernelDecl {
+        bindings: &[BindingKind::UniformTexelBuffer, BindingKind::StorageBuffer { read_only: false }],
+        push_constant_size: 4,
+        specialization: &[],
+    };
+    let copy = Kernel::new(&d, &kernels::CORE_TEXEL_COPY, &decl).unwrap();
+    let align = info.min_texel_buffer_offset_alignment;
+    println!(
+        "maxTexelBufferElements {}, minTexelBufferOffsetAlignment {align}, formats {:?}",
+        info.max_texel_buffer_elements, info.texel_formats
+    );
+    let n = 1000usize;
+    // The views start `align` elements in: byte offsets of 4·align (fp32) and 2·align (fp16).
+    let first = align as usize;
+    let values: Vec<f32> = (0..n + first).map(|i| (i as f32 - 400.25) * 0.37).collect();
+    let out = d.create_buffer("copy", (n * 4) as u64, MemoryKind::Storage).unwrap();
+    let mut cases = vec![(TexelFormat::R32Float, d.upload("fp32", &values).unwrap())];
+    if info.texel_formats.contains(&TexelFormat::R16Float) {
+        let halves: Vec<u16> = values.iter().map(|v| half::f16::from_f32(*v).to_bits()).collect();
+        cases.push((TexelFormat::R16Float, d.upload("fp16", &halves).unwrap()));
+    }
+    for (format, buffer) in &cases {
+        let view = Texels { buffer, offset: first as u64 * format.bytes(), elements: n as u64, format: *format };
+        d.run(|rec| rec.fill(&out, NAN)).unwrap();
+        d.run(|rec| rec.dispatch_bound(&copy, &[Binding::Texels(view), Binding::Buffer(&out)], &(n as u32), grid(n)))
+            .unwrap();
+        let got: Vec<f32> = d.read_buffer(&out).unwrap();
+        // The twin: the element itself, rounded to fp16 for an R16F view.
+        let want: Vec<f32> = values[first..first + n]
+            .iter()
+            .map(|v| if *format == TexelFormat::R16Float { half::f16::from_f32(*v).to_f32() } else { *v })
+            .collect();
+        let bad = got.iter().zip(&want).filter(|(a, b)| a.to_bits() != b.to_bits()).count();
+        assert_eq!(
+            bad, 0,
+            "{format:?} view at element {first}: {bad} of {n} differ (first got {}, want {})",
+            got[0], want[0]
+        );
+    }
+
+    // Misuse is a clear error, before anything is recorded.
+    let (_, buffer) = &cases[0];
+    let expect = |bindings: &[Binding<'_>], needle: &str| {
+        let mut rec = d.begin().unwrap();
+        match rec.dispatch_bound(&copy, bindings, &(n as u32), grid(n)) {
+            Err(Error::Kernel { message, .. }) => assert!(message.contains(needle), "{needle}: {message}"),
+            other => panic!("expected an error containing {needle}, got {other:?}"),
+        }
+    };
+    let view = |offset: u64, elements: u64| Texels { buffer, offset, elements, format: TexelFormat::R32Float };
+    if align > 1 {
+        expect(&[Binding::Texels(view(align / 2, 4)), Binding::Buffer(&out)], "minTexelBufferOffsetAlignment");
+    }
+    expect(
+        &[Binding::Texels(view(0, info.max_texel_buffer_elements + 1)), Binding::Buffer(&out)],
+        "maxTexelBufferElements",
+    );
+    expect(&[Binding::Texels(view(0, buffer.size() / 4 + 1)), Binding::Buffer(&out)], "overrun");
+    expect(&[Binding::Buffer(buffer), Binding::Buffer(&out)], "samplerBuffer");
+    expect(&[Binding::Texels(view(0, 4)), Binding::Texels(view(0, 4))], "buffer block");
+    assert_no_validation_messages(&d);
+}
+
+fn grid(n: usize) -> [u32; 3] {
+    [n.div_ceil(64) as u32, 1, 1]
 }

@@ -16,7 +16,7 @@ use srug_tests::{assert_no_validation_messages, device};
 const NAN: u32 = 0x7fc0_0000;
 
 fn run(d: &Device, weights: &UNetWeights, w: usize, h: usize, scale: f32, seed: u64) -> (Vec<f32>, Tensor) {
-    let (gpu, cpu, _) = run_with(d, weights, w, h, scale, seed, StoragePrecision::Fp32);
+    let (gpu, cpu, _) = run_with(d, weights, (w, h), scale, seed, StoragePrecision::Fp32, true);
     (gpu, cpu)
 }
 
@@ -24,11 +24,11 @@ fn run(d: &Device, weights: &UNetWeights, w: usize, h: usize, scale: f32, seed: 
 fn run_with(
     d: &Device,
     weights: &UNetWeights,
-    w: usize,
-    h: usize,
+    (w, h): (usize, usize),
     scale: f32,
     seed: u64,
     precision: StoragePrecision,
+    texel: bool,
 ) -> (Vec<f32>, Tensor, Tensor) {
     let mut rng = Pcg64Mcg::seed_from_u64(seed);
     let c = weights.config.in_channels;
@@ -36,6 +36,7 @@ fn run_with(
     let buffer = d.upload("input", &input).unwrap();
     let mut net = UNet::with_precision(d, weights, precision).unwrap();
     net.set_prefill(Some(NAN));
+    net.set_texel_inputs(texel).unwrap();
     let out = net.infer(&buffer, w as u32, h as u32).unwrap();
     let gpu: Vec<f32> = d.read_buffer(&out.output).unwrap();
     let x = Tensor::from_f32(c, w, h, &input);
@@ -58,16 +59,19 @@ fn unet_matches_twin_at_odd_and_tiny_sizes() {
         ([8, 8, 16, 16, 16], Activation::None, false, 2, 2),
         ([12, 20, 24, 40, 48], Activation::Relu, false, 17, 5),
     ];
-    for (widths, activation, align_corners, w, h) in cases {
+    // Both input paths: texel-buffer views (the default here) and device addresses.
+    for ((widths, activation, align_corners, w, h), texel) in cases.into_iter().flat_map(|c| [(c, true), (c, false)]) {
         let config = UNetConfig { widths, activation, align_corners, ..UNetConfig::default() };
         let weights = UNetWeights::random(config, 3);
-        let (gpu, cpu) = run(&d, &weights, w, h, 1.0, 7);
+        let (gpu, cpu, _) = run_with(&d, &weights, (w, h), 1.0, 7, StoragePrecision::Fp32, texel);
         let err = max_abs(&gpu, &cpu);
         let peak = cpu.data.iter().fold(0.0f64, |m, v| m.max(v.abs()));
-        println!("widths {widths:?} {activation:?} align_corners {align_corners} at {w}x{h}: max |GPU − CPU| {err:.2e} (outputs up to {peak:.2})");
+        println!("widths {widths:?} {activation:?} align_corners {align_corners} at {w}x{h}, texel inputs {texel}: max |GPU − CPU| {err:.2e} (outputs up to {peak:.2})");
         assert!(err <= 1e-4, "fp32 U-Net differs from the twin by {err:e} (tolerance 1e-4)");
         assert!(peak > 1e-3, "the outputs are all ~0: the check would prove nothing");
     }
+    let net = UNet::new(&d, &UNetWeights::random(UNetConfig::default(), 1)).unwrap();
+    assert!(net.texel_inputs(), "lavapipe reads R32F texel buffers, so the texel path is the default");
     assert_no_validation_messages(&d);
 }
 
@@ -161,16 +165,18 @@ fn fp16_storage_matches_twin_within_its_precision() {
         ([8, 8, 16, 16, 16], Activation::None, false, 2, 2, 1.0),
         ([16, 16, 32, 32, 64], Activation::Relu, false, 13, 11, 1e4),
     ];
-    for (widths, activation, align_corners, w, h, scale) in cases {
+    for ((widths, activation, align_corners, w, h, scale), texel) in
+        cases.into_iter().flat_map(|c| [(c, true), (c, false)])
+    {
         let config = UNetConfig { widths, activation, align_corners, ..UNetConfig::default() };
         let weights = UNetWeights::random(config, 3);
-        let (gpu, exact, rounded) = run_with(&d, &weights, w, h, scale, 7, StoragePrecision::Fp16);
+        let (gpu, exact, rounded) = run_with(&d, &weights, (w, h), scale, 7, StoragePrecision::Fp16, texel);
         let peak = exact.data.iter().fold(0.0f64, |m, v| m.max(v.abs()));
         let rel = max_abs(&gpu, &exact) / peak;
         // Against the twin that rounds what the kernels store: only fp32-vs-f64 arithmetic and
         // rounding ties remain (one fp16 step of the largest stored value, relative).
         let rel_rounded = max_abs(&gpu, &rounded) / peak;
-        println!("fp16 storage, widths {widths:?} at {w}x{h}, inputs ×{scale}: relative error {rel:.2e} (vs fp16-rounded twin {rel_rounded:.2e})");
+        println!("fp16 storage, widths {widths:?} at {w}x{h}, inputs ×{scale}, texel inputs {texel}: relative error {rel:.2e} (vs fp16-rounded twin {rel_rounded:.2e})");
         assert!(rel <= 1e-2, "fp16 storage: relative error {rel:e} > 1e-2");
         assert!(rel_rounded <= 2e-3, "fp16 storage vs the rounded twin: {rel_rounded:e} > 2e-3");
     }

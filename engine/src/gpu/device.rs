@@ -92,6 +92,12 @@ pub struct DeviceInfo {
     pub shader_float16: bool,
     /// 16-bit values in storage buffers.
     pub storage_16bit: bool,
+    /// `maxTexelBufferElements`: the most elements one texel-buffer view holds.
+    pub max_texel_buffer_elements: u64,
+    /// `minTexelBufferOffsetAlignment`, in bytes.
+    pub min_texel_buffer_offset_alignment: u64,
+    /// The [`TexelFormat`](super::TexelFormat)s usable as uniform texel buffers.
+    pub texel_formats: Vec<super::TexelFormat>,
 }
 
 /// GPU memory in use, as counted by srug's allocations.
@@ -685,6 +691,16 @@ fn make_device(
         },
         shader_float16: has_f16 == vk::TRUE,
         storage_16bit: has_s16 == vk::TRUE,
+        max_texel_buffer_elements: u64::from(limits.max_texel_buffer_elements),
+        min_texel_buffer_offset_alignment: limits.min_texel_buffer_offset_alignment.max(1),
+        texel_formats: super::TexelFormat::ALL
+            .into_iter()
+            .filter(|f| {
+                // SAFETY: valid physical device.
+                let props = unsafe { instance.get_physical_device_format_properties(physical, f.vk()) };
+                props.buffer_features.contains(vk::FormatFeatureFlags::UNIFORM_TEXEL_BUFFER)
+            })
+            .collect(),
     };
 
     let priorities = [1.0f32];

@@ -146,6 +146,7 @@ impl Kernel {
             .map(|b| match b.kind {
                 BindingKind::StorageBuffer { .. } => vk::DescriptorType::STORAGE_BUFFER,
                 BindingKind::UniformBuffer => vk::DescriptorType::UNIFORM_BUFFER,
+                BindingKind::UniformTexelBuffer => vk::DescriptorType::UNIFORM_TEXEL_BUFFER,
             })
             .collect();
         let set_layout = if descriptor_types.is_empty() {

@@ -98,6 +98,7 @@ impl Device {
             MemoryKind::Storage => (
                 vk::BufferUsageFlags::STORAGE_BUFFER
                     | vk::BufferUsageFlags::UNIFORM_BUFFER
+                    | vk::BufferUsageFlags::UNIFORM_TEXEL_BUFFER
                     | vk::BufferUsageFlags::TRANSFER_SRC
                     | vk::BufferUsageFlags::TRANSFER_DST
                     | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS,
@@ -239,4 +240,52 @@ impl Device {
         }
         Ok(out)
     }
+}
+
+/// Element formats of texel-buffer views: what `texelFetch` on a
+/// `samplerBuffer` converts to float.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum TexelFormat {
+    /// 32-bit float.
+    R32Float,
+    /// 16-bit float (widened to fp32 by the fetch; no 16-bit storage feature needed).
+    R16Float,
+}
+
+impl TexelFormat {
+    /// Every format, in the order [`DeviceInfo::texel_formats`](super::DeviceInfo) lists them.
+    pub const ALL: [Self; 2] = [Self::R32Float, Self::R16Float];
+
+    /// The Vulkan format.
+    pub fn vk(self) -> vk::Format {
+        match self {
+            Self::R32Float => vk::Format::R32_SFLOAT,
+            Self::R16Float => vk::Format::R16_SFLOAT,
+        }
+    }
+
+    /// Bytes per element.
+    pub fn bytes(self) -> u64 {
+        match self {
+            Self::R32Float => 4,
+            Self::R16Float => 2,
+        }
+    }
+}
+
+/// A run of `elements` elements of `buffer` starting `offset` bytes in, bound
+/// to a `samplerBuffer` through a texel-buffer view that the recording makes
+/// (and destroys once its submission has finished). The offset must be a
+/// multiple of the device's `minTexelBufferOffsetAlignment`, and `elements`
+/// at most `maxTexelBufferElements`.
+#[derive(Clone, Copy, Debug)]
+pub struct Texels<'a> {
+    /// The buffer (a [`MemoryKind::Storage`] one).
+    pub buffer: &'a Buffer,
+    /// Byte offset of the first element.
+    pub offset: u64,
+    /// Elements in the view (0 binds a one-element view the shader must not read).
+    pub elements: u64,
+    /// Element format.
+    pub format: TexelFormat,
 }

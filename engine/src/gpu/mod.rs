@@ -15,6 +15,11 @@
 //! - **Large buffers.** Descriptor bindings are limited to
 //!   `maxStorageBufferRange` (128 MiB on lavapipe); larger data is reached by
 //!   device address (`shaders/include/address.glsl`).
+//! - **Texel buffers.** A kernel may read a buffer through a `samplerBuffer`
+//!   ([`Texels`], bound with [`Recording::dispatch_bound`]); the recording makes
+//!   the view and checks `maxTexelBufferElements` and the offset alignment.
+//!   On lavapipe a `texelFetch` with per-lane indices is a vector gather, while
+//!   storage-buffer and device-address loads run lane by lane.
 
 mod device;
 mod kernel;
@@ -26,6 +31,6 @@ pub use device::{
     AdapterSummary, Device, DeviceInfo, DeviceOptions, DeviceSelection, MemoryUsage, DEVICE_ENV, VALIDATION_ENV,
 };
 pub use kernel::{check_decl, specialized_workgroup_size, Kernel, KernelDecl, SpecValue};
-pub use memory::{Buffer, MemoryKind};
-pub use recording::{grid_1d, Recording, StageTime, Submission, Timings};
+pub use memory::{Buffer, MemoryKind, TexelFormat, Texels};
+pub use recording::{grid_1d, Binding, Recording, StageTime, Submission, Timings};
 pub use srug_spirv::{kernels, BindingInfo, BindingKind, KernelInfo, SpecConstantInfo};

@@ -14,7 +14,7 @@ use bytemuck::Pod;
 
 use super::device::{lock, Device, Garbage};
 use super::kernel::Kernel;
-use super::memory::Buffer;
+use super::memory::{Buffer, Texels};
 use crate::error::{vk_error, Error, Result};
 
 /// Timestamp queries per recording: two per stage.
@@ -29,6 +29,7 @@ pub(crate) struct Transient {
     command_pool: vk::CommandPool,
     descriptor_pools: Vec<vk::DescriptorPool>,
     query_pool: Option<vk::QueryPool>,
+    buffer_views: Vec<vk::BufferView>,
 }
 
 impl Transient {
@@ -39,11 +40,53 @@ impl Transient {
             for p in self.descriptor_pools {
                 device.destroy_descriptor_pool(p, None);
             }
+            for v in self.buffer_views {
+                device.destroy_buffer_view(v, None);
+            }
             if let Some(q) = self.query_pool {
                 device.destroy_query_pool(q, None);
             }
         }
     }
+}
+
+/// One descriptor binding of a dispatch.
+#[derive(Clone, Copy, Debug)]
+pub enum Binding<'a> {
+    /// A storage or uniform buffer, bound whole.
+    Buffer(&'a Buffer),
+    /// Elements of a buffer seen through a texel-buffer view (`samplerBuffer`).
+    Texels(Texels<'a>),
+}
+
+/// Checks a texel-buffer binding against the device's limits.
+fn check_texels(info: &super::DeviceInfo, t: &Texels<'_>) -> std::result::Result<(), String> {
+    let name = t.buffer.name();
+    if !info.texel_formats.contains(&t.format) {
+        return Err(format!("{:?} texel buffers are not supported on this device ({name})", t.format));
+    }
+    if t.elements > info.max_texel_buffer_elements {
+        return Err(format!(
+            "{} elements of {name} exceed maxTexelBufferElements ({})",
+            t.elements, info.max_texel_buffer_elements
+        ));
+    }
+    if t.offset % info.min_texel_buffer_offset_alignment != 0 {
+        return Err(format!(
+            "offset {} into {name} is not a multiple of minTexelBufferOffsetAlignment ({})",
+            t.offset, info.min_texel_buffer_offset_alignment
+        ));
+    }
+    let end = t.offset.checked_add(t.elements.max(1) * t.format.bytes());
+    if end.is_none_or(|e| e > t.buffer.size().max(4)) {
+        return Err(format!(
+            "{} elements at offset {} overrun {name} ({} bytes)",
+            t.elements,
+            t.offset,
+            t.buffer.size()
+        ));
+    }
+    Ok(())
 }
 
 /// Time the GPU spent in one named stage.
@@ -104,7 +147,8 @@ impl Device {
         // SAFETY: valid create info on a live device.
         let command_pool =
             unsafe { d.create_command_pool(&pool_info, None) }.map_err(vk_error("vkCreateCommandPool"))?;
-        let mut transient = Transient { command_pool, descriptor_pools: Vec::new(), query_pool: None };
+        let mut transient =
+            Transient { command_pool, descriptor_pools: Vec::new(), query_pool: None, buffer_views: Vec::new() };
         let alloc = vk::CommandBufferAllocateInfo::default()
             .command_pool(command_pool)
             .level(vk::CommandBufferLevel::PRIMARY)
@@ -389,6 +433,19 @@ impl<'a> Recording<'a> {
         push: &P,
         groups: [u32; 3],
     ) -> Result<()> {
+        let bound: Vec<Binding<'a>> = bindings.iter().map(|b| Binding::Buffer(b)).collect();
+        self.dispatch_bound(kernel, &bound, push, groups)
+    }
+
+    /// [`Recording::dispatch`] with buffers and texel-buffer views: each
+    /// binding must match the kind the shader declares.
+    pub fn dispatch_bound<P: Pod>(
+        &mut self,
+        kernel: &'a Kernel,
+        bindings: &[Binding<'a>],
+        push: &P,
+        groups: [u32; 3],
+    ) -> Result<()> {
         let name = kernel.info.name;
         let err = |message: String| Error::Kernel { kernel: name, message };
         if !std::sync::Arc::ptr_eq(&kernel.shared, &self.device.shared) {
@@ -408,19 +465,35 @@ impl<'a> Recording<'a> {
                 kernel.push_constant_size
             )));
         }
-        let limits = self.device.shared.info.max_workgroup_count;
+        let info = &self.device.shared.info;
+        let limits = info.max_workgroup_count;
         if groups.iter().zip(limits).any(|(g, l)| *g > l) {
             return Err(err(format!("{groups:?} workgroups exceed the device limit {limits:?}")));
         }
-        let max_range = self.device.shared.info.max_storage_buffer_range;
-        for b in bindings {
-            self.check_device(b)?;
-            if b.size().max(4) > max_range {
-                return Err(err(format!(
-                    "buffer {} ({} bytes) exceeds maxStorageBufferRange ({max_range}); reach it by device address",
-                    b.name(),
-                    b.size()
-                )));
+        let max_range = info.max_storage_buffer_range;
+        for (i, binding) in bindings.iter().enumerate() {
+            let texel_kind = kernel.descriptor_types[i] == vk::DescriptorType::UNIFORM_TEXEL_BUFFER;
+            match binding {
+                Binding::Buffer(b) => {
+                    self.check_device(b)?;
+                    if texel_kind {
+                        return Err(err(format!("binding {i} is a samplerBuffer; buffer {} given", b.name())));
+                    }
+                    if b.size().max(4) > max_range {
+                        return Err(err(format!(
+                            "buffer {} ({} bytes) exceeds maxStorageBufferRange ({max_range}); reach it by device address",
+                            b.name(),
+                            b.size()
+                        )));
+                    }
+                }
+                Binding::Texels(t) => {
+                    self.check_device(t.buffer)?;
+                    if !texel_kind {
+                        return Err(err(format!("binding {i} is a buffer block; texels of {} given", t.buffer.name())));
+                    }
+                    check_texels(info, t).map_err(err)?;
+                }
             }
         }
         if groups.contains(&0) {
@@ -432,22 +505,55 @@ impl<'a> Recording<'a> {
             None => None,
         };
         if let Some(set) = set {
+            let mut views = Vec::new();
+            for binding in bindings {
+                if let Binding::Texels(t) = binding {
+                    let create = vk::BufferViewCreateInfo::default()
+                        .buffer(t.buffer.raw)
+                        .format(t.format.vk())
+                        .offset(t.offset)
+                        .range(t.elements.max(1) * t.format.bytes());
+                    // SAFETY: `check_texels` checked the range, alignment and format against the device.
+                    let view =
+                        unsafe { d.create_buffer_view(&create, None) }.map_err(vk_error("vkCreateBufferView"))?;
+                    self.transient
+                        .as_mut()
+                        .ok_or_else(|| Error::InvalidArgument("recording already submitted".into()))?
+                        .buffer_views
+                        .push(view);
+                    views.push([view]);
+                }
+            }
             let infos: Vec<[vk::DescriptorBufferInfo; 1]> = bindings
                 .iter()
-                .map(|b| [vk::DescriptorBufferInfo { buffer: b.raw, offset: 0, range: vk::WHOLE_SIZE }])
-                .collect();
-            let writes: Vec<vk::WriteDescriptorSet<'_>> = infos
-                .iter()
-                .enumerate()
-                .map(|(i, info)| {
-                    vk::WriteDescriptorSet::default()
-                        .dst_set(set)
-                        .dst_binding(i as u32)
-                        .descriptor_type(kernel.descriptor_types[i])
-                        .buffer_info(info)
+                .map(|b| match b {
+                    Binding::Buffer(b) => {
+                        [vk::DescriptorBufferInfo { buffer: b.raw, offset: 0, range: vk::WHOLE_SIZE }]
+                    }
+                    Binding::Texels(_) => [vk::DescriptorBufferInfo::default()],
                 })
                 .collect();
-            // SAFETY: the set was allocated with this layout; buffers are live.
+            let mut next_view = views.iter();
+            let writes: Vec<vk::WriteDescriptorSet<'_>> = bindings
+                .iter()
+                .zip(&infos)
+                .enumerate()
+                .map(|(i, (b, info))| {
+                    let write = vk::WriteDescriptorSet::default()
+                        .dst_set(set)
+                        .dst_binding(i as u32)
+                        .descriptor_type(kernel.descriptor_types[i]);
+                    match b {
+                        // One view per texel binding, made above in the same order.
+                        Binding::Texels(_) => match next_view.next() {
+                            Some(view) => write.texel_buffer_view(view),
+                            None => write,
+                        },
+                        Binding::Buffer(_) => write.buffer_info(info),
+                    }
+                })
+                .collect();
+            // SAFETY: the set was allocated with this layout; buffers and views are live.
             unsafe { d.update_descriptor_sets(&writes, &[]) };
         }
         self.before_command();
@@ -541,6 +647,10 @@ impl<'a> Recording<'a> {
                 descriptor_count: DESCRIPTORS_PER_POOL.max(descriptors),
             },
             vk::DescriptorPoolSize { ty: vk::DescriptorType::UNIFORM_BUFFER, descriptor_count: SETS_PER_POOL },
+            vk::DescriptorPoolSize {
+                ty: vk::DescriptorType::UNIFORM_TEXEL_BUFFER,
+                descriptor_count: DESCRIPTORS_PER_POOL.max(descriptors),
+            },
         ];
         let info = vk::DescriptorPoolCreateInfo::default().max_sets(SETS_PER_POOL).pool_sizes(&sizes);
         // SAFETY: valid create info.

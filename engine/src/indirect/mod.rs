@@ -25,7 +25,10 @@ use std::path::Path;
 use bytemuck::{Pod, Zeroable};
 
 use crate::error::{Error, Result};
-use crate::gpu::{kernels, BindingKind, Buffer, Device, Kernel, KernelDecl, MemoryKind, SpecValue, Timings};
+use crate::gpu::{
+    kernels, Binding, BindingKind, Buffer, Device, Kernel, KernelDecl, MemoryKind, SpecValue, TexelFormat, Texels,
+    Timings,
+};
 
 /// Activation after every layer but the last.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
@@ -384,23 +387,32 @@ pub struct UpsamplePush {
 const _: () = assert!(std::mem::size_of::<UpsamplePush>() == 40);
 
 /// Output channels per invocation of a layer (the `OCB` specialization
-/// constant of `unet_conv.comp`): 16, or 8 for layers narrower than 16.
-/// With [`pixel_block`] an invocation keeps 32 fp32 accumulators: on lavapipe
-/// every one is a SIMD register, and more spill. Measured at 352×96 (median of
-/// 2, default widths): 32 channels × 1 pixel 1.72 s, 8 × 4 1.44 s, 16 × 2 1.31 s;
-/// 64 accumulators (32 × 2, 16 × 4) 4.7–4.9 s.
+/// constant of `unet_conv.comp`): 8, or 4 for layers narrower than 8.
 pub fn channel_block(out_channels: usize) -> usize {
-    if out_channels >= 16 {
-        16
-    } else {
+    if out_channels >= 8 {
         8
+    } else {
+        4
     }
 }
 
 /// Output pixels per invocation along x (the `PX` specialization constant of
-/// `unet_conv.comp`, 1, 2 or 4): 32 accumulators with [`channel_block`].
-pub fn pixel_block(out_channels: usize) -> usize {
-    32 / channel_block(out_channels)
+/// `unet_conv.comp`, at most 8), for inputs read through texel-buffer views
+/// (`texel`) or by device address. With [`channel_block`] an invocation keeps
+/// PX·OCB fp32 accumulators; on lavapipe every one is a SIMD register, and
+/// past about 48 they spill. Measured at 352×96 (fastest of 3, default
+/// widths), texel inputs: 8 channels × 5 pixels 309 ms fp32 / 285 ms fp16;
+/// 8 × 6 282 ms fp32 but 1.36 s fp16 (spills); 8 × 4 319–395 ms; 16 × 3
+/// 322 ms; 16 × 2 362 ms; 32 × 1 521 ms; 64 accumulators (8 × 8, 16 × 4)
+/// 1.40–1.44 s. The 3-channel output layer: 4 × 8 8.6 ms, 8 × 4 23.5 ms.
+/// Device-address inputs (each load lane by lane on lavapipe) do best with
+/// 32 accumulators.
+pub fn pixel_block(out_channels: usize, texel: bool) -> usize {
+    match (channel_block(out_channels), texel) {
+        (8, true) => 5,
+        (8, false) => 4,
+        _ => 8,
+    }
 }
 
 /// Input channels per pass of a layer with `out_channels`: as many as fit
@@ -471,6 +483,7 @@ pub struct UNet {
     weights: Vec<LayerBuffers>,
     arena: Option<Buffer>,
     prefill: Option<u32>,
+    texel: bool,
 }
 
 /// How activations are stored between layers; arithmetic is fp32 either way.
@@ -503,8 +516,9 @@ impl StoragePrecision {
     }
 }
 
-/// A conv kernel variant: stride, activation, output block, input and output in fp16.
-type ConvKey = (u32, u32, u32, bool, bool, u32);
+/// A conv kernel variant: stride, activation, output block, input and output
+/// in fp16, pixel block, inputs through texel-buffer views.
+type ConvKey = (u32, u32, u32, bool, bool, u32, bool);
 
 /// One layer's weights on the GPU: a uniform buffer per pass, the bias.
 struct LayerBuffers {
@@ -525,13 +539,24 @@ pub struct UNetOutput {
 #[derive(Clone, Copy)]
 struct Step {
     layer: usize,
-    a: u64,
+    a: Src,
     ca: usize,
-    b: u64,
+    b: Src,
     cb: usize,
     lin: usize,
     lout: usize,
     out: u64,
+}
+
+/// Where a conv input lies: the network's input buffer (fp32) or the arena.
+#[derive(Clone, Copy)]
+struct Src {
+    /// Byte offset in its buffer.
+    offset: u64,
+    /// In the input buffer rather than the arena.
+    input: bool,
+    /// Stored as fp16.
+    half: bool,
 }
 
 /// Byte offsets of every tensor of a pass in the arena, and its total size.
@@ -552,7 +577,8 @@ impl ArenaLayout {
         let mut at = 0u64;
         let mut take = |bytes: u64| {
             let o = at;
-            at += bytes.div_ceil(16) * 16;
+            // 256: the largest minTexelBufferOffsetAlignment Vulkan allows, so every tensor can be a view.
+            at += bytes.div_ceil(256) * 256;
             o
         };
         let f = [0, 1, 2, 3, 4].map(|l| take(e * w[l] * px(l)));
@@ -596,23 +622,43 @@ impl UNet {
         if half && !device.info().storage_16bit {
             return Err(Error::Unsupported("fp16 activation storage needs storageBuffer16BitAccess".into()));
         }
+        let info = device.info();
+        let texel_formats =
+            if half { &[TexelFormat::R32Float, TexelFormat::R16Float][..] } else { &[TexelFormat::R32Float] };
+        let texel = texel_formats.iter().all(|f| info.texel_formats.contains(f));
         let mut convs = HashMap::new();
-        for key in (0..expected.len()).map(|i| Self::conv_key(&config, i, half)) {
+        let variants = [false, texel];
+        let keys = variants.iter().flat_map(|&t| (0..expected.len()).map(move |i| (i, t)));
+        for key in keys.map(|(i, t)| Self::conv_key(&config, i, half, t)) {
             if let std::collections::hash_map::Entry::Vacant(e) = convs.entry(key) {
+                let texel = key.6;
                 let mut spec = vec![
                     (0, SpecValue::U32(key.0)),
                     (1, SpecValue::U32(key.1)),
                     (2, SpecValue::U32(key.2)),
                     (3, SpecValue::U32(key.5)),
                 ];
-                if half {
-                    spec.extend([(10, SpecValue::Bool(key.3)), (11, SpecValue::Bool(key.4))]);
+                if half && !texel {
+                    spec.push((10, SpecValue::Bool(key.3)));
                 }
+                if half {
+                    spec.push((11, SpecValue::Bool(key.4)));
+                }
+                let module = match (texel, half) {
+                    (false, false) => &kernels::UNET_CONV,
+                    (false, true) => &kernels::UNET_CONV_HALF,
+                    (true, false) => &kernels::UNET_CONV_TEXEL,
+                    (true, true) => &kernels::UNET_CONV_TEXEL_HALF,
+                };
+                let buffers = [BindingKind::UniformBuffer, BindingKind::StorageBuffer { read_only: true }];
+                let views = [BindingKind::UniformTexelBuffer; 2];
+                let all: Vec<BindingKind> =
+                    buffers.into_iter().chain(views.into_iter().take(if texel { 2 } else { 0 })).collect();
                 e.insert(Kernel::new(
                     device,
-                    if half { &kernels::UNET_CONV_HALF } else { &kernels::UNET_CONV },
+                    module,
                     &KernelDecl {
-                        bindings: &[BindingKind::UniformBuffer, BindingKind::StorageBuffer { read_only: true }],
+                        bindings: &all,
                         push_constant_size: std::mem::size_of::<ConvPush>(),
                         specialization: &spec,
                     },
@@ -654,17 +700,38 @@ impl UNet {
             weights,
             arena: None,
             prefill: None,
+            texel,
         })
     }
 
     /// The kernel variant of layer `i`: its stride, activation (none for the
     /// last), output block, and fp16 input (not for the first) and output (not for the last).
-    fn conv_key(config: &UNetConfig, i: usize, half: bool) -> ConvKey {
+    fn conv_key(config: &UNetConfig, i: usize, half: bool, texel: bool) -> ConvKey {
         let l = layers(config);
         let (_, _, co, stride) = l[i];
         let last = i + 1 == l.len();
         let act = if last { 0 } else { config.activation.code() };
-        (stride, act, channel_block(co) as u32, half && i > 0, half && !last, pixel_block(co) as u32)
+        (stride, act, channel_block(co) as u32, half && i > 0, half && !last, pixel_block(co, texel) as u32, texel)
+    }
+
+    /// Whether conv layers read their inputs through texel-buffer views
+    /// (where each input fits `maxTexelBufferElements`) rather than by device
+    /// address. On by default where the device supports the formats.
+    pub fn texel_inputs(&self) -> bool {
+        self.texel
+    }
+
+    /// Chooses how conv layers read their inputs (see [`UNet::texel_inputs`]);
+    /// turning texel inputs on where the device lacks them is an error. The
+    /// two paths compute the same sums (benchmarks and tests compare them).
+    pub fn set_texel_inputs(&mut self, on: bool) -> Result<()> {
+        if on && !self.convs.keys().any(|k| k.6) {
+            return Err(Error::Unsupported(
+                "this device cannot read U-Net activations through uniform texel buffers".into(),
+            ));
+        }
+        self.texel = on;
+        Ok(())
     }
 
     /// The architecture.
@@ -778,9 +845,9 @@ impl UNet {
         let size = |l: usize| [s[l].0 as u32, s[l].1 as u32];
         let half = self.precision == StoragePrecision::Fp16;
         let convs = &self.convs;
-        let kernel = |i: usize| {
+        let kernel = |i: usize, texel: bool| {
             convs
-                .get(&Self::conv_key(&c, i, half))
+                .get(&Self::conv_key(&c, i, half, texel))
                 .ok_or_else(|| Error::InvalidArgument("missing U-Net kernel variant".into()))
         };
         let max_groups = self.device.info().max_workgroup_count;
@@ -790,27 +857,21 @@ impl UNet {
         let prefill = self.prefill;
         let wd = c.widths;
         // inc, the four downsamplings, the four up stages (resized ++ skip), outc.
-        let mut steps = vec![Step {
-            layer: 0,
-            a: input.device_address(),
-            ca: c.in_channels,
-            b: 0,
-            cb: 0,
-            lin: 0,
-            lout: 0,
-            out: at(layout.f[0]),
-        }];
+        let arena_src = |offset: u64| Src { offset, input: false, half };
+        let none = Src { offset: 0, input: true, half: false };
+        let mut steps =
+            vec![Step { layer: 0, a: none, ca: c.in_channels, b: none, cb: 0, lin: 0, lout: 0, out: at(layout.f[0]) }];
         for l in 1..5 {
-            let (a, ca, out) = (at(layout.f[l - 1]), wd[l - 1], at(layout.f[l]));
-            steps.push(Step { layer: l, a, ca, b: 0, cb: 0, lin: l - 1, lout: l, out });
+            let (a, ca, out) = (arena_src(layout.f[l - 1]), wd[l - 1], at(layout.f[l]));
+            steps.push(Step { layer: l, a, ca, b: none, cb: 0, lin: l - 1, lout: l, out });
         }
         for k in 0..4 {
             let level = 3 - k;
             steps.push(Step {
                 layer: 5 + k,
-                a: at(layout.resized),
+                a: arena_src(layout.resized),
                 ca: wd[level + 1],
-                b: at(layout.f[level]),
+                b: arena_src(layout.f[level]),
                 cb: wd[level],
                 lin: level,
                 lout: level,
@@ -818,7 +879,16 @@ impl UNet {
             });
         }
         let out = output.device_address();
-        steps.push(Step { layer: 9, a: at(layout.u[3]), ca: wd[0], b: 0, cb: 0, lin: 0, lout: 0, out });
+        steps.push(Step { layer: 9, a: arena_src(layout.u[3]), ca: wd[0], b: none, cb: 0, lin: 0, lout: 0, out });
+        let max_texels = self.device.info().max_texel_buffer_elements;
+        let texel = self.texel;
+        let address = |src: Src| if src.input { input.device_address() + src.offset } else { at(src.offset) };
+        let view = |src: Src, elements: usize| Texels {
+            buffer: if src.input { input } else { arena },
+            offset: src.offset,
+            elements: elements as u64,
+            format: if src.half { TexelFormat::R16Float } else { TexelFormat::R32Float },
+        };
         // What each up layer resizes first: (source address, channels, source level).
         let resize_from = [
             (at(layout.f[4]), wd[4], 4),
@@ -853,8 +923,11 @@ impl UNet {
                 }
                 let layer = &weights[li];
                 let ob = channel_block(co);
-                let k = kernel(li)?;
-                let groups = (s[lout].0.div_ceil(pixel_block(co)) * s[lout].1).div_ceil(64) as u32;
+                let in_plane = s[lin].0 * s[lin].1;
+                // Texel-buffer views where the device has them and both inputs fit one view.
+                let use_texel = texel && (ca.max(cb) * in_plane) as u64 <= max_texels;
+                let k = kernel(li, use_texel)?;
+                let groups = (s[lout].0.div_ceil(pixel_block(co, use_texel)) * s[lout].1).div_ceil(64) as u32;
                 let gz = groups.div_ceil(max_groups[0]);
                 let grid = [groups.div_ceil(gz), co.div_ceil(ob) as u32, gz];
                 if grid[1] > max_groups[1] || grid[2] > max_groups[2] {
@@ -867,8 +940,8 @@ impl UNet {
                 let last = layer.passes.len() - 1;
                 for (pass, ubo) in layer.passes.iter().enumerate() {
                     let push = ConvPush {
-                        a,
-                        b,
+                        a: address(a),
+                        b: if cb > 0 { address(b) } else { 0 },
                         o: out,
                         partial: at(layout.partial),
                         ca: ca as u32,
@@ -880,7 +953,19 @@ impl UNet {
                         in_size: size(lin),
                         out_size: size(lout),
                     };
-                    rec.dispatch(k, &[ubo, &layer.bias], &push, grid)?;
+                    if use_texel {
+                        // A layer without a skip binds A's view twice; the kernel never reads B then.
+                        let vb = if cb > 0 { view(b, cb * in_plane) } else { view(a, ca * in_plane) };
+                        let bound = [
+                            Binding::Buffer(ubo),
+                            Binding::Buffer(&layer.bias),
+                            Binding::Texels(view(a, ca * in_plane)),
+                            Binding::Texels(vb),
+                        ];
+                        rec.dispatch_bound(k, &bound, &push, grid)?;
+                    } else {
+                        rec.dispatch(k, &[ubo, &layer.bias], &push, grid)?;
+                    }
                 }
                 rec.end_stage();
             }

@@ -1,4 +1,5 @@
-// The body of unet_conv.comp and unet_conv_half.comp (see there).
+// The body of unet_conv.comp, unet_conv_half.comp, unet_conv_texel.comp and
+// unet_conv_texel_half.comp (see there).
 #define WORKGROUP_SIZE_X 64
 #include "common.glsl"
 #include "address.glsl"
@@ -7,16 +8,23 @@
 layout(constant_id = 0) const uint STRIDE = 1;
 // 0: none, 1: ReLU, 2: leaky ReLU (slope 0.01).
 layout(constant_id = 1) const uint ACT = 1;
-// Output channels per invocation: 8, 16 or 32.
+// Output channels per invocation: 4 or 8 (a multiple of 4).
 layout(constant_id = 2) const uint OCB = 8;
-// Output pixels per invocation along x: 1, 2 or 4. Each weight read from the
+// Output pixels per invocation along x: 1 to 8. Each weight read from the
 // uniform buffer feeds PX pixels and each input row segment is read once for
-// all of them (keep PX·OCB small: on lavapipe every accumulator is a register).
+// all of them (keep PX·OCB ≤ 48: on lavapipe every accumulator is a register
+// and more spill; see engine/src/indirect/mod.rs `pixel_block`).
 layout(constant_id = 3) const uint PX = 1;
 
 // Keep in sync with engine/src/indirect/mod.rs `CONV_UBO_VEC4S`.
 layout(std140, set = 0, binding = 0) uniform Weights { vec4 wts[4096]; };
 layout(std430, set = 0, binding = 1) readonly buffer Bias { vec4 bias[]; };
+#ifdef TEXEL_INPUT
+// The two inputs as texel-buffer views (fp32 or fp16 elements; the view's
+// format widens): lavapipe gathers texelFetch as one vector operation.
+layout(set = 0, binding = 2) uniform samplerBuffer input_a;
+layout(set = 0, binding = 3) uniform samplerBuffer input_b;
+#endif
 
 // Keep in sync with engine/src/indirect/mod.rs `ConvPush`.
 layout(push_constant) uniform Push {
@@ -44,8 +52,8 @@ void main() {
     int ox0 = int((p % blocks_x) * PX), oy = int(p / blocks_x);
     int ow = int(pc.out_size.x);
     const uint Q = OCB / 4u;
-    // acc[x * Q + q]: pixel ox0 + x, channels ob·OCB + 4q .. + 3 (PX·OCB ≤ 32).
-    vec4 acc[8];
+    // acc[x * Q + q]: pixel ox0 + x, channels ob·OCB + 4q .. + 3 (PX·OCB ≤ 64).
+    vec4 acc[16];
     for (uint x = 0u; x < PX; ++x) {
         // Pixels past the row's end (a partial block) compute a clamped copy and are not stored.
         uint px = uint(oy * ow + min(ox0 + int(x), ow - 1));
@@ -75,10 +83,22 @@ void main() {
         for (int ky = 0; ky < 3; ++ky) {
             int iy = oy * int(STRIDE) + ky - 1;
             bool row_in = iy >= 0 && iy < h;
-            float row[9];  // SPAN ≤ 9: PX ≤ 4, STRIDE ≤ 2
+            float row[17];  // SPAN ≤ 17: PX ≤ 8, STRIDE ≤ 2
             for (uint k = 0u; k < SPAN; ++k) {
                 int ix = ix0 + int(k);
+#ifdef TEXEL_INPUT
+                // Clamped so every fetch is in range; outside the image it is replaced by 0.
+                int at = int(base) + clamp(iy, 0, h - 1) * w + clamp(ix, 0, w - 1);
+                float v;
+                if (ic < pc.ca) {
+                    v = texelFetch(input_a, at).r;
+                } else {
+                    v = texelFetch(input_b, at).r;
+                }
+                row[k] = row_in && ix >= 0 && ix < w ? v : 0.0;
+#else
                 row[k] = row_in && ix >= 0 && ix < w ? load_input(src, base + uint(iy * w + ix)) : 0.0;
+#endif
             }
             for (int kx = 0; kx < 3; ++kx) {
                 uint t = wbase + uint(ky * 3 + kx) * Q;
