@@ -226,6 +226,10 @@ enum BenchKind {
         /// Repeats (medians reported).
         #[arg(long, default_value_t = 3)]
         repeats: usize,
+        /// How conv layers read their inputs, comma-separated: texel (texel-buffer views, the default
+        /// where the device has them) and/or address (device addresses, the fallback).
+        #[arg(long, default_value = "texel")]
+        inputs: String,
     },
     /// Deferred shading time per frame per image size; one-time environment prefilter cost per size.
     Shade {
@@ -545,7 +549,7 @@ fn run(cli: Cli) -> srug::Result<()> {
             );
             Ok(())
         }
-        Command::Bench { what: BenchKind::Unet { widths, sizes, repeats } } => {
+        Command::Bench { what: BenchKind::Unet { widths, sizes, repeats, inputs } } => {
             let w: Vec<usize> =
                 widths.split(',').map(|t| t.trim().parse::<usize>()).collect::<Result<_, _>>().map_err(|_| {
                     srug::Error::InvalidArgument(format!("--widths \"{widths}\" is not five comma-separated numbers"))
@@ -561,17 +565,31 @@ fn run(cli: Cli) -> srug::Result<()> {
                 info.name, info.driver
             );
             let bar = spinner("benchmarking");
-            let rows = srug::bench::unet::unet_bench(&device, w, &sizes, repeats, |m| bar.set_message(m.to_string()))?;
+            let texel: Vec<bool> = inputs
+                .split(',')
+                .map(|t| match t.trim() {
+                    "texel" => Ok(true),
+                    "address" => Ok(false),
+                    other => {
+                        Err(srug::Error::InvalidArgument(format!("--inputs: \"{other}\" is not texel or address")))
+                    }
+                })
+                .collect::<srug::Result<_>>()?;
+            let rows =
+                srug::bench::unet::unet_bench(&device, w, &sizes, &texel, repeats, |m| bar.set_message(m.to_string()))?;
             bar.finish_and_clear();
-            println!("| size | storage | ms (median) | ms (min) | GFLOP | GFLOP/s | % of FMA peak | arena MiB |");
-            println!("|---|---|---:|---:|---:|---:|---:|---:|");
+            println!(
+                "| size | storage | inputs | ms (median) | ms (min) | GFLOP | GFLOP/s | % of FMA peak | arena MiB |"
+            );
+            println!("|---|---|---|---:|---:|---:|---:|---:|---:|");
             for r in &rows {
                 let gflops = r.flops * 1e-9 / r.seconds;
                 println!(
-                    "| {}x{} | {} | {:.1} | {:.1} | {:.2} | {:.1} | {:.0}% | {:.1} |",
+                    "| {}x{} | {} | {} | {:.1} | {:.1} | {:.2} | {:.1} | {:.0}% | {:.1} |",
                     r.size.0,
                     r.size.1,
                     r.precision,
+                    r.inputs,
                     r.seconds * 1e3,
                     r.min_seconds * 1e3,
                     r.flops * 1e-9,
@@ -582,10 +600,11 @@ fn run(cli: Cli) -> srug::Result<()> {
             }
             for r in &rows {
                 println!(
-                    "\n{}x{} {} per layer: {}",
+                    "\n{}x{} {} {} inputs per layer: {}",
                     r.size.0,
                     r.size.1,
                     r.precision,
+                    r.inputs,
                     r.layers.iter().map(|(n, s)| format!("{n} {:.1} ms", s * 1e3)).collect::<Vec<_>>().join(", ")
                 );
             }

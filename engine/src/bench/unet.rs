@@ -1,6 +1,7 @@
 //! `srug bench unet`: one inference of the indirect-light U-Net (random
-//! weights of the given widths, 14 input channels) per image size and storage
-//! precision, per-layer GPU times, and achieved GFLOP/s against the FMA peak
+//! weights of the given widths, 14 input channels) per image size, storage
+//! precision and input path (texel-buffer views or device addresses),
+//! per-layer GPU times, and achieved GFLOP/s against the FMA peak
 //! measured in the same run.
 
 use super::median;
@@ -15,6 +16,8 @@ pub struct UNetRow {
     pub size: (u32, u32),
     /// Storage precision label.
     pub precision: &'static str,
+    /// How conv layers read their inputs: "texel" or "address".
+    pub inputs: &'static str,
     /// Median seconds per inference.
     pub seconds: f64,
     /// Minimum seconds per inference.
@@ -32,6 +35,7 @@ pub fn unet_bench(
     device: &Device,
     widths: [usize; 5],
     sizes: &[(u32, u32)],
+    texel: &[bool],
     repeats: usize,
     progress: impl Fn(&str),
 ) -> Result<Vec<UNetRow>> {
@@ -42,9 +46,11 @@ pub fn unet_bench(
     }
     let mut rows = Vec::new();
     for &(w, h) in sizes {
-        for &precision in &precisions {
+        for (&precision, &texel) in precisions.iter().flat_map(|p| texel.iter().map(move |t| (p, t))) {
             let mut net = UNet::with_precision(device, &weights, precision)?;
-            progress(&format!("U-Net at {w}x{h}, {precision:?}"));
+            net.set_texel_inputs(texel)?;
+            let inputs = if texel { "texel" } else { "address" };
+            progress(&format!("U-Net at {w}x{h}, {precision:?}, {inputs} inputs"));
             let input = device.upload("u-net input", &vec![0.5f32; 14 * (w * h) as usize])?;
             net.infer(&input, w, h)?;
             let mut totals = Vec::new();
@@ -63,6 +69,7 @@ pub fn unet_bench(
             rows.push(UNetRow {
                 size: (w, h),
                 precision: if precision == StoragePrecision::Fp16 { "fp16" } else { "fp32" },
+                inputs,
                 seconds: median(totals),
                 min_seconds,
                 flops: weights.flops(w as usize, h as usize),

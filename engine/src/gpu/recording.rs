@@ -611,6 +611,18 @@ impl<'a> Recording<'a> {
         push: &P,
         count: u64,
     ) -> Result<()> {
+        let bound: Vec<Binding<'a>> = bindings.iter().map(|b| Binding::Buffer(b)).collect();
+        self.dispatch_1d_bound(kernel, &bound, push, count)
+    }
+
+    /// [`Recording::dispatch_1d`] with buffers and texel-buffer views.
+    pub fn dispatch_1d_bound<P: Pod>(
+        &mut self,
+        kernel: &'a Kernel,
+        bindings: &[Binding<'a>],
+        push: &P,
+        count: u64,
+    ) -> Result<()> {
         if kernel.workgroup_size[1] * kernel.workgroup_size[2] != 1 {
             return Err(Error::Kernel {
                 kernel: kernel.info.name,
@@ -624,7 +636,7 @@ impl<'a> Recording<'a> {
                     message: format!("{count} invocations exceed the dispatch limits"),
                 }
             })?;
-        self.dispatch(kernel, bindings, push, groups)
+        self.dispatch_bound(kernel, bindings, push, groups)
     }
 
     fn allocate_set(&mut self, layout: vk::DescriptorSetLayout, descriptors: u32) -> Result<vk::DescriptorSet> {

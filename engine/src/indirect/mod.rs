@@ -479,6 +479,7 @@ pub struct UNet {
     precision: StoragePrecision,
     convs: HashMap<ConvKey, Kernel>,
     upsample: Kernel,
+    upsample_texel: Option<Kernel>,
     pack: Kernel,
     weights: Vec<LayerBuffers>,
     arena: Option<Buffer>,
@@ -670,6 +671,19 @@ impl UNet {
             if half { &kernels::UNET_UPSAMPLE_HALF } else { &kernels::UNET_UPSAMPLE },
             &KernelDecl { bindings: &[], push_constant_size: std::mem::size_of::<UpsamplePush>(), specialization: &[] },
         )?;
+        let upsample_texel = if texel {
+            Some(Kernel::new(
+                device,
+                if half { &kernels::UNET_UPSAMPLE_TEXEL_HALF } else { &kernels::UNET_UPSAMPLE_TEXEL },
+                &KernelDecl {
+                    bindings: &[BindingKind::UniformTexelBuffer],
+                    push_constant_size: std::mem::size_of::<UpsamplePush>(),
+                    specialization: &[],
+                },
+            )?)
+        } else {
+            None
+        };
         let pack = Kernel::new(
             device,
             &kernels::UNET_PACK,
@@ -696,6 +710,7 @@ impl UNet {
             precision,
             convs,
             upsample,
+            upsample_texel,
             pack,
             weights,
             arena: None,
@@ -854,6 +869,7 @@ impl UNet {
         let names = layers(&c);
         let weights = &self.weights;
         let upsample = &self.upsample;
+        let upsample_texel = self.upsample_texel.as_ref().filter(|_| self.texel);
         let prefill = self.prefill;
         let wd = c.widths;
         // inc, the four downsamplings, the four up stages (resized ++ skip), outc.
@@ -891,10 +907,10 @@ impl UNet {
         };
         // What each up layer resizes first: (source address, channels, source level).
         let resize_from = [
-            (at(layout.f[4]), wd[4], 4),
-            (at(layout.u[0]), wd[3], 3),
-            (at(layout.u[1]), wd[2], 2),
-            (at(layout.u[2]), wd[1], 1),
+            (arena_src(layout.f[4]), wd[4], 4),
+            (arena_src(layout.u[0]), wd[3], 3),
+            (arena_src(layout.u[1]), wd[2], 2),
+            (arena_src(layout.u[2]), wd[1], 1),
         ];
         let timings = self.device.run(|rec| {
             rec.keep(&[input, arena, &output])?;
@@ -910,7 +926,7 @@ impl UNet {
                 if (5..9).contains(&li) {
                     let (src, ch, from) = resize_from[li - 5];
                     let push = UpsamplePush {
-                        src,
+                        src: address(src),
                         dst: at(layout.resized),
                         in_size: size(from),
                         out_size: size(lout),
@@ -918,7 +934,12 @@ impl UNet {
                         align_corners: u32::from(c.align_corners),
                     };
                     rec.begin_stage(&format!("{name} resize"));
-                    rec.dispatch_1d(upsample, &[], &push, (ch * s[lout].0 * s[lout].1) as u64)?;
+                    let count = (ch * s[lout].0 * s[lout].1) as u64;
+                    let elements = ch * s[from].0 * s[from].1;
+                    match upsample_texel.filter(|_| elements as u64 <= max_texels) {
+                        Some(k) => rec.dispatch_1d_bound(k, &[Binding::Texels(view(src, elements))], &push, count)?,
+                        None => rec.dispatch_1d(upsample, &[], &push, count)?,
+                    }
                     rec.end_stage();
                 }
                 let layer = &weights[li];

@@ -1,4 +1,5 @@
-// The body of unet_upsample.comp and unet_upsample_half.comp (see there).
+// The body of unet_upsample.comp, unet_upsample_half.comp, unet_upsample_texel.comp
+// and unet_upsample_texel_half.comp (see there).
 #define WORKGROUP_SIZE_X 64
 #include "common.glsl"
 #include "address.glsl"
@@ -13,6 +14,14 @@ layout(push_constant) uniform Push {
     uint channels;
     uint align_corners;
 } pc;
+
+#ifdef TEXEL_INPUT
+// The source as a texel-buffer view (R32F or R16F), gathered as one vector op on lavapipe.
+layout(set = 0, binding = 0) uniform samplerBuffer src;
+#define LOAD(i) texelFetch(src, int(i)).r
+#else
+#define LOAD(i) load_input(pc.src, i)
+#endif
 
 // Source coordinate and its two neighbours along one axis (PyTorch's rule).
 void source(uint d, uint n_in, uint n_out, out uint i0, out uint i1, out float t) {
@@ -37,8 +46,7 @@ void main() {
     source(p % pc.out_size.x, pc.in_size.x, pc.out_size.x, x0, x1, tx);
     source(p / pc.out_size.x, pc.in_size.y, pc.out_size.y, y0, y1, ty);
     uint base = c * pc.in_size.x * pc.in_size.y;
-    float top = mix(load_input(pc.src, base + y0 * pc.in_size.x + x0), load_input(pc.src, base + y0 * pc.in_size.x + x1), tx);
-    float bottom =
-        mix(load_input(pc.src, base + y1 * pc.in_size.x + x0), load_input(pc.src, base + y1 * pc.in_size.x + x1), tx);
+    float top = mix(LOAD(base + y0 * pc.in_size.x + x0), LOAD(base + y0 * pc.in_size.x + x1), tx);
+    float bottom = mix(LOAD(base + y1 * pc.in_size.x + x0), LOAD(base + y1 * pc.in_size.x + x1), tx);
     store_output(pc.dst, i, mix(top, bottom, ty));
 }
