@@ -76,6 +76,21 @@ void main() {
     int ix0 = ox0 * int(STRIDE) - 1;
     // Input channels per pass as packed (engine/src/indirect/mod.rs `pass_channels`).
     uint chunk = 16384u / (gl_NumWorkGroups.y * OCB * 9u);
+#ifdef TEXEL_INPUT
+    // Each tap's element offset within a channel plane (clamped into the
+    // image, so every fetch is in range) and whether it lies inside (else the
+    // tap reads the zero padding): the same for every input channel.
+    int tap_at[3][17];
+    bool tap_in[3][17];
+    for (int ky = 0; ky < 3; ++ky) {
+        int iy = oy * int(STRIDE) + ky - 1;
+        for (uint k = 0u; k < SPAN; ++k) {
+            int ix = ix0 + int(k);
+            tap_at[ky][k] = clamp(iy, 0, h - 1) * w + clamp(ix, 0, w - 1);
+            tap_in[ky][k] = iy >= 0 && iy < h && ix >= 0 && ix < w;
+        }
+    }
+#endif
     for (uint ic = pc.ic0; ic < pc.ic1; ++ic) {
         uvec2 src = ic < pc.ca ? pc.a : pc.b;
         uint base = (ic < pc.ca ? ic : ic - pc.ca) * in_plane;
@@ -87,15 +102,14 @@ void main() {
             for (uint k = 0u; k < SPAN; ++k) {
                 int ix = ix0 + int(k);
 #ifdef TEXEL_INPUT
-                // Clamped so every fetch is in range; outside the image it is replaced by 0.
-                int at = int(base) + clamp(iy, 0, h - 1) * w + clamp(ix, 0, w - 1);
+                int at = int(base) + tap_at[ky][k];
                 float v;
                 if (ic < pc.ca) {
                     v = texelFetch(input_a, at).r;
                 } else {
                     v = texelFetch(input_b, at).r;
                 }
-                row[k] = row_in && ix >= 0 && ix < w ? v : 0.0;
+                row[k] = tap_in[ky][k] ? v : 0.0;
 #else
                 row[k] = row_in && ix >= 0 && ix < w ? load_input(src, base + uint(iy * w + ix)) : 0.0;
 #endif
