@@ -387,47 +387,49 @@ pub struct UpsamplePush {
 const _: () = assert!(std::mem::size_of::<UpsamplePush>() == 40);
 
 /// Output channels per invocation of a layer (the `OCB` specialization
-/// constant of `unet_conv.comp`): 8, or 4 for layers narrower than 8.
-pub fn channel_block(out_channels: usize) -> usize {
-    if out_channels >= 8 {
-        8
+/// constant of `unet_conv.comp`), for inputs read through texel-buffer views
+/// (`texel`: 8, or 4 below 8 channels) or by device address (16, or 8 below 16).
+pub fn channel_block(out_channels: usize, texel: bool) -> usize {
+    let wide = if texel { 8 } else { 16 };
+    if out_channels >= wide {
+        wide
     } else {
-        4
+        wide / 2
     }
 }
 
 /// Output pixels per invocation along x (the `PX` specialization constant of
-/// `unet_conv.comp`, at most 8), for inputs read through texel-buffer views
-/// (`texel`) or by device address. With [`channel_block`] an invocation keeps
+/// `unet_conv.comp`, at most 8). With [`channel_block`] an invocation keeps
 /// PX·OCB fp32 accumulators; on lavapipe every one is a SIMD register, and
 /// past about 48 they spill. Measured at 352×96 (fastest of 3, default
 /// widths), texel inputs: 8 channels × 5 pixels 309 ms fp32 / 285 ms fp16;
 /// 8 × 6 282 ms fp32 but 1.36 s fp16 (spills); 8 × 4 319–395 ms; 16 × 3
 /// 322 ms; 16 × 2 362 ms; 32 × 1 521 ms; 64 accumulators (8 × 8, 16 × 4)
 /// 1.40–1.44 s. The 3-channel output layer: 4 × 8 8.6 ms, 8 × 4 23.5 ms.
-/// Device-address inputs (each load lane by lane on lavapipe) do best with
-/// 32 accumulators.
+/// Device-address inputs (each load lane by lane on lavapipe): 16 × 2 (8 × 4
+/// below 16 channels), measured earlier as 32 × 1 1.72 s, 8 × 4 1.44 s,
+/// 16 × 2 1.31 s.
 pub fn pixel_block(out_channels: usize, texel: bool) -> usize {
-    match (channel_block(out_channels), texel) {
+    match (channel_block(out_channels, texel), texel) {
         (8, true) => 5,
-        (8, false) => 4,
-        _ => 8,
+        (4, true) => 8,
+        (ob, _) => 32 / ob,
     }
 }
 
 /// Input channels per pass of a layer with `out_channels`: as many as fit
 /// one uniform buffer with every output block.
-pub fn pass_channels(out_channels: usize) -> usize {
-    let ob = channel_block(out_channels);
+pub fn pass_channels(out_channels: usize, texel: bool) -> usize {
+    let ob = channel_block(out_channels, texel);
     CONV_UBO_FLOATS / (out_channels.div_ceil(ob) * ob * 9)
 }
 
 /// Packs OIHW weights per pass of [`pass_channels`] input channels, each
 /// `[oc/B][ic − ic0][9][B]` (B = [`channel_block`]) in a zero-padded buffer of
 /// [`CONV_UBO_FLOATS`]; and the bias padded to a multiple of B.
-pub fn pack_conv(l: &ConvWeights) -> (Vec<Vec<f32>>, Vec<f32>) {
-    let ob = channel_block(l.out_channels);
-    let chunk = pass_channels(l.out_channels).max(1);
+pub fn pack_conv(l: &ConvWeights, texel: bool) -> (Vec<Vec<f32>>, Vec<f32>) {
+    let ob = channel_block(l.out_channels, texel);
+    let chunk = pass_channels(l.out_channels, texel).max(1);
     let passes = l.in_channels.div_ceil(chunk);
     let mut w = vec![vec![0.0f32; CONV_UBO_FLOATS]; passes];
     for o in 0..l.out_channels {
@@ -481,7 +483,8 @@ pub struct UNet {
     upsample: Kernel,
     upsample_texel: Option<Kernel>,
     pack: Kernel,
-    weights: Vec<LayerBuffers>,
+    /// Packed weights for device-address inputs, then for texel inputs (empty without them).
+    weights: [Vec<LayerBuffers>; 2],
     arena: Option<Buffer>,
     prefill: Option<u32>,
     texel: bool,
@@ -593,7 +596,7 @@ impl ArenaLayout {
             4 * layers(c)
                 .iter()
                 .zip(at_level)
-                .filter(|((_, ci, co, _), _)| *ci > pass_channels(*co).max(1))
+                .filter(|((_, ci, co, _), _)| *ci > pass_channels(*co, true).min(pass_channels(*co, false)).max(1))
                 .map(|((_, _, co, _), l)| *co as u64 * px(l))
                 .max()
                 .unwrap_or(0),
@@ -689,21 +692,25 @@ impl UNet {
             &kernels::UNET_PACK,
             &KernelDecl { bindings: &[], push_constant_size: std::mem::size_of::<PackPush>(), specialization: &[] },
         )?;
-        let weights = weights
-            .layers
-            .iter()
-            .zip(&expected)
-            .map(|(l, (name, ..))| {
-                let (passes, b) = pack_conv(l);
-                let passes = passes
-                    .iter()
-                    .enumerate()
-                    .map(|(k, w)| device.upload(&format!("{name} weights {k}"), w))
-                    .collect::<Result<_>>()?;
-                let bias = device.upload(&format!("{name} bias"), &b)?;
-                Ok(LayerBuffers { passes, bias, chunk: pass_channels(l.out_channels).max(1) })
-            })
-            .collect::<Result<_>>()?;
+        // Packed per input path (their channel blocks differ); none for texel where the device lacks it.
+        let pack_layers = |texel: bool| -> Result<Vec<LayerBuffers>> {
+            weights
+                .layers
+                .iter()
+                .zip(&expected)
+                .map(|(l, (name, ..))| {
+                    let (passes, b) = pack_conv(l, texel);
+                    let passes = passes
+                        .iter()
+                        .enumerate()
+                        .map(|(k, w)| device.upload(&format!("{name} weights {k}"), w))
+                        .collect::<Result<_>>()?;
+                    let bias = device.upload(&format!("{name} bias"), &b)?;
+                    Ok(LayerBuffers { passes, bias, chunk: pass_channels(l.out_channels, texel).max(1) })
+                })
+                .collect()
+        };
+        let weights = [pack_layers(false)?, if texel { pack_layers(true)? } else { Vec::new() }];
         Ok(Self {
             device: device.clone(),
             config,
@@ -726,7 +733,15 @@ impl UNet {
         let (_, _, co, stride) = l[i];
         let last = i + 1 == l.len();
         let act = if last { 0 } else { config.activation.code() };
-        (stride, act, channel_block(co) as u32, half && i > 0, half && !last, pixel_block(co, texel) as u32, texel)
+        (
+            stride,
+            act,
+            channel_block(co, texel) as u32,
+            half && i > 0,
+            half && !last,
+            pixel_block(co, texel) as u32,
+            texel,
+        )
     }
 
     /// Whether conv layers read their inputs through texel-buffer views
@@ -778,7 +793,7 @@ impl UNet {
 
     /// GPU bytes of the packed weights.
     pub fn weight_bytes(&self) -> u64 {
-        self.weights.iter().map(|l| l.passes.iter().map(Buffer::size).sum::<u64>() + l.bias.size()).sum()
+        self.weights.iter().flatten().map(|l| l.passes.iter().map(Buffer::size).sum::<u64>() + l.bias.size()).sum()
     }
 
     /// Predicts L_ind (CHW, 3 × pixels) from the deferred buffers: packs the
@@ -918,7 +933,7 @@ impl UNet {
                 rec.fill(arena, word)?;
                 rec.fill(&output, word)?;
             }
-            for l in weights {
+            for l in weights.iter().flatten() {
                 rec.keep(&l.passes.iter().chain([&l.bias]).collect::<Vec<_>>())?;
             }
             for &Step { layer: li, a, ca, b, cb, lin, lout, out } in &steps {
@@ -942,12 +957,12 @@ impl UNet {
                     }
                     rec.end_stage();
                 }
-                let layer = &weights[li];
-                let ob = channel_block(co);
                 let in_plane = s[lin].0 * s[lin].1;
                 // Texel-buffer views where the device has them and both inputs fit one view.
                 let use_texel = texel && (ca.max(cb) * in_plane) as u64 <= max_texels;
                 let k = kernel(li, use_texel)?;
+                let layer = &weights[usize::from(use_texel)][li];
+                let ob = channel_block(co, use_texel);
                 let groups = (s[lout].0.div_ceil(pixel_block(co, use_texel)) * s[lout].1).div_ceil(64) as u32;
                 let gz = groups.div_ceil(max_groups[0]);
                 let grid = [groups.div_ceil(gz), co.div_ceil(ob) as u32, gz];
