@@ -12,7 +12,12 @@
 //!
 //! Kernels: `unet_conv.comp` (fused bias and activation, reading the two
 //! halves of a concatenation from separate tensors, so skips are never
-//! copied) and `unet_upsample.comp`. Tensors are CHW float32 (batch 1); every
+//! copied) and `unet_upsample.comp`. Both read their inputs through
+//! texel-buffer views of the arena where the device has them and a tensor
+//! fits `maxTexelBufferElements` (`*_texel.comp`: on lavapipe a `texelFetch`
+//! is one vector gather, a device-address load a loop over the lanes), else
+//! by device address; the two paths use different channel blocks, so the
+//! weights are packed once per path. Tensors are CHW float32 (batch 1); every
 //! activation of a pass lives in one arena buffer reused across frames while
 //! the size allows. Any input size works (stride-2 outputs are ceil(n/2)).
 //! [`cpu`] is the f64-accumulating twin.
