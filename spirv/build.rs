@@ -199,6 +199,12 @@ fn collect_decorations(module: &Module) -> Decorations {
     d
 }
 
+/// A variable's descriptor set (0 when undecorated) and binding (`None` when missing).
+fn set_and_binding(decorations: &Decorations, var: u32) -> Option<(u32, u32)> {
+    let first = |d: Decoration| decorations.on_id.get(&(var, d)).and_then(|v| v.first().copied());
+    Some((first(Decoration::DescriptorSet).unwrap_or(0), first(Decoration::Binding)?))
+}
+
 fn reflect(module: &Module) -> Result<Reflected, String> {
     let decorations = collect_decorations(module);
     let names: HashMap<u32, String> = module
@@ -262,16 +268,7 @@ fn reflect(module: &Module) -> Result<Reflected, String> {
             .ok_or("variable without pointer type")?;
         match class {
             StorageClass::StorageBuffer | StorageClass::Uniform => {
-                let set = decorations
-                    .on_id
-                    .get(&(var, Decoration::DescriptorSet))
-                    .and_then(|v| v.first().copied())
-                    .unwrap_or(0);
-                let binding = decorations
-                    .on_id
-                    .get(&(var, Decoration::Binding))
-                    .and_then(|v| v.first().copied())
-                    .ok_or("buffer variable without a binding")?;
+                let (set, binding) = set_and_binding(&decorations, var).ok_or("buffer variable without a binding")?;
                 let struct_id = strip_arrays(pointee, &defs);
                 let is_storage = *class == StorageClass::StorageBuffer
                     || decorations.on_id.contains_key(&(struct_id, Decoration::BufferBlock));
@@ -305,16 +302,7 @@ fn reflect(module: &Module) -> Result<Reflected, String> {
                 if !is_buffer {
                     return Err("only samplerBuffer is supported among opaque bindings".into());
                 }
-                let set = decorations
-                    .on_id
-                    .get(&(var, Decoration::DescriptorSet))
-                    .and_then(|v| v.first().copied())
-                    .unwrap_or(0);
-                let binding = decorations
-                    .on_id
-                    .get(&(var, Decoration::Binding))
-                    .and_then(|v| v.first().copied())
-                    .ok_or("samplerBuffer without a binding")?;
+                let (set, binding) = set_and_binding(&decorations, var).ok_or("samplerBuffer without a binding")?;
                 let name = names.get(&var).cloned().unwrap_or_default();
                 bindings.push(Binding { set, binding, kind: "BindingKind::UniformTexelBuffer", name });
             }
