@@ -66,29 +66,39 @@ fn check_sort(d: &Device, sort: &mut RadixSort, keys: &[[u32; 2]], bits: u32, la
 fn radix_sort_matches_std_sort() {
     let d = device();
     let mut sort = RadixSort::new(&d).unwrap();
+    assert!(sort.texel_inputs(), "lavapipe reads RG32UI/R32UI texel buffers, so that path is the default");
+    // Both input paths: texel-buffer views, then device addresses.
+    for texel in [true, false] {
+        sort.set_texel_inputs(texel).unwrap();
+        sort_cases(&d, &mut sort);
+    }
+    assert_no_validation_messages(&d);
+}
+
+fn sort_cases(d: &Device, sort: &mut RadixSort) {
+    let texel = sort.texel_inputs();
     let mut rng = Pcg64Mcg::seed_from_u64(2);
     let random =
         |rng: &mut Pcg64Mcg, n: usize| -> Vec<[u32; 2]> { (0..n).map(|_| [rng.random(), rng.random()]).collect() };
     for n in [0usize, 1, 2, 63, 64, 1023, 1024, 1025, 4097, 100_003] {
-        check_sort(&d, &mut sort, &random(&mut rng, n), 64, &format!("random n={n}"));
+        check_sort(d, sort, &random(&mut rng, n), 64, &format!("random n={n}, texel {texel}"));
     }
     // Only the bits in use: keys with junk above `bits` sort by the low bits alone, stably.
     for bits in [1u32, 13, 32, 42] {
-        check_sort(&d, &mut sort, &random(&mut rng, 30_001), bits, &format!("bits={bits}"));
+        check_sort(d, sort, &random(&mut rng, 30_001), bits, &format!("bits={bits}, texel {texel}"));
     }
     // Duplicates (stability), all-equal keys, already sorted, reversed.
     let dups: Vec<[u32; 2]> = (0..50_000).map(|_| [rng.random_range(0..7), rng.random_range(0..3)]).collect();
-    check_sort(&d, &mut sort, &dups, 64, "duplicates");
-    check_sort(&d, &mut sort, &vec![[0xdead_beef, 0x1234]; 20_000], 64, "all equal");
+    check_sort(d, sort, &dups, 64, &format!("duplicates, texel {texel}"));
+    check_sort(d, sort, &vec![[0xdead_beef, 0x1234]; 20_000], 64, &format!("all equal, texel {texel}"));
     let sorted: Vec<[u32; 2]> = (0..20_000u32).map(|i| [i * 3, i / 100]).collect();
-    check_sort(&d, &mut sort, &sorted, 40, "sorted");
+    check_sort(d, sort, &sorted, 40, &format!("sorted, texel {texel}"));
     let reversed: Vec<[u32; 2]> = sorted.iter().rev().copied().collect();
-    check_sort(&d, &mut sort, &reversed, 40, "reversed");
+    check_sort(d, sort, &reversed, 40, &format!("reversed, texel {texel}"));
     // Splat-like keys: tile id above positive float depth bits.
     let splat: Vec<[u32; 2]> =
         (0..60_000).map(|_| [rng.random_range(0.01f32..500.0).to_bits(), rng.random_range(0..1320)]).collect();
-    check_sort(&d, &mut sort, &splat, 32 + 11, "tile|depth keys");
-    assert_no_validation_messages(&d);
+    check_sort(d, sort, &splat, 32 + 11, &format!("tile|depth keys, texel {texel}"));
 }
 
 #[test]
@@ -98,6 +108,8 @@ fn radix_sort_more_than_16_million_keys() {
     let mut rng = Pcg64Mcg::seed_from_u64(3);
     let n = (1usize << 24) + 4_321;
     let keys: Vec<[u32; 2]> = (0..n).map(|_| [rng.random(), rng.random_range(0..256)]).collect();
-    check_sort(&d, &mut sort, &keys, 40, "16M+");
+    check_sort(&d, &mut sort, &keys, 40, "16M+ (texel views)");
+    sort.set_texel_inputs(false).unwrap();
+    check_sort(&d, &mut sort, &keys, 40, "16M+ (device addresses)");
     assert_no_validation_messages(&d);
 }

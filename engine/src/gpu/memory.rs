@@ -243,32 +243,39 @@ impl Device {
 }
 
 /// Element formats of texel-buffer views: what `texelFetch` on a
-/// `samplerBuffer` converts to float.
+/// `samplerBuffer` converts to float, or a `usamplerBuffer` returns as uints.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum TexelFormat {
     /// 32-bit float.
     R32Float,
     /// 16-bit float (widened to fp32 by the fetch; no 16-bit storage feature needed).
     R16Float,
+    /// 32-bit unsigned integer (`usamplerBuffer`).
+    R32Uint,
+    /// Two 32-bit unsigned integers (`usamplerBuffer`, `.xy`), e.g. a 64-bit key as (low, high).
+    Rg32Uint,
 }
 
 impl TexelFormat {
     /// Every format, in the order [`DeviceInfo::texel_formats`](super::DeviceInfo) lists them.
-    pub const ALL: [Self; 2] = [Self::R32Float, Self::R16Float];
+    pub const ALL: [Self; 4] = [Self::R32Float, Self::R16Float, Self::R32Uint, Self::Rg32Uint];
 
     /// The Vulkan format.
     pub fn vk(self) -> vk::Format {
         match self {
             Self::R32Float => vk::Format::R32_SFLOAT,
             Self::R16Float => vk::Format::R16_SFLOAT,
+            Self::R32Uint => vk::Format::R32_UINT,
+            Self::Rg32Uint => vk::Format::R32G32_UINT,
         }
     }
 
     /// Bytes per element.
     pub fn bytes(self) -> u64 {
         match self {
-            Self::R32Float => 4,
+            Self::R32Float | Self::R32Uint => 4,
             Self::R16Float => 2,
+            Self::Rg32Uint => 8,
         }
     }
 }

@@ -594,11 +594,23 @@ impl<'a> Recording<'a> {
         push: &P,
         groups: u64,
     ) -> Result<()> {
+        let bound: Vec<Binding<'a>> = bindings.iter().map(|b| Binding::Buffer(b)).collect();
+        self.dispatch_groups_bound(kernel, &bound, push, groups)
+    }
+
+    /// [`Recording::dispatch_groups`] with buffers and texel-buffer views.
+    pub fn dispatch_groups_bound<P: Pod>(
+        &mut self,
+        kernel: &'a Kernel,
+        bindings: &[Binding<'a>],
+        push: &P,
+        groups: u64,
+    ) -> Result<()> {
         let grid = grid_1d(groups, 1, self.device.shared.info.max_workgroup_count).ok_or_else(|| Error::Kernel {
             kernel: kernel.info.name,
             message: format!("{groups} workgroups exceed the dispatch limits"),
         })?;
-        self.dispatch(kernel, bindings, push, grid)
+        self.dispatch_bound(kernel, bindings, push, grid)
     }
 
     /// Dispatches enough workgroups for `count` invocations in x, laid out as a

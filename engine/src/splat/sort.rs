@@ -7,12 +7,18 @@
 //! kernels use no subgroup operations and no workgroup waits on another, so
 //! the sort is correct for any subgroup size (lavapipe's is 8) and needs no
 //! forward-progress guarantee. Keys are stored as `[low, high]` u32 pairs.
+//! Where the device has RG32UI/R32UI texel buffers and the keys fit one view,
+//! both kernels read keys and values through texel-buffer views
+//! (`sort_*_texel.comp`: one vector gather per load on lavapipe, where a
+//! device-address load is a loop over the lanes); outputs are written by address.
 
 use bytemuck::{Pod, Zeroable};
 
 use super::scan::Scan;
 use crate::error::{Error, Result};
-use crate::gpu::{kernels, Buffer, Device, Kernel, KernelDecl, MemoryKind, Recording};
+use crate::gpu::{
+    kernels, Binding, BindingKind, Buffer, Device, Kernel, KernelDecl, MemoryKind, Recording, TexelFormat, Texels,
+};
 
 /// Keys per workgroup (keep in sync with the sort kernels' `SORT_BLOCK`).
 pub const SORT_BLOCK: u64 = 1024;
@@ -49,6 +55,11 @@ const _: () = assert!(std::mem::size_of::<SortPush>() == 56);
 pub struct RadixSort {
     histogram: Kernel,
     scatter: Kernel,
+    /// Variants reading keys and values through texel-buffer views; `None`
+    /// where the device cannot view RG32UI/R32UI buffers.
+    texel: Option<(Kernel, Kernel)>,
+    use_texel: bool,
+    max_texels: u64,
     scan: Scan,
     keys_tmp: Option<Buffer>,
     values_tmp: Option<Buffer>,
@@ -61,9 +72,26 @@ impl RadixSort {
     pub fn new(device: &Device) -> Result<Self> {
         let decl =
             KernelDecl { bindings: &[], push_constant_size: std::mem::size_of::<SortPush>(), specialization: &[] };
+        let info = device.info();
+        let texel = if [TexelFormat::R32Uint, TexelFormat::Rg32Uint].iter().all(|f| info.texel_formats.contains(f)) {
+            let views = |n: usize| KernelDecl {
+                bindings: &[BindingKind::UniformTexelBuffer; 2][..n],
+                push_constant_size: std::mem::size_of::<SortPush>(),
+                specialization: &[],
+            };
+            Some((
+                Kernel::new(device, &kernels::SORT_HISTOGRAM_TEXEL, &views(1))?,
+                Kernel::new(device, &kernels::SORT_SCATTER_TEXEL, &views(2))?,
+            ))
+        } else {
+            None
+        };
         Ok(Self {
             histogram: Kernel::new(device, &kernels::SORT_HISTOGRAM, &decl)?,
             scatter: Kernel::new(device, &kernels::SORT_SCATTER, &decl)?,
+            use_texel: texel.is_some(),
+            texel,
+            max_texels: info.max_texel_buffer_elements,
             scan: Scan::new(device)?,
             keys_tmp: None,
             values_tmp: None,
@@ -86,6 +114,23 @@ impl RadixSort {
         self.hist = Some(device.create_buffer("sort histogram", RADIX * blocks * 4, MemoryKind::Storage)?);
         self.scan.reserve(device, RADIX * blocks)?;
         self.capacity = count;
+        Ok(())
+    }
+
+    /// Whether the kernels read keys and values through texel-buffer views
+    /// (where the keys fit `maxTexelBufferElements`) rather than by device
+    /// address. On by default where the device supports RG32UI/R32UI views.
+    pub fn texel_inputs(&self) -> bool {
+        self.texel.is_some() && self.use_texel
+    }
+
+    /// Chooses how the kernels read their inputs (see [`RadixSort::texel_inputs`]);
+    /// turning texel inputs on where the device lacks them is an error.
+    pub fn set_texel_inputs(&mut self, on: bool) -> Result<()> {
+        if on && self.texel.is_none() {
+            return Err(Error::Unsupported("this device cannot read sort keys through uniform texel buffers".into()));
+        }
+        self.use_texel = on;
         Ok(())
     }
 
@@ -127,23 +172,35 @@ impl RadixSort {
         rec.keep(&[keys, values, keys_tmp, values_tmp, hist])?;
         let blocks = count.div_ceil(SORT_BLOCK);
         let passes = bits.div_ceil(DIGIT_BITS);
-        let mut src = (keys.device_address(), values.device_address());
-        let mut dst = (keys_tmp.device_address(), values_tmp.device_address());
+        let mut src = (keys, values);
+        let mut dst = (keys_tmp, values_tmp);
+        // Texel-buffer views where the device has them and the keys fit one view.
+        let texel = self.texel.as_ref().filter(|_| self.use_texel && count <= self.max_texels);
         for pass in 0..passes {
             let push = SortPush {
-                keys_in: src.0,
-                values_in: src.1,
-                keys_out: dst.0,
-                values_out: dst.1,
+                keys_in: src.0.device_address(),
+                values_in: src.1.device_address(),
+                keys_out: dst.0.device_address(),
+                values_out: dst.1.device_address(),
                 hist: hist.device_address(),
                 count: count as u32,
                 shift: pass * DIGIT_BITS,
                 blocks: blocks as u32,
                 digit_mask: (1u32 << DIGIT_BITS.min(bits - pass * DIGIT_BITS)) - 1,
             };
-            rec.dispatch_groups(&self.histogram, &[], &push, blocks)?;
+            let view = |buffer: &'a Buffer, format: TexelFormat| {
+                Binding::Texels(Texels { buffer, offset: 0, elements: count, format })
+            };
+            let (key_view, value_view) = (view(src.0, TexelFormat::Rg32Uint), view(src.1, TexelFormat::R32Uint));
+            match texel {
+                Some((histogram, _)) => rec.dispatch_groups_bound(histogram, &[key_view], &push, blocks)?,
+                None => rec.dispatch_groups(&self.histogram, &[], &push, blocks)?,
+            }
             self.scan.record(rec, hist, RADIX * blocks)?;
-            rec.dispatch_groups(&self.scatter, &[], &push, blocks)?;
+            match texel {
+                Some((_, scatter)) => rec.dispatch_groups_bound(scatter, &[key_view, value_view], &push, blocks)?,
+                None => rec.dispatch_groups(&self.scatter, &[], &push, blocks)?,
+            }
             std::mem::swap(&mut src, &mut dst);
         }
         if passes % 2 == 1 {
