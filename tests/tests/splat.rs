@@ -154,6 +154,14 @@ fn every_tile_size_matches_cpu_twin_in_every_variant() {
             splatter.set_blend_variant(variant).unwrap();
             render_both(&d, &mut splatter, &city.scene, &cam, &settings, &format!("tile_{tile}_{variant:?}"));
         }
+        // The subgroup-load blend also without its texel-buffer reads (the default keeps them).
+        if d.info().subgroup_ballot {
+            assert!(splatter.texel_blend(), "lavapipe has RGBA32F texel buffers, so they are the default");
+            splatter.set_blend_variant(BlendVariant::SubgroupLoads).unwrap();
+            splatter.set_texel_blend(false).unwrap();
+            render_both(&d, &mut splatter, &city.scene, &cam, &settings, &format!("tile_{tile}_address_reads"));
+            splatter.set_texel_blend(true).unwrap();
+        }
         let (out, stats) = splatter.render(&gpu_scene, &cam, &settings).unwrap();
         by_tile.push((tile, out.read(&d).unwrap(), stats.pairs));
     }
@@ -201,9 +209,16 @@ fn demo_city_matches_cpu_twin_in_every_channel() {
     if d.info().subgroup_ballot {
         variants.push(BlendVariant::SubgroupLoads);
     }
-    for variant in variants {
+    // The subgroup-load blend both with texel-buffer reads (the default) and by device address.
+    let runs = variants.iter().flat_map(|&v| {
+        let texel = if v == BlendVariant::SubgroupLoads { vec![true, false] } else { vec![true] };
+        texel.into_iter().map(move |t| (v, t))
+    });
+    for (variant, texel) in runs {
         splatter.set_blend_variant(variant).unwrap();
-        let g = render_both(&d, &mut splatter, &city.scene, &cam, &all_settings(), &format!("demo_{variant:?}"));
+        splatter.set_texel_blend(texel).unwrap();
+        let label = format!("demo_{variant:?}_texel_{texel}");
+        let g = render_both(&d, &mut splatter, &city.scene, &cam, &all_settings(), &label);
         let covered = g.alpha.iter().filter(|a| **a > 0.5).count();
         assert!(covered * 10 > g.alpha.len() * 9, "the street should cover the view: {covered} of {}", g.alpha.len());
     }

@@ -254,11 +254,13 @@ pub enum TexelFormat {
     R32Uint,
     /// Two 32-bit unsigned integers (`usamplerBuffer`, `.xy`), e.g. a 64-bit key as (low, high).
     Rg32Uint,
+    /// Four 32-bit floats (`samplerBuffer`, a `vec4` per element).
+    Rgba32Float,
 }
 
 impl TexelFormat {
     /// Every format, in the order [`DeviceInfo::texel_formats`](super::DeviceInfo) lists them.
-    pub const ALL: [Self; 4] = [Self::R32Float, Self::R16Float, Self::R32Uint, Self::Rg32Uint];
+    pub const ALL: [Self; 5] = [Self::R32Float, Self::R16Float, Self::R32Uint, Self::Rg32Uint, Self::Rgba32Float];
 
     /// The Vulkan format.
     pub fn vk(self) -> vk::Format {
@@ -267,6 +269,7 @@ impl TexelFormat {
             Self::R16Float => vk::Format::R16_SFLOAT,
             Self::R32Uint => vk::Format::R32_UINT,
             Self::Rg32Uint => vk::Format::R32G32_UINT,
+            Self::Rgba32Float => vk::Format::R32G32B32A32_SFLOAT,
         }
     }
 
@@ -276,6 +279,7 @@ impl TexelFormat {
             Self::R32Float | Self::R32Uint => 4,
             Self::R16Float => 2,
             Self::Rg32Uint => 8,
+            Self::Rgba32Float => 16,
         }
     }
 }

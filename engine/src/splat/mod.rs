@@ -30,7 +30,10 @@ use bytemuck::{Pod, Zeroable};
 use self::scan::Scan;
 use self::sort::RadixSort;
 use crate::error::{Error, Result};
-use crate::gpu::{kernels, BindingKind, Buffer, Device, Kernel, KernelDecl, MemoryKind, SpecValue, Timings};
+use crate::gpu::{
+    kernels, Binding, BindingKind, Buffer, Device, Kernel, KernelDecl, MemoryKind, SpecValue, TexelFormat, Texels,
+    Timings,
+};
 use crate::scene::activate::GpuScene;
 use crate::scene::{Camera, Projection};
 
@@ -434,8 +437,9 @@ pub struct Splatter {
     preprocess: HashMap<(bool, u32), Kernel>,
     keys: Kernel,
     ranges: Kernel,
-    blend: HashMap<(u32, BlendVariant, u32), Kernel>,
+    blend: HashMap<(u32, BlendVariant, u32, bool), Kernel>,
     blend_variant: BlendVariant,
+    texel_blend: bool,
     scan: Scan,
     sort: RadixSort,
     backward: HashMap<(u32, u32), backward::BackwardKernels>,
@@ -490,10 +494,29 @@ impl Splatter {
             } else {
                 BlendVariant::PerPixel
             },
+            texel_blend: device.info().texel_formats.contains(&TexelFormat::Rgba32Float),
             scan: Scan::new(device)?,
             sort: RadixSort::new(device)?,
             backward: HashMap::new(),
         })
+    }
+
+    /// Whether the subgroup-load blend reads each contribution's colour and
+    /// features through texel-buffer views (where the splats fit
+    /// `maxTexelBufferElements`) rather than by device address. On by default
+    /// where the device has RGBA32F texel buffers; the image is the same.
+    pub fn texel_blend(&self) -> bool {
+        self.texel_blend
+    }
+
+    /// Chooses how the subgroup-load blend reads colour and features (see
+    /// [`Splatter::texel_blend`]); on where the device lacks the views is an error.
+    pub fn set_texel_blend(&mut self, on: bool) -> Result<()> {
+        if on && !self.device.info().texel_formats.contains(&TexelFormat::Rgba32Float) {
+            return Err(Error::Unsupported("this device cannot read splats through RGBA32F texel buffers".into()));
+        }
+        self.texel_blend = on;
+        Ok(())
     }
 
     /// The blend variant in use (subgroup loads where the device has subgroup
@@ -543,12 +566,18 @@ impl Splatter {
             let spec = [(0, SpecValue::Bool(features)), tile_spec(tile)[0]];
             e.insert(frame_kernel(&device, &kernels::SPLAT_PREPROCESS, &spec)?);
         }
-        let blend_key = (ch.bits(), self.blend_variant, tile);
+        let n = scene.count as u64;
+        let texel = self.texel_blend
+            && self.blend_variant == BlendVariant::SubgroupLoads
+            && n > 0
+            && 4 * n <= device.info().max_texel_buffer_elements;
+        let blend_key = (ch.bits(), self.blend_variant, tile, texel);
         if let std::collections::hash_map::Entry::Vacant(e) = self.blend.entry(blend_key) {
-            let info = match self.blend_variant {
-                BlendVariant::PerPixel => &kernels::SPLAT_BLEND_PORTABLE,
-                BlendVariant::SubgroupLoads => &kernels::SPLAT_BLEND,
-                BlendVariant::SharedBatches => &kernels::SPLAT_BLEND_BATCHED,
+            let info = match (self.blend_variant, texel) {
+                (BlendVariant::PerPixel, _) => &kernels::SPLAT_BLEND_PORTABLE,
+                (BlendVariant::SubgroupLoads, false) => &kernels::SPLAT_BLEND,
+                (BlendVariant::SubgroupLoads, true) => &kernels::SPLAT_BLEND_TEXEL,
+                (BlendVariant::SharedBatches, _) => &kernels::SPLAT_BLEND_BATCHED,
             };
             let mut spec = vec![(0, SpecValue::U32(ch.bits()))];
             spec.extend(tile_spec(tile));
@@ -556,10 +585,19 @@ impl Splatter {
                 // 36 bytes of shared memory per staged splat: at most 256 (9 KiB).
                 spec.push((1, SpecValue::U32((tile * tile).min(256))));
             }
-            e.insert(frame_kernel(&device, info, &spec)?);
+            e.insert(if texel {
+                let bindings =
+                    [BindingKind::UniformBuffer, BindingKind::UniformTexelBuffer, BindingKind::UniformTexelBuffer];
+                Kernel::new(
+                    &device,
+                    info,
+                    &KernelDecl { bindings: &bindings, push_constant_size: 0, specialization: &spec },
+                )?
+            } else {
+                frame_kernel(&device, info, &spec)?
+            });
         }
 
-        let n = scene.count as u64;
         if n >= u64::from(u32::MAX) {
             return Err(Error::InvalidArgument(format!("{n} Gaussians exceed the 2³² − 1 the kernels index")));
         }
@@ -698,7 +736,21 @@ impl Splatter {
                 rec.dispatch_1d(ranges_kernel, &[&uniform], &(), pairs)?;
             }
             rec.begin_stage("blend");
-            rec.dispatch_groups(blend, &[&uniform], &(), tiles)?;
+            if texel {
+                let view = |buffer, elements| {
+                    Binding::Texels(Texels { buffer, offset: 0, elements, format: TexelFormat::Rgba32Float })
+                };
+                // Without features the kernel never reads binding 2; the splats stand in.
+                let features = feature_buf.as_ref().map_or(view(&splats, 4 * n), |fb| view(fb, 3 * n));
+                rec.dispatch_groups_bound(
+                    blend,
+                    &[Binding::Buffer(&uniform), view(&splats, 4 * n), features],
+                    &(),
+                    tiles,
+                )?;
+            } else {
+                rec.dispatch_groups(blend, &[&uniform], &(), tiles)?;
+            }
             rec.end_stage();
             Ok(())
         })?;

@@ -9,6 +9,20 @@
 layout(constant_id = 0) const uint CHANNELS = 0;
 const bool FEATURES = (CHANNELS & 252u) != 0u;
 
+#ifdef TEXEL_SPLATS
+// Splats (4 RGBA32F texels each: head, conic, color, rect) and features (3
+// each) as texel-buffer views: a contribution's colour and features are read
+// by the contributing lanes only, and on lavapipe a texelFetch is one vector
+// gather where a device-address load is a loop over the lanes.
+layout(set = 0, binding = 1) uniform samplerBuffer splat_texels;
+layout(set = 0, binding = 2) uniform samplerBuffer feature_texels;
+#define SPLAT_COLOR(g) texelFetch(splat_texels, int(4u * (g) + 2u)).rgb
+#define FEATURE(i) texelFetch(feature_texels, int(i))
+#else
+#define SPLAT_COLOR(g) Splats(frame.scene5.zw).v[g].color.rgb
+#define FEATURE(i) Features(frame.work0.xy).v[i]
+#endif
+
 // What one pixel has accumulated so far.
 struct Accumulated {
     float T;
@@ -27,12 +41,11 @@ bool blend_one(inout Accumulated acc, uint g, vec4 head, vec4 conic, vec2 centre
     float next_T = acc.T * (1.0 - alpha);
     if (next_T < 1e-4) return false;
     float w = alpha * acc.T;
-    acc.rgb += w * Splats(frame.scene5.zw).v[g].color.rgb;
+    acc.rgb += w * SPLAT_COLOR(g);
     if ((CHANNELS & 1u) != 0u) acc.depth += w * head.z;
     if ((CHANNELS & 2u) != 0u && acc.T > 0.5 && next_T <= 0.5) acc.median = head.z;
     if (FEATURES) {
-        Features features = Features(frame.work0.xy);
-        vec4 f0 = features.v[3 * g], f1 = features.v[3 * g + 1], f2 = features.v[3 * g + 2];
+        vec4 f0 = FEATURE(3 * g), f1 = FEATURE(3 * g + 1), f2 = FEATURE(3 * g + 2);
         acc.normal += w * f0.xyz;
         acc.rough += w * f0.w;
         acc.albedo += w * f1.xyz;
