@@ -494,7 +494,9 @@ impl Splatter {
             } else {
                 BlendVariant::PerPixel
             },
-            texel_blend: device.info().texel_formats.contains(&TexelFormat::Rgba32Float),
+            texel_blend: [TexelFormat::Rgba32Float, TexelFormat::R32Uint]
+                .iter()
+                .all(|f| device.info().texel_formats.contains(f)),
             scan: Scan::new(device)?,
             sort: RadixSort::new(device)?,
             backward: HashMap::new(),
@@ -512,8 +514,11 @@ impl Splatter {
     /// Chooses how the subgroup-load blend reads colour and features (see
     /// [`Splatter::texel_blend`]); on where the device lacks the views is an error.
     pub fn set_texel_blend(&mut self, on: bool) -> Result<()> {
-        if on && !self.device.info().texel_formats.contains(&TexelFormat::Rgba32Float) {
-            return Err(Error::Unsupported("this device cannot read splats through RGBA32F texel buffers".into()));
+        let formats = [TexelFormat::Rgba32Float, TexelFormat::R32Uint];
+        if on && !formats.iter().all(|f| self.device.info().texel_formats.contains(f)) {
+            return Err(Error::Unsupported(
+                "this device cannot read splats through RGBA32F/R32UI texel buffers".into(),
+            ));
         }
         self.texel_blend = on;
         Ok(())
@@ -532,6 +537,40 @@ impl Splatter {
         }
         self.blend_variant = variant;
         Ok(())
+    }
+
+    /// The blend kernel for `bits` channels, `tile` and texel-buffer reads,
+    /// built on first use; returns its key in `self.blend`.
+    fn blend_kernel(&mut self, bits: u32, tile: u32, texel: bool) -> Result<(u32, BlendVariant, u32, bool)> {
+        let device = self.device.clone();
+        let blend_key = (bits, self.blend_variant, tile, texel);
+        if let std::collections::hash_map::Entry::Vacant(e) = self.blend.entry(blend_key) {
+            let info = match (self.blend_variant, texel) {
+                (BlendVariant::PerPixel, _) => &kernels::SPLAT_BLEND_PORTABLE,
+                (BlendVariant::SubgroupLoads, false) => &kernels::SPLAT_BLEND,
+                (BlendVariant::SubgroupLoads, true) => &kernels::SPLAT_BLEND_TEXEL,
+                (BlendVariant::SharedBatches, _) => &kernels::SPLAT_BLEND_BATCHED,
+            };
+            let mut spec = vec![(0, SpecValue::U32(bits))];
+            spec.extend(tile_spec(tile));
+            if self.blend_variant == BlendVariant::SharedBatches {
+                // 36 bytes of shared memory per staged splat: at most 256 (9 KiB).
+                spec.push((1, SpecValue::U32((tile * tile).min(256))));
+            }
+            e.insert(if texel {
+                // The frame; splats, features and sorted indices as texel-buffer views.
+                let mut bindings = vec![BindingKind::UniformBuffer];
+                bindings.extend([BindingKind::UniformTexelBuffer; 3]);
+                Kernel::new(
+                    &device,
+                    info,
+                    &KernelDecl { bindings: &bindings, push_constant_size: 0, specialization: &spec },
+                )?
+            } else {
+                frame_kernel(&device, info, &spec)?
+            });
+        }
+        Ok(blend_key)
     }
 
     /// Renders `scene` from `camera` into new G-buffers.
@@ -567,37 +606,6 @@ impl Splatter {
             e.insert(frame_kernel(&device, &kernels::SPLAT_PREPROCESS, &spec)?);
         }
         let n = scene.count as u64;
-        let texel = self.texel_blend
-            && self.blend_variant == BlendVariant::SubgroupLoads
-            && n > 0
-            && 4 * n <= device.info().max_texel_buffer_elements;
-        let blend_key = (ch.bits(), self.blend_variant, tile, texel);
-        if let std::collections::hash_map::Entry::Vacant(e) = self.blend.entry(blend_key) {
-            let info = match (self.blend_variant, texel) {
-                (BlendVariant::PerPixel, _) => &kernels::SPLAT_BLEND_PORTABLE,
-                (BlendVariant::SubgroupLoads, false) => &kernels::SPLAT_BLEND,
-                (BlendVariant::SubgroupLoads, true) => &kernels::SPLAT_BLEND_TEXEL,
-                (BlendVariant::SharedBatches, _) => &kernels::SPLAT_BLEND_BATCHED,
-            };
-            let mut spec = vec![(0, SpecValue::U32(ch.bits()))];
-            spec.extend(tile_spec(tile));
-            if self.blend_variant == BlendVariant::SharedBatches {
-                // 36 bytes of shared memory per staged splat: at most 256 (9 KiB).
-                spec.push((1, SpecValue::U32((tile * tile).min(256))));
-            }
-            e.insert(if texel {
-                let bindings =
-                    [BindingKind::UniformBuffer, BindingKind::UniformTexelBuffer, BindingKind::UniformTexelBuffer];
-                Kernel::new(
-                    &device,
-                    info,
-                    &KernelDecl { bindings: &bindings, push_constant_size: 0, specialization: &spec },
-                )?
-            } else {
-                frame_kernel(&device, info, &spec)?
-            });
-        }
-
         if n >= u64::from(u32::MAX) {
             return Err(Error::InvalidArgument(format!("{n} Gaussians exceed the 2³² − 1 the kernels index")));
         }
@@ -695,6 +703,14 @@ impl Splatter {
         frame.work[1] = [keys.device_address(), values.device_address()];
         device.write_buffer(&uniform, 0, bytemuck::bytes_of(&frame))?;
         let key_bits = 32 + (64 - (tiles.max(2) - 1).leading_zeros());
+        // Texel-buffer reads where the device has RGBA32F/R32UI views and the splats and pairs fit them.
+        let max_texels = device.info().max_texel_buffer_elements;
+        let texel = self.texel_blend
+            && self.blend_variant == BlendVariant::SubgroupLoads
+            && n > 0
+            && 4 * n <= max_texels
+            && pairs <= max_texels;
+        let blend_key = self.blend_kernel(ch.bits(), tile, texel)?;
         let (sort, keys_kernel, ranges_kernel, blend) = (&self.sort, &self.keys, &self.ranges, &self.blend[&blend_key]);
         let outputs: Vec<&Buffer> = [&out.rgb, &out.alpha]
             .into_iter()
@@ -744,7 +760,17 @@ impl Splatter {
                 let features = feature_buf.as_ref().map_or(view(&splats, 4 * n), |fb| view(fb, 3 * n));
                 rec.dispatch_groups_bound(
                     blend,
-                    &[Binding::Buffer(&uniform), view(&splats, 4 * n), features],
+                    &[
+                        Binding::Buffer(&uniform),
+                        view(&splats, 4 * n),
+                        features,
+                        Binding::Texels(Texels {
+                            buffer: &values,
+                            offset: 0,
+                            elements: pairs,
+                            format: TexelFormat::R32Uint,
+                        }),
+                    ],
                     &(),
                     tiles,
                 )?;

@@ -16,6 +16,8 @@ const bool FEATURES = (CHANNELS & 252u) != 0u;
 // gather where a device-address load is a loop over the lanes.
 layout(set = 0, binding = 1) uniform samplerBuffer splat_texels;
 layout(set = 0, binding = 2) uniform samplerBuffer feature_texels;
+// The sorted splat indices (R32UI), the tile's list.
+layout(set = 0, binding = 3) uniform usamplerBuffer value_texels;
 #define SPLAT_COLOR(g) texelFetch(splat_texels, int(4u * (g) + 2u)).rgb
 #define FEATURE(i) texelFetch(feature_texels, int(i))
 #else
@@ -114,7 +116,12 @@ void main() {
 #else
     if (!inside) return;
     for (uint j = range.x; j < range.y; j++) {
-#ifdef SUBGROUP_LOADS
+#if defined(TEXEL_SPLATS)
+        // Every lane fetches the same texels: one vector gather each, no election or broadcast.
+        uint g = texelFetch(value_texels, int(j)).x;
+        vec4 head = texelFetch(splat_texels, int(4u * g));
+        vec4 conic = texelFetch(splat_texels, int(4u * g + 1u));
+#elif defined(SUBGROUP_LOADS)
         // Every active lane reads the same splat: one elected lane loads, the
         // subgroup shares (any subgroup size; per-lane loads are slow on lavapipe).
         uint g = 0u;
