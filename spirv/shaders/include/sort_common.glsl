@@ -1,0 +1,51 @@
+// Shared by the radix sort kernels (sort_histogram_body.glsl,
+// sort_scatter_body.glsl): block layout, push constants, the digit, and how
+// keys (and, with SORT_VALUES, values) are read — through texel-buffer views
+// with TEXEL_INPUT, else by device address.
+#ifndef SRUG_SORT_COMMON_GLSL
+#define SRUG_SORT_COMMON_GLSL
+#extension GL_EXT_control_flow_attributes : require
+#define WORKGROUP_SIZE_X 64
+#include "common.glsl"
+#include "address.glsl"
+
+#define ITEMS 16
+#define SORT_BLOCK (WORKGROUP_SIZE_X * ITEMS)
+#define RADIX 16
+#define NONE 0xffffffffu
+
+// Keep in sync with engine/src/splat/sort.rs `SortPush`.
+layout(push_constant) uniform Push {
+    uvec2 keys_in;    // uvec2[count] (low, high)
+    uvec2 values_in;  // uint[count]
+    uvec2 keys_out;
+    uvec2 values_out;
+    uvec2 hist;       // uint[RADIX * blocks]
+    uint count;
+    uint shift;       // digit = (key >> shift) & digit_mask, over the 64-bit key
+    uint blocks;
+    uint digit_mask;  // 15, or fewer bits on the last pass
+} pc;
+
+shared uint table[RADIX][WORKGROUP_SIZE_X];
+
+#ifdef TEXEL_INPUT
+// Keys (RG32UI, binding 0) and values (R32UI, binding 1) as texel-buffer views:
+// one vector gather per fetch on lavapipe. Clamped: lanes past the end fetch
+// the last element (and discard it), never outside the view.
+layout(set = 0, binding = 0) uniform usamplerBuffer keys_view;
+#define KEY(i) texelFetch(keys_view, int(min(i, pc.count - 1u))).xy
+#ifdef SORT_VALUES
+layout(set = 0, binding = 1) uniform usamplerBuffer values_view;
+#define VALUE(i) texelFetch(values_view, int(min(i, pc.count - 1u))).x
+#endif
+#else
+#define KEY(i) Uvec2sIn(pc.keys_in).v[i]
+#define VALUE(i) UintsIn(pc.values_in).v[i]
+#endif
+
+uint digit_of(uvec2 key) {
+    return (pc.shift < 32 ? key.x >> pc.shift : key.y >> (pc.shift - 32)) & pc.digit_mask;
+}
+
+#endif
