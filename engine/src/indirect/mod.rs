@@ -411,6 +411,9 @@ pub fn channel_block(out_channels: usize, texel: bool) -> usize {
 /// 8 × 6 282 ms fp32 but 1.36 s fp16 (spills); 8 × 4 319–395 ms; 16 × 3
 /// 322 ms; 16 × 2 362 ms; 32 × 1 521 ms; 64 accumulators (8 × 8, 16 × 4)
 /// 1.40–1.44 s. The 3-channel output layer: 4 × 8 8.6 ms, 8 × 4 23.5 ms.
+/// Re-measured once the weights came through a texel view too (704×192,
+/// two alternating runs, median ms fp32 / fp16): PX 5 774–826 / 673–682,
+/// 4 812–1034 / 712–836, 3 861–935 / 810–1189, 6 904 / 6475 (fp16 spills).
 /// Device-address inputs (each load lane by lane on lavapipe): 16 × 2 (8 × 4
 /// below 16 channels), measured earlier as 32 × 1 1.72 s, 8 × 4 1.44 s,
 /// 16 × 2 1.31 s.
@@ -422,21 +425,36 @@ pub fn pixel_block(out_channels: usize, texel: bool) -> usize {
     }
 }
 
-/// Input channels per pass of a layer with `out_channels`: as many as fit
-/// one uniform buffer with every output block.
-pub fn pass_channels(out_channels: usize, texel: bool) -> usize {
+/// Input channels per pass of a layer. Texel-input kernels read the weights
+/// through one RGBA32F view, so a layer is one pass; device-address kernels
+/// read them from a uniform buffer and take as many channels per pass as fit
+/// one with every output block.
+pub fn pass_channels(in_channels: usize, out_channels: usize, texel: bool) -> usize {
+    if texel {
+        return in_channels.max(1);
+    }
     let ob = channel_block(out_channels, texel);
-    CONV_UBO_FLOATS / (out_channels.div_ceil(ob) * ob * 9)
+    (CONV_UBO_FLOATS / (out_channels.div_ceil(ob) * ob * 9)).max(1)
+}
+
+/// Floats of one layer's packed weights on the texel path (one pass: every
+/// input channel, output channels padded to the block).
+pub fn texel_weight_floats(in_channels: usize, out_channels: usize) -> usize {
+    let ob = channel_block(out_channels, true);
+    out_channels.div_ceil(ob) * ob * in_channels * 9
 }
 
 /// Packs OIHW weights per pass of [`pass_channels`] input channels, each
-/// `[oc/B][ic − ic0][9][B]` (B = [`channel_block`]) in a zero-padded buffer of
-/// [`CONV_UBO_FLOATS`]; and the bias padded to a multiple of B.
+/// `[oc/B][ic − ic0][9][B]` (B = [`channel_block`]): for device-address
+/// kernels in a zero-padded buffer of [`CONV_UBO_FLOATS`] per pass, for
+/// texel-input kernels in one buffer of [`texel_weight_floats`]; and the bias
+/// padded to a multiple of B.
 pub fn pack_conv(l: &ConvWeights, texel: bool) -> (Vec<Vec<f32>>, Vec<f32>) {
     let ob = channel_block(l.out_channels, texel);
-    let chunk = pass_channels(l.out_channels, texel).max(1);
+    let chunk = pass_channels(l.in_channels, l.out_channels, texel);
     let passes = l.in_channels.div_ceil(chunk);
-    let mut w = vec![vec![0.0f32; CONV_UBO_FLOATS]; passes];
+    let floats = if texel { texel_weight_floats(l.in_channels, l.out_channels) } else { CONV_UBO_FLOATS };
+    let mut w = vec![vec![0.0f32; floats]; passes];
     for o in 0..l.out_channels {
         for i in 0..l.in_channels {
             let (k, il) = (i / chunk, i % chunk);
@@ -529,7 +547,8 @@ impl StoragePrecision {
 /// in fp16, pixel block, inputs through texel-buffer views.
 type ConvKey = (u32, u32, u32, bool, bool, u32, bool);
 
-/// One layer's weights on the GPU: a uniform buffer per pass, the bias.
+/// One layer's weights on the GPU: a buffer per pass (a uniform buffer for
+/// device-address kernels, one RGBA32F texel view for texel kernels), the bias.
 struct LayerBuffers {
     passes: Vec<Buffer>,
     bias: Buffer,
@@ -601,7 +620,7 @@ impl ArenaLayout {
             4 * layers(c)
                 .iter()
                 .zip(at_level)
-                .filter(|((_, ci, co, _), _)| *ci > pass_channels(*co, true).min(pass_channels(*co, false)).max(1))
+                .filter(|((_, ci, co, _), _)| *ci > pass_channels(*ci, *co, false))
                 .map(|((_, _, co, _), l)| *co as u64 * px(l))
                 .max()
                 .unwrap_or(0),
@@ -634,7 +653,8 @@ impl UNet {
         let info = device.info();
         let texel_formats =
             if half { &[TexelFormat::R32Float, TexelFormat::R16Float][..] } else { &[TexelFormat::R32Float] };
-        let texel = texel_formats.iter().all(|f| info.texel_formats.contains(f));
+        let texel_formats = texel_formats.iter().chain([&TexelFormat::Rgba32Float]);
+        let texel = texel_formats.into_iter().all(|f| info.texel_formats.contains(f));
         let mut convs = HashMap::new();
         let variants = [false, texel];
         let keys = variants.iter().flat_map(|&t| (0..expected.len()).map(move |i| (i, t)));
@@ -659,10 +679,13 @@ impl UNet {
                     (true, false) => &kernels::UNET_CONV_TEXEL,
                     (true, true) => &kernels::UNET_CONV_TEXEL_HALF,
                 };
-                let buffers = [BindingKind::UniformBuffer, BindingKind::StorageBuffer { read_only: true }];
+                // Texel kernels: weights, bias, input A, input B; address kernels: weights, bias.
+                let weights = if texel { BindingKind::UniformTexelBuffer } else { BindingKind::UniformBuffer };
                 let views = [BindingKind::UniformTexelBuffer; 2];
-                let all: Vec<BindingKind> =
-                    buffers.into_iter().chain(views.into_iter().take(if texel { 2 } else { 0 })).collect();
+                let all: Vec<BindingKind> = [weights, BindingKind::StorageBuffer { read_only: true }]
+                    .into_iter()
+                    .chain(views.into_iter().take(if texel { 2 } else { 0 }))
+                    .collect();
                 e.insert(Kernel::new(
                     device,
                     module,
@@ -711,7 +734,7 @@ impl UNet {
                         .map(|(k, w)| device.upload(&format!("{name} weights {k}"), w))
                         .collect::<Result<_>>()?;
                     let bias = device.upload(&format!("{name} bias"), &b)?;
-                    Ok(LayerBuffers { passes, bias, chunk: pass_channels(l.out_channels, texel).max(1) })
+                    Ok(LayerBuffers { passes, bias, chunk: pass_channels(l.in_channels, l.out_channels, texel) })
                 })
                 .collect()
         };
@@ -963,8 +986,11 @@ impl UNet {
                     rec.end_stage();
                 }
                 let in_plane = s[lin].0 * s[lin].1;
-                // Texel-buffer views where the device has them and both inputs fit one view.
-                let use_texel = texel && (ca.max(cb) * in_plane) as u64 <= max_texels;
+                let cin = ca + cb;
+                // Texel-buffer views where the device has them and both inputs and the weights fit one view.
+                let weight_texels = texel_weight_floats(cin, co) / 4;
+                let use_texel =
+                    texel && (ca.max(cb) * in_plane) as u64 <= max_texels && weight_texels as u64 <= max_texels;
                 let k = kernel(li, use_texel)?;
                 let layer = &weights[usize::from(use_texel)][li];
                 let ob = channel_block(co, use_texel);
@@ -976,7 +1002,6 @@ impl UNet {
                         "{name}: {grid:?} workgroups exceed the device's limits"
                     )));
                 }
-                let cin = ca + cb;
                 rec.begin_stage(name);
                 let last = layer.passes.len() - 1;
                 for (pass, ubo) in layer.passes.iter().enumerate() {
@@ -997,8 +1022,14 @@ impl UNet {
                     if use_texel {
                         // A layer without a skip binds A's view twice; the kernel never reads B then.
                         let vb = if cb > 0 { view(b, cb * in_plane) } else { view(a, ca * in_plane) };
+                        let weights = Texels {
+                            buffer: ubo,
+                            offset: 0,
+                            elements: weight_texels as u64,
+                            format: TexelFormat::Rgba32Float,
+                        };
                         let bound = [
-                            Binding::Buffer(ubo),
+                            Binding::Texels(weights),
                             Binding::Buffer(&layer.bias),
                             Binding::Texels(view(a, ca * in_plane)),
                             Binding::Texels(vb),

@@ -16,8 +16,17 @@ layout(constant_id = 2) const uint OCB = 8;
 // and more spill; see engine/src/indirect/mod.rs `pixel_block`).
 layout(constant_id = 3) const uint PX = 1;
 
-// Keep in sync with engine/src/indirect/mod.rs `CONV_UBO_VEC4S`.
+#ifdef TEXEL_INPUT
+// The layer's weights, [oc/OCB][ic][9][OCB] as RGBA32F texels (every input
+// channel: one pass): a vec4 texelFetch costs lavapipe a quarter of a vec4
+// uniform-buffer load at an index it cannot prove uniform (32 scalar loads).
+layout(set = 0, binding = 0) uniform samplerBuffer weight_texels;
+#define WEIGHTS(i) texelFetch(weight_texels, int(i))
+#else
+// Keep in sync with engine/src/indirect/mod.rs `CONV_UBO_FLOATS`.
 layout(std140, set = 0, binding = 0) uniform Weights { vec4 wts[4096]; };
+#define WEIGHTS(i) wts[i]
+#endif
 layout(std430, set = 0, binding = 1) readonly buffer Bias { vec4 bias[]; };
 #ifdef TEXEL_INPUT
 // The two inputs as texel-buffer views (fp32 or fp16 elements; the view's
@@ -41,6 +50,29 @@ layout(push_constant) uniform Push {
     uvec2 in_size;  // width, height
     uvec2 out_size;
 } pc;
+
+// Adds input channel `ic` (its 3 × SPAN taps read by TAP, an expression of
+// ky, k, iy, ix, row_in) times its weights to the accumulators.
+#define ACCUMULATE_CHANNEL(TAP)                                                    \
+    {                                                                              \
+        uint wbase = ((ob * chunk + (ic - pc.ic0)) * 9u) * Q;                      \
+        for (int ky = 0; ky < 3; ++ky) {                                           \
+            int iy = oy * int(STRIDE) + ky - 1;                                    \
+            bool row_in = iy >= 0 && iy < h;                                       \
+            float row[17]; /* SPAN ≤ 17: PX ≤ 8, STRIDE ≤ 2 */                     \
+            for (uint k = 0u; k < SPAN; ++k) {                                     \
+                int ix = ix0 + int(k);                                             \
+                row[k] = TAP;                                                      \
+            }                                                                      \
+            for (int kx = 0; kx < 3; ++kx) {                                       \
+                uint t = wbase + uint(ky * 3 + kx) * Q;                            \
+                for (uint q = 0u; q < Q; ++q) {                                    \
+                    vec4 wq = WEIGHTS(t + q);                                      \
+                    for (uint x = 0u; x < PX; ++x) acc[x * Q + q] += row[x * STRIDE + uint(kx)] * wq; \
+                }                                                                  \
+            }                                                                      \
+        }                                                                          \
+    }
 
 void main() {
     uint plane = pc.out_size.x * pc.out_size.y;
@@ -75,7 +107,11 @@ void main() {
     const uint SPAN = (PX - 1u) * STRIDE + 3u;
     int ix0 = ox0 * int(STRIDE) - 1;
     // Input channels per pass as packed (engine/src/indirect/mod.rs `pass_channels`).
+#ifdef TEXEL_INPUT
+    uint chunk = pc.ca + pc.cb;
+#else
     uint chunk = 16384u / (gl_NumWorkGroups.y * OCB * 9u);
+#endif
 #ifdef TEXEL_INPUT
     // Each tap's element offset within a channel plane (clamped into the
     // image, so every fetch is in range) and whether it lies inside (else the
@@ -91,38 +127,24 @@ void main() {
         }
     }
 #endif
+#ifdef TEXEL_INPUT
+    // Input channels of A, then of B: each loop reads one view (a branch
+    // between the two would make lavapipe fetch from both).
+    for (uint ic = pc.ic0; ic < min(pc.ic1, pc.ca); ++ic) {
+        uint base = ic * in_plane;
+        ACCUMULATE_CHANNEL(tap_in[ky][k] ? texelFetch(input_a, int(base) + tap_at[ky][k]).r : 0.0)
+    }
+    for (uint ic = max(pc.ic0, pc.ca); ic < pc.ic1; ++ic) {
+        uint base = (ic - pc.ca) * in_plane;
+        ACCUMULATE_CHANNEL(tap_in[ky][k] ? texelFetch(input_b, int(base) + tap_at[ky][k]).r : 0.0)
+    }
+#else
     for (uint ic = pc.ic0; ic < pc.ic1; ++ic) {
         uvec2 src = ic < pc.ca ? pc.a : pc.b;
         uint base = (ic < pc.ca ? ic : ic - pc.ca) * in_plane;
-        uint wbase = ((ob * chunk + (ic - pc.ic0)) * 9u) * Q;
-        for (int ky = 0; ky < 3; ++ky) {
-            int iy = oy * int(STRIDE) + ky - 1;
-            bool row_in = iy >= 0 && iy < h;
-            float row[17];  // SPAN ≤ 17: PX ≤ 8, STRIDE ≤ 2
-            for (uint k = 0u; k < SPAN; ++k) {
-                int ix = ix0 + int(k);
-#ifdef TEXEL_INPUT
-                int at = int(base) + tap_at[ky][k];
-                float v;
-                if (ic < pc.ca) {
-                    v = texelFetch(input_a, at).r;
-                } else {
-                    v = texelFetch(input_b, at).r;
-                }
-                row[k] = tap_in[ky][k] ? v : 0.0;
-#else
-                row[k] = row_in && ix >= 0 && ix < w ? load_input(src, base + uint(iy * w + ix)) : 0.0;
-#endif
-            }
-            for (int kx = 0; kx < 3; ++kx) {
-                uint t = wbase + uint(ky * 3 + kx) * Q;
-                for (uint q = 0u; q < Q; ++q) {
-                    vec4 wq = wts[t + q];
-                    for (uint x = 0u; x < PX; ++x) acc[x * Q + q] += row[x * STRIDE + uint(kx)] * wq;
-                }
-            }
-        }
+        ACCUMULATE_CHANNEL(row_in && ix >= 0 && ix < w ? load_input(src, base + uint(iy * w + ix)) : 0.0)
     }
+#endif
     if (!live) return;
     bool last = (pc.flags & 2u) != 0u;
     for (uint x = 0u; x < PX; ++x) {
