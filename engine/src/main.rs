@@ -226,8 +226,9 @@ enum BenchKind {
         /// Repeats (medians reported).
         #[arg(long, default_value_t = 3)]
         repeats: usize,
-        /// How conv layers read their inputs, comma-separated: texel (texel-buffer views, the default
-        /// where the device has them) and/or address (device addresses, the fallback).
+        /// How conv layers run, comma-separated: texel (direct convolution reading inputs through
+        /// texel-buffer views, the default where the device has them), address (device addresses,
+        /// the fallback), winograd (Winograd F(2×2,3×3) for the stride-1 layers, texel inputs).
         #[arg(long, default_value = "texel")]
         inputs: String,
     },
@@ -565,21 +566,23 @@ fn run(cli: Cli) -> srug::Result<()> {
                 info.name, info.driver
             );
             let bar = spinner("benchmarking");
-            let texel: Vec<bool> = inputs
+            use srug::bench::unet::ConvPath;
+            let paths: Vec<ConvPath> = inputs
                 .split(',')
-                .map(|t| match t.trim() {
-                    "texel" => Ok(true),
-                    "address" => Ok(false),
-                    other => {
-                        Err(srug::Error::InvalidArgument(format!("--inputs: \"{other}\" is not texel or address")))
-                    }
+                .map(|t| {
+                    [ConvPath::Texel, ConvPath::Address, ConvPath::Winograd]
+                        .into_iter()
+                        .find(|p| p.label() == t.trim())
+                        .ok_or_else(|| {
+                            srug::Error::InvalidArgument(format!("--inputs: \"{t}\" is not texel, address or winograd"))
+                        })
                 })
                 .collect::<srug::Result<_>>()?;
             let rows =
-                srug::bench::unet::unet_bench(&device, w, &sizes, &texel, repeats, |m| bar.set_message(m.to_string()))?;
+                srug::bench::unet::unet_bench(&device, w, &sizes, &paths, repeats, |m| bar.set_message(m.to_string()))?;
             bar.finish_and_clear();
             println!(
-                "| size | storage | inputs | ms (median) | ms (min) | GFLOP | GFLOP/s | % of FMA peak | arena MiB |"
+                "| size | storage | conv | ms (median) | ms (min) | GFLOP | GFLOP/s | % of FMA peak | arena MiB |"
             );
             println!("|---|---|---|---:|---:|---:|---:|---:|---:|");
             for r in &rows {
@@ -589,7 +592,7 @@ fn run(cli: Cli) -> srug::Result<()> {
                     r.size.0,
                     r.size.1,
                     r.precision,
-                    r.inputs,
+                    r.path.label(),
                     r.seconds * 1e3,
                     r.min_seconds * 1e3,
                     r.flops * 1e-9,
@@ -600,11 +603,11 @@ fn run(cli: Cli) -> srug::Result<()> {
             }
             for r in &rows {
                 println!(
-                    "\n{}x{} {} {} inputs per layer: {}",
+                    "\n{}x{} {} {} per layer: {}",
                     r.size.0,
                     r.size.1,
                     r.precision,
-                    r.inputs,
+                    r.path.label(),
                     r.layers.iter().map(|(n, s)| format!("{n} {:.1} ms", s * 1e3)).collect::<Vec<_>>().join(", ")
                 );
             }

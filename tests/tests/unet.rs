@@ -1,22 +1,27 @@
 //! The indirect-light U-Net against its CPU twin (f64 accumulation): random
 //! weights at odd and tiny sizes, widths 8 to 128, both align_corners
-//! conventions and every activation; zero weights; activations of 1e4; and
-//! the safetensors loader's errors. Outputs and the arena are pre-filled
+//! conventions and every activation, on every conv path (direct with texel or
+//! device-address inputs, Winograd); zero weights; activations of 1e4; the
+//! Winograd twin against direct convolution; and the safetensors loader's
+//! errors. Outputs and the arena are pre-filled
 //! with NaN, so a value no kernel wrote fails.
 
 #![allow(clippy::unwrap_used, clippy::expect_used, reason = "a failed unwrap is a failed test")]
 
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64Mcg;
+use srug::bench::unet::ConvPath;
 use srug::gpu::Device;
-use srug::indirect::cpu::{unet_cpu, unet_cpu_stored, Tensor};
+use srug::indirect::cpu::{conv3x3_cpu, unet_cpu, unet_cpu_stored, winograd_conv3x3_cpu, Tensor};
 use srug::indirect::{Activation, StoragePrecision, UNet, UNetConfig, UNetWeights};
 use srug_tests::{assert_no_validation_messages, device};
 
 const NAN: u32 = 0x7fc0_0000;
 
+const PATHS: [ConvPath; 3] = [ConvPath::Texel, ConvPath::Address, ConvPath::Winograd];
+
 fn run(d: &Device, weights: &UNetWeights, w: usize, h: usize, scale: f32, seed: u64) -> (Vec<f32>, Tensor) {
-    let (gpu, cpu, _) = run_with(d, weights, (w, h), scale, seed, StoragePrecision::Fp32, true);
+    let (gpu, cpu, _) = run_with(d, weights, (w, h), scale, seed, StoragePrecision::Fp32, ConvPath::Texel);
     (gpu, cpu)
 }
 
@@ -28,7 +33,7 @@ fn run_with(
     scale: f32,
     seed: u64,
     precision: StoragePrecision,
-    texel: bool,
+    path: ConvPath,
 ) -> (Vec<f32>, Tensor, Tensor) {
     let mut rng = Pcg64Mcg::seed_from_u64(seed);
     let c = weights.config.in_channels;
@@ -36,7 +41,8 @@ fn run_with(
     let buffer = d.upload("input", &input).unwrap();
     let mut net = UNet::with_precision(d, weights, precision).unwrap();
     net.set_prefill(Some(NAN));
-    net.set_texel_inputs(texel).unwrap();
+    net.set_texel_inputs(path != ConvPath::Address).unwrap();
+    net.set_winograd(path == ConvPath::Winograd).unwrap();
     let out = net.infer(&buffer, w as u32, h as u32).unwrap();
     let gpu: Vec<f32> = d.read_buffer(&out.output).unwrap();
     let x = Tensor::from_f32(c, w, h, &input);
@@ -59,19 +65,20 @@ fn unet_matches_twin_at_odd_and_tiny_sizes() {
         ([8, 8, 16, 16, 16], Activation::None, false, 2, 2),
         ([12, 20, 24, 40, 48], Activation::Relu, false, 17, 5),
     ];
-    // Both input paths: texel-buffer views (the default here) and device addresses.
-    for ((widths, activation, align_corners, w, h), texel) in cases.into_iter().flat_map(|c| [(c, true), (c, false)]) {
+    // Every conv path: texel-buffer views (the default here), device addresses, Winograd.
+    for ((widths, activation, align_corners, w, h), path) in cases.into_iter().flat_map(|c| PATHS.map(|p| (c, p))) {
         let config = UNetConfig { widths, activation, align_corners, ..UNetConfig::default() };
         let weights = UNetWeights::random(config, 3);
-        let (gpu, cpu, _) = run_with(&d, &weights, (w, h), 1.0, 7, StoragePrecision::Fp32, texel);
+        let (gpu, cpu, _) = run_with(&d, &weights, (w, h), 1.0, 7, StoragePrecision::Fp32, path);
         let err = max_abs(&gpu, &cpu);
         let peak = cpu.data.iter().fold(0.0f64, |m, v| m.max(v.abs()));
-        println!("widths {widths:?} {activation:?} align_corners {align_corners} at {w}x{h}, texel inputs {texel}: max |GPU − CPU| {err:.2e} (outputs up to {peak:.2})");
+        println!("widths {widths:?} {activation:?} align_corners {align_corners} at {w}x{h}, {path:?}: max |GPU − CPU| {err:.2e} (outputs up to {peak:.2})");
         assert!(err <= 1e-4, "fp32 U-Net differs from the twin by {err:e} (tolerance 1e-4)");
         assert!(peak > 1e-3, "the outputs are all ~0: the check would prove nothing");
     }
     let net = UNet::new(&d, &UNetWeights::random(UNetConfig::default(), 1)).unwrap();
     assert!(net.texel_inputs(), "lavapipe reads R32F texel buffers, so the texel path is the default");
+    assert!(!net.winograd(), "direct convolution is the default (faster or equal on lavapipe)");
     assert_no_validation_messages(&d);
 }
 
@@ -165,18 +172,18 @@ fn fp16_storage_matches_twin_within_its_precision() {
         ([8, 8, 16, 16, 16], Activation::None, false, 2, 2, 1.0),
         ([16, 16, 32, 32, 64], Activation::Relu, false, 13, 11, 1e4),
     ];
-    for ((widths, activation, align_corners, w, h, scale), texel) in
-        cases.into_iter().flat_map(|c| [(c, true), (c, false)])
+    for ((widths, activation, align_corners, w, h, scale), path) in
+        cases.into_iter().flat_map(|c| PATHS.map(|p| (c, p)))
     {
         let config = UNetConfig { widths, activation, align_corners, ..UNetConfig::default() };
         let weights = UNetWeights::random(config, 3);
-        let (gpu, exact, rounded) = run_with(&d, &weights, (w, h), scale, 7, StoragePrecision::Fp16, texel);
+        let (gpu, exact, rounded) = run_with(&d, &weights, (w, h), scale, 7, StoragePrecision::Fp16, path);
         let peak = exact.data.iter().fold(0.0f64, |m, v| m.max(v.abs()));
         let rel = max_abs(&gpu, &exact) / peak;
         // Against the twin that rounds what the kernels store: only fp32-vs-f64 arithmetic and
         // rounding ties remain (one fp16 step of the largest stored value, relative).
         let rel_rounded = max_abs(&gpu, &rounded) / peak;
-        println!("fp16 storage, widths {widths:?} at {w}x{h}, inputs ×{scale}, texel inputs {texel}: relative error {rel:.2e} (vs fp16-rounded twin {rel_rounded:.2e})");
+        println!("fp16 storage, widths {widths:?} at {w}x{h}, inputs ×{scale}, {path:?}: relative error {rel:.2e} (vs fp16-rounded twin {rel_rounded:.2e})");
         assert!(rel <= 1e-2, "fp16 storage: relative error {rel:e} > 1e-2");
         assert!(rel_rounded <= 2e-3, "fp16 storage vs the rounded twin: {rel_rounded:e} > 2e-3");
     }
@@ -187,4 +194,26 @@ fn fp16_storage_matches_twin_within_its_precision() {
     println!("arena at 704x192: fp32 {a32} bytes, fp16 {a16} bytes");
     assert!(a16 < a32 * 7 / 10);
     assert_no_validation_messages(&d);
+}
+
+#[test]
+fn winograd_twin_equals_direct_convolution() {
+    // The f64 Winograd transforms against plain 3×3 convolution: equal up to
+    // f64 rounding at even, odd and tiny sizes (partial tiles, all-padding patches).
+    let mut rng = Pcg64Mcg::seed_from_u64(11);
+    for (w, h, ci, co) in [(1usize, 1usize, 3usize, 2usize), (2, 2, 1, 1), (5, 3, 4, 5), (37, 23, 6, 7), (8, 6, 2, 3)] {
+        let weight: Vec<f32> = (0..co * ci * 9).map(|_| rng.random_range(-1.0..1.0f32)).collect();
+        let bias: Vec<f32> = (0..co).map(|_| rng.random_range(-1.0..1.0f32)).collect();
+        let layer = srug::indirect::ConvWeights { in_channels: ci, out_channels: co, weight, bias };
+        let input: Vec<f32> = (0..ci * w * h).map(|_| rng.random_range(-2.0..2.0f32)).collect();
+        let x = Tensor::from_f32(ci, w, h, &input);
+        for act in [Activation::None, Activation::Relu, Activation::LeakyRelu] {
+            let direct = conv3x3_cpu(&x, &layer, 1, act);
+            let wino = winograd_conv3x3_cpu(&x, &layer, act);
+            assert_eq!((wino.width, wino.height, wino.channels), (w, h, co));
+            let err = direct.data.iter().zip(&wino.data).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
+            let peak = direct.data.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+            assert!(peak > 0.1 && err <= 1e-12 * peak.max(1.0), "{w}x{h} {ci}->{co} {act:?}: {err:e} (peak {peak})");
+        }
+    }
 }

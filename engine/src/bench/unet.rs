@@ -1,6 +1,8 @@
 //! `srug bench unet`: one inference of the indirect-light U-Net (random
 //! weights of the given widths, 14 input channels) per image size, storage
-//! precision and input path (texel-buffer views or device addresses),
+//! precision and conv path (direct convolution reading inputs through
+//! texel-buffer views or by device address, or Winograd F(2×2, 3×3) for the
+//! stride-1 layers),
 //! per-layer GPU times, and achieved GFLOP/s against the FMA peak
 //! measured in the same run.
 
@@ -9,15 +11,37 @@ use crate::error::Result;
 use crate::gpu::Device;
 use crate::indirect::{StoragePrecision, UNet, UNetConfig, UNetWeights};
 
-/// One (size, precision) row.
+/// How the conv layers run.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ConvPath {
+    /// Direct convolution, inputs through texel-buffer views.
+    Texel,
+    /// Direct convolution, inputs by device address.
+    Address,
+    /// Winograd F(2×2, 3×3) for the stride-1 layers (texel inputs), direct for stride 2.
+    Winograd,
+}
+
+impl ConvPath {
+    /// The label in tables and on the command line.
+    pub fn label(self) -> &'static str {
+        match self {
+            Self::Texel => "texel",
+            Self::Address => "address",
+            Self::Winograd => "winograd",
+        }
+    }
+}
+
+/// One (size, precision, path) row.
 #[derive(Clone, Debug)]
 pub struct UNetRow {
     /// Image size.
     pub size: (u32, u32),
     /// Storage precision label.
     pub precision: &'static str,
-    /// How conv layers read their inputs: "texel" or "address".
-    pub inputs: &'static str,
+    /// How the conv layers ran.
+    pub path: ConvPath,
     /// Median seconds per inference.
     pub seconds: f64,
     /// Minimum seconds per inference.
@@ -35,7 +59,7 @@ pub fn unet_bench(
     device: &Device,
     widths: [usize; 5],
     sizes: &[(u32, u32)],
-    texel: &[bool],
+    paths: &[ConvPath],
     repeats: usize,
     progress: impl Fn(&str),
 ) -> Result<Vec<UNetRow>> {
@@ -46,11 +70,11 @@ pub fn unet_bench(
     }
     let mut rows = Vec::new();
     for &(w, h) in sizes {
-        for (&precision, &texel) in precisions.iter().flat_map(|p| texel.iter().map(move |t| (p, t))) {
+        for (&precision, &path) in precisions.iter().flat_map(|p| paths.iter().map(move |t| (p, t))) {
             let mut net = UNet::with_precision(device, &weights, precision)?;
-            net.set_texel_inputs(texel)?;
-            let inputs = if texel { "texel" } else { "address" };
-            progress(&format!("U-Net at {w}x{h}, {precision:?}, {inputs} inputs"));
+            net.set_texel_inputs(path != ConvPath::Address)?;
+            net.set_winograd(path == ConvPath::Winograd)?;
+            progress(&format!("U-Net at {w}x{h}, {precision:?}, {} convolution", path.label()));
             let input = device.upload("u-net input", &vec![0.5f32; 14 * (w * h) as usize])?;
             net.infer(&input, w, h)?;
             let mut totals = Vec::new();
@@ -69,7 +93,7 @@ pub fn unet_bench(
             rows.push(UNetRow {
                 size: (w, h),
                 precision: if precision == StoragePrecision::Fp16 { "fp16" } else { "fp32" },
-                inputs,
+                path,
                 seconds: median(totals),
                 min_seconds,
                 flops: weights.flops(w as usize, h as usize),

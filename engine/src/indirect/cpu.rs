@@ -81,6 +81,52 @@ pub fn conv3x3_cpu(x: &Tensor, l: &ConvWeights, stride: usize, act: Activation) 
     Tensor { channels: l.out_channels, width: ow, height: oh, data }
 }
 
+/// The stride-1 3×3 convolution of [`conv3x3_cpu`] computed by Winograd
+/// F(2×2, 3×3) ([`super::winograd`]'s transforms, in f64): equal to it up to
+/// rounding, so it checks the transforms the kernel uses.
+pub fn winograd_conv3x3_cpu(x: &Tensor, l: &ConvWeights, act: Activation) -> Tensor {
+    use super::winograd::{input_transform, output_transform, weight_transform};
+    assert_eq!(x.channels, l.in_channels, "conv input channels");
+    let (w, h) = (x.width, x.height);
+    let u: Vec<[f64; 16]> = (0..l.out_channels * l.in_channels)
+        .map(|oi| weight_transform(&std::array::from_fn(|t| f64::from(l.weight[oi * 9 + t]))))
+        .collect();
+    let mut data = vec![0.0; l.out_channels * w * h];
+    for ty in 0..h.div_ceil(2) {
+        for tx in 0..w.div_ceil(2) {
+            let v: Vec<[f64; 16]> = (0..l.in_channels)
+                .map(|i| {
+                    input_transform(&std::array::from_fn(|j| {
+                        let (iy, ix) = ((2 * ty + j / 4) as isize - 1, (2 * tx + j % 4) as isize - 1);
+                        let inside = iy >= 0 && iy < h as isize && ix >= 0 && ix < w as isize;
+                        if inside {
+                            x.at(i, ix as usize, iy as usize)
+                        } else {
+                            0.0
+                        }
+                    }))
+                })
+                .collect();
+            for o in 0..l.out_channels {
+                let mut m = [0.0; 16];
+                for (i, vi) in v.iter().enumerate() {
+                    let ui = &u[o * l.in_channels + i];
+                    for k in 0..16 {
+                        m[k] += ui[k] * vi[k];
+                    }
+                }
+                for (j, y) in output_transform(&m).iter().enumerate() {
+                    let (oy, ox) = (2 * ty + j / 2, 2 * tx + j % 2);
+                    if oy < h && ox < w {
+                        data[(o * h + oy) * w + ox] = activate(y + f64::from(l.bias[o]), act);
+                    }
+                }
+            }
+        }
+    }
+    Tensor { channels: l.out_channels, width: w, height: h, data }
+}
+
 /// PyTorch's bilinear source index rule along one axis.
 fn source(d: usize, n_in: usize, n_out: usize, align_corners: bool) -> (usize, usize, f64) {
     let s = if align_corners {

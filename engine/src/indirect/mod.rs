@@ -23,6 +23,7 @@
 //! [`cpu`] is the f64-accumulating twin.
 
 pub mod cpu;
+pub mod winograd;
 
 use std::collections::HashMap;
 use std::path::Path;
@@ -508,9 +509,14 @@ pub struct UNet {
     pack: Kernel,
     /// Packed weights for device-address inputs, then for texel inputs (empty without them).
     weights: [Vec<LayerBuffers>; 2],
+    /// Winograd kernels per (activation, fp16 output); empty without texel inputs.
+    winograd_kernels: HashMap<(u32, bool), Kernel>,
+    /// Transformed weights of the stride-1 layers (`None` for stride 2 or without texel inputs).
+    winograd_weights: Vec<Option<Buffer>>,
     arena: Option<Buffer>,
     prefill: Option<u32>,
     texel: bool,
+    winograd: bool,
 }
 
 /// How activations are stored between layers; arithmetic is fp32 either way.
@@ -738,6 +744,34 @@ impl UNet {
                 })
                 .collect()
         };
+        // Winograd F(2×2, 3×3) for the stride-1 layers, on the texel path only.
+        let mut winograd_kernels = HashMap::new();
+        let mut winograd_weights = Vec::new();
+        for (i, (name, _, _, stride)) in expected.iter().enumerate() {
+            if !texel || *stride != 1 {
+                winograd_weights.push(None);
+                continue;
+            }
+            let key = Self::winograd_key(&config, i, half);
+            if let std::collections::hash_map::Entry::Vacant(e) = winograd_kernels.entry(key) {
+                let mut spec = vec![(1, SpecValue::U32(key.0))];
+                if half {
+                    spec.push((11, SpecValue::Bool(key.1)));
+                }
+                let view = BindingKind::UniformTexelBuffer;
+                e.insert(Kernel::new(
+                    device,
+                    if half { &kernels::UNET_WINOGRAD_TEXEL_HALF } else { &kernels::UNET_WINOGRAD_TEXEL },
+                    &KernelDecl {
+                        bindings: &[view, BindingKind::StorageBuffer { read_only: true }, view, view],
+                        push_constant_size: std::mem::size_of::<ConvPush>(),
+                        specialization: &spec,
+                    },
+                )?);
+            }
+            let packed = winograd::pack_winograd(&weights.layers[i]);
+            winograd_weights.push(Some(device.upload(&format!("{name} winograd weights"), &packed)?));
+        }
         let weights = [pack_layers(false)?, if texel { pack_layers(true)? } else { Vec::new() }];
         Ok(Self {
             device: device.clone(),
@@ -748,10 +782,41 @@ impl UNet {
             upsample_texel,
             pack,
             weights,
+            winograd_kernels,
+            winograd_weights,
             arena: None,
             prefill: None,
             texel,
+            winograd: false,
         })
+    }
+
+    /// The Winograd kernel variant of layer `i`: activation (none for the
+    /// last) and fp16 output (not for the last).
+    fn winograd_key(config: &UNetConfig, i: usize, half: bool) -> (u32, bool) {
+        let last = i + 1 == layers(config).len();
+        (if last { 0 } else { config.activation.code() }, half && !last)
+    }
+
+    /// Whether the stride-1 layers run Winograd F(2×2, 3×3)
+    /// (`unet_winograd_texel.comp`) instead of direct convolution, where
+    /// their inputs go through texel-buffer views. Off by default: on
+    /// lavapipe it is slower (README, U-Net benchmark).
+    pub fn winograd(&self) -> bool {
+        self.winograd
+    }
+
+    /// Chooses Winograd or direct convolution for the stride-1 layers (see
+    /// [`UNet::winograd`]); turning it on without texel inputs on the device
+    /// is an error. Both compute the same sums up to rounding.
+    pub fn set_winograd(&mut self, on: bool) -> Result<()> {
+        if on && self.winograd_kernels.is_empty() {
+            return Err(Error::Unsupported(
+                "Winograd convolution needs texel-buffer inputs, which this device lacks".into(),
+            ));
+        }
+        self.winograd = on;
+        Ok(())
     }
 
     /// The kernel variant of layer `i`: its stride, activation (none for the
@@ -911,6 +976,10 @@ impl UNet {
         let max_groups = self.device.info().max_workgroup_count;
         let names = layers(&c);
         let weights = &self.weights;
+        let winograd = |i: usize| -> Option<(&Kernel, &Buffer)> {
+            let k = self.winograd_kernels.get(&Self::winograd_key(&c, i, half))?;
+            Some((k, self.winograd_weights.get(i)?.as_ref()?)).filter(|_| self.winograd)
+        };
         let upsample = &self.upsample;
         let upsample_texel = self.upsample_texel.as_ref().filter(|_| self.texel);
         let prefill = self.prefill;
@@ -964,6 +1033,7 @@ impl UNet {
             for l in weights.iter().flatten() {
                 rec.keep(&l.passes.iter().chain([&l.bias]).collect::<Vec<_>>())?;
             }
+            rec.keep(&self.winograd_weights.iter().flatten().collect::<Vec<_>>())?;
             for &Step { layer: li, a, ca, b, cb, lin, lout, out } in &steps {
                 let (name, _, co, _) = names[li];
                 if (5..9).contains(&li) {
@@ -991,8 +1061,49 @@ impl UNet {
                 let weight_texels = texel_weight_floats(cin, co) / 4;
                 let use_texel =
                     texel && (ca.max(cb) * in_plane) as u64 <= max_texels && weight_texels as u64 <= max_texels;
-                let k = kernel(li, use_texel)?;
                 let layer = &weights[usize::from(use_texel)][li];
+                if let Some((k, u)) = winograd(li).filter(|_| use_texel) {
+                    let texels = winograd::winograd_weight_texels(cin, co);
+                    if texels as u64 <= max_texels {
+                        let tiles = s[lout].0.div_ceil(2) * s[lout].1.div_ceil(2);
+                        let groups = tiles.div_ceil(64) as u32;
+                        let gz = groups.div_ceil(max_groups[0]);
+                        let grid = [groups.div_ceil(gz), co.div_ceil(winograd::WINOGRAD_CHANNELS) as u32, gz];
+                        if grid[1] > max_groups[1] || grid[2] > max_groups[2] {
+                            return Err(Error::InvalidArgument(format!(
+                                "{name}: {grid:?} workgroups exceed the device's limits"
+                            )));
+                        }
+                        let push = ConvPush {
+                            a: 0,
+                            b: 0,
+                            o: out,
+                            partial: 0,
+                            ca: ca as u32,
+                            cb: cb as u32,
+                            oc: co as u32,
+                            ic0: 0,
+                            ic1: cin as u32,
+                            flags: 3,
+                            in_size: size(lin),
+                            out_size: size(lout),
+                        };
+                        let vb = if cb > 0 { view(b, cb * in_plane) } else { view(a, ca * in_plane) };
+                        let u =
+                            Texels { buffer: u, offset: 0, elements: texels as u64, format: TexelFormat::Rgba32Float };
+                        let bound = [
+                            Binding::Texels(u),
+                            Binding::Buffer(&layer.bias),
+                            Binding::Texels(view(a, ca * in_plane)),
+                            Binding::Texels(vb),
+                        ];
+                        rec.begin_stage(name);
+                        rec.dispatch_bound(k, &bound, &push, grid)?;
+                        rec.end_stage();
+                        continue;
+                    }
+                }
+                let k = kernel(li, use_texel)?;
                 let ob = channel_block(co, use_texel);
                 let groups = (s[lout].0.div_ceil(pixel_block(co, use_texel)) * s[lout].1).div_ceil(64) as u32;
                 let gz = groups.div_ceil(max_groups[0]);
