@@ -8,13 +8,17 @@
 //! (`unet_winograd_texel.comp`) keeps 16 accumulators per output channel where
 //! direct convolution keeps 4 per 2 × 2 pixels, so it trades multiplies for
 //! registers and transform additions; which path is faster depends on the
-//! device (measured by `srug bench unet --conv direct,winograd`). The
+//! device (measured by `srug bench unet --inputs texel,winograd`). The
 //! transforms' entries are 0, ±1 and ±½, so fp32 rounding adds little error
 //! (the tests hold both paths to the same tolerance).
 
 use super::ConvWeights;
 
-/// Output channels per invocation of the Winograd kernel (one RGBA32F weight texel).
+/// Output channels per invocation of the Winograd kernel (one RGBA32F weight
+/// texel), one 2 × 2 tile each. Two tiles per invocation sharing each weight
+/// fetch (128 accumulators) were measured on lavapipe at 704×192 (two runs,
+/// up4 layer): fp32 315–358 ms against 296–394 ms for one tile, fp16
+/// 1141–1204 ms against 254–275 ms (spills), so the kernel keeps one.
 pub const WINOGRAD_CHANNELS: usize = 4;
 
 /// U = G·g·Gᵀ of one 3 × 3 kernel `g` (row-major), row-major 4 × 4, with
