@@ -400,14 +400,22 @@ fn unet_runs_one_inference_between_safetensors_files() {
 #[test]
 fn bench_unet_prints_its_table() {
     let args = ["bench", "unet", "--widths", "8,8,16,16,32", "--sizes", "37x23", "--repeats", "1", "--validation"];
-    let o = srug(&[&args[..], &["--inputs", "texel,address"]].concat());
+    let o = srug(&[&args[..], &["--inputs", "texel,address,winograd"]].concat());
     let t = text(&o);
     assert!(o.status.success(), "{t}");
-    for want in ["| 37x23 | fp32 | texel |", "| 37x23 | fp32 | address |", "% of FMA peak", "inputs per layer: inc"] {
+    for want in [
+        "| 37x23 | fp32 | texel |",
+        "| 37x23 | fp32 | address |",
+        "| 37x23 | fp32 | winograd |",
+        "% of FMA peak",
+        "texel per layer: inc",
+        "winograd per layer: inc",
+    ] {
         assert!(t.contains(want), "missing {want:?} in:\n{t}");
     }
     let o = srug(&[&args[..], &["--inputs", "texels"]].concat());
-    assert!(!o.status.success() && text(&o).contains("\"texels\" is not texel or address"), "{}", text(&o));
+    let t = text(&o);
+    assert!(!o.status.success() && t.contains("\"texels\" is not texel, address or winograd"), "{t}");
 }
 
 #[test]
