@@ -801,7 +801,7 @@ impl UNet {
     /// Whether the stride-1 layers run Winograd F(2×2, 3×3)
     /// (`unet_winograd_texel.comp`) instead of direct convolution, where
     /// their inputs go through texel-buffer views. Off by default: on
-    /// lavapipe it is slower (README, U-Net benchmark).
+    /// lavapipe it is no faster than direct convolution (README, U-Net benchmark).
     pub fn winograd(&self) -> bool {
         self.winograd
     }
