@@ -509,10 +509,12 @@ pub struct UNet {
     pack: Kernel,
     /// Packed weights for device-address inputs, then for texel inputs (empty without them).
     weights: [Vec<LayerBuffers>; 2],
-    /// Winograd kernels per (activation, fp16 output); empty without texel inputs.
+    /// Winograd kernels per (activation, fp16 output); built when first chosen.
     winograd_kernels: HashMap<(u32, bool), Kernel>,
-    /// Transformed weights of the stride-1 layers (`None` for stride 2 or without texel inputs).
+    /// Transformed weights per layer (`None` for stride 2); empty until Winograd is first chosen.
     winograd_weights: Vec<Option<Buffer>>,
+    /// The weights as loaded, for the Winograd transform.
+    host_layers: Vec<ConvWeights>,
     arena: Option<Buffer>,
     prefill: Option<u32>,
     texel: bool,
@@ -744,34 +746,7 @@ impl UNet {
                 })
                 .collect()
         };
-        // Winograd F(2×2, 3×3) for the stride-1 layers, on the texel path only.
-        let mut winograd_kernels = HashMap::new();
-        let mut winograd_weights = Vec::new();
-        for (i, (name, _, _, stride)) in expected.iter().enumerate() {
-            if !texel || *stride != 1 {
-                winograd_weights.push(None);
-                continue;
-            }
-            let key = Self::winograd_key(&config, i, half);
-            if let std::collections::hash_map::Entry::Vacant(e) = winograd_kernels.entry(key) {
-                let mut spec = vec![(1, SpecValue::U32(key.0))];
-                if half {
-                    spec.push((11, SpecValue::Bool(key.1)));
-                }
-                let view = BindingKind::UniformTexelBuffer;
-                e.insert(Kernel::new(
-                    device,
-                    if half { &kernels::UNET_WINOGRAD_TEXEL_HALF } else { &kernels::UNET_WINOGRAD_TEXEL },
-                    &KernelDecl {
-                        bindings: &[view, BindingKind::StorageBuffer { read_only: true }, view, view],
-                        push_constant_size: std::mem::size_of::<ConvPush>(),
-                        specialization: &spec,
-                    },
-                )?);
-            }
-            let packed = winograd::pack_winograd(&weights.layers[i]);
-            winograd_weights.push(Some(device.upload(&format!("{name} winograd weights"), &packed)?));
-        }
+        let host_layers = weights.layers.clone();
         let weights = [pack_layers(false)?, if texel { pack_layers(true)? } else { Vec::new() }];
         Ok(Self {
             device: device.clone(),
@@ -782,8 +757,9 @@ impl UNet {
             upsample_texel,
             pack,
             weights,
-            winograd_kernels,
-            winograd_weights,
+            winograd_kernels: HashMap::new(),
+            winograd_weights: Vec::new(),
+            host_layers,
             arena: None,
             prefill: None,
             texel,
@@ -810,12 +786,50 @@ impl UNet {
     /// [`UNet::winograd`]); turning it on without texel inputs on the device
     /// is an error. Both compute the same sums up to rounding.
     pub fn set_winograd(&mut self, on: bool) -> Result<()> {
-        if on && self.winograd_kernels.is_empty() {
+        if on && !self.convs.keys().any(|k| k.6) {
             return Err(Error::Unsupported(
                 "Winograd convolution needs texel-buffer inputs, which this device lacks".into(),
             ));
         }
+        if on && self.winograd_weights.is_empty() {
+            self.build_winograd()?;
+        }
         self.winograd = on;
+        Ok(())
+    }
+
+    /// Builds the Winograd kernels and uploads the transformed weights of the stride-1 layers.
+    fn build_winograd(&mut self) -> Result<()> {
+        let half = self.precision == StoragePrecision::Fp16;
+        let mut built = HashMap::new();
+        let mut weights = Vec::new();
+        for (i, ((name, _, _, stride), l)) in layers(&self.config).iter().zip(&self.host_layers).enumerate() {
+            if *stride != 1 {
+                weights.push(None);
+                continue;
+            }
+            let key = Self::winograd_key(&self.config, i, half);
+            if let std::collections::hash_map::Entry::Vacant(e) = built.entry(key) {
+                let mut spec = vec![(1, SpecValue::U32(key.0))];
+                if half {
+                    spec.push((11, SpecValue::Bool(key.1)));
+                }
+                let view = BindingKind::UniformTexelBuffer;
+                e.insert(Kernel::new(
+                    &self.device,
+                    if half { &kernels::UNET_WINOGRAD_TEXEL_HALF } else { &kernels::UNET_WINOGRAD_TEXEL },
+                    &KernelDecl {
+                        bindings: &[view, BindingKind::StorageBuffer { read_only: true }, view, view],
+                        push_constant_size: std::mem::size_of::<ConvPush>(),
+                        specialization: &spec,
+                    },
+                )?);
+            }
+            let packed = winograd::pack_winograd(l);
+            weights.push(Some(self.device.upload(&format!("{name} winograd weights"), &packed)?));
+        }
+        self.winograd_kernels = built;
+        self.winograd_weights = weights;
         Ok(())
     }
 
@@ -1062,50 +1076,21 @@ impl UNet {
                 let use_texel =
                     texel && (ca.max(cb) * in_plane) as u64 <= max_texels && weight_texels as u64 <= max_texels;
                 let layer = &weights[usize::from(use_texel)][li];
-                if let Some((k, u)) = winograd(li).filter(|_| use_texel) {
-                    let texels = winograd::winograd_weight_texels(cin, co);
-                    if texels as u64 <= max_texels {
-                        let tiles = s[lout].0.div_ceil(2) * s[lout].1.div_ceil(2);
-                        let groups = tiles.div_ceil(64) as u32;
-                        let gz = groups.div_ceil(max_groups[0]);
-                        let grid = [groups.div_ceil(gz), co.div_ceil(winograd::WINOGRAD_CHANNELS) as u32, gz];
-                        if grid[1] > max_groups[1] || grid[2] > max_groups[2] {
-                            return Err(Error::InvalidArgument(format!(
-                                "{name}: {grid:?} workgroups exceed the device's limits"
-                            )));
-                        }
-                        let push = ConvPush {
-                            a: 0,
-                            b: 0,
-                            o: out,
-                            partial: 0,
-                            ca: ca as u32,
-                            cb: cb as u32,
-                            oc: co as u32,
-                            ic0: 0,
-                            ic1: cin as u32,
-                            flags: 3,
-                            in_size: size(lin),
-                            out_size: size(lout),
-                        };
-                        let vb = if cb > 0 { view(b, cb * in_plane) } else { view(a, ca * in_plane) };
-                        let u =
-                            Texels { buffer: u, offset: 0, elements: texels as u64, format: TexelFormat::Rgba32Float };
-                        let bound = [
-                            Binding::Texels(u),
-                            Binding::Buffer(&layer.bias),
-                            Binding::Texels(view(a, ca * in_plane)),
-                            Binding::Texels(vb),
-                        ];
-                        rec.begin_stage(name);
-                        rec.dispatch_bound(k, &bound, &push, grid)?;
-                        rec.end_stage();
-                        continue;
-                    }
-                }
-                let k = kernel(li, use_texel)?;
-                let ob = channel_block(co, use_texel);
-                let groups = (s[lout].0.div_ceil(pixel_block(co, use_texel)) * s[lout].1).div_ceil(64) as u32;
+                // Winograd (one 2 × 2 tile × 4 channels per invocation) where chosen and its weights fit a
+                // view, else direct convolution (a pixel block × channel block per invocation).
+                let wino = winograd(li)
+                    .filter(|_| use_texel)
+                    .map(|(k, u)| (k, u, winograd::winograd_weight_texels(cin, co)))
+                    .filter(|(.., texels)| *texels as u64 <= max_texels);
+                let (k, invocations, ob) = match wino {
+                    Some((k, ..)) => (k, s[lout].0.div_ceil(2) * s[lout].1.div_ceil(2), winograd::WINOGRAD_CHANNELS),
+                    None => (
+                        kernel(li, use_texel)?,
+                        s[lout].0.div_ceil(pixel_block(co, use_texel)) * s[lout].1,
+                        channel_block(co, use_texel),
+                    ),
+                };
+                let groups = invocations.div_ceil(64) as u32;
                 let gz = groups.div_ceil(max_groups[0]);
                 let grid = [groups.div_ceil(gz), co.div_ceil(ob) as u32, gz];
                 if grid[1] > max_groups[1] || grid[2] > max_groups[2] {
@@ -1133,12 +1118,10 @@ impl UNet {
                     if use_texel {
                         // A layer without a skip binds A's view twice; the kernel never reads B then.
                         let vb = if cb > 0 { view(b, cb * in_plane) } else { view(a, ca * in_plane) };
-                        let weights = Texels {
-                            buffer: ubo,
-                            offset: 0,
-                            elements: weight_texels as u64,
-                            format: TexelFormat::Rgba32Float,
-                        };
+                        // The texel path has one pass, so Winograd's weights replace it.
+                        let (buffer, elements) = wino.map_or((ubo, weight_texels), |(_, u, t)| (u, t));
+                        let weights =
+                            Texels { buffer, offset: 0, elements: elements as u64, format: TexelFormat::Rgba32Float };
                         let bound = [
                             Binding::Texels(weights),
                             Binding::Buffer(&layer.bias),
