@@ -1,7 +1,7 @@
 // Shared by the radix sort kernels (sort_histogram_body.glsl,
-// sort_scatter_body.glsl): block layout, push constants, the digit, and how
-// keys (and, with SORT_VALUES, values) are read — through texel-buffer views
-// with TEXEL_INPUT, else by device address.
+// sort_scatter_body.glsl): block layout, push constants, the digit, each
+// thread's digit counts, and how keys (and, with SORT_VALUES, values) are
+// read — through texel-buffer views with TEXEL_INPUT, else by device address.
 #ifndef SRUG_SORT_COMMON_GLSL
 #define SRUG_SORT_COMMON_GLSL
 #extension GL_EXT_control_flow_attributes : require
@@ -46,6 +46,15 @@ layout(set = 0, binding = 1) uniform usamplerBuffer values_view;
 
 uint digit_of(uvec2 key) {
     return (pc.shift < 32 ? key.x >> pc.shift : key.y >> (pc.shift - 32)) & pc.digit_mask;
+}
+
+// Thread t's count of its items per digit into table[digit][t] (NONE: no item).
+void store_digit_counts(uint dig[ITEMS], uint t) {
+    [[unroll]] for (uint d = 0; d < RADIX; d++) {
+        uint c = 0;
+        [[unroll]] for (uint i = 0; i < ITEMS; i++) c += dig[i] == d ? 1u : 0u;
+        table[d][t] = c;
+    }
 }
 
 #endif

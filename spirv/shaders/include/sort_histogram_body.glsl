@@ -9,11 +9,7 @@ void main() {
     [[unroll]] for (uint i = 0; i < ITEMS; i++) {
         dig[i] = base + i < pc.count ? digit_of(KEY(base + i)) : NONE;
     }
-    [[unroll]] for (uint d = 0; d < RADIX; d++) {
-        uint c = 0;
-        [[unroll]] for (uint i = 0; i < ITEMS; i++) c += dig[i] == d ? 1u : 0u;
-        table[d][t] = c;
-    }
+    store_digit_counts(dig, t);
     barrier();
     if (t < RADIX) {
         uint total = 0;

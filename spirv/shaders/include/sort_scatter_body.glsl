@@ -13,11 +13,7 @@ void main() {
         k[i] = valid ? KEY(base + i) : uvec2(0u);
         dig[i] = valid ? digit_of(k[i]) : NONE;
     }
-    [[unroll]] for (uint d = 0; d < RADIX; d++) {
-        uint c = 0;
-        [[unroll]] for (uint i = 0; i < ITEMS; i++) c += dig[i] == d ? 1u : 0u;
-        table[d][t] = c;
-    }
+    store_digit_counts(dig, t);
     barrier();
     // Exclusive scan of each digit's row across threads (one thread per digit).
     if (t < RADIX) {
