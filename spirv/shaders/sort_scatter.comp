@@ -1,9 +1,8 @@
 #version 460
-// Radix sort pass, step 3 (after the histogram scan): stable scatter.
-// Each thread owns ITEMS consecutive keys. Per-digit counts and each item's
-// rank among earlier equal digits come from fully unrolled compare-and-add
-// over the thread's own items (registers only: dynamically indexed private
-// arrays are slow on CPU implementations such as lavapipe); per-digit counts
-// are scanned across the workgroup's threads in shared memory, so equal
-// digits keep their order.
+// Radix sort pass, step 3 (after the histogram scan): stable scatter. Each
+// invocation walks its ITEMS consecutive keys in order and sends each to its
+// digit's next slot; the slots live in registers (fully unrolled selects,
+// since dynamically indexed private arrays are loops over the lanes on CPU
+// implementations such as lavapipe). Scanned digit-major, invocations in
+// order, so equal digits keep their order.
 #include "sort_scatter_body.glsl"

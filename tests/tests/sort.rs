@@ -24,8 +24,8 @@ fn exclusive_scan_matches_cpu() {
     let d = device();
     let mut scan = Scan::new(&d).unwrap();
     let mut rng = Pcg64Mcg::seed_from_u64(1);
-    // Three levels at 1024·1024 + 1; wrapping sums with large values.
-    for n in [1usize, 2, 1023, 1024, 1025, 5_000, 1_048_577] {
+    // One invocation (32 values), two levels, ..., five levels at 1024·1024 + 1; wrapping sums with large values.
+    for n in [1usize, 2, 31, 32, 33, 1023, 1024, 1025, 5_000, 1_048_577] {
         let values: Vec<u32> = (0..n).map(|_| rng.random_range(0..100)).collect();
         assert_eq!(gpu_scan(&d, &mut scan, &values), exclusive_scan_cpu(&values), "n = {n}");
     }

@@ -1,38 +1,43 @@
 //! Exclusive prefix sum of `u32` on the GPU (reduce-then-scan).
 //!
-//! Level one scans blocks of [`SCAN_BLOCK`] values in place and writes block
-//! totals; the totals are scanned the same way (recursively); level three adds
-//! each block's offset back. No workgroup waits on another, so no
-//! forward-progress guarantee is needed. Sums wrap modulo 2³² like `u32`.
+//! Every invocation owns [`SCAN_ITEMS`] consecutive values: `scan_reduce.comp`
+//! sums them, the sums are scanned the same way (recursively, until one
+//! invocation holds everything), and `scan_apply.comp` rewrites each run as
+//! its exclusive prefix from the run's scanned sum. Invocations work alone in
+//! registers: no shared memory (on CPU implementations such as lavapipe a
+//! shared-memory access indexed by lane is a loop over the lanes; the earlier
+//! shared-memory Hillis–Steele scan was 4× slower there), no subgroup
+//! operations, and no workgroup waits on another, so no forward-progress
+//! guarantee is needed. Sums wrap modulo 2³² like `u32`.
 
 use bytemuck::{Pod, Zeroable};
 
 use crate::error::Result;
 use crate::gpu::{kernels, Buffer, Device, Kernel, KernelDecl, MemoryKind, Recording};
 
-/// Values scanned per workgroup (keep in sync with `scan_blocks.comp`).
-pub const SCAN_BLOCK: u64 = 1024;
+/// Values per invocation (keep in sync with `scan_common.glsl`).
+pub const SCAN_ITEMS: u64 = 32;
 
-/// Push constants of `scan_blocks.comp` and `scan_add.comp` (keep in sync with their `Push` blocks).
+/// Push constants of `scan_reduce.comp` and `scan_apply.comp` (keep in sync with `scan_common.glsl`).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
 pub struct ScanPush {
     /// Address of the values, scanned in place.
     pub data: u64,
-    /// Address of the block totals.
+    /// Address of the per-invocation sums.
     pub sums: u64,
     /// Number of values.
     pub count: u32,
-    /// Whether to write block totals.
-    pub write_sums: u32,
+    /// `scan_apply.comp`: whether `sums` holds scanned offsets (else all start at 0).
+    pub has_sums: u32,
 }
 const _: () = assert!(std::mem::size_of::<ScanPush>() == 24);
 
 /// The scan kernels and their scratch memory.
 pub struct Scan {
-    blocks: Kernel,
-    add: Kernel,
-    /// Block totals for each level above the first.
+    reduce: Kernel,
+    apply: Kernel,
+    /// Per-invocation sums for each level above the first.
     levels: Vec<Buffer>,
     capacity: u64,
 }
@@ -45,8 +50,8 @@ impl Scan {
     /// Builds the kernels.
     pub fn new(device: &Device) -> Result<Self> {
         Ok(Self {
-            blocks: addressed(device, &kernels::SCAN_BLOCKS, std::mem::size_of::<ScanPush>())?,
-            add: addressed(device, &kernels::SCAN_ADD, std::mem::size_of::<ScanPush>())?,
+            reduce: addressed(device, &kernels::SCAN_REDUCE, std::mem::size_of::<ScanPush>())?,
+            apply: addressed(device, &kernels::SCAN_APPLY, std::mem::size_of::<ScanPush>())?,
             levels: Vec::new(),
             capacity: 0,
         })
@@ -59,8 +64,8 @@ impl Scan {
         }
         self.levels.clear();
         let mut n = count;
-        while n > SCAN_BLOCK {
-            n = n.div_ceil(SCAN_BLOCK);
+        while n > SCAN_ITEMS {
+            n = n.div_ceil(SCAN_ITEMS);
             self.levels.push(device.create_buffer(
                 &format!("scan level {}", self.levels.len() + 1),
                 n * 4,
@@ -95,23 +100,20 @@ impl Scan {
         if count == 0 {
             return Ok(());
         }
-        let blocks = count.div_ceil(SCAN_BLOCK);
-        let sums = self.levels.get(level).filter(|_| blocks > 1);
-        if let Some(s) = sums {
-            rec.keep(&[s])?;
-        }
+        let invocations = count.div_ceil(SCAN_ITEMS);
+        let sums = self.levels.get(level).filter(|_| invocations > 1);
         let push = ScanPush {
             data,
             sums: sums.map_or(0, Buffer::device_address),
             count: count as u32,
-            write_sums: u32::from(sums.is_some()),
+            has_sums: u32::from(sums.is_some()),
         };
-        rec.dispatch_groups(&self.blocks, &[], &push, blocks)?;
         if let Some(s) = sums {
-            self.record_level(rec, s.device_address(), blocks, level + 1)?;
-            rec.dispatch_1d(&self.add, &[], &push, count)?;
+            rec.keep(&[s])?;
+            rec.dispatch_1d(&self.reduce, &[], &push, invocations)?;
+            self.record_level(rec, s.device_address(), invocations, level + 1)?;
         }
-        Ok(())
+        rec.dispatch_1d(&self.apply, &[], &push, invocations)
     }
 }
 

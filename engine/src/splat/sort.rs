@@ -1,8 +1,12 @@
 //! Stable LSD radix sort of (64-bit key, u32 value) pairs on the GPU.
 //!
-//! Each pass sorts one 4-bit digit in three steps: a per-block histogram
-//! (`sort_histogram.comp`), an exclusive scan of the digit-major histogram
-//! ([`Scan`]), and a stable scatter (`sort_scatter.comp`). Only
+//! Each pass sorts one 4-bit digit in three steps: a histogram per invocation
+//! of its [`SORT_ITEMS`] consecutive keys (`sort_histogram.comp`), an
+//! exclusive scan of that digit-major histogram ([`Scan`]), and a stable
+//! scatter (`sort_scatter.comp`). Counts live in registers, never in shared
+//! memory: on CPU implementations (lavapipe) shared-memory accesses indexed
+//! by lane are loops over the lanes, and the earlier per-workgroup design
+//! spent about two thirds of its scatter time in them. Only
 //! `ceil(bits / 4)` passes run, so callers sort just the bits in use. The
 //! kernels use no subgroup operations and no workgroup waits on another, so
 //! the sort is correct for any subgroup size (lavapipe's is 8) and needs no
@@ -20,8 +24,12 @@ use crate::gpu::{
     kernels, Binding, BindingKind, Buffer, Device, Kernel, KernelDecl, MemoryKind, Recording, TexelFormat, Texels,
 };
 
+/// Keys per invocation (keep in sync with the sort kernels' `ITEMS`).
+pub const SORT_ITEMS: u64 = 64;
+/// Invocations per workgroup (keep in sync with the sort kernels' `WORKGROUP_SIZE_X`).
+const SORT_WORKGROUP: u64 = 64;
 /// Keys per workgroup (keep in sync with the sort kernels' `SORT_BLOCK`).
-pub const SORT_BLOCK: u64 = 1024;
+pub const SORT_BLOCK: u64 = SORT_ITEMS * SORT_WORKGROUP;
 /// Bits per pass (keep in sync with `RADIX` = 16).
 pub const DIGIT_BITS: u32 = 4;
 const RADIX: u64 = 16;
@@ -38,7 +46,7 @@ pub struct SortPush {
     pub keys_out: u64,
     /// Address of the output values.
     pub values_out: u64,
-    /// Address of the digit-major histogram.
+    /// Address of the digit-major histogram (one column per invocation).
     pub hist: u64,
     /// Number of pairs.
     pub count: u32,
@@ -111,8 +119,9 @@ impl RadixSort {
         let blocks = count.div_ceil(SORT_BLOCK);
         self.keys_tmp = Some(device.create_buffer("sort keys (ping-pong)", count * 8, MemoryKind::Storage)?);
         self.values_tmp = Some(device.create_buffer("sort values (ping-pong)", count * 4, MemoryKind::Storage)?);
-        self.hist = Some(device.create_buffer("sort histogram", RADIX * blocks * 4, MemoryKind::Storage)?);
-        self.scan.reserve(device, RADIX * blocks)?;
+        let columns = RADIX * blocks * SORT_WORKGROUP;
+        self.hist = Some(device.create_buffer("sort histogram", columns * 4, MemoryKind::Storage)?);
+        self.scan.reserve(device, columns)?;
         self.capacity = count;
         Ok(())
     }
@@ -196,7 +205,7 @@ impl RadixSort {
                 Some((histogram, _)) => rec.dispatch_groups_bound(histogram, &[key_view], &push, blocks)?,
                 None => rec.dispatch_groups(&self.histogram, &[], &push, blocks)?,
             }
-            self.scan.record(rec, hist, RADIX * blocks)?;
+            self.scan.record(rec, hist, RADIX * blocks * SORT_WORKGROUP)?;
             match texel {
                 Some((_, scatter)) => rec.dispatch_groups_bound(scatter, &[key_view, value_view], &push, blocks)?,
                 None => rec.dispatch_groups(&self.scatter, &[], &push, blocks)?,

@@ -1,7 +1,15 @@
 // Shared by the radix sort kernels (sort_histogram_body.glsl,
-// sort_scatter_body.glsl): block layout, push constants, the digit, each
-// thread's digit counts, and how keys (and, with SORT_VALUES, values) are
-// read — through texel-buffer views with TEXEL_INPUT, else by device address.
+// sort_scatter_body.glsl): block layout, push constants, the digit, and how
+// keys (and, with SORT_VALUES, values) are read — through texel-buffer views
+// with TEXEL_INPUT, else by device address.
+//
+// Every invocation owns ITEMS consecutive keys and keeps its own 16 digit
+// counts in registers (unrolled compare-and-add); the histogram is per
+// invocation, digit-major: hist[digit * invocations + invocation]. Nothing
+// crosses lanes or goes through shared memory: on CPU implementations such
+// as lavapipe every shared-memory or cross-lane access with a lane-dependent
+// index is a loop over the lanes (they were two thirds of the earlier
+// per-workgroup scatter).
 #ifndef SRUG_SORT_COMMON_GLSL
 #define SRUG_SORT_COMMON_GLSL
 #extension GL_EXT_control_flow_attributes : require
@@ -9,10 +17,9 @@
 #include "common.glsl"
 #include "address.glsl"
 
-#define ITEMS 16
+#define ITEMS 64
 #define SORT_BLOCK (WORKGROUP_SIZE_X * ITEMS)
 #define RADIX 16
-#define NONE 0xffffffffu
 
 // Keep in sync with engine/src/splat/sort.rs `SortPush`.
 layout(push_constant) uniform Push {
@@ -20,14 +27,12 @@ layout(push_constant) uniform Push {
     uvec2 values_in;  // uint[count]
     uvec2 keys_out;
     uvec2 values_out;
-    uvec2 hist;       // uint[RADIX * blocks]
+    uvec2 hist;       // uint[RADIX * blocks * WORKGROUP_SIZE_X]
     uint count;
     uint shift;       // digit = (key >> shift) & digit_mask, over the 64-bit key
     uint blocks;
     uint digit_mask;  // 15, or fewer bits on the last pass
 } pc;
-
-shared uint table[RADIX][WORKGROUP_SIZE_X];
 
 #ifdef TEXEL_INPUT
 // Keys (RG32UI, binding 0) and values (R32UI, binding 1) as texel-buffer views:
@@ -48,13 +53,12 @@ uint digit_of(uvec2 key) {
     return (pc.shift < 32 ? key.x >> pc.shift : key.y >> (pc.shift - 32)) & pc.digit_mask;
 }
 
-// Thread t's count of its items per digit into table[digit][t] (NONE: no item).
-void store_digit_counts(uint dig[ITEMS], uint t) {
-    [[unroll]] for (uint d = 0; d < RADIX; d++) {
-        uint c = 0;
-        [[unroll]] for (uint i = 0; i < ITEMS; i++) c += dig[i] == d ? 1u : 0u;
-        table[d][t] = c;
-    }
+// This invocation's index and its histogram column: hist[digit * invocations() + invocation].
+uint invocation() {
+    return block_index() * WORKGROUP_SIZE_X + gl_LocalInvocationID.x;
+}
+uint invocations() {
+    return pc.blocks * WORKGROUP_SIZE_X;
 }
 
 #endif

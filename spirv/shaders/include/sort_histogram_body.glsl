@@ -2,18 +2,14 @@
 #include "sort_common.glsl"
 
 void main() {
-    uint block = block_index();
-    uint t = gl_LocalInvocationID.x;
-    uint base = block * SORT_BLOCK + t * ITEMS;
-    uint dig[ITEMS];
-    [[unroll]] for (uint i = 0; i < ITEMS; i++) {
-        dig[i] = base + i < pc.count ? digit_of(KEY(base + i)) : NONE;
+    uint me = invocation();
+    uint counts[RADIX];
+    [[unroll]] for (uint d = 0; d < RADIX; d++) counts[d] = 0u;
+    uint end = min(me * ITEMS + ITEMS, pc.count);
+    for (uint i = me * ITEMS; i < end; i++) {
+        uint digit = digit_of(KEY(i));
+        [[unroll]] for (uint d = 0; d < RADIX; d++) counts[d] += digit == d ? 1u : 0u;
     }
-    store_digit_counts(dig, t);
-    barrier();
-    if (t < RADIX) {
-        uint total = 0;
-        for (uint j = 0; j < WORKGROUP_SIZE_X; j++) total += table[t][j];
-        Uints(pc.hist).v[t * pc.blocks + block] = total;
-    }
+    Uints hist = Uints(pc.hist);
+    [[unroll]] for (uint d = 0; d < RADIX; d++) hist.v[d * invocations() + me] = counts[d];
 }

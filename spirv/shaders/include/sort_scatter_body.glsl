@@ -3,35 +3,23 @@
 #include "sort_common.glsl"
 
 void main() {
-    uint block = block_index();
-    uint t = gl_LocalInvocationID.x;
-    uint base = block * SORT_BLOCK + t * ITEMS;
-    uvec2 k[ITEMS];
-    uint dig[ITEMS];
-    [[unroll]] for (uint i = 0; i < ITEMS; i++) {
-        bool valid = base + i < pc.count;
-        k[i] = valid ? KEY(base + i) : uvec2(0u);
-        dig[i] = valid ? digit_of(k[i]) : NONE;
-    }
-    store_digit_counts(dig, t);
-    barrier();
-    // Exclusive scan of each digit's row across threads (one thread per digit).
-    if (t < RADIX) {
-        uint running = Uints(pc.hist).v[t * pc.blocks + block];
-        for (uint j = 0; j < WORKGROUP_SIZE_X; j++) {
-            uint c = table[t][j];
-            table[t][j] = running;
-            running += c;
+    uint me = invocation();
+    // After the scan: where this invocation's first key of each digit goes.
+    uint next[RADIX];
+    Uints hist = Uints(pc.hist);
+    [[unroll]] for (uint d = 0; d < RADIX; d++) next[d] = hist.v[d * invocations() + me];
+    uint end = min(me * ITEMS + ITEMS, pc.count);
+    for (uint i = me * ITEMS; i < end; i++) {
+        uvec2 key = KEY(i);
+        uint digit = digit_of(key);
+        // next[digit] without a dynamic index (registers only), then advance it.
+        uint dst = 0u;
+        [[unroll]] for (uint d = 0; d < RADIX; d++) {
+            bool here = digit == d;
+            dst = here ? next[d] : dst;
+            next[d] += here ? 1u : 0u;
         }
-    }
-    barrier();
-    [[unroll]] for (uint i = 0; i < ITEMS; i++) {
-        if (dig[i] != NONE) {
-            uint earlier = 0;
-            [[unroll]] for (uint j = 0; j < i; j++) earlier += dig[j] == dig[i] ? 1u : 0u;
-            uint dst = table[dig[i]][t] + earlier;
-            Uvec2sOut(pc.keys_out).v[dst] = k[i];
-            UintsOut(pc.values_out).v[dst] = VALUE(base + i);
-        }
+        Uvec2sOut(pc.keys_out).v[dst] = key;
+        UintsOut(pc.values_out).v[dst] = VALUE(i);
     }
 }

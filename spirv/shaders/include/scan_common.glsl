@@ -1,0 +1,19 @@
+// Shared by scan_reduce.comp and scan_apply.comp: layout and push constants.
+#ifndef SRUG_SCAN_COMMON_GLSL
+#define SRUG_SCAN_COMMON_GLSL
+#define WORKGROUP_SIZE_X 64
+#include "common.glsl"
+#include "address.glsl"
+
+// Values per invocation. Keep in sync with engine/src/splat/scan.rs `SCAN_ITEMS`.
+#define SCAN_ITEMS 32
+
+// Keep in sync with engine/src/splat/scan.rs `ScanPush`.
+layout(push_constant) uniform Push {
+    uvec2 data;  // uint[count], scanned in place
+    uvec2 sums;  // uint[ceil(count / SCAN_ITEMS)], one per invocation
+    uint count;
+    uint has_sums;  // scan_apply.comp: whether `sums` holds scanned offsets
+} pc;
+
+#endif

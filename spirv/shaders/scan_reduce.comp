@@ -1,0 +1,19 @@
+#version 460
+// Exclusive prefix sum of uints, step 1: each invocation sums its SCAN_ITEMS
+// consecutive values into sums[invocation]. The sums are scanned the same way
+// (recursively) and scan_apply.comp writes the prefixes. Each invocation
+// works alone, in registers: no shared memory, no subgroup operations, no
+// workgroup waiting on another (on CPU implementations such as lavapipe,
+// shared-memory accesses indexed by lane are loops over the lanes).
+// CPU twin: engine/src/splat/scan.rs `exclusive_scan_cpu`.
+#include "scan_common.glsl"
+
+void main() {
+    uint me = linear_index();
+    uint end = min(me * SCAN_ITEMS + SCAN_ITEMS, pc.count);
+    if (me * SCAN_ITEMS >= end) return;
+    Uints data = Uints(pc.data);
+    uint total = 0u;
+    for (uint i = me * SCAN_ITEMS; i < end; i++) total += data.v[i];
+    Uints(pc.sums).v[me] = total;
+}
