@@ -34,6 +34,12 @@ pub const SORT_BLOCK: u64 = SORT_ITEMS * SORT_WORKGROUP;
 pub const DIGIT_BITS: u32 = 4;
 const RADIX: u64 = 16;
 
+/// Entries of the digit-major histogram for `count` keys: one column of
+/// `RADIX` counts per invocation of every block.
+fn histogram_len(count: u64) -> u64 {
+    RADIX * count.div_ceil(SORT_BLOCK) * SORT_WORKGROUP
+}
+
 /// Push constants of `sort_histogram.comp` and `sort_scatter.comp` (keep in sync with their `Push` blocks).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
@@ -116,12 +122,11 @@ impl RadixSort {
         if count > u64::from(u32::MAX) {
             return Err(Error::InvalidArgument(format!("cannot sort {count} pairs (at most 2³² − 1)")));
         }
-        let blocks = count.div_ceil(SORT_BLOCK);
         self.keys_tmp = Some(device.create_buffer("sort keys (ping-pong)", count * 8, MemoryKind::Storage)?);
         self.values_tmp = Some(device.create_buffer("sort values (ping-pong)", count * 4, MemoryKind::Storage)?);
-        let columns = RADIX * blocks * SORT_WORKGROUP;
-        self.hist = Some(device.create_buffer("sort histogram", columns * 4, MemoryKind::Storage)?);
-        self.scan.reserve(device, columns)?;
+        let entries = histogram_len(count);
+        self.hist = Some(device.create_buffer("sort histogram", entries * 4, MemoryKind::Storage)?);
+        self.scan.reserve(device, entries)?;
         self.capacity = count;
         Ok(())
     }
@@ -205,7 +210,7 @@ impl RadixSort {
                 Some((histogram, _)) => rec.dispatch_groups_bound(histogram, &[key_view], &push, blocks)?,
                 None => rec.dispatch_groups(&self.histogram, &[], &push, blocks)?,
             }
-            self.scan.record(rec, hist, RADIX * blocks * SORT_WORKGROUP)?;
+            self.scan.record(rec, hist, histogram_len(count))?;
             match texel {
                 Some((_, scatter)) => rec.dispatch_groups_bound(scatter, &[key_view, value_view], &push, blocks)?,
                 None => rec.dispatch_groups(&self.scatter, &[], &push, blocks)?,

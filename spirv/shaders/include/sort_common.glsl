@@ -17,6 +17,7 @@
 #include "common.glsl"
 #include "address.glsl"
 
+// Keys per invocation. Keep in sync with engine/src/splat/sort.rs `SORT_ITEMS`.
 #define ITEMS 64
 #define SORT_BLOCK (WORKGROUP_SIZE_X * ITEMS)
 #define RADIX 16
