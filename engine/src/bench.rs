@@ -108,22 +108,36 @@ fn median(mut v: Vec<f64>) -> f64 {
     v.get(v.len() / 2).copied().unwrap_or(f64::NAN)
 }
 
-/// Renders the demo city at each Gaussian count and size (with `blend`, or the
-/// device's default blend variant, and `tile`-pixel tiles); per-stage medians.
+/// How [`splat_bench`] renders.
+#[derive(Clone, Copy, Debug)]
+pub struct SplatBenchOptions {
+    /// Repeats per setting (medians are reported).
+    pub repeats: usize,
+    /// Blend variant (`None`: the device's default).
+    pub blend: Option<BlendVariant>,
+    /// Pixels per invocation of the texel-buffer blend (`None`: the default).
+    pub blend_pixels: Option<u32>,
+    /// Tile edge in pixels.
+    pub tile: u32,
+}
+
+/// Renders the demo city at each Gaussian count and size; per-stage medians.
 pub fn splat_bench(
     device: &Device,
     counts: &[usize],
     sizes: &[(u32, u32)],
-    repeats: usize,
-    blend: Option<BlendVariant>,
-    tile: u32,
+    options: &SplatBenchOptions,
     mut progress: impl FnMut(&str),
 ) -> Result<Vec<SplatBenchRow>> {
+    let SplatBenchOptions { repeats, blend, blend_pixels, tile } = *options;
     let settings = SplatSettings { tile, ..SplatSettings::default() };
     let mut rows = Vec::new();
     let mut splatter = Splatter::new(device)?;
     if let Some(variant) = blend {
         splatter.set_blend_variant(variant)?;
+    }
+    if let Some(pixels) = blend_pixels {
+        splatter.set_blend_pixels(pixels)?;
     }
     for &n in counts {
         progress(&format!("generating the demo city with {n} Gaussians"));

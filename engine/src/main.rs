@@ -214,6 +214,9 @@ enum BenchKind {
         /// Tile edge in pixels: 8, 16 or 32.
         #[arg(long, default_value_t = srug::splat::DEFAULT_TILE)]
         tile: u32,
+        /// Pixels per invocation of the texel-buffer blend: 1, 2 or 4 (default 2).
+        #[arg(long)]
+        blend_pixels: Option<u32>,
     },
     /// Indirect-light U-Net: time per inference per size and precision, GFLOP/s against the FMA peak.
     Unet {
@@ -485,7 +488,9 @@ fn run(cli: Cli) -> srug::Result<()> {
             let settings = srug::shade::PrepareSettings { levels, samples, ..Default::default() };
             cli_relight::prefilter(&device, &env, &out, &settings, zstd)
         }
-        Command::Bench { what: BenchKind::Splat { gaussians, sizes, repeats, sort_keys, blend, tile } } => {
+        Command::Bench {
+            what: BenchKind::Splat { gaussians, sizes, repeats, sort_keys, blend, tile, blend_pixels },
+        } => {
             let blend = blend.as_deref().map(srug::splat::BlendVariant::parse).transpose()?;
             srug::splat::check_tile(tile)?;
             let counts: Vec<usize> =
@@ -498,9 +503,9 @@ fn run(cli: Cli) -> srug::Result<()> {
             let peak = srug::bench::fma_peak_gflops(&device, 5)?;
             println!("device: {} ({}), measured FMA peak {peak:.1} GFLOP/s\n", info.name, info.driver);
             let bar = spinner("benchmarking");
-            let rows = srug::bench::splat_bench(&device, &counts, &sizes, repeats, blend, tile, |m| {
-                bar.set_message(m.to_string())
-            })?;
+            let options = srug::bench::SplatBenchOptions { repeats, blend, blend_pixels, tile };
+            let rows =
+                srug::bench::splat_bench(&device, &counts, &sizes, &options, |m| bar.set_message(m.to_string()))?;
             bar.set_message("sorting");
             let sort = srug::bench::sort_bench(&device, sort_keys, 32 + 11, repeats)?;
             bar.finish_and_clear();

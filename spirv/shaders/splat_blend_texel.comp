@@ -6,7 +6,10 @@
 // operations) are needed; contributing lanes fetch colour and features
 // (bindings 1 and 2). On lavapipe each fetch is one vector gather, where a
 // device-address load is a loop over the lanes. Replaces the subgroup-load
-// blend where the splats and pairs fit maxTexelBufferElements.
+// blend where the splats and pairs fit maxTexelBufferElements. Each invocation
+// blends PIXELS pixels (constant_id 2) of its tile row, so one set of fetches
+// serves them all.
 // CPU twin: engine/src/splat/cpu.rs `render_cpu`.
+#extension GL_EXT_control_flow_attributes : require
 #define TEXEL_SPLATS
 #include "splat_blend_body.glsl"

@@ -12,7 +12,10 @@ use srug::scene::activate::GpuScene;
 use srug::scene::demo::{demo_city, DemoOptions};
 use srug::scene::{read_ply, sh_coefficients, Camera, Scene};
 use srug::splat::cpu::render_cpu;
-use srug::splat::{BlendVariant, Channels, GBuffer, NormalSource, SplatSettings, Splatter, DEFAULT_TILE, TILE_SIZES};
+use srug::splat::{
+    BlendVariant, Channels, GBuffer, NormalSource, SplatSettings, Splatter, BLEND_PIXELS, DEFAULT_BLEND_PIXELS,
+    DEFAULT_TILE, TILE_SIZES,
+};
 use srug_tests::{assert_no_validation_messages, device, save_comparison};
 
 const NAN: u32 = 0x7fc0_0000;
@@ -161,6 +164,13 @@ fn every_tile_size_matches_cpu_twin_in_every_variant() {
             splatter.set_texel_blend(false).unwrap();
             render_both(&d, &mut splatter, &city.scene, &cam, &settings, &format!("tile_{tile}_address_reads"));
             splatter.set_texel_blend(true).unwrap();
+            // Every pixels-per-invocation setting of the texel blend (partial tiles leave
+            // some of an invocation's pixels outside the image).
+            for pixels in BLEND_PIXELS {
+                splatter.set_blend_pixels(pixels).unwrap();
+                render_both(&d, &mut splatter, &city.scene, &cam, &settings, &format!("tile_{tile}_pixels_{pixels}"));
+            }
+            splatter.set_blend_pixels(DEFAULT_BLEND_PIXELS).unwrap();
         }
         let (out, stats) = splatter.render(&gpu_scene, &cam, &settings).unwrap();
         by_tile.push((tile, out.read(&d).unwrap(), stats.pairs));
@@ -173,6 +183,10 @@ fn every_tile_size_matches_cpu_twin_in_every_variant() {
         let p = psnr(&g0.rgb, &g1.rgb);
         assert!(p > 60.0, "tiles {t0} and {t1} differ by PSNR {p:.1} dB");
         eprintln!("tiles {t0} and {t1}: {p0} and {p1} pairs, rgb PSNR {p:.1} dB");
+    }
+    for bad in [0u32, 3, 8] {
+        let text = splatter.set_blend_pixels(bad).err().map(|e| e.to_string()).unwrap_or_default();
+        assert!(text.contains(&format!("{bad} pixels per blend invocation is not one of")), "{bad}: {text:?}");
     }
     for bad in [0u32, 4, 12, 64] {
         let e = splatter.render(&gpu_scene, &cam, &SplatSettings { tile: bad, ..all_settings() }).err();
@@ -209,15 +223,21 @@ fn demo_city_matches_cpu_twin_in_every_channel() {
     if d.info().subgroup_ballot {
         variants.push(BlendVariant::SubgroupLoads);
     }
-    // The subgroup-load blend both with texel-buffer reads (the default) and by device address.
+    // The subgroup-load blend both with texel-buffer reads (the default, at every
+    // pixels per invocation) and by device address.
     let runs = variants.iter().flat_map(|&v| {
-        let texel = if v == BlendVariant::SubgroupLoads { vec![true, false] } else { vec![true] };
-        texel.into_iter().map(move |t| (v, t))
+        let texel = if v == BlendVariant::SubgroupLoads {
+            BLEND_PIXELS.iter().map(|&p| (true, p)).chain([(false, 1)]).collect()
+        } else {
+            vec![(true, DEFAULT_BLEND_PIXELS)]
+        };
+        texel.into_iter().map(move |(t, p)| (v, t, p))
     });
-    for (variant, texel) in runs {
+    for (variant, texel, pixels) in runs {
         splatter.set_blend_variant(variant).unwrap();
         splatter.set_texel_blend(texel).unwrap();
-        let label = format!("demo_{variant:?}_texel_{texel}");
+        splatter.set_blend_pixels(pixels).unwrap();
+        let label = format!("demo_{variant:?}_texel_{texel}_pixels_{pixels}");
         let g = render_both(&d, &mut splatter, &city.scene, &cam, &all_settings(), &label);
         let covered = g.alpha.iter().filter(|a| **a > 0.5).count();
         assert!(covered * 10 > g.alpha.len() * 9, "the street should cover the view: {covered} of {}", g.alpha.len());

@@ -62,6 +62,11 @@ pub fn check_tile(tile: u32) -> Result<()> {
 pub(crate) fn tile_spec(tile: u32) -> [(u32, SpecValue); 2] {
     [(TILE_SPEC_IDS[0], SpecValue::U32(tile)), (TILE_SPEC_IDS[1], SpecValue::U32(tile))]
 }
+/// Pixels per invocation the texel-buffer blend accepts ([`Splatter::set_blend_pixels`]):
+/// each divides every tile edge of [`TILE_SIZES`].
+pub const BLEND_PIXELS: [u32; 3] = [1, 2, 4];
+/// The default pixels per invocation of the texel-buffer blend.
+pub const DEFAULT_BLEND_PIXELS: u32 = 2;
 /// Bytes of one projected splat (keep in sync with `Splat` in `splat.glsl`).
 pub const SPLAT_BYTES: u64 = 64;
 /// Bytes of one splat's features (three vec4).
@@ -437,9 +442,10 @@ pub struct Splatter {
     preprocess: HashMap<(bool, u32), Kernel>,
     keys: Kernel,
     ranges: Kernel,
-    blend: HashMap<(u32, BlendVariant, u32, bool), Kernel>,
+    blend: HashMap<(u32, BlendVariant, u32, bool, u32), Kernel>,
     blend_variant: BlendVariant,
     texel_blend: bool,
+    blend_pixels: u32,
     scan: Scan,
     sort: RadixSort,
     backward: HashMap<(u32, u32), backward::BackwardKernels>,
@@ -497,6 +503,7 @@ impl Splatter {
             texel_blend: [TexelFormat::Rgba32Float, TexelFormat::R32Uint]
                 .iter()
                 .all(|f| device.info().texel_formats.contains(f)),
+            blend_pixels: DEFAULT_BLEND_PIXELS,
             scan: Scan::new(device)?,
             sort: RadixSort::new(device)?,
             backward: HashMap::new(),
@@ -524,6 +531,23 @@ impl Splatter {
         Ok(())
     }
 
+    /// Pixels each invocation of the texel-buffer blend shades ([`BLEND_PIXELS`]).
+    pub fn blend_pixels(&self) -> u32 {
+        self.blend_pixels
+    }
+
+    /// Sets the pixels per invocation of the texel-buffer blend, one of
+    /// [`BLEND_PIXELS`]; the image does not change, only how the fetches are shared.
+    pub fn set_blend_pixels(&mut self, pixels: u32) -> Result<()> {
+        if !BLEND_PIXELS.contains(&pixels) {
+            return Err(Error::InvalidArgument(format!(
+                "{pixels} pixels per blend invocation is not one of {BLEND_PIXELS:?}"
+            )));
+        }
+        self.blend_pixels = pixels;
+        Ok(())
+    }
+
     /// The blend variant in use (subgroup loads where the device has subgroup
     /// ballot, else per-pixel loads).
     pub fn blend_variant(&self) -> BlendVariant {
@@ -541,9 +565,10 @@ impl Splatter {
 
     /// The blend kernel for `bits` channels, `tile` and texel-buffer reads,
     /// built on first use; returns its key in `self.blend`.
-    fn blend_kernel(&mut self, bits: u32, tile: u32, texel: bool) -> Result<(u32, BlendVariant, u32, bool)> {
+    fn blend_kernel(&mut self, bits: u32, tile: u32, texel: bool) -> Result<(u32, BlendVariant, u32, bool, u32)> {
         let device = self.device.clone();
-        let blend_key = (bits, self.blend_variant, tile, texel);
+        let pixels = if texel { self.blend_pixels } else { 1 };
+        let blend_key = (bits, self.blend_variant, tile, texel, pixels);
         if let std::collections::hash_map::Entry::Vacant(e) = self.blend.entry(blend_key) {
             let info = match (self.blend_variant, texel) {
                 (BlendVariant::PerPixel, _) => &kernels::SPLAT_BLEND_PORTABLE,
@@ -558,6 +583,9 @@ impl Splatter {
                 spec.push((1, SpecValue::U32((tile * tile).min(256))));
             }
             e.insert(if texel {
+                // PIXELS per invocation along x: TILE / PIXELS invocations across.
+                spec[1].1 = SpecValue::U32(tile / pixels);
+                spec.push((2, SpecValue::U32(pixels)));
                 // The frame; splats, features and sorted indices as texel-buffer views.
                 let mut bindings = vec![BindingKind::UniformBuffer];
                 bindings.extend([BindingKind::UniformTexelBuffer; 3]);

@@ -1,8 +1,10 @@
 // Shared helpers for every srug kernel. Include after #version and after
 // `#define WORKGROUP_SIZE_X n`; common.glsl declares the local size from it.
-// Per-tile kernels `#define TILE_WORKGROUP` instead: one invocation per pixel
-// of a TILE×TILE tile, the edge specialized by the host (constant_ids 15 and
-// 16, both the edge; keep in sync with engine/src/splat/mod.rs `TILE_SPEC_IDS`).
+// Per-tile kernels `#define TILE_WORKGROUP` instead: one workgroup per
+// TILE×TILE tile, TILE (constant_id 16) invocations down and, across, TILE
+// (constant_id 15) or TILE / pixels per invocation for kernels that shade
+// several pixels each (splat_blend_texel.comp); keep in sync with
+// engine/src/splat/mod.rs `TILE_SPEC_IDS`.
 // (gl_WorkGroupSize read before the layout declaration is (1,1,1) in GLSL,
 // which once silently broke 2D grids; a macro cannot be read too early.)
 #ifndef SRUG_COMMON_GLSL
@@ -10,8 +12,8 @@
 
 #if defined(TILE_WORKGROUP)
 layout(local_size_x = 16, local_size_y = 16, local_size_x_id = 15, local_size_y_id = 16) in;
-const uint TILE = gl_WorkGroupSize.x;
-const uint TILE_PIXELS = gl_WorkGroupSize.x * gl_WorkGroupSize.y;
+const uint TILE = gl_WorkGroupSize.y;
+const uint TILE_PIXELS = TILE * TILE;
 #elif defined(WORKGROUP_SIZE_X)
 layout(local_size_x = WORKGROUP_SIZE_X) in;
 #else

@@ -69,6 +69,114 @@ shared vec4 batch_conic[BLEND_BATCH];
 shared uint done_count;
 #endif
 
+// Writes one pixel's channels.
+void store_pixel(uvec2 pix, Accumulated acc) {
+    float T = acc.T;
+    vec3 rgb = acc.rgb;
+    float depth = acc.depth, median = acc.median;
+    vec3 normal = acc.normal, albedo = acc.albedo;
+    float rough = acc.rough, metal = acc.metal, ao = acc.ao, vis = acc.vis;
+    uint p = pix.y * frame.size.x + pix.x;
+    vec3 color = rgb + T * frame.background.rgb;
+    Floats out_rgb = Floats(frame.work2.zw);
+    out_rgb.v[3 * p] = color.r;
+    out_rgb.v[3 * p + 1] = color.g;
+    out_rgb.v[3 * p + 2] = color.b;
+    Floats(frame.out0.xy).v[p] = 1.0 - T;
+    if ((CHANNELS & 1u) != 0u) Floats(frame.out0.zw).v[p] = depth;
+    if ((CHANNELS & 2u) != 0u) Floats(frame.out1.xy).v[p] = median;
+    if ((CHANNELS & 4u) != 0u) {
+        Floats o = Floats(frame.out1.zw);
+        o.v[3 * p] = normal.x;
+        o.v[3 * p + 1] = normal.y;
+        o.v[3 * p + 2] = normal.z;
+    }
+    if ((CHANNELS & 8u) != 0u) {
+        Floats o = Floats(frame.out2.xy);
+        o.v[3 * p] = albedo.r;
+        o.v[3 * p + 1] = albedo.g;
+        o.v[3 * p + 2] = albedo.b;
+    }
+    if ((CHANNELS & 16u) != 0u) Floats(frame.out2.zw).v[p] = rough;
+    if ((CHANNELS & 32u) != 0u) Floats(frame.out3.xy).v[p] = metal;
+    if ((CHANNELS & 64u) != 0u) Floats(frame.out3.zw).v[p] = ao;
+    if ((CHANNELS & 128u) != 0u) Floats(frame.out4.xy).v[p] = vis;
+}
+
+#ifdef TEXEL_SPLATS
+// PIXELS pixels per invocation, TILE / PIXELS apart along x (the host sets
+// local_size_x to TILE / PIXELS): every splat's index, position and conic
+// are fetched once for all of them, and its colour and features once if
+// any of them takes it.
+layout(constant_id = 2) const uint PIXELS = 1u;
+
+void main() {
+    uint tile = block_index();
+    uint tiles_x = frame.size.z;
+    uvec2 base = uvec2(tile % tiles_x, tile / tiles_x) * TILE + gl_LocalInvocationID.xy;
+    const uint STEP = TILE / PIXELS;
+    uvec2 range = Uvec2s(frame.work2.xy).v[tile];
+    Accumulated acc[PIXELS];
+    bool live[PIXELS];
+    bool any_live = false;
+    [[unroll]] for (uint k = 0u; k < PIXELS; k++) {
+        acc[k] = Accumulated(1.0, vec3(0.0), 0.0, 0.0, vec3(0.0), vec3(0.0), 0.0, 0.0, 0.0, 0.0);
+        uvec2 pix = base + uvec2(k * STEP, 0u);
+        live[k] = pix.x < frame.size.x && pix.y < frame.size.y;
+        any_live = any_live || live[k];
+    }
+    for (uint j = range.x; j < range.y && any_live; j++) {
+        // Every lane fetches the same texels: one vector gather each, no election or broadcast.
+        uint g = texelFetch(value_texels, int(j)).x;
+        vec4 head = texelFetch(splat_texels, int(4u * g));
+        vec4 conic = texelFetch(splat_texels, int(4u * g + 1u));
+        float alpha[PIXELS];
+        bool takes[PIXELS];
+        bool any_takes = false;
+        any_live = false;
+        [[unroll]] for (uint k = 0u; k < PIXELS; k++) {
+            float gauss;
+            vec2 d;
+            vec2 centre = vec2(base + uvec2(k * STEP, 0u)) + 0.5;
+            takes[k] = live[k] && splat_alpha(head, conic, centre, alpha[k], gauss, d);
+            // Done once T·(1−α) < 1e-4, this splat excluded (as blend_one).
+            if (takes[k] && acc[k].T * (1.0 - alpha[k]) < 1e-4) {
+                live[k] = false;
+                takes[k] = false;
+            }
+            any_takes = any_takes || takes[k];
+            any_live = any_live || live[k];
+        }
+        if (!any_takes) continue;
+        vec3 color = SPLAT_COLOR(g);
+        vec4 f0 = vec4(0.0), f1 = vec4(0.0), f2 = vec4(0.0);
+        if (FEATURES) {
+            f0 = FEATURE(3 * g);
+            f1 = FEATURE(3 * g + 1);
+            f2 = FEATURE(3 * g + 2);
+        }
+        [[unroll]] for (uint k = 0u; k < PIXELS; k++) {
+            if (!takes[k]) continue;
+            float next_T = acc[k].T * (1.0 - alpha[k]);
+            float w = alpha[k] * acc[k].T;
+            acc[k].rgb += w * color;
+            if ((CHANNELS & 1u) != 0u) acc[k].depth += w * head.z;
+            if ((CHANNELS & 2u) != 0u && acc[k].T > 0.5 && next_T <= 0.5) acc[k].median = head.z;
+            acc[k].normal += w * f0.xyz;
+            acc[k].rough += w * f0.w;
+            acc[k].albedo += w * f1.xyz;
+            acc[k].metal += w * f1.w;
+            acc[k].ao += w * f2.x;
+            acc[k].vis += w * f2.y;
+            acc[k].T = next_T;
+        }
+    }
+    [[unroll]] for (uint k = 0u; k < PIXELS; k++) {
+        uvec2 pix = base + uvec2(k * STEP, 0u);
+        if (pix.x < frame.size.x && pix.y < frame.size.y) store_pixel(pix, acc[k]);
+    }
+}
+#else
 void main() {
     uint tile = block_index();
     uint tiles_x = frame.size.z;
@@ -116,12 +224,7 @@ void main() {
 #else
     if (!inside) return;
     for (uint j = range.x; j < range.y; j++) {
-#if defined(TEXEL_SPLATS)
-        // Every lane fetches the same texels: one vector gather each, no election or broadcast.
-        uint g = texelFetch(value_texels, int(j)).x;
-        vec4 head = texelFetch(splat_texels, int(4u * g));
-        vec4 conic = texelFetch(splat_texels, int(4u * g + 1u));
-#elif defined(SUBGROUP_LOADS)
+#if defined(SUBGROUP_LOADS)
         // Every active lane reads the same splat: one elected lane loads, the
         // subgroup shares (any subgroup size; per-lane loads are slow on lavapipe).
         uint g = 0u;
@@ -142,34 +245,6 @@ void main() {
         if (!blend_one(acc, g, head, conic, centre)) break;
     }
 #endif
-    float T = acc.T;
-    vec3 rgb = acc.rgb;
-    float depth = acc.depth, median = acc.median;
-    vec3 normal = acc.normal, albedo = acc.albedo;
-    float rough = acc.rough, metal = acc.metal, ao = acc.ao, vis = acc.vis;
-    uint p = pix.y * frame.size.x + pix.x;
-    vec3 color = rgb + T * frame.background.rgb;
-    Floats out_rgb = Floats(frame.work2.zw);
-    out_rgb.v[3 * p] = color.r;
-    out_rgb.v[3 * p + 1] = color.g;
-    out_rgb.v[3 * p + 2] = color.b;
-    Floats(frame.out0.xy).v[p] = 1.0 - T;
-    if ((CHANNELS & 1u) != 0u) Floats(frame.out0.zw).v[p] = depth;
-    if ((CHANNELS & 2u) != 0u) Floats(frame.out1.xy).v[p] = median;
-    if ((CHANNELS & 4u) != 0u) {
-        Floats o = Floats(frame.out1.zw);
-        o.v[3 * p] = normal.x;
-        o.v[3 * p + 1] = normal.y;
-        o.v[3 * p + 2] = normal.z;
-    }
-    if ((CHANNELS & 8u) != 0u) {
-        Floats o = Floats(frame.out2.xy);
-        o.v[3 * p] = albedo.r;
-        o.v[3 * p + 1] = albedo.g;
-        o.v[3 * p + 2] = albedo.b;
-    }
-    if ((CHANNELS & 16u) != 0u) Floats(frame.out2.zw).v[p] = rough;
-    if ((CHANNELS & 32u) != 0u) Floats(frame.out3.xy).v[p] = metal;
-    if ((CHANNELS & 64u) != 0u) Floats(frame.out3.zw).v[p] = ao;
-    if ((CHANNELS & 128u) != 0u) Floats(frame.out4.xy).v[p] = vis;
+    store_pixel(pix, acc);
 }
+#endif
