@@ -1,5 +1,6 @@
 // Body of the splat_blend*.comp variants (see their headers). One workgroup
-// per TILE×TILE tile (the edge is specialized), one invocation per pixel.
+// per TILE×TILE tile (the edge is specialized), one invocation per pixel
+// (the texel variant: per PIXELS pixels, see its main below).
 #define TILE_WORKGROUP
 #include "common.glsl"
 #include "splat.glsl"
