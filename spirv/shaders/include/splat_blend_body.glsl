@@ -35,28 +35,49 @@ struct Accumulated {
     float rough, metal, ao, vis;
 };
 
+// A contributing splat's colour and features (zero without FEATURES).
+struct Contribution {
+    vec3 color;
+    vec4 f0, f1, f2;
+};
+
+Contribution splat_contribution(uint g) {
+    Contribution c = Contribution(SPLAT_COLOR(g), vec4(0.0), vec4(0.0), vec4(0.0));
+    if (FEATURES) {
+        c.f0 = FEATURE(3 * g);
+        c.f1 = FEATURE(3 * g + 1);
+        c.f2 = FEATURE(3 * g + 2);
+    }
+    return c;
+}
+
+// Adds a splat of opacity `alpha` and depth `z` to `acc`; the caller has
+// checked that the pixel is not done (T·(1−α) ≥ 1e-4).
+void accumulate(inout Accumulated acc, float alpha, float z, Contribution c) {
+    float next_T = acc.T * (1.0 - alpha);
+    float w = alpha * acc.T;
+    acc.rgb += w * c.color;
+    if ((CHANNELS & 1u) != 0u) acc.depth += w * z;
+    if ((CHANNELS & 2u) != 0u && acc.T > 0.5 && next_T <= 0.5) acc.median = z;
+    if (FEATURES) {
+        acc.normal += w * c.f0.xyz;
+        acc.rough += w * c.f0.w;
+        acc.albedo += w * c.f1.xyz;
+        acc.metal += w * c.f1.w;
+        acc.ao += w * c.f2.x;
+        acc.vis += w * c.f2.y;
+    }
+    acc.T = next_T;
+}
+
 // Blends splat g into `acc`; false once the pixel is done (T·(1−α) < 1e-4,
 // that splat excluded). Colour and features are loaded only when it contributes.
 bool blend_one(inout Accumulated acc, uint g, vec4 head, vec4 conic, vec2 centre) {
     float alpha, gauss;
     vec2 d;
     if (!splat_alpha(head, conic, centre, alpha, gauss, d)) return true;
-    float next_T = acc.T * (1.0 - alpha);
-    if (next_T < 1e-4) return false;
-    float w = alpha * acc.T;
-    acc.rgb += w * SPLAT_COLOR(g);
-    if ((CHANNELS & 1u) != 0u) acc.depth += w * head.z;
-    if ((CHANNELS & 2u) != 0u && acc.T > 0.5 && next_T <= 0.5) acc.median = head.z;
-    if (FEATURES) {
-        vec4 f0 = FEATURE(3 * g), f1 = FEATURE(3 * g + 1), f2 = FEATURE(3 * g + 2);
-        acc.normal += w * f0.xyz;
-        acc.rough += w * f0.w;
-        acc.albedo += w * f1.xyz;
-        acc.metal += w * f1.w;
-        acc.ao += w * f2.x;
-        acc.vis += w * f2.y;
-    }
-    acc.T = next_T;
+    if (acc.T * (1.0 - alpha) < 1e-4) return false;
+    accumulate(acc, alpha, head.z, splat_contribution(g));
     return true;
 }
 
@@ -149,27 +170,9 @@ void main() {
             any_live = any_live || live[k];
         }
         if (!any_takes) continue;
-        vec3 color = SPLAT_COLOR(g);
-        vec4 f0 = vec4(0.0), f1 = vec4(0.0), f2 = vec4(0.0);
-        if (FEATURES) {
-            f0 = FEATURE(3 * g);
-            f1 = FEATURE(3 * g + 1);
-            f2 = FEATURE(3 * g + 2);
-        }
+        Contribution c = splat_contribution(g);
         [[unroll]] for (uint k = 0u; k < PIXELS; k++) {
-            if (!takes[k]) continue;
-            float next_T = acc[k].T * (1.0 - alpha[k]);
-            float w = alpha[k] * acc[k].T;
-            acc[k].rgb += w * color;
-            if ((CHANNELS & 1u) != 0u) acc[k].depth += w * head.z;
-            if ((CHANNELS & 2u) != 0u && acc[k].T > 0.5 && next_T <= 0.5) acc[k].median = head.z;
-            acc[k].normal += w * f0.xyz;
-            acc[k].rough += w * f0.w;
-            acc[k].albedo += w * f1.xyz;
-            acc[k].metal += w * f1.w;
-            acc[k].ao += w * f2.x;
-            acc[k].vis += w * f2.y;
-            acc[k].T = next_T;
+            if (takes[k]) accumulate(acc[k], alpha[k], head.z, c);
         }
     }
     [[unroll]] for (uint k = 0u; k < PIXELS; k++) {
