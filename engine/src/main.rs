@@ -575,11 +575,13 @@ fn run(cli: Cli) -> srug::Result<()> {
             let paths: Vec<ConvPath> = inputs
                 .split(',')
                 .map(|t| {
-                    [ConvPath::Texel, ConvPath::Address, ConvPath::Winograd]
+                    [ConvPath::Vec4, ConvPath::Texel, ConvPath::Address, ConvPath::Winograd]
                         .into_iter()
                         .find(|p| p.label() == t.trim())
                         .ok_or_else(|| {
-                            srug::Error::InvalidArgument(format!("--inputs: \"{t}\" is not texel, address or winograd"))
+                            srug::Error::InvalidArgument(format!(
+                                "--inputs: \"{t}\" is not vec4, texel, address or winograd"
+                            ))
                         })
                 })
                 .collect::<srug::Result<_>>()?;

@@ -1,7 +1,8 @@
 //! The indirect-light U-Net against its CPU twin (f64 accumulation): random
 //! weights at odd and tiny sizes, widths 8 to 128, both align_corners
 //! conventions and every activation, on every conv path (direct with texel or
-//! device-address inputs, Winograd); zero weights; activations of 1e4; the
+//! device-address inputs, Winograd), and at widths that are multiples of 4
+//! with four pixels per texel fetch; zero weights; activations of 1e4; the
 //! Winograd twin against direct convolution; and the safetensors loader's
 //! errors. Outputs and the arena are pre-filled
 //! with NaN, so a value no kernel wrote fails.
@@ -43,7 +44,11 @@ fn run_with(
     net.set_prefill(Some(NAN));
     net.set_texel_inputs(path != ConvPath::Address).unwrap();
     net.set_winograd(path == ConvPath::Winograd).unwrap();
+    net.set_vec4_inputs(path == ConvPath::Vec4).unwrap();
     let out = net.infer(&buffer, w as u32, h as u32).unwrap();
+    if path != ConvPath::Vec4 {
+        assert!(out.vec4_layers.is_empty(), "{path:?} read four pixels per fetch in {:?}", out.vec4_layers);
+    }
     let gpu: Vec<f32> = d.read_buffer(&out.output).unwrap();
     let x = Tensor::from_f32(c, w, h, &input);
     (gpu, unet_cpu(weights, &x), unet_cpu_stored(weights, &x, true))
@@ -79,6 +84,64 @@ fn unet_matches_twin_at_odd_and_tiny_sizes() {
     let net = UNet::new(&d, &UNetWeights::random(UNetConfig::default(), 1)).unwrap();
     assert!(net.texel_inputs(), "lavapipe reads R32F texel buffers, so the texel path is the default");
     assert!(!net.winograd(), "direct convolution is the default (faster or equal on lavapipe)");
+    assert_no_validation_messages(&d);
+}
+
+/// The layers that read four pixels per fetch at `w`×`h`: those whose input
+/// width (the level it reads) is a multiple of 4.
+fn expected_vec4_layers(w: usize, h: usize) -> Vec<&'static str> {
+    let levels = srug::indirect::level_sizes(w, h);
+    // Input level of inc, down1..down4, up1..up4, outc.
+    let input_level = [0, 0, 1, 2, 3, 3, 2, 1, 0, 0];
+    let names = ["inc", "down1", "down2", "down3", "down4", "up1", "up2", "up3", "up4", "outc"];
+    names.iter().zip(input_level).filter(|(_, l)| levels[*l].0 % 4 == 0).map(|(n, _)| *n).collect()
+}
+
+#[test]
+fn vec4_inputs_match_twin() {
+    // Four pixels per texel fetch where a level's width is a multiple of 4:
+    // 64×12 every layer (heights down to 1), 36×20 only the full-resolution
+    // ones, 24×6 with partial pixel blocks (24 = 3 blocks of 8 in outc, 6 = 1.5 in down-levels).
+    let d = device();
+    let cases = [
+        ([32usize, 32, 64, 64, 128], Activation::Relu, false, 64usize, 12usize),
+        ([8, 16, 32, 64, 128], Activation::LeakyRelu, true, 36, 20),
+        ([12, 20, 24, 40, 48], Activation::None, true, 24, 6),
+    ];
+    let mut precisions = vec![StoragePrecision::Fp32];
+    if d.info().storage_16bit {
+        precisions.push(StoragePrecision::Fp16);
+    }
+    for ((widths, activation, align_corners, w, h), precision) in
+        cases.into_iter().flat_map(|c| precisions.clone().into_iter().map(move |p| (c, p)))
+    {
+        let config = UNetConfig { widths, activation, align_corners, ..UNetConfig::default() };
+        let weights = UNetWeights::random(config, 9);
+        let mut rng = Pcg64Mcg::seed_from_u64(5);
+        let input: Vec<f32> = (0..14 * w * h).map(|_| rng.random_range(-1.0..1.0f32)).collect();
+        let buffer = d.upload("input", &input).unwrap();
+        let mut net = UNet::with_precision(&d, &weights, precision).unwrap();
+        net.set_prefill(Some(NAN));
+        assert!(net.vec4_inputs(), "lavapipe views RGBA texels, so four-pixel fetches are the default");
+        let out = net.infer(&buffer, w as u32, h as u32).unwrap();
+        assert_eq!(out.vec4_layers, expected_vec4_layers(w, h), "{w}x{h}: layers reading four pixels per fetch");
+        assert!(!out.vec4_layers.is_empty());
+        let gpu: Vec<f32> = d.read_buffer(&out.output).unwrap();
+        let x = Tensor::from_f32(14, w, h, &input);
+        let (exact, rounded) = (unet_cpu(&weights, &x), unet_cpu_stored(&weights, &x, true));
+        let peak = exact.data.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        assert!(peak > 1e-3, "the outputs are all ~0: the check would prove nothing");
+        let err = max_abs(&gpu, &exact);
+        println!("{precision:?} widths {widths:?} at {w}x{h}, vec4 in {:?}: max |GPU − CPU| {err:.2e} (outputs up to {peak:.2})", out.vec4_layers);
+        if precision == StoragePrecision::Fp32 {
+            assert!(err <= 1e-4, "fp32 vec4 U-Net differs from the twin by {err:e} (tolerance 1e-4)");
+        } else {
+            // As fp16_storage_matches_twin_within_its_precision.
+            assert!(err / peak <= 1e-2, "fp16 vec4: relative error {:e} > 1e-2", err / peak);
+            let rel_rounded = max_abs(&gpu, &rounded) / peak;
+            assert!(rel_rounded <= 2e-3, "fp16 vec4 vs the rounded twin: {rel_rounded:e} > 2e-3");
+        }
+    }
     assert_no_validation_messages(&d);
 }
 

@@ -14,7 +14,10 @@ use crate::indirect::{StoragePrecision, UNet, UNetConfig, UNetWeights};
 /// How the conv layers run.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum ConvPath {
-    /// Direct convolution, inputs through texel-buffer views.
+    /// Direct convolution, inputs through texel-buffer views, four pixels per
+    /// fetch where a layer's width is a multiple of 4, else one.
+    Vec4,
+    /// Direct convolution, inputs through texel-buffer views, one pixel per fetch.
     Texel,
     /// Direct convolution, inputs by device address.
     Address,
@@ -26,6 +29,7 @@ impl ConvPath {
     /// The label in tables and on the command line.
     pub fn label(self) -> &'static str {
         match self {
+            Self::Vec4 => "vec4",
             Self::Texel => "texel",
             Self::Address => "address",
             Self::Winograd => "winograd",
@@ -74,6 +78,7 @@ pub fn unet_bench(
             let mut net = UNet::with_precision(device, &weights, precision)?;
             net.set_texel_inputs(path != ConvPath::Address)?;
             net.set_winograd(path == ConvPath::Winograd)?;
+            net.set_vec4_inputs(path == ConvPath::Vec4)?;
             progress(&format!("U-Net at {w}x{h}, {precision:?}, {} convolution", path.label()));
             let input = device.upload("u-net input", &vec![0.5f32; 14 * (w * h) as usize])?;
             net.infer(&input, w, h)?;

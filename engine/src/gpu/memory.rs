@@ -256,11 +256,14 @@ pub enum TexelFormat {
     Rg32Uint,
     /// Four 32-bit floats (`samplerBuffer`, a `vec4` per element).
     Rgba32Float,
+    /// Four 16-bit floats (`samplerBuffer`, widened to a `vec4` per element).
+    Rgba16Float,
 }
 
 impl TexelFormat {
     /// Every format, in the order [`DeviceInfo::texel_formats`](super::DeviceInfo) lists them.
-    pub const ALL: [Self; 5] = [Self::R32Float, Self::R16Float, Self::R32Uint, Self::Rg32Uint, Self::Rgba32Float];
+    pub const ALL: [Self; 6] =
+        [Self::R32Float, Self::R16Float, Self::R32Uint, Self::Rg32Uint, Self::Rgba32Float, Self::Rgba16Float];
 
     /// The Vulkan format.
     pub fn vk(self) -> vk::Format {
@@ -270,6 +273,7 @@ impl TexelFormat {
             Self::R32Uint => vk::Format::R32_UINT,
             Self::Rg32Uint => vk::Format::R32G32_UINT,
             Self::Rgba32Float => vk::Format::R32G32B32A32_SFLOAT,
+            Self::Rgba16Float => vk::Format::R16G16B16A16_SFLOAT,
         }
     }
 
@@ -278,7 +282,7 @@ impl TexelFormat {
         match self {
             Self::R32Float | Self::R32Uint => 4,
             Self::R16Float => 2,
-            Self::Rg32Uint => 8,
+            Self::Rg32Uint | Self::Rgba16Float => 8,
             Self::Rgba32Float => 16,
         }
     }

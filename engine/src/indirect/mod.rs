@@ -426,6 +426,24 @@ pub fn pixel_block(out_channels: usize, texel: bool) -> usize {
     }
 }
 
+/// Output pixels per invocation along x when the inputs are read four pixels
+/// per texel (`VEC4` in `unet_conv.comp`): 4 with 8 output channels per
+/// invocation, 8 with 4, so PX·STRIDE is a multiple of 4 and a row segment
+/// starts one pixel before a texel boundary.
+pub fn vec4_pixel_block(out_channels: usize) -> usize {
+    if channel_block(out_channels, true) == 8 {
+        4
+    } else {
+        8
+    }
+}
+
+/// Whether a layer whose input rows are `in_width` pixels wide can read its
+/// inputs four pixels per texel: every row must start on a texel boundary.
+pub fn vec4_fits(in_width: usize) -> bool {
+    in_width % 4 == 0
+}
+
 /// Input channels per pass of a layer. Texel-input kernels read the weights
 /// through one RGBA32F view, so a layer is one pass; device-address kernels
 /// read them from a uniform buffer and take as many channels per pass as fit
@@ -518,6 +536,8 @@ pub struct UNet {
     arena: Option<Buffer>,
     prefill: Option<u32>,
     texel: bool,
+    /// Texel inputs read four pixels per fetch where a layer's width allows.
+    vec4: bool,
     winograd: bool,
 }
 
@@ -553,7 +573,7 @@ impl StoragePrecision {
 
 /// A conv kernel variant: stride, activation, output block, input and output
 /// in fp16, pixel block, inputs through texel-buffer views.
-type ConvKey = (u32, u32, u32, bool, bool, u32, bool);
+type ConvKey = (u32, u32, u32, bool, bool, u32, bool, bool);
 
 /// One layer's weights on the GPU: a buffer per pass (a uniform buffer for
 /// device-address kernels, one RGBA32F texel view for texel kernels), the bias.
@@ -569,6 +589,9 @@ pub struct UNetOutput {
     pub output: Buffer,
     /// Per-layer GPU times.
     pub timings: Timings,
+    /// The layers that read their inputs four pixels per texel fetch
+    /// ([`UNet::vec4_inputs`]), in execution order.
+    pub vec4_layers: Vec<&'static str>,
 }
 
 /// One convolution of a pass: inputs A and B (the concatenation), levels, output.
@@ -663,10 +686,13 @@ impl UNet {
             if half { &[TexelFormat::R32Float, TexelFormat::R16Float][..] } else { &[TexelFormat::R32Float] };
         let texel_formats = texel_formats.iter().chain([&TexelFormat::Rgba32Float]);
         let texel = texel_formats.into_iter().all(|f| info.texel_formats.contains(f));
+        let vec4_formats = if half { &[TexelFormat::Rgba16Float][..] } else { &[] };
+        let vec4 = texel && vec4_formats.iter().all(|f| info.texel_formats.contains(f));
         let mut convs = HashMap::new();
-        let variants = [false, texel];
-        let keys = variants.iter().flat_map(|&t| (0..expected.len()).map(move |i| (i, t)));
-        for key in keys.map(|(i, t)| Self::conv_key(&config, i, half, t)) {
+        // (texel, vec4): device addresses always; texel views and four-pixel texel views where supported.
+        let variants = [(false, false), (texel, false), (texel, vec4)];
+        let keys = variants.iter().flat_map(|&v| (0..expected.len()).map(move |i| (i, v)));
+        for key in keys.map(|(i, (t, v))| Self::conv_key(&config, i, half, t, v)) {
             if let std::collections::hash_map::Entry::Vacant(e) = convs.entry(key) {
                 let texel = key.6;
                 let mut spec = vec![
@@ -680,6 +706,9 @@ impl UNet {
                 }
                 if half {
                     spec.push((11, SpecValue::Bool(key.4)));
+                }
+                if texel {
+                    spec.push((4, SpecValue::Bool(key.7)));
                 }
                 let module = match (texel, half) {
                     (false, false) => &kernels::UNET_CONV,
@@ -763,6 +792,7 @@ impl UNet {
             arena: None,
             prefill: None,
             texel,
+            vec4,
             winograd: false,
         })
     }
@@ -835,7 +865,7 @@ impl UNet {
 
     /// The kernel variant of layer `i`: its stride, activation (none for the
     /// last), output block, and fp16 input (not for the first) and output (not for the last).
-    fn conv_key(config: &UNetConfig, i: usize, half: bool, texel: bool) -> ConvKey {
+    fn conv_key(config: &UNetConfig, i: usize, half: bool, texel: bool, vec4: bool) -> ConvKey {
         let l = layers(config);
         let (_, _, co, stride) = l[i];
         let last = i + 1 == l.len();
@@ -846,8 +876,9 @@ impl UNet {
             channel_block(co, texel) as u32,
             half && i > 0,
             half && !last,
-            pixel_block(co, texel) as u32,
+            if vec4 { vec4_pixel_block(co) } else { pixel_block(co, texel) } as u32,
             texel,
+            vec4,
         )
     }
 
@@ -868,6 +899,24 @@ impl UNet {
             ));
         }
         self.texel = on;
+        Ok(())
+    }
+
+    /// Whether texel-input layers read four pixels per fetch (RGBA views)
+    /// where their input width is a multiple of 4 ([`vec4_fits`]); other
+    /// layers read one pixel per fetch. On by default where the device has
+    /// the formats.
+    pub fn vec4_inputs(&self) -> bool {
+        self.vec4
+    }
+
+    /// Chooses whether texel-input layers read four pixels per fetch (see
+    /// [`UNet::vec4_inputs`]); on where the device lacks RGBA views is an error.
+    pub fn set_vec4_inputs(&mut self, on: bool) -> Result<()> {
+        if on && !self.convs.keys().any(|k| k.7) {
+            return Err(Error::Unsupported("this device cannot view U-Net activations as RGBA texel buffers".into()));
+        }
+        self.vec4 = on;
         Ok(())
     }
 
@@ -949,7 +998,7 @@ impl UNet {
         })?;
         let out = self.infer(&packed, g.width, g.height)?;
         timings.stages.extend(out.timings.stages);
-        Ok(UNetOutput { output: out.output, timings })
+        Ok(UNetOutput { output: out.output, timings, vec4_layers: out.vec4_layers })
     }
 
     /// Runs the network on `input` (CHW float32, `in_channels` × `height` × `width`).
@@ -982,9 +1031,9 @@ impl UNet {
         let size = |l: usize| [s[l].0 as u32, s[l].1 as u32];
         let half = self.precision == StoragePrecision::Fp16;
         let convs = &self.convs;
-        let kernel = |i: usize, texel: bool| {
+        let kernel = |i: usize, texel: bool, vec4: bool| {
             convs
-                .get(&Self::conv_key(&c, i, half, texel))
+                .get(&Self::conv_key(&c, i, half, texel, vec4))
                 .ok_or_else(|| Error::InvalidArgument("missing U-Net kernel variant".into()))
         };
         let max_groups = self.device.info().max_workgroup_count;
@@ -1025,11 +1074,18 @@ impl UNet {
         let max_texels = self.device.info().max_texel_buffer_elements;
         let texel = self.texel;
         let address = |src: Src| if src.input { input.device_address() + src.offset } else { at(src.offset) };
-        let view = |src: Src, elements: usize| Texels {
+        // An input as a texel-buffer view: one element per texel, or four consecutive ones (`four`;
+        // `elements` a multiple of 4 then).
+        let view = |src: Src, elements: usize, four: bool| Texels {
             buffer: if src.input { input } else { arena },
             offset: src.offset,
-            elements: elements as u64,
-            format: if src.half { TexelFormat::R16Float } else { TexelFormat::R32Float },
+            elements: (if four { elements / 4 } else { elements }) as u64,
+            format: match (src.half, four) {
+                (false, false) => TexelFormat::R32Float,
+                (true, false) => TexelFormat::R16Float,
+                (false, true) => TexelFormat::Rgba32Float,
+                (true, true) => TexelFormat::Rgba16Float,
+            },
         };
         // What each up layer resizes first: (source address, channels, source level).
         let resize_from = [
@@ -1038,6 +1094,7 @@ impl UNet {
             (arena_src(layout.u[1]), wd[2], 2),
             (arena_src(layout.u[2]), wd[1], 1),
         ];
+        let mut vec4_layers = Vec::new();
         let timings = self.device.run(|rec| {
             rec.keep(&[input, arena, &output])?;
             if let Some(word) = prefill {
@@ -1061,11 +1118,19 @@ impl UNet {
                         align_corners: u32::from(c.align_corners),
                     };
                     rec.begin_stage(&format!("{name} resize"));
-                    let count = (ch * s[lout].0 * s[lout].1) as u64;
+                    // x along the workgroup, a row per grid y, a channel per grid z.
+                    let grid = [s[lout].0.div_ceil(64) as u32, s[lout].1 as u32, ch as u32];
+                    if grid[1] > max_groups[1] || grid[2] > max_groups[2] {
+                        return Err(Error::InvalidArgument(format!(
+                            "{name} resize: {grid:?} workgroups exceed the device's limits"
+                        )));
+                    }
                     let elements = ch * s[from].0 * s[from].1;
                     match upsample_texel.filter(|_| elements as u64 <= max_texels) {
-                        Some(k) => rec.dispatch_1d_bound(k, &[Binding::Texels(view(src, elements))], &push, count)?,
-                        None => rec.dispatch_1d(upsample, &[], &push, count)?,
+                        Some(k) => {
+                            rec.dispatch_bound(k, &[Binding::Texels(view(src, elements, false))], &push, grid)?
+                        }
+                        None => rec.dispatch(upsample, &[], &push, grid)?,
                     }
                     rec.end_stage();
                 }
@@ -1076,6 +1141,7 @@ impl UNet {
                 let use_texel =
                     texel && (ca.max(cb) * in_plane) as u64 <= max_texels && weight_texels as u64 <= max_texels;
                 let layer = &weights[usize::from(use_texel)][li];
+                let use_vec4 = use_texel && self.vec4 && vec4_fits(s[lin].0);
                 // Winograd (one 2 × 2 tile × 4 channels per invocation) where chosen and its weights fit a
                 // view, else direct convolution (a pixel block × channel block per invocation).
                 let wino = winograd(li)
@@ -1085,8 +1151,9 @@ impl UNet {
                 let (k, invocations, ob) = match wino {
                     Some((k, ..)) => (k, s[lout].0.div_ceil(2) * s[lout].1.div_ceil(2), winograd::WINOGRAD_CHANNELS),
                     None => (
-                        kernel(li, use_texel)?,
-                        s[lout].0.div_ceil(pixel_block(co, use_texel)) * s[lout].1,
+                        kernel(li, use_texel, use_vec4)?,
+                        s[lout].0.div_ceil(if use_vec4 { vec4_pixel_block(co) } else { pixel_block(co, use_texel) })
+                            * s[lout].1,
                         channel_block(co, use_texel),
                     ),
                 };
@@ -1097,6 +1164,9 @@ impl UNet {
                     return Err(Error::InvalidArgument(format!(
                         "{name}: {grid:?} workgroups exceed the device's limits"
                     )));
+                }
+                if use_vec4 && wino.is_none() {
+                    vec4_layers.push(name);
                 }
                 rec.begin_stage(name);
                 let last = layer.passes.len() - 1;
@@ -1117,7 +1187,8 @@ impl UNet {
                     };
                     if use_texel {
                         // A layer without a skip binds A's view twice; the kernel never reads B then.
-                        let vb = if cb > 0 { view(b, cb * in_plane) } else { view(a, ca * in_plane) };
+                        let four = use_vec4 && wino.is_none();
+                        let vb = if cb > 0 { view(b, cb * in_plane, four) } else { view(a, ca * in_plane, four) };
                         // The texel path has one pass, so Winograd's weights replace it.
                         let (buffer, elements) = wino.map_or((ubo, weight_texels), |(_, u, t)| (u, t));
                         let weights =
@@ -1125,7 +1196,7 @@ impl UNet {
                         let bound = [
                             Binding::Texels(weights),
                             Binding::Buffer(&layer.bias),
-                            Binding::Texels(view(a, ca * in_plane)),
+                            Binding::Texels(view(a, ca * in_plane, four)),
                             Binding::Texels(vb),
                         ];
                         rec.dispatch_bound(k, &bound, &push, grid)?;
@@ -1137,7 +1208,7 @@ impl UNet {
             }
             Ok(())
         })?;
-        Ok(UNetOutput { output, timings })
+        Ok(UNetOutput { output, timings, vec4_layers })
     }
 }
 

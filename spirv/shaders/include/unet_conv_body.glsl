@@ -1,5 +1,6 @@
 // The body of unet_conv.comp, unet_conv_half.comp, unet_conv_texel.comp and
 // unet_conv_texel_half.comp (see there).
+#extension GL_EXT_control_flow_attributes : require
 #define WORKGROUP_SIZE_X 64
 #include "common.glsl"
 #include "address.glsl"
@@ -33,6 +34,11 @@ layout(std430, set = 0, binding = 1) readonly buffer Bias { vec4 bias[]; };
 // format widens): lavapipe gathers texelFetch as one vector operation.
 layout(set = 0, binding = 2) uniform samplerBuffer input_a;
 layout(set = 0, binding = 3) uniform samplerBuffer input_b;
+// The input views hold four pixels per texel (RGBA32F/RGBA16F) and each row
+// segment takes NT fetches instead of SPAN. Needs the input width and
+// PX·STRIDE to be multiples of 4, so every segment starts one pixel before a
+// texel boundary (engine/src/indirect/mod.rs `vec4_fits`).
+layout(constant_id = 4) const bool VEC4 = false;
 #endif
 
 // Keep in sync with engine/src/indirect/mod.rs `ConvPush`.
@@ -51,28 +57,49 @@ layout(push_constant) uniform Push {
     uvec2 out_size;
 } pc;
 
-// Adds input channel `ic` (its 3 × SPAN taps read by TAP, an expression of
-// ky, k, iy, ix, row_in) times its weights to the accumulators.
-#define ACCUMULATE_CHANNEL(TAP)                                                    \
+// Adds input channel `ic` times its weights to the accumulators; FILL_ROW
+// sets rows[ky][0 .. SPAN) to the channel's input row iy (ky, iy, row_in
+// known). All fetches come first, then the multiply-adds: on lavapipe every
+// fetch is a call that clobbers every vector register, and the multiply-add
+// loop then keeps one pixel's accumulators in registers, taking each weight
+// as a memory operand. fma(), not `+= a * b`: llvmpipe fuses nothing itself.
+#define ACCUMULATE_CHANNEL(FILL_ROW)                                               \
     {                                                                              \
         uint wbase = ((ob * chunk + (ic - pc.ic0)) * 9u) * Q;                      \
-        for (int ky = 0; ky < 3; ++ky) {                                           \
+        vec4 wt[36]; /* [ky·3 + kx][q], Q ≤ 4 */                                   \
+        [[unroll]] for (uint t = 0u; t < 9u * Q; ++t) wt[t] = WEIGHTS(wbase + t);             \
+        float rows[3][17]; /* SPAN ≤ 17: PX ≤ 8, STRIDE ≤ 2 */                     \
+        [[unroll]] for (int ky = 0; ky < 3; ++ky) {                                           \
             int iy = oy * int(STRIDE) + ky - 1;                                    \
             bool row_in = iy >= 0 && iy < h;                                       \
-            float row[17]; /* SPAN ≤ 17: PX ≤ 8, STRIDE ≤ 2 */                     \
-            for (uint k = 0u; k < SPAN; ++k) {                                     \
-                int ix = ix0 + int(k);                                             \
-                row[k] = TAP;                                                      \
-            }                                                                      \
-            for (int kx = 0; kx < 3; ++kx) {                                       \
-                uint t = wbase + uint(ky * 3 + kx) * Q;                            \
-                for (uint q = 0u; q < Q; ++q) {                                    \
-                    vec4 wq = WEIGHTS(t + q);                                      \
-                    for (uint x = 0u; x < PX; ++x) acc[x * Q + q] += row[x * STRIDE + uint(kx)] * wq; \
-                }                                                                  \
+            FILL_ROW                                                               \
+        }                                                                          \
+        [[unroll]] for (uint x = 0u; x < PX; ++x) {                                           \
+            [[unroll]] for (uint k = 0u; k < 9u; ++k) {                                       \
+                float v = rows[k / 3u][x * STRIDE + k % 3u];                       \
+                [[unroll]] for (uint q = 0u; q < Q; ++q) acc[x * Q + q] = fma(vec4(v), wt[k * Q + q], acc[x * Q + q]); \
             }                                                                      \
         }                                                                          \
     }
+
+#ifdef TEXEL_INPUT
+// One fetch per tap from an R32F/R16F view (BASE: the channel plane's first element).
+#define FILL_SCALAR(VIEW, BASE)                                                    \
+    [[unroll]] for (uint k = 0u; k < SPAN; ++k) {                                             \
+        rows[ky][k] = tap_in[ky][k] ? texelFetch(VIEW, int(BASE) + tap_at[ky][k]).r : 0.0; \
+    }
+// NT fetches per row from an RGBA32F/RGBA16F view of the same memory, four
+// pixels each (BASE4: the plane's first texel); column ix0 = 4m − 1 is the
+// last component of the row's first texel.
+#define FILL_VEC4(VIEW, BASE4)                                                     \
+    {                                                                              \
+        vec4 seg[5];                                                               \
+        [[unroll]] for (uint t = 0u; t < NT; ++t) seg[t] = texelFetch(VIEW, int(BASE4) + tex_at[ky][t]); \
+        [[unroll]] for (uint k = 0u; k < SPAN; ++k) rows[ky][k] = tap_in[ky][k] ? seg[(k + 3u) / 4u][(k + 3u) % 4u] : 0.0; \
+    }
+#define FILL(VIEW, BASE)                                                           \
+    if (VEC4) FILL_VEC4(VIEW, (BASE) / 4u) else { FILL_SCALAR(VIEW, BASE) }
+#endif
 
 void main() {
     uint plane = pc.out_size.x * pc.out_size.y;
@@ -118,12 +145,20 @@ void main() {
     // tap reads the zero padding): the same for every input channel.
     int tap_at[3][17];
     bool tap_in[3][17];
+    // VEC4: the texels of each row segment, offsets within a plane (clamped into it).
+    const uint NT = ((PX - 1u) * STRIDE + 5u) / 4u + 1u;
+    int tex_at[3][5];
+    int m = ox0 * int(STRIDE) / 4;
+    int plane_texels = int(in_plane / 4u);
     for (int ky = 0; ky < 3; ++ky) {
         int iy = oy * int(STRIDE) + ky - 1;
         for (uint k = 0u; k < SPAN; ++k) {
             int ix = ix0 + int(k);
             tap_at[ky][k] = clamp(iy, 0, h - 1) * w + clamp(ix, 0, w - 1);
             tap_in[ky][k] = iy >= 0 && iy < h && ix >= 0 && ix < w;
+        }
+        for (uint t = 0u; t < NT; ++t) {
+            tex_at[ky][t] = clamp(clamp(iy, 0, h - 1) * (w / 4) + m - 1 + int(t), 0, plane_texels - 1);
         }
     }
 #endif
@@ -132,17 +167,20 @@ void main() {
     // between the two would make lavapipe fetch from both).
     for (uint ic = pc.ic0; ic < min(pc.ic1, pc.ca); ++ic) {
         uint base = ic * in_plane;
-        ACCUMULATE_CHANNEL(tap_in[ky][k] ? texelFetch(input_a, int(base) + tap_at[ky][k]).r : 0.0)
+        ACCUMULATE_CHANNEL(FILL(input_a, base))
     }
     for (uint ic = max(pc.ic0, pc.ca); ic < pc.ic1; ++ic) {
         uint base = (ic - pc.ca) * in_plane;
-        ACCUMULATE_CHANNEL(tap_in[ky][k] ? texelFetch(input_b, int(base) + tap_at[ky][k]).r : 0.0)
+        ACCUMULATE_CHANNEL(FILL(input_b, base))
     }
 #else
     for (uint ic = pc.ic0; ic < pc.ic1; ++ic) {
         uvec2 src = ic < pc.ca ? pc.a : pc.b;
         uint base = (ic < pc.ca ? ic : ic - pc.ca) * in_plane;
-        ACCUMULATE_CHANNEL(row_in && ix >= 0 && ix < w ? load_input(src, base + uint(iy * w + ix)) : 0.0)
+        ACCUMULATE_CHANNEL([[unroll]] for (uint k = 0u; k < SPAN; ++k) {
+            int ix = ix0 + int(k);
+            rows[ky][k] = row_in && ix >= 0 && ix < w ? load_input(src, base + uint(iy * w + ix)) : 0.0;
+        })
     }
 #endif
     if (!live) return;

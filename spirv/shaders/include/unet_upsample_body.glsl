@@ -36,17 +36,18 @@ void source(uint d, uint n_in, uint n_out, out uint i0, out uint i1, out float t
     t = s - float(i0);
 }
 
+// One invocation per output pixel: x along the workgroup, y and the channel
+// from the grid (no integer division per pixel: on lavapipe a vector integer
+// division runs lane by lane).
 void main() {
-    uint i = linear_index();
-    uint plane = pc.out_size.x * pc.out_size.y;
-    if (i >= plane * pc.channels) return;
-    uint c = i / plane, p = i % plane;
+    uint ox = gl_GlobalInvocationID.x, oy = gl_WorkGroupID.y, c = gl_WorkGroupID.z;
+    if (ox >= pc.out_size.x || oy >= pc.out_size.y || c >= pc.channels) return;
     uint x0, x1, y0, y1;
     float tx, ty;
-    source(p % pc.out_size.x, pc.in_size.x, pc.out_size.x, x0, x1, tx);
-    source(p / pc.out_size.x, pc.in_size.y, pc.out_size.y, y0, y1, ty);
+    source(ox, pc.in_size.x, pc.out_size.x, x0, x1, tx);
+    source(oy, pc.in_size.y, pc.out_size.y, y0, y1, ty);
     uint base = c * pc.in_size.x * pc.in_size.y;
     float top = mix(LOAD(base + y0 * pc.in_size.x + x0), LOAD(base + y0 * pc.in_size.x + x1), tx);
     float bottom = mix(LOAD(base + y1 * pc.in_size.x + x0), LOAD(base + y1 * pc.in_size.x + x1), tx);
-    store_output(pc.dst, i, mix(top, bottom, ty));
+    store_output(pc.dst, (c * pc.out_size.y + oy) * pc.out_size.x + ox, mix(top, bottom, ty));
 }
