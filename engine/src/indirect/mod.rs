@@ -417,7 +417,11 @@ pub fn channel_block(out_channels: usize, texel: bool) -> usize {
 /// 4 812–1034 / 712–836, 3 861–935 / 810–1189, 6 904 / 6475 (fp16 spills).
 /// Device-address inputs (each load lane by lane on lavapipe): 16 × 2 (8 × 4
 /// below 16 channels), measured earlier as 32 × 1 1.72 s, 8 × 4 1.44 s,
-/// 16 × 2 1.31 s.
+/// 16 × 2 1.31 s. These figures predate the fetch-first loop order of
+/// 92e7048 (one pixel's accumulators in registers at a time), which made the
+/// accumulator count matter less; there, 8 × 8 took llvmpipe's compiler over
+/// ten minutes to build, and 4 × 8 read four pixels per fetch was slower than
+/// 8 × 4 (704×192 fp32 up4: 303–330 against 190–258 ms, two alternating runs).
 pub fn pixel_block(out_channels: usize, texel: bool) -> usize {
     match (channel_block(out_channels, texel), texel) {
         (8, true) => 5,

@@ -11,10 +11,10 @@ layout(constant_id = 0) const uint STRIDE = 1;
 layout(constant_id = 1) const uint ACT = 1;
 // Output channels per invocation: 4 or 8 (a multiple of 4).
 layout(constant_id = 2) const uint OCB = 8;
-// Output pixels per invocation along x: 1 to 8. Each weight read from the
-// uniform buffer feeds PX pixels and each input row segment is read once for
-// all of them (keep PX·OCB ≤ 48: on lavapipe every accumulator is a register
-// and more spill; see engine/src/indirect/mod.rs `pixel_block`).
+// Output pixels per invocation along x: 1 to 8. Each weight read feeds PX
+// pixels and each input row segment is read once for all of them (PX·OCB = 64
+// made llvmpipe's compiler run for over ten minutes; see
+// engine/src/indirect/mod.rs `pixel_block`).
 layout(constant_id = 3) const uint PX = 1;
 
 #ifdef TEXEL_INPUT
@@ -59,10 +59,13 @@ layout(push_constant) uniform Push {
 
 // Adds input channel `ic` times its weights to the accumulators; FILL_ROW
 // sets rows[ky][0 .. SPAN) to the channel's input row iy (ky, iy, row_in
-// known). All fetches come first, then the multiply-adds: on lavapipe every
-// fetch is a call that clobbers every vector register, and the multiply-add
-// loop then keeps one pixel's accumulators in registers, taking each weight
-// as a memory operand. fma(), not `+= a * b`: llvmpipe fuses nothing itself.
+// known). All fetches come first, then the multiply-adds pixel by pixel: on
+// lavapipe every fetch is a call that clobbers every vector register, and
+// with no call inside the multiply-add loop one pixel's accumulators stay in
+// registers while each weight is a memory operand (the earlier order, a
+// fetch between every few multiply-adds, loaded and stored an accumulator
+// for each; README, U-Net benchmark). llvmpipe splits fma() into a multiply
+// and an add; other devices fuse it.
 #define ACCUMULATE_CHANNEL(FILL_ROW)                                               \
     {                                                                              \
         uint wbase = ((ob * chunk + (ic - pc.ic0)) * 9u) * Q;                      \
