@@ -229,10 +229,12 @@ enum BenchKind {
         /// Repeats (medians reported).
         #[arg(long, default_value_t = 3)]
         repeats: usize,
-        /// How conv layers run, comma-separated: texel (direct convolution reading inputs through
-        /// texel-buffer views, the default where the device has them), address (device addresses,
-        /// the fallback), winograd (Winograd F(2×2,3×3) for the stride-1 layers, texel inputs).
-        #[arg(long, default_value = "texel")]
+        /// How conv layers run, comma-separated: vec4 (direct convolution reading inputs through
+        /// texel-buffer views, four pixels per fetch where a layer's width is a multiple of 4; the
+        /// default where the device has them), texel (the same, one pixel per fetch), address
+        /// (device addresses, the fallback), winograd (Winograd F(2×2,3×3) for the stride-1 layers,
+        /// texel inputs).
+        #[arg(long, default_value = "vec4")]
         inputs: String,
     },
     /// Deferred shading time per frame per image size; one-time environment prefilter cost per size.
