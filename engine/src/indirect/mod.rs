@@ -1169,7 +1169,9 @@ impl UNet {
                         "{name}: {grid:?} workgroups exceed the device's limits"
                     )));
                 }
-                if use_vec4 && wino.is_none() {
+                // Four pixels per fetch where direct convolution runs with it.
+                let four = use_vec4 && wino.is_none();
+                if four {
                     vec4_layers.push(name);
                 }
                 rec.begin_stage(name);
@@ -1191,7 +1193,6 @@ impl UNet {
                     };
                     if use_texel {
                         // A layer without a skip binds A's view twice; the kernel never reads B then.
-                        let four = use_vec4 && wino.is_none();
                         let vb = if cb > 0 { view(b, cb * in_plane, four) } else { view(a, ca * in_plane, four) };
                         // The texel path has one pass, so Winograd's weights replace it.
                         let (buffer, elements) = wino.map_or((ubo, weight_texels), |(_, u, t)| (u, t));

@@ -70,15 +70,15 @@ layout(push_constant) uniform Push {
     {                                                                              \
         uint wbase = ((ob * chunk + (ic - pc.ic0)) * 9u) * Q;                      \
         vec4 wt[36]; /* [ky·3 + kx][q], Q ≤ 4 */                                   \
-        [[unroll]] for (uint t = 0u; t < 9u * Q; ++t) wt[t] = WEIGHTS(wbase + t);             \
+        [[unroll]] for (uint t = 0u; t < 9u * Q; ++t) wt[t] = WEIGHTS(wbase + t);  \
         float rows[3][17]; /* SPAN ≤ 17: PX ≤ 8, STRIDE ≤ 2 */                     \
-        [[unroll]] for (int ky = 0; ky < 3; ++ky) {                                           \
+        [[unroll]] for (int ky = 0; ky < 3; ++ky) {                                \
             int iy = oy * int(STRIDE) + ky - 1;                                    \
             bool row_in = iy >= 0 && iy < h;                                       \
             FILL_ROW                                                               \
         }                                                                          \
-        [[unroll]] for (uint x = 0u; x < PX; ++x) {                                           \
-            [[unroll]] for (uint k = 0u; k < 9u; ++k) {                                       \
+        [[unroll]] for (uint x = 0u; x < PX; ++x) {                                \
+            [[unroll]] for (uint k = 0u; k < 9u; ++k) {                            \
                 float v = rows[k / 3u][x * STRIDE + k % 3u];                       \
                 [[unroll]] for (uint q = 0u; q < Q; ++q) acc[x * Q + q] = fma(vec4(v), wt[k * Q + q], acc[x * Q + q]); \
             }                                                                      \
@@ -88,7 +88,7 @@ layout(push_constant) uniform Push {
 #ifdef TEXEL_INPUT
 // One fetch per tap from an R32F/R16F view (BASE: the channel plane's first element).
 #define FILL_SCALAR(VIEW, BASE)                                                    \
-    [[unroll]] for (uint k = 0u; k < SPAN; ++k) {                                             \
+    [[unroll]] for (uint k = 0u; k < SPAN; ++k) {                                  \
         rows[ky][k] = tap_in[ky][k] ? texelFetch(VIEW, int(BASE) + tap_at[ky][k]).r : 0.0; \
     }
 // NT fetches per row from an RGBA32F/RGBA16F view of the same memory, four
