@@ -422,6 +422,13 @@ srug_status srug_renderer_set_shadow(srug_renderer *renderer,
 // `name` a NUL-terminated string.
 srug_status srug_renderer_set_preset(srug_renderer *renderer, const char *name);
 
+// Keeps the shadow map between renders (off by default) and splats a new one
+// only when the scene (a different handle, or `srug_scene_set_gaussians`),
+// the sun or the shadow map's settings change: with a fixed sun a frame then
+// costs the camera splat, the shadow test and the shading. The map's GPU
+// memory stays allocated while it is kept; turning reuse off frees it.
+srug_status srug_renderer_set_shadow_map_reuse(srug_renderer *renderer, bool on);
+
 // Exposure in stops and the tone map (`SRUG_TONE_MAP_*`) of the display image.
 srug_status srug_renderer_set_exposure(srug_renderer *renderer,
                                        float exposure_ev,

@@ -519,6 +519,8 @@ pub unsafe extern "C" fn srug_scene_set_gaussians(
             }
         }
         let dev = s.device.clone();
+        // Before writing: even a partial write must not leave a reused shadow map looking current.
+        s.gpu.mark_changed();
         dev.write_buffer(&s.gpu.means, 0, m)?;
         dev.write_buffer(&s.gpu.log_scales, 0, l)?;
         dev.write_buffer(&s.gpu.rotations, 0, r)?;
@@ -1099,6 +1101,21 @@ pub unsafe extern "C" fn srug_renderer_set_preset(renderer: *mut srug_renderer, 
             s.extra_channels = r.settings.extra_channels;
             s.validate()?;
             r.settings = s;
+            Ok(())
+        })
+    })
+}
+
+/// Keeps the shadow map between renders (off by default) and splats a new one
+/// only when the scene (a different handle, or `srug_scene_set_gaussians`),
+/// the sun or the shadow map's settings change: with a fixed sun a frame then
+/// costs the camera splat, the shadow test and the shading. The map's GPU
+/// memory stays allocated while it is kept; turning reuse off frees it.
+#[no_mangle]
+pub extern "C" fn srug_renderer_set_shadow_map_reuse(renderer: *mut srug_renderer, on: bool) -> srug_status {
+    guard("srug_renderer_set_shadow_map_reuse", || {
+        with_renderer(renderer, |r| {
+            r.relighter.set_shadow_map_reuse(on);
             Ok(())
         })
     })

@@ -384,6 +384,8 @@ pub fn relight(device: &Device, args: &RelightArgs) -> Result<()> {
     let gpu_scene = activate::GpuScene::upload(device, &scene)?;
     let lights = Lights::new(device, env)?;
     let mut relighter = Relighter::new(device)?;
+    // The scene does not change during the run: a frame under the previous frame's sun reuses its shadow map.
+    relighter.set_shadow_map_reuse(true);
     if let Some(path) = indirect {
         let weights = srug::indirect::UNetWeights::load(path)?;
         relighter.set_network(Some(srug::indirect::UNet::with_precision(device, &weights, precision)?));
@@ -423,7 +425,11 @@ pub fn relight(device: &Device, args: &RelightArgs) -> Result<()> {
                 target.display(),
                 view.index.unwrap_or(ci),
                 relit.timings.total_seconds() * 1e3,
-                if relit.shadow_pass_ran { "" } else { " (no shadow pass)" }
+                match (relit.shadow_pass_ran, relit.shadow_map_reused) {
+                    (false, _) => " (no shadow pass)",
+                    (true, true) => " (shadow map reused)",
+                    (true, false) => "",
+                }
             );
             if bar.is_hidden() {
                 println!("{line}");

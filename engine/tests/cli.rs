@@ -295,6 +295,31 @@ fn relight_renders_stills_time_lapses_and_prefiltered_environments() {
     for i in 0..3 {
         assert!(dir.path().join("tl").join(format!("day_{i:03}.png")).is_file());
     }
+    assert!(!t.contains("shadow map reused"), "every time-lapse frame has its own sun:\n{t}");
+    // Every camera under one sun: the first frame splats the shadow map, the others reuse it.
+    let all = dir.path().join("all").join("cam.png");
+    let args = [
+        "relight",
+        ply,
+        "--out",
+        all.to_str().unwrap(),
+        "--cameras",
+        cams,
+        "--size",
+        "176x48",
+        "--shadow-resolution",
+        "512",
+        "--sun-elevation",
+        "35",
+        "--validation",
+    ];
+    let o = srug(&args);
+    let t = text(&o);
+    assert!(o.status.success(), "{t}");
+    let frames: Vec<&str> = t.lines().filter(|l| l.contains(" ms GPU")).collect();
+    assert!(frames.len() >= 2, "one line per camera:\n{t}");
+    assert!(!frames[0].contains("reused"), "the first frame splats its map:\n{t}");
+    assert!(frames[1..].iter().all(|l| l.contains("(shadow map reused)")), "the same sun reuses it:\n{t}");
     // An environment file, prefiltered once into KTX2 and reused.
     if let Some(data) = shared_data() {
         let env = data.join("hdri").join("sunset.exr");

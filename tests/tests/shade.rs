@@ -755,3 +755,102 @@ fn shading_with_the_indirect_network_matches_twin() {
     assert!(plain.indirect.is_none() && !plain.timings.stages.iter().any(|t| t.name == "indirect input"));
     assert_no_validation_messages(&s.d);
 }
+
+#[test]
+fn relighter_reuses_the_shadow_map_only_while_it_is_current() {
+    use srug::scene::activate::GpuScene;
+    use srug::scene::demo::{demo_city, DemoOptions};
+    use srug::shade::relight::{RelightSettings, Relighter};
+    use srug::shadow::{ShadowFit, ShadowSettings};
+    let d = device();
+    let city = demo_city(&DemoOptions { seed: 4, gaussians: 5000, sh_degree: 1 }).unwrap();
+    let cams = [city.cameras[0].resized(176, 48), city.cameras[1].resized(176, 48)];
+    let sun_a = Sun::from_azimuth_elevation(260.0, 50.0, [3.0; 3]).unwrap();
+    let sun_b = Sun::from_azimuth_elevation(120.0, 35.0, [3.0; 3]).unwrap();
+    let prep = EnvironmentPrep::new(&d).unwrap();
+    let sky = srug::shade::ProceduralSky::new(sun_a.direction, 3.0).render().unwrap();
+    let env = prep.prepare(&sky, &PrepareSettings { samples: 16, ..PrepareSettings::default() }).unwrap();
+    let brdf = prep.brdf_table(BrdfLut::Karis, 33, 64).unwrap();
+    let mut settings = RelightSettings {
+        shadow: ShadowSettings { resolution: 256, prefill: Some(NAN), ..ShadowSettings::default() },
+        shade: ShadeSettings { prefill: Some(NAN), ..ShadeSettings::default() },
+        ..RelightSettings::default()
+    };
+    let bounds = city.scene.bounds().unwrap();
+    let attributes = city.scene.attributes();
+    let mut gpu = GpuScene::upload(&d, &city.scene).unwrap();
+    let mut reusing = Relighter::new(&d).unwrap();
+    assert!(!reusing.shadow_map_reuse(), "off by default");
+    reusing.set_shadow_map_reuse(true);
+    let mut fresh = Relighter::new(&d).unwrap();
+
+    // (visibility, radiance) of a frame; checks the reuse flag against `expect_reused` and that a
+    // reused map's splat is absent from the timings while the shadow test still runs.
+    let step = |relighter: &mut Relighter,
+                gpu: &GpuScene,
+                cam: usize,
+                sun: &Sun,
+                settings: &RelightSettings,
+                expect_reused: bool,
+                label: &str| {
+        let f = relighter.render(gpu, &attributes, &bounds, &cams[cam], Some(sun), &env, &brdf, settings).unwrap();
+        let names: Vec<&str> = f.timings.stages.iter().map(|s| s.name.as_str()).collect();
+        assert!(f.shadow_pass_ran, "{label}");
+        assert_eq!(f.shadow_map_reused, expect_reused, "{label}: stages {names:?}");
+        assert_eq!(names.iter().any(|n| n.starts_with("shadow map ")), !expect_reused, "{label}: {names:?}");
+        assert!(names.contains(&"sigmoid shadow test"), "{label}: {names:?}");
+        let v: Vec<f32> = d.read_buffer(f.visibility.as_ref().unwrap()).unwrap();
+        assert!(v.iter().all(|x| x.is_finite()), "{label}: NaN sentinel left in the visibility");
+        (v, f.shaded.read(&d).unwrap().radiance)
+    };
+    // Each frame of the reusing relighter equals a fresh relighter's, bit for bit.
+    let mut check = |reusing: &mut Relighter,
+                     gpu: &GpuScene,
+                     cam: usize,
+                     sun: &Sun,
+                     settings: &RelightSettings,
+                     expect_reused: bool,
+                     label: &str| {
+        let got = step(reusing, gpu, cam, sun, settings, expect_reused, label);
+        let want = step(&mut fresh, gpu, cam, sun, settings, false, label);
+        assert!(got == want, "{label}: a reused map must give the fresh map's frame exactly");
+        got.0
+    };
+    check(&mut reusing, &gpu, 0, &sun_a, &settings, false, "first frame");
+    let a1 = check(&mut reusing, &gpu, 1, &sun_a, &settings, true, "same sun, another camera");
+    check(&mut reusing, &gpu, 1, &sun_b, &settings, false, "the sun moved");
+    check(&mut reusing, &gpu, 1, &sun_a, &settings, false, "the sun moved back");
+    check(&mut reusing, &gpu, 1, &sun_a, &settings, true, "same frame again");
+
+    // Gaussians written in place and marked: a new map, and it sees the new geometry.
+    let lifted: Vec<f32> = city.scene.means.iter().flat_map(|m| [m[0], m[1] + 40.0, m[2]]).collect();
+    d.write_buffer(&gpu.means, 0, &lifted).unwrap();
+    gpu.mark_changed();
+    let lifted_v = check(&mut reusing, &gpu, 1, &sun_a, &settings, false, "scene marked changed");
+    assert!(lifted_v != a1, "moving every Gaussian must change the visibility");
+    let restored: Vec<f32> = city.scene.means.iter().flatten().copied().collect();
+    d.write_buffer(&gpu.means, 0, &restored).unwrap();
+    gpu.mark_changed();
+    let back = check(&mut reusing, &gpu, 1, &sun_a, &settings, false, "scene restored");
+    assert!(back == a1, "restoring the Gaussians restores the visibility");
+    // Another upload of the same scene is another scene.
+    let other = GpuScene::upload(&d, &city.scene).unwrap();
+    assert_ne!(other.version(), gpu.version());
+    check(&mut reusing, &other, 1, &sun_a, &settings, false, "another upload");
+
+    // Map settings are part of the key; the view is, with a view-fitted map.
+    settings.shadow.resolution = 320;
+    check(&mut reusing, &other, 1, &sun_a, &settings, false, "new resolution");
+    settings.shadow.fit = ShadowFit::ViewFrustum;
+    check(&mut reusing, &other, 1, &sun_a, &settings, false, "view-fitted");
+    check(&mut reusing, &other, 1, &sun_a, &settings, true, "view-fitted, same view");
+    check(&mut reusing, &other, 0, &sun_a, &settings, false, "view-fitted, another view");
+    // Receiver-side settings do not need a new map.
+    settings.shadow.k *= 2.0;
+    check(&mut reusing, &other, 0, &sun_a, &settings, true, "new sharpness k");
+
+    reusing.set_shadow_map_reuse(false);
+    check(&mut reusing, &other, 0, &sun_a, &settings, false, "reuse turned off");
+    check(&mut reusing, &other, 0, &sun_a, &settings, false, "still off");
+    assert_no_validation_messages(&d);
+}

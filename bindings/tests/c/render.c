@@ -178,6 +178,28 @@ int main(int argc, char **argv) {
   REQUIRE(memcmp(image, again, pixels * 4) == 0);
   free(again);
 
+  /* Shadow-map reuse: the second render under the same sun skips the map's
+     splat (fewer stages, less GPU time) and gives the same bytes. */
+  size_t fresh_stages = 0, reused_stages = 0;
+  CHECK(srug_renderer_set_shadow_map_reuse(r, true));
+  CHECK(srug_renderer_render(r, scene));
+  CHECK(srug_renderer_stage_count(r, &fresh_stages));
+  CHECK(srug_renderer_render(r, scene));
+  CHECK(srug_renderer_stage_count(r, &reused_stages));
+  again = read_rgba8(r, w, h);
+  REQUIRE(memcmp(image, again, pixels * 4) == 0);
+  free(again);
+  printf("shadow-map reuse: %zu stages, then %zu\n", fresh_stages, reused_stages);
+  REQUIRE(fresh_stages == stages && reused_stages < fresh_stages);
+  /* A different scene handle gets its own map. */
+  CHECK(srug_renderer_render(r, from_memory));
+  CHECK(srug_renderer_stage_count(r, &reused_stages));
+  REQUIRE(reused_stages == fresh_stages);
+  CHECK(srug_renderer_set_shadow_map_reuse(r, false));
+  CHECK(srug_renderer_render(r, scene));
+  CHECK(srug_renderer_stage_count(r, &reused_stages));
+  REQUIRE(reused_stages == fresh_stages);
+
   /* Presets: balanced is the renderer's default (same bytes); fast renders at half
      size and reads back resampled to the full size, close to the balanced frame. */
   CHECK(srug_renderer_set_preset(r, "balanced"));

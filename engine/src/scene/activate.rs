@@ -41,6 +41,15 @@ pub struct GpuScene {
     pub ao: Option<Buffer>,
     /// float[N] fixed-visibility logits, when present.
     pub visibility: Option<Buffer>,
+    /// What [`GpuScene::version`] returns.
+    version: u64,
+}
+
+/// The next [`GpuScene::version`] (process-wide, so no two uploads share one).
+static NEXT_SCENE_VERSION: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(1);
+
+fn next_scene_version() -> u64 {
+    NEXT_SCENE_VERSION.fetch_add(1, std::sync::atomic::Ordering::Relaxed)
 }
 
 impl GpuScene {
@@ -65,7 +74,21 @@ impl GpuScene {
             rotations: device.upload("scene rotations", &scene.rotations)?,
             opacity_logits: device.upload("scene opacity logits", &scene.opacity_logits)?,
             sh: device.upload("scene SH", &scene.sh)?,
+            version: next_scene_version(),
         })
+    }
+
+    /// Identifies this scene's contents: unique per upload, and renewed by
+    /// [`GpuScene::mark_changed`]. Results derived from the Gaussians alone
+    /// (a reused shadow map) are valid while it stays the same.
+    pub fn version(&self) -> u64 {
+        self.version
+    }
+
+    /// Records that the buffers' contents were changed in place (written
+    /// after the upload), so results cached for the old contents are not reused.
+    pub fn mark_changed(&mut self) {
+        self.version = next_scene_version();
     }
 }
 

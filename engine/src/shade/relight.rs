@@ -13,7 +13,7 @@ use crate::error::{Error, Result};
 use crate::gpu::{Device, Timings};
 use crate::scene::activate::GpuScene;
 use crate::scene::{AttributeGroups, Bounds, Camera};
-use crate::shadow::{DepthMode, ShadowPass, ShadowSettings, Sun, VisibilityKind};
+use crate::shadow::{light_camera, DepthMode, ShadowMap, ShadowPass, ShadowSettings, Sun, VisibilityKind};
 use crate::splat::{Channels, GpuGBuffer, NormalSource, SplatSettings, Splatter};
 
 /// Everything a relit frame depends on besides the scene and the camera.
@@ -211,8 +211,11 @@ pub struct RelitFrame {
     pub shaded: ShadedFrame,
     /// Every stage's GPU time: splat, shadow map, shadow test, shading.
     pub timings: Timings,
-    /// Whether a shadow map was splatted and tested.
+    /// Whether the shadow pass ran (a shadow map tested, splatted for this frame or reused).
     pub shadow_pass_ran: bool,
+    /// Whether the shadow map was the previous frame's (see [`Relighter::set_shadow_map_reuse`]):
+    /// its splat then cost nothing and is absent from `timings`.
+    pub shadow_map_reused: bool,
     /// The camera's G-buffers (the shading's channels and the extra ones asked for).
     pub gbuffer: GpuGBuffer,
     /// Per-pixel sun visibility from the shadow pass, when it ran.
@@ -227,6 +230,21 @@ pub struct Relighter {
     shadows: ShadowPass,
     shader: Shader,
     network: Option<crate::indirect::UNet>,
+    /// Keep the shadow map for the next frame.
+    reuse_shadow_map: bool,
+    /// The last shadow map and what it was made from (only while reuse is on).
+    shadow_map: Option<(ShadowMapKey, ShadowMap)>,
+}
+
+/// Everything a shadow map's contents depend on: equal keys, equal maps.
+#[derive(Clone, Debug, PartialEq)]
+struct ShadowMapKey {
+    /// [`GpuScene::version`].
+    scene: u64,
+    light: Camera,
+    sun: Sun,
+    depth: DepthMode,
+    tile: u32,
 }
 
 impl Relighter {
@@ -237,7 +255,29 @@ impl Relighter {
             shadows: ShadowPass::new(device)?,
             shader: Shader::new(device)?,
             network: None,
+            reuse_shadow_map: false,
+            shadow_map: None,
         })
+    }
+
+    /// Keeps the shadow map between frames and splats a new one only when
+    /// the scene ([`GpuScene::version`]), the sun, or the light camera
+    /// (resolution, fit; the view with [`crate::shadow::ShadowFit::ViewFrustum`])
+    /// or the map's depth mode or tile change. With a fixed sun the per-frame
+    /// shadow cost is then the sigmoid test alone. Off by default: the map's
+    /// buffers stay allocated between frames, and a scene whose buffers are
+    /// written in place must be marked with [`GpuScene::mark_changed`].
+    /// Turning it off frees the kept map.
+    pub fn set_shadow_map_reuse(&mut self, on: bool) {
+        self.reuse_shadow_map = on;
+        if !on {
+            self.shadow_map = None;
+        }
+    }
+
+    /// Whether shadow maps are kept between frames.
+    pub fn shadow_map_reuse(&self) -> bool {
+        self.reuse_shadow_map
     }
 
     /// The indirect-light network; with `None` (the default) no inference runs.
@@ -292,22 +332,35 @@ impl Relighter {
         let (gbuffer, stats) = self.splatter.render(scene, camera, &splat)?;
         let (mut timings, pairs) = (stats.timings, stats.pairs);
         let mut visibility = None;
+        let mut reused = false;
         if let (true, Some(s)) = (editable, sun) {
-            let map = self
-                .shadows
-                .shadow_map(&mut self.splatter, scene, bounds, s, &settings.shadow, Some(camera))?
-                .ok_or_else(|| Error::InvalidArgument("the sun is below the horizon".into()))?;
-            timings.stages.extend(
-                map.frame
-                    .stats
-                    .timings
-                    .stages
-                    .iter()
-                    .map(|st| crate::gpu::StageTime { name: format!("shadow map {}", st.name), ..st.clone() }),
-            );
-            let (v, t) = self.shadows.visibility(&map, &gbuffer, camera, &settings.shadow, settings.visibility_kind)?;
+            let shadow = &settings.shadow;
+            let key = ShadowMapKey {
+                scene: scene.version(),
+                light: light_camera(bounds, s, shadow.resolution, shadow.fit, Some(camera))?,
+                sun: *s,
+                depth: shadow.map_depth,
+                tile: shadow.tile,
+            };
+            reused = self.reuse_shadow_map && self.shadow_map.as_ref().is_some_and(|(k, _)| *k == key);
+            if !reused {
+                // Free the old map before splatting the new one.
+                self.shadow_map = None;
+                let light = key.light.clone();
+                let map = self.shadows.shadow_map_from(&mut self.splatter, scene, light, s, shadow)?;
+                // Its stages are named "shadow map …" already.
+                timings.stages.extend(map.frame.stats.timings.stages.iter().cloned());
+                self.shadow_map = Some((key, map));
+            }
+            let Some((_, map)) = &self.shadow_map else {
+                return Err(Error::InvalidArgument("no shadow map".into()));
+            };
+            let (v, t) = self.shadows.visibility(map, &gbuffer, camera, shadow, settings.visibility_kind)?;
             timings.stages.extend(t.stages);
             visibility = Some(v);
+            if !self.reuse_shadow_map {
+                self.shadow_map = None;
+            }
         }
         let inputs = ShadeInputs {
             gbuffer: &gbuffer,
@@ -323,6 +376,14 @@ impl Relighter {
             None => self.shader.shade(&inputs, &shade)?,
         };
         timings.stages.extend(shaded.timings.stages.iter().cloned());
-        Ok(RelitFrame { shaded, timings, shadow_pass_ran: visibility.is_some(), gbuffer, visibility, pairs })
+        Ok(RelitFrame {
+            shaded,
+            timings,
+            shadow_pass_ran: visibility.is_some(),
+            shadow_map_reused: reused,
+            gbuffer,
+            visibility,
+            pairs,
+        })
     }
 }
