@@ -1162,9 +1162,10 @@ impl UNet {
                     ),
                 };
                 let groups = invocations.div_ceil(64) as u32;
-                let gz = groups.div_ceil(max_groups[0]);
-                let grid = [groups.div_ceil(gz), co.div_ceil(ob) as u32, gz];
-                if grid[1] > max_groups[1] || grid[2] > max_groups[2] {
+                // Output blocks vary fastest: consecutive workgroups read the same input rows.
+                let gz = groups.div_ceil(max_groups[1]);
+                let grid = [co.div_ceil(ob) as u32, groups.div_ceil(gz), gz];
+                if grid[0] > max_groups[0] || grid[2] > max_groups[2] {
                     return Err(Error::InvalidArgument(format!(
                         "{name}: {grid:?} workgroups exceed the device's limits"
                     )));

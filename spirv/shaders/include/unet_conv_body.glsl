@@ -107,8 +107,8 @@ layout(push_constant) uniform Push {
 void main() {
     uint plane = pc.out_size.x * pc.out_size.y;
     uint blocks_x = (pc.out_size.x + PX - 1u) / PX;
-    uint p = (gl_WorkGroupID.x + gl_WorkGroupID.z * gl_NumWorkGroups.x) * WORKGROUP_SIZE_X + gl_LocalInvocationID.x;
-    uint ob = gl_WorkGroupID.y;
+    uint p = (gl_WorkGroupID.y + gl_WorkGroupID.z * gl_NumWorkGroups.y) * WORKGROUP_SIZE_X + gl_LocalInvocationID.x;
+    uint ob = gl_WorkGroupID.x;
     bool live = p < blocks_x * pc.out_size.y;
     p = min(p, blocks_x * pc.out_size.y - 1u);
     int ox0 = int((p % blocks_x) * PX), oy = int(p / blocks_x);
@@ -140,7 +140,7 @@ void main() {
 #ifdef TEXEL_INPUT
     uint chunk = pc.ca + pc.cb;
 #else
-    uint chunk = 16384u / (gl_NumWorkGroups.y * OCB * 9u);
+    uint chunk = 16384u / (gl_NumWorkGroups.x * OCB * 9u);
 #endif
 #ifdef TEXEL_INPUT
     // Each tap's element offset within a channel plane (clamped into the

@@ -68,8 +68,8 @@ void input_transform(in float d[16], out float v[16]) {
 void main() {
     uint tiles_x = (pc.out_size.x + 1u) / 2u;
     uint tiles = tiles_x * ((pc.out_size.y + 1u) / 2u);
-    uint p = (gl_WorkGroupID.x + gl_WorkGroupID.z * gl_NumWorkGroups.x) * WORKGROUP_SIZE_X + gl_LocalInvocationID.x;
-    uint ob = gl_WorkGroupID.y;
+    uint p = (gl_WorkGroupID.y + gl_WorkGroupID.z * gl_NumWorkGroups.y) * WORKGROUP_SIZE_X + gl_LocalInvocationID.x;
+    uint ob = gl_WorkGroupID.x;
     bool live = p < tiles;
     p = min(p, tiles - 1u);
     int ox0 = int(p % tiles_x) * 2, oy0 = int(p / tiles_x) * 2;
