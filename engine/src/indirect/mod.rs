@@ -420,8 +420,11 @@ pub fn channel_block(out_channels: usize, texel: bool) -> usize {
 /// 16 × 2 1.31 s. These figures predate the fetch-first loop order of
 /// 92e7048 (one pixel's accumulators in registers at a time), which made the
 /// accumulator count matter less; there, 8 × 8 took llvmpipe's compiler over
-/// ten minutes to build, and 4 × 8 read four pixels per fetch was slower than
-/// 8 × 4 (704×192 fp32 up4: 303–330 against 190–258 ms, two alternating runs).
+/// ten minutes to build until every loop over the accumulators was unrolled
+/// (a loop left to the compiler put them in scratch memory), and 4 × 8 read
+/// four pixels per fetch was slower than 8 × 4 (704×192 fp32 up4: 303–330
+/// against 190–258 ms, two alternating runs). Four-pixel fetches now use 8 × 8
+/// ([`VEC4_PIXEL_BLOCK`]); this one-pixel block was not re-measured since.
 pub fn pixel_block(out_channels: usize, texel: bool) -> usize {
     match (channel_block(out_channels, texel), texel) {
         (8, true) => 5,
@@ -431,15 +434,20 @@ pub fn pixel_block(out_channels: usize, texel: bool) -> usize {
 }
 
 /// Output pixels per invocation along x when the inputs are read four pixels
-/// per texel (`VEC4` in `unet_conv.comp`): 4 with 8 output channels per
-/// invocation, 8 with 4, so PX·STRIDE is a multiple of 4 and a row segment
-/// starts one pixel before a texel boundary.
-pub fn vec4_pixel_block(out_channels: usize) -> usize {
-    if channel_block(out_channels, true) == 8 {
-        4
-    } else {
-        8
-    }
+/// per texel (`VEC4` in `unet_conv.comp`), for every channel block: 8 (PX·STRIDE a multiple of 4, so a
+/// row segment starts one pixel before a texel boundary). With 8 output
+/// channels that is 64 accumulators, which compiles quickly once every loop
+/// over them is unrolled. Measured at 704×192 (four alternating runs, median
+/// ms): 8 × 8 fp32 671–799 / fp16 732–794 against 8 × 4 737–886 / 758–817;
+/// 8 × 16 587–697 / 687–719 (1408×384 about 3–6% faster than 8 × 8) but its
+/// pipelines take about 4 s more to build (both precisions: 7.9 against 4.1 s).
+pub const VEC4_PIXEL_BLOCK: usize = 8;
+
+/// Whether the resize to an `out_width`-wide level writes four pixels per
+/// invocation (`FOUR` in `unet_upsample.comp`): each row's pixels then start
+/// on a 16-byte boundary (arena tensors are 256-byte aligned).
+pub fn resize_four(out_width: usize) -> bool {
+    out_width % 4 == 0
 }
 
 /// Whether a layer whose input rows are `in_width` pixels wide can read its
@@ -526,8 +534,9 @@ pub struct UNet {
     config: UNetConfig,
     precision: StoragePrecision,
     convs: HashMap<ConvKey, Kernel>,
-    upsample: Kernel,
-    upsample_texel: Option<Kernel>,
+    /// The resize with one and with four output pixels per invocation ([`resize_four`]).
+    upsample: [Kernel; 2],
+    upsample_texel: Option<[Kernel; 2]>,
     pack: Kernel,
     /// Packed weights for device-address inputs, then for texel inputs (empty without them).
     weights: [Vec<LayerBuffers>; 2],
@@ -738,20 +747,20 @@ impl UNet {
                 )?);
             }
         }
-        let upsample = Kernel::new(
-            device,
-            if half { &kernels::UNET_UPSAMPLE_HALF } else { &kernels::UNET_UPSAMPLE },
-            &KernelDecl { bindings: &[], push_constant_size: std::mem::size_of::<UpsamplePush>(), specialization: &[] },
-        )?;
+        // One and four output pixels per invocation (`FOUR`, constant_id 0).
+        let resize = |module: &'static srug_spirv::KernelInfo, bindings: &[BindingKind]| -> Result<[Kernel; 2]> {
+            let kernel = |four: bool| {
+                let spec = [(0, SpecValue::Bool(four))];
+                let push_constant_size = std::mem::size_of::<UpsamplePush>();
+                Kernel::new(device, module, &KernelDecl { bindings, push_constant_size, specialization: &spec })
+            };
+            Ok([kernel(false)?, kernel(true)?])
+        };
+        let upsample = resize(if half { &kernels::UNET_UPSAMPLE_HALF } else { &kernels::UNET_UPSAMPLE }, &[])?;
         let upsample_texel = if texel {
-            Some(Kernel::new(
-                device,
+            Some(resize(
                 if half { &kernels::UNET_UPSAMPLE_TEXEL_HALF } else { &kernels::UNET_UPSAMPLE_TEXEL },
-                &KernelDecl {
-                    bindings: &[BindingKind::UniformTexelBuffer],
-                    push_constant_size: std::mem::size_of::<UpsamplePush>(),
-                    specialization: &[],
-                },
+                &[BindingKind::UniformTexelBuffer],
             )?)
         } else {
             None
@@ -880,7 +889,7 @@ impl UNet {
             channel_block(co, texel) as u32,
             half && i > 0,
             half && !last,
-            if vec4 { vec4_pixel_block(co) } else { pixel_block(co, texel) } as u32,
+            if vec4 { VEC4_PIXEL_BLOCK } else { pixel_block(co, texel) } as u32,
             texel,
             vec4,
         )
@@ -1122,19 +1131,23 @@ impl UNet {
                         align_corners: u32::from(c.align_corners),
                     };
                     rec.begin_stage(&format!("{name} resize"));
-                    // x along the workgroup, a row per grid y, a channel per grid z.
-                    let grid = [s[lout].0.div_ceil(64) as u32, s[lout].1 as u32, ch as u32];
+                    let four = resize_four(s[lout].0);
+                    // x along the workgroup (four pixels per invocation with `four`), a row per grid y, a
+                    // channel per grid z.
+                    let per_group = if four { 256 } else { 64 };
+                    let grid = [s[lout].0.div_ceil(per_group) as u32, s[lout].1 as u32, ch as u32];
                     if grid[1] > max_groups[1] || grid[2] > max_groups[2] {
                         return Err(Error::InvalidArgument(format!(
                             "{name} resize: {grid:?} workgroups exceed the device's limits"
                         )));
                     }
                     let elements = ch * s[from].0 * s[from].1;
+                    let k = usize::from(four);
                     match upsample_texel.filter(|_| elements as u64 <= max_texels) {
-                        Some(k) => {
-                            rec.dispatch_bound(k, &[Binding::Texels(view(src, elements, false))], &push, grid)?
+                        Some(ks) => {
+                            rec.dispatch_bound(&ks[k], &[Binding::Texels(view(src, elements, false))], &push, grid)?
                         }
-                        None => rec.dispatch(upsample, &[], &push, grid)?,
+                        None => rec.dispatch(&upsample[k], &[], &push, grid)?,
                     }
                     rec.end_stage();
                 }
@@ -1156,7 +1169,7 @@ impl UNet {
                     Some((k, ..)) => (k, s[lout].0.div_ceil(2) * s[lout].1.div_ceil(2), winograd::WINOGRAD_CHANNELS),
                     None => (
                         kernel(li, use_texel, use_vec4)?,
-                        s[lout].0.div_ceil(if use_vec4 { vec4_pixel_block(co) } else { pixel_block(co, use_texel) })
+                        s[lout].0.div_ceil(if use_vec4 { VEC4_PIXEL_BLOCK } else { pixel_block(co, use_texel) })
                             * s[lout].1,
                         channel_block(co, use_texel),
                     ),

@@ -12,9 +12,8 @@ layout(constant_id = 1) const uint ACT = 1;
 // Output channels per invocation: 4 or 8 (a multiple of 4).
 layout(constant_id = 2) const uint OCB = 8;
 // Output pixels per invocation along x: 1 to 8. Each weight read feeds PX
-// pixels and each input row segment is read once for all of them (PX·OCB = 64
-// made llvmpipe's compiler run for over ten minutes; see
-// engine/src/indirect/mod.rs `pixel_block`).
+// pixels and each input row segment is read once for all of them (see
+// engine/src/indirect/mod.rs `pixel_block`, `VEC4_PIXEL_BLOCK`).
 layout(constant_id = 3) const uint PX = 1;
 
 #ifdef TEXEL_INPUT
@@ -115,16 +114,18 @@ void main() {
     int ow = int(pc.out_size.x);
     const uint Q = OCB / 4u;
     // acc[x * Q + q]: pixel ox0 + x, channels ob·OCB + 4q .. + 3 (PX·OCB ≤ 64).
+    // Every loop over acc is unrolled: a dynamic index puts it in scratch memory, and with 64
+    // accumulators that kept llvmpipe's compiler busy for over ten minutes.
     vec4 acc[16];
-    for (uint x = 0u; x < PX; ++x) {
+    [[unroll]] for (uint x = 0u; x < PX; ++x) {
         // Pixels past the row's end (a partial block) compute a clamped copy and are not stored.
         uint px = uint(oy * ow + min(ox0 + int(x), ow - 1));
         if ((pc.flags & 1u) != 0u) {
-            for (uint q = 0u; q < Q; ++q) acc[x * Q + q] = bias[Q * ob + q];
+            [[unroll]] for (uint q = 0u; q < Q; ++q) acc[x * Q + q] = bias[Q * ob + q];
         } else {
             FloatsIn prev = FloatsIn(pc.partial);
-            for (uint q = 0u; q < Q; ++q) {
-                for (uint j = 0u; j < 4u; ++j) {
+            [[unroll]] for (uint q = 0u; q < Q; ++q) {
+                [[unroll]] for (uint j = 0u; j < 4u; ++j) {
                     uint c = min(ob * OCB + 4u * q + j, pc.oc - 1u);
                     acc[x * Q + q][j] = prev.v[c * plane + px];
                 }
@@ -188,11 +189,11 @@ void main() {
 #endif
     if (!live) return;
     bool last = (pc.flags & 2u) != 0u;
-    for (uint x = 0u; x < PX; ++x) {
+    [[unroll]] for (uint x = 0u; x < PX; ++x) {
         int ox = ox0 + int(x);
         if (ox >= ow) break;
         uint px = uint(oy * ow + ox);
-        for (uint q = 0u; q < Q; ++q) {
+        [[unroll]] for (uint q = 0u; q < Q; ++q) {
             vec4 a = acc[x * Q + q];
             if (last) {
                 if (ACT == 1u) {
@@ -201,7 +202,7 @@ void main() {
                     a = mix(a * 0.01, a, greaterThanEqual(a, vec4(0.0)));
                 }
             }
-            for (uint j = 0u; j < 4u; ++j) {
+            [[unroll]] for (uint j = 0u; j < 4u; ++j) {
                 uint c = ob * OCB + 4u * q + j;
                 if (c >= pc.oc) continue;
                 if (last) {

@@ -3,11 +3,13 @@
 // address.glsl.
 #ifndef SRUG_UNET_STORAGE_GLSL
 #define SRUG_UNET_STORAGE_GLSL
+layout(buffer_reference, std430, buffer_reference_align = 16) writeonly buffer Vec4sOut { vec4 v[]; };
 
 #ifdef HALF_STORAGE
 #extension GL_EXT_shader_16bit_storage : require
 layout(buffer_reference, std430, buffer_reference_align = 2) readonly buffer HalfsIn { float16_t v[]; };
 layout(buffer_reference, std430, buffer_reference_align = 2) writeonly buffer HalfsOut { float16_t v[]; };
+layout(buffer_reference, std430, buffer_reference_align = 8) writeonly buffer Half4sOut { f16vec4 v[]; };
 layout(constant_id = 10) const bool IN_HALF = true;
 layout(constant_id = 11) const bool OUT_HALF = true;
 
@@ -23,6 +25,15 @@ void store_output(uvec2 a, uint i, float v) {
         FloatsOut(a).v[i] = v;
     }
 }
+
+// Stores elements i .. i + 3 (i a multiple of 4, the buffer 16-byte aligned) in one access.
+void store_output4(uvec2 a, uint i, vec4 v) {
+    if (OUT_HALF) {
+        Half4sOut(a).v[i / 4u] = f16vec4(clamp(v, vec4(-65504.0), vec4(65504.0)));
+    } else {
+        Vec4sOut(a).v[i / 4u] = v;
+    }
+}
 #else
 float load_input(uvec2 a, uint i) {
     return FloatsIn(a).v[i];
@@ -30,6 +41,11 @@ float load_input(uvec2 a, uint i) {
 
 void store_output(uvec2 a, uint i, float v) {
     FloatsOut(a).v[i] = v;
+}
+
+// Stores elements i .. i + 3 (i a multiple of 4, the buffer 16-byte aligned) in one access.
+void store_output4(uvec2 a, uint i, vec4 v) {
+    Vec4sOut(a).v[i / 4u] = v;
 }
 #endif
 

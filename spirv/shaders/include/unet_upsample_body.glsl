@@ -1,5 +1,6 @@
 // The body of unet_upsample.comp, unet_upsample_half.comp, unet_upsample_texel.comp
 // and unet_upsample_texel_half.comp (see there).
+#extension GL_EXT_control_flow_attributes : require
 #define WORKGROUP_SIZE_X 64
 #include "common.glsl"
 #include "address.glsl"
@@ -36,18 +37,36 @@ void source(uint d, uint n_in, uint n_out, out uint i0, out uint i1, out float t
     t = s - float(i0);
 }
 
-// One invocation per output pixel: x along the workgroup, y and the channel
-// from the grid (no integer division per pixel: on lavapipe a vector integer
-// division runs lane by lane).
+// Output pixels per invocation along x: 4 (FOUR, where the output width is a
+// multiple of 4: one 16-byte store instead of four lane-by-lane scalar ones
+// on lavapipe, and the row's source rows and weights computed once) or 1.
+layout(constant_id = 0) const bool FOUR = false;
+
+// One invocation per FOUR ? 4 : 1 output pixels: x along the workgroup, y and
+// the channel from the grid (no integer division per pixel: on lavapipe a
+// vector integer division runs lane by lane).
 void main() {
-    uint ox = gl_GlobalInvocationID.x, oy = gl_WorkGroupID.y, c = gl_WorkGroupID.z;
-    if (ox >= pc.out_size.x || oy >= pc.out_size.y || c >= pc.channels) return;
-    uint x0, x1, y0, y1;
-    float tx, ty;
-    source(ox, pc.in_size.x, pc.out_size.x, x0, x1, tx);
+    const uint N = FOUR ? 4u : 1u;
+    uint ox0 = gl_GlobalInvocationID.x * N, oy = gl_WorkGroupID.y, c = gl_WorkGroupID.z;
+    if (ox0 >= pc.out_size.x || oy >= pc.out_size.y || c >= pc.channels) return;
+    uint y0, y1;
+    float ty;
     source(oy, pc.in_size.y, pc.out_size.y, y0, y1, ty);
     uint base = c * pc.in_size.x * pc.in_size.y;
-    float top = mix(LOAD(base + y0 * pc.in_size.x + x0), LOAD(base + y0 * pc.in_size.x + x1), tx);
-    float bottom = mix(LOAD(base + y1 * pc.in_size.x + x0), LOAD(base + y1 * pc.in_size.x + x1), tx);
-    store_output(pc.dst, (c * pc.out_size.y + oy) * pc.out_size.x + ox, mix(top, bottom, ty));
+    uint row0 = base + y0 * pc.in_size.x, row1 = base + y1 * pc.in_size.x;
+    vec4 out4;
+    [[unroll]] for (uint k = 0u; k < N; ++k) {
+        uint x0, x1;
+        float tx;
+        source(ox0 + k, pc.in_size.x, pc.out_size.x, x0, x1, tx);
+        float top = mix(LOAD(row0 + x0), LOAD(row0 + x1), tx);
+        float bottom = mix(LOAD(row1 + x0), LOAD(row1 + x1), tx);
+        out4[k] = mix(top, bottom, ty);
+    }
+    uint at = (c * pc.out_size.y + oy) * pc.out_size.x + ox0;
+    if (FOUR) {
+        store_output4(pc.dst, at, out4);
+    } else {
+        store_output(pc.dst, at, out4.x);
+    }
 }
