@@ -11,7 +11,8 @@ cargo build --locked --workspace --all-targets
 log=$(mktemp)
 trap 'rm -f "$log"' EXIT
 status=0
-cargo test --locked --workspace --lib --bins --tests -- --test-threads=2 2>&1 | tee "$log" || status=$?
+# --no-fail-fast: a failing test binary does not hide the others' results.
+cargo test --locked --no-fail-fast --workspace --lib --bins --tests -- --test-threads=2 2>&1 | tee "$log" || status=$?
 # One plain closing line with the totals over every test binary.
 awk '/^test result:/ { for (i = 1; i <= NF; i++) { if ($(i+1) ~ /^passed/) p += $i; if ($(i+1) ~ /^failed/) f += $i } }
      END { printf "srug tests: %d passed, %d failed\n", p, f }' "$log"

@@ -422,6 +422,12 @@ srug_status srug_renderer_set_shadow(srug_renderer *renderer,
 // `name` a NUL-terminated string.
 srug_status srug_renderer_set_preset(srug_renderer *renderer, const char *name);
 
+// The splatting tile edge in pixels, 8, 16 (the default) or 32, for the
+// camera and the shadow map (presets keep it). It changes speed, not the
+// image beyond rounding: on CPU Vulkan (lavapipe) 8 is the faster choice,
+// on GPUs usually 16 (README: "Speed against accuracy").
+srug_status srug_renderer_set_tile(srug_renderer *renderer, uint32_t tile);
+
 // Keeps the shadow map between renders (off by default) and splats a new one
 // only when the scene (a different handle, or `srug_scene_set_gaussians`),
 // the sun or the shadow map's settings change: with a fixed sun a frame then

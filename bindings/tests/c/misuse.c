@@ -100,6 +100,8 @@ int main(int argc, char **argv) {
   EXPECT(srug_renderer_set_preset(r, "fastest"), SRUG_ERROR_INVALID_ARGUMENT);
   EXPECT(srug_renderer_set_preset(r, NULL), SRUG_ERROR_NULL_POINTER);
   EXPECT(srug_renderer_set_exposure(r, 0.0f, 77), SRUG_ERROR_INVALID_ARGUMENT);
+  EXPECT(srug_renderer_set_tile(r, 12), SRUG_ERROR_INVALID_ARGUMENT);
+  EXPECT(srug_renderer_set_tile(r, 0), SRUG_ERROR_INVALID_ARGUMENT);
   EXPECT(srug_renderer_set_environment(r, NULL, 0.0f, -1.0f), SRUG_ERROR_INVALID_ARGUMENT);
   float *means = calloc(count * 3, sizeof(float)), *ls = calloc(count * 3, sizeof(float));
   float *rot = calloc(count * 4, sizeof(float)), *op = calloc(count, sizeof(float));

@@ -200,6 +200,25 @@ int main(int argc, char **argv) {
   CHECK(srug_renderer_stage_count(r, &reused_stages));
   REQUIRE(reused_stages == fresh_stages);
 
+  /* 8-pixel tiles (the faster choice on lavapipe): the same frame up to rounding, which can
+     flip a few shadow-edge pixels (the sigmoid test is steep). */
+  CHECK(srug_renderer_set_tile(r, 8));
+  CHECK(srug_renderer_render(r, scene));
+  again = read_rgba8(r, w, h);
+  double tile_mean = 0.0;
+  size_t tile_far = 0;
+  for (size_t i = 0; i < pixels * 4; i++) {
+    int d = abs((int)again[i] - (int)image[i]);
+    tile_mean += d;
+    tile_far += d > 8;
+  }
+  tile_mean /= (double)(pixels * 4);
+  printf("tile 8: mean |tile 8 - tile 16| = %.3f of 255, %zu of %zu values off by more than 8\n", tile_mean,
+         tile_far, pixels * 4);
+  REQUIRE(tile_mean < 0.5 && tile_far * 200 < pixels * 4);
+  free(again);
+  CHECK(srug_renderer_set_tile(r, 16));
+
   /* Presets: balanced is the renderer's default (same bytes); fast renders at half
      size and reads back resampled to the full size, close to the balanced frame. */
   CHECK(srug_renderer_set_preset(r, "balanced"));
