@@ -784,15 +784,11 @@ fn relighter_reuses_the_shadow_map_only_while_it_is_current() {
     reusing.set_shadow_map_reuse(true);
     let mut fresh = Relighter::new(&d).unwrap();
 
+    // A frame: the scene, a camera index, the sun and the settings.
+    type Frame<'a> = (&'a GpuScene, usize, &'a Sun, &'a RelightSettings);
     // (visibility, radiance) of a frame; checks the reuse flag against `expect_reused` and that a
     // reused map's splat is absent from the timings while the shadow test still runs.
-    let step = |relighter: &mut Relighter,
-                gpu: &GpuScene,
-                cam: usize,
-                sun: &Sun,
-                settings: &RelightSettings,
-                expect_reused: bool,
-                label: &str| {
+    let step = |relighter: &mut Relighter, (gpu, cam, sun, settings): Frame<'_>, expect_reused: bool, label: &str| {
         let f = relighter.render(gpu, &attributes, &bounds, &cams[cam], Some(sun), &env, &brdf, settings).unwrap();
         let names: Vec<&str> = f.timings.stages.iter().map(|s| s.name.as_str()).collect();
         assert!(f.shadow_pass_ran, "{label}");
@@ -811,8 +807,8 @@ fn relighter_reuses_the_shadow_map_only_while_it_is_current() {
                      settings: &RelightSettings,
                      expect_reused: bool,
                      label: &str| {
-        let got = step(reusing, gpu, cam, sun, settings, expect_reused, label);
-        let want = step(&mut fresh, gpu, cam, sun, settings, false, label);
+        let got = step(reusing, (gpu, cam, sun, settings), expect_reused, label);
+        let want = step(&mut fresh, (gpu, cam, sun, settings), false, label);
         assert!(got == want, "{label}: a reused map must give the fresh map's frame exactly");
         got.0
     };
