@@ -423,8 +423,10 @@ pub fn channel_block(out_channels: usize, texel: bool) -> usize {
 /// ten minutes to build until every loop over the accumulators was unrolled
 /// (a loop left to the compiler put them in scratch memory), and 4 × 8 read
 /// four pixels per fetch was slower than 8 × 4 (704×192 fp32 up4: 303–330
-/// against 190–258 ms, two alternating runs). Four-pixel fetches now use 8 × 8
-/// ([`VEC4_PIXEL_BLOCK`]); this one-pixel block was not re-measured since.
+/// against 190–258 ms, two alternating runs). Four-pixel fetches now use 8 × 16
+/// ([`vec4_pixel_block`]). With the unrolled loops, 8 × 8 here (one pixel per
+/// fetch) read fp32 506 / 672 / 749 against 646 / 712 / 821 ms but fp16 634 /
+/// 686 / 599 against 546 / 618 / 566 (704×192, three rounds), so 8 × 5 stays.
 pub fn pixel_block(out_channels: usize, texel: bool) -> usize {
     match (channel_block(out_channels, texel), texel) {
         (8, true) => 5,
@@ -434,14 +436,21 @@ pub fn pixel_block(out_channels: usize, texel: bool) -> usize {
 }
 
 /// Output pixels per invocation along x when the inputs are read four pixels
-/// per texel (`VEC4` in `unet_conv.comp`), for every channel block: 8 (PX·STRIDE a multiple of 4, so a
-/// row segment starts one pixel before a texel boundary). With 8 output
-/// channels that is 64 accumulators, which compiles quickly once every loop
-/// over them is unrolled. Measured at 704×192 (four alternating runs, median
-/// ms): 8 × 8 fp32 671–799 / fp16 732–794 against 8 × 4 737–886 / 758–817;
-/// 8 × 16 587–697 / 687–719 (1408×384 about 3–6% faster than 8 × 8) but its
-/// pipelines take about 4 s more to build (both precisions: 7.9 against 4.1 s).
-pub const VEC4_PIXEL_BLOCK: usize = 8;
+/// per texel (`VEC4` in `unet_conv.comp`): 16 with 8 output channels per
+/// invocation, 8 with 4 (PX·STRIDE a multiple of 4, so a row segment starts
+/// one pixel before a texel boundary). 128 accumulators compile quickly once
+/// every loop over them is unrolled. Measured at 704×192 (four alternating
+/// runs, median ms): 8 × 16 fp32 587–697 / fp16 687–719, 8 × 8 671–799 /
+/// 732–794, 8 × 4 (before) 737–886 / 758–817; at 1408×384 8 × 16 was 3–6%
+/// faster than 8 × 8. Building both precisions' kernels: 2.4 s against
+/// 2.0–2.3 s (`srug bench unet --sizes 64x16`, device start included).
+pub fn vec4_pixel_block(out_channels: usize) -> usize {
+    if channel_block(out_channels, true) == 8 {
+        16
+    } else {
+        8
+    }
+}
 
 /// Whether the resize to an `out_width`-wide level writes four pixels per
 /// invocation (`FOUR` in `unet_upsample.comp`): each row's pixels then start
@@ -889,7 +898,7 @@ impl UNet {
             channel_block(co, texel) as u32,
             half && i > 0,
             half && !last,
-            if vec4 { VEC4_PIXEL_BLOCK } else { pixel_block(co, texel) } as u32,
+            if vec4 { vec4_pixel_block(co) } else { pixel_block(co, texel) } as u32,
             texel,
             vec4,
         )
@@ -1169,7 +1178,7 @@ impl UNet {
                     Some((k, ..)) => (k, s[lout].0.div_ceil(2) * s[lout].1.div_ceil(2), winograd::WINOGRAD_CHANNELS),
                     None => (
                         kernel(li, use_texel, use_vec4)?,
-                        s[lout].0.div_ceil(if use_vec4 { VEC4_PIXEL_BLOCK } else { pixel_block(co, use_texel) })
+                        s[lout].0.div_ceil(if use_vec4 { vec4_pixel_block(co) } else { pixel_block(co, use_texel) })
                             * s[lout].1,
                         channel_block(co, use_texel),
                     ),

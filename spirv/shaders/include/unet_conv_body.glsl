@@ -11,9 +11,9 @@ layout(constant_id = 0) const uint STRIDE = 1;
 layout(constant_id = 1) const uint ACT = 1;
 // Output channels per invocation: 4 or 8 (a multiple of 4).
 layout(constant_id = 2) const uint OCB = 8;
-// Output pixels per invocation along x: 1 to 8. Each weight read feeds PX
+// Output pixels per invocation along x: 1 to 16. Each weight read feeds PX
 // pixels and each input row segment is read once for all of them (see
-// engine/src/indirect/mod.rs `pixel_block`, `VEC4_PIXEL_BLOCK`).
+// engine/src/indirect/mod.rs `pixel_block`, `vec4_pixel_block`).
 layout(constant_id = 3) const uint PX = 1;
 
 #ifdef TEXEL_INPUT
@@ -70,7 +70,7 @@ layout(push_constant) uniform Push {
         uint wbase = ((ob * chunk + (ic - pc.ic0)) * 9u) * Q;                      \
         vec4 wt[36]; /* [ky·3 + kx][q], Q ≤ 4 */                                   \
         [[unroll]] for (uint t = 0u; t < 9u * Q; ++t) wt[t] = WEIGHTS(wbase + t);  \
-        float rows[3][17]; /* SPAN ≤ 17: PX ≤ 8, STRIDE ≤ 2 */                     \
+        float rows[3][33]; /* SPAN ≤ 33: PX ≤ 16, STRIDE ≤ 2 */                  \
         [[unroll]] for (int ky = 0; ky < 3; ++ky) {                                \
             int iy = oy * int(STRIDE) + ky - 1;                                    \
             bool row_in = iy >= 0 && iy < h;                                       \
@@ -95,7 +95,7 @@ layout(push_constant) uniform Push {
 // last component of the row's first texel.
 #define FILL_VEC4(VIEW, BASE4)                                                     \
     {                                                                              \
-        vec4 seg[5];                                                               \
+        vec4 seg[9];                                                               \
         [[unroll]] for (uint t = 0u; t < NT; ++t) seg[t] = texelFetch(VIEW, int(BASE4) + tex_at[ky][t]); \
         [[unroll]] for (uint k = 0u; k < SPAN; ++k) rows[ky][k] = tap_in[ky][k] ? seg[(k + 3u) / 4u][(k + 3u) % 4u] : 0.0; \
     }
@@ -113,10 +113,10 @@ void main() {
     int ox0 = int((p % blocks_x) * PX), oy = int(p / blocks_x);
     int ow = int(pc.out_size.x);
     const uint Q = OCB / 4u;
-    // acc[x * Q + q]: pixel ox0 + x, channels ob·OCB + 4q .. + 3 (PX·OCB ≤ 64).
+    // acc[x * Q + q]: pixel ox0 + x, channels ob·OCB + 4q .. + 3 (PX·OCB ≤ 128).
     // Every loop over acc is unrolled: a dynamic index puts it in scratch memory, and with 64
     // accumulators that kept llvmpipe's compiler busy for over ten minutes.
-    vec4 acc[16];
+    vec4 acc[32];
     [[unroll]] for (uint x = 0u; x < PX; ++x) {
         // Pixels past the row's end (a partial block) compute a clamped copy and are not stored.
         uint px = uint(oy * ow + min(ox0 + int(x), ow - 1));
@@ -147,11 +147,11 @@ void main() {
     // Each tap's element offset within a channel plane (clamped into the
     // image, so every fetch is in range) and whether it lies inside (else the
     // tap reads the zero padding): the same for every input channel.
-    int tap_at[3][17];
-    bool tap_in[3][17];
+    int tap_at[3][33];
+    bool tap_in[3][33];
     // VEC4: the texels of each row segment, offsets within a plane (clamped into it).
     const uint NT = ((PX - 1u) * STRIDE + 5u) / 4u + 1u;
-    int tex_at[3][5];
+    int tex_at[3][9];
     int m = ox0 * int(STRIDE) / 4;
     int plane_texels = int(in_plane / 4u);
     for (int ky = 0; ky < 3; ++ky) {
