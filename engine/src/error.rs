@@ -1,5 +1,5 @@
 //! The crate's error type. Vulkan results are mapped to it in one place,
-//! [`vk_error`], so out-of-memory and device loss always surface the same way.
+//! `vk_error`, so out-of-memory and device loss always surface the same way.
 
 use std::path::PathBuf;
 

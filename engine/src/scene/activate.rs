@@ -19,27 +19,27 @@ pub struct GpuScene {
     pub count: usize,
     /// SH degree.
     pub sh_degree: u32,
-    /// float[3N] centres.
+    /// `float[3N]` centres.
     pub means: Buffer,
-    /// float[3N] log scales.
+    /// `float[3N]` log scales.
     pub log_scales: Buffer,
-    /// float[4N] quaternions (w, x, y, z).
+    /// `float[4N]` quaternions (w, x, y, z).
     pub rotations: Buffer,
-    /// float[N] opacity logits.
+    /// `float[N]` opacity logits.
     pub opacity_logits: Buffer,
     /// float[3·K·N] SH coefficients, coefficient-major, RGB innermost.
     pub sh: Buffer,
-    /// float[3N] stored normals, when the scene has them.
+    /// `float[3N]` stored normals, when the scene has them.
     pub normals: Option<Buffer>,
-    /// float[3N] albedo logits, when present.
+    /// `float[3N]` albedo logits, when present.
     pub albedo: Option<Buffer>,
-    /// float[N] roughness logits, when present.
+    /// `float[N]` roughness logits, when present.
     pub roughness: Option<Buffer>,
-    /// float[N] metallic logits, when present.
+    /// `float[N]` metallic logits, when present.
     pub metallic: Option<Buffer>,
-    /// float[N] ambient-occlusion logits, when present.
+    /// `float[N]` ambient-occlusion logits, when present.
     pub ao: Option<Buffer>,
-    /// float[N] fixed-visibility logits, when present.
+    /// `float[N]` fixed-visibility logits, when present.
     pub visibility: Option<Buffer>,
     /// What [`GpuScene::version`] returns.
     version: u64,
@@ -96,15 +96,15 @@ impl GpuScene {
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
 pub struct ActivatePush {
-    /// Address of float[3N] log scales.
+    /// Address of `float[3N]` log scales.
     pub log_scales: u64,
-    /// Address of float[4N] quaternions.
+    /// Address of `float[4N]` quaternions.
     pub rotations: u64,
-    /// Address of float[N] opacity logits.
+    /// Address of `float[N]` opacity logits.
     pub opacity_logits: u64,
-    /// Address of the float[6N] covariance output.
+    /// Address of the `float[6N]` covariance output.
     pub covariances: u64,
-    /// Address of the float[N] opacity output.
+    /// Address of the `float[N]` opacity output.
     pub opacities: u64,
     /// N.
     pub count: u32,
@@ -115,9 +115,9 @@ const _: () = assert!(std::mem::size_of::<ActivatePush>() == 48);
 
 /// Activated parameters on the GPU.
 pub struct Activated {
-    /// float[6N]: Σ as (xx, xy, xz, yy, yz, zz).
+    /// `float[6N]`: Σ as (xx, xy, xz, yy, yz, zz).
     pub covariances: Buffer,
-    /// float[N] opacities in (0, 1).
+    /// `float[N]` opacities in (0, 1).
     pub opacities: Buffer,
     /// GPU time of the kernel.
     pub timings: Timings,

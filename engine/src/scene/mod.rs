@@ -22,7 +22,7 @@ pub use ply::{read_ply, read_ply_bytes, write_ply, PlyFormat};
 /// A malformed scene or camera file: what is wrong and where.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct SceneError {
-    /// The file (or "<memory>").
+    /// The file (or `"<memory>"`).
     pub path: String,
     /// Zero-based data row (Gaussian or camera index), when one is at fault.
     pub row: Option<usize>,

@@ -33,7 +33,7 @@ pub struct RelightSettings {
     /// Spherical-harmonic degree used for colour (`None`: the scene's).
     pub sh_degree: Option<u32>,
     /// The frame is rendered at this fraction of the camera's size in each
-    /// direction (0 < s ≤ 1; 0 means 1); [`ShadedImage::resampled`] brings it back.
+    /// direction (0 < s ≤ 1; 0 means 1); [`ShadedImage::resampled`](super::ShadedImage::resampled) brings it back.
     pub render_scale: f32,
     /// Tile edge of the camera's splatting ([`crate::splat::TILE_SIZES`]); the
     /// shadow map has its own, `shadow.tile`.

@@ -7,7 +7,7 @@
 //! shared memory, into one record per (tile, splat) pair;
 //! `splat_backward_gaussians.comp` (one invocation per Gaussian) sums its
 //! records in order and chains them through the projection. The records sit
-//! where the forward's scan put the pairs (pair_offsets[g] + the tile's place
+//! where the forward's scan put the pairs (`pair_offsets[g]` + the tile's place
 //! in the splat's rectangle), so no second sort is needed. The tile kernel
 //! loads each splat once per subgroup (subgroup ballot).
 //!

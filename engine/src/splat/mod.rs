@@ -325,17 +325,17 @@ pub struct GpuGBuffer {
     pub width: u32,
     /// Height in pixels.
     pub height: u32,
-    /// float[3P].
+    /// `float[3P]`.
     pub rgb: Buffer,
-    /// float[P].
+    /// `float[P]`.
     pub alpha: Buffer,
     /// Optional channels, as in [`GBuffer`].
     pub depth: Option<Buffer>,
     /// Median depth.
     pub median_depth: Option<Buffer>,
-    /// Normal, float[3P].
+    /// Normal, `float[3P]`.
     pub normal: Option<Buffer>,
-    /// Albedo, float[3P].
+    /// Albedo, `float[3P]`.
     pub albedo: Option<Buffer>,
     /// Roughness.
     pub roughness: Option<Buffer>,
