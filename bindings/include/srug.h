@@ -430,7 +430,7 @@ srug_status srug_renderer_set_tile(srug_renderer *renderer, uint32_t tile);
 
 // Keeps the shadow map between renders (off by default) and splats a new one
 // only when the scene (a different handle, or `srug_scene_set_gaussians`),
-// the sun or the shadow map's settings change: with a fixed sun a frame then
+// the sun's direction or the shadow map's settings change: with a fixed sun a frame then
 // costs the camera splat, the shadow test and the shading. The map's GPU
 // memory stays allocated while it is kept; turning reuse off frees it.
 srug_status srug_renderer_set_shadow_map_reuse(srug_renderer *renderer, bool on);

@@ -1125,7 +1125,7 @@ pub extern "C" fn srug_renderer_set_tile(renderer: *mut srug_renderer, tile: u32
 
 /// Keeps the shadow map between renders (off by default) and splats a new one
 /// only when the scene (a different handle, or `srug_scene_set_gaussians`),
-/// the sun or the shadow map's settings change: with a fixed sun a frame then
+/// the sun's direction or the shadow map's settings change: with a fixed sun a frame then
 /// costs the camera splat, the shadow test and the shading. The map's GPU
 /// memory stays allocated while it is kept; turning reuse off frees it.
 #[no_mangle]

@@ -817,6 +817,9 @@ fn relighter_reuses_the_shadow_map_only_while_it_is_current() {
     check(&mut reusing, &gpu, 1, &sun_b, &settings, false, "the sun moved");
     check(&mut reusing, &gpu, 1, &sun_a, &settings, false, "the sun moved back");
     check(&mut reusing, &gpu, 1, &sun_a, &settings, true, "same frame again");
+    // A brighter sun in the same direction lights differently but casts the same map.
+    let bright = Sun { intensity: [6.0, 5.0, 4.0], ..sun_a };
+    check(&mut reusing, &gpu, 1, &bright, &settings, true, "same direction, new intensity");
 
     // Gaussians written in place and marked: a new map, and it sees the new geometry.
     let lifted: Vec<f32> = city.scene.means.iter().flat_map(|m| [m[0], m[1] + 40.0, m[2]]).collect();

@@ -8,6 +8,8 @@
 //! pass; no network weights → no indirect stage. A scene without albedo cannot
 //! be shaded ([`Relighter::render`] refuses it; render its colour instead).
 
+use glam::Vec3;
+
 use super::{BrdfTable, PreparedEnvironment, ShadeInputs, ShadeSettings, ShadedFrame, Shader, VisibilitySource};
 use crate::error::{Error, Result};
 use crate::gpu::{Device, Timings};
@@ -242,7 +244,8 @@ struct ShadowMapKey {
     /// [`GpuScene::version`].
     scene: u64,
     light: Camera,
-    sun: Sun,
+    /// The sun's direction: its intensity does not change the map.
+    direction: Vec3,
     depth: DepthMode,
     tile: u32,
 }
@@ -261,7 +264,8 @@ impl Relighter {
     }
 
     /// Keeps the shadow map between frames and splats a new one only when
-    /// the scene ([`GpuScene::version`]), the sun, or the light camera
+    /// the scene ([`GpuScene::version`]), the sun's direction (not its
+    /// intensity), or the light camera
     /// (resolution, fit; the view with [`crate::shadow::ShadowFit::ViewFrustum`])
     /// or the map's depth mode or tile change. With a fixed sun the per-frame
     /// shadow cost is then the sigmoid test alone. Off by default: the map's
@@ -338,7 +342,7 @@ impl Relighter {
             let key = ShadowMapKey {
                 scene: scene.version(),
                 light: light_camera(bounds, s, shadow.resolution, shadow.fit, Some(camera))?,
-                sun: *s,
+                direction: s.direction,
                 depth: shadow.map_depth,
                 tile: shadow.tile,
             };
