@@ -101,7 +101,7 @@ fn expected_vec4_layers(w: usize, h: usize) -> Vec<&'static str> {
 fn vec4_inputs_match_twin() {
     // Four pixels per texel fetch where a level's width is a multiple of 4:
     // 64×12 every layer (heights down to 1), 36×20 only the full-resolution
-    // ones, 24×6 with partial pixel blocks (24 = 3 blocks of 8 in outc, 6 = 1.5 in down-levels).
+    // ones, 24×6 with partial pixel blocks (24 = 1.5 blocks of 16, 3 of 8 in outc; 6 at down-levels).
     let d = device();
     let cases = [
         ([32usize, 32, 64, 64, 128], Activation::Relu, false, 64usize, 12usize),
