@@ -58,6 +58,15 @@ pub struct UNetRow {
     pub arena_bytes: u64,
 }
 
+/// The benchmark's network input: uniform in [0, 1) from a fixed seed, so every
+/// run and every path sees the same values, and the activations vary like a
+/// real G-buffer's rather than being one constant per layer.
+fn bench_input(len: usize) -> Vec<f32> {
+    use rand::{Rng, SeedableRng};
+    let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(7);
+    (0..len).map(|_| rng.random_range(0.0..1.0)).collect()
+}
+
 /// Runs the benchmark.
 pub fn unet_bench(
     device: &Device,
@@ -80,7 +89,7 @@ pub fn unet_bench(
             net.set_winograd(path == ConvPath::Winograd)?;
             net.set_vec4_inputs(path == ConvPath::Vec4)?;
             progress(&format!("U-Net at {w}x{h}, {precision:?}, {} convolution", path.label()));
-            let input = device.upload("u-net input", &vec![0.5f32; 14 * (w * h) as usize])?;
+            let input = device.upload("u-net input", &bench_input(14 * (w * h) as usize))?;
             net.infer(&input, w, h)?;
             let mut totals = Vec::new();
             let mut per_layer: Vec<(String, Vec<f64>)> = Vec::new();
