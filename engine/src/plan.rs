@@ -115,8 +115,13 @@ fn splat_stage(name: &str, n: u64, texels: u64, channels: Channels, blend: Blend
     PlannedStage {
         name: name.to_string(),
         kernels: format!(
-            "preprocess, scan, keys, radix sort, ranges, blend {blend:?} with CHANNELS = {:#010b} [{}], \
+            "preprocess, scan, keys, radix sort, ranges, blend {blend:?}{} with CHANNELS = {:#010b} [{}], \
              {tile}×{tile} tiles",
+            if blend == BlendVariant::SubgroupLoads {
+                " (texel-buffer reads where the device has the views and the pairs fit them)"
+            } else {
+                ""
+            },
             channels.bits(),
             channel_names(channels).join(", ")
         ),
@@ -147,7 +152,12 @@ pub fn plan_frame(scene: &Scene, settings: &PlanSettings<'_>) -> Result<FramePla
                 .and_then(|b| light_camera(&b, &sun, st.resolution, st.fit, None).ok())
                 .map_or(u64::from(st.resolution).pow(2), |c| u64::from(c.width) * u64::from(c.height));
             let map_channels = depth_channels(st.map_depth);
-            stages.push(splat_stage("splat (shadow map)", n, texels, map_channels, settings.blend, st.tile));
+            let mut map = splat_stage("splat (shadow map)", n, texels, map_channels, settings.blend, st.tile);
+            map.note.push_str(
+                "; with shadow-map reuse on (`srug relight`), later frames skip it while the scene, the sun's \
+                 direction and the light camera stay the same",
+            );
+            stages.push(map);
             let traced = settings.relight.visibility_kind == crate::shadow::VisibilityKind::Traced;
             stages.push(PlannedStage {
                 name: if traced { "traced shadow test" } else { "sigmoid shadow test" }.into(),
@@ -182,12 +192,15 @@ pub fn plan_frame(scene: &Scene, settings: &PlanSettings<'_>) -> Result<FramePla
         match settings.network {
             Some((config, precision)) => stages.push(PlannedStage {
                 name: "indirect light (U-Net)".into(),
-                kernels: format!(
-                    "unet_pack, unet_conv{} ×10, unet_upsample{} ×4 (widths {:?})",
-                    if precision == StoragePrecision::Fp16 { "_half" } else { "" },
-                    if precision == StoragePrecision::Fp16 { "_half" } else { "" },
-                    config.widths
-                ),
+                kernels: {
+                    let half = if precision == StoragePrecision::Fp16 { "_half" } else { "" };
+                    format!(
+                        "unet_pack, unet_conv_texel{half} ×10 (four pixels per fetch where a level's width is a \
+                         multiple of 4; unet_conv{half} by device address where texel views are missing), \
+                         unet_upsample_texel{half} ×4 (widths {:?})",
+                        config.widths
+                    )
+                },
                 bytes: config.arena_bytes(width, height, precision)
                     + pixels * (config.in_channels as u64 + 3) * 4
                     + config.parameter_count() * 4,

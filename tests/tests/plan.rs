@@ -64,6 +64,9 @@ fn plan_matches_what_runs_and_nothing_unneeded_runs() {
         assert_eq!(relit.shadow_pass_ran, above, "{label}");
         assert_eq!(has("shadow"), above, "shadow stages iff a sun is up: {label}");
         assert_eq!(plan.stages.iter().any(|s| s.name.contains("shadow")), above, "{label}");
+        // The shadow-map splat says when a sequence can skip it (Relighter::set_shadow_map_reuse).
+        let map_note = plan.stages.iter().find(|s| s.name == "splat (shadow map)").map(|s| s.note.as_str());
+        assert_eq!(map_note.is_some_and(|n| n.contains("shadow-map reuse")), above, "{label}");
         assert!(has("shade lights") && has("shade compose"), "{label}");
         assert_eq!(has("indirect input"), network, "inference iff weights: {label}");
         assert_eq!(plan.stages.iter().any(|s| s.name.contains("U-Net")), network, "{label}");
