@@ -101,20 +101,25 @@ fn expected_vec4_layers(w: usize, h: usize) -> Vec<&'static str> {
 fn vec4_inputs_match_twin() {
     // Four pixels per texel fetch where a level's width is a multiple of 4:
     // 64×12 every layer (heights down to 1), 36×20 only the full-resolution
-    // ones, 24×6 with partial pixel blocks (24 = 1.5 blocks of 16, 3 of 8 in outc; 6 at down-levels).
+    // ones, 24×6 with partial pixel blocks (24 = 1.5 blocks of 16, 3 of 8 in outc; 6 at down-levels;
+    // Winograd: 1.5 rows of 8 tiles), 40×9 an odd height (a half row of Winograd tiles).
     let d = device();
     let cases = [
         ([32usize, 32, 64, 64, 128], Activation::Relu, false, 64usize, 12usize),
         ([8, 16, 32, 64, 128], Activation::LeakyRelu, true, 36, 20),
         ([12, 20, 24, 40, 48], Activation::None, true, 24, 6),
+        ([8, 8, 16, 16, 16], Activation::Relu, false, 40, 9),
     ];
     let mut precisions = vec![StoragePrecision::Fp32];
     if d.info().storage_16bit {
         precisions.push(StoragePrecision::Fp16);
     }
-    for ((widths, activation, align_corners, w, h), precision) in
-        cases.into_iter().flat_map(|c| precisions.clone().into_iter().map(move |p| (c, p)))
-    {
+    // Direct convolution and Winograd (its tiles also read four pixels per fetch and store four per write).
+    let runs: Vec<_> = cases
+        .into_iter()
+        .flat_map(|c| precisions.iter().flat_map(move |p| [false, true].map(|wino| (c, *p, wino))))
+        .collect();
+    for ((widths, activation, align_corners, w, h), precision, wino) in runs {
         let config = UNetConfig { widths, activation, align_corners, ..UNetConfig::default() };
         let weights = UNetWeights::random(config, 9);
         let mut rng = Pcg64Mcg::seed_from_u64(5);
@@ -123,6 +128,7 @@ fn vec4_inputs_match_twin() {
         let mut net = UNet::with_precision(&d, &weights, precision).unwrap();
         net.set_prefill(Some(NAN));
         assert!(net.vec4_inputs(), "lavapipe views RGBA texels, so four-pixel fetches are the default");
+        net.set_winograd(wino).unwrap();
         let out = net.infer(&buffer, w as u32, h as u32).unwrap();
         assert_eq!(out.vec4_layers, expected_vec4_layers(w, h), "{w}x{h}: layers reading four pixels per fetch");
         assert!(!out.vec4_layers.is_empty());
@@ -132,14 +138,14 @@ fn vec4_inputs_match_twin() {
         let peak = exact.data.iter().fold(0.0f64, |m, v| m.max(v.abs()));
         assert!(peak > 1e-3, "the outputs are all ~0: the check would prove nothing");
         let err = max_abs(&gpu, &exact);
-        println!("{precision:?} widths {widths:?} at {w}x{h}, vec4 in {:?}: max |GPU − CPU| {err:.2e} (outputs up to {peak:.2})", out.vec4_layers);
+        println!("{precision:?} widths {widths:?} at {w}x{h}, Winograd {wino}, vec4 in {:?}: max |GPU − CPU| {err:.2e} (outputs up to {peak:.2})", out.vec4_layers);
         if precision == StoragePrecision::Fp32 {
-            assert!(err <= 1e-4, "fp32 vec4 U-Net differs from the twin by {err:e} (tolerance 1e-4)");
+            assert!(err <= 1e-4, "fp32 vec4 U-Net (Winograd {wino}) differs from the twin by {err:e} (tolerance 1e-4)");
         } else {
             // As fp16_storage_matches_twin_within_its_precision.
-            assert!(err / peak <= 1e-2, "fp16 vec4: relative error {:e} > 1e-2", err / peak);
+            assert!(err / peak <= 1e-2, "fp16 vec4 (Winograd {wino}): relative error {:e} > 1e-2", err / peak);
             let rel_rounded = max_abs(&gpu, &rounded) / peak;
-            assert!(rel_rounded <= 2e-3, "fp16 vec4 vs the rounded twin: {rel_rounded:e} > 2e-3");
+            assert!(rel_rounded <= 2e-3, "fp16 vec4 (Winograd {wino}) vs the rounded twin: {rel_rounded:e} > 2e-3");
         }
     }
     assert_no_validation_messages(&d);

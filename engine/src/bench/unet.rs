@@ -87,7 +87,7 @@ pub fn unet_bench(
             let mut net = UNet::with_precision(device, &weights, precision)?;
             net.set_texel_inputs(path != ConvPath::Address)?;
             net.set_winograd(path == ConvPath::Winograd)?;
-            net.set_vec4_inputs(path == ConvPath::Vec4)?;
+            net.set_vec4_inputs(matches!(path, ConvPath::Vec4 | ConvPath::Winograd))?;
             progress(&format!("U-Net at {w}x{h}, {precision:?}, {} convolution", path.label()));
             let input = device.upload("u-net input", &bench_input(14 * (w * h) as usize))?;
             net.infer(&input, w, h)?;

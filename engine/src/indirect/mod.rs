@@ -550,7 +550,7 @@ pub struct UNet {
     /// Packed weights for device-address inputs, then for texel inputs (empty without them).
     weights: [Vec<LayerBuffers>; 2],
     /// Winograd kernels per (activation, fp16 output); built when first chosen.
-    winograd_kernels: HashMap<(u32, bool), Kernel>,
+    winograd_kernels: HashMap<(u32, bool, usize, bool), Kernel>,
     /// Transformed weights per layer (`None` for stride 2); empty until Winograd is first chosen.
     winograd_weights: Vec<Option<Buffer>>,
     /// The weights as loaded, for the Winograd transform.
@@ -821,9 +821,11 @@ impl UNet {
 
     /// The Winograd kernel variant of layer `i`: activation (none for the
     /// last) and fp16 output (not for the last).
-    fn winograd_key(config: &UNetConfig, i: usize, half: bool) -> (u32, bool) {
-        let last = i + 1 == layers(config).len();
-        (if last { 0 } else { config.activation.code() }, half && !last)
+    fn winograd_key(config: &UNetConfig, i: usize, half: bool, vec4: bool) -> (u32, bool, usize, bool) {
+        let all = layers(config);
+        let last = i + 1 == all.len();
+        let co = all[i].2;
+        (if last { 0 } else { config.activation.code() }, half && !last, channel_block(co, true), vec4)
     }
 
     /// Whether the stride-1 layers run Winograd F(2×2, 3×3)
@@ -860,22 +862,30 @@ impl UNet {
                 weights.push(None);
                 continue;
             }
-            let key = Self::winograd_key(&self.config, i, half);
-            if let std::collections::hash_map::Entry::Vacant(e) = built.entry(key) {
-                let mut spec = vec![(1, SpecValue::U32(key.0))];
-                if half {
-                    spec.push((11, SpecValue::Bool(key.1)));
+            for vec4 in [false, true] {
+                let key = Self::winograd_key(&self.config, i, half, vec4);
+                if let std::collections::hash_map::Entry::Vacant(e) = built.entry(key) {
+                    let mut spec = vec![
+                        (1, SpecValue::U32(key.0)),
+                        (2, SpecValue::U32(winograd::WINOGRAD_TILES as u32)),
+                        (3, SpecValue::U32(key.2 as u32)),
+                        (4, SpecValue::U32(winograd::WINOGRAD_CHUNK as u32)),
+                        (5, SpecValue::Bool(vec4)),
+                    ];
+                    if half {
+                        spec.push((11, SpecValue::Bool(key.1)));
+                    }
+                    let view = BindingKind::UniformTexelBuffer;
+                    e.insert(Kernel::new(
+                        &self.device,
+                        if half { &kernels::UNET_WINOGRAD_TEXEL_HALF } else { &kernels::UNET_WINOGRAD_TEXEL },
+                        &KernelDecl {
+                            bindings: &[view, BindingKind::StorageBuffer { read_only: true }, view, view],
+                            push_constant_size: std::mem::size_of::<ConvPush>(),
+                            specialization: &spec,
+                        },
+                    )?);
                 }
-                let view = BindingKind::UniformTexelBuffer;
-                e.insert(Kernel::new(
-                    &self.device,
-                    if half { &kernels::UNET_WINOGRAD_TEXEL_HALF } else { &kernels::UNET_WINOGRAD_TEXEL },
-                    &KernelDecl {
-                        bindings: &[view, BindingKind::StorageBuffer { read_only: true }, view, view],
-                        push_constant_size: std::mem::size_of::<ConvPush>(),
-                        specialization: &spec,
-                    },
-                )?);
             }
             let packed = winograd::pack_winograd(l);
             weights.push(Some(self.device.upload(&format!("{name} winograd weights"), &packed)?));
@@ -1061,8 +1071,8 @@ impl UNet {
         let max_groups = self.device.info().max_workgroup_count;
         let names = layers(&c);
         let weights = &self.weights;
-        let winograd = |i: usize| -> Option<(&Kernel, &Buffer)> {
-            let k = self.winograd_kernels.get(&Self::winograd_key(&c, i, half))?;
+        let winograd = |i: usize, vec4: bool| -> Option<(&Kernel, &Buffer)> {
+            let k = self.winograd_kernels.get(&Self::winograd_key(&c, i, half, vec4))?;
             Some((k, self.winograd_weights.get(i)?.as_ref()?)).filter(|_| self.winograd)
         };
         let upsample = &self.upsample;
@@ -1168,14 +1178,20 @@ impl UNet {
                     texel && (ca.max(cb) * in_plane) as u64 <= max_texels && weight_texels as u64 <= max_texels;
                 let layer = &weights[usize::from(use_texel)][li];
                 let use_vec4 = use_texel && self.vec4 && vec4_fits(s[lin].0);
-                // Winograd (one 2 × 2 tile × 4 channels per invocation) where chosen and its weights fit a
-                // view, else direct convolution (a pixel block × channel block per invocation).
-                let wino = winograd(li)
+                // Winograd (a row of 2 × 2 tiles × a channel block per invocation, four pixels per fetch
+                // where the width allows) where chosen and its weights fit a view, else direct convolution
+                // (a pixel block × channel block per invocation).
+                let wino_vec4 = use_vec4 && winograd::WINOGRAD_TILES % 2 == 0;
+                let wino = winograd(li, wino_vec4)
                     .filter(|_| use_texel)
                     .map(|(k, u)| (k, u, winograd::winograd_weight_texels(cin, co)))
                     .filter(|(.., texels)| *texels as u64 <= max_texels);
                 let (k, invocations, ob) = match wino {
-                    Some((k, ..)) => (k, s[lout].0.div_ceil(2) * s[lout].1.div_ceil(2), winograd::WINOGRAD_CHANNELS),
+                    Some((k, ..)) => (
+                        k,
+                        s[lout].0.div_ceil(2).div_ceil(winograd::WINOGRAD_TILES) * s[lout].1.div_ceil(2),
+                        channel_block(co, true),
+                    ),
                     None => (
                         kernel(li, use_texel, use_vec4)?,
                         s[lout].0.div_ceil(if use_vec4 { vec4_pixel_block(co) } else { pixel_block(co, use_texel) })
@@ -1193,7 +1209,7 @@ impl UNet {
                     )));
                 }
                 // Four pixels per fetch where direct convolution runs with it.
-                let four = use_vec4 && wino.is_none();
+                let four = if wino.is_some() { wino_vec4 } else { use_vec4 };
                 if four {
                     vec4_layers.push(name);
                 }

@@ -5,21 +5,30 @@
 //! U = G·g·Gᵀ (the 3 × 3 kernel g made 4 × 4, once per layer, on the host) and
 //! V = Bᵀ·d·B (the tile's 4 × 4 input patch d, in the kernel): 16 multiplies
 //! per input channel and output channel instead of 36. The kernel
-//! (`unet_winograd_texel.comp`) keeps 16 accumulators per output channel where
-//! direct convolution keeps 4 per 2 × 2 pixels, so it trades multiplies for
-//! registers and transform additions; which path is faster depends on the
-//! device (measured by `srug bench unet --inputs texel,winograd`). The
+//! (`unet_winograd_texel.comp`) keeps 16 accumulators per output channel and
+//! tile where direct convolution keeps 4 per 2 × 2 pixels, so it trades
+//! multiplies for accumulator traffic and transform additions; which path is
+//! faster depends on the device (measured by `srug bench unet --inputs
+//! vec4,winograd`). The
 //! transforms' entries are 0, ±1 and ±½, so fp32 rounding adds little error
 //! (the tests hold both paths to the same tolerance).
 
 use super::ConvWeights;
 
-/// Output channels per invocation of the Winograd kernel (one RGBA32F weight
-/// texel), one 2 × 2 tile each. Two tiles per invocation sharing each weight
-/// fetch (128 accumulators) were measured on lavapipe at 704×192 (two runs,
-/// up4 layer): fp32 315–358 ms against 296–394 ms for one tile, fp16
-/// 1141–1204 ms against 254–275 ms (spills), so the kernel keeps one.
-pub const WINOGRAD_CHANNELS: usize = 4;
+/// 2 × 2 output tiles per invocation of the Winograd kernel (`TT`), side by
+/// side along x: each weight fetch serves all of them, and a row of 8 tiles
+/// reads its input patch four pixels per fetch. Measured on lavapipe at
+/// 704×192 fp32 (up4 layer, 64 → 32 channels; direct convolution 130 ms):
+/// 8 tiles 118–123 ms, 6 tiles 134 ms, 4 tiles 187 ms, 16 tiles 140 ms (and
+/// llvmpipe then compiles the kernel for over five minutes). Earlier, one tile of
+/// 4 channels per invocation took 276 ms.
+pub const WINOGRAD_TILES: usize = 8;
+
+/// Input channels per step of the Winograd kernel (`CH`): fetched and
+/// transformed first, then multiplied, so each accumulator is loaded and
+/// stored once per step. Measured with 8 tiles (same run as above): 1 channel
+/// 138 ms, 2 channels 118 ms, 4 channels 122 ms (and three minutes to compile).
+pub const WINOGRAD_CHUNK: usize = 2;
 
 /// U = G·g·Gᵀ of one 3 × 3 kernel `g` (row-major), row-major 4 × 4, with
 /// G = [1 0 0; ½ ½ ½; ½ −½ ½; 0 0 1].
@@ -76,16 +85,19 @@ pub fn output_transform(m: &[f64; 16]) -> [f64; 4] {
     y
 }
 
-/// Texels (RGBA32F) of a layer's packed Winograd weights.
+/// Texels (RGBA32F) of a layer's packed Winograd weights: output channels
+/// padded to the kernel's channel block (`super::channel_block`).
 pub fn winograd_weight_texels(in_channels: usize, out_channels: usize) -> usize {
-    out_channels.div_ceil(WINOGRAD_CHANNELS) * in_channels * 16
+    let block = super::channel_block(out_channels, true);
+    out_channels.div_ceil(block) * block / 4 * in_channels * 16
 }
 
 /// Packs a layer's transformed weights for `unet_winograd_texel.comp`:
-/// `[oc/4][ic][16][4]` floats (one RGBA32F texel per output block, input
-/// channel and k; keep in sync), output channels past the layer's zero.
+/// `[oc/4][ic][16][4]` floats (one RGBA32F texel per block of 4 output
+/// channels, input channel and k; keep in sync), output channels past the
+/// layer's, up to a whole kernel channel block, zero.
 pub fn pack_winograd(l: &ConvWeights) -> Vec<f32> {
-    let n = WINOGRAD_CHANNELS;
+    let n = 4;
     let mut w = vec![0.0f32; winograd_weight_texels(l.in_channels, l.out_channels) * 4];
     for o in 0..l.out_channels {
         for i in 0..l.in_channels {
