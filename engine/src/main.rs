@@ -233,7 +233,7 @@ enum BenchKind {
         /// texel-buffer views, four pixels per fetch where a layer's width is a multiple of 4; the
         /// default where the device has them), texel (the same, one pixel per fetch), address
         /// (device addresses, the fallback), winograd (Winograd F(2×2,3×3) for the stride-1 layers,
-        /// texel inputs).
+        /// texel inputs, four pixels per fetch where the width allows).
         #[arg(long, default_value = "vec4")]
         inputs: String,
     },
