@@ -197,7 +197,8 @@ pub fn plan_frame(scene: &Scene, settings: &PlanSettings<'_>) -> Result<FramePla
                     format!(
                         "unet_pack, unet_conv_texel{half} ×10 (four pixels per fetch where a level's width is a \
                          multiple of 4; unet_conv{half} by device address where texel views are missing), \
-                         unet_upsample_texel{half} ×4 (widths {:?})",
+                         unet_upsample_texel{half} ×4 (exactly 2×, from four-pixel texels, where the sizes \
+                         and align_corners allow; widths {:?})",
                         config.widths
                     )
                 },

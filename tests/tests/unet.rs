@@ -97,18 +97,33 @@ fn expected_vec4_layers(w: usize, h: usize) -> Vec<&'static str> {
     names.iter().zip(input_level).filter(|(_, l)| levels[*l].0 % 4 == 0).map(|(n, _)| *n).collect()
 }
 
+/// The up layers whose resize is exactly 2× from a source width that is a multiple of 4 (align_corners false).
+fn expected_exact_resizes(w: usize, h: usize, align_corners: bool) -> Vec<&'static str> {
+    let s = srug::indirect::level_sizes(w, h);
+    let names = ["up1", "up2", "up3", "up4"];
+    // up1 resizes level 4 to level 3, …, up4 level 1 to level 0.
+    let exact = |k: usize| {
+        let (from, to) = (s[4 - k], s[3 - k]);
+        !align_corners && to == (2 * from.0, 2 * from.1) && from.0 % 4 == 0
+    };
+    (0..4).filter(|&k| exact(k)).map(|k| names[k]).collect()
+}
+
 #[test]
 fn vec4_inputs_match_twin() {
     // Four pixels per texel fetch where a level's width is a multiple of 4:
     // 64×12 every layer (heights down to 1), 36×20 only the full-resolution
     // ones, 24×6 with partial pixel blocks (24 = 1.5 blocks of 16, 3 of 8 in outc; 6 at down-levels;
     // Winograd: 1.5 rows of 8 tiles), 40×9 an odd height (a half row of Winograd tiles).
+    // Exact-2× resizes (align_corners false): 64×12 three of four (8×2 → 16×3 is not 2×),
+    // 544×16 three (34 is no multiple of 4) with 17, 34 and 68 four-pixel texels per source row.
     let d = device();
     let cases = [
         ([32usize, 32, 64, 64, 128], Activation::Relu, false, 64usize, 12usize),
         ([8, 16, 32, 64, 128], Activation::LeakyRelu, true, 36, 20),
         ([12, 20, 24, 40, 48], Activation::None, true, 24, 6),
         ([8, 8, 16, 16, 16], Activation::Relu, false, 40, 9),
+        ([8, 8, 8, 8, 8], Activation::LeakyRelu, false, 544, 16),
     ];
     let mut precisions = vec![StoragePrecision::Fp32];
     if d.info().storage_16bit {
@@ -132,6 +147,8 @@ fn vec4_inputs_match_twin() {
         let out = net.infer(&buffer, w as u32, h as u32).unwrap();
         assert_eq!(out.vec4_layers, expected_vec4_layers(w, h), "{w}x{h}: layers reading four pixels per fetch");
         assert!(!out.vec4_layers.is_empty());
+        let exact_ups = expected_exact_resizes(w, h, align_corners);
+        assert_eq!(out.exact_resizes, exact_ups, "{w}x{h}: up layers resizing by the exact-2× kernel");
         let gpu: Vec<f32> = d.read_buffer(&out.output).unwrap();
         let x = Tensor::from_f32(14, w, h, &input);
         let (exact, rounded) = (unet_cpu(&weights, &x), unet_cpu_stored(&weights, &x, true));

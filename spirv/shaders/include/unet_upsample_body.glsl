@@ -42,10 +42,58 @@ void source(uint d, uint n_in, uint n_out, out uint i0, out uint i1, out float t
 // on lavapipe, and the row's source rows and weights computed once) or 1.
 layout(constant_id = 0) const bool FOUR = false;
 
+#ifdef TEXEL_INPUT
+// Exactly twice the source size in both axes with align_corners false, the
+// source width a multiple of 4 and viewed four pixels per texel (RGBA32F or
+// RGBA16F): output pixel 2i is ¼ of source i − 1 and ¾ of i, pixel 2i + 1 ¾
+// of i and ¼ of i + 1 (neighbours clamped to the edge, which is PyTorch's
+// rule there too). An invocation takes four source pixels of one row and
+// writes the 8 × 2 output pixels they centre, from 9 four-pixel fetches: no
+// per-pixel gather (a slow `vpgatherdd` on lavapipe) and no coordinate maths.
+layout(constant_id = 1) const bool EXACT2 = false;
+
+// Source row `row` (a texel index of its first four pixels), four pixels from
+// texel k: (left neighbour, the four, right neighbour), clamped to the row.
+void six(uint row, uint k, uint last, out float l, out vec4 c, out float r) {
+    c = texelFetch(src, int(row + k));
+    l = k > 0u ? texelFetch(src, int(row + k - 1u)).w : c.x;
+    r = k < last ? texelFetch(src, int(row + k + 1u)).x : c.w;
+}
+
+// Stores one output row's 8 pixels from the (vertically blended) six source values.
+void store_row(uint at, float l, vec4 c, float r) {
+    vec4 even = mix(c, vec4(l, c.xyz), 0.25);
+    vec4 odd = mix(c, vec4(c.yzw, r), 0.25);
+    store_output4(pc.dst, at, vec4(even.x, odd.x, even.y, odd.y));
+    store_output4(pc.dst, at + 4u, vec4(even.z, odd.z, even.w, odd.w));
+}
+
+void exact2() {
+    uint k = gl_GlobalInvocationID.x, j = gl_WorkGroupID.y, c = gl_WorkGroupID.z;
+    uint quads = pc.in_size.x / 4u;
+    if (k >= quads || j >= pc.in_size.y || c >= pc.channels) return;
+    uint plane = c * pc.in_size.y;
+    float lu, l0, ld, ru, r0, rd;
+    vec4 cu, c0, cd;
+    six((plane + (j > 0u ? j - 1u : 0u)) * quads, k, quads - 1u, lu, cu, ru);
+    six((plane + j) * quads, k, quads - 1u, l0, c0, r0);
+    six((plane + min(j + 1u, pc.in_size.y - 1u)) * quads, k, quads - 1u, ld, cd, rd);
+    uint at = ((c * pc.out_size.y + 2u * j) * pc.out_size.x) + 8u * k;
+    store_row(at, mix(l0, lu, 0.25), mix(c0, cu, 0.25), mix(r0, ru, 0.25));
+    store_row(at + pc.out_size.x, mix(l0, ld, 0.25), mix(c0, cd, 0.25), mix(r0, rd, 0.25));
+}
+#endif
+
 // One invocation per FOUR ? 4 : 1 output pixels: x along the workgroup, y and
 // the channel from the grid (no integer division per pixel: on lavapipe a
 // vector integer division runs lane by lane).
 void main() {
+#ifdef TEXEL_INPUT
+    if (EXACT2) {
+        exact2();
+        return;
+    }
+#endif
     const uint N = FOUR ? 4u : 1u;
     uint ox0 = gl_GlobalInvocationID.x * N, oy = gl_WorkGroupID.y, c = gl_WorkGroupID.z;
     if (ox0 >= pc.out_size.x || oy >= pc.out_size.y || c >= pc.channels) return;
