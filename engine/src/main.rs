@@ -229,12 +229,12 @@ enum BenchKind {
         /// Repeats (medians reported).
         #[arg(long, default_value_t = 3)]
         repeats: usize,
-        /// How conv layers run, comma-separated: vec4 (direct convolution reading inputs through
-        /// texel-buffer views, four pixels per fetch where a layer's width is a multiple of 4; the
-        /// default where the device has them), texel (the same, one pixel per fetch), address
-        /// (device addresses, the fallback), winograd (Winograd F(2×2,3×3) for the stride-1 layers,
-        /// texel inputs, four pixels per fetch where the width allows).
-        #[arg(long, default_value = "vec4")]
+        /// How conv layers run, comma-separated: winograd (the default where the device has
+        /// texel-buffer views: Winograd F(4×4,3×3) for the stride-1 layers, direct convolution for
+        /// stride 2, four pixels per fetch where a layer's width is a multiple of 4), vec4 (direct
+        /// convolution for every layer, texel inputs, four pixels per fetch where the width allows),
+        /// texel (the same, one pixel per fetch), address (device addresses, the fallback).
+        #[arg(long, default_value = "winograd")]
         inputs: String,
     },
     /// Deferred shading time per frame per image size; one-time environment prefilter cost per size.

@@ -83,7 +83,7 @@ fn unet_matches_twin_at_odd_and_tiny_sizes() {
     }
     let net = UNet::new(&d, &UNetWeights::random(UNetConfig::default(), 1)).unwrap();
     assert!(net.texel_inputs(), "lavapipe reads R32F texel buffers, so the texel path is the default");
-    assert!(!net.winograd(), "direct convolution is the default (faster or equal on lavapipe)");
+    assert!(net.winograd(), "Winograd is the default where texel inputs exist (faster on lavapipe)");
     assert_no_validation_messages(&d);
 }
 
@@ -114,7 +114,8 @@ fn vec4_inputs_match_twin() {
     // Four pixels per texel fetch where a level's width is a multiple of 4:
     // 64×12 every layer (heights down to 1), 36×20 only the full-resolution
     // ones, 24×6 with partial pixel blocks (24 = 1.5 blocks of 16, 3 of 8 in outc; 6 at down-levels;
-    // Winograd: 1.5 rows of 8 tiles), 40×9 an odd height (a half row of Winograd tiles).
+    // Winograd: 1.5 rows of four 4 × 4 tiles, 1.5 tile rows), 40×9 an odd height (2.5 rows of
+    // Winograd tiles, the last tile row a quarter inside).
     // Exact-2× resizes (align_corners false): 64×12 three of four (8×2 → 16×3 is not 2×),
     // 544×16 three (34 is no multiple of 4) with 17, 34 and 68 four-pixel texels per source row.
     let d = device();

@@ -21,7 +21,7 @@ pub enum ConvPath {
     Texel,
     /// Direct convolution, inputs by device address.
     Address,
-    /// Winograd F(2×2, 3×3) for the stride-1 layers (texel inputs), direct for stride 2.
+    /// Winograd F(4×4, 3×3) for the stride-1 layers (texel inputs), direct for stride 2; the default.
     Winograd,
 }
 

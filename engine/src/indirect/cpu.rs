@@ -82,41 +82,44 @@ pub fn conv3x3_cpu(x: &Tensor, l: &ConvWeights, stride: usize, act: Activation) 
 }
 
 /// The stride-1 3×3 convolution of [`conv3x3_cpu`] computed by Winograd
-/// F(2×2, 3×3) ([`super::winograd`]'s transforms, in f64): equal to it up to
+/// F(4×4, 3×3) ([`super::winograd`]'s transforms, in f64): equal to it up to
 /// rounding, so it checks the transforms the kernel uses.
 pub fn winograd_conv3x3_cpu(x: &Tensor, l: &ConvWeights, act: Activation) -> Tensor {
-    use super::winograd::{input_transform, output_transform, weight_transform};
+    use super::winograd::{input_transform, output_transform, weight_transform, E, WINOGRAD_TILE as T};
     assert_eq!(x.channels, l.in_channels, "conv input channels");
     let (w, h) = (x.width, x.height);
-    let u: Vec<[f64; 16]> = (0..l.out_channels * l.in_channels)
+    let u: Vec<Vec<f64>> = (0..l.out_channels * l.in_channels)
         .map(|oi| weight_transform(&std::array::from_fn(|t| f64::from(l.weight[oi * 9 + t]))))
         .collect();
     let mut data = vec![0.0; l.out_channels * w * h];
-    for ty in 0..h.div_ceil(2) {
-        for tx in 0..w.div_ceil(2) {
-            let v: Vec<[f64; 16]> = (0..l.in_channels)
+    for ty in 0..h.div_ceil(T) {
+        for tx in 0..w.div_ceil(T) {
+            let v: Vec<Vec<f64>> = (0..l.in_channels)
                 .map(|i| {
-                    input_transform(&std::array::from_fn(|j| {
-                        let (iy, ix) = ((2 * ty + j / 4) as isize - 1, (2 * tx + j % 4) as isize - 1);
-                        let inside = iy >= 0 && iy < h as isize && ix >= 0 && ix < w as isize;
-                        if inside {
-                            x.at(i, ix as usize, iy as usize)
-                        } else {
-                            0.0
-                        }
-                    }))
+                    let d: Vec<f64> = (0..E * E)
+                        .map(|j| {
+                            let (iy, ix) = ((T * ty + j / E) as isize - 1, (T * tx + j % E) as isize - 1);
+                            let inside = iy >= 0 && iy < h as isize && ix >= 0 && ix < w as isize;
+                            if inside {
+                                x.at(i, ix as usize, iy as usize)
+                            } else {
+                                0.0
+                            }
+                        })
+                        .collect();
+                    input_transform(&d)
                 })
                 .collect();
             for o in 0..l.out_channels {
-                let mut m = [0.0; 16];
+                let mut m = vec![0.0; E * E];
                 for (i, vi) in v.iter().enumerate() {
                     let ui = &u[o * l.in_channels + i];
-                    for k in 0..16 {
+                    for k in 0..E * E {
                         m[k] += ui[k] * vi[k];
                     }
                 }
                 for (j, y) in output_transform(&m).iter().enumerate() {
-                    let (oy, ox) = (2 * ty + j / 2, 2 * tx + j % 2);
+                    let (oy, ox) = (T * ty + j / T, T * tx + j % T);
                     if oy < h && ox < w {
                         data[(o * h + oy) * w + ox] = activate(y + f64::from(l.bias[o]), act);
                     }

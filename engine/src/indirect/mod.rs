@@ -355,6 +355,17 @@ pub fn level_sizes(width: usize, height: usize) -> [(usize, usize); 5] {
     s
 }
 
+/// The level whose feature maps layer `i` reads (the order of [`layers`]:
+/// inc, down1..down4, up1..up4, outc; an up layer reads the resized deeper
+/// level and the skip at the skip's level).
+fn input_level(i: usize) -> usize {
+    match i {
+        0 | 9 => 0,
+        1..=4 => i - 1,
+        _ => 8 - i,
+    }
+}
+
 /// Push constants of `unet_conv.comp` (keep in sync).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
@@ -820,7 +831,7 @@ impl UNet {
         };
         let host_layers = weights.layers.clone();
         let weights = [pack_layers(false)?, if texel { pack_layers(true)? } else { Vec::new() }];
-        Ok(Self {
+        let mut net = Self {
             device: device.clone(),
             config,
             precision,
@@ -838,7 +849,12 @@ impl UNet {
             texel,
             vec4,
             winograd: false,
-        })
+        };
+        // Winograd is the default where it can run (texel inputs): fewer multiplies, faster on lavapipe.
+        if texel {
+            net.set_winograd(true)?;
+        }
+        Ok(net)
     }
 
     /// The Winograd kernel variant of layer `i`: activation (none for the
@@ -850,10 +866,13 @@ impl UNet {
         (if last { 0 } else { config.activation.code() }, half && !last, channel_block(co, true), vec4)
     }
 
-    /// Whether the stride-1 layers run Winograd F(2×2, 3×3)
+    /// Whether the stride-1 layers run Winograd F(4×4, 3×3)
     /// (`unet_winograd_texel.comp`) instead of direct convolution, where
-    /// their inputs go through texel-buffer views. Off by default: on
-    /// lavapipe it is no faster than direct convolution (README, U-Net benchmark).
+    /// their inputs go through texel-buffer views. On by default where the
+    /// device has texel views: a quarter of the multiplies, and on lavapipe
+    /// the network at 704×192 fp32 takes about 220 against 340 ms (README,
+    /// U-Net benchmark). Its kernels are built at the first inference of a size
+    /// that needs them.
     pub fn winograd(&self) -> bool {
         self.winograd
     }
@@ -874,46 +893,55 @@ impl UNet {
         Ok(())
     }
 
-    /// Builds the Winograd kernels and uploads the transformed weights of the stride-1 layers.
+    /// Uploads the transformed weights of the stride-1 layers.
     fn build_winograd(&mut self) -> Result<()> {
-        let half = self.precision == StoragePrecision::Fp16;
-        let mut built = HashMap::new();
         let mut weights = Vec::new();
-        for (i, ((name, _, _, stride), l)) in layers(&self.config).iter().zip(&self.host_layers).enumerate() {
-            if *stride != 1 {
-                weights.push(None);
+        for ((name, _, _, stride), l) in layers(&self.config).iter().zip(&self.host_layers) {
+            weights.push(if *stride == 1 {
+                let packed = winograd::pack_winograd(l);
+                Some(self.device.upload(&format!("{name} winograd weights"), &packed)?)
+            } else {
+                None
+            });
+        }
+        self.winograd_weights = weights;
+        Ok(())
+    }
+
+    /// Builds the Winograd kernels the stride-1 layers need at `width` × `height`
+    /// that are not built yet: llvmpipe takes tens of seconds per variant with
+    /// a cold shader cache, so only the variants a size needs are made.
+    fn build_winograd_kernels(&mut self, width: usize, height: usize) -> Result<()> {
+        let half = self.precision == StoragePrecision::Fp16;
+        let s = level_sizes(width, height);
+        for (i, (_, _, _, stride)) in layers(&self.config).iter().enumerate() {
+            let vec4 = self.texel && self.vec4 && vec4_fits(s[input_level(i)].0);
+            let key = Self::winograd_key(&self.config, i, half, vec4);
+            if *stride != 1 || self.winograd_kernels.contains_key(&key) {
                 continue;
             }
-            for vec4 in [false, true] {
-                let key = Self::winograd_key(&self.config, i, half, vec4);
-                if let std::collections::hash_map::Entry::Vacant(e) = built.entry(key) {
-                    let mut spec = vec![
-                        (1, SpecValue::U32(key.0)),
-                        (2, SpecValue::U32(winograd::WINOGRAD_TILES as u32)),
-                        (3, SpecValue::U32(key.2 as u32)),
-                        (4, SpecValue::U32(winograd::WINOGRAD_CHUNK as u32)),
-                        (5, SpecValue::Bool(vec4)),
-                    ];
-                    if half {
-                        spec.push((11, SpecValue::Bool(key.1)));
-                    }
-                    let view = BindingKind::UniformTexelBuffer;
-                    e.insert(Kernel::new(
-                        &self.device,
-                        if half { &kernels::UNET_WINOGRAD_TEXEL_HALF } else { &kernels::UNET_WINOGRAD_TEXEL },
-                        &KernelDecl {
-                            bindings: &[view, BindingKind::StorageBuffer { read_only: true }, view, view],
-                            push_constant_size: std::mem::size_of::<ConvPush>(),
-                            specialization: &spec,
-                        },
-                    )?);
-                }
+            let mut spec = vec![
+                (1, SpecValue::U32(key.0)),
+                (2, SpecValue::U32(winograd::WINOGRAD_TILES as u32)),
+                (3, SpecValue::U32(key.2 as u32)),
+                (4, SpecValue::U32(winograd::WINOGRAD_CHUNK as u32)),
+                (5, SpecValue::Bool(vec4)),
+            ];
+            if half {
+                spec.push((11, SpecValue::Bool(key.1)));
             }
-            let packed = winograd::pack_winograd(l);
-            weights.push(Some(self.device.upload(&format!("{name} winograd weights"), &packed)?));
+            let view = BindingKind::UniformTexelBuffer;
+            let kernel = Kernel::new(
+                &self.device,
+                if half { &kernels::UNET_WINOGRAD_TEXEL_HALF } else { &kernels::UNET_WINOGRAD_TEXEL },
+                &KernelDecl {
+                    bindings: &[view, BindingKind::StorageBuffer { read_only: true }, view, view],
+                    push_constant_size: std::mem::size_of::<ConvPush>(),
+                    specialization: &spec,
+                },
+            )?;
+            self.winograd_kernels.insert(key, kernel);
         }
-        self.winograd_kernels = built;
-        self.winograd_weights = weights;
         Ok(())
     }
 
@@ -1070,6 +1098,9 @@ impl UNet {
                 c.in_channels * w * h * 4
             )));
         }
+        if self.winograd {
+            self.build_winograd_kernels(w, h)?;
+        }
         let layout = ArenaLayout::new(&c, w, h, self.precision);
         let need = layout.total;
         if self.arena.as_ref().is_none_or(|a| a.size() < need) {
@@ -1213,7 +1244,7 @@ impl UNet {
                 // Winograd (a row of 2 × 2 tiles × a channel block per invocation, four pixels per fetch
                 // where the width allows) where chosen and its weights fit a view, else direct convolution
                 // (a pixel block × channel block per invocation).
-                let wino_vec4 = use_vec4 && winograd::WINOGRAD_TILES % 2 == 0;
+                let wino_vec4 = use_vec4 && (winograd::WINOGRAD_TILE * winograd::WINOGRAD_TILES) % 4 == 0;
                 let wino = winograd(li, wino_vec4)
                     .filter(|_| use_texel)
                     .map(|(k, u)| (k, u, winograd::winograd_weight_texels(cin, co)))
@@ -1221,7 +1252,8 @@ impl UNet {
                 let (k, invocations, ob) = match wino {
                     Some((k, ..)) => (
                         k,
-                        s[lout].0.div_ceil(2).div_ceil(winograd::WINOGRAD_TILES) * s[lout].1.div_ceil(2),
+                        s[lout].0.div_ceil(winograd::WINOGRAD_TILE).div_ceil(winograd::WINOGRAD_TILES)
+                            * s[lout].1.div_ceil(winograd::WINOGRAD_TILE),
                         channel_block(co, true),
                     ),
                     None => (
