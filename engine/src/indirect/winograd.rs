@@ -23,7 +23,7 @@ use super::ConvWeights;
 /// 223 ms (the 88-pixel level then runs 3.7 blocks a row: up1 14.6 against
 /// 10.7 ms), 4 × 1 242 ms. llvmpipe's compile time grows with TT·CH: with a
 /// cold shader cache about 45 s per variant set at 4 × 1 and over 2 minutes at 6 × 2.
-/// With 2 × 2 tiles (F(2×2, 3×3), until 85afd8b) the best was 8 tiles × 2
+/// With 2 × 2 tiles (F(2×2, 3×3), at 85afd8b and before) the best was 8 tiles × 2
 /// channels, 268 ms.
 pub const WINOGRAD_TILES: usize = 4;
 
