@@ -1,7 +1,7 @@
 //! `srug bench unet`: one inference of the indirect-light U-Net (random
 //! weights of the given widths, 14 input channels) per image size, storage
 //! precision and conv path (direct convolution reading inputs through
-//! texel-buffer views or by device address, or Winograd F(2×2, 3×3) for the
+//! texel-buffer views or by device address, or Winograd F(4×4, 3×3) for the
 //! stride-1 layers),
 //! per-layer GPU times, and achieved GFLOP/s against the FMA peak
 //! measured in the same run.

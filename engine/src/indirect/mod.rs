@@ -915,7 +915,7 @@ impl UNet {
         let half = self.precision == StoragePrecision::Fp16;
         let s = level_sizes(width, height);
         for (i, (_, _, _, stride)) in layers(&self.config).iter().enumerate() {
-            let vec4 = self.texel && self.vec4 && vec4_fits(s[input_level(i)].0);
+            let vec4 = self.vec4 && vec4_fits(s[input_level(i)].0);
             let key = Self::winograd_key(&self.config, i, half, vec4);
             if *stride != 1 || self.winograd_kernels.contains_key(&key) {
                 continue;
@@ -1098,7 +1098,8 @@ impl UNet {
                 c.in_channels * w * h * 4
             )));
         }
-        if self.winograd {
+        // Winograd runs only on texel inputs (else the layers fall back to direct convolution).
+        if self.winograd && self.texel {
             self.build_winograd_kernels(w, h)?;
         }
         let layout = ArenaLayout::new(&c, w, h, self.precision);
@@ -1241,11 +1242,10 @@ impl UNet {
                     texel && (ca.max(cb) * in_plane) as u64 <= max_texels && weight_texels as u64 <= max_texels;
                 let layer = &weights[usize::from(use_texel)][li];
                 let use_vec4 = use_texel && self.vec4 && vec4_fits(s[lin].0);
-                // Winograd (a row of 2 × 2 tiles × a channel block per invocation, four pixels per fetch
-                // where the width allows) where chosen and its weights fit a view, else direct convolution
-                // (a pixel block × channel block per invocation).
-                let wino_vec4 = use_vec4 && (winograd::WINOGRAD_TILE * winograd::WINOGRAD_TILES) % 4 == 0;
-                let wino = winograd(li, wino_vec4)
+                // Winograd (a row of 4 × 4 tiles × a channel block per invocation, four pixels per fetch
+                // where the width allows: every tile starts on a texel) where chosen and its weights fit a
+                // view, else direct convolution (a pixel block × channel block per invocation).
+                let wino = winograd(li, use_vec4)
                     .filter(|_| use_texel)
                     .map(|(k, u)| (k, u, winograd::winograd_weight_texels(cin, co)))
                     .filter(|(.., texels)| *texels as u64 <= max_texels);
@@ -1272,9 +1272,8 @@ impl UNet {
                         "{name}: {grid:?} workgroups exceed the device's limits"
                     )));
                 }
-                // Four pixels per fetch where direct convolution runs with it.
-                let four = if wino.is_some() { wino_vec4 } else { use_vec4 };
-                if four {
+                // Four pixels per fetch, by Winograd or direct convolution.
+                if use_vec4 {
                     vec4_layers.push(name);
                 }
                 rec.begin_stage(name);
@@ -1296,7 +1295,8 @@ impl UNet {
                     };
                     if use_texel {
                         // A layer without a skip binds A's view twice; the kernel never reads B then.
-                        let vb = if cb > 0 { view(b, cb * in_plane, four) } else { view(a, ca * in_plane, four) };
+                        let vb =
+                            if cb > 0 { view(b, cb * in_plane, use_vec4) } else { view(a, ca * in_plane, use_vec4) };
                         // The texel path has one pass, so Winograd's weights replace it.
                         let (buffer, elements) = wino.map_or((ubo, weight_texels), |(_, u, t)| (u, t));
                         let weights =
@@ -1304,7 +1304,7 @@ impl UNet {
                         let bound = [
                             Binding::Texels(weights),
                             Binding::Buffer(&layer.bias),
-                            Binding::Texels(view(a, ca * in_plane, four)),
+                            Binding::Texels(view(a, ca * in_plane, use_vec4)),
                             Binding::Texels(vb),
                         ];
                         rec.dispatch_bound(k, &bound, &push, grid)?;

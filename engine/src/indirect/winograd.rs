@@ -33,7 +33,9 @@ pub const WINOGRAD_TILES: usize = 4;
 pub const WINOGRAD_CHUNK: usize = 2;
 
 /// The output tile's edge (`WT` in `unet_winograd_body.glsl`; keep in sync).
+/// A multiple of 4, so every tile row starts on a four-pixel texel.
 pub const WINOGRAD_TILE: usize = 4;
+const _: () = assert!(WINOGRAD_TILE % 4 == 0);
 
 /// The transformed tile's edge: an output tile's input patch is `E` × `E`.
 pub const E: usize = WINOGRAD_TILE + 2;
