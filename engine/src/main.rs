@@ -231,7 +231,8 @@ enum BenchKind {
         repeats: usize,
         /// How conv layers run, comma-separated: winograd (the default where the device has
         /// texel-buffer views: Winograd F(4×4,3×3) for the stride-1 layers, direct convolution for
-        /// stride 2, four pixels per fetch where a layer's width is a multiple of 4), vec4 (direct
+        /// stride 2, four pixels per fetch where a layer's width is a multiple of 4), winograd2 (the
+        /// same with Winograd F(2×2,3×3)), vec4 (direct
         /// convolution for every layer, texel inputs, four pixels per fetch where the width allows),
         /// texel (the same, one pixel per fetch), address (device addresses, the fallback).
         #[arg(long, default_value = "winograd")]
@@ -577,12 +578,12 @@ fn run(cli: Cli) -> srug::Result<()> {
             let paths: Vec<ConvPath> = inputs
                 .split(',')
                 .map(|t| {
-                    [ConvPath::Vec4, ConvPath::Texel, ConvPath::Address, ConvPath::Winograd]
+                    [ConvPath::Vec4, ConvPath::Texel, ConvPath::Address, ConvPath::Winograd, ConvPath::Winograd2]
                         .into_iter()
                         .find(|p| p.label() == t.trim())
                         .ok_or_else(|| {
                             srug::Error::InvalidArgument(format!(
-                                "--inputs: \"{t}\" is not vec4, texel, address or winograd"
+                                "--inputs: \"{t}\" is not vec4, texel, address, winograd or winograd2"
                             ))
                         })
                 })

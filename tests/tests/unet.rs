@@ -1,9 +1,9 @@
 //! The indirect-light U-Net against its CPU twin (f64 accumulation): random
 //! weights at odd and tiny sizes, widths 8 to 128, both align_corners
 //! conventions and every activation, on every conv path (direct with texel or
-//! device-address inputs, Winograd), and at widths that are multiples of 4
+//! device-address inputs, Winograd F(4×4) and F(2×2)), and at widths that are multiples of 4
 //! with four pixels per texel fetch; zero weights; activations of 1e4; the
-//! Winograd twin against direct convolution; and the safetensors loader's
+//! Winograd twins (both tiles) against direct convolution; and the safetensors loader's
 //! errors. Outputs and the arena are pre-filled
 //! with NaN, so a value no kernel wrote fails.
 
@@ -14,12 +14,13 @@ use rand_pcg::Pcg64Mcg;
 use srug::bench::unet::ConvPath;
 use srug::gpu::Device;
 use srug::indirect::cpu::{conv3x3_cpu, unet_cpu, unet_cpu_stored, winograd_conv3x3_cpu, Tensor};
+use srug::indirect::WinogradTile;
 use srug::indirect::{Activation, StoragePrecision, UNet, UNetConfig, UNetWeights};
 use srug_tests::{assert_no_validation_messages, device};
 
 const NAN: u32 = 0x7fc0_0000;
 
-const PATHS: [ConvPath; 3] = [ConvPath::Texel, ConvPath::Address, ConvPath::Winograd];
+const PATHS: [ConvPath; 4] = [ConvPath::Texel, ConvPath::Address, ConvPath::Winograd, ConvPath::Winograd2];
 
 fn run(d: &Device, weights: &UNetWeights, w: usize, h: usize, scale: f32, seed: u64) -> (Vec<f32>, Tensor) {
     let (gpu, cpu, _) = run_with(d, weights, (w, h), scale, seed, StoragePrecision::Fp32, ConvPath::Texel);
@@ -43,7 +44,8 @@ fn run_with(
     let mut net = UNet::with_precision(d, weights, precision).unwrap();
     net.set_prefill(Some(NAN));
     net.set_texel_inputs(path != ConvPath::Address).unwrap();
-    net.set_winograd(path == ConvPath::Winograd).unwrap();
+    net.set_winograd(path.winograd()).unwrap();
+    assert_eq!(net.winograd(), path.winograd());
     net.set_vec4_inputs(path == ConvPath::Vec4).unwrap();
     let out = net.infer(&buffer, w as u32, h as u32).unwrap();
     if path != ConvPath::Vec4 {
@@ -70,7 +72,7 @@ fn unet_matches_twin_at_odd_and_tiny_sizes() {
         ([8, 8, 16, 16, 16], Activation::None, false, 2, 2),
         ([12, 20, 24, 40, 48], Activation::Relu, false, 17, 5),
     ];
-    // Every conv path: texel-buffer views (the default here), device addresses, Winograd.
+    // Every conv path: texel-buffer views (the default here), device addresses, both Winograd tiles.
     for ((widths, activation, align_corners, w, h), path) in cases.into_iter().flat_map(|c| PATHS.map(|p| (c, p))) {
         let config = UNetConfig { widths, activation, align_corners, ..UNetConfig::default() };
         let weights = UNetWeights::random(config, 3);
@@ -83,7 +85,8 @@ fn unet_matches_twin_at_odd_and_tiny_sizes() {
     }
     let net = UNet::new(&d, &UNetWeights::random(UNetConfig::default(), 1)).unwrap();
     assert!(net.texel_inputs(), "lavapipe reads R32F texel buffers, so the texel path is the default");
-    assert!(net.winograd(), "Winograd is the default where texel inputs exist (faster on lavapipe)");
+    let default = Some(WinogradTile::F4x4);
+    assert_eq!(net.winograd(), default, "Winograd F(4×4) is the default where texel inputs exist (faster on lavapipe)");
     assert_no_validation_messages(&d);
 }
 
@@ -130,11 +133,11 @@ fn vec4_inputs_match_twin() {
     if d.info().storage_16bit {
         precisions.push(StoragePrecision::Fp16);
     }
-    // Direct convolution and Winograd (its tiles also read four pixels per fetch and store four per write).
-    let runs: Vec<_> = cases
-        .into_iter()
-        .flat_map(|c| precisions.iter().flat_map(move |p| [false, true].map(|wino| (c, *p, wino))))
-        .collect();
+    // Direct convolution and both Winograd tiles (their rows of tiles also read four pixels per fetch and
+    // store four per write; F(2×2) a pair of tiles' rows per write).
+    let tiles = [None, Some(WinogradTile::F2x2), Some(WinogradTile::F4x4)];
+    let runs: Vec<_> =
+        cases.into_iter().flat_map(|c| precisions.iter().flat_map(move |p| tiles.map(|wino| (c, *p, wino)))).collect();
     for ((widths, activation, align_corners, w, h), precision, wino) in runs {
         let config = UNetConfig { widths, activation, align_corners, ..UNetConfig::default() };
         let weights = UNetWeights::random(config, 9);
@@ -156,14 +159,17 @@ fn vec4_inputs_match_twin() {
         let peak = exact.data.iter().fold(0.0f64, |m, v| m.max(v.abs()));
         assert!(peak > 1e-3, "the outputs are all ~0: the check would prove nothing");
         let err = max_abs(&gpu, &exact);
-        println!("{precision:?} widths {widths:?} at {w}x{h}, Winograd {wino}, vec4 in {:?}: max |GPU − CPU| {err:.2e} (outputs up to {peak:.2})", out.vec4_layers);
+        println!("{precision:?} widths {widths:?} at {w}x{h}, Winograd {wino:?}, vec4 in {:?}: max |GPU − CPU| {err:.2e} (outputs up to {peak:.2})", out.vec4_layers);
         if precision == StoragePrecision::Fp32 {
-            assert!(err <= 1e-4, "fp32 vec4 U-Net (Winograd {wino}) differs from the twin by {err:e} (tolerance 1e-4)");
+            assert!(
+                err <= 1e-4,
+                "fp32 vec4 U-Net (Winograd {wino:?}) differs from the twin by {err:e} (tolerance 1e-4)"
+            );
         } else {
             // As fp16_storage_matches_twin_within_its_precision.
-            assert!(err / peak <= 1e-2, "fp16 vec4 (Winograd {wino}): relative error {:e} > 1e-2", err / peak);
+            assert!(err / peak <= 1e-2, "fp16 vec4 (Winograd {wino:?}): relative error {:e} > 1e-2", err / peak);
             let rel_rounded = max_abs(&gpu, &rounded) / peak;
-            assert!(rel_rounded <= 2e-3, "fp16 vec4 (Winograd {wino}) vs the rounded twin: {rel_rounded:e} > 2e-3");
+            assert!(rel_rounded <= 2e-3, "fp16 vec4 (Winograd {wino:?}) vs the rounded twin: {rel_rounded:e} > 2e-3");
         }
     }
     assert_no_validation_messages(&d);
@@ -294,13 +300,19 @@ fn winograd_twin_equals_direct_convolution() {
         let layer = srug::indirect::ConvWeights { in_channels: ci, out_channels: co, weight, bias };
         let input: Vec<f32> = (0..ci * w * h).map(|_| rng.random_range(-2.0..2.0f32)).collect();
         let x = Tensor::from_f32(ci, w, h, &input);
-        for act in [Activation::None, Activation::Relu, Activation::LeakyRelu] {
+        let runs = [Activation::None, Activation::Relu, Activation::LeakyRelu]
+            .into_iter()
+            .flat_map(|act| [WinogradTile::F2x2, WinogradTile::F4x4].map(|tile| (act, tile)));
+        for (act, tile) in runs {
             let direct = conv3x3_cpu(&x, &layer, 1, act);
-            let wino = winograd_conv3x3_cpu(&x, &layer, act);
+            let wino = winograd_conv3x3_cpu(&x, &layer, act, tile);
             assert_eq!((wino.width, wino.height, wino.channels), (w, h, co));
             let err = direct.data.iter().zip(&wino.data).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
             let peak = direct.data.iter().fold(0.0f64, |m, v| m.max(v.abs()));
-            assert!(peak > 0.1 && err <= 1e-12 * peak.max(1.0), "{w}x{h} {ci}->{co} {act:?}: {err:e} (peak {peak})");
+            assert!(
+                peak > 0.1 && err <= 1e-12 * peak.max(1.0),
+                "{tile:?} {w}x{h} {ci}->{co} {act:?}: {err:e} (peak {peak})"
+            );
         }
     }
 }

@@ -1,15 +1,15 @@
 //! `srug bench unet`: one inference of the indirect-light U-Net (random
 //! weights of the given widths, 14 input channels) per image size, storage
 //! precision and conv path (direct convolution reading inputs through
-//! texel-buffer views or by device address, or Winograd F(4×4, 3×3) for the
-//! stride-1 layers),
+//! texel-buffer views or by device address, or Winograd F(4×4, 3×3) or
+//! F(2×2, 3×3) for the stride-1 layers),
 //! per-layer GPU times, and achieved GFLOP/s against the FMA peak
 //! measured in the same run.
 
 use super::median;
 use crate::error::Result;
 use crate::gpu::Device;
-use crate::indirect::{StoragePrecision, UNet, UNetConfig, UNetWeights};
+use crate::indirect::{StoragePrecision, UNet, UNetConfig, UNetWeights, WinogradTile};
 
 /// How the conv layers run.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -21,8 +21,11 @@ pub enum ConvPath {
     Texel,
     /// Direct convolution, inputs by device address.
     Address,
-    /// Winograd F(4×4, 3×3) for the stride-1 layers (texel inputs), direct for stride 2; the default.
+    /// Winograd F(4×4, 3×3) for the stride-1 layers (texel inputs, four
+    /// pixels per fetch where the width allows), direct for stride 2; the default.
     Winograd,
+    /// As [`ConvPath::Winograd`] with F(2×2, 3×3).
+    Winograd2,
 }
 
 impl ConvPath {
@@ -33,6 +36,16 @@ impl ConvPath {
             Self::Texel => "texel",
             Self::Address => "address",
             Self::Winograd => "winograd",
+            Self::Winograd2 => "winograd2",
+        }
+    }
+
+    /// The Winograd transform of the stride-1 layers, if any.
+    pub fn winograd(self) -> Option<WinogradTile> {
+        match self {
+            Self::Winograd => Some(WinogradTile::F4x4),
+            Self::Winograd2 => Some(WinogradTile::F2x2),
+            Self::Vec4 | Self::Texel | Self::Address => None,
         }
     }
 }
@@ -86,8 +99,8 @@ pub fn unet_bench(
         for (&precision, &path) in precisions.iter().flat_map(|p| paths.iter().map(move |t| (p, t))) {
             let mut net = UNet::with_precision(device, &weights, precision)?;
             net.set_texel_inputs(path != ConvPath::Address)?;
-            net.set_winograd(path == ConvPath::Winograd)?;
-            net.set_vec4_inputs(matches!(path, ConvPath::Vec4 | ConvPath::Winograd))?;
+            net.set_winograd(path.winograd())?;
+            net.set_vec4_inputs(path == ConvPath::Vec4 || path.winograd().is_some())?;
             progress(&format!("U-Net at {w}x{h}, {precision:?}, {} convolution", path.label()));
             let input = device.upload("u-net input", &bench_input(14 * (w * h) as usize))?;
             net.infer(&input, w, h)?;

@@ -2,7 +2,7 @@
 //! accumulation, the same layer order, padding, resize rule and activation
 //! as the kernels.
 
-use super::{layers, level_sizes, Activation, ConvWeights, UNetWeights};
+use super::{layers, level_sizes, Activation, ConvWeights, UNetWeights, WinogradTile};
 
 /// A CHW tensor.
 #[derive(Clone, Debug, PartialEq)]
@@ -82,23 +82,23 @@ pub fn conv3x3_cpu(x: &Tensor, l: &ConvWeights, stride: usize, act: Activation) 
 }
 
 /// The stride-1 3×3 convolution of [`conv3x3_cpu`] computed by Winograd
-/// F(4×4, 3×3) ([`super::winograd`]'s transforms, in f64): equal to it up to
+/// `tile` ([`super::winograd`]'s transforms, in f64): equal to it up to
 /// rounding, so it checks the transforms the kernel uses.
-pub fn winograd_conv3x3_cpu(x: &Tensor, l: &ConvWeights, act: Activation) -> Tensor {
-    use super::winograd::{input_transform, output_transform, weight_transform, E, WINOGRAD_TILE as T};
+pub fn winograd_conv3x3_cpu(x: &Tensor, l: &ConvWeights, act: Activation, tile: WinogradTile) -> Tensor {
+    let (t, e) = (tile.edge(), tile.patch());
     assert_eq!(x.channels, l.in_channels, "conv input channels");
     let (w, h) = (x.width, x.height);
     let u: Vec<Vec<f64>> = (0..l.out_channels * l.in_channels)
-        .map(|oi| weight_transform(&std::array::from_fn(|t| f64::from(l.weight[oi * 9 + t]))))
+        .map(|oi| tile.weight_transform(&std::array::from_fn(|k| f64::from(l.weight[oi * 9 + k]))))
         .collect();
     let mut data = vec![0.0; l.out_channels * w * h];
-    for ty in 0..h.div_ceil(T) {
-        for tx in 0..w.div_ceil(T) {
+    for ty in 0..h.div_ceil(t) {
+        for tx in 0..w.div_ceil(t) {
             let v: Vec<Vec<f64>> = (0..l.in_channels)
                 .map(|i| {
-                    let d: Vec<f64> = (0..E * E)
+                    let d: Vec<f64> = (0..e * e)
                         .map(|j| {
-                            let (iy, ix) = ((T * ty + j / E) as isize - 1, (T * tx + j % E) as isize - 1);
+                            let (iy, ix) = ((t * ty + j / e) as isize - 1, (t * tx + j % e) as isize - 1);
                             let inside = iy >= 0 && iy < h as isize && ix >= 0 && ix < w as isize;
                             if inside {
                                 x.at(i, ix as usize, iy as usize)
@@ -107,19 +107,19 @@ pub fn winograd_conv3x3_cpu(x: &Tensor, l: &ConvWeights, act: Activation) -> Ten
                             }
                         })
                         .collect();
-                    input_transform(&d)
+                    tile.input_transform(&d)
                 })
                 .collect();
             for o in 0..l.out_channels {
-                let mut m = vec![0.0; E * E];
+                let mut m = vec![0.0; e * e];
                 for (i, vi) in v.iter().enumerate() {
                     let ui = &u[o * l.in_channels + i];
-                    for k in 0..E * E {
+                    for k in 0..e * e {
                         m[k] += ui[k] * vi[k];
                     }
                 }
-                for (j, y) in output_transform(&m).iter().enumerate() {
-                    let (oy, ox) = (T * ty + j / T, T * tx + j % T);
+                for (j, y) in tile.output_transform(&m).iter().enumerate() {
+                    let (oy, ox) = (t * ty + j / t, t * tx + j % t);
                     if oy < h && ox < w {
                         data[(o * h + oy) * w + ox] = activate(y + f64::from(l.bias[o]), act);
                     }

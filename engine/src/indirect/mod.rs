@@ -20,10 +20,14 @@
 //! weights are packed once per path. Tensors are CHW float32 (batch 1); every
 //! activation of a pass lives in one arena buffer reused across frames while
 //! the size allows. Any input size works (stride-2 outputs are ceil(n/2)).
+//! Where texel views exist the stride-1 layers run by Winograd F(4×4, 3×3)
+//! by default, or F(2×2, 3×3) on request ([`winograd`], [`UNet::set_winograd`]).
 //! [`cpu`] is the f64-accumulating twin.
 
 pub mod cpu;
 pub mod winograd;
+
+pub use winograd::WinogradTile;
 
 use std::collections::HashMap;
 use std::path::Path;
@@ -572,10 +576,11 @@ pub struct UNet {
     pack: Kernel,
     /// Packed weights for device-address inputs, then for texel inputs (empty without them).
     weights: [Vec<LayerBuffers>; 2],
-    /// Winograd kernels per (activation, fp16 output); built when first chosen.
-    winograd_kernels: HashMap<(u32, bool, usize, bool), Kernel>,
-    /// Transformed weights per layer (`None` for stride 2); empty until Winograd is first chosen.
-    winograd_weights: Vec<Option<Buffer>>,
+    /// Winograd kernels per [`WinogradKey`]; built at the first inference of a size that needs them.
+    winograd_kernels: HashMap<WinogradKey, Kernel>,
+    /// Transformed weights per layer (`None` for stride 2) for the tile they were made for;
+    /// empty until Winograd is first chosen.
+    winograd_weights: Option<(WinogradTile, Vec<Option<Buffer>>)>,
     /// The weights as loaded, for the Winograd transform.
     host_layers: Vec<ConvWeights>,
     arena: Option<Buffer>,
@@ -583,8 +588,11 @@ pub struct UNet {
     texel: bool,
     /// Texel inputs read four pixels per fetch where a layer's width allows.
     vec4: bool,
-    winograd: bool,
+    winograd: Option<WinogradTile>,
 }
+
+/// A Winograd kernel variant: tile, activation code, fp16 output, output channel block, four-pixel inputs.
+type WinogradKey = (WinogradTile, u32, bool, usize, bool);
 
 /// How activations are stored between layers; arithmetic is fp32 either way.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
@@ -842,98 +850,110 @@ impl UNet {
             pack,
             weights,
             winograd_kernels: HashMap::new(),
-            winograd_weights: Vec::new(),
+            winograd_weights: None,
             host_layers,
             arena: None,
             prefill: None,
             texel,
             vec4,
-            winograd: false,
+            winograd: None,
         };
-        // Winograd is the default where it can run (texel inputs): fewer multiplies, faster on lavapipe.
+        // Winograd F(4×4) is the default where it can run (texel inputs): fewer multiplies, faster on lavapipe.
         if texel {
-            net.set_winograd(true)?;
+            net.set_winograd(Some(WinogradTile::default()))?;
         }
         Ok(net)
     }
 
     /// The Winograd kernel variant of layer `i`: activation (none for the
     /// last) and fp16 output (not for the last).
-    fn winograd_key(config: &UNetConfig, i: usize, half: bool, vec4: bool) -> (u32, bool, usize, bool) {
+    fn winograd_key(config: &UNetConfig, tile: WinogradTile, i: usize, half: bool, vec4: bool) -> WinogradKey {
         let all = layers(config);
         let last = i + 1 == all.len();
         let co = all[i].2;
-        (if last { 0 } else { config.activation.code() }, half && !last, channel_block(co, true), vec4)
+        (tile, if last { 0 } else { config.activation.code() }, half && !last, channel_block(co, true), vec4)
     }
 
-    /// Whether the stride-1 layers run Winograd F(4×4, 3×3)
-    /// (`unet_winograd_texel.comp`) instead of direct convolution, where
-    /// their inputs go through texel-buffer views. On by default where the
-    /// device has texel views: a quarter of the multiplies, and on lavapipe
-    /// the network at 704×192 fp32 takes about 220 against 340 ms (README,
-    /// U-Net benchmark). Its kernels are built at the first inference of a size
-    /// that needs them.
-    pub fn winograd(&self) -> bool {
+    /// The Winograd transform the stride-1 layers run by
+    /// (`unet_winograd_body.glsl`), where their inputs go through texel-buffer
+    /// views, or `None` for direct convolution. F(4×4, 3×3) by default where
+    /// the device has texel views: a quarter of the multiplies, and on
+    /// lavapipe the network at 704×192 fp32 takes about 224 against 341 ms
+    /// (F(2×2, 3×3) 268 ms; README, U-Net benchmark). Its kernels are built
+    /// at the first inference of a size that needs them.
+    pub fn winograd(&self) -> Option<WinogradTile> {
         self.winograd
     }
 
-    /// Chooses Winograd or direct convolution for the stride-1 layers (see
-    /// [`UNet::winograd`]); turning it on without texel inputs on the device
-    /// is an error. Both compute the same sums up to rounding.
-    pub fn set_winograd(&mut self, on: bool) -> Result<()> {
-        if on && !self.convs.keys().any(|k| k.6) {
-            return Err(Error::Unsupported(
-                "Winograd convolution needs texel-buffer inputs, which this device lacks".into(),
-            ));
+    /// Chooses a Winograd transform, or direct convolution (`None`), for the
+    /// stride-1 layers (see [`UNet::winograd`]); Winograd without texel
+    /// inputs on the device is an error. All compute the same sums up to
+    /// rounding ([`winograd`] has the error of each).
+    pub fn set_winograd(&mut self, tile: Option<WinogradTile>) -> Result<()> {
+        if let Some(tile) = tile {
+            if !self.convs.keys().any(|k| k.6) {
+                return Err(Error::Unsupported(
+                    "Winograd convolution needs texel-buffer inputs, which this device lacks".into(),
+                ));
+            }
+            if self.winograd_weights.as_ref().is_none_or(|(t, _)| *t != tile) {
+                self.build_winograd(tile)?;
+            }
         }
-        if on && self.winograd_weights.is_empty() {
-            self.build_winograd()?;
-        }
-        self.winograd = on;
+        self.winograd = tile;
         Ok(())
     }
 
-    /// Uploads the transformed weights of the stride-1 layers.
-    fn build_winograd(&mut self) -> Result<()> {
+    /// Uploads the stride-1 layers' weights transformed for `tile`.
+    fn build_winograd(&mut self, tile: WinogradTile) -> Result<()> {
+        // Drop the other tile's first: only one set is kept.
+        self.winograd_weights = None;
         let mut weights = Vec::new();
         for ((name, _, _, stride), l) in layers(&self.config).iter().zip(&self.host_layers) {
             weights.push(if *stride == 1 {
-                let packed = winograd::pack_winograd(l);
+                let packed = winograd::pack_winograd(tile, l);
                 Some(self.device.upload(&format!("{name} winograd weights"), &packed)?)
             } else {
                 None
             });
         }
-        self.winograd_weights = weights;
+        self.winograd_weights = Some((tile, weights));
         Ok(())
     }
 
     /// Builds the Winograd kernels the stride-1 layers need at `width` × `height`
     /// that are not built yet: llvmpipe takes tens of seconds per variant with
     /// a cold shader cache, so only the variants a size needs are made.
-    fn build_winograd_kernels(&mut self, width: usize, height: usize) -> Result<()> {
+    fn build_winograd_kernels(&mut self, tile: WinogradTile, width: usize, height: usize) -> Result<()> {
         let half = self.precision == StoragePrecision::Fp16;
         let s = level_sizes(width, height);
         for (i, (_, _, _, stride)) in layers(&self.config).iter().enumerate() {
             let vec4 = self.vec4 && vec4_fits(s[input_level(i)].0);
-            let key = Self::winograd_key(&self.config, i, half, vec4);
+            let key = Self::winograd_key(&self.config, tile, i, half, vec4);
             if *stride != 1 || self.winograd_kernels.contains_key(&key) {
                 continue;
             }
+            let (_, act, half_out, block, _) = key;
             let mut spec = vec![
-                (1, SpecValue::U32(key.0)),
-                (2, SpecValue::U32(winograd::WINOGRAD_TILES as u32)),
-                (3, SpecValue::U32(key.2 as u32)),
-                (4, SpecValue::U32(winograd::WINOGRAD_CHUNK as u32)),
+                (1, SpecValue::U32(act)),
+                (2, SpecValue::U32(tile.tiles_per_invocation() as u32)),
+                (3, SpecValue::U32(block as u32)),
+                (4, SpecValue::U32(tile.channels_per_step() as u32)),
                 (5, SpecValue::Bool(vec4)),
             ];
             if half {
-                spec.push((11, SpecValue::Bool(key.1)));
+                spec.push((11, SpecValue::Bool(half_out)));
             }
             let view = BindingKind::UniformTexelBuffer;
+            let code = match (tile, half) {
+                (WinogradTile::F2x2, false) => &kernels::UNET_WINOGRAD2_TEXEL,
+                (WinogradTile::F2x2, true) => &kernels::UNET_WINOGRAD2_TEXEL_HALF,
+                (WinogradTile::F4x4, false) => &kernels::UNET_WINOGRAD_TEXEL,
+                (WinogradTile::F4x4, true) => &kernels::UNET_WINOGRAD_TEXEL_HALF,
+            };
             let kernel = Kernel::new(
                 &self.device,
-                if half { &kernels::UNET_WINOGRAD_TEXEL_HALF } else { &kernels::UNET_WINOGRAD_TEXEL },
+                code,
                 &KernelDecl {
                     bindings: &[view, BindingKind::StorageBuffer { read_only: true }, view, view],
                     push_constant_size: std::mem::size_of::<ConvPush>(),
@@ -1099,8 +1119,8 @@ impl UNet {
             )));
         }
         // Winograd runs only on texel inputs (else the layers fall back to direct convolution).
-        if self.winograd && self.texel {
-            self.build_winograd_kernels(w, h)?;
+        if let Some(tile) = self.winograd.filter(|_| self.texel) {
+            self.build_winograd_kernels(tile, w, h)?;
         }
         let layout = ArenaLayout::new(&c, w, h, self.precision);
         let need = layout.total;
@@ -1125,9 +1145,10 @@ impl UNet {
         let max_groups = self.device.info().max_workgroup_count;
         let names = layers(&c);
         let weights = &self.weights;
-        let winograd = |i: usize, vec4: bool| -> Option<(&Kernel, &Buffer)> {
-            let k = self.winograd_kernels.get(&Self::winograd_key(&c, i, half, vec4))?;
-            Some((k, self.winograd_weights.get(i)?.as_ref()?)).filter(|_| self.winograd)
+        let winograd = |i: usize, vec4: bool| -> Option<(WinogradTile, &Kernel, &Buffer)> {
+            let (tile, weights) = self.winograd_weights.as_ref().filter(|(t, _)| Some(*t) == self.winograd)?;
+            let k = self.winograd_kernels.get(&Self::winograd_key(&c, *tile, i, half, vec4))?;
+            Some((*tile, k, weights.get(i)?.as_ref()?))
         };
         let upsample = &self.upsample;
         let upsample_texel = self.upsample_texel.as_ref().filter(|_| self.texel);
@@ -1192,7 +1213,7 @@ impl UNet {
             for l in weights.iter().flatten() {
                 rec.keep(&l.passes.iter().chain([&l.bias]).collect::<Vec<_>>())?;
             }
-            rec.keep(&self.winograd_weights.iter().flatten().collect::<Vec<_>>())?;
+            rec.keep(&self.winograd_weights.iter().flat_map(|(_, w)| w.iter().flatten()).collect::<Vec<_>>())?;
             for &Step { layer: li, a, ca, b, cb, lin, lout, out } in &steps {
                 let (name, _, co, _) = names[li];
                 if (5..9).contains(&li) {
@@ -1242,18 +1263,18 @@ impl UNet {
                     texel && (ca.max(cb) * in_plane) as u64 <= max_texels && weight_texels as u64 <= max_texels;
                 let layer = &weights[usize::from(use_texel)][li];
                 let use_vec4 = use_texel && self.vec4 && vec4_fits(s[lin].0);
-                // Winograd (a row of 4 × 4 tiles × a channel block per invocation, four pixels per fetch
-                // where the width allows: every tile starts on a texel) where chosen and its weights fit a
-                // view, else direct convolution (a pixel block × channel block per invocation).
+                // Winograd (a row of tiles × a channel block per invocation, four pixels per fetch where
+                // the width allows: every row of tiles starts on a texel) where chosen and its weights fit
+                // a view, else direct convolution (a pixel block × channel block per invocation).
                 let wino = winograd(li, use_vec4)
                     .filter(|_| use_texel)
-                    .map(|(k, u)| (k, u, winograd::winograd_weight_texels(cin, co)))
+                    .map(|(tile, k, u)| (tile, k, u, winograd::winograd_weight_texels(tile, cin, co)))
                     .filter(|(.., texels)| *texels as u64 <= max_texels);
                 let (k, invocations, ob) = match wino {
-                    Some((k, ..)) => (
+                    Some((tile, k, ..)) => (
                         k,
-                        s[lout].0.div_ceil(winograd::WINOGRAD_TILE).div_ceil(winograd::WINOGRAD_TILES)
-                            * s[lout].1.div_ceil(winograd::WINOGRAD_TILE),
+                        s[lout].0.div_ceil(tile.edge()).div_ceil(tile.tiles_per_invocation())
+                            * s[lout].1.div_ceil(tile.edge()),
                         channel_block(co, true),
                     ),
                     None => (
@@ -1298,7 +1319,7 @@ impl UNet {
                         let vb =
                             if cb > 0 { view(b, cb * in_plane, use_vec4) } else { view(a, ca * in_plane, use_vec4) };
                         // The texel path has one pass, so Winograd's weights replace it.
-                        let (buffer, elements) = wino.map_or((ubo, weight_texels), |(_, u, t)| (u, t));
+                        let (buffer, elements) = wino.map_or((ubo, weight_texels), |(_, _, u, t)| (u, t));
                         let weights =
                             Texels { buffer, offset: 0, elements: elements as u64, format: TexelFormat::Rgba32Float };
                         let bound = [

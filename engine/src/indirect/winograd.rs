@@ -1,116 +1,201 @@
-//! Winograd F(4×4, 3×3) for the stride-1 convolutions: the transforms shared
-//! by the weight packing and the CPU twin.
+//! Winograd F(m×m, 3×3) for the stride-1 convolutions: the transforms shared
+//! by the weight packing and the CPU twin, for the two tiles the kernel offers.
 //!
-//! A 4 × 4 output tile of a 3×3 convolution is Y = Aᵀ·[Σ_ci U ⊙ V]·A with
-//! U = G·g·Gᵀ (the 3 × 3 kernel g made 6 × 6, once per layer, on the host) and
-//! V = Bᵀ·d·B (the tile's 6 × 6 input patch d, in the kernel): 36 multiplies
-//! per input and output channel instead of 144 (F(2×2, 3×3): 16 instead of
-//! 36). The kernel (`unet_winograd_texel.comp`) keeps 36 accumulators per
-//! output channel and tile, so it trades multiplies for accumulator traffic
-//! and transform additions; on lavapipe, where every fetch is expensive, the
+//! An m × m output tile of a 3×3 convolution is Y = Aᵀ·[Σ_ci U ⊙ V]·A with
+//! U = G·g·Gᵀ (the 3 × 3 kernel g made e × e, e = m + 2, once per layer, on
+//! the host) and V = Bᵀ·d·B (the tile's e × e input patch d, in the kernel):
+//! e² multiplies per input and output channel instead of 9·m².
+//! - F(2×2, 3×3): 16 instead of 36 (2.25× fewer); its transforms' entries are
+//!   0, ±½ and ±1, so fp32 rounding stays close to direct convolution's
+//!   (2.5e-6 in `vec4_inputs_match_twin`).
+//! - F(4×4, 3×3) (Lavin and Gray's points 0, ±1, ±2): 36 instead of 144 (4×
+//!   fewer), the default. Entries reach 8 and 1/24, so fp32 rounding adds more
+//!   error (up to 1.1e-5 in the same test, within its 1e-4).
+//!
+//! The kernel (`unet_winograd_body.glsl`) keeps e² accumulators per output
+//! channel and tile, so it trades multiplies for accumulator traffic and
+//! transform additions; on lavapipe, where every fetch is expensive, the
 //! larger tile also needs fewer input and weight fetches per output pixel.
-//! The transforms' entries (Lavin and Gray's points 0, ±1, ±2) reach 8 and
-//! 1/24, so fp32 rounding adds more error than F(2×2, 3×3) — measured up to
-//! 1.1e-5 against 2.5e-6 in `vec4_inputs_match_twin`, within the tests' 1e-4.
+//! Measured at 704×192 fp32 (`srug bench unet --inputs winograd,winograd2`,
+//! whole network, direct convolution about 341 ms and the direct-convolution
+//! floor 249 ms): F(4×4) 224 ms, F(2×2) 268 ms (README, U-Net benchmark).
 
 use super::ConvWeights;
 
-/// Output tiles per invocation of the Winograd kernel (`TT`), side by side
-/// along x: each weight fetch serves all of them, and their row reads its
-/// input patch four pixels per fetch. Measured on lavapipe at 704×192
-/// (`srug bench unet --inputs winograd`, whole network fp32; direct
-/// convolution about 343 ms): 4 tiles × 2 channels per step 218 ms, 6 × 2
-/// 223 ms (the 88-pixel level then runs 3.7 blocks a row: up1 14.6 against
-/// 10.7 ms), 4 × 1 242 ms. llvmpipe's compile time grows with TT·CH: with a
-/// cold shader cache about 45 s per variant set at 4 × 1 and over 2 minutes at 6 × 2.
-/// With 2 × 2 tiles (F(2×2, 3×3), at 85afd8b and before) the best was 8 tiles × 2
-/// channels, 268 ms.
-pub const WINOGRAD_TILES: usize = 4;
-
-/// Input channels per step of the Winograd kernel (`CH`): fetched and
-/// transformed first, then multiplied, so each accumulator is loaded and
-/// stored once per step (see [`WINOGRAD_TILES`] for the sweep).
-pub const WINOGRAD_CHUNK: usize = 2;
-
-/// The output tile's edge (`WT` in `unet_winograd_body.glsl`; keep in sync).
-/// A multiple of 4, so every tile row starts on a four-pixel texel.
-pub const WINOGRAD_TILE: usize = 4;
-const _: () = assert!(WINOGRAD_TILE % 4 == 0);
-
-/// The transformed tile's edge: an output tile's input patch is `E` × `E`.
-pub const E: usize = WINOGRAD_TILE + 2;
-
-/// G (E × 3): U = G·g·Gᵀ.
-const G: [[f64; 3]; E] = [
-    [1.0 / 4.0, 0.0, 0.0],
-    [-1.0 / 6.0, -1.0 / 6.0, -1.0 / 6.0],
-    [-1.0 / 6.0, 1.0 / 6.0, -1.0 / 6.0],
-    [1.0 / 24.0, 1.0 / 12.0, 1.0 / 6.0],
-    [1.0 / 24.0, -1.0 / 12.0, 1.0 / 6.0],
-    [0.0, 0.0, 1.0],
-];
-
-/// Bᵀ (E × E): V = Bᵀ·d·B.
-const BT: [[f64; E]; E] = [
-    [4.0, 0.0, -5.0, 0.0, 1.0, 0.0],
-    [0.0, -4.0, -4.0, 1.0, 1.0, 0.0],
-    [0.0, 4.0, -4.0, -1.0, 1.0, 0.0],
-    [0.0, -2.0, -1.0, 2.0, 1.0, 0.0],
-    [0.0, 2.0, -1.0, -2.0, 1.0, 0.0],
-    [0.0, 4.0, 0.0, -5.0, 0.0, 1.0],
-];
-
-/// Aᵀ (WINOGRAD_TILE × E): Y = Aᵀ·M·A.
-const AT: [[f64; E]; WINOGRAD_TILE] = [
-    [1.0, 1.0, 1.0, 1.0, 1.0, 0.0],
-    [0.0, 1.0, -1.0, 2.0, -2.0, 0.0],
-    [0.0, 1.0, 1.0, 4.0, 4.0, 0.0],
-    [0.0, 1.0, -1.0, 8.0, -8.0, 1.0],
-];
-
-/// L·X·Rᵀ for X (`n` × `n`, row-major) and L, R (`r` × `n`): row-major `r` × `r`.
-fn sandwich<const N: usize>(l: &[[f64; N]], x: &[f64], r: &[[f64; N]]) -> Vec<f64> {
-    let rows = l.len();
-    let lx: Vec<f64> = (0..rows * N).map(|at| (0..N).map(|k| l[at / N][k] * x[k * N + at % N]).sum()).collect();
-    (0..rows * r.len()).map(|at| (0..N).map(|k| lx[(at / r.len()) * N + k] * r[at % r.len()][k]).sum()).collect()
+/// Which Winograd transform the stride-1 convolutions use.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum WinogradTile {
+    /// F(2×2, 3×3): 2 × 2 output tiles from 4 × 4 patches; the smaller
+    /// rounding error.
+    F2x2,
+    /// F(4×4, 3×3): 4 × 4 output tiles from 6 × 6 patches; fewer multiplies
+    /// and fetches, the faster on lavapipe.
+    #[default]
+    F4x4,
 }
 
-/// U = G·g·Gᵀ of one 3 × 3 kernel `g` (row-major): row-major E × E.
-pub fn weight_transform(g: &[f64; 9]) -> Vec<f64> {
-    sandwich(&G, g, &G)
+/// One tile's transform matrices, row-major.
+struct Transforms {
+    /// G (e × 3): U = G·g·Gᵀ.
+    g: &'static [f64],
+    /// Bᵀ (e × e): V = Bᵀ·d·B.
+    bt: &'static [f64],
+    /// Aᵀ (m × e): Y = Aᵀ·M·A.
+    at: &'static [f64],
 }
 
-/// V = Bᵀ·d·B of one E × E input patch (row-major).
-pub fn input_transform(d: &[f64]) -> Vec<f64> {
-    sandwich(&BT, d, &BT)
+#[rustfmt::skip]
+const F2X2: Transforms = Transforms {
+    g: &[
+        1.0, 0.0, 0.0,
+        0.5, 0.5, 0.5,
+        0.5, -0.5, 0.5,
+        0.0, 0.0, 1.0,
+    ],
+    bt: &[
+        1.0, 0.0, -1.0, 0.0,
+        0.0, 1.0, 1.0, 0.0,
+        0.0, -1.0, 1.0, 0.0,
+        0.0, 1.0, 0.0, -1.0,
+    ],
+    at: &[
+        1.0, 1.0, 1.0, 0.0,
+        0.0, 1.0, -1.0, -1.0,
+    ],
+};
+
+#[rustfmt::skip]
+const F4X4: Transforms = Transforms {
+    g: &[
+        1.0 / 4.0, 0.0, 0.0,
+        -1.0 / 6.0, -1.0 / 6.0, -1.0 / 6.0,
+        -1.0 / 6.0, 1.0 / 6.0, -1.0 / 6.0,
+        1.0 / 24.0, 1.0 / 12.0, 1.0 / 6.0,
+        1.0 / 24.0, -1.0 / 12.0, 1.0 / 6.0,
+        0.0, 0.0, 1.0,
+    ],
+    bt: &[
+        4.0, 0.0, -5.0, 0.0, 1.0, 0.0,
+        0.0, -4.0, -4.0, 1.0, 1.0, 0.0,
+        0.0, 4.0, -4.0, -1.0, 1.0, 0.0,
+        0.0, -2.0, -1.0, 2.0, 1.0, 0.0,
+        0.0, 2.0, -1.0, -2.0, 1.0, 0.0,
+        0.0, 4.0, 0.0, -5.0, 0.0, 1.0,
+    ],
+    at: &[
+        1.0, 1.0, 1.0, 1.0, 1.0, 0.0,
+        0.0, 1.0, -1.0, 2.0, -2.0, 0.0,
+        0.0, 1.0, 1.0, 4.0, 4.0, 0.0,
+        0.0, 1.0, -1.0, 8.0, -8.0, 1.0,
+    ],
+};
+
+impl WinogradTile {
+    /// The output tile's edge m (`WT` in `unet_winograd_body.glsl`; keep in sync).
+    pub const fn edge(self) -> usize {
+        match self {
+            Self::F2x2 => 2,
+            Self::F4x4 => 4,
+        }
+    }
+
+    /// The transformed tile's edge e = m + 2: an output tile's input patch is e × e.
+    pub const fn patch(self) -> usize {
+        self.edge() + 2
+    }
+
+    /// Output tiles per invocation of the kernel (`TT`), side by side along
+    /// x: each weight fetch serves all of them, and their row reads its input
+    /// patch four pixels per fetch, so m·TT is a multiple of 4 (every
+    /// invocation's row starts on a four-pixel texel, and with F(2×2) two
+    /// tiles' rows make one four-pixel store). Measured on lavapipe at 704×192
+    /// (`srug bench unet`, whole network fp32): F(4×4) 4 tiles × 2 channels
+    /// per step 218 ms, 6 × 2 223 ms (the 88-pixel level then runs 3.7 blocks
+    /// a row), 4 × 1 242 ms; F(2×2) 8 × 2 268 ms (its best). llvmpipe's
+    /// compile time grows with TT·CH: with a cold shader cache about 45 s per
+    /// F(4×4) variant set at 4 × 1 and over 2 minutes at 6 × 2.
+    pub const fn tiles_per_invocation(self) -> usize {
+        match self {
+            Self::F2x2 => 8,
+            Self::F4x4 => 4,
+        }
+    }
+
+    /// Input channels per step of the kernel (`CH`): fetched and transformed
+    /// first, then multiplied, so each accumulator is loaded and stored once
+    /// per step (see [`WinogradTile::tiles_per_invocation`] for the sweep).
+    pub const fn channels_per_step(self) -> usize {
+        2
+    }
+
+    /// The label in tables and in `srug info --plan`.
+    pub fn label(self) -> &'static str {
+        match self {
+            Self::F2x2 => "F(2×2, 3×3)",
+            Self::F4x4 => "F(4×4, 3×3)",
+        }
+    }
+
+    fn transforms(self) -> &'static Transforms {
+        match self {
+            Self::F2x2 => &F2X2,
+            Self::F4x4 => &F4X4,
+        }
+    }
+
+    /// U = G·g·Gᵀ of one 3 × 3 kernel `g` (row-major): row-major e × e.
+    pub fn weight_transform(self, g: &[f64; 9]) -> Vec<f64> {
+        let t = self.transforms();
+        sandwich(t.g, g, t.g, 3)
+    }
+
+    /// V = Bᵀ·d·B of one e × e input patch (row-major).
+    pub fn input_transform(self, d: &[f64]) -> Vec<f64> {
+        let t = self.transforms();
+        sandwich(t.bt, d, t.bt, self.patch())
+    }
+
+    /// Y = Aᵀ·m·A of one e × e product sum (row-major): the m × m output tile, row-major.
+    pub fn output_transform(self, m: &[f64]) -> Vec<f64> {
+        let t = self.transforms();
+        sandwich(t.at, m, t.at, self.patch())
+    }
 }
 
-/// Y = Aᵀ·m·A of one E × E product sum (row-major): the output tile, row-major.
-pub fn output_transform(m: &[f64]) -> Vec<f64> {
-    sandwich(&AT, m, &AT)
+// Every invocation's row of tiles spans a multiple of 4 pixels (`unet_winograd_body.glsl`'s fetches and stores).
+const _: () = {
+    let (a, b) = (WinogradTile::F2x2, WinogradTile::F4x4);
+    assert!(a.edge() * a.tiles_per_invocation() % 4 == 0 && b.edge() * b.tiles_per_invocation() % 4 == 0);
+};
+
+/// L·X·Rᵀ for X (`n` × `n`, row-major) and L, R (`rows` × `n`, row-major): row-major.
+fn sandwich(l: &[f64], x: &[f64], r: &[f64], n: usize) -> Vec<f64> {
+    let (lr, rr) = (l.len() / n, r.len() / n);
+    let lx: Vec<f64> = (0..lr * n).map(|at| (0..n).map(|k| l[(at / n) * n + k] * x[k * n + at % n]).sum()).collect();
+    (0..lr * rr).map(|at| (0..n).map(|k| lx[(at / rr) * n + k] * r[(at % rr) * n + k]).sum()).collect()
 }
 
 /// Texels (RGBA32F) of a layer's packed Winograd weights: output channels
 /// padded to the kernel's channel block (`super::channel_block`).
-pub fn winograd_weight_texels(in_channels: usize, out_channels: usize) -> usize {
+pub fn winograd_weight_texels(tile: WinogradTile, in_channels: usize, out_channels: usize) -> usize {
     let block = super::channel_block(out_channels, true);
-    out_channels.div_ceil(block) * block / 4 * in_channels * E * E
+    out_channels.div_ceil(block) * block / 4 * in_channels * tile.patch() * tile.patch()
 }
 
-/// Packs a layer's transformed weights for `unet_winograd_texel.comp`:
-/// `[oc/4][ic][E·E][4]` floats (one RGBA32F texel per block of 4 output
+/// Packs a layer's transformed weights for `unet_winograd_body.glsl`:
+/// `[oc/4][ic][e·e][4]` floats (one RGBA32F texel per block of 4 output
 /// channels, input channel and k; keep in sync), output channels past the
 /// layer's, up to a whole kernel channel block, zero.
-pub fn pack_winograd(l: &ConvWeights) -> Vec<f32> {
+pub fn pack_winograd(tile: WinogradTile, l: &ConvWeights) -> Vec<f32> {
     let n = 4;
-    let mut w = vec![0.0f32; winograd_weight_texels(l.in_channels, l.out_channels) * 4];
+    let ee = tile.patch() * tile.patch();
+    let mut w = vec![0.0f32; winograd_weight_texels(tile, l.in_channels, l.out_channels) * 4];
     for o in 0..l.out_channels {
         for i in 0..l.in_channels {
             let at = (o * l.in_channels + i) * 9;
             let g: [f64; 9] = std::array::from_fn(|t| f64::from(l.weight[at + t]));
-            let u = weight_transform(&g);
-            for (k, v) in u.iter().enumerate() {
-                w[(((o / n) * l.in_channels + i) * E * E + k) * n + o % n] = *v as f32;
+            for (k, v) in tile.weight_transform(&g).iter().enumerate() {
+                w[(((o / n) * l.in_channels + i) * ee + k) * n + o % n] = *v as f32;
             }
         }
     }

@@ -1,8 +1,11 @@
-// The body of unet_winograd_texel.comp and unet_winograd_texel_half.comp (see there).
-// WT × WT output tiles from E × E input patches: F(4×4, 3×3)
-// (keep in sync with engine/src/indirect/winograd.rs `WINOGRAD_TILE`, `E`).
+// The body of unet_winograd_texel.comp, unet_winograd2_texel.comp and their
+// _half variants (see there). WT × WT output tiles from E × E input patches:
+// F(4×4, 3×3), or F(2×2, 3×3) where the including file defines WT 2 (keep in
+// sync with engine/src/indirect/winograd.rs `WinogradTile::edge`, `patch`).
+#ifndef WT
 #define WT 4
-#define E 6
+#endif
+#define E (WT + 2)
 #define EE (E * E)
 #extension GL_EXT_control_flow_attributes : require
 #define WORKGROUP_SIZE_X 64
@@ -13,12 +16,13 @@
 // 0: none, 1: ReLU, 2: leaky ReLU (slope 0.01).
 layout(constant_id = 1) const uint ACT = 1;
 // WT × WT output tiles per invocation along x, 1 to 8: every
-// weight fetch serves TT tiles (engine/src/indirect/winograd.rs `WINOGRAD_TILES`).
+// weight fetch serves TT tiles; WT·TT a multiple of 4 with VEC4
+// (engine/src/indirect/winograd.rs `WinogradTile::tiles_per_invocation`).
 layout(constant_id = 2) const uint TT = 8;
 // Output channels per invocation: 4 or 8 (engine/src/indirect/mod.rs `channel_block`).
 layout(constant_id = 3) const uint OCB = 8;
 // Input channels fetched and transformed before their multiply-adds, 1 or 2
-// (engine/src/indirect/winograd.rs `WINOGRAD_CHUNK`).
+// (engine/src/indirect/winograd.rs `WinogradTile::channels_per_step`).
 layout(constant_id = 4) const uint CH = 2;
 // The input views hold four pixels per texel (RGBA32F/RGBA16F); needs the
 // input width to be a multiple of 4, so every row segment starts one pixel
@@ -113,6 +117,21 @@ layout(push_constant) uniform Push {
         }                                                                          \
     }
 
+#if WT == 2
+// Bᵀ·x of one column or row, Bᵀ = [1 0 −1 0; 0 1 1 0; 0 −1 1 0; 0 1 0 −1].
+void bt(in float x[E], out float y[E]) {
+    y[0] = x[0] - x[2];
+    y[1] = x[1] + x[2];
+    y[2] = x[2] - x[1];
+    y[3] = x[1] - x[3];
+}
+
+// Aᵀ·x, Aᵀ = [1 1 1 0; 0 1 −1 −1].
+void at(in vec4 x[E], out vec4 y[WT]) {
+    y[0] = x[0] + x[1] + x[2];
+    y[1] = x[1] - x[2] - x[3];
+}
+#else
 // Bᵀ·x of one column or row, Bᵀ = [4 0 −5 0 1 0; 0 −4 −4 1 1 0; 0 4 −4 −1 1 0;
 // 0 −2 −1 2 1 0; 0 2 −1 −2 1 0; 0 4 0 −5 0 1].
 void bt(in float x[E], out float y[E]) {
@@ -134,6 +153,7 @@ void at(in vec4 x[E], out vec4 y[WT]) {
     y[2] = s12 + 4.0 * s34;
     y[3] = d12 + 8.0 * d34 + x[5];
 }
+#endif
 
 // V = Bᵀ·d·B of an E × E input patch d (row-major).
 void input_transform(in float d[EE], out float v[EE]) {
@@ -224,11 +244,12 @@ void main() {
         }
     }
     if (VEC4) {
-        // A tile's row is four pixels starting at a multiple of 4 (the width is one): one 16-byte store
-        // per channel and row instead of four lane-by-lane scalar ones.
-        [[unroll]] for (uint t = 0u; t < TT; ++t) {
-            int tx = ox0 + WT * int(t);
-            if (tx >= ow) break;
+        // Four pixels of a row start at a multiple of 4 (so does the row of tiles, and the width is one):
+        // one 16-byte store per channel and row instead of four lane-by-lane scalar ones; with WT 2 they
+        // come from two tiles.
+        [[unroll]] for (uint g = 0u; g < TT * WT / 4u; ++g) {
+            int gx = ox0 + 4 * int(g);
+            if (gx >= ow) break;
             [[unroll]] for (uint q = 0u; q < Q; ++q) {
                 [[unroll]] for (uint j = 0u; j < 4u; ++j) {
                     uint c = (ob * Q + q) * 4u + j;
@@ -237,8 +258,11 @@ void main() {
                         int oy = oy0 + int(row);
                         if (oy >= oh) continue;
                         vec4 px;
-                        [[unroll]] for (uint x = 0u; x < WT; ++x) px[x] = ys[t * Q + q][WT * row + x][j];
-                        store_output4(pc.o, c * out_plane + uint(oy * ow + tx), px);
+                        [[unroll]] for (uint x = 0u; x < 4u; ++x) {
+                            uint t = (4u * g + x) / WT;
+                            px[x] = ys[t * Q + q][WT * row + (4u * g + x) % WT][j];
+                        }
+                        store_output4(pc.o, c * out_plane + uint(oy * ow + gx), px);
                     }
                 }
             }
