@@ -316,3 +316,37 @@ fn winograd_twin_equals_direct_convolution() {
         }
     }
 }
+
+#[test]
+fn fp16_store_conversion_rounds_to_nearest_even_and_saturates() {
+    // The twin of the kernels' fp32 → fp16 conversion (`half_bits`) against the `half` crate on every
+    // fp16 value, the ties between neighbours and one fp32 step either side, and random values.
+    use srug::indirect::cpu::half_bits;
+    let expected = |v: f32| -> u16 {
+        let sign = if v.is_sign_negative() { 0x8000 } else { 0 };
+        if v.is_nan() {
+            sign | 0x7e00
+        } else if v.abs() > 65504.0 {
+            sign | 0x7bff
+        } else {
+            half::f16::from_f32(v).to_bits()
+        }
+    };
+    let mut values =
+        vec![f32::NAN, f32::INFINITY, f32::NEG_INFINITY, 1e30, -1e30, 65504.0, 65519.0, 65520.0, 0.0, -0.0];
+    for h in 0u16..0x7c00 {
+        let (x, next) = (half::f16::from_bits(h).to_f32(), half::f16::from_bits(h + 1).to_f32());
+        let tie = (x + next) / 2.0;
+        let up = |v: f32| f32::from_bits(v.to_bits() + 1);
+        let down = |v: f32| if v == 0.0 { v } else { f32::from_bits(v.to_bits() - 1) };
+        for v in [x, up(x), down(x), tie, up(tie), down(tie)] {
+            values.extend([v, -v]);
+        }
+    }
+    let mut rng = Pcg64Mcg::seed_from_u64(13);
+    values.extend((0..200_000).map(|_| rng.random_range(-1.0f32..1.0) * 2.0f32.powi(rng.random_range(-30..20))));
+    for &v in &values {
+        let (got, want) = (half_bits(v), expected(v));
+        assert_eq!(got, want, "{v:e} (bits {:#010x}): {got:#06x} against {want:#06x}", v.to_bits());
+    }
+}

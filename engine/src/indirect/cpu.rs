@@ -130,6 +130,20 @@ pub fn winograd_conv3x3_cpu(x: &Tensor, l: &ConvWeights, act: Activation, tile: 
     Tensor { channels: l.out_channels, width: w, height: h, data }
 }
 
+/// The fp16 bits the fp16-storage kernels store for `v` (`half_bits` in
+/// `unet_storage.glsl`, step by step; keep in sync): rounded to nearest even
+/// (subnormals included), saturated to ±65504, NaN to a quiet NaN.
+pub fn half_bits(v: f32) -> u16 {
+    let f = v.to_bits();
+    let a = (f & 0x7fff_ffff).min(0x477f_e000);
+    let normal = a.wrapping_add(0xc800_0fff + ((a >> 13) & 1)) >> 13;
+    let subnormal = (f32::from_bits(a) + 0.5).to_bits() - 0x3f00_0000;
+    let bits = if a < 0x3880_0000 { subnormal } else { normal };
+    let bits = if f & 0x7fff_ffff > 0x7f80_0000 { 0x7e00 } else { bits };
+    // At most 0x7e00 | 0x8000: the cast keeps every bit.
+    (((f >> 16) & 0x8000) | bits) as u16
+}
+
 /// PyTorch's bilinear source index rule along one axis.
 fn source(d: usize, n_in: usize, n_out: usize, align_corners: bool) -> (usize, usize, f64) {
     let s = if align_corners {
