@@ -878,8 +878,8 @@ impl UNet {
     /// (`unet_winograd_body.glsl`), where their inputs go through texel-buffer
     /// views, or `None` for direct convolution. F(4×4, 3×3) by default where
     /// the device has texel views: a quarter of the multiplies, and on
-    /// lavapipe the network at 704×192 fp32 takes about 224 against 341 ms
-    /// (F(2×2, 3×3) 268 ms; README, U-Net benchmark). Its kernels are built
+    /// lavapipe the network at 704×192 fp32 takes about 228 against 349 ms
+    /// (F(2×2, 3×3) 273 ms; README, U-Net benchmark). Its kernels are built
     /// at the first inference of a size that needs them.
     pub fn winograd(&self) -> Option<WinogradTile> {
         self.winograd

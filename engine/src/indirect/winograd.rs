@@ -16,9 +16,9 @@
 //! channel and tile, so it trades multiplies for accumulator traffic and
 //! transform additions; on lavapipe, where every fetch is expensive, the
 //! larger tile also needs fewer input and weight fetches per output pixel.
-//! Measured at 704×192 fp32 (`srug bench unet --inputs winograd,winograd2`,
-//! whole network, direct convolution about 341 ms and the direct-convolution
-//! floor 249 ms): F(4×4) 224 ms, F(2×2) 268 ms (README, U-Net benchmark).
+//! Measured at 704×192 fp32 (`srug bench unet --inputs winograd,winograd2,vec4`
+//! at c90a109, whole network; direct convolution 349 ms, the direct-convolution
+//! floor 249 ms): F(4×4) 228 ms, F(2×2) 273 ms (README, U-Net benchmark).
 
 use super::ConvWeights;
 
