@@ -425,7 +425,7 @@ fn unet_runs_one_inference_between_safetensors_files() {
 #[test]
 fn bench_unet_prints_its_table() {
     let args = ["bench", "unet", "--widths", "8,8,16,16,32", "--sizes", "37x23", "--repeats", "1", "--validation"];
-    let o = srug(&[&args[..], &["--inputs", "vec4,texel,address,winograd"]].concat());
+    let o = srug(&[&args[..], &["--inputs", "vec4,texel,address,winograd,winograd2"]].concat());
     let t = text(&o);
     assert!(o.status.success(), "{t}");
     for want in [
@@ -433,6 +433,7 @@ fn bench_unet_prints_its_table() {
         "| 37x23 | fp32 | texel |",
         "| 37x23 | fp32 | address |",
         "| 37x23 | fp32 | winograd |",
+        "| 37x23 | fp32 | winograd2 |",
         "% of FMA peak",
         "texel per layer: inc",
         "winograd per layer: inc",
@@ -441,7 +442,7 @@ fn bench_unet_prints_its_table() {
     }
     let o = srug(&[&args[..], &["--inputs", "texels"]].concat());
     let t = text(&o);
-    assert!(!o.status.success() && t.contains("\"texels\" is not vec4, texel, address or winograd"), "{t}");
+    assert!(!o.status.success() && t.contains("\"texels\" is not vec4, texel, address, winograd or winograd2"), "{t}");
 }
 
 #[test]
