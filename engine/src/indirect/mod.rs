@@ -865,8 +865,8 @@ impl UNet {
         Ok(net)
     }
 
-    /// The Winograd kernel variant of layer `i`: activation (none for the
-    /// last) and fp16 output (not for the last).
+    /// The Winograd kernel variant of layer `i` ([`WinogradKey`]): activation
+    /// (none for the last) and fp16 output (not for the last).
     fn winograd_key(config: &UNetConfig, tile: WinogradTile, i: usize, half: bool, vec4: bool) -> WinogradKey {
         let all = layers(config);
         let last = i + 1 == all.len();

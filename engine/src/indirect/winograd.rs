@@ -128,14 +128,6 @@ impl WinogradTile {
         2
     }
 
-    /// The label in tables and in `srug info --plan`.
-    pub fn label(self) -> &'static str {
-        match self {
-            Self::F2x2 => "F(2×2, 3×3)",
-            Self::F4x4 => "F(4×4, 3×3)",
-        }
-    }
-
     fn transforms(self) -> &'static Transforms {
         match self {
             Self::F2x2 => &F2X2,
