@@ -70,6 +70,24 @@ void accumulate(inout Accumulated acc, float alpha, float z, Contribution c) {
     acc.T = next_T;
 }
 
+// accumulate() as selects: `acc` gains the splat only where `takes`
+// (weight 0 and T kept otherwise), with no branch.
+void accumulate_select(inout Accumulated acc, bool takes, float alpha, float next_T, float z, Contribution c) {
+    float w = mix(0.0, alpha * acc.T, takes);
+    acc.rgb += w * c.color;
+    if ((CHANNELS & 1u) != 0u) acc.depth += w * z;
+    if ((CHANNELS & 2u) != 0u) acc.median = mix(acc.median, z, all(bvec3(takes, acc.T > 0.5, next_T <= 0.5)));
+    if (FEATURES) {
+        acc.normal += w * c.f0.xyz;
+        acc.rough += w * c.f0.w;
+        acc.albedo += w * c.f1.xyz;
+        acc.metal += w * c.f1.w;
+        acc.ao += w * c.f2.x;
+        acc.vis += w * c.f2.y;
+    }
+    acc.T = mix(acc.T, next_T, takes);
+}
+
 // Blends splat g into `acc`; false once the pixel is done (T·(1−α) < 1e-4,
 // that splat excluded). Colour and features are loaded only when it contributes.
 bool blend_one(inout Accumulated acc, uint g, vec4 head, vec4 conic, vec2 centre) {
@@ -147,32 +165,28 @@ void main() {
         live[k] = pix.x < frame.size.x && pix.y < frame.size.y;
         any_live = any_live || live[k];
     }
+    // Straight-line body: lavapipe predicates every branch (both sides of an
+    // `if` always run under a mask, only loop exits jump), so the loop has no
+    // `if` and no `continue`; updates are selects, colour is fetched always.
     for (uint j = range.x; j < range.y && any_live; j++) {
         // Every lane fetches the same texels: one vector gather each, no election or broadcast.
         uint g = texelFetch(value_texels, int(j)).x;
         vec4 head = texelFetch(splat_texels, int(4u * g));
         vec4 conic = texelFetch(splat_texels, int(4u * g + 1u));
-        float alpha[PIXELS];
-        bool takes[PIXELS];
-        bool any_takes = false;
+        Contribution c = splat_contribution(g);
         any_live = false;
         [[unroll]] for (uint k = 0u; k < PIXELS; k++) {
-            float gauss;
+            float alpha, gauss;
             vec2 d;
             vec2 centre = vec2(base + uvec2(k * STEP, 0u)) + 0.5;
-            takes[k] = live[k] && splat_alpha(head, conic, centre, alpha[k], gauss, d);
+            bool hit = all(bvec2(live[k], splat_alpha(head, conic, centre, alpha, gauss, d)));
+            float next_T = acc[k].T * (1.0 - alpha);
             // Done once T·(1−α) < 1e-4, this splat excluded (as blend_one).
-            if (takes[k] && acc[k].T * (1.0 - alpha[k]) < 1e-4) {
-                live[k] = false;
-                takes[k] = false;
-            }
-            any_takes = any_takes || takes[k];
-            any_live = any_live || live[k];
-        }
-        if (!any_takes) continue;
-        Contribution c = splat_contribution(g);
-        [[unroll]] for (uint k = 0u; k < PIXELS; k++) {
-            if (takes[k]) accumulate(acc[k], alpha[k], head.z, c);
+            bool stop = all(bvec2(hit, next_T < 1e-4));
+            bool takes = all(bvec2(hit, !stop));
+            live[k] = all(bvec2(live[k], !stop));
+            any_live = any(bvec2(any_live, live[k]));
+            accumulate_select(acc[k], takes, alpha, next_T, head.z, c);
         }
     }
     [[unroll]] for (uint k = 0u; k < PIXELS; k++) {
