@@ -160,10 +160,13 @@ fn every_tile_size_matches_cpu_twin_in_every_variant() {
         // The subgroup-load blend also without its texel-buffer reads (the default keeps them).
         if d.info().subgroup_ballot {
             assert!(splatter.texel_blend(), "lavapipe has RGBA32F texel buffers, so they are the default");
+            assert!(splatter.texel_preprocess(), "lavapipe has R32F texel buffers, so they are the default");
             splatter.set_blend_variant(BlendVariant::SubgroupLoads).unwrap();
             splatter.set_texel_blend(false).unwrap();
+            splatter.set_texel_preprocess(false).unwrap();
             render_both(&d, &mut splatter, &city.scene, &cam, &settings, &format!("tile_{tile}_address_reads"));
             splatter.set_texel_blend(true).unwrap();
+            splatter.set_texel_preprocess(true).unwrap();
             // Every pixels-per-invocation setting of the texel blend (partial tiles leave
             // some of an invocation's pixels outside the image).
             for pixels in BLEND_PIXELS {
@@ -224,7 +227,8 @@ fn demo_city_matches_cpu_twin_in_every_channel() {
         variants.push(BlendVariant::SubgroupLoads);
     }
     // The subgroup-load blend both with texel-buffer reads (the default, at every
-    // pixels per invocation) and by device address.
+    // pixels per invocation) and by device address (with the preprocess reading
+    // the scene by device address too).
     let runs = variants.iter().flat_map(|&v| {
         let texel = if v == BlendVariant::SubgroupLoads {
             BLEND_PIXELS.iter().map(|&p| (true, p)).chain([(false, 1)]).collect()
@@ -236,6 +240,7 @@ fn demo_city_matches_cpu_twin_in_every_channel() {
     for (variant, texel, pixels) in runs {
         splatter.set_blend_variant(variant).unwrap();
         splatter.set_texel_blend(texel).unwrap();
+        splatter.set_texel_preprocess(texel).unwrap();
         splatter.set_blend_pixels(pixels).unwrap();
         let label = format!("demo_{variant:?}_texel_{texel}_pixels_{pixels}");
         let g = render_both(&d, &mut splatter, &city.scene, &cam, &all_settings(), &label);

@@ -4,7 +4,9 @@
 //! 1. **preprocess**, one invocation per Gaussian: activation, near/far
 //!    culling, 3D covariance, EWA projection with the Jacobian clamped beyond
 //!    the image, +0.3 px² dilation, culling of degenerate and non-finite
-//!    values, conic, radius 3·sqrt(λ_max), SH colour, tile rectangle;
+//!    values, conic, radius 3·sqrt(λ_max), SH colour, tile rectangle
+//!    (reading the scene through R32F texel-buffer views where the device has
+//!    them: [`Splatter::texel_preprocess`]);
 //! 2. **scan** of per-Gaussian tile counts, then **keys**: one
 //!    `tile << 32 | depth bits` key per (Gaussian, tile);
 //! 3. **sort**: the stable radix sort over the bits in use only;
@@ -439,12 +441,13 @@ impl SplatFrame {
 /// first use) and the sort's scratch memory, reused across frames.
 pub struct Splatter {
     device: Device,
-    preprocess: HashMap<(bool, u32), Kernel>,
+    preprocess: HashMap<(bool, u32, bool), Kernel>,
     keys: Kernel,
     ranges: Kernel,
     blend: HashMap<(u32, BlendVariant, u32, bool, u32), Kernel>,
     blend_variant: BlendVariant,
     texel_blend: bool,
+    texel_preprocess: bool,
     blend_pixels: u32,
     scan: Scan,
     sort: RadixSort,
@@ -503,6 +506,7 @@ impl Splatter {
             texel_blend: [TexelFormat::Rgba32Float, TexelFormat::R32Uint]
                 .iter()
                 .all(|f| device.info().texel_formats.contains(f)),
+            texel_preprocess: device.info().texel_formats.contains(&TexelFormat::R32Float),
             blend_pixels: DEFAULT_BLEND_PIXELS,
             scan: Scan::new(device)?,
             sort: RadixSort::new(device)?,
@@ -528,6 +532,25 @@ impl Splatter {
             ));
         }
         self.texel_blend = on;
+        Ok(())
+    }
+
+    /// Whether the preprocess reads the Gaussians' means, log-scales,
+    /// rotations, opacity logits and SH coefficients through R32F texel-buffer
+    /// views (where each array fits `maxTexelBufferElements`) rather than by
+    /// device address. On by default where the device has R32F texel buffers;
+    /// the splats are the same.
+    pub fn texel_preprocess(&self) -> bool {
+        self.texel_preprocess
+    }
+
+    /// Chooses how the preprocess reads the scene (see
+    /// [`Splatter::texel_preprocess`]); on where the device lacks R32F views is an error.
+    pub fn set_texel_preprocess(&mut self, on: bool) -> Result<()> {
+        if on && !self.device.info().texel_formats.contains(&TexelFormat::R32Float) {
+            return Err(Error::Unsupported("this device cannot read the scene through R32F texel buffers".into()));
+        }
+        self.texel_preprocess = on;
         Ok(())
     }
 
@@ -629,13 +652,29 @@ impl Splatter {
         let tile = settings.tile;
         check_tile(tile)?;
         let features = ch.needs_features();
-        if let std::collections::hash_map::Entry::Vacant(e) = self.preprocess.entry((features, tile)) {
-            let spec = [(0, SpecValue::Bool(features)), tile_spec(tile)[0]];
-            e.insert(frame_kernel(&device, &kernels::SPLAT_PREPROCESS, &spec)?);
-        }
         let n = scene.count as u64;
         if n >= u64::from(u32::MAX) {
             return Err(Error::InvalidArgument(format!("{n} Gaussians exceed the 2³² − 1 the kernels index")));
+        }
+        // The scene arrays the texel preprocess views (binding 1 on), each as R32F.
+        let scene_inputs = [&scene.means, &scene.log_scales, &scene.rotations, &scene.opacity_logits, &scene.sh];
+        let max_texels = device.info().max_texel_buffer_elements;
+        let texel_preprocess =
+            self.texel_preprocess && n > 0 && scene_inputs.iter().all(|b| b.size() / 4 <= max_texels);
+        let preprocess_key = (features, tile, texel_preprocess);
+        if let std::collections::hash_map::Entry::Vacant(e) = self.preprocess.entry(preprocess_key) {
+            let spec = [(0, SpecValue::Bool(features)), tile_spec(tile)[0]];
+            e.insert(if texel_preprocess {
+                let mut bindings = vec![BindingKind::UniformBuffer];
+                bindings.extend([BindingKind::UniformTexelBuffer; 5]);
+                Kernel::new(
+                    &device,
+                    &kernels::SPLAT_PREPROCESS_TEXEL,
+                    &KernelDecl { bindings: &bindings, push_constant_size: 0, specialization: &spec },
+                )?
+            } else {
+                frame_kernel(&device, &kernels::SPLAT_PREPROCESS, &spec)?
+            });
         }
         let (w, h) = (camera.width, camera.height);
         let (tiles_x, tiles_y) = (w.div_ceil(tile), h.div_ceil(tile));
@@ -707,7 +746,7 @@ impl Splatter {
                         .flatten(),
                 )
                 .collect();
-        let preprocess = &self.preprocess[&(features, tile)];
+        let preprocess = &self.preprocess[&preprocess_key];
         let scan = &self.scan;
         let mut timings = device.run(|rec| {
             rec.keep(&scene_buffers)?;
@@ -717,7 +756,20 @@ impl Splatter {
             }
             rec.begin_stage("preprocess");
             rec.fill(&tile_counts, 0)?;
-            rec.dispatch_1d(preprocess, &[&uniform], &(), n)?;
+            if texel_preprocess {
+                let mut bindings = vec![Binding::Buffer(&uniform)];
+                bindings.extend(scene_inputs.iter().map(|&buffer| {
+                    Binding::Texels(Texels {
+                        buffer,
+                        offset: 0,
+                        elements: buffer.size() / 4,
+                        format: TexelFormat::R32Float,
+                    })
+                }));
+                rec.dispatch_1d_bound(preprocess, &bindings, &(), n)?;
+            } else {
+                rec.dispatch_1d(preprocess, &[&uniform], &(), n)?;
+            }
             rec.begin_stage("scan");
             scan.record(rec, &tile_counts, n + 1)
         })?;
@@ -732,7 +784,6 @@ impl Splatter {
         device.write_buffer(&uniform, 0, bytemuck::bytes_of(&frame))?;
         let key_bits = 32 + (64 - (tiles.max(2) - 1).leading_zeros());
         // Texel-buffer reads where the device has RGBA32F/R32UI views and the splats and pairs fit them.
-        let max_texels = device.info().max_texel_buffer_elements;
         let texel = self.texel_blend
             && self.blend_variant == BlendVariant::SubgroupLoads
             && n > 0

@@ -1,0 +1,150 @@
+// Body of splat_preprocess*.comp (see their headers). Splatting stage 1, one
+// invocation per Gaussian: activation, culling, EWA projection, conic,
+// radius, SH colour, tile rectangle and count, and (when asked) the
+// per-splat features. Culled Gaussians get a tile count of 0.
+// CPU twin: engine/src/splat/cpu.rs `preprocess_one`.
+#define WORKGROUP_SIZE_X 64
+#include "common.glsl"
+#include "splat.glsl"
+#include "sh.glsl"
+
+#ifdef TEXEL_INPUTS
+// The scene's Gaussian arrays as R32F texel-buffer views (bindings 1-5): on
+// lavapipe a texelFetch is one vector gather, a device-address load a loop
+// over the lanes.
+layout(set = 0, binding = 1) uniform samplerBuffer mean_texels;
+layout(set = 0, binding = 2) uniform samplerBuffer log_scale_texels;
+layout(set = 0, binding = 3) uniform samplerBuffer rotation_texels;
+layout(set = 0, binding = 4) uniform samplerBuffer opacity_texels;
+layout(set = 0, binding = 5) uniform samplerBuffer sh_texels;
+#define MEAN(k) texelFetch(mean_texels, int(k)).x
+#define LOG_SCALE(k) texelFetch(log_scale_texels, int(k)).x
+#define ROTATION(k) texelFetch(rotation_texels, int(k)).x
+#define OPACITY_LOGIT(k) texelFetch(opacity_texels, int(k)).x
+#define SH(k) texelFetch(sh_texels, int(k)).x
+#else
+#define MEAN(k) FloatsIn(frame.scene0.xy).v[k]
+#define LOG_SCALE(k) FloatsIn(frame.scene0.zw).v[k]
+#define ROTATION(k) FloatsIn(frame.scene1.xy).v[k]
+#define OPACITY_LOGIT(k) FloatsIn(frame.scene1.zw).v[k]
+#define SH(k) FloatsIn(frame.scene2.xy).v[k]
+#endif
+
+layout(constant_id = 0) const bool WRITE_FEATURES = false;
+// Tile edge in pixels (engine/src/splat/mod.rs `TILE_SPEC_IDS`; the blend's workgroup edge).
+layout(constant_id = 15) const uint TILE = 16u;
+
+float sigmoid(float x) {
+    float e = exp(-abs(x));
+    return x >= 0.0 ? 1.0 / (1.0 + e) : e / (1.0 + e);
+}
+
+bool finite(float x) { return !isnan(x) && !isinf(x); }
+
+void cull(uint i) {
+    Uints(frame.work0.zw).v[i] = 0u;
+    Splats(frame.scene5.zw).v[i].rect = uvec4(0u);
+}
+
+void main() {
+    uint i = linear_index();
+    if (i >= frame.counts.x) return;
+    vec3 p = vec3(MEAN(3 * i), MEAN(3 * i + 1), MEAN(3 * i + 2));
+    mat3 W = transpose(mat3(frame.rot0.xyz, frame.rot1.xyz, frame.rot2.xyz));  // columns from rows
+    vec3 t = W * p + frame.translation.xyz;
+    bool ortho = frame.translation.w != 0.0;
+    float near = frame.clip.x, far = frame.clip.y;
+    if (!(t.z > near && t.z < far)) { cull(i); return; }
+
+    // 3D covariance.
+    vec3 s = exp(vec3(LOG_SCALE(3 * i), LOG_SCALE(3 * i + 1), LOG_SCALE(3 * i + 2)));
+    vec4 q = vec4(ROTATION(4 * i), ROTATION(4 * i + 1), ROTATION(4 * i + 2), ROTATION(4 * i + 3));
+    q /= max(max(abs(q.x), abs(q.y)), max(abs(q.z), abs(q.w)));
+    q /= length(q);
+    float qw = q.x, qx = q.y, qy = q.z, qz = q.w;
+    mat3 R = mat3(
+        1.0 - 2.0 * (qy * qy + qz * qz), 2.0 * (qx * qy + qw * qz), 2.0 * (qx * qz - qw * qy),
+        2.0 * (qx * qy - qw * qz), 1.0 - 2.0 * (qx * qx + qz * qz), 2.0 * (qy * qz + qw * qx),
+        2.0 * (qx * qz + qw * qy), 2.0 * (qy * qz - qw * qx), 1.0 - 2.0 * (qx * qx + qy * qy));
+    mat3 M = R * mat3(s.x, 0.0, 0.0, 0.0, s.y, 0.0, 0.0, 0.0, s.z);
+    mat3 cov_world = M * transpose(M);
+    mat3 cov_cam = W * cov_world * transpose(W);
+
+    // EWA: J Σ Jᵀ, Jacobian clamped beyond the image (pinhole), + 0.3 px² dilation.
+    vec4 k = frame.intrinsics;
+    vec2 mean;
+    mat3 J;  // only the first two rows are used
+    if (ortho) {
+        mean = vec2(k.x * t.x + k.z, k.y * t.y + k.w);
+        J = mat3(k.x, 0.0, 0.0, 0.0, k.y, 0.0, 0.0, 0.0, 0.0);
+    } else {
+        mean = vec2(k.x * t.x / t.z + k.z, k.y * t.y / t.z + k.w);
+        float tx = clamp(t.x / t.z, -frame.clip.z, frame.clip.z) * t.z;
+        float ty = clamp(t.y / t.z, -frame.clip.w, frame.clip.w) * t.z;
+        // Column-major: J[c][r].
+        J = mat3(k.x / t.z, 0.0, 0.0,
+                 0.0, k.y / t.z, 0.0,
+                 -k.x * tx / (t.z * t.z), -k.y * ty / (t.z * t.z), 0.0);
+    }
+    mat3 cov2 = J * cov_cam * transpose(J);
+    float a = cov2[0][0] + 0.3, b = cov2[1][0], c = cov2[1][1] + 0.3;
+    float det = a * c - b * b;
+    if (!(det > 0.0) || !finite(det) || !finite(mean.x) || !finite(mean.y)) { cull(i); return; }
+    vec3 conic = vec3(c, -b, a) / det;
+    float mid = 0.5 * (a + c);
+    float lambda = mid + sqrt(max(0.1, mid * mid - det));
+    float radius = ceil(3.0 * sqrt(lambda));
+    if (!finite(radius) || !all(bvec3(finite(conic.x), finite(conic.y), finite(conic.z)))) { cull(i); return; }
+
+    // Tile rectangle [x0, x1) × [y0, y1).
+    vec2 tiles = vec2(frame.size.zw);
+    vec2 lo = clamp(floor((mean - radius) / float(TILE)), vec2(0.0), tiles);
+    vec2 hi = clamp(floor((mean + radius) / float(TILE)) + 1.0, vec2(0.0), tiles);
+    uvec4 rect = uvec4(uvec2(lo), uvec2(hi));
+    uint count = (rect.z - rect.x) * (rect.w - rect.y);
+    if (count == 0u) { cull(i); return; }
+
+    // View-dependent colour.
+    vec3 dir = ortho ? frame.view_dir.xyz : normalize(p - frame.eye.xyz);
+    uint stored = frame.counts.y & 255u, used = frame.counts.y >> 8;
+    uint K = (stored + 1) * (stored + 1);
+    vec3 color = vec3(0.0);
+    for (uint j = 0; j < (used + 1) * (used + 1); j++) {
+        uint o = (i * K + j) * 3;
+        color += sh_basis(j, dir) * vec3(SH(o), SH(o + 1), SH(o + 2));
+    }
+    color = max(color + 0.5, vec3(0.0));
+
+    float opacity = sigmoid(OPACITY_LOGIT(i));
+    Splats(frame.scene5.zw).v[i] = Splat(vec4(mean, t.z, opacity), vec4(conic, radius), vec4(color, 0.0), rect);
+    Uints(frame.work0.zw).v[i] = count;
+
+    if (WRITE_FEATURES) {
+        // Normal: the stored one when asked for and non-zero, else the shortest axis; toward the camera.
+        vec3 n = vec3(0.0);
+        if (frame.counts.z == 1u && frame.scene2.z + frame.scene2.w != 0u) {
+            FloatsIn nb = FloatsIn(frame.scene2.zw);
+            n = vec3(nb.v[3 * i], nb.v[3 * i + 1], nb.v[3 * i + 2]);
+        }
+        if (dot(n, n) == 0.0) {
+            n = s.x <= s.y && s.x <= s.z ? R[0] : (s.y <= s.z ? R[1] : R[2]);
+        }
+        n = normalize(n);
+        vec3 toward = ortho ? -frame.view_dir.xyz : frame.eye.xyz - p;
+        if (dot(n, toward) < 0.0) n = -n;
+        vec3 albedo = vec3(0.0);
+        float rough = 0.0, metal = 0.0, ao = 0.0, vis = 0.0;
+        if (frame.scene3.x + frame.scene3.y != 0u) {
+            FloatsIn al = FloatsIn(frame.scene3.xy);
+            albedo = vec3(sigmoid(al.v[3 * i]), sigmoid(al.v[3 * i + 1]), sigmoid(al.v[3 * i + 2]));
+        }
+        if (frame.scene3.z + frame.scene3.w != 0u) rough = sigmoid(FloatsIn(frame.scene3.zw).v[i]);
+        if (frame.scene4.x + frame.scene4.y != 0u) metal = sigmoid(FloatsIn(frame.scene4.xy).v[i]);
+        if (frame.scene4.z + frame.scene4.w != 0u) ao = sigmoid(FloatsIn(frame.scene4.zw).v[i]);
+        if (frame.scene5.x + frame.scene5.y != 0u) vis = sigmoid(FloatsIn(frame.scene5.xy).v[i]);
+        Features f = Features(frame.work0.xy);
+        f.v[3 * i] = vec4(n, rough);
+        f.v[3 * i + 1] = vec4(albedo, metal);
+        f.v[3 * i + 2] = vec4(ao, vis, 0.0, 0.0);
+    }
+}
