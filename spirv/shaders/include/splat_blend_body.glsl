@@ -51,26 +51,7 @@ Contribution splat_contribution(uint g) {
     return c;
 }
 
-// Adds a splat of opacity `alpha` and depth `z` to `acc`; the caller has
-// checked that the pixel is not done (T·(1−α) ≥ 1e-4).
-void accumulate(inout Accumulated acc, float alpha, float z, Contribution c) {
-    float next_T = acc.T * (1.0 - alpha);
-    float w = alpha * acc.T;
-    acc.rgb += w * c.color;
-    if ((CHANNELS & 1u) != 0u) acc.depth += w * z;
-    if ((CHANNELS & 2u) != 0u && acc.T > 0.5 && next_T <= 0.5) acc.median = z;
-    if (FEATURES) {
-        acc.normal += w * c.f0.xyz;
-        acc.rough += w * c.f0.w;
-        acc.albedo += w * c.f1.xyz;
-        acc.metal += w * c.f1.w;
-        acc.ao += w * c.f2.x;
-        acc.vis += w * c.f2.y;
-    }
-    acc.T = next_T;
-}
-
-// accumulate() as selects: `acc` gains the splat only where `takes`
+// Adds a splat of opacity `alpha` and depth `z` to `acc` where `takes`
 // (weight 0 and T kept otherwise), with no branch.
 void accumulate_select(inout Accumulated acc, bool takes, float alpha, float next_T, float z, Contribution c) {
     float w = mix(0.0, alpha * acc.T, takes);
@@ -86,6 +67,12 @@ void accumulate_select(inout Accumulated acc, bool takes, float alpha, float nex
         acc.vis += w * c.f2.y;
     }
     acc.T = mix(acc.T, next_T, takes);
+}
+
+// Adds a splat of opacity `alpha` and depth `z` to `acc`; the caller has
+// checked that the pixel is not done (T·(1−α) ≥ 1e-4).
+void accumulate(inout Accumulated acc, float alpha, float z, Contribution c) {
+    accumulate_select(acc, true, alpha, acc.T * (1.0 - alpha), z, c);
 }
 
 // Blends splat g into `acc`; false once the pixel is done (T·(1−α) < 1e-4,
