@@ -18,7 +18,7 @@ use crate::gpu::{kernels, Device, Kernel, KernelDecl, MemoryKind};
 use crate::scene::activate::GpuScene;
 use crate::scene::demo::{demo_city, DemoOptions};
 use crate::splat::sort::RadixSort;
-use crate::splat::{BlendVariant, SplatSettings, Splatter};
+use crate::splat::{BlendVariant, SplatSettings, Splatter, TileBounds};
 
 /// Push constants of `bench_fma.comp` (keep in sync with its `Push` block).
 #[repr(C)]
@@ -119,6 +119,8 @@ pub struct SplatBenchOptions {
     pub blend_pixels: Option<u32>,
     /// Tile edge in pixels.
     pub tile: u32,
+    /// Which tiles list a splat.
+    pub tile_bounds: TileBounds,
 }
 
 /// Renders the demo city at each Gaussian count and size; per-stage medians.
@@ -129,8 +131,8 @@ pub fn splat_bench(
     options: &SplatBenchOptions,
     mut progress: impl FnMut(&str),
 ) -> Result<Vec<SplatBenchRow>> {
-    let SplatBenchOptions { repeats, blend, blend_pixels, tile } = *options;
-    let settings = SplatSettings { tile, ..SplatSettings::default() };
+    let SplatBenchOptions { repeats, blend, blend_pixels, tile, tile_bounds } = *options;
+    let settings = SplatSettings { tile, tile_bounds, ..SplatSettings::default() };
     let mut rows = Vec::new();
     let mut splatter = Splatter::new(device)?;
     if let Some(variant) = blend {
@@ -160,7 +162,8 @@ pub fn splat_bench(
             }
             let Some((gbuffer_bytes, stats)) = last else { continue };
             progress(&format!("{n} Gaussians at {w}x{h}: counting blend work on the CPU"));
-            let (blend_evaluations, blend_contributions) = crate::splat::cpu::blend_work(&city.scene, &cam, tile);
+            let (blend_evaluations, blend_contributions) =
+                crate::splat::cpu::blend_work(&city.scene, &cam, tile, tile_bounds);
             rows.push(SplatBenchRow {
                 gaussians: n,
                 width: w,

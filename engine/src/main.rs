@@ -100,6 +100,10 @@ enum Command {
         /// Tile edge in pixels: 8, 16 or 32.
         #[arg(long, default_value_t = srug::splat::DEFAULT_TILE)]
         tile: u32,
+        /// Which tiles list a splat: ellipse (those that can see it at α ≥ 1/255) or rectangle
+        /// (its 3σ square, as INRIA's rasterizer); the image is the same, ellipse sorts and blends less.
+        #[arg(long, default_value = "ellipse")]
+        tile_bounds: srug::splat::TileBounds,
     },
     /// Relight a scene with materials: sun (Cook–Torrance, sigmoid shadow map) and sky
     /// (split-sum image-based lighting); a sun path renders a time-lapse.
@@ -217,6 +221,9 @@ enum BenchKind {
         /// Pixels per invocation of the texel-buffer blend: 1, 2 or 4 (default 2).
         #[arg(long)]
         blend_pixels: Option<u32>,
+        /// Which tiles list a splat: ellipse (those that can see it at α ≥ 1/255) or rectangle (its 3σ square).
+        #[arg(long, default_value = "ellipse")]
+        tile_bounds: srug::splat::TileBounds,
     },
     /// Indirect-light U-Net: time per inference per size and precision, GFLOP/s against the FMA peak.
     Unet {
@@ -408,7 +415,17 @@ fn run(cli: Cli) -> srug::Result<()> {
             }
             Ok(())
         }
-        Command::Render { scene: path, view, out, channels, background, stored_normals, sh_degree, tile } => {
+        Command::Render {
+            scene: path,
+            view,
+            out,
+            channels,
+            background,
+            stored_normals,
+            sh_degree,
+            tile,
+            tile_bounds,
+        } => {
             let channels = Channels::parse(&channels)?;
             let is_exr = cli_relight::output_is_exr(&out)?;
             let cams = view.resolve()?;
@@ -424,6 +441,7 @@ fn run(cli: Cli) -> srug::Result<()> {
                 prefill: None,
                 sh_degree,
                 tile,
+                tile_bounds,
             };
             let bar = if cams.len() > 1 { ProgressBar::new(cams.len() as u64) } else { ProgressBar::hidden() };
             bar.set_style(
@@ -492,7 +510,7 @@ fn run(cli: Cli) -> srug::Result<()> {
             cli_relight::prefilter(&device, &env, &out, &settings, zstd)
         }
         Command::Bench {
-            what: BenchKind::Splat { gaussians, sizes, repeats, sort_keys, blend, tile, blend_pixels },
+            what: BenchKind::Splat { gaussians, sizes, repeats, sort_keys, blend, tile, blend_pixels, tile_bounds },
         } => {
             let blend = blend.as_deref().map(srug::splat::BlendVariant::parse).transpose()?;
             srug::splat::check_tile(tile)?;
@@ -506,7 +524,7 @@ fn run(cli: Cli) -> srug::Result<()> {
             let peak = srug::bench::fma_peak_gflops(&device, 5)?;
             println!("device: {} ({}), measured FMA peak {peak:.1} GFLOP/s\n", info.name, info.driver);
             let bar = spinner("benchmarking");
-            let options = srug::bench::SplatBenchOptions { repeats, blend, blend_pixels, tile };
+            let options = srug::bench::SplatBenchOptions { repeats, blend, blend_pixels, tile, tile_bounds };
             let rows =
                 srug::bench::splat_bench(&device, &counts, &sizes, &options, |m| bar.set_message(m.to_string()))?;
             bar.set_message("sorting");

@@ -16,9 +16,8 @@ void main() {
     uint i = linear_index();
     if (i >= frame.counts.x) return;
     Splat sp = Splats(frame.scene5.zw).v[i];
-    uvec4 rect = sp.rect;
-    uint count = (rect.z - rect.x) * (rect.w - rect.y);
     uint first = Uints(frame.work0.zw).v[i];
+    uint count = Uints(frame.work0.zw).v[i + 1u] - first;
     float sum[MAX_STRIDE];
     for (uint c = 0u; c < MAX_STRIDE; c++) sum[c] = 0.0;
     FloatsIn pairs = FloatsIn(bwd.pairs.xy);

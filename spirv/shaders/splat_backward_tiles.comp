@@ -6,9 +6,9 @@
 // dL/dα = Σ dL/dC·(x·T − S/(1 − α)) + (dL/dA − bg·dL/dC_rgb)·T_final/(1 − α);
 // S ← S + x·α·T; α clamped at 0.99 passes no geometric gradient. The tile's
 // pixels are summed per splat in pixel order (deterministic) into that
-// (tile, splat) pair's record, at pair_offsets[g] + its tile's place in the
-// splat's rectangle, so step 2 can sum each Gaussian's records in order
-// without atomics.
+// (tile, splat) pair's record, where the keys kernel put the pair (found by
+// binary search in the splat's run of pair tiles, which is in tile order), so
+// step 2 can sum each Gaussian's records in order without atomics.
 // CPU twin: engine/src/splat/cpu_backward.rs `blend_backward_cpu`.
 #extension GL_KHR_shader_subgroup_basic : require
 #extension GL_KHR_shader_subgroup_ballot : require
@@ -177,8 +177,13 @@ void main() {
             uint at = (b * STRIDE + c) * TILE_PIXELS;
             for (uint k = 0u; k < TILE_PIXELS; k++) s += terms[at + k];
             uint g = order.v[last - 1u - (base + b)];
-            uvec4 rect = splats.v[g].rect;
-            uint slot = Uints(frame.work0.zw).v[g] + (tile_xy.y - rect.y) * (rect.z - rect.x) + (tile_xy.x - rect.x);
+            // The splat's pairs start at its offset, in increasing tile order: find this tile's.
+            Uints pair_tiles = Uints(frame.work3.xy);
+            uint slot = Uints(frame.work0.zw).v[g], end = Uints(frame.work0.zw).v[g + 1u];
+            while (slot < end) {
+                uint mid = (slot + end) / 2u;
+                if (pair_tiles.v[mid] < tile) slot = mid + 1u; else end = mid;
+            }
             Floats(bwd.pairs.xy).v[slot * STRIDE + c] = s;
         }
         barrier();

@@ -1,24 +1,43 @@
 #version 460
 // Splatting stage 2b: one (key, value) pair per (Gaussian, tile) it covers,
 // written at the Gaussian's scanned offset. Key = tile << 32 | depth bits
-// (positive floats order like unsigned ints); value = Gaussian index.
+// (positive floats order like unsigned ints); value = Gaussian index. The tile
+// ids are also kept in emission order (pair tiles) for the backward pass.
+// With ELLIPSE_TILES only the tiles of `tile_row_span` get pairs, as the
+// preprocess counted them. Should this compilation of it find fewer (f32
+// rounding at the widened bound), the rest get the key (tiles, ~0): they sort
+// last and belong to no tile; it never writes past the count.
 #define WORKGROUP_SIZE_X 64
 #include "common.glsl"
 #include "splat.glsl"
+
+layout(constant_id = 1) const bool ELLIPSE_TILES = false;
+// Tile edge in pixels (engine/src/splat/mod.rs `TILE_SPEC_IDS`).
+layout(constant_id = 15) const uint TILE = 16u;
 
 void main() {
     uint i = linear_index();
     if (i >= frame.counts.x) return;
     Splat s = Splats(frame.scene5.zw).v[i];
-    uint offset = Uints(frame.work0.zw).v[i];
+    Uints offsets = Uints(frame.work0.zw);
+    uint offset = offsets.v[i], end = offsets.v[i + 1u];
     uint depth_bits = floatBitsToUint(s.head.z);
     Uvec2s keys = Uvec2s(frame.work1.xy);
     Uints values = Uints(frame.work1.zw);
+    Uints pair_tiles = Uints(frame.work3.xy);
     for (uint y = s.rect.y; y < s.rect.w; y++) {
-        for (uint x = s.rect.x; x < s.rect.z; x++) {
-            keys.v[offset] = uvec2(depth_bits, y * frame.size.z + x);
+        uvec2 span = ELLIPSE_TILES ? tile_row_span(s.head, s.conic.xyz, s.rect, y, TILE) : s.rect.xz;
+        for (uint x = span.x; x < span.y && offset < end; x++) {
+            uint tile = y * frame.size.z + x;
+            keys.v[offset] = uvec2(depth_bits, tile);
             values.v[offset] = i;
+            pair_tiles.v[offset] = tile;
             offset++;
         }
+    }
+    for (; offset < end; offset++) {
+        keys.v[offset] = uvec2(~0u, frame.size.z * frame.size.w);
+        values.v[offset] = i;
+        pair_tiles.v[offset] = frame.size.z * frame.size.w;
     }
 }

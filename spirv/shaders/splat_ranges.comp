@@ -1,6 +1,8 @@
 #version 460
 // Splatting stage 4: each tile's [start, end) in the sorted pairs.
-// Ranges are zero-filled before, so tiles without pairs stay empty.
+// Ranges are zero-filled before, so tiles without pairs stay empty. Pairs
+// with a tile id past the last tile (the keys kernel's padding) sort last and
+// are skipped.
 #define WORKGROUP_SIZE_X 64
 #include "common.glsl"
 #include "splat.glsl"
@@ -12,6 +14,7 @@ void main() {
     Uvec2s keys = Uvec2s(frame.work1.xy);
     Uvec2s ranges = Uvec2s(frame.work2.xy);
     uint tile = keys.v[i].y;
+    if (tile >= frame.size.z * frame.size.w) return;
     if (i == 0u || keys.v[i - 1u].y != tile) ranges.v[tile].x = i;
     if (i + 1u == n || keys.v[i + 1u].y != tile) ranges.v[tile].y = i + 1u;
 }

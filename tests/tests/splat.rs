@@ -11,10 +11,10 @@ use srug::gpu::Device;
 use srug::scene::activate::GpuScene;
 use srug::scene::demo::{demo_city, DemoOptions};
 use srug::scene::{read_ply, sh_coefficients, Camera, Scene};
-use srug::splat::cpu::render_cpu;
+use srug::splat::cpu::{preprocess_one, render_cpu, tile_row_span, CpuSplat};
 use srug::splat::{
-    BlendVariant, Channels, GBuffer, NormalSource, SplatSettings, Splatter, BLEND_PIXELS, DEFAULT_BLEND_PIXELS,
-    DEFAULT_TILE, TILE_SIZES,
+    BlendVariant, Channels, GBuffer, NormalSource, SplatSettings, Splatter, TileBounds, BLEND_PIXELS,
+    DEFAULT_BLEND_PIXELS, DEFAULT_TILE, TILE_SIZES,
 };
 use srug_tests::{assert_no_validation_messages, device, save_comparison};
 
@@ -112,7 +112,148 @@ fn all_settings() -> SplatSettings {
         prefill: Some(NAN),
         sh_degree: None,
         tile: DEFAULT_TILE,
+        tile_bounds: TileBounds::default(),
     }
+}
+
+/// Smallest σ = ½dᵀQd of splat `s` over the square [x0, x1] × [y0, y1]
+/// (exact: 0 when the centre is inside, else the least of each edge's minimum).
+fn least_sigma(s: &CpuSplat, x0: f64, x1: f64, y0: f64, y1: f64) -> f64 {
+    let [a, b, c] = s.conic;
+    let (lx, hx, ly, hy) = (x0 - s.mean.x, x1 - s.mean.x, y0 - s.mean.y, y1 - s.mean.y);
+    if lx <= 0.0 && hx >= 0.0 && ly <= 0.0 && hy >= 0.0 {
+        return 0.0;
+    }
+    let q = |x: f64, y: f64| 0.5 * (a * x * x + c * y * y) + b * x * y;
+    let on_x = [lx, hx].map(|x| q(x, (-b * x / c).clamp(ly, hy)));
+    let on_y = [ly, hy].map(|y| q((-b * y / a).clamp(lx, hx), y));
+    on_x.into_iter().chain(on_y).fold(f64::INFINITY, f64::min)
+}
+
+#[test]
+fn ellipse_tile_bounds_keep_every_tile_a_splat_reaches_and_little_else() {
+    // CPU only: the span against the exact test, on random splats from round to
+    // 1000:1 elongated, 0.3 to 10⁴ px² per axis, opacity 10⁻³ to 1.
+    let mut rng = Pcg64Mcg::seed_from_u64(33);
+    let (mut reached, mut kept, mut rect_tiles, mut splats_checked) = (0u64, 0u64, 0u64, 0);
+    for tile in TILE_SIZES {
+        let tiles = 4096 / tile;
+        for _ in 0..3000 {
+            let l1: f64 = 10f64.powf(rng.random_range(-0.5..4.0));
+            let l2: f64 = l1 / 10f64.powf(rng.random_range(0.0..3.0));
+            let (l1, l2) = (l1.max(0.3), l2.max(0.3));
+            let angle: f64 = rng.random_range(0.0..std::f64::consts::PI);
+            let (sn, cs) = angle.sin_cos();
+            let (a, b, c) = (l1 * cs * cs + l2 * sn * sn, (l1 - l2) * sn * cs, l1 * sn * sn + l2 * cs * cs);
+            let det = a * c - b * b;
+            let mean = glam::DVec2::new(rng.random_range(-100.0..4200.0), rng.random_range(-100.0..4200.0));
+            let radius = (3.0 * l1.max(l2).sqrt()).ceil();
+            let t = f64::from(tile);
+            let lo = ((mean - radius) / t).floor().clamp(glam::DVec2::ZERO, glam::DVec2::splat(f64::from(tiles)));
+            let hi =
+                (((mean + radius) / t).floor() + 1.0).clamp(glam::DVec2::ZERO, glam::DVec2::splat(f64::from(tiles)));
+            let s = CpuSplat {
+                mean,
+                depth: 1.0,
+                opacity: 10f64.powf(rng.random_range(-3.0..0.0)),
+                conic: [c / det, -b / det, a / det],
+                radius,
+                color: glam::DVec3::ZERO,
+                rect: [lo.x as u32, lo.y as u32, hi.x as u32, hi.y as u32],
+                features: [0.0; 10],
+            };
+            splats_checked += 1;
+            for ty in s.rect[1]..s.rect[3] {
+                let (x0, x1) = tile_row_span(&s, ty, tile);
+                assert!(s.rect[0] <= x0 && x0 <= x1 && x1 <= s.rect[2], "{s:?}: row {ty} span {x0}..{x1}");
+                for tx in s.rect[0]..s.rect[2] {
+                    let (fx, fy) = (f64::from(tx) * t, f64::from(ty) * t);
+                    let sigma = least_sigma(&s, fx, fx + t, fy, fy + t);
+                    let reaches = s.opacity * (-sigma).exp() >= 1.0 / 255.0;
+                    let listed = (x0..x1).contains(&tx);
+                    assert!(listed || !reaches, "tile {tile}: ({tx}, {ty}) reaches α ≥ 1/255 but is not listed: {s:?}");
+                    reached += u64::from(reaches);
+                    kept += u64::from(listed);
+                    rect_tiles += 1;
+                }
+            }
+        }
+    }
+    // The widening (1% of r², 0.01 px) and the ill-conditioned fallback add few tiles.
+    let extra = kept as f64 / reached as f64 - 1.0;
+    eprintln!(
+        "{splats_checked} splats: {rect_tiles} rectangle tiles, {reached} reach α ≥ 1/255, {kept} listed (+{:.2}%)",
+        100.0 * extra
+    );
+    assert!(extra < 0.03, "ellipse bounds list {:.2}% more tiles than reach the splat", 100.0 * extra);
+    assert!((kept as f64) < 0.8 * rect_tiles as f64, "ellipse bounds should drop many rectangle tiles");
+}
+
+#[test]
+fn ellipse_and_rectangle_tile_bounds_give_the_same_image() {
+    let d = device();
+    let mut splatter = Splatter::new(&d).unwrap();
+    let city = demo_city(&DemoOptions { seed: 7, gaussians: 60_000, sh_degree: 1 }).unwrap();
+    let mut faint = random_scene(4000, 1, 44, 2.0);
+    // Opacities from 0.0003 to 0.5: many splats reach 1/255 only near their centre, some nowhere.
+    for (i, o) in faint.opacity_logits.iter_mut().enumerate() {
+        *o = -8.0 + 8.0 * (i % 17) as f32 / 16.0;
+    }
+    let look = |w, h| Camera::look_at(Vec3::new(0.0, -6.0, 0.5), Vec3::ZERO, Vec3::Z, 70.0, w, h).unwrap();
+    let ortho =
+        Camera::orthographic(Vec3::new(0.0, -6.0, 0.0), Vec3::Y, Vec3::Z, 5.0, 3.0, 160, 96, 0.01, 20.0).unwrap();
+    // The random scenes have no materials: depth, median depth and normal besides rgb and alpha.
+    let geometric = SplatSettings {
+        channels: Channels { depth: true, median_depth: true, normal: true, ..Channels::default() },
+        ..all_settings()
+    };
+    let cases = [
+        ("demo", &city.scene, city.cameras[1].resized(352, 96), all_settings()),
+        ("faint", &faint, look(203, 77), geometric),
+        ("faint_orthographic", &faint, ortho, geometric),
+    ];
+    for (label, scene, cam, base) in cases {
+        let gpu_scene = GpuScene::upload(&d, scene).unwrap();
+        for tile in TILE_SIZES {
+            let mut runs = Vec::new();
+            for tile_bounds in [TileBounds::Rectangle, TileBounds::Ellipse] {
+                let settings = SplatSettings { tile, tile_bounds, ..base };
+                let label = format!("{label}_tile_{tile}_{tile_bounds:?}");
+                let (out, stats) = splatter.render(&gpu_scene, &cam, &settings).unwrap();
+                let gpu = out.read(&d).unwrap();
+                compare(&gpu, &render_cpu(scene, &cam, &settings), &label);
+                runs.push((gpu, stats.pairs));
+            }
+            let ((rect, rect_pairs), (ellipse, ellipse_pairs)) = (&runs[0], &runs[1]);
+            // The GPU lists what the twin's f64 span lists, but for f32 rounding at the widened bound.
+            let twin_pairs: u64 = (0..scene.len())
+                .filter_map(|i| preprocess_one(scene, i, &cam, NormalSource::Stored, tile))
+                .map(|s| {
+                    (s.rect[1]..s.rect[3])
+                        .map(|ty| u64::from(tile_row_span(&s, ty, tile).1 - tile_row_span(&s, ty, tile).0))
+                        .sum::<u64>()
+                })
+                .sum();
+            assert!(
+                ellipse_pairs.abs_diff(twin_pairs) <= 2 + twin_pairs / 1000,
+                "{label} tile {tile}: GPU {ellipse_pairs} pairs, twin {twin_pairs}"
+            );
+            assert!(
+                ellipse_pairs < rect_pairs,
+                "{label} tile {tile}: {ellipse_pairs} ellipse pairs, {rect_pairs} rectangle"
+            );
+            let same =
+                |a: &[f32], b: &[f32]| a.len() == b.len() && a.iter().zip(b).all(|(x, y)| x.to_bits() == y.to_bits());
+            let (rc, ec) = (rect.channels(), ellipse.channels());
+            let names = |c: &[(&'static str, &[f32], usize)]| c.iter().map(|x| x.0).collect::<Vec<_>>();
+            assert_eq!(names(&rc), names(&ec), "{label} tile {tile}: the same channels");
+            for ((name, r, _), (_, e, _)) in rc.iter().zip(&ec) {
+                assert!(same(r, e), "{label} tile {tile}: {name} differs between bounds");
+            }
+            eprintln!("{label} tile {tile}: {rect_pairs} rectangle pairs, {ellipse_pairs} ellipse (twin {twin_pairs}), same image");
+        }
+    }
+    assert_no_validation_messages(&d);
 }
 
 #[test]

@@ -14,7 +14,7 @@ use srug::scene::{Camera, Materials, Scene};
 use srug::splat::backward::{BlendGrads, HostGaussianGradients};
 use srug::splat::cpu::{preprocess_one, render_blends, CpuSplat, Gaussian64};
 use srug::splat::cpu_backward::{blend_backward_cpu, project_backward, GaussianGrad, PixelGrads};
-use srug::splat::{Channels, NormalSource, SplatSettings, Splatter, DEFAULT_TILE, TILE_SIZES};
+use srug::splat::{Channels, NormalSource, SplatSettings, Splatter, TileBounds, DEFAULT_TILE, TILE_SIZES};
 use srug_tests::{assert_no_validation_messages, device};
 
 fn scene(n: usize, seed: u64) -> Scene {
@@ -188,6 +188,44 @@ fn gpu_backward_matches_cpu_twin_in_every_channel() {
         assert!(values.iter().all(|v| v.iter().all(|x| x.is_finite())));
         assert!(values.iter().any(|v| v[4] != 0.0 && v[0] != 0.0), "{name}: no value gradients");
     }
+    assert_no_validation_messages(&d);
+}
+
+#[test]
+fn backward_gives_the_same_gradients_for_ellipse_and_rectangle_tile_bounds() {
+    // Ellipse bounds drop (tile, splat) pairs whose records would be zero, and
+    // the backward finds each record by searching the pair tiles: the sums, in
+    // the same order less some zeros, must be bit for bit the same.
+    let d = device();
+    let bg = [0.2, 0.4, 0.7];
+    let camera = Camera::look_at(Vec3::new(0.3, -0.2, -3.0), Vec3::ZERO, Vec3::Y, 50.0, 75, 53).unwrap();
+    let mut scene = scene(300, 9);
+    // Some faint Gaussians (opacity 0.0025 to 0.05) so that whole rectangles shrink.
+    for (i, o) in scene.opacity_logits.iter_mut().enumerate() {
+        if i % 3 == 0 {
+            *o = -6.0 + (i % 9) as f32;
+        }
+    }
+    let pixels = (camera.width * camera.height) as usize;
+    let (_, grads) = random_grads(&d, pixels, 109);
+    let gpu_scene = GpuScene::upload(&d, &scene).unwrap();
+    let mut splatter = Splatter::new(&d).unwrap();
+    let mut runs = Vec::new();
+    for tile_bounds in [TileBounds::Rectangle, TileBounds::Ellipse] {
+        let settings = SplatSettings { background: bg, channels: Channels::ALL, tile_bounds, ..Default::default() };
+        let frame = splatter.render_frame(&gpu_scene, &camera, &settings).unwrap();
+        let g = splatter.backward(&frame, &gpu_scene, &grads, true).unwrap().read(&d).unwrap();
+        runs.push((frame.stats.pairs, g));
+    }
+    let ((rect_pairs, rect), (ellipse_pairs, ellipse)) = (&runs[0], &runs[1]);
+    assert!(ellipse_pairs < rect_pairs, "ellipse bounds list fewer pairs: {ellipse_pairs} against {rect_pairs}");
+    assert!(rect.means.iter().flatten().any(|x| *x != 0.0), "some mean gradient is non-zero");
+    assert_eq!(rect.means, ellipse.means);
+    assert_eq!(rect.log_scales, ellipse.log_scales);
+    assert_eq!(rect.rotations, ellipse.rotations);
+    assert_eq!(rect.opacity_logits, ellipse.opacity_logits);
+    assert_eq!(rect.values, ellipse.values);
+    eprintln!("{rect_pairs} rectangle pairs, {ellipse_pairs} ellipse pairs: the same gradients");
     assert_no_validation_messages(&d);
 }
 

@@ -333,7 +333,7 @@ pub fn traced_visibility_cpu(
 ) -> Vec<f64> {
     let splats: Vec<Option<CpuSplat>> =
         (0..scene.len()).map(|i| preprocess_one(scene, i, light, NormalSource::ShortestAxis, settings.tile)).collect();
-    let lists = tile_lists(&splats, light, settings.tile);
+    let lists = tile_lists(&splats, light, settings.tile, crate::splat::TileBounds::default());
     (0..receiver.alpha.len())
         .map(|p| {
             let Some((uv, z)) = receiver_in_light(light, camera, receiver, settings, p) else { return 1.0 };

@@ -7,8 +7,8 @@
 //! shared memory, into one record per (tile, splat) pair;
 //! `splat_backward_gaussians.comp` (one invocation per Gaussian) sums its
 //! records in order and chains them through the projection. The records sit
-//! where the forward's scan put the pairs (`pair_offsets[g]` + the tile's place
-//! in the splat's rectangle), so no second sort is needed. The tile kernel
+//! where the forward's keys kernel put the pairs (found by binary search in
+//! [`SplatFrame::pair_tiles`]), so no second sort is needed. The tile kernel
 //! loads each splat once per subgroup (subgroup ballot).
 //!
 //! Cost on lavapipe: the barriers between batches of splats dominate (a
@@ -277,7 +277,14 @@ impl Splatter {
             rec.keep(&scene_buffers)?;
             rec.keep(&inputs)?;
             rec.keep(&outputs)?;
-            rec.keep(&[&frame.splats, &frame.pair_offsets, &frame.sorted_gaussians, &frame.ranges, &pairs])?;
+            rec.keep(&[
+                &frame.splats,
+                &frame.pair_offsets,
+                &frame.sorted_gaussians,
+                &frame.pair_tiles,
+                &frame.ranges,
+                &pairs,
+            ])?;
             if let Some(fb) = &frame.features {
                 rec.keep(&[fb])?;
             }

@@ -6,7 +6,7 @@
 
 use glam::{DMat3, DVec2, DVec3};
 
-use super::{GBuffer, NormalSource, SplatSettings};
+use super::{GBuffer, NormalSource, SplatSettings, TileBounds};
 use crate::scene::{sh_coefficients, Camera, Projection, Scene};
 
 /// One projected Gaussian.
@@ -301,16 +301,66 @@ pub(crate) fn splat_alpha(s: &CpuSplat, centre: DVec2) -> Option<f64> {
     (alpha >= 1.0 / 255.0).then_some(alpha)
 }
 
+/// Tile columns `[x0, x1)` of tile row `ty` (within the splat's rectangle)
+/// whose `tile`-pixel square can see splat `s` at α ≥ 1/255, widened as the
+/// kernels widen it: o·exp(−½dᵀQd) ≥ 1/255 ⇔ dᵀQd ≤ r² = 2·ln(255·o), taken as
+/// 1.01·r² + 0.01, squares grown by 0.01 px; rows keep their whole rectangle
+/// row where det Q ≤ 1e-4·a·c (too ill-conditioned for f32).
+/// Twin of `tile_row_span` in `splat.glsl`.
+pub fn tile_row_span(s: &CpuSplat, ty: u32, tile: u32) -> (u32, u32) {
+    let [rx0, _, rx1, _] = s.rect;
+    let empty = (rx0, rx0);
+    let r2 = 2.02 * (255.0 * s.opacity).ln() + 0.01;
+    if r2.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
+        return empty;
+    }
+    let [a, b, c] = s.conic;
+    let det = a * c - b * b;
+    if det.partial_cmp(&(1e-4 * a * c)) != Some(std::cmp::Ordering::Greater) {
+        return (rx0, rx1);
+    }
+    let t = f64::from(tile);
+    let y_max = (r2 * a / det).sqrt();
+    let lo = (f64::from(ty) * t - 0.01 - s.mean.y).max(-y_max);
+    let hi = (f64::from(ty) * t + t + 0.01 - s.mean.y).min(y_max);
+    if lo > hi || lo.is_nan() || hi.is_nan() {
+        return empty;
+    }
+    // The right edge (−b·y + sqrt(r²·a − det·y²)) / a is concave in y, largest
+    // at y = −y_side; the left edge is convex, smallest at y = +y_side.
+    let y_side = b * (r2 / (c * det)).sqrt();
+    let (yr, yl) = ((-y_side).clamp(lo, hi), y_side.clamp(lo, hi));
+    let xr = (-b * yr + (r2 * a - det * yr * yr).max(0.0).sqrt()) / a;
+    let xl = (-b * yl - (r2 * a - det * yl * yl).max(0.0).sqrt()) / a;
+    if xl.partial_cmp(&xr) == Some(std::cmp::Ordering::Greater) || xl.is_nan() || xr.is_nan() {
+        return (rx0, rx1);
+    }
+    let first = ((s.mean.x + xl - 0.01) / t - 1.0).ceil();
+    let last = ((s.mean.x + xr + 0.01) / t).floor();
+    let x0 = first.clamp(f64::from(rx0), f64::from(rx1));
+    let x1 = (last + 1.0).clamp(x0, f64::from(rx1));
+    (x0 as u32, x1 as u32)
+}
+
+/// The tiles of row `ty` that list splat `s` under `bounds`.
+pub fn listed_columns(s: &CpuSplat, ty: u32, tile: u32, bounds: TileBounds) -> std::ops::Range<u32> {
+    let (x0, x1) = match bounds {
+        TileBounds::Ellipse => tile_row_span(s, ty, tile),
+        TileBounds::Rectangle => (s.rect[0], s.rect[2]),
+    };
+    x0..x1
+}
+
 /// Per-tile lists of visible splats in blend order: (f32 depth bits, index);
 /// `splats` projected with the same `tile`.
-pub(crate) fn tile_lists(splats: &[Option<CpuSplat>], camera: &Camera, tile: u32) -> TileLists {
+pub(crate) fn tile_lists(splats: &[Option<CpuSplat>], camera: &Camera, tile: u32, bounds: TileBounds) -> TileLists {
     let tiles_x = camera.width.div_ceil(tile) as usize;
     let tiles_y = camera.height.div_ceil(tile) as usize;
     let mut lists: Vec<Vec<(u32, usize)>> = vec![Vec::new(); tiles_x * tiles_y];
     for (i, s) in splats.iter().enumerate() {
         if let Some(s) = s {
             for ty in s.rect[1]..s.rect[3] {
-                for tx in s.rect[0]..s.rect[2] {
+                for tx in listed_columns(s, ty, tile, bounds) {
                     lists[ty as usize * tiles_x + tx as usize].push(((s.depth as f32).to_bits(), i));
                 }
             }
@@ -338,10 +388,10 @@ impl TileLists {
 
 /// Work the blend does, counted by replaying it: (pixel, splat) pairs
 /// evaluated, and those that contributed. For benchmarks' flop accounting.
-pub fn blend_work(scene: &Scene, camera: &Camera, tile: u32) -> (u64, u64) {
+pub fn blend_work(scene: &Scene, camera: &Camera, tile: u32, bounds: TileBounds) -> (u64, u64) {
     let splats: Vec<Option<CpuSplat>> =
         (0..scene.len()).map(|i| preprocess_one(scene, i, camera, NormalSource::ShortestAxis, tile)).collect();
-    let lists = tile_lists(&splats, camera, tile);
+    let lists = tile_lists(&splats, camera, tile, bounds);
     let (mut evaluated, mut contributed) = (0u64, 0u64);
     for y in 0..camera.height as usize {
         for x in 0..camera.width as usize {
@@ -440,7 +490,7 @@ pub fn render_blends(
 ) -> (Vec<Option<CpuSplat>>, Vec<PixelBlend>) {
     let splats: Vec<Option<CpuSplat>> =
         params.iter().enumerate().map(|(i, g)| preprocess_with(g, scene, i, camera, normal_source, tile)).collect();
-    let lists = tile_lists(&splats, camera, tile);
+    let lists = tile_lists(&splats, camera, tile, TileBounds::default());
     let w = camera.width as usize;
     let blends = (0..w * camera.height as usize)
         .map(|p| {
@@ -464,7 +514,7 @@ pub fn render_cpu(scene: &Scene, camera: &Camera, settings: &SplatSettings) -> G
     let (w, h) = (camera.width as usize, camera.height as usize);
     let splats: Vec<Option<CpuSplat>> =
         (0..scene.len()).map(|i| preprocess_one(scene, i, camera, settings.normal_source, settings.tile)).collect();
-    let lists = tile_lists(&splats, camera, settings.tile);
+    let lists = tile_lists(&splats, camera, settings.tile, settings.tile_bounds);
     let ch = settings.channels;
     let p = w * h;
     let opt = |on: bool, k: usize| on.then(|| vec![0.0f32; k * p]);

@@ -64,7 +64,7 @@ pub fn blend_backward_cpu(
     grads: &PixelGrads,
     tile: u32,
 ) -> Vec<SplatGrad> {
-    let lists = tile_lists(splats, camera, tile);
+    let lists = tile_lists(splats, camera, tile, crate::splat::TileBounds::default());
     let (w, h) = (camera.width as usize, camera.height as usize);
     let mut out = vec![SplatGrad::default(); splats.len()];
     for y in 0..h {

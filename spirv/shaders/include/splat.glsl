@@ -26,11 +26,44 @@ layout(std140, set = 0, binding = 0) uniform Frame {
     uvec4 work0;       // features, tile_counts (offsets after the scan)
     uvec4 work1;       // keys, values
     uvec4 work2;       // ranges, rgb
+    uvec4 work3;       // pair tiles (tile id of each unsorted pair), unused
     uvec4 out0;        // alpha, depth
     uvec4 out1;        // median_depth, normal
     uvec4 out2;        // albedo, roughness
     uvec4 out3;        // metallic, ao
     uvec4 out4;        // visibility, unused
 } frame;
+
+// Tiles of tile row `ty` whose square can see the splat at α ≥ 1/255:
+// columns [x0, x1) within `rect`. α ≥ 1/255 ⇔ dᵀQd ≤ 2·ln(255·o) with Q the
+// conic, an ellipse; a row's squares meeting a convex set form one run. The
+// bound is widened (r² by 1% + 0.01, squares by 0.01 px) so f32 rounding never
+// drops a pixel the blend would take, and rows where Q is too ill-conditioned
+// for f32 keep their whole rectangle row. Only meaningful for `rect` from the
+// same splat. Keep in sync with engine/src/splat/cpu.rs `tile_row_span`.
+uvec2 tile_row_span(vec4 head, vec3 conic, uvec4 rect, uint ty, uint tile) {
+    float r2 = 2.02 * log(255.0 * head.w) + 0.01;
+    if (!(r2 > 0.0)) return uvec2(rect.x, rect.x);
+    float a = conic.x, b = conic.y, c = conic.z;
+    float det = a * c - b * b;
+    if (!(det > 1e-4 * a * c)) return rect.xz;
+    float t = float(tile);
+    float y_max = sqrt(r2 * a / det);
+    float lo = max(float(ty) * t - 0.01 - head.y, -y_max);
+    float hi = min(float(ty) * t + t + 0.01 - head.y, y_max);
+    if (!(lo <= hi)) return uvec2(rect.x, rect.x);
+    // The ellipse's right edge x(y) = (−b·y + sqrt(r²·a − det·y²)) / a is concave,
+    // largest at y = −y_side; its left edge is convex, smallest at y = +y_side.
+    float y_side = b * sqrt(r2 / (c * det));
+    float yr = clamp(-y_side, lo, hi), yl = clamp(y_side, lo, hi);
+    float xr = (-b * yr + sqrt(max(r2 * a - det * yr * yr, 0.0))) / a;
+    float xl = (-b * yl - sqrt(max(r2 * a - det * yl * yl, 0.0))) / a;
+    if (!(xl <= xr)) return rect.xz;
+    float first = ceil((head.x + xl - 0.01) / t - 1.0);
+    float last = floor((head.x + xr + 0.01) / t);
+    float x0 = clamp(first, float(rect.x), float(rect.z));
+    float x1 = clamp(last + 1.0, x0, float(rect.z));
+    return uvec2(x0, x1);
+}
 
 #endif

@@ -31,6 +31,9 @@ layout(set = 0, binding = 5) uniform samplerBuffer sh_texels;
 #endif
 
 layout(constant_id = 0) const bool WRITE_FEATURES = false;
+// Count only the tiles whose square can see the splat at α ≥ 1/255
+// (`tile_row_span`), not its whole 3σ rectangle. The keys kernel must agree.
+layout(constant_id = 1) const bool ELLIPSE_TILES = false;
 // Tile edge in pixels (engine/src/splat/mod.rs `TILE_SPEC_IDS`; the blend's workgroup edge).
 layout(constant_id = 15) const uint TILE = 16u;
 
@@ -102,6 +105,14 @@ void main() {
     vec2 hi = clamp(floor((mean + radius) / float(TILE)) + 1.0, vec2(0.0), tiles);
     uvec4 rect = uvec4(uvec2(lo), uvec2(hi));
     uint count = (rect.z - rect.x) * (rect.w - rect.y);
+    vec4 head = vec4(mean, t.z, sigmoid(OPACITY_LOGIT(i)));
+    if (ELLIPSE_TILES && count != 0u) {
+        count = 0u;
+        for (uint ty = rect.y; ty < rect.w; ty++) {
+            uvec2 span = tile_row_span(head, conic, rect, ty, TILE);
+            count += span.y - span.x;
+        }
+    }
     if (count == 0u) { cull(i); return; }
 
     // View-dependent colour.
@@ -115,8 +126,7 @@ void main() {
     }
     color = max(color + 0.5, vec3(0.0));
 
-    float opacity = sigmoid(OPACITY_LOGIT(i));
-    Splats(frame.scene5.zw).v[i] = Splat(vec4(mean, t.z, opacity), vec4(conic, radius), vec4(color, 0.0), rect);
+    Splats(frame.scene5.zw).v[i] = Splat(head, vec4(conic, radius), vec4(color, 0.0), rect);
     Uints(frame.work0.zw).v[i] = count;
 
     if (WRITE_FEATURES) {
