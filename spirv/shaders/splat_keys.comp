@@ -25,8 +25,9 @@ void main() {
     Uvec2s keys = Uvec2s(frame.work1.xy);
     Uints values = Uints(frame.work1.zw);
     Uints pair_tiles = Uints(frame.work3.xy);
+    TileEllipse e = tile_ellipse(s.head, s.conic.xyz);
     for (uint y = s.rect.y; y < s.rect.w; y++) {
-        uvec2 span = ELLIPSE_TILES ? tile_row_span(s.head, s.conic.xyz, s.rect, y, TILE) : s.rect.xz;
+        uvec2 span = ELLIPSE_TILES ? tile_row_span(e, s.head.xy, s.rect, y, TILE) : s.rect.xz;
         for (uint x = span.x; x < span.y && offset < end; x++) {
             uint tile = y * frame.size.z + x;
             keys.v[offset] = uvec2(depth_bits, tile);

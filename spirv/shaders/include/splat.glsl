@@ -34,33 +34,46 @@ layout(std140, set = 0, binding = 0) uniform Frame {
     uvec4 out4;        // visibility, unused
 } frame;
 
-// Tiles of tile row `ty` whose square can see the splat at α ≥ 1/255:
-// columns [x0, x1) within `rect`. α ≥ 1/255 ⇔ dᵀQd ≤ 2·ln(255·o) with Q the
+// The per-splat part of `tile_row_span`, computed once per splat: r² (≤ 0:
+// the splat reaches no pixel), the conic's a and b, det Q (0 where too
+// ill-conditioned: whole rows), the half-height and y_side.
+struct TileEllipse { float r2, a, b, det, y_max, y_side; };
+
+TileEllipse tile_ellipse(vec4 head, vec3 conic) {
+    TileEllipse e;
+    e.r2 = 2.02 * log(255.0 * head.w) + 0.01;
+    e.a = conic.x;
+    e.b = conic.y;
+    float c = conic.z;
+    e.det = e.a * c - e.b * e.b;
+    if (!(e.det > 1e-4 * e.a * c)) e.det = 0.0;
+    e.y_max = sqrt(e.r2 * e.a / e.det);
+    e.y_side = e.b * sqrt(e.r2 / (c * e.det));
+    return e;
+}
+
+// Tiles of tile row `ty` whose square can see the splat at α ≥ 1/255, as
+// columns [x0, x1) within `rect` (`e` from `tile_ellipse`). α ≥ 1/255 ⇔ dᵀQd ≤ 2·ln(255·o) with Q the
 // conic, an ellipse; a row's squares meeting a convex set form one run. The
 // bound is widened (r² by 1% + 0.01, squares by 0.01 px) so f32 rounding never
 // drops a pixel the blend would take, and rows where Q is too ill-conditioned
 // for f32 keep their whole rectangle row. Only meaningful for `rect` from the
 // same splat. Keep in sync with engine/src/splat/cpu.rs `tile_row_span`.
-uvec2 tile_row_span(vec4 head, vec3 conic, uvec4 rect, uint ty, uint tile) {
-    float r2 = 2.02 * log(255.0 * head.w) + 0.01;
-    if (!(r2 > 0.0)) return uvec2(rect.x, rect.x);
-    float a = conic.x, b = conic.y, c = conic.z;
-    float det = a * c - b * b;
-    if (!(det > 1e-4 * a * c)) return rect.xz;
+uvec2 tile_row_span(TileEllipse e, vec2 mean, uvec4 rect, uint ty, uint tile) {
+    if (!(e.r2 > 0.0)) return uvec2(rect.x, rect.x);
+    if (!(e.det > 0.0)) return rect.xz;
     float t = float(tile);
-    float y_max = sqrt(r2 * a / det);
-    float lo = max(float(ty) * t - 0.01 - head.y, -y_max);
-    float hi = min(float(ty) * t + t + 0.01 - head.y, y_max);
+    float lo = max(float(ty) * t - 0.01 - mean.y, -e.y_max);
+    float hi = min(float(ty) * t + t + 0.01 - mean.y, e.y_max);
     if (!(lo <= hi)) return uvec2(rect.x, rect.x);
     // The ellipse's right edge x(y) = (−b·y + sqrt(r²·a − det·y²)) / a is concave,
     // largest at y = −y_side; its left edge is convex, smallest at y = +y_side.
-    float y_side = b * sqrt(r2 / (c * det));
-    float yr = clamp(-y_side, lo, hi), yl = clamp(y_side, lo, hi);
-    float xr = (-b * yr + sqrt(max(r2 * a - det * yr * yr, 0.0))) / a;
-    float xl = (-b * yl - sqrt(max(r2 * a - det * yl * yl, 0.0))) / a;
+    float yr = clamp(-e.y_side, lo, hi), yl = clamp(e.y_side, lo, hi);
+    float xr = (-e.b * yr + sqrt(max(e.r2 * e.a - e.det * yr * yr, 0.0))) / e.a;
+    float xl = (-e.b * yl - sqrt(max(e.r2 * e.a - e.det * yl * yl, 0.0))) / e.a;
     if (!(xl <= xr)) return rect.xz;
-    float first = ceil((head.x + xl - 0.01) / t - 1.0);
-    float last = floor((head.x + xr + 0.01) / t);
+    float first = ceil((mean.x + xl - 0.01) / t - 1.0);
+    float last = floor((mean.x + xr + 0.01) / t);
     float x0 = clamp(first, float(rect.x), float(rect.z));
     float x1 = clamp(last + 1.0, x0, float(rect.z));
     return uvec2(x0, x1);

@@ -108,8 +108,9 @@ void main() {
     vec4 head = vec4(mean, t.z, sigmoid(OPACITY_LOGIT(i)));
     if (ELLIPSE_TILES && count != 0u) {
         count = 0u;
+        TileEllipse e = tile_ellipse(head, conic);
         for (uint ty = rect.y; ty < rect.w; ty++) {
-            uvec2 span = tile_row_span(head, conic, rect, ty, TILE);
+            uvec2 span = tile_row_span(e, mean, rect, ty, TILE);
             count += span.y - span.x;
         }
     }
