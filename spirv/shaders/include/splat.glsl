@@ -53,8 +53,9 @@ TileEllipse tile_ellipse(vec4 head, vec3 conic) {
 }
 
 // Tiles of tile row `ty` whose square can see the splat at α ≥ 1/255, as
-// columns [x0, x1) within `rect` (`e` from `tile_ellipse`). α ≥ 1/255 ⇔ dᵀQd ≤ 2·ln(255·o) with Q the
-// conic, an ellipse; a row's squares meeting a convex set form one run. The
+// columns [x0, x1) within `rect` (`e` from `tile_ellipse`). α ≥ 1/255 ⇔
+// dᵀQd ≤ 2·ln(255·o) with Q the conic, an ellipse; a row's squares meeting a
+// convex set form one run. The
 // bound is widened (r² by 1% + 0.01, squares by 0.01 px) so f32 rounding never
 // drops a pixel the blend would take, and rows where Q is too ill-conditioned
 // for f32 keep their whole rectangle row. Only meaningful for `rect` from the
