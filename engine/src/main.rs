@@ -529,14 +529,17 @@ fn run(cli: Cli) -> srug::Result<()> {
                 srug::bench::splat_bench(&device, &counts, &sizes, &options, |m| bar.set_message(m.to_string()))?;
             bar.set_message("sorting");
             let sort = srug::bench::sort_bench(&device, sort_keys, 32 + 11, repeats)?;
+            bar.set_message("measuring the blend ceiling and the pair-move floor");
+            let ceiling = srug::bench::limits::blend_ceiling(&device, repeats)?;
+            let floor = srug::bench::limits::pair_move_floor(&device, sort_keys as u64, repeats)?;
             bar.finish_and_clear();
             let stage_names: Vec<String> =
                 rows.first().map(|r| r.stages.iter().map(|s| s.0.clone()).collect()).unwrap_or_default();
             println!(
-                "| Gaussians | size | {} | total ms | pairs | working MiB | scene MiB | G-buffer MiB | blend evals (M) | blend GFLOP/s | % of FMA peak |",
+                "| Gaussians | size | {} | total ms | pairs | working MiB | scene MiB | G-buffer MiB | blend evals (M) | blend GFLOP/s | % of FMA peak | ceiling % |",
                 stage_names.join(" ms | ") + " ms"
             );
-            println!("|---:|---|{}---:|---:|---:|---:|---:|---:|---:|---:|", "---:|".repeat(stage_names.len()));
+            println!("|---:|---|{}---:|---:|---:|---:|---:|---:|---:|---:|---:|", "---:|".repeat(stage_names.len()));
             for r in &rows {
                 let stages: Vec<String> = stage_names
                     .iter()
@@ -546,7 +549,7 @@ fn run(cli: Cli) -> srug::Result<()> {
                     .collect();
                 let mib = |b: u64| b as f64 / (1u64 << 20) as f64;
                 println!(
-                    "| {} | {}x{} | {} | {:.1} | {} | {:.1} | {:.1} | {:.1} | {:.1} | {:.2} | {:.1} |",
+                    "| {} | {}x{} | {} | {:.1} | {} | {:.1} | {:.1} | {:.1} | {:.1} | {:.2} | {:.1} | {:.1} |",
                     r.gaussians,
                     r.width,
                     r.height,
@@ -558,7 +561,8 @@ fn run(cli: Cli) -> srug::Result<()> {
                     mib(r.gbuffer_bytes),
                     r.blend_evaluations as f64 * 1e-6,
                     r.blend_gflops(),
-                    r.blend_gflops() / peak * 100.0
+                    r.blend_gflops() / peak * 100.0,
+                    ceiling.for_work(r.blend_evaluations, r.blend_contributions) / peak * 100.0
                 );
             }
             println!(
@@ -573,6 +577,22 @@ fn run(cli: Cli) -> srug::Result<()> {
                 sort.gpu_keys_per_second * 1e-6,
                 sort.cpu_keys_per_second * 1e-6,
                 sort.gpu_keys_per_second / sort.cpu_keys_per_second
+            );
+            println!(
+                "blend ceiling (the blend's arithmetic with no memory traffic, every evaluation contributing, {} pixels per invocation): {:.1} GFLOP/s, {:.1}% of FMA peak; \"ceiling %\" is that bound on each row's mix of evaluations and contributions",
+                ceiling.pixels,
+                ceiling.gflops,
+                ceiling.gflops / peak * 100.0
+            );
+            let ms = |s: f64| s * 1e3;
+            println!(
+                "pair-move floor, {} pairs (each read once; written once to the same index): read only {:.1} ms, writing the value {:.1} ms, writing key and value {:.1} ms, writing the value to a random index {:.1} ms; a sort at 2x sort_unstable has {:.1} ms in all",
+                floor.keys,
+                ms(floor.read_seconds),
+                ms(floor.value_seconds),
+                ms(floor.pair_seconds),
+                ms(floor.scattered_seconds),
+                ms(floor.keys as f64 / (2.0 * sort.cpu_keys_per_second))
             );
             Ok(())
         }

@@ -179,8 +179,18 @@ fn bench_splat_prints_its_tables() {
     let t = text(&o);
     assert!(o.status.success(), "{t}");
     assert!(t.contains("measured FMA peak"), "{t}");
-    for want in ["| 2000 | 64x32 |", "| 2000 | 48x16 |", "preprocess ms", "sort ms", "blend ms", "GPU", "sort_unstable"]
-    {
+    for want in [
+        "| 2000 | 64x32 |",
+        "| 2000 | 48x16 |",
+        "preprocess ms",
+        "sort ms",
+        "blend ms",
+        "GPU",
+        "sort_unstable",
+        "ceiling % |",
+        "blend ceiling",
+        "pair-move floor, 5000 pairs",
+    ] {
         assert!(t.contains(want), "missing {want:?} in:\n{t}");
     }
     let o = srug(&["bench", "splat", "--sizes", "64by32"]);

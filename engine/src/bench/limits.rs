@@ -1,0 +1,331 @@
+//! What the device allows the splatting stages at best, measured in the same
+//! run as the stages themselves, so a missed target can be told apart from a
+//! device that cannot reach it.
+//!
+//! - **Blend ceiling** (`bench_blend_ceiling.comp`): the blend's arithmetic
+//!   per (pixel, splat) pair with no memory traffic at all, every evaluation
+//!   contributing. Under the benchmark's flop counts
+//!   ([`BLEND_FLOPS_PER_EVALUATION`], [`BLEND_FLOPS_PER_CONTRIBUTION`]) no
+//!   blend can do better; for a real frame, whose evaluations mostly do not
+//!   contribute and so count fewer flops at the same cost, the bound is
+//!   [`BlendCeiling::for_work`].
+//! - **Pair-move floor** (`bench_pair_move.comp`): every (key, value) pair
+//!   read once, and written once to the same index. Every radix pass does at
+//!   least this much, so it bounds a pass from below.
+//!
+//! Both kernels have CPU twins here ([`blend_ceiling_cpu`], [`pair_move_cpu`])
+//! that the tests check them against.
+
+use bytemuck::{Pod, Zeroable};
+
+use super::{median, BLEND_FLOPS_PER_CONTRIBUTION, BLEND_FLOPS_PER_EVALUATION};
+use crate::error::{Error, Result};
+use crate::gpu::{
+    kernels, Binding, BindingKind, Buffer, Device, Kernel, KernelDecl, MemoryKind, SpecValue, TexelFormat, Texels,
+};
+
+/// Push constants of `bench_blend_ceiling.comp` (keep in sync with its `Push` block).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+pub struct BlendCeilingPush {
+    /// Address of the output floats (one per invocation).
+    pub out: u64,
+    /// Splats every pixel blends.
+    pub splats: u32,
+    /// Invocations.
+    pub count: u32,
+}
+const _: () = assert!(std::mem::size_of::<BlendCeilingPush>() == 16);
+
+/// Flops each evaluation of the ceiling probe counts: all of them contribute.
+pub const BLEND_CEILING_FLOPS: u64 = BLEND_FLOPS_PER_EVALUATION + BLEND_FLOPS_PER_CONTRIBUTION;
+/// Most splats the probe blends per pixel while every one still contributes.
+pub const BLEND_CEILING_MAX_SPLATS: u32 = 1024;
+/// Pixels per invocation the probe accepts (as the texel-buffer blend).
+pub const BLEND_CEILING_PIXELS: [u32; 3] = crate::splat::BLEND_PIXELS;
+
+fn check_ceiling_args(pixels: u32, splats: u32) -> Result<()> {
+    if !BLEND_CEILING_PIXELS.contains(&pixels) {
+        return Err(Error::InvalidArgument(format!(
+            "{pixels} pixels per invocation is not one of {BLEND_CEILING_PIXELS:?}"
+        )));
+    }
+    if splats > BLEND_CEILING_MAX_SPLATS {
+        return Err(Error::InvalidArgument(format!(
+            "{splats} splats per pixel: the probe keeps every evaluation contributing only up to {BLEND_CEILING_MAX_SPLATS}"
+        )));
+    }
+    Ok(())
+}
+
+/// Runs the ceiling probe once: `count` invocations of `pixels` pixels, each
+/// blending `splats` splats. Returns each invocation's Σ (T + r + g + b) over
+/// its pixels and the GPU seconds.
+pub fn blend_ceiling_run(device: &Device, pixels: u32, count: u32, splats: u32) -> Result<(Vec<f32>, f64)> {
+    check_ceiling_args(pixels, splats)?;
+    let kernel = Kernel::new(
+        device,
+        &kernels::BENCH_BLEND_CEILING,
+        &KernelDecl {
+            bindings: &[],
+            push_constant_size: std::mem::size_of::<BlendCeilingPush>(),
+            specialization: &[(0, SpecValue::U32(pixels))],
+        },
+    )?;
+    let out = device.create_buffer("blend ceiling sums", u64::from(count.max(1)) * 4, MemoryKind::Storage)?;
+    let mut seconds = f64::NAN;
+    if count > 0 {
+        let push = BlendCeilingPush { out: out.device_address(), splats, count };
+        let t = device.run(|rec| {
+            rec.keep(&[&out])?;
+            rec.fill(&out, f32::NAN.to_bits())?;
+            rec.begin_stage("blend ceiling");
+            rec.dispatch_1d(&kernel, &[], &push, u64::from(count))
+        })?;
+        seconds = t.get("blend ceiling").unwrap_or(f64::NAN);
+    }
+    let mut sums: Vec<f32> = device.read_buffer(&out)?;
+    sums.truncate(count as usize);
+    Ok((sums, seconds))
+}
+
+/// CPU twin of `bench_blend_ceiling.comp` in f64: each invocation's
+/// Σ (T + r + g + b), and how many evaluations contributed in all.
+pub fn blend_ceiling_cpu(pixels: u32, count: u32, splats: u32) -> (Vec<f64>, u64) {
+    let mut contributed = 0u64;
+    let sums = (0..count)
+        .map(|i| {
+            let mut s = 0.0;
+            for k in 0..pixels {
+                let centre = [f64::from(i % 16) + 0.5, f64::from(k + (i / 16) % 16) + 0.5];
+                let (mut t, mut rgb) = (1.0f64, [0.0f64; 3]);
+                for j in 0..splats {
+                    let d = [f64::from(j & 15) - centre[0], f64::from((j >> 4) & 15) - centre[1]];
+                    let (a, b, c) = (f64::from(1e-4f32), f64::from(1e-5f32), f64::from(1e-4f32));
+                    let power = -0.5 * (a * d[0] * d[0] + c * d[1] * d[1]) - b * d[0] * d[1];
+                    let alpha = (f64::from(0.005f32) * power.min(0.0).exp()).min(0.99);
+                    let next = t * (1.0 - alpha);
+                    if power <= 0.0 && alpha >= 1.0 / 255.0 && next >= 1e-4 {
+                        let z = f64::from(j) * 1e-6;
+                        for (v, base) in rgb.iter_mut().zip([0.25, 0.5, 0.75]) {
+                            *v += alpha * t * (base + z);
+                        }
+                        t = next;
+                        contributed += 1;
+                    }
+                }
+                s += t + rgb.iter().sum::<f64>();
+            }
+            s
+        })
+        .collect();
+    (sums, contributed)
+}
+
+/// The blend's arithmetic ceiling on a device.
+#[derive(Clone, Copy, Debug)]
+pub struct BlendCeiling {
+    /// Pixels per invocation that gave the best rate.
+    pub pixels: u32,
+    /// GFLOP/s under the benchmark's flop counts, every evaluation contributing.
+    pub gflops: f64,
+}
+
+impl BlendCeiling {
+    /// The most GFLOP/s a blend can count on work of `evaluations` evaluated
+    /// pairs, `contributions` of them contributing: every evaluation costs at
+    /// least what it costs the probe, but the non-contributing ones count
+    /// only [`BLEND_FLOPS_PER_EVALUATION`] flops.
+    pub fn for_work(&self, evaluations: u64, contributions: u64) -> f64 {
+        if evaluations == 0 {
+            return self.gflops;
+        }
+        let counted = evaluations * BLEND_FLOPS_PER_EVALUATION + contributions * BLEND_FLOPS_PER_CONTRIBUTION;
+        self.gflops * counted as f64 / (evaluations * BLEND_CEILING_FLOPS) as f64
+    }
+}
+
+/// Measures the blend ceiling: the best GFLOP/s over [`BLEND_CEILING_PIXELS`]
+/// (each the best of `repeats`), 2¹⁶ invocations of 1,024 splats per pixel.
+pub fn blend_ceiling(device: &Device, repeats: usize) -> Result<BlendCeiling> {
+    let (count, splats) = (1u32 << 16, BLEND_CEILING_MAX_SPLATS);
+    let mut best = BlendCeiling { pixels: 1, gflops: 0.0 };
+    for pixels in BLEND_CEILING_PIXELS {
+        for _ in 0..repeats.max(1) {
+            let (_, seconds) = blend_ceiling_run(device, pixels, count, splats)?;
+            let flops = f64::from(count) * f64::from(pixels) * f64::from(splats) * BLEND_CEILING_FLOPS as f64;
+            let gflops = flops / seconds * 1e-9;
+            if gflops > best.gflops {
+                best = BlendCeiling { pixels, gflops };
+            }
+        }
+    }
+    Ok(best)
+}
+
+/// Push constants of `bench_pair_move.comp` (keep in sync with its `Push` block).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+pub struct PairMovePush {
+    /// Address of the output keys.
+    pub keys_out: u64,
+    /// Address of the output values (checksums with [`PairWrites::None`]).
+    pub values_out: u64,
+    /// Pairs.
+    pub count: u32,
+    /// Workgroups.
+    pub blocks: u32,
+}
+const _: () = assert!(std::mem::size_of::<PairMovePush>() == 24);
+
+/// Pairs each invocation of `bench_pair_move.comp` owns (keep in sync with its `ITEMS`).
+pub const PAIR_MOVE_ITEMS: u64 = 64;
+const PAIR_MOVE_BLOCK: u64 = PAIR_MOVE_ITEMS * 64;
+
+/// What the pair-move probe writes per pair (its `WORDS` constant).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PairWrites {
+    /// Nothing: the pairs are only read (each invocation writes the xor of its pairs).
+    None,
+    /// The value (one 32-bit word), as a pass that sorts indices only would.
+    Value,
+    /// Key and value (three words), as the radix sort's scatter does.
+    Pair,
+    /// The value, to the index a random permutation gives it (read from a third view).
+    ValueScattered,
+}
+
+impl PairWrites {
+    fn words(self) -> u32 {
+        match self {
+            Self::None => 0,
+            Self::Value | Self::ValueScattered => 1,
+            Self::Pair => 3,
+        }
+    }
+}
+
+/// Runs the pair-move probe once over the first `count` pairs of `keys`
+/// (`[u32; 2]` each) and `values`, writing to `keys_out` and `values_out` (at
+/// `dest[i]`, a permutation of `0..count`, with [`PairWrites::ValueScattered`]);
+/// returns the GPU seconds. Needs RG32UI/R32UI texel-buffer views holding `count`.
+#[allow(clippy::too_many_arguments, reason = "the probe's inputs and outputs, each a buffer")]
+pub fn pair_move_run(
+    device: &Device,
+    writes: PairWrites,
+    keys: &Buffer,
+    values: &Buffer,
+    dest: &Buffer,
+    count: u64,
+    keys_out: &Buffer,
+    values_out: &Buffer,
+) -> Result<f64> {
+    let info = device.info();
+    if ![TexelFormat::R32Uint, TexelFormat::Rg32Uint].iter().all(|f| info.texel_formats.contains(f)) {
+        return Err(Error::Unsupported("this device cannot view buffers as RG32UI/R32UI texels".into()));
+    }
+    if count == 0 || count > info.max_texel_buffer_elements || count > u64::from(u32::MAX) {
+        return Err(Error::InvalidArgument(format!(
+            "pair-move probe over {count} pairs: needs 1 to {} (the device's texel-buffer limit)",
+            info.max_texel_buffer_elements.min(u64::from(u32::MAX))
+        )));
+    }
+    if keys.size() < count * 8
+        || values.size() < count * 4
+        || dest.size() < count * 4
+        || keys_out.size() < count * 8
+        || values_out.size() < count * 4
+    {
+        return Err(Error::InvalidArgument(format!("pair-move probe over {count} pairs: a buffer is too small")));
+    }
+    let kernel = Kernel::new(
+        device,
+        &kernels::BENCH_PAIR_MOVE,
+        &KernelDecl {
+            bindings: &[BindingKind::UniformTexelBuffer; 3],
+            push_constant_size: std::mem::size_of::<PairMovePush>(),
+            specialization: &[
+                (0, SpecValue::U32(writes.words())),
+                (1, SpecValue::Bool(writes == PairWrites::ValueScattered)),
+            ],
+        },
+    )?;
+    let blocks = count.div_ceil(PAIR_MOVE_BLOCK);
+    let push = PairMovePush {
+        keys_out: keys_out.device_address(),
+        values_out: values_out.device_address(),
+        count: count as u32,
+        blocks: blocks as u32,
+    };
+    let views = [
+        Binding::Texels(Texels { buffer: keys, offset: 0, elements: count, format: TexelFormat::Rg32Uint }),
+        Binding::Texels(Texels { buffer: values, offset: 0, elements: count, format: TexelFormat::R32Uint }),
+        Binding::Texels(Texels { buffer: dest, offset: 0, elements: count, format: TexelFormat::R32Uint }),
+    ];
+    let t = device.run(|rec| {
+        rec.keep(&[keys_out, values_out])?;
+        rec.begin_stage("pair move");
+        rec.dispatch_groups_bound(&kernel, &views, &push, blocks)
+    })?;
+    Ok(t.get("pair move").unwrap_or(f64::NAN))
+}
+
+/// CPU twin of `bench_pair_move.comp` with [`PairWrites::None`]: the xor of
+/// key halves and value over each invocation's pairs.
+pub fn pair_move_cpu(keys: &[[u32; 2]], values: &[u32]) -> Vec<u32> {
+    keys.chunks(PAIR_MOVE_ITEMS as usize)
+        .zip(values.chunks(PAIR_MOVE_ITEMS as usize))
+        .map(|(k, v)| k.iter().zip(v).fold(0, |s, (k, v)| s ^ k[0] ^ k[1] ^ v))
+        .collect()
+}
+
+/// The pair-move floor for `keys` pairs (medians of the repeats).
+#[derive(Clone, Copy, Debug)]
+pub struct PairMoveFloor {
+    /// Pairs moved.
+    pub keys: u64,
+    /// Seconds to read every pair once.
+    pub read_seconds: f64,
+    /// Seconds to read every pair and write its value.
+    pub value_seconds: f64,
+    /// Seconds to read every pair and write it whole.
+    pub pair_seconds: f64,
+    /// Seconds to read every pair and a destination and write the value there (a random permutation).
+    pub scattered_seconds: f64,
+}
+
+/// Measures the pair-move floor over `n` pairs.
+pub fn pair_move_floor(device: &Device, n: u64, repeats: usize) -> Result<PairMoveFloor> {
+    let keys: Vec<[u32; 2]> = (0..n as u32).map(|i| [i.wrapping_mul(0x9e37_79b9), i]).collect();
+    let values: Vec<u32> = (0..n as u32).collect();
+    let kb = device.upload("pair-move keys", &keys)?;
+    let vb = device.upload("pair-move values", &values)?;
+    let db = device.upload("pair-move destinations", &random_permutation(n as u32, 0x2545_f491))?;
+    let ko = device.create_buffer("pair-move keys out", n.max(1) * 8, MemoryKind::Storage)?;
+    let vo = device.create_buffer("pair-move values out", n.max(1) * 4, MemoryKind::Storage)?;
+    let time = |writes| -> Result<f64> {
+        let runs: Result<Vec<f64>> =
+            (0..repeats.max(1)).map(|_| pair_move_run(device, writes, &kb, &vb, &db, n, &ko, &vo)).collect();
+        Ok(median(runs?))
+    };
+    Ok(PairMoveFloor {
+        keys: n,
+        read_seconds: time(PairWrites::None)?,
+        value_seconds: time(PairWrites::Value)?,
+        pair_seconds: time(PairWrites::Pair)?,
+        scattered_seconds: time(PairWrites::ValueScattered)?,
+    })
+}
+
+/// A permutation of `0..n` (Fisher–Yates on a xorshift stream from `seed`).
+pub fn random_permutation(n: u32, seed: u64) -> Vec<u32> {
+    let mut state = seed | 1;
+    let mut p: Vec<u32> = (0..n).collect();
+    for i in (1..p.len()).rev() {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        p.swap(i, (state % (i as u64 + 1)) as usize);
+    }
+    p
+}

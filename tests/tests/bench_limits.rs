@@ -1,0 +1,123 @@
+//! The benchmark's device-limit probes (`srug::bench::limits`) against their
+//! CPU twins, with validation on: the blend ceiling must compute the blend's
+//! arithmetic with every evaluation contributing (else its flop count would
+//! be wrong), and the pair-move probe must read and write every pair.
+
+#![allow(clippy::unwrap_used, clippy::expect_used, reason = "a failed unwrap is a failed test")]
+
+use srug::bench::limits::{
+    blend_ceiling_cpu, blend_ceiling_run, pair_move_cpu, pair_move_run, random_permutation, BlendCeiling, PairWrites,
+    BLEND_CEILING_MAX_SPLATS, BLEND_CEILING_PIXELS,
+};
+use srug::bench::{BLEND_FLOPS_PER_CONTRIBUTION, BLEND_FLOPS_PER_EVALUATION};
+use srug::gpu::MemoryKind;
+use srug_tests::{assert_no_validation_messages, device, save_comparison};
+
+#[test]
+fn blend_ceiling_probe_matches_its_twin_and_every_evaluation_contributes() {
+    let d = device();
+    // 20 rows of 16 invocations: not a multiple of the 64-invocation workgroup.
+    let count = 16 * 20;
+    for pixels in BLEND_CEILING_PIXELS {
+        for splats in [0, 1, 37, BLEND_CEILING_MAX_SPLATS] {
+            let (gpu, seconds) = blend_ceiling_run(&d, pixels, count, splats).unwrap();
+            let (cpu, contributed) = blend_ceiling_cpu(pixels, count, splats);
+            assert!(seconds.is_finite() && seconds >= 0.0, "GPU time {seconds}");
+            // Every evaluation contributes, so each counts 12 + 9 flops.
+            assert_eq!(contributed, u64::from(count) * u64::from(pixels) * u64::from(splats));
+            // f32 against f64 over ≤ 1,024 rounded steps: a random walk of ~√1024 · 6e-8 ≈ 2e-6
+            // (1.3e-6 seen on lavapipe).
+            let tolerance = 1e-5;
+            let worst = gpu
+                .iter()
+                .zip(&cpu)
+                .map(|(g, c)| {
+                    let e = (f64::from(*g) - c).abs() / c.abs();
+                    if e.is_nan() {
+                        f64::INFINITY
+                    } else {
+                        e
+                    }
+                })
+                .fold(0.0, f64::max);
+            if worst > tolerance {
+                let cpu32: Vec<f32> = cpu.iter().map(|v| *v as f32).collect();
+                let at = save_comparison(&format!("blend_ceiling_{pixels}px_{splats}"), 16, 20, 1, &gpu, &cpu32);
+                panic!("{pixels} px, {splats} splats: relative error {worst:e} > {tolerance:e}; images at {at}");
+            }
+            if splats == 0 {
+                // Nothing blended: T = 1 and rgb = 0 at each pixel.
+                assert!(gpu.iter().all(|s| *s == pixels as f32), "{gpu:?}");
+            }
+        }
+    }
+    assert!(blend_ceiling_run(&d, 3, count, 8).is_err(), "3 pixels per invocation is not a variant");
+    assert!(blend_ceiling_run(&d, 2, count, BLEND_CEILING_MAX_SPLATS + 1).is_err(), "too many splats to contribute");
+    assert_no_validation_messages(&d);
+}
+
+#[test]
+fn blend_ceiling_for_a_work_mix_counts_only_the_flops_that_work_would_count() {
+    let c = BlendCeiling { pixels: 4, gflops: 42.0 };
+    let all = (BLEND_FLOPS_PER_EVALUATION + BLEND_FLOPS_PER_CONTRIBUTION) as f64;
+    assert!((c.for_work(1000, 1000) - 42.0).abs() < 1e-12);
+    assert!((c.for_work(1000, 0) - 42.0 * BLEND_FLOPS_PER_EVALUATION as f64 / all).abs() < 1e-12);
+    assert!((c.for_work(1000, 250) - 42.0 * (12.0 + 0.25 * 9.0) / 21.0).abs() < 1e-12);
+    assert_eq!(c.for_work(0, 0), 42.0);
+}
+
+#[test]
+fn pair_move_probe_reads_and_writes_every_pair() {
+    let d = device();
+    // Not a multiple of the 4,096 pairs of a workgroup, nor of the 64 of an invocation.
+    let n = 10_007u32;
+    let mut state = 0x1234_5678_9abc_def1u64;
+    let mut next = || {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        state as u32
+    };
+    let keys: Vec<[u32; 2]> = (0..n).map(|_| [next(), next()]).collect();
+    let values: Vec<u32> = (0..n).map(|_| next()).collect();
+    let dest = random_permutation(n, 99);
+    let mut sorted = dest.clone();
+    sorted.sort_unstable();
+    assert!(sorted.iter().copied().eq(0..n), "random_permutation is not a permutation");
+    let (kb, vb, db) =
+        (d.upload("keys", &keys).unwrap(), d.upload("values", &values).unwrap(), d.upload("dest", &dest).unwrap());
+    const SENTINEL: u32 = 0xdead_beef;
+    let untouched_keys = vec![[SENTINEL; 2]; n as usize];
+    let untouched_values = vec![SENTINEL; n as usize];
+    let ko = d.create_buffer("keys out", u64::from(n) * 8, MemoryKind::Storage).unwrap();
+    let vo = d.create_buffer("values out", u64::from(n) * 4, MemoryKind::Storage).unwrap();
+    let checksums = pair_move_cpu(&keys, &values);
+    assert_eq!(checksums.len(), (n as usize).div_ceil(64));
+    for writes in [PairWrites::None, PairWrites::Value, PairWrites::Pair, PairWrites::ValueScattered] {
+        d.write_buffer(&ko, 0, &untouched_keys).unwrap();
+        d.write_buffer(&vo, 0, &untouched_values).unwrap();
+        let seconds = pair_move_run(&d, writes, &kb, &vb, &db, u64::from(n), &ko, &vo).unwrap();
+        assert!(seconds.is_finite() && seconds >= 0.0, "{writes:?}: GPU time {seconds}");
+        let got_keys: Vec<[u32; 2]> = d.read_buffer(&ko).unwrap();
+        let got_values: Vec<u32> = d.read_buffer(&vo).unwrap();
+        let mut want_values = untouched_values.clone();
+        match writes {
+            PairWrites::None => want_values[..checksums.len()].copy_from_slice(&checksums),
+            PairWrites::Value | PairWrites::Pair => want_values.copy_from_slice(&values),
+            PairWrites::ValueScattered => {
+                for (i, &at) in dest.iter().enumerate() {
+                    want_values[at as usize] = values[i];
+                }
+            }
+        }
+        let want_keys = if writes == PairWrites::Pair { &keys } else { &untouched_keys };
+        assert!(got_keys == *want_keys, "{writes:?}: keys out differ");
+        let wrong = got_values.iter().zip(&want_values).filter(|(g, w)| g != w).count();
+        assert_eq!(wrong, 0, "{writes:?}: {wrong} of {n} values out differ");
+    }
+    let err = pair_move_run(&d, PairWrites::Pair, &kb, &vb, &db, 0, &ko, &vo).unwrap_err();
+    assert!(err.to_string().contains("0 pairs"), "{err}");
+    let err = pair_move_run(&d, PairWrites::Pair, &kb, &vb, &db, u64::from(n) + 1, &ko, &vo).unwrap_err();
+    assert!(err.to_string().contains("too small"), "{err}");
+    assert_no_validation_messages(&d);
+}
