@@ -586,14 +586,27 @@ fn run(cli: Cli) -> srug::Result<()> {
             );
             let ms = |s: f64| s * 1e3;
             println!(
-                "pair-move floor, {} pairs (each read once; written once to the same index): read only {:.1} ms, writing the value {:.1} ms, writing key and value {:.1} ms, writing the value to a random index {:.1} ms; a sort at 2x sort_unstable has {:.1} ms in all",
+                "pair-move floor, {} pairs (each read once; written once to the same index): read only {:.1} ms, writing the value {:.1} ms, writing key and value {:.1} ms; writing the value where a radix pass would put it, {} ms, to a random index {:.1} ms",
                 floor.keys,
                 ms(floor.read_seconds),
                 ms(floor.value_seconds),
                 ms(floor.pair_seconds),
-                ms(floor.scattered_seconds),
-                ms(floor.keys as f64 / (2.0 * sort.cpu_keys_per_second))
+                floor
+                    .digit_seconds
+                    .iter()
+                    .map(|(bits, s)| format!("{bits}-bit digits {:.1}", ms(*s)))
+                    .collect::<Vec<_>>()
+                    .join(", "),
+                ms(floor.random_seconds),
             );
+            if let Some((digit, bound)) = floor.lsd_bound(sort.bits) {
+                println!(
+                    "an LSD radix sort of {}-bit keys needs at least {:.1} ms at these floors ({digit}-bit digits, histograms not counted); 2x sort_unstable allows {:.1} ms",
+                    sort.bits,
+                    ms(bound),
+                    ms(floor.keys as f64 / (2.0 * sort.cpu_keys_per_second))
+                );
+            }
             Ok(())
         }
         Command::Bench { what: BenchKind::Unet { widths, sizes, repeats, inputs } } => {

@@ -6,8 +6,8 @@
 #![allow(clippy::unwrap_used, clippy::expect_used, reason = "a failed unwrap is a failed test")]
 
 use srug::bench::limits::{
-    blend_ceiling_cpu, blend_ceiling_run, pair_move_cpu, pair_move_run, random_permutation, BlendCeiling, PairWrites,
-    BLEND_CEILING_MAX_SPLATS, BLEND_CEILING_PIXELS,
+    blend_ceiling_cpu, blend_ceiling_run, pair_move_cpu, pair_move_run, radix_pass_permutation, random_permutation,
+    stable_digit_permutation, BlendCeiling, PairMoveFloor, PairWrites, BLEND_CEILING_MAX_SPLATS, BLEND_CEILING_PIXELS,
 };
 use srug::bench::{BLEND_FLOPS_PER_CONTRIBUTION, BLEND_FLOPS_PER_EVALUATION};
 use srug::gpu::MemoryKind;
@@ -120,4 +120,40 @@ fn pair_move_probe_reads_and_writes_every_pair() {
     let err = pair_move_run(&d, PairWrites::Pair, &kb, &vb, &db, u64::from(n) + 1, &ko, &vo).unwrap_err();
     assert!(err.to_string().contains("too small"), "{err}");
     assert_no_validation_messages(&d);
+}
+
+#[test]
+fn radix_pass_destinations_are_a_stable_partition_by_digit() {
+    // Digits 2, 0, 1, 0, 2, 1, 0: zeros first in input order, then ones, then twos.
+    assert_eq!(stable_digit_permutation(&[2, 0, 1, 0, 2, 1, 0], 4), vec![5, 0, 3, 1, 6, 4, 2]);
+    assert!(stable_digit_permutation(&[], 16).is_empty());
+    for bits in [4, 8, 11] {
+        let p = radix_pass_permutation(50_000, bits, 7);
+        let mut sorted = p.clone();
+        sorted.sort_unstable();
+        assert!(sorted.iter().copied().eq(0..50_000), "{bits}-bit digits: not a permutation");
+        // Runs of consecutive destinations: about one per element once buckets outnumber neighbours' matches.
+        let breaks = p.windows(2).filter(|w| w[1] != w[0] + 1).count();
+        assert!(breaks > 50_000 * 9 / 10, "{bits}-bit digits: {breaks} breaks, the digits are not random");
+    }
+}
+
+#[test]
+fn lsd_bound_takes_the_cheapest_digit_width() {
+    let floor = PairMoveFloor {
+        keys: 1000,
+        read_seconds: 1.0,
+        value_seconds: 1.0,
+        pair_seconds: 2.0,
+        digit_seconds: vec![(4, 0.010), (8, 0.025), (11, 0.040)],
+        random_seconds: 0.05,
+    };
+    // 43 bits: 11 passes × 10 ms = 110, 6 × 25 = 150, 4 × 40 = 160.
+    let (digit, seconds) = floor.lsd_bound(43).unwrap();
+    assert_eq!(digit, 4);
+    assert!((seconds - 0.110).abs() < 1e-12);
+    // 8 bits: 2 × 10 = 20, 1 × 25 = 25, 1 × 40 = 40.
+    assert_eq!(floor.lsd_bound(8).unwrap().0, 4);
+    let none = PairMoveFloor { digit_seconds: vec![], ..floor };
+    assert!(none.lsd_bound(43).is_none());
 }

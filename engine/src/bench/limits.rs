@@ -280,7 +280,7 @@ pub fn pair_move_cpu(keys: &[[u32; 2]], values: &[u32]) -> Vec<u32> {
 }
 
 /// The pair-move floor for `keys` pairs (medians of the repeats).
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Debug)]
 pub struct PairMoveFloor {
     /// Pairs moved.
     pub keys: u64,
@@ -290,8 +290,28 @@ pub struct PairMoveFloor {
     pub value_seconds: f64,
     /// Seconds to read every pair and write it whole.
     pub pair_seconds: f64,
-    /// Seconds to read every pair and a destination and write the value there (a random permutation).
-    pub scattered_seconds: f64,
+    /// Seconds to read every pair and a destination and write the value
+    /// there, for destinations as a stable radix pass over random digits of
+    /// each of [`PAIR_MOVE_DIGIT_BITS`] bits would give them.
+    pub digit_seconds: Vec<(u32, f64)>,
+    /// The same for a random permutation.
+    pub random_seconds: f64,
+}
+
+/// Digit widths the pair-move floor times scattered writes for.
+pub const PAIR_MOVE_DIGIT_BITS: [u32; 3] = [4, 8, 11];
+
+impl PairMoveFloor {
+    /// Least time an LSD radix sort of `bits`-bit keys could take at these
+    /// floors with digits of one of [`PAIR_MOVE_DIGIT_BITS`] (digit width,
+    /// seconds): every pass writes each pair at least as a value, and neither
+    /// histograms nor reading the keys again are counted.
+    pub fn lsd_bound(&self, bits: u32) -> Option<(u32, f64)> {
+        self.digit_seconds
+            .iter()
+            .map(|&(digit, seconds)| (digit, f64::from(bits.div_ceil(digit)) * seconds))
+            .min_by(|a, b| a.1.total_cmp(&b.1))
+    }
 }
 
 /// Measures the pair-move floor over `n` pairs.
@@ -300,7 +320,7 @@ pub fn pair_move_floor(device: &Device, n: u64, repeats: usize) -> Result<PairMo
     let values: Vec<u32> = (0..n as u32).collect();
     let kb = device.upload("pair-move keys", &keys)?;
     let vb = device.upload("pair-move values", &values)?;
-    let db = device.upload("pair-move destinations", &random_permutation(n as u32, 0x2545_f491))?;
+    let db = device.create_buffer("pair-move destinations", n.max(1) * 4, MemoryKind::Storage)?;
     let ko = device.create_buffer("pair-move keys out", n.max(1) * 8, MemoryKind::Storage)?;
     let vo = device.create_buffer("pair-move values out", n.max(1) * 4, MemoryKind::Storage)?;
     let time = |writes| -> Result<f64> {
@@ -308,13 +328,58 @@ pub fn pair_move_floor(device: &Device, n: u64, repeats: usize) -> Result<PairMo
             (0..repeats.max(1)).map(|_| pair_move_run(device, writes, &kb, &vb, &db, n, &ko, &vo)).collect();
         Ok(median(runs?))
     };
+    let scattered = |dest: Vec<u32>| -> Result<f64> {
+        device.write_buffer(&db, 0, &dest)?;
+        time(PairWrites::ValueScattered)
+    };
+    let digit_seconds = PAIR_MOVE_DIGIT_BITS
+        .iter()
+        .map(|&bits| Ok((bits, scattered(radix_pass_permutation(n as u32, bits, 0x2545_f491))?)))
+        .collect::<Result<Vec<_>>>()?;
+    let random_seconds = scattered(random_permutation(n as u32, 0x2545_f491))?;
     Ok(PairMoveFloor {
         keys: n,
         read_seconds: time(PairWrites::None)?,
         value_seconds: time(PairWrites::Value)?,
         pair_seconds: time(PairWrites::Pair)?,
-        scattered_seconds: time(PairWrites::ValueScattered)?,
+        digit_seconds,
+        random_seconds,
     })
+}
+
+/// Where a stable radix pass puts each of `n` elements whose digits are
+/// random `bits`-bit numbers (from `seed`): a permutation of `0..n`.
+pub fn radix_pass_permutation(n: u32, bits: u32, seed: u64) -> Vec<u32> {
+    let mut state = seed | 1;
+    let buckets = 1usize << bits.min(24);
+    let digits: Vec<usize> = (0..n)
+        .map(|_| {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 32) as usize % buckets
+        })
+        .collect();
+    stable_digit_permutation(&digits, buckets)
+}
+
+/// Where a stable counting sort by `digits` (each below `buckets`) puts each element.
+pub fn stable_digit_permutation(digits: &[usize], buckets: usize) -> Vec<u32> {
+    let mut next = vec![0u32; buckets];
+    for &d in digits {
+        next[d] += 1;
+    }
+    let mut sum = 0;
+    for c in &mut next {
+        (*c, sum) = (sum, sum + *c);
+    }
+    digits
+        .iter()
+        .map(|&d| {
+            next[d] += 1;
+            next[d] - 1
+        })
+        .collect()
 }
 
 /// A permutation of `0..n` (Fisher–Yates on a xorshift stream from `seed`).
