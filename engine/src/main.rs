@@ -586,7 +586,7 @@ fn run(cli: Cli) -> srug::Result<()> {
             );
             let ms = |s: f64| s * 1e3;
             println!(
-                "pair-move floor, {} pairs (each read once; written once to the same index): read only {:.1} ms, writing the value {:.1} ms, writing key and value {:.1} ms; writing the value where a radix pass would put it, {} ms, to a random index {:.1} ms",
+                "pair-move floor, {} pairs (each read once; written once to the same index): read only {:.1} ms, writing the value {:.1} ms, writing key and value {:.1} ms; writing the value where a radix pass would put it, by digit width in bits, {} ms; to a random index {:.1} ms",
                 floor.keys,
                 ms(floor.read_seconds),
                 ms(floor.value_seconds),
@@ -594,14 +594,14 @@ fn run(cli: Cli) -> srug::Result<()> {
                 floor
                     .digit_seconds
                     .iter()
-                    .map(|(bits, s)| format!("{bits}-bit digits {:.1}", ms(*s)))
+                    .map(|(bits, s)| format!("{bits}: {:.1}", ms(*s)))
                     .collect::<Vec<_>>()
                     .join(", "),
                 ms(floor.random_seconds),
             );
             if let Some((digit, bound)) = floor.lsd_bound(sort.bits) {
                 println!(
-                    "an LSD radix sort of {}-bit keys needs at least {:.1} ms at these floors ({digit}-bit digits, histograms not counted); 2x sort_unstable allows {:.1} ms",
+                    "an LSD radix sort of {}-bit keys needs at least {:.1} ms at these floors (best digit width {digit} bits: each pass writes every pair where it goes and its bucket offsets; counting digits not included); 2x sort_unstable allows {:.1} ms",
                     sort.bits,
                     ms(bound),
                     ms(floor.keys as f64 / (2.0 * sort.cpu_keys_per_second))

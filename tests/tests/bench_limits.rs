@@ -142,18 +142,30 @@ fn radix_pass_destinations_are_a_stable_partition_by_digit() {
 fn lsd_bound_takes_the_cheapest_digit_width() {
     let floor = PairMoveFloor {
         keys: 1000,
-        read_seconds: 1.0,
-        value_seconds: 1.0,
-        pair_seconds: 2.0,
+        read_seconds: 0.001,
+        value_seconds: 0.009,
+        pair_seconds: 0.020,
         digit_seconds: vec![(4, 0.010), (8, 0.025), (11, 0.040)],
         random_seconds: 0.05,
     };
-    // 43 bits: 11 passes × 10 ms = 110, 6 × 25 = 150, 4 × 40 = 160.
-    let (digit, seconds) = floor.lsd_bound(43).unwrap();
-    assert_eq!(digit, 4);
-    assert!((seconds - 0.110).abs() < 1e-12);
-    // 8 bits: 2 × 10 = 20, 1 × 25 = 25, 1 × 40 = 40.
-    assert_eq!(floor.lsd_bound(8).unwrap().0, 4);
-    let none = PairMoveFloor { digit_seconds: vec![], ..floor };
-    assert!(none.lsd_bound(43).is_none());
+    // Offsets cost 9 µs per word (9 ms / 1000 pairs) × 2^width a pass. 43 bits: widths 4–7
+    // scatter at 10 ms, 8–10 at 25, 11+ at 40; 7 bits wins: 7 × (10 + 1.152) ms.
+    let (width, seconds) = floor.lsd_bound(43).unwrap();
+    assert_eq!(width, 7);
+    assert!((seconds - 7.0 * (0.010 + 0.009 * 128.0 / 1000.0)).abs() < 1e-12, "{seconds}");
+    // 12 bits: 6 bits, 2 × (10 + 0.576) ms, beats 4 bits (3 × 10.144) and 12 bits (40 + 36.864).
+    let (width, seconds) = floor.lsd_bound(12).unwrap();
+    assert_eq!(width, 6);
+    assert!((seconds - 2.0 * (0.010 + 0.009 * 64.0 / 1000.0)).abs() < 1e-12, "{seconds}");
+    // 3 bits: narrower than any timed width, so the contiguous write: 1 pass of 9 + 0.072 ms.
+    let (width, seconds) = floor.lsd_bound(3).unwrap();
+    assert_eq!(width, 3);
+    assert!((seconds - (0.009 + 0.009 * 8.0 / 1000.0)).abs() < 1e-12, "{seconds}");
+    assert!(floor.lsd_bound(0).is_none());
+    // Noise that makes a narrower width dearer than a wider one: the wider one's time bounds both.
+    // 6 bits in one pass: 20 ms (not the 30 timed at 4 bits) + 64 offsets at 25 µs.
+    let noisy = PairMoveFloor { value_seconds: 0.025, digit_seconds: vec![(4, 0.030), (8, 0.020)], ..floor };
+    let (width, seconds) = noisy.lsd_bound(6).unwrap();
+    assert_eq!(width, 6);
+    assert!((seconds - (0.020 + 0.025 * 64.0 / 1000.0)).abs() < 1e-12, "{seconds}");
 }

@@ -18,7 +18,7 @@
 
 use bytemuck::{Pod, Zeroable};
 
-use super::{median, BLEND_FLOPS_PER_CONTRIBUTION, BLEND_FLOPS_PER_EVALUATION};
+use super::{BLEND_FLOPS_PER_CONTRIBUTION, BLEND_FLOPS_PER_EVALUATION};
 use crate::error::{Error, Result};
 use crate::gpu::{
     kernels, Binding, BindingKind, Buffer, Device, Kernel, KernelDecl, MemoryKind, SpecValue, TexelFormat, Texels,
@@ -279,7 +279,7 @@ pub fn pair_move_cpu(keys: &[[u32; 2]], values: &[u32]) -> Vec<u32> {
         .collect()
 }
 
-/// The pair-move floor for `keys` pairs (medians of the repeats).
+/// The pair-move floor for `keys` pairs (the best of the repeats).
 #[derive(Clone, Debug)]
 pub struct PairMoveFloor {
     /// Pairs moved.
@@ -292,24 +292,42 @@ pub struct PairMoveFloor {
     pub pair_seconds: f64,
     /// Seconds to read every pair and a destination and write the value
     /// there, for destinations as a stable radix pass over random digits of
-    /// each of [`PAIR_MOVE_DIGIT_BITS`] bits would give them.
+    /// each width from 1 to [`PAIR_MOVE_MAX_DIGIT_BITS`] bits would give them.
     pub digit_seconds: Vec<(u32, f64)>,
     /// The same for a random permutation.
     pub random_seconds: f64,
 }
 
-/// Digit widths the pair-move floor times scattered writes for.
-pub const PAIR_MOVE_DIGIT_BITS: [u32; 3] = [4, 8, 11];
+/// The pair-move floor times scattered writes for every digit width from 1 to this.
+pub const PAIR_MOVE_MAX_DIGIT_BITS: u32 = 22;
 
 impl PairMoveFloor {
     /// Least time an LSD radix sort of `bits`-bit keys could take at these
-    /// floors with digits of one of [`PAIR_MOVE_DIGIT_BITS`] (digit width,
-    /// seconds): every pass writes each pair at least as a value, and neither
-    /// histograms nor reading the keys again are counted.
+    /// floors, over every digit width from 1 to `bits`: (digit width, seconds).
+    /// Each of its ⌈bits / width⌉ passes writes every pair at least as a value,
+    /// where a pass of that width puts it, and writes its 2^width bucket
+    /// offsets at least once (at the contiguous write's cost per word).
+    /// More buckets never scatter the writes less, so a pass costs at least
+    /// the cheapest timing at its width or wider, and an untimed width costs
+    /// at least the widest timed width below it (the contiguous write below
+    /// the narrowest). Counting the digits and reading keys again are not counted.
     pub fn lsd_bound(&self, bits: u32) -> Option<(u32, f64)> {
-        self.digit_seconds
-            .iter()
-            .map(|&(digit, seconds)| (digit, f64::from(bits.div_ceil(digit)) * seconds))
+        let per_word = self.value_seconds / self.keys.max(1) as f64;
+        let scatter = |width: u32| {
+            let below = self.digit_seconds.iter().map(|d| d.0).filter(|t| *t <= width).max();
+            let from = below.unwrap_or(0);
+            let wider = self.digit_seconds.iter().filter(|d| d.0 >= from).map(|d| d.1).fold(f64::INFINITY, f64::min);
+            if below.is_none() {
+                wider.min(self.value_seconds)
+            } else {
+                wider
+            }
+        };
+        (1..=bits)
+            .map(|width| {
+                let offsets = per_word * 2f64.powf(f64::from(width));
+                (width, f64::from(bits.div_ceil(width)) * (scatter(width) + offsets))
+            })
             .min_by(|a, b| a.1.total_cmp(&b.1))
     }
 }
@@ -323,18 +341,18 @@ pub fn pair_move_floor(device: &Device, n: u64, repeats: usize) -> Result<PairMo
     let db = device.create_buffer("pair-move destinations", n.max(1) * 4, MemoryKind::Storage)?;
     let ko = device.create_buffer("pair-move keys out", n.max(1) * 8, MemoryKind::Storage)?;
     let vo = device.create_buffer("pair-move values out", n.max(1) * 4, MemoryKind::Storage)?;
+    // A floor: the best of the repeats (interference only ever slows a run).
     let time = |writes| -> Result<f64> {
         let runs: Result<Vec<f64>> =
             (0..repeats.max(1)).map(|_| pair_move_run(device, writes, &kb, &vb, &db, n, &ko, &vo)).collect();
-        Ok(median(runs?))
+        Ok(runs?.into_iter().fold(f64::INFINITY, f64::min))
     };
     let scattered = |dest: Vec<u32>| -> Result<f64> {
         device.write_buffer(&db, 0, &dest)?;
         time(PairWrites::ValueScattered)
     };
-    let digit_seconds = PAIR_MOVE_DIGIT_BITS
-        .iter()
-        .map(|&bits| Ok((bits, scattered(radix_pass_permutation(n as u32, bits, 0x2545_f491))?)))
+    let digit_seconds = (1..=PAIR_MOVE_MAX_DIGIT_BITS)
+        .map(|bits| Ok((bits, scattered(radix_pass_permutation(n as u32, bits, 0x2545_f491))?)))
         .collect::<Result<Vec<_>>>()?;
     let random_seconds = scattered(random_permutation(n as u32, 0x2545_f491))?;
     Ok(PairMoveFloor {
