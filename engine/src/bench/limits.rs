@@ -10,8 +10,10 @@
 //!   contribute and so count fewer flops at the same cost, the bound is
 //!   [`BlendCeiling::for_work`].
 //! - **Pair-move floor** (`bench_pair_move.comp`): every (key, value) pair
-//!   read once, and written once to the same index. Every radix pass does at
-//!   least this much, so it bounds a pass from below.
+//!   read once, and written once to the same index, or to where a stable
+//!   radix pass of each digit width would put it. Every radix pass does at
+//!   least this much, so it bounds a pass from below, and
+//!   [`PairMoveFloor::lsd_bound`] bounds a whole LSD radix sort.
 //!
 //! Both kernels have CPU twins here ([`blend_ceiling_cpu`], [`pair_move_cpu`])
 //! that the tests check them against.
@@ -334,6 +336,9 @@ impl PairMoveFloor {
 
 /// Measures the pair-move floor over `n` pairs.
 pub fn pair_move_floor(device: &Device, n: u64, repeats: usize) -> Result<PairMoveFloor> {
+    if n == 0 || n > u64::from(u32::MAX) {
+        return Err(Error::InvalidArgument(format!("pair-move floor over {n} pairs: needs 1 to 2³² − 1")));
+    }
     let keys: Vec<[u32; 2]> = (0..n as u32).map(|i| [i.wrapping_mul(0x9e37_79b9), i]).collect();
     let values: Vec<u32> = (0..n as u32).collect();
     let kb = device.upload("pair-move keys", &keys)?;
@@ -366,7 +371,7 @@ pub fn pair_move_floor(device: &Device, n: u64, repeats: usize) -> Result<PairMo
 }
 
 /// Where a stable radix pass puts each of `n` elements whose digits are
-/// random `bits`-bit numbers (from `seed`): a permutation of `0..n`.
+/// random `bits`-bit numbers (at most 24; from `seed`): a permutation of `0..n`.
 pub fn radix_pass_permutation(n: u32, bits: u32, seed: u64) -> Vec<u32> {
     let mut state = seed | 1;
     let buckets = 1usize << bits.min(24);
