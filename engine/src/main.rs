@@ -601,7 +601,7 @@ fn run(cli: Cli) -> srug::Result<()> {
             );
             if let Some((digit, bound)) = floor.lsd_bound(sort.bits) {
                 println!(
-                    "an LSD radix sort of {}-bit keys needs at least {:.1} ms at these floors (best digit width {digit} bits: each pass writes every pair where it goes and its bucket offsets; counting digits not included); 2x sort_unstable allows {:.1} ms",
+                    "an LSD radix sort of {}-bit keys needs at least {:.1} ms at these floors (best digit width {digit} bits: each pass writes every pair where it goes and its bucket offsets, and above 4 bits updates a count in memory per key); 2x sort_unstable allows {:.1} ms",
                     sort.bits,
                     ms(bound),
                     ms(floor.keys as f64 / (2.0 * sort.cpu_keys_per_second))

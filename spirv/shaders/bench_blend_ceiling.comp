@@ -3,7 +3,7 @@
 // (splat_alpha, the stop test, weight, transmittance and rgb, as selects like
 // splat_blend_texel.comp) with no memory traffic: the splats come from the
 // loop counter (a few ops, the same for every lane) and each invocation blends
-// PIXELS pixels. Splats are faint and wide, so every evaluation contributes
+// PIXELS pixels (distinct, all within 17×16 of the splats' means). Splats are faint and wide, so every evaluation contributes
 // and, under the benchmark's flop counts, no blend kernel can do better on
 // the device.
 // CPU twin: engine/src/bench.rs `blend_ceiling_cpu`.
@@ -30,7 +30,8 @@ void main() {
     [[unroll]] for (uint k = 0u; k < PIXELS; k++) {
         T[k] = 1.0;
         rgb[k] = vec3(0.0);
-        centre[k] = vec2(float(i % 16u), float(k + (i / 16u) % 16u)) + 0.5;
+        // Distinct for every k (else the compiler merges pixels that blend alike).
+        centre[k] = vec2(float(i % 16u) + float(k) / 64.0, float((k + i / 16u) % 16u)) + 0.5;
     }
     for (uint j = 0u; j < pc.splats; j++) {
         // α ≥ 0.0048 > 1/255 at every centre (σ ≤ 0.025), and 0.995^1024 > 1e-4.

@@ -52,6 +52,7 @@ fn blend_ceiling_probe_matches_its_twin_and_every_evaluation_contributes() {
         }
     }
     assert!(blend_ceiling_run(&d, 3, count, 8).is_err(), "3 pixels per invocation is not a variant");
+    assert!(blend_ceiling_run(&d, 128, count, 8).is_err(), "nor is 128");
     assert!(blend_ceiling_run(&d, 2, count, BLEND_CEILING_MAX_SPLATS + 1).is_err(), "too many splats to contribute");
     assert_no_validation_messages(&d);
 }
@@ -142,30 +143,43 @@ fn radix_pass_destinations_are_a_stable_partition_by_digit() {
 fn lsd_bound_takes_the_cheapest_digit_width() {
     let floor = PairMoveFloor {
         keys: 1000,
-        read_seconds: 0.001,
+        read_seconds: 0.006,
         value_seconds: 0.009,
         pair_seconds: 0.020,
         digit_seconds: vec![(4, 0.010), (8, 0.025), (11, 0.040)],
         random_seconds: 0.05,
     };
-    // Offsets cost 9 µs per word (9 ms / 1000 pairs) × 2^width a pass. 43 bits: widths 4–7
-    // scatter at 10 ms, 8–10 at 25, 11+ at 40; 7 bits wins: 7 × (10 + 1.152) ms.
+    // A pass: scatter (10 ms at widths 4–7, 25 at 8–10, 40 from 11) + 9 µs × 2^width of offsets
+    // + 3 ms of counting (9 − 6) above 4 bits. 43 bits: 4 bits, 11 × 10.144 = 111.6 ms; 7 bits,
+    // 7 × 14.152 = 99.1; 8 bits, 6 × 30.304 = 181.8; 11 bits, 4 × 61.43 = 245.7: 7 bits wins.
+    let pass = |scatter: f64, width: i32, counted: bool| {
+        scatter + 0.009 * 2f64.powi(width) / 1000.0 + if counted { 0.003 } else { 0.0 }
+    };
     let (width, seconds) = floor.lsd_bound(43).unwrap();
     assert_eq!(width, 7);
-    assert!((seconds - 7.0 * (0.010 + 0.009 * 128.0 / 1000.0)).abs() < 1e-12, "{seconds}");
-    // 12 bits: 6 bits, 2 × (10 + 0.576) ms, beats 4 bits (3 × 10.144) and 12 bits (40 + 36.864).
+    assert!((seconds - 7.0 * pass(0.010, 7, true)).abs() < 1e-12, "{seconds}");
+    // 12 bits: 4 bits (3 × 10.144 = 30.4) beats 6 bits (2 × 13.576 = 27.2)? No: 6 bits wins.
     let (width, seconds) = floor.lsd_bound(12).unwrap();
     assert_eq!(width, 6);
-    assert!((seconds - 2.0 * (0.010 + 0.009 * 64.0 / 1000.0)).abs() < 1e-12, "{seconds}");
+    assert!((seconds - 2.0 * pass(0.010, 6, true)).abs() < 1e-12, "{seconds}");
+    // 8 bits: 4 bits, 2 × 10.144 = 20.3, beats 8 bits in one pass (25 + 2.3 + 3 = 30.3).
+    let (width, seconds) = floor.lsd_bound(8).unwrap();
+    assert_eq!(width, 4);
+    assert!((seconds - 2.0 * pass(0.010, 4, false)).abs() < 1e-12, "{seconds}");
     // 3 bits: narrower than any timed width, so the contiguous write: 1 pass of 9 + 0.072 ms.
     let (width, seconds) = floor.lsd_bound(3).unwrap();
     assert_eq!(width, 3);
-    assert!((seconds - (0.009 + 0.009 * 8.0 / 1000.0)).abs() < 1e-12, "{seconds}");
+    assert!((seconds - pass(0.009, 3, false)).abs() < 1e-12, "{seconds}");
     assert!(floor.lsd_bound(0).is_none());
-    // Noise that makes a narrower width dearer than a wider one: the wider one's time bounds both.
-    // 6 bits in one pass: 20 ms (not the 30 timed at 4 bits) + 64 offsets at 25 µs.
-    let noisy = PairMoveFloor { value_seconds: 0.025, digit_seconds: vec![(4, 0.030), (8, 0.020)], ..floor };
-    let (width, seconds) = noisy.lsd_bound(6).unwrap();
-    assert_eq!(width, 6);
-    assert!((seconds - (0.020 + 0.025 * 64.0 / 1000.0)).abs() < 1e-12, "{seconds}");
+    // Noise that makes a narrower width dearer than a wider one: the wider one's time bounds
+    // both. 4 bits in one pass: 20 ms (not the 30 timed at 4 bits) + 16 offsets at 25 µs.
+    let noisy = PairMoveFloor {
+        read_seconds: 0.022,
+        value_seconds: 0.025,
+        digit_seconds: vec![(4, 0.030), (8, 0.020)],
+        ..floor
+    };
+    let (width, seconds) = noisy.lsd_bound(4).unwrap();
+    assert_eq!(width, 4);
+    assert!((seconds - (0.020 + 0.025 * 16.0 / 1000.0)).abs() < 1e-12, "{seconds}");
 }

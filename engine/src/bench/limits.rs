@@ -43,8 +43,10 @@ const _: () = assert!(std::mem::size_of::<BlendCeilingPush>() == 16);
 pub const BLEND_CEILING_FLOPS: u64 = BLEND_FLOPS_PER_EVALUATION + BLEND_FLOPS_PER_CONTRIBUTION;
 /// Most splats the probe blends per pixel while every one still contributes.
 pub const BLEND_CEILING_MAX_SPLATS: u32 = 1024;
-/// Pixels per invocation the probe accepts (as the texel-buffer blend).
-pub const BLEND_CEILING_PIXELS: [u32; 3] = crate::splat::BLEND_PIXELS;
+/// Pixels per invocation the probe accepts: those of the texel-buffer blend
+/// and wider, since a blend that kept more pixels per invocation would
+/// spread each splat's fetches over more of them.
+pub const BLEND_CEILING_PIXELS: [u32; 7] = [1, 2, 4, 8, 16, 32, 64];
 
 fn check_ceiling_args(pixels: u32, splats: u32) -> Result<()> {
     if !BLEND_CEILING_PIXELS.contains(&pixels) {
@@ -99,7 +101,7 @@ pub fn blend_ceiling_cpu(pixels: u32, count: u32, splats: u32) -> (Vec<f64>, u64
         .map(|i| {
             let mut s = 0.0;
             for k in 0..pixels {
-                let centre = [f64::from(i % 16) + 0.5, f64::from(k + (i / 16) % 16) + 0.5];
+                let centre = [f64::from(i % 16) + f64::from(k) / 64.0 + 0.5, f64::from((k + i / 16) % 16) + 0.5];
                 let (mut t, mut rgb) = (1.0f64, [0.0f64; 3]);
                 for j in 0..splats {
                     let d = [f64::from(j & 15) - centre[0], f64::from((j >> 4) & 15) - centre[1]];
@@ -148,11 +150,12 @@ impl BlendCeiling {
 }
 
 /// Measures the blend ceiling: the best GFLOP/s over [`BLEND_CEILING_PIXELS`]
-/// (each the best of `repeats`), 2¹⁶ invocations of 1,024 splats per pixel.
+/// (each the best of `repeats`), 2¹⁸ pixels of 1,024 splats each.
 pub fn blend_ceiling(device: &Device, repeats: usize) -> Result<BlendCeiling> {
-    let (count, splats) = (1u32 << 16, BLEND_CEILING_MAX_SPLATS);
+    let splats = BLEND_CEILING_MAX_SPLATS;
     let mut best = BlendCeiling { pixels: 1, gflops: 0.0 };
     for pixels in BLEND_CEILING_PIXELS {
+        let count = (1u32 << 18) / pixels;
         for _ in 0..repeats.max(1) {
             let (_, seconds) = blend_ceiling_run(device, pixels, count, splats)?;
             let flops = f64::from(count) * f64::from(pixels) * f64::from(splats) * BLEND_CEILING_FLOPS as f64;
@@ -302,17 +305,28 @@ pub struct PairMoveFloor {
 
 /// The pair-move floor times scattered writes for every digit width from 1 to this.
 pub const PAIR_MOVE_MAX_DIGIT_BITS: u32 = 22;
+/// Widest digit whose counts [`PairMoveFloor::lsd_bound`] lets a pass keep in
+/// registers for free (the sort's own 16 counts per invocation); wider digits
+/// need 2^width compare-and-adds per key in registers, or a memory update.
+pub const REGISTER_DIGIT_BITS: u32 = 4;
 
 impl PairMoveFloor {
     /// Least time an LSD radix sort of `bits`-bit keys could take at these
     /// floors, over every digit width from 1 to `bits`: (digit width, seconds).
-    /// Each of its ⌈bits / width⌉ passes writes every pair at least as a value,
-    /// where a pass of that width puts it, and writes its 2^width bucket
-    /// offsets at least once (at the contiguous write's cost per word).
-    /// More buckets never scatter the writes less, so a pass costs at least
-    /// the cheapest timing at its width or wider, and an untimed width costs
-    /// at least the widest timed width below it (the contiguous write below
-    /// the narrowest). Counting the digits and reading keys again are not counted.
+    /// Each of its ⌈bits / width⌉ passes
+    /// - writes every pair at least as a value, where a pass of that width
+    ///   puts it: more buckets never scatter the writes less, so a pass costs
+    ///   at least the cheapest timing at its width or wider, and an untimed
+    ///   width at least the widest timed width below it (the contiguous write
+    ///   below the narrowest);
+    /// - writes its 2^width bucket offsets at least once (at the contiguous
+    ///   write's cost per word);
+    /// - above [`REGISTER_DIGIT_BITS`], counts each key's digit with at least
+    ///   one per-lane memory update, priced as a per-lane write without its
+    ///   read (the contiguous write less the read-only time). Narrower digits
+    ///   can be counted in registers, and that is not counted at all.
+    ///
+    /// Reading the keys again to count them is not counted either.
     pub fn lsd_bound(&self, bits: u32) -> Option<(u32, f64)> {
         let per_word = self.value_seconds / self.keys.max(1) as f64;
         let scatter = |width: u32| {
@@ -325,10 +339,12 @@ impl PairMoveFloor {
                 wider
             }
         };
+        let update = (self.value_seconds - self.read_seconds).max(0.0);
         (1..=bits)
             .map(|width| {
                 let offsets = per_word * 2f64.powf(f64::from(width));
-                (width, f64::from(bits.div_ceil(width)) * (scatter(width) + offsets))
+                let counting = if width > REGISTER_DIGIT_BITS { update } else { 0.0 };
+                (width, f64::from(bits.div_ceil(width)) * (scatter(width) + offsets + counting))
             })
             .min_by(|a, b| a.1.total_cmp(&b.1))
     }
