@@ -200,7 +200,7 @@ int main(int argc, char **argv) {
   CHECK(srug_renderer_stage_count(r, &reused_stages));
   REQUIRE(reused_stages == fresh_stages);
 
-  /* 8-pixel tiles (the faster choice on lavapipe): the same frame up to rounding, which can
+  /* 8-pixel tiles: the same frame up to rounding, which can
      flip a few shadow-edge pixels (the sigmoid test is steep). */
   CHECK(srug_renderer_set_tile(r, 8));
   CHECK(srug_renderer_render(r, scene));
