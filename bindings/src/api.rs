@@ -1299,7 +1299,7 @@ pub unsafe extern "C" fn srug_renderer_read_image(
             let colour_buf = match (&f.shaded, format) {
                 (Some(s), SRUG_FORMAT_RGBA8_SRGB) => &s.display,
                 (Some(s), _) => &s.radiance,
-                (None, _) => &f.gbuffer.rgb,
+                (None, _) => f.gbuffer.rgb_buffer()?,
             };
             let colour = r.read_full_size(f, colour_buf, 3)?;
             let alpha = r.read_full_size(f, &f.gbuffer.alpha, 1)?;
@@ -1349,7 +1349,7 @@ pub unsafe extern "C" fn srug_renderer_read_channel(
             let g = &f.gbuffer;
             let s = f.shaded.as_ref();
             let buffer = match channel {
-                SRUG_CHANNEL_RGB => Some(&g.rgb),
+                SRUG_CHANNEL_RGB => g.rgb.as_ref(),
                 SRUG_CHANNEL_ALPHA => Some(&g.alpha),
                 SRUG_CHANNEL_DEPTH => g.depth.as_ref(),
                 SRUG_CHANNEL_MEDIAN_DEPTH => g.median_depth.as_ref(),

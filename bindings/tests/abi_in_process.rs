@@ -174,7 +174,8 @@ fn abi_renders_plain_colour_without_materials() {
     let camera = Camera::look_at(Vec3::from(eye), Vec3::from(target), Vec3::from(up), 80.0, w, h).unwrap();
     let (g, _) = Splatter::new(&d).unwrap().render(&gpu, &camera, &SplatSettings::default()).unwrap();
     let g = g.read(&d).unwrap();
-    let expect: Vec<f32> = g.rgb.chunks_exact(3).zip(&g.alpha).flat_map(|(c, a)| [c[0], c[1], c[2], *a]).collect();
+    let expect: Vec<f32> =
+        g.rgb_values().unwrap().chunks_exact(3).zip(&g.alpha).flat_map(|(c, a)| [c[0], c[1], c[2], *a]).collect();
     assert_eq!(image, expect);
     assert!(g.alpha.iter().any(|a| *a > 0.5), "the view shows the scene");
     assert_no_validation_messages(&d);

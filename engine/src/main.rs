@@ -84,8 +84,9 @@ enum Command {
         /// Output file, .png or .exr.
         #[arg(long)]
         out: PathBuf,
-        /// Channels besides rgb and alpha: depth, median_depth, normal, albedo, roughness,
-        /// metallic, ao, visibility, materials, all (EXR holds them all; PNG shows rgb).
+        /// Channels: rgb, depth, median_depth, normal, albedo, roughness, metallic, ao,
+        /// visibility, materials, all. EXR holds those listed and alpha (rgb only if listed);
+        /// PNG shows rgb.
         #[arg(long, default_value = "rgb")]
         channels: String,
         /// Background colour r,g,b.
@@ -426,8 +427,10 @@ fn run(cli: Cli) -> srug::Result<()> {
             tile,
             tile_bounds,
         } => {
-            let channels = Channels::parse(&channels)?;
             let is_exr = cli_relight::output_is_exr(&out)?;
+            // A PNG is the colour; an EXR holds what was asked for.
+            let rgb = !is_exr || Channels::names_rgb(&channels);
+            let channels = Channels::parse(&channels)?;
             let cams = view.resolve()?;
             let index = view.index;
             let scene = scene::read_ply(&path)?;
@@ -442,6 +445,7 @@ fn run(cli: Cli) -> srug::Result<()> {
                 sh_degree,
                 tile,
                 tile_bounds,
+                rgb,
             };
             let bar = if cams.len() > 1 { ProgressBar::new(cams.len() as u64) } else { ProgressBar::hidden() };
             bar.set_style(
@@ -455,7 +459,7 @@ fn run(cli: Cli) -> srug::Result<()> {
                 if is_exr {
                     output::write_exr(&target, &g)?;
                 } else {
-                    output::write_png(&target, g.width, g.height, &g.rgb)?;
+                    output::write_png(&target, g.width, g.height, g.rgb_values()?)?;
                 }
                 bar.inc(1);
                 bar.println(format!(
@@ -1015,7 +1019,7 @@ fn run(cli: Cli) -> srug::Result<()> {
             let (gbuffer, stats) = splatter.render(&gpu_scene, &city.cameras[0], &settings)?;
             let g = gbuffer.read(&device)?;
             let image = out.join("demo_city.png");
-            output::write_png(&image, g.width, g.height, &g.rgb)?;
+            output::write_png(&image, g.width, g.height, g.rgb_values()?)?;
             println!(
                 "rendered camera {} ({}x{}): {} pairs sorted on {} bits; GPU {}",
                 city.cameras[0].name,

@@ -12,7 +12,7 @@ use crate::indirect::{StoragePrecision, UNetConfig};
 use crate::scene::{human_bytes, Scene};
 use crate::shade::relight::{RelightDecisions, RelightSettings};
 use crate::shadow::{depth_channels, light_camera, Sun};
-use crate::splat::{BlendVariant, Channels, FEATURE_BYTES, SPLAT_BYTES};
+use crate::splat::{BlendVariant, Channels, FEATURE_BYTES, RGB_BIT, SPLAT_BYTES};
 
 /// What the plan is for.
 #[derive(Clone, Debug)]
@@ -86,9 +86,9 @@ impl FramePlan {
     }
 }
 
-/// Channel names, rgb and alpha first.
-pub fn channel_names(c: Channels) -> Vec<&'static str> {
-    let mut v = vec!["rgb", "alpha"];
+/// Channel names, rgb (when blended) and alpha first.
+pub fn channel_names(c: Channels, rgb: bool) -> Vec<&'static str> {
+    let mut v: Vec<&'static str> = if rgb { vec!["rgb", "alpha"] } else { vec!["alpha"] };
     let named = [
         (c.depth, "depth"),
         (c.median_depth, "median_depth"),
@@ -103,29 +103,36 @@ pub fn channel_names(c: Channels) -> Vec<&'static str> {
     v
 }
 
-/// Floats per pixel of a G-buffer with these channels (rgb and alpha included).
-fn floats_per_pixel(c: Channels) -> u64 {
+/// Floats per pixel of a G-buffer with these channels (alpha and, when blended, rgb included).
+fn floats_per_pixel(c: Channels, rgb: bool) -> u64 {
     let three = [c.normal, c.albedo].iter().filter(|b| **b).count() as u64;
     let one = [c.depth, c.median_depth, c.roughness, c.metallic, c.ao, c.visibility].iter().filter(|b| **b).count();
-    4 + 3 * three + one as u64
+    1 + 3 * u64::from(rgb) + 3 * three + one as u64
 }
 
-fn splat_stage(name: &str, n: u64, texels: u64, channels: Channels, blend: BlendVariant, tile: u32) -> PlannedStage {
+fn splat_stage(
+    name: &str,
+    n: u64,
+    texels: u64,
+    (channels, rgb): (Channels, bool),
+    blend: BlendVariant,
+    tile: u32,
+) -> PlannedStage {
     let features = if channels.needs_features() { n * FEATURE_BYTES } else { 0 };
     PlannedStage {
         name: name.to_string(),
         kernels: format!(
-            "preprocess, scan, keys, radix sort, ranges, blend {blend:?}{} with CHANNELS = {:#010b} [{}], \
+            "preprocess, scan, keys, radix sort, ranges, blend {blend:?}{} with CHANNELS = {:#011b} [{}], \
              {tile}×{tile} tiles",
             if blend == BlendVariant::SubgroupLoads {
                 " (texel-buffer reads where the device has the views and the pairs fit them)"
             } else {
                 ""
             },
-            channels.bits(),
-            channel_names(channels).join(", ")
+            channels.bits() | u32::from(rgb) << RGB_BIT,
+            channel_names(channels, rgb).join(", ")
         ),
-        bytes: texels * floats_per_pixel(channels) * 4 + n * SPLAT_BYTES + features,
+        bytes: texels * floats_per_pixel(channels, rgb) * 4 + n * SPLAT_BYTES + features,
         note: "; keys and sort scratch grow with the (Gaussian, tile) pairs".into(),
     }
 }
@@ -139,7 +146,8 @@ pub fn plan_frame(scene: &Scene, settings: &PlanSettings<'_>) -> Result<FramePla
     // The frame is splatted and shaded at the render scale.
     let (width, height) = settings.relight.render_size(settings.width, settings.height);
     let pixels = u64::from(width) * u64::from(height);
-    let mut stages = vec![splat_stage("splat (camera)", n, pixels, d.channels, settings.blend, settings.relight.tile)];
+    let camera = (d.channels, true);
+    let mut stages = vec![splat_stage("splat (camera)", n, pixels, camera, settings.blend, settings.relight.tile)];
     let mut skipped = Vec::new();
     if !d.shading {
         skipped.push("shading: the scene has no albedo attribute (its plain 3DGS colour is the image)".into());
@@ -151,7 +159,8 @@ pub fn plan_frame(scene: &Scene, settings: &PlanSettings<'_>) -> Result<FramePla
                 .bounds()
                 .and_then(|b| light_camera(&b, &sun, st.resolution, st.fit, None).ok())
                 .map_or(u64::from(st.resolution).pow(2), |c| u64::from(c.width) * u64::from(c.height));
-            let map_channels = depth_channels(st.map_depth);
+            // Shadow maps blend no colour (ShadowPass::shadow_map_from).
+            let map_channels = (depth_channels(st.map_depth), false);
             let mut map = splat_stage("splat (shadow map)", n, texels, map_channels, settings.blend, st.tile);
             map.note.push_str(
                 "; with shadow-map reuse on (`srug relight`), later frames skip it while the scene, the sun's \

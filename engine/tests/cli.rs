@@ -52,7 +52,7 @@ fn demo_generates_writes_and_checks_the_gpu() {
         "--out",
         exr_out.to_str().unwrap(),
         "--channels",
-        "depth,normal,materials",
+        "rgb,depth,normal,materials",
         "--size",
         "176x48",
         "--validation",
@@ -67,6 +67,27 @@ fn demo_generates_writes_and_checks_the_gpu() {
         }
         assert_eq!(image.layer_data[0].size.0, 176);
     }
+    // Without rgb in the list the EXR holds alpha and the channels named, no colour.
+    let depth_out = dir.path().join("depth.exr");
+    let o = srug(&[
+        "render",
+        ply.to_str().unwrap(),
+        "--cameras",
+        cams.to_str().unwrap(),
+        "--index",
+        "1",
+        "--out",
+        depth_out.to_str().unwrap(),
+        "--channels",
+        "depth",
+        "--size",
+        "176x48",
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    let image = exr::prelude::read_all_flat_layers_from_file(&depth_out).unwrap();
+    let mut names: Vec<String> = image.layer_data[0].channel_data.list.iter().map(|c| c.name.to_string()).collect();
+    names.sort();
+    assert_eq!(names, ["A", "Z"], "{depth_out:?}");
     let png_out = dir.path().join("one.png");
     let o = srug(&[
         "render",

@@ -67,6 +67,12 @@ fn plan_matches_what_runs_and_nothing_unneeded_runs() {
         // The shadow-map splat says when a sequence can skip it (Relighter::set_shadow_map_reuse).
         let map_note = plan.stages.iter().find(|s| s.name == "splat (shadow map)").map(|s| s.note.as_str());
         assert_eq!(map_note.is_some_and(|n| n.contains("shadow-map reuse")), above, "{label}");
+        // The shadow map blends depth and alpha, no colour; the camera splat blends colour.
+        let kernels = |name: &str| plan.stages.iter().find(|s| s.name == name).map(|s| s.kernels.clone());
+        if let Some(k) = kernels("splat (shadow map)") {
+            assert!(k.contains("alpha") && !k.contains("rgb"), "{k}");
+        }
+        assert!(kernels("splat (camera)").is_some_and(|k| k.contains("rgb, alpha")), "{label}");
         assert!(has("shade lights") && has("shade compose"), "{label}");
         assert_eq!(has("indirect input"), network, "inference iff weights: {label}");
         assert_eq!(plan.stages.iter().any(|s| s.name.contains("U-Net")), network, "{label}");

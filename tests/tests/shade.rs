@@ -194,7 +194,7 @@ fn upload(d: &Device, g: &GBuffer) -> GpuGBuffer {
     GpuGBuffer {
         width: g.width,
         height: g.height,
-        rgb: d.upload("rgb", &g.rgb).unwrap(),
+        rgb: up("rgb", &g.rgb),
         alpha: d.upload("alpha", &g.alpha).unwrap(),
         depth: None,
         median_depth: None,
@@ -215,7 +215,7 @@ fn random_gbuffer(w: u32, h: u32, camera: &Camera, seed: u64) -> GBuffer {
     let mut g = GBuffer {
         width: w,
         height: h,
-        rgb: vec![0.0; 3 * n],
+        rgb: Some(vec![0.0; 3 * n]),
         alpha: vec![0.0; n],
         normal: Some(vec![0.0; 3 * n]),
         albedo: Some(vec![0.0; 3 * n]),
@@ -573,8 +573,8 @@ fn bad_environment_inputs_get_clear_errors() {
     assert_eq!(EnvironmentMap::from_rgb(8, 4, rgb, "t").unwrap().texel(5, 2)[1], 0.0);
     assert!(EnvironmentMap::from_rgb(0, 4, vec![], "t").is_err());
     // A NaN in an EXR file names the texel too.
-    let mut g = GBuffer { width: 4, height: 2, rgb: vec![1.0; 24], alpha: vec![1.0; 8], ..GBuffer::default() };
-    g.rgb[3 * 6] = f32::INFINITY;
+    let mut g = GBuffer { width: 4, height: 2, rgb: Some(vec![1.0; 24]), alpha: vec![1.0; 8], ..GBuffer::default() };
+    g.rgb.as_mut().unwrap()[3 * 6] = f32::INFINITY;
     let exr = dir.path().join("inf.exr");
     srug::output::write_exr(&exr, &g).unwrap();
     let e = EnvironmentMap::load(&exr).unwrap_err().to_string();

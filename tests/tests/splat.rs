@@ -104,12 +104,22 @@ fn random_scene(n: usize, sh_degree: u32, seed: u64, spread: f32) -> Scene {
     s
 }
 
+/// Every blend variant the device runs (subgroup loads where it has subgroup ballot).
+fn blend_variants(d: &Device) -> Vec<BlendVariant> {
+    let mut variants = vec![BlendVariant::PerPixel, BlendVariant::SharedBatches];
+    if d.info().subgroup_ballot {
+        variants.push(BlendVariant::SubgroupLoads);
+    }
+    variants
+}
+
 fn all_settings() -> SplatSettings {
     SplatSettings {
         background: [0.2, 0.3, 0.4],
         channels: Channels::ALL,
         normal_source: NormalSource::Stored,
         prefill: Some(NAN),
+        rgb: true,
         sh_degree: None,
         tile: DEFAULT_TILE,
         tile_bounds: TileBounds::default(),
@@ -264,7 +274,13 @@ fn capped_sh_degree_matches_cpu_twin_and_changes_colour() {
     for degree in [0u32, 1, 2, 7] {
         let settings = SplatSettings { sh_degree: Some(degree), ..base };
         let capped = render_both(&d, &mut splatter, &scene, &cam, &settings, &format!("sh_cap_{degree}"));
-        let changed = capped.rgb.iter().zip(&full.rgb).filter(|(a, b)| (*a - *b).abs() > 1e-3).count();
+        let changed = capped
+            .rgb_values()
+            .unwrap()
+            .iter()
+            .zip(full.rgb_values().unwrap())
+            .filter(|(a, b)| (*a - *b).abs() > 1e-3)
+            .count();
         if degree >= 3 {
             assert_eq!(capped.rgb, full.rgb, "a cap at or above the scene's degree changes nothing");
         } else {
@@ -284,10 +300,7 @@ fn every_tile_size_matches_cpu_twin_in_every_variant() {
     // Not a multiple of any tile edge, so every kernel meets partial tiles.
     let cam = city.cameras[1].resized(203, 77);
     let gpu_scene = GpuScene::upload(&d, &city.scene).unwrap();
-    let mut variants = vec![BlendVariant::PerPixel, BlendVariant::SharedBatches];
-    if d.info().subgroup_ballot {
-        variants.push(BlendVariant::SubgroupLoads);
-    }
+    let variants = blend_variants(&d);
     let mut by_tile = Vec::new();
     for tile in TILE_SIZES {
         let settings = SplatSettings { tile, ..all_settings() };
@@ -321,7 +334,7 @@ fn every_tile_size_matches_cpu_twin_in_every_variant() {
     for w in by_tile.windows(2) {
         let ((t0, g0, p0), (t1, g1, p1)) = (&w[0], &w[1]);
         assert!(p0 > p1, "tile {t0}: {p0} pairs, tile {t1}: {p1}");
-        let p = psnr(&g0.rgb, &g1.rgb);
+        let p = psnr(g0.rgb_values().unwrap(), g1.rgb_values().unwrap());
         assert!(p > 60.0, "tiles {t0} and {t1} differ by PSNR {p:.1} dB");
         eprintln!("tiles {t0} and {t1}: {p0} and {p1} pairs, rgb PSNR {p:.1} dB");
     }
@@ -359,11 +372,7 @@ fn demo_city_matches_cpu_twin_in_every_channel() {
     let mut splatter = Splatter::new(&d).unwrap();
     let city = demo_city(&DemoOptions { seed: 7, gaussians: 60_000, sh_degree: 2 }).unwrap();
     let cam = city.cameras[1].resized(352, 96);
-    // Every blend variant (subgroup loads where the device supports them).
-    let mut variants = vec![BlendVariant::PerPixel, BlendVariant::SharedBatches];
-    if d.info().subgroup_ballot {
-        variants.push(BlendVariant::SubgroupLoads);
-    }
+    let variants = blend_variants(&d);
     // The subgroup-load blend both with texel-buffer reads (the default, at every
     // pixels per invocation) and by device address (with the preprocess reading
     // the scene by device address too).
@@ -512,5 +521,40 @@ fn requested_channels_only_and_missing_attributes_refused() {
         Channels::parse("rgb,depth,normal").unwrap() == Channels { depth: true, normal: true, ..Channels::default() }
     );
     assert!(Channels::parse("rgb,bogus").is_err());
+    assert_no_validation_messages(&d);
+}
+
+#[test]
+fn rgb_off_drops_only_colour_in_every_variant() {
+    let d = device();
+    let mut splatter = Splatter::new(&d).unwrap();
+    let city = demo_city(&DemoOptions { seed: 3, gaussians: 20_000, sh_degree: 2 }).unwrap();
+    let cam = city.cameras[0].resized(133, 71);
+    let gpu_scene = GpuScene::upload(&d, &city.scene).unwrap();
+    let variants = blend_variants(&d);
+    let on = all_settings();
+    let off = SplatSettings { rgb: false, ..on };
+    for variant in variants {
+        splatter.set_blend_variant(variant).unwrap();
+        let (with, _) = splatter.render(&gpu_scene, &cam, &on).unwrap();
+        let (without, _) = splatter.render(&gpu_scene, &cam, &off).unwrap();
+        assert!(without.rgb.is_none(), "{variant:?}: rgb allocated although not asked for");
+        assert_eq!(with.bytes() - without.bytes(), 3 * 4 * 133 * 71, "{variant:?}: only the rgb buffer is saved");
+        let (with, without) = (with.read(&d).unwrap(), without.read(&d).unwrap());
+        assert!(without.rgb_values().unwrap_err().to_string().contains("no rgb channel"));
+        // The colour is the only thing that changes: every other channel bit for bit.
+        let rest = |g: &GBuffer| -> Vec<(&'static str, Vec<u32>)> {
+            g.channels()
+                .into_iter()
+                .filter(|c| c.0 != "rgb")
+                .map(|(n, v, _)| (n, v.iter().map(|x| x.to_bits()).collect()))
+                .collect()
+        };
+        assert_eq!(rest(&with).len(), 9, "alpha and the eight optional channels");
+        assert!(rest(&with) == rest(&without), "{variant:?}: a channel other than rgb changed");
+        // And the twin, without rgb as well.
+        render_both(&d, &mut splatter, &city.scene, &cam, &off, &format!("rgb_off_{variant:?}"));
+    }
+    assert!(render_cpu(&city.scene, &cam, &off).rgb.is_none(), "the twin skips rgb too");
     assert_no_validation_messages(&d);
 }

@@ -341,3 +341,29 @@ fn backward_refuses_mismatched_inputs() {
     assert!(g.means.iter().flatten().chain(g.opacity_logits.iter()).all(|v| *v == 0.0));
     assert_no_validation_messages(&d);
 }
+
+#[test]
+fn backward_of_a_frame_without_rgb() {
+    let d = device();
+    let s = scene(80, 2);
+    let camera = Camera::look_at(Vec3::new(0.0, 0.0, -3.0), Vec3::ZERO, Vec3::Y, 50.0, 32, 24).unwrap();
+    let mut splatter = Splatter::new(&d).unwrap();
+    let gpu_scene = GpuScene::upload(&d, &s).unwrap();
+    let on = splatter.render_frame(&gpu_scene, &camera, &SplatSettings::default()).unwrap();
+    let off =
+        splatter.render_frame(&gpu_scene, &camera, &SplatSettings { rgb: false, ..SplatSettings::default() }).unwrap();
+    let mut rng = Pcg64Mcg::seed_from_u64(4);
+    let up: Vec<f32> = (0..32 * 24).map(|_| rng.random_range(-1.0..1.0)).collect();
+    let alpha = BlendGrads { alpha: Some(d.upload("dL/dalpha", &up).unwrap()), ..BlendGrads::default() };
+    // Alpha gradients do not depend on colour: the same, bit for bit, without it.
+    let g_on = splatter.backward(&on, &gpu_scene, &alpha, false).unwrap().read(&d).unwrap();
+    let g_off = splatter.backward(&off, &gpu_scene, &alpha, false).unwrap().read(&d).unwrap();
+    assert!(g_on.means.iter().flatten().any(|v| *v != 0.0), "the alpha gradient reaches the means");
+    assert_eq!(g_on, g_off);
+    // An rgb gradient needs the colour the frame did not blend.
+    let rgb =
+        BlendGrads { rgb: Some(d.create_filled::<f32>("dL/drgb", 3 * 32 * 24, 0).unwrap()), ..BlendGrads::default() };
+    let e = splatter.backward(&off, &gpu_scene, &rgb, false).err().unwrap().to_string();
+    assert!(e.contains("rgb"), "{e}");
+    assert_no_validation_messages(&d);
+}

@@ -140,7 +140,7 @@ fn run(rig: &mut Rig, case: &Case) -> Vec<f32> {
     let camera = settings.render_camera(&case.camera);
     let g = relit.gbuffer.read(&d).unwrap();
     within(label, "alpha", &g.alpha, 0.0, 1.0);
-    within(label, "colour", &g.rgb, 0.0, f32::MAX);
+    within(label, "colour", g.rgb_values().unwrap(), 0.0, f32::MAX);
     for (name, values, _) in g.channels() {
         all_finite(label, name, values);
     }
@@ -163,10 +163,10 @@ fn run(rig: &mut Rig, case: &Case) -> Vec<f32> {
         // Splat twin on the same scene and render camera.
         let splat = SplatSettings { channels: Default::default(), sh_degree: settings.sh_degree, ..Default::default() };
         let cpu = render_cpu(&case.scene, &camera, &splat);
-        let (p_rgb, p_alpha) = (psnr(&g.rgb, &to64(&cpu.rgb)), psnr(&g.alpha, &to64(&cpu.alpha)));
+        let (g_rgb, cpu_rgb) = (g.rgb_values().unwrap(), cpu.rgb_values().unwrap());
+        let (p_rgb, p_alpha) = (psnr(g_rgb, &to64(cpu_rgb)), psnr(&g.alpha, &to64(&cpu.alpha)));
         if p_rgb < 50.0 || p_alpha < 50.0 {
-            let at =
-                save_comparison(&format!("stability_{label}_rgb"), camera.width, camera.height, 3, &g.rgb, &cpu.rgb);
+            let at = save_comparison(&format!("stability_{label}_rgb"), camera.width, camera.height, 3, g_rgb, cpu_rgb);
             panic!("{label}: splat against its twin: rgb {p_rgb:.1} dB, alpha {p_alpha:.1} dB (< 50; images {at})");
         }
         // Shading twin on the GPU's G-buffers, visibility and L_ind.

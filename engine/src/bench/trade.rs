@@ -235,7 +235,7 @@ pub fn trade_bench(device: &Device, setup: &TradeSetup, mut progress: impl FnMut
                     m.visibility = Some(full(&device.read_buffer(v)?)?);
                 }
                 m.alpha = full(&device.read_buffer(&relit.gbuffer.alpha)?)?;
-                let rgb: Vec<f32> = device.read_buffer(&relit.gbuffer.rgb)?;
+                let rgb: Vec<f32> = device.read_buffer(relit.gbuffer.rgb_buffer()?)?;
                 let rgb = crate::output::resample_bilinear(&rgb, size, 3, (width, height))?;
                 m.colour = RgbImage { width, height, rgb };
             }

@@ -409,6 +409,8 @@ impl ShadowPass {
         let splat = SplatSettings {
             channels: depth_channels(settings.map_depth),
             tile: settings.tile,
+            // The map is depth and alpha only: no colour to evaluate or read.
+            rgb: false,
             ..SplatSettings::default()
         };
         let mut frame = splatter.render_frame(scene, &camera, &splat)?;

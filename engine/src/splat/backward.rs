@@ -202,6 +202,12 @@ impl Splatter {
                 "feature gradients need a frame rendered with a feature channel (normal or materials)".into(),
             ));
         }
+        if grads.rgb.is_some() && frame.gbuffer.rgb.is_none() {
+            // Its splats' colours were not evaluated (SH degree 0).
+            return Err(Error::InvalidArgument(
+                "an rgb gradient needs a frame rendered with rgb (SplatSettings::rgb on)".into(),
+            ));
+        }
         let tile = frame.tile;
         if let std::collections::hash_map::Entry::Vacant(e) = self.backward.entry((bits, tile)) {
             // Splats per barrier: as many as every pixel's terms (batch × stride ×

@@ -521,7 +521,7 @@ pub fn render_cpu(scene: &Scene, camera: &Camera, settings: &SplatSettings) -> G
     let mut g = GBuffer {
         width: camera.width,
         height: camera.height,
-        rgb: vec![0.0; 3 * p],
+        rgb: opt(settings.rgb, 3),
         alpha: vec![0.0; p],
         depth: opt(ch.depth, 1),
         median_depth: opt(ch.median_depth, 1),
@@ -537,8 +537,10 @@ pub fn render_cpu(scene: &Scene, camera: &Camera, settings: &SplatSettings) -> G
         for x in 0..w {
             let b = blend_pixel(lists.at(x, y), &splats, DVec2::new(x as f64 + 0.5, y as f64 + 0.5));
             let px = y * w + x;
-            for (c, out) in g.rgb[3 * px..3 * px + 3].iter_mut().enumerate() {
-                *out = (b.values[c] + b.t_final * bg[c]) as f32;
+            if let Some(rgb) = &mut g.rgb {
+                for (c, out) in rgb[3 * px..3 * px + 3].iter_mut().enumerate() {
+                    *out = (b.values[c] + b.t_final * bg[c]) as f32;
+                }
             }
             g.alpha[px] = (1.0 - b.t_final) as f32;
             let put = |v: &mut Option<Vec<f32>>, vals: &[f64]| {

@@ -70,12 +70,16 @@ pub(crate) fn tile_spec(tile: u32) -> [(u32, SpecValue); 2] {
 pub const BLEND_PIXELS: [u32; 3] = [1, 2, 4];
 /// The default pixels per invocation of the texel-buffer blend.
 pub const DEFAULT_BLEND_PIXELS: u32 = 2;
+/// Bit of the blend's `CHANNELS` specialization constant that blends rgb
+/// (keep in sync with `RGB` in `splat_blend_body.glsl`).
+pub const RGB_BIT: u32 = 8;
 /// Bytes of one projected splat (keep in sync with `Splat` in `splat.glsl`).
 pub const SPLAT_BYTES: u64 = 64;
 /// Bytes of one splat's features (three vec4).
 pub const FEATURE_BYTES: u64 = 48;
 
-/// Which G-buffer channels to blend besides rgb and alpha (always produced).
+/// Which G-buffer channels to blend besides rgb and alpha (alpha always
+/// produced, rgb unless [`SplatSettings::rgb`] is off).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 pub struct Channels {
     /// Expected depth Σ wᵢ zᵢ.
@@ -109,7 +113,8 @@ impl Channels {
         visibility: true,
     };
 
-    /// The `CHANNELS` specialization constant of `splat_blend.comp`.
+    /// The `CHANNELS` specialization constant of `splat_blend.comp`, less
+    /// its rgb bit ([`RGB_BIT`], from [`SplatSettings::rgb`]).
     pub fn bits(&self) -> u32 {
         [
             self.depth,
@@ -147,7 +152,8 @@ impl Channels {
         self.bits() & 0b1111_1100 != 0
     }
 
-    /// Parses a comma-separated list (`rgb` and `alpha` are accepted and always on;
+    /// Parses a comma-separated list (`rgb` and `alpha` are accepted: alpha is
+    /// always on, rgb is [`SplatSettings::rgb`], see [`Channels::names_rgb`];
     /// `materials` means albedo, roughness, metallic, ao and visibility; `all` everything).
     pub fn parse(list: &str) -> Result<Self> {
         let mut c = Channels::default();
@@ -175,6 +181,12 @@ impl Channels {
             }
         }
         Ok(c)
+    }
+
+    /// Whether a list [`Channels::parse`] accepts names rgb (`rgb` or `all`):
+    /// for callers that blend colour only when asked (`srug render` to EXR).
+    pub fn names_rgb(list: &str) -> bool {
+        list.split(',').map(str::trim).any(|s| s == "rgb" || s == "all")
     }
 }
 
@@ -266,6 +278,11 @@ pub struct SplatSettings {
     pub tile: u32,
     /// Which tiles list a splat.
     pub tile_bounds: TileBounds,
+    /// Blend colour (rgb). Off, the G-buffer has no rgb channel, the
+    /// preprocess evaluates no view-dependent colour and the blend reads no
+    /// colour: for depth-only renders such as shadow maps, where colour is
+    /// a quarter of the blend's reads. Alpha and the other channels are the same.
+    pub rgb: bool,
 }
 
 impl Default for SplatSettings {
@@ -278,6 +295,7 @@ impl Default for SplatSettings {
             sh_degree: None,
             tile: DEFAULT_TILE,
             tile_bounds: TileBounds::default(),
+            rgb: true,
         }
     }
 }
@@ -289,8 +307,9 @@ pub struct GBuffer {
     pub width: u32,
     /// Height in pixels.
     pub height: u32,
-    /// Colour over the background, 3 floats per pixel.
-    pub rgb: Vec<f32>,
+    /// Colour over the background, 3 floats per pixel (absent where
+    /// [`SplatSettings::rgb`] was off).
+    pub rgb: Option<Vec<f32>>,
     /// 1 − final transmittance.
     pub alpha: Vec<f32>,
     /// Σ wᵢ zᵢ.
@@ -312,9 +331,20 @@ pub struct GBuffer {
 }
 
 impl GBuffer {
-    /// The channels present as (name, values, floats per pixel), rgb and alpha first.
+    /// The rgb channel, or an error naming why it is absent.
+    pub fn rgb_values(&self) -> Result<&[f32]> {
+        self.rgb.as_deref().ok_or_else(|| {
+            Error::InvalidArgument(
+                "this G-buffer has no rgb channel (it was splatted with SplatSettings::rgb off)".into(),
+            )
+        })
+    }
+
+    /// The channels present as (name, values, floats per pixel), rgb (when
+    /// blended) and alpha first.
     pub fn channels(&self) -> Vec<(&'static str, &[f32], usize)> {
-        let mut out = vec![("rgb", self.rgb.as_slice(), 3), ("alpha", self.alpha.as_slice(), 1)];
+        let mut out: Vec<_> = self.rgb.as_deref().map(|v| ("rgb", v, 3)).into_iter().collect();
+        out.push(("alpha", self.alpha.as_slice(), 1));
         let optional: [(&'static str, &Option<Vec<f32>>, usize); 8] = [
             ("depth", &self.depth, 1),
             ("median_depth", &self.median_depth, 1),
@@ -360,8 +390,8 @@ pub struct GpuGBuffer {
     pub width: u32,
     /// Height in pixels.
     pub height: u32,
-    /// `float[3P]`.
-    pub rgb: Buffer,
+    /// `float[3P]`, absent where [`SplatSettings::rgb`] was off.
+    pub rgb: Option<Buffer>,
     /// `float[P]`.
     pub alpha: Buffer,
     /// Optional channels, as in [`GBuffer`].
@@ -383,13 +413,22 @@ pub struct GpuGBuffer {
 }
 
 impl GpuGBuffer {
+    /// The rgb channel, or an error naming why it is absent.
+    pub fn rgb_buffer(&self) -> Result<&Buffer> {
+        self.rgb.as_ref().ok_or_else(|| {
+            Error::InvalidArgument(
+                "this G-buffer has no rgb channel (it was splatted with SplatSettings::rgb off)".into(),
+            )
+        })
+    }
+
     /// Reads every channel back.
     pub fn read(&self, device: &Device) -> Result<GBuffer> {
         let opt = |b: &Option<Buffer>| b.as_ref().map(|b| device.read_buffer::<f32>(b)).transpose();
         Ok(GBuffer {
             width: self.width,
             height: self.height,
-            rgb: device.read_buffer(&self.rgb)?,
+            rgb: opt(&self.rgb)?,
             alpha: device.read_buffer(&self.alpha)?,
             depth: opt(&self.depth)?,
             median_depth: opt(&self.median_depth)?,
@@ -405,6 +444,7 @@ impl GpuGBuffer {
     /// GPU bytes held by the channels.
     pub fn bytes(&self) -> u64 {
         let opt = [
+            &self.rgb,
             &self.depth,
             &self.median_depth,
             &self.normal,
@@ -414,7 +454,7 @@ impl GpuGBuffer {
             &self.ao,
             &self.visibility,
         ];
-        self.rgb.size() + self.alpha.size() + opt.iter().filter_map(|b| b.as_ref().map(Buffer::size)).sum::<u64>()
+        self.alpha.size() + opt.iter().filter_map(|b| b.as_ref().map(Buffer::size)).sum::<u64>()
     }
 }
 
@@ -726,7 +766,9 @@ impl Splatter {
         camera_frame(camera, &mut frame)?;
         frame.background = [settings.background[0], settings.background[1], settings.background[2], 0.0];
         frame.size = [w, h, tiles_x, tiles_y];
-        let sh_used = settings.sh_degree.map_or(scene.sh_degree, |d| d.min(scene.sh_degree));
+        // Without rgb the colour is never read: degree 0 spares the SH reads.
+        let sh_used =
+            if settings.rgb { settings.sh_degree.map_or(scene.sh_degree, |d| d.min(scene.sh_degree)) } else { 0 };
         frame.counts =
             [n as u32, scene.sh_degree | sh_used << 8, u32::from(settings.normal_source == NormalSource::Stored), 0];
 
@@ -735,7 +777,7 @@ impl Splatter {
         let out = GpuGBuffer {
             width: w,
             height: h,
-            rgb: f("gbuffer rgb", 3 * pixels)?,
+            rgb: opt(settings.rgb, "gbuffer rgb", 3 * pixels)?,
             alpha: f("gbuffer alpha", pixels)?,
             depth: opt(ch.depth, "gbuffer depth", pixels)?,
             median_depth: opt(ch.median_depth, "gbuffer median depth", pixels)?,
@@ -763,7 +805,7 @@ impl Splatter {
         frame.work = [
             [address(&feature_buf), tile_counts.device_address()],
             [0, 0],
-            [ranges.device_address(), out.rgb.device_address()],
+            [ranges.device_address(), address(&out.rgb)],
             [0, 0],
         ];
         frame.out = [
@@ -835,13 +877,14 @@ impl Splatter {
             && n > 0
             && 4 * n <= max_texels
             && pairs <= max_texels;
-        let blend_key = self.blend_kernel(ch.bits(), tile, texel)?;
+        let blend_key = self.blend_kernel(ch.bits() | u32::from(settings.rgb) << RGB_BIT, tile, texel)?;
         let (sort, keys_kernel, ranges_kernel, blend) =
             (&self.sort, &self.keys[&(tile, bounds)], &self.ranges, &self.blend[&blend_key]);
-        let outputs: Vec<&Buffer> = [&out.rgb, &out.alpha]
+        let outputs: Vec<&Buffer> = [&out.alpha]
             .into_iter()
             .chain(
                 [
+                    &out.rgb,
                     &out.depth,
                     &out.median_depth,
                     &out.normal,

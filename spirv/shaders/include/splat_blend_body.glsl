@@ -5,9 +5,11 @@
 #include "common.glsl"
 #include "splat.glsl"
 
-// Bits: 1 depth, 2 median depth, 4 normal, 8 albedo, 16 roughness, 32 metallic, 64 ao, 128 visibility.
-// Keep in sync with engine/src/splat/mod.rs `Channels::bits`.
-layout(constant_id = 0) const uint CHANNELS = 0;
+// Bits: 1 depth, 2 median depth, 4 normal, 8 albedo, 16 roughness, 32 metallic, 64 ao, 128 visibility,
+// 256 rgb. Keep in sync with engine/src/splat/mod.rs `Channels::bits` and `RGB_BIT`.
+layout(constant_id = 0) const uint CHANNELS = 256u;
+// Without rgb (shadow maps) no colour is read, blended or stored.
+const bool RGB = (CHANNELS & 256u) != 0u;
 const bool FEATURES = (CHANNELS & 252u) != 0u;
 
 #ifdef TEXEL_SPLATS
@@ -42,7 +44,8 @@ struct Contribution {
 };
 
 Contribution splat_contribution(uint g) {
-    Contribution c = Contribution(SPLAT_COLOR(g), vec4(0.0), vec4(0.0), vec4(0.0));
+    Contribution c = Contribution(vec3(0.0), vec4(0.0), vec4(0.0), vec4(0.0));
+    if (RGB) c.color = SPLAT_COLOR(g);
     if (FEATURES) {
         c.f0 = FEATURE(3 * g);
         c.f1 = FEATURE(3 * g + 1);
@@ -55,7 +58,7 @@ Contribution splat_contribution(uint g) {
 // (weight 0 and T kept otherwise), with no branch.
 void accumulate_select(inout Accumulated acc, bool takes, float alpha, float next_T, float z, Contribution c) {
     float w = mix(0.0, alpha * acc.T, takes);
-    acc.rgb += w * c.color;
+    if (RGB) acc.rgb += w * c.color;
     if ((CHANNELS & 1u) != 0u) acc.depth += w * z;
     if ((CHANNELS & 2u) != 0u) acc.median = mix(acc.median, z, all(bvec3(takes, acc.T > 0.5, next_T <= 0.5)));
     if (FEATURES) {
@@ -104,11 +107,13 @@ void store_pixel(uvec2 pix, Accumulated acc) {
     vec3 normal = acc.normal, albedo = acc.albedo;
     float rough = acc.rough, metal = acc.metal, ao = acc.ao, vis = acc.vis;
     uint p = pix.y * frame.size.x + pix.x;
-    vec3 color = rgb + T * frame.background.rgb;
-    Floats out_rgb = Floats(frame.work2.zw);
-    out_rgb.v[3 * p] = color.r;
-    out_rgb.v[3 * p + 1] = color.g;
-    out_rgb.v[3 * p + 2] = color.b;
+    if (RGB) {
+        vec3 color = rgb + T * frame.background.rgb;
+        Floats out_rgb = Floats(frame.work2.zw);
+        out_rgb.v[3 * p] = color.r;
+        out_rgb.v[3 * p + 1] = color.g;
+        out_rgb.v[3 * p + 2] = color.b;
+    }
     Floats(frame.out0.xy).v[p] = 1.0 - T;
     if ((CHANNELS & 1u) != 0u) Floats(frame.out0.zw).v[p] = depth;
     if ((CHANNELS & 2u) != 0u) Floats(frame.out1.xy).v[p] = median;
