@@ -12,7 +12,7 @@ use crate::indirect::{StoragePrecision, UNetConfig};
 use crate::scene::{human_bytes, Scene};
 use crate::shade::relight::{RelightDecisions, RelightSettings};
 use crate::shadow::{depth_channels, light_camera, Sun};
-use crate::splat::{BlendVariant, Channels, FEATURE_BYTES, RGB_BIT, SPLAT_BYTES};
+use crate::splat::{BlendVariant, Channels, FEATURE_BYTES, SPLAT_BYTES};
 
 /// What the plan is for.
 #[derive(Clone, Debug)]
@@ -129,7 +129,7 @@ fn splat_stage(
             } else {
                 ""
             },
-            channels.bits() | u32::from(rgb) << RGB_BIT,
+            channels.blend_bits(rgb),
             channel_names(channels, rgb).join(", ")
         ),
         bytes: texels * floats_per_pixel(channels, rgb) * 4 + n * SPLAT_BYTES + features,

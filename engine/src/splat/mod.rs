@@ -73,6 +73,8 @@ pub const DEFAULT_BLEND_PIXELS: u32 = 2;
 /// Bit of the blend's `CHANNELS` specialization constant that blends rgb
 /// (keep in sync with `RGB` in `splat_blend_body.glsl`).
 pub const RGB_BIT: u32 = 8;
+/// Why a G-buffer has no rgb to give.
+const NO_RGB: &str = "this G-buffer has no rgb channel (it was splatted with SplatSettings::rgb off)";
 /// Bytes of one projected splat (keep in sync with `Splat` in `splat.glsl`).
 pub const SPLAT_BYTES: u64 = 64;
 /// Bytes of one splat's features (three vec4).
@@ -145,6 +147,12 @@ impl Channels {
             ao: on(6),
             visibility: on(7),
         }
+    }
+
+    /// The whole `CHANNELS` specialization constant: [`Channels::bits`] plus
+    /// the rgb bit when colour is blended.
+    pub fn blend_bits(&self, rgb: bool) -> u32 {
+        self.bits() | u32::from(rgb) << RGB_BIT
     }
 
     /// Whether per-splat features (normal or materials) are needed.
@@ -333,11 +341,7 @@ pub struct GBuffer {
 impl GBuffer {
     /// The rgb channel, or an error naming why it is absent.
     pub fn rgb_values(&self) -> Result<&[f32]> {
-        self.rgb.as_deref().ok_or_else(|| {
-            Error::InvalidArgument(
-                "this G-buffer has no rgb channel (it was splatted with SplatSettings::rgb off)".into(),
-            )
-        })
+        self.rgb.as_deref().ok_or_else(|| Error::InvalidArgument(NO_RGB.into()))
     }
 
     /// The channels present as (name, values, floats per pixel), rgb (when
@@ -415,11 +419,7 @@ pub struct GpuGBuffer {
 impl GpuGBuffer {
     /// The rgb channel, or an error naming why it is absent.
     pub fn rgb_buffer(&self) -> Result<&Buffer> {
-        self.rgb.as_ref().ok_or_else(|| {
-            Error::InvalidArgument(
-                "this G-buffer has no rgb channel (it was splatted with SplatSettings::rgb off)".into(),
-            )
-        })
+        self.rgb.as_ref().ok_or_else(|| Error::InvalidArgument(NO_RGB.into()))
     }
 
     /// Reads every channel back.
@@ -877,7 +877,7 @@ impl Splatter {
             && n > 0
             && 4 * n <= max_texels
             && pairs <= max_texels;
-        let blend_key = self.blend_kernel(ch.bits() | u32::from(settings.rgb) << RGB_BIT, tile, texel)?;
+        let blend_key = self.blend_kernel(ch.blend_bits(settings.rgb), tile, texel)?;
         let (sort, keys_kernel, ranges_kernel, blend) =
             (&self.sort, &self.keys[&(tile, bounds)], &self.ranges, &self.blend[&blend_key]);
         let outputs: Vec<&Buffer> = [&out.alpha]
