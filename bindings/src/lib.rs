@@ -85,17 +85,24 @@ impl From<srug::Error> for Failure {
     fn from(e: srug::Error) -> Self {
         use srug::Error as E;
         use srug_status::*;
+        use srug::gpu::GpuError as G;
         let status = match &e {
-            E::Loader(_) | E::MissingComponent(_) | E::NoDevice(_) => SRUG_ERROR_NO_DEVICE,
-            E::OutOfMemory(_) => SRUG_ERROR_OUT_OF_MEMORY,
-            E::DeviceLost(_) => SRUG_ERROR_DEVICE_LOST,
-            E::Unsupported(_) => SRUG_ERROR_UNSUPPORTED,
-            E::Vulkan { .. } | E::Kernel { .. } => SRUG_ERROR_GPU,
+            E::Gpu(G::Loader(_) | G::MissingComponent(_) | G::NoDevice(_)) => SRUG_ERROR_NO_DEVICE,
+            E::Gpu(G::OutOfMemory(_)) => SRUG_ERROR_OUT_OF_MEMORY,
+            E::Gpu(G::DeviceLost(_)) => SRUG_ERROR_DEVICE_LOST,
+            E::Gpu(G::Unsupported(_)) => SRUG_ERROR_UNSUPPORTED,
+            E::Gpu(G::Vulkan { .. } | G::Kernel { .. } | G::InvalidArgument { .. }) => SRUG_ERROR_GPU,
             E::InvalidArgument(_) => SRUG_ERROR_INVALID_ARGUMENT,
             E::Scene(_) | E::Environment { .. } => SRUG_ERROR_BAD_FILE,
             E::Io { .. } => SRUG_ERROR_IO,
         };
         Self { status, message: e.to_string() }
+    }
+}
+
+impl From<srug::gpu::GpuError> for Failure {
+    fn from(e: srug::gpu::GpuError) -> Self {
+        srug::Error::from(e).into()
     }
 }
 

@@ -7,7 +7,6 @@
 
 pub mod bench;
 pub mod error;
-pub mod gpu;
 pub mod indirect;
 pub mod metrics;
 pub mod output;
@@ -18,3 +17,5 @@ pub mod shadow;
 pub mod splat;
 
 pub use error::{Error, Result};
+/// The Vulkan core ([`srug_gpu`]), re-exported under its historical path `srug::gpu`.
+pub use srug_gpu as gpu;

@@ -349,10 +349,10 @@ fn spinner(message: &str) -> ProgressBar {
 }
 
 fn open_device(cli_device: &Option<String>, validation: bool) -> srug::Result<Device> {
-    Device::new(&DeviceOptions {
+    Ok(Device::new(&DeviceOptions {
         selection: cli_device.as_deref().map(DeviceSelection::parse),
         validation: validation.then_some(true),
-    })
+    })?)
 }
 
 fn parse_vec3(text: &str) -> srug::Result<glam::Vec3> {

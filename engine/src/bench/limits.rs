@@ -227,7 +227,7 @@ pub fn pair_move_run(
 ) -> Result<f64> {
     let info = device.info();
     if ![TexelFormat::R32Uint, TexelFormat::Rg32Uint].iter().all(|f| info.texel_formats.contains(f)) {
-        return Err(Error::Unsupported("this device cannot view buffers as RG32UI/R32UI texels".into()));
+        return Err(Error::unsupported("this device cannot view buffers as RG32UI/R32UI texels"));
     }
     if count == 0 || count > info.max_texel_buffer_elements || count > u64::from(u32::MAX) {
         return Err(Error::InvalidArgument(format!(

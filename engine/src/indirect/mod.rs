@@ -734,7 +734,7 @@ impl UNet {
         }
         let half = precision == StoragePrecision::Fp16;
         if half && !device.info().storage_16bit {
-            return Err(Error::Unsupported("fp16 activation storage needs storageBuffer16BitAccess".into()));
+            return Err(Error::unsupported("fp16 activation storage needs storageBuffer16BitAccess"));
         }
         let info = device.info();
         let texel_formats =
@@ -831,7 +831,7 @@ impl UNet {
                         .iter()
                         .enumerate()
                         .map(|(k, w)| device.upload(&format!("{name} weights {k}"), w))
-                        .collect::<Result<_>>()?;
+                        .collect::<srug_gpu::Result<_>>()?;
                     let bias = device.upload(&format!("{name} bias"), &b)?;
                     Ok(LayerBuffers { passes, bias, chunk: pass_channels(l.in_channels, l.out_channels, texel) })
                 })
@@ -892,8 +892,8 @@ impl UNet {
     pub fn set_winograd(&mut self, tile: Option<WinogradTile>) -> Result<()> {
         if let Some(tile) = tile {
             if !self.convs.keys().any(|k| k.6) {
-                return Err(Error::Unsupported(
-                    "Winograd convolution needs texel-buffer inputs, which this device lacks".into(),
+                return Err(Error::unsupported(
+                    "Winograd convolution needs texel-buffer inputs, which this device lacks",
                 ));
             }
             if self.winograd_weights.as_ref().is_none_or(|(t, _)| *t != tile) {
@@ -996,8 +996,8 @@ impl UNet {
     /// two paths compute the same sums (benchmarks and tests compare them).
     pub fn set_texel_inputs(&mut self, on: bool) -> Result<()> {
         if on && !self.convs.keys().any(|k| k.6) {
-            return Err(Error::Unsupported(
-                "this device cannot read U-Net activations through uniform texel buffers".into(),
+            return Err(Error::unsupported(
+                "this device cannot read U-Net activations through uniform texel buffers",
             ));
         }
         self.texel = on;
@@ -1016,7 +1016,7 @@ impl UNet {
     /// [`UNet::vec4_inputs`]); on where the device lacks RGBA views is an error.
     pub fn set_vec4_inputs(&mut self, on: bool) -> Result<()> {
         if on && !self.convs.keys().any(|k| k.7) {
-            return Err(Error::Unsupported("this device cannot view U-Net activations as RGBA texel buffers".into()));
+            return Err(Error::unsupported("this device cannot view U-Net activations as RGBA texel buffers"));
         }
         self.vec4 = on;
         Ok(())
@@ -1090,7 +1090,7 @@ impl UNet {
             min_alpha: inputs.min_alpha,
         };
         let pack = &self.pack;
-        let mut timings = self.device.run(|rec| {
+        let mut timings = self.device.run(|rec| -> Result<()> {
             rec.keep(&[normal, albedo, &g.alpha, inputs.sun, inputs.sky, &packed])?;
             rec.keep(&[&g.roughness, &g.metallic].into_iter().filter_map(Option::as_ref).collect::<Vec<_>>())?;
             rec.begin_stage("indirect input");

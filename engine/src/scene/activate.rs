@@ -57,7 +57,7 @@ impl GpuScene {
     /// (their size is what [`Scene::gpu_bytes`] counts).
     pub fn upload(device: &Device, scene: &Scene) -> Result<Self> {
         fn optional<T: bytemuck::Pod>(device: &Device, name: &str, data: &Option<Vec<T>>) -> Result<Option<Buffer>> {
-            data.as_ref().map(|v| device.upload(name, v)).transpose()
+            Ok(data.as_ref().map(|v| device.upload(name, v)).transpose()?)
         }
         let m = &scene.materials;
         Ok(Self {
@@ -125,11 +125,11 @@ pub struct Activated {
 
 /// Builds the activation kernel.
 pub fn activate_kernel(device: &Device) -> Result<Kernel> {
-    Kernel::new(
+    Ok(Kernel::new(
         device,
         &kernels::SCENE_ACTIVATE,
         &KernelDecl { bindings: &[], push_constant_size: std::mem::size_of::<ActivatePush>(), specialization: &[] },
-    )
+    )?)
 }
 
 /// Activates `scene` on the GPU. Outputs are pre-filled with NaN so an

@@ -305,11 +305,11 @@ pub struct EnvironmentPrep {
 }
 
 fn push_kernel<P>(device: &Device, info: &'static srug_spirv::KernelInfo, spec: &[(u32, SpecValue)]) -> Result<Kernel> {
-    Kernel::new(
+    Ok(Kernel::new(
         device,
         info,
         &KernelDecl { bindings: &[], push_constant_size: std::mem::size_of::<P>(), specialization: spec },
-    )
+    )?)
 }
 
 impl EnvironmentPrep {
@@ -336,7 +336,7 @@ impl EnvironmentPrep {
         let buffer = device.create_buffer("brdf table", u64::from(size * size) * 8, MemoryKind::Storage)?;
         let push = LutPush { dst: buffer.device_address(), size, samples };
         let kernel = &self.lut[variant.code() as usize];
-        let timings = device.run(|rec| {
+        let timings = device.run(|rec| -> Result<()> {
             rec.keep(&[&buffer])?;
             rec.begin_stage("brdf table");
             rec.dispatch_1d(kernel, &[], &push, u64::from(size * size))?;
@@ -365,7 +365,7 @@ impl EnvironmentPrep {
         let irradiance = device.create_buffer("irradiance", u64::from(iw * ih) * 12, MemoryKind::Storage)?;
         let irr_level = Self::irradiance_level(base, settings);
         let at = |b: &Buffer, l: u32| b.device_address() + 12 * level_offset(base, l);
-        let timings = device.run(|rec| {
+        let timings = device.run(|rec| -> Result<()> {
             rec.keep(&[&pyramid, &specular, &irradiance])?;
             rec.begin_stage("environment pyramid");
             for l in 1..pyramid_n {

@@ -340,11 +340,11 @@ pub struct Shader {
 }
 
 fn uniform_kernel(device: &Device, info: &'static srug_spirv::KernelInfo, spec: &[(u32, SpecValue)]) -> Result<Kernel> {
-    Kernel::new(
+    Ok(Kernel::new(
         device,
         info,
         &KernelDecl { bindings: &[BindingKind::UniformBuffer], push_constant_size: 0, specialization: spec },
-    )
+    )?)
 }
 
 fn addr(b: Option<&Buffer>) -> u64 {
@@ -492,7 +492,7 @@ impl Shader {
         );
         reads.extend(inputs.editable_visibility);
         reads.extend(inputs.indirect);
-        let mut timings = device.run(|rec| {
+        let mut timings = device.run(|rec| -> Result<()> {
             rec.keep(&reads)?;
             rec.keep(&[&sun, &sky, &radiance, &display])?;
             if let Some(word) = settings.prefill {
@@ -518,7 +518,7 @@ impl Shader {
         let uniform =
             if indirect.is_some() { device.upload("shade uniform", bytemuck::bytes_of(&u))? } else { uniform };
         let compose = &self.compose;
-        let t = device.run(|rec| {
+        let t = device.run(|rec| -> Result<()> {
             rec.keep(&reads)?;
             rec.keep(&[&sun, &sky, &radiance, &display])?;
             rec.keep(&indirect.iter().collect::<Vec<_>>())?;

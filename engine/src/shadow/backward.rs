@@ -163,7 +163,7 @@ impl ShadowPass {
         .chain(receiver_alpha.as_ref())
         .chain(map_alpha.as_ref())
         .collect();
-        let timings = device.run(|rec| {
+        let timings = device.run(|rec| -> Result<()> {
             rec.keep(&[inputs.receiver_depth, &gbuffer.alpha, inputs.map_depth, &g.alpha, upstream])?;
             rec.keep(&outputs)?;
             let both = [&shadow_u, &backward_u];

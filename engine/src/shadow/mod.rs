@@ -442,7 +442,7 @@ impl ShadowPass {
             VisibilityKind::Sigmoid => (&self.test, "sigmoid shadow test"),
             VisibilityKind::Traced => (&self.traced, "traced visibility"),
         };
-        let timings = device.run(|rec| {
+        let timings = device.run(|rec| -> Result<()> {
             rec.keep(&[receiver_depth, &gbuffer.alpha, map_depth, &g.alpha, &out])?;
             if kind == VisibilityKind::Traced {
                 rec.keep(&[&map.frame.splats, &map.frame.sorted_gaussians, &map.frame.ranges])?;

@@ -177,8 +177,8 @@ impl Splatter {
         let device = self.device.clone();
         let info = device.info().clone();
         if !info.subgroup_ballot {
-            return Err(Error::Unsupported(
-                "the splat backward pass needs subgroup ballot (elect, broadcast) in compute shaders".into(),
+            return Err(Error::unsupported(
+                "the splat backward pass needs subgroup ballot (elect, broadcast) in compute shaders",
             ));
         }
         if frame.scene_means != scene.means.device_address() || frame.gaussians != scene.count as u64 {
@@ -218,7 +218,7 @@ impl Splatter {
             let pixels = tile * tile;
             let batch = ((shared - 64) / 4 / (pixels * stride)).min(pixels / stride);
             if batch == 0 {
-                return Err(Error::Unsupported(format!(
+                return Err(Error::unsupported(format!(
                     "the splat backward pass at tile size {tile} needs {} bytes of shared memory, more than the \
                      {shared} it may use here; render the frame with a smaller tile",
                     pixels * stride * 4 + 64
@@ -279,7 +279,7 @@ impl Splatter {
         let inputs: Vec<&Buffer> = grads.buffers().into_iter().map(|(b, _, _)| b).collect();
         let outputs: Vec<&Buffer> =
             [&out.means, &out.log_scales, &out.rotations, &out.opacity_logits].into_iter().chain(&out.values).collect();
-        let timings = device.run(|rec| {
+        let timings = device.run(|rec| -> Result<()> {
             rec.keep(&scene_buffers)?;
             rec.keep(&inputs)?;
             rec.keep(&outputs)?;

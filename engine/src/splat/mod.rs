@@ -534,7 +534,7 @@ pub struct Splatter {
 const FRAME_BINDING: [BindingKind; 1] = [BindingKind::UniformBuffer];
 
 fn frame_kernel(device: &Device, info: &'static srug_spirv::KernelInfo, spec: &[(u32, SpecValue)]) -> Result<Kernel> {
-    Kernel::new(device, info, &KernelDecl { bindings: &FRAME_BINDING, push_constant_size: 0, specialization: spec })
+    Ok(Kernel::new(device, info, &KernelDecl { bindings: &FRAME_BINDING, push_constant_size: 0, specialization: spec })?)
 }
 
 /// Camera parameters for the frame uniform.
@@ -604,8 +604,8 @@ impl Splatter {
     pub fn set_texel_blend(&mut self, on: bool) -> Result<()> {
         let formats = [TexelFormat::Rgba32Float, TexelFormat::R32Uint];
         if on && !formats.iter().all(|f| self.device.info().texel_formats.contains(f)) {
-            return Err(Error::Unsupported(
-                "this device cannot read splats through RGBA32F/R32UI texel buffers".into(),
+            return Err(Error::unsupported(
+                "this device cannot read splats through RGBA32F/R32UI texel buffers",
             ));
         }
         self.texel_blend = on;
@@ -625,7 +625,7 @@ impl Splatter {
     /// [`Splatter::texel_preprocess`]); on where the device lacks R32F views is an error.
     pub fn set_texel_preprocess(&mut self, on: bool) -> Result<()> {
         if on && !self.device.info().texel_formats.contains(&TexelFormat::R32Float) {
-            return Err(Error::Unsupported("this device cannot read the scene through R32F texel buffers".into()));
+            return Err(Error::unsupported("this device cannot read the scene through R32F texel buffers"));
         }
         self.texel_preprocess = on;
         Ok(())
@@ -898,7 +898,7 @@ impl Splatter {
                 .flatten(),
             )
             .collect();
-        let phase2 = device.run(|rec| {
+        let phase2 = device.run(|rec| -> Result<()> {
             rec.keep(&[&splats, &tile_counts, &keys, &values, &pair_tiles, &ranges])?;
             rec.keep(&outputs)?;
             if let Some(fb) = &feature_buf {

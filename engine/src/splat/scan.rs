@@ -43,7 +43,7 @@ pub struct Scan {
 }
 
 fn addressed(device: &Device, info: &'static srug_spirv::KernelInfo, push: usize) -> Result<Kernel> {
-    Kernel::new(device, info, &KernelDecl { bindings: &[], push_constant_size: push, specialization: &[] })
+    Ok(Kernel::new(device, info, &KernelDecl { bindings: &[], push_constant_size: push, specialization: &[] })?)
 }
 
 impl Scan {
@@ -113,7 +113,7 @@ impl Scan {
             rec.dispatch_1d(&self.reduce, &[], &push, invocations)?;
             self.record_level(rec, s.device_address(), invocations, level + 1)?;
         }
-        rec.dispatch_1d(&self.apply, &[], &push, invocations)
+        Ok(rec.dispatch_1d(&self.apply, &[], &push, invocations)?)
     }
 }
 

@@ -142,7 +142,7 @@ impl RadixSort {
     /// turning texel inputs on where the device lacks them is an error.
     pub fn set_texel_inputs(&mut self, on: bool) -> Result<()> {
         if on && self.texel.is_none() {
-            return Err(Error::Unsupported("this device cannot read sort keys through uniform texel buffers".into()));
+            return Err(Error::unsupported("this device cannot read sort keys through uniform texel buffers"));
         }
         self.use_texel = on;
         Ok(())

@@ -10,8 +10,9 @@ use std::sync::Arc;
 use ash::vk;
 use srug_spirv::{BindingKind, KernelInfo};
 
-use super::device::{Device, Garbage, Shared};
-use crate::error::{vk_error, Error, Result};
+use crate::device::Device;
+use crate::error::{vk_error, GpuError as Error, Result};
+use crate::shared::{Garbage, Shared};
 
 /// A specialization constant's value (every GLSL scalar constant is 32 bits).
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -1,15 +1,17 @@
-//! Instance, device choice, validation, and the state every GPU object shares.
+//! Instance and device choice, validation, and the device handle.
 
-use std::collections::VecDeque;
 use std::ffi::{c_void, CStr, CString};
 use std::mem::ManuallyDrop;
 use std::sync::atomic::{AtomicU64, Ordering};
-use std::sync::{Arc, Mutex, MutexGuard};
+use std::sync::{Arc, Mutex};
 
 use ash::vk;
-use gpu_allocator::vulkan::{Allocation, Allocator, AllocatorCreateDesc};
+use gpu_allocator::vulkan::{Allocator, AllocatorCreateDesc};
 
-use crate::error::{vk_error, Error, Result};
+use crate::error::{vk_error, GpuError as Error, Result};
+use crate::format::TexelFormat;
+use crate::info::{AdapterSummary, DeviceInfo, MemoryUsage};
+use crate::shared::{lock, on_validation_message, Shared, Tracker, ValidationLog};
 
 const VALIDATION_LAYER: &CStr = c"VK_LAYER_KHRONOS_validation";
 
@@ -56,222 +58,6 @@ pub struct DeviceOptions {
     /// Khronos validation with synchronization validation; `None` reads [`VALIDATION_ENV`].
     pub validation: Option<bool>,
 }
-
-/// What the chosen device is and can do.
-#[derive(Clone, Debug)]
-pub struct DeviceInfo {
-    /// Index in enumeration order.
-    pub index: usize,
-    /// `deviceName`.
-    pub name: String,
-    /// Driver name and info, e.g. "llvmpipe" / "Mesa 22.3.6".
-    pub driver: String,
-    /// Discrete, integrated, virtual, CPU or other.
-    pub device_type: vk::PhysicalDeviceType,
-    /// Vulkan API version as "major.minor.patch".
-    pub api_version: String,
-    /// `maxStorageBufferRange`: the largest buffer a descriptor can bind.
-    pub max_storage_buffer_range: u64,
-    /// `maxComputeSharedMemorySize`.
-    pub max_shared_memory: u32,
-    /// `maxComputeWorkGroupCount`.
-    pub max_workgroup_count: [u32; 3],
-    /// `maxComputeWorkGroupSize`.
-    pub max_workgroup_size: [u32; 3],
-    /// `maxComputeWorkGroupInvocations`.
-    pub max_workgroup_invocations: u32,
-    /// Subgroup size (8 on lavapipe; never assume 32).
-    pub subgroup_size: u32,
-    /// Subgroup ballot operations (elect, broadcast) in compute shaders.
-    pub subgroup_ballot: bool,
-    /// Nanoseconds per timestamp tick.
-    pub timestamp_period_ns: f64,
-    /// Valid bits of a timestamp on the compute queue; 0 when unsupported.
-    pub timestamp_valid_bits: u32,
-    /// fp16 arithmetic in shaders.
-    pub shader_float16: bool,
-    /// 16-bit values in storage buffers.
-    pub storage_16bit: bool,
-    /// `maxTexelBufferElements`: the most elements one texel-buffer view holds.
-    pub max_texel_buffer_elements: u64,
-    /// `minTexelBufferOffsetAlignment`, in bytes.
-    pub min_texel_buffer_offset_alignment: u64,
-    /// The [`TexelFormat`](super::TexelFormat)s usable as uniform texel buffers.
-    pub texel_formats: Vec<super::TexelFormat>,
-}
-
-/// GPU memory in use, as counted by srug's allocations.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct MemoryUsage {
-    /// Bytes allocated now.
-    pub current_bytes: u64,
-    /// Most bytes allocated at once since creation or the last [`Device::reset_peak_memory`].
-    pub peak_bytes: u64,
-}
-
-/// Collects what the validation layer says.
-#[derive(Default)]
-struct ValidationLog {
-    messages: Mutex<Vec<String>>,
-}
-
-/// Something to destroy once the GPU has finished the submission it may be used in.
-pub(crate) enum Garbage {
-    Buffer(vk::Buffer, Allocation),
-    Pipeline { pipeline: vk::Pipeline, layout: vk::PipelineLayout, set_layout: Option<vk::DescriptorSetLayout> },
-    Transient(super::recording::Transient),
-}
-
-/// Submissions in flight and resources waiting for them.
-#[derive(Default)]
-pub(crate) struct Tracker {
-    /// Sequence number of the latest submission.
-    pub(crate) submitted: u64,
-    /// Every submission up to this one has completed.
-    pub(crate) completed: u64,
-    pub(crate) in_flight: VecDeque<(u64, vk::Fence)>,
-    pub(crate) garbage: Vec<(u64, Garbage)>,
-}
-
-/// State shared by the device and every object made from it. Objects hold an
-/// `Arc` of it, so the device outlives them all.
-pub(crate) struct Shared {
-    _entry: ash::Entry,
-    pub(crate) instance: ash::Instance,
-    debug: Option<(ash::ext::debug_utils::Instance, vk::DebugUtilsMessengerEXT)>,
-    validation_log: Option<Box<ValidationLog>>,
-    pub(crate) device: ash::Device,
-    pub(crate) queue: Mutex<vk::Queue>,
-    pub(crate) queue_family: u32,
-    pub(crate) allocator: Mutex<ManuallyDrop<Allocator>>,
-    pub(crate) tracker: Mutex<Tracker>,
-    pub(crate) info: DeviceInfo,
-    pub(crate) current_bytes: AtomicU64,
-    pub(crate) peak_bytes: AtomicU64,
-}
-
-/// Locks a mutex, recovering the data if a panicking thread poisoned it.
-pub(crate) fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
-    m.lock().unwrap_or_else(std::sync::PoisonError::into_inner)
-}
-
-impl Shared {
-    /// Destroys a garbage item now. The caller guarantees the GPU is done with it.
-    fn destroy(&self, item: Garbage) {
-        match item {
-            Garbage::Buffer(buffer, allocation) => {
-                let size = allocation.size();
-                if let Err(e) = lock(&self.allocator).free(allocation) {
-                    log::error!("freeing GPU memory failed: {e}");
-                }
-                self.current_bytes.fetch_sub(size, Ordering::Relaxed);
-                // SAFETY: the buffer belongs to this device and no submission uses it any more.
-                unsafe { self.device.destroy_buffer(buffer, None) };
-            }
-            Garbage::Pipeline { pipeline, layout, set_layout } => {
-                // SAFETY: as above; the objects were created on this device.
-                unsafe {
-                    self.device.destroy_pipeline(pipeline, None);
-                    self.device.destroy_pipeline_layout(layout, None);
-                    if let Some(s) = set_layout {
-                        self.device.destroy_descriptor_set_layout(s, None);
-                    }
-                }
-            }
-            Garbage::Transient(t) => t.destroy(&self.device),
-        }
-    }
-
-    /// Queues `item` for destruction after every submission made so far.
-    pub(crate) fn retire(&self, item: Garbage) {
-        let mut tracker = lock(&self.tracker);
-        if tracker.submitted <= tracker.completed {
-            drop(tracker);
-            self.destroy(item);
-        } else {
-            let seq = tracker.submitted;
-            tracker.garbage.push((seq, item));
-        }
-    }
-
-    /// Records finished submissions and frees what waited on them. With
-    /// `wait_for`, first blocks until that submission has finished.
-    pub(crate) fn maintain(&self, wait_for: Option<u64>) -> Result<()> {
-        let mut freed = Vec::new();
-        {
-            let mut tracker = lock(&self.tracker);
-            while let Some(&(seq, fence)) = tracker.in_flight.front() {
-                let must_wait = wait_for.is_some_and(|w| seq <= w);
-                // SAFETY: the fence belongs to this device and is not destroyed until popped below.
-                let done = unsafe {
-                    if must_wait {
-                        self.device.wait_for_fences(&[fence], true, u64::MAX).map_err(vk_error("vkWaitForFences"))?;
-                        true
-                    } else {
-                        self.device.get_fence_status(fence).map_err(vk_error("vkGetFenceStatus"))?
-                    }
-                };
-                if !done {
-                    break;
-                }
-                tracker.in_flight.pop_front();
-                tracker.completed = seq;
-                // SAFETY: the fence has signalled and is referenced nowhere else.
-                unsafe { self.device.destroy_fence(fence, None) };
-            }
-            let completed = tracker.completed;
-            let (ready, waiting): (Vec<_>, Vec<_>) =
-                std::mem::take(&mut tracker.garbage).into_iter().partition(|(seq, _)| *seq <= completed);
-            tracker.garbage = waiting;
-            freed.extend(ready.into_iter().map(|(_, g)| g));
-        }
-        for item in freed {
-            self.destroy(item);
-        }
-        Ok(())
-    }
-
-    pub(crate) fn take_validation_messages(&self) -> Vec<String> {
-        self.validation_log.as_ref().map(|l| std::mem::take(&mut *lock(&l.messages))).unwrap_or_default()
-    }
-}
-
-impl Drop for Shared {
-    fn drop(&mut self) {
-        // SAFETY: every object made from this device holds an Arc of it, so
-        // none is left; waiting for idle makes destroying what remains safe.
-        unsafe {
-            if let Err(e) = self.device.device_wait_idle() {
-                log::error!("vkDeviceWaitIdle failed while dropping the device: {e}");
-            }
-        }
-        let tracker = std::mem::take(&mut *lock(&self.tracker));
-        for (_, fence) in tracker.in_flight {
-            // SAFETY: the device is idle.
-            unsafe { self.device.destroy_fence(fence, None) };
-        }
-        for (_, item) in tracker.garbage {
-            self.destroy(item);
-        }
-        // SAFETY: the allocator is dropped exactly once, before the device it uses.
-        unsafe { ManuallyDrop::drop(&mut *lock(&self.allocator)) };
-        // SAFETY: all child objects are gone; destruction order is device, messenger, instance.
-        unsafe {
-            self.device.destroy_device(None);
-            if let Some((loader, messenger)) = self.debug.take() {
-                loader.destroy_debug_utils_messenger(messenger, None);
-            }
-            self.instance.destroy_instance(None);
-        }
-        if let Some(log) = &self.validation_log {
-            let left = lock(&log.messages);
-            for m in left.iter() {
-                log::error!("unread validation message: {m}");
-            }
-        }
-    }
-}
-
 /// A Vulkan device with one compute queue. Cheap to clone (shared handle).
 #[derive(Clone)]
 pub struct Device {
@@ -284,47 +70,6 @@ impl std::fmt::Debug for Device {
     }
 }
 
-/// A device as listed before choosing one.
-#[derive(Clone, Debug)]
-pub struct AdapterSummary {
-    /// Index in enumeration order (what [`DeviceSelection::Index`] takes).
-    pub index: usize,
-    /// `deviceName`.
-    pub name: String,
-    /// Discrete, integrated, CPU...
-    pub device_type: vk::PhysicalDeviceType,
-    /// Vulkan API version.
-    pub api_version: String,
-}
-
-unsafe extern "system" fn on_validation_message(
-    severity: vk::DebugUtilsMessageSeverityFlagsEXT,
-    types: vk::DebugUtilsMessageTypeFlagsEXT,
-    data: *const vk::DebugUtilsMessengerCallbackDataEXT<'_>,
-    user: *mut c_void,
-) -> vk::Bool32 {
-    // SAFETY: the layer passes valid callback data for the duration of the call.
-    let text = unsafe {
-        data.as_ref()
-            .filter(|d| !d.p_message.is_null())
-            .map(|d| CStr::from_ptr(d.p_message).to_string_lossy().into_owned())
-            .unwrap_or_default()
-    };
-    let counts = severity
-        .intersects(vk::DebugUtilsMessageSeverityFlagsEXT::WARNING | vk::DebugUtilsMessageSeverityFlagsEXT::ERROR)
-        && types
-            .intersects(vk::DebugUtilsMessageTypeFlagsEXT::VALIDATION | vk::DebugUtilsMessageTypeFlagsEXT::PERFORMANCE);
-    if counts {
-        log::error!("Vulkan validation: {text}");
-        // SAFETY: `user` is the ValidationLog boxed in Shared, which outlives the messenger.
-        if let Some(log) = unsafe { user.cast::<ValidationLog>().as_ref() } {
-            lock(&log.messages).push(text);
-        }
-    } else {
-        log::debug!("Vulkan: {text}");
-    }
-    vk::FALSE
-}
 
 fn version_string(v: u32) -> String {
     format!("{}.{}.{}", vk::api_version_major(v), vk::api_version_minor(v), vk::api_version_patch(v))
@@ -693,7 +438,7 @@ fn make_device(
         storage_16bit: has_s16 == vk::TRUE,
         max_texel_buffer_elements: u64::from(limits.max_texel_buffer_elements),
         min_texel_buffer_offset_alignment: limits.min_texel_buffer_offset_alignment.max(1),
-        texel_formats: super::TexelFormat::ALL
+        texel_formats: TexelFormat::ALL
             .into_iter()
             .filter(|f| {
                 // SAFETY: valid physical device.

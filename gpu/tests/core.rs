@@ -5,13 +5,26 @@
 
 #![allow(clippy::unwrap_used, clippy::expect_used, reason = "a failed unwrap is a failed test")]
 
-use srug::gpu::selftest::{self, affine_cpu, affine_kernel, AffineAddressedPush, AffinePush, AFFINE_BINDINGS};
-use srug::gpu::{
-    self, kernels, specialized_workgroup_size, Binding, BindingKind, Device, DeviceOptions, DeviceSelection, Kernel,
-    KernelDecl, MemoryKind, SpecValue, TexelFormat, Texels,
+use srug_gpu::selftest::{self, affine_cpu, affine_kernel, AffineAddressedPush, AffinePush, AFFINE_BINDINGS};
+use srug_gpu::{
+    self as gpu, kernels, specialized_workgroup_size, Binding, BindingKind, Device, DeviceOptions, DeviceSelection,
+    GpuError as Error, Kernel, KernelDecl, MemoryKind, SpecValue, TexelFormat, Texels,
 };
-use srug::Error;
-use srug_tests::{assert_no_validation_messages, device};
+
+/// A device with validation on (device choice from `SRUG_DEVICE`, else automatic).
+fn device() -> Device {
+    match Device::new(&DeviceOptions { selection: None, validation: Some(true) }) {
+        Ok(d) => d,
+        Err(e) => panic!("cannot create a Vulkan device with validation: {e}"),
+    }
+}
+
+/// Fails the test when the validation layer said anything.
+fn assert_no_validation_messages(device: &Device) {
+    assert!(device.validation_enabled(), "validation layer is not running");
+    let messages = device.take_validation_messages();
+    assert!(messages.is_empty(), "{} validation message(s):\n{}", messages.len(), messages.join("\n"));
+}
 
 const NAN: u32 = 0x7fc0_0000;
 
@@ -353,7 +366,7 @@ fn impossible_allocations_are_errors() {
     assert!(selftest::run(&d, 1000).unwrap().passed());
     assert_eq!(d.memory_usage().current_bytes, 0);
     let n = usize::MAX / 2;
-    assert!(matches!(d.create_filled::<[f32; 4]>("overflow", n, 0), Err(Error::InvalidArgument(_))));
+    assert!(matches!(d.create_filled::<[f32; 4]>("overflow", n, 0), Err(Error::InvalidArgument { .. })));
 }
 
 #[test]

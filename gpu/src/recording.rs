@@ -12,10 +12,12 @@ use std::marker::PhantomData;
 use ash::vk;
 use bytemuck::Pod;
 
-use super::device::{lock, Device, Garbage};
-use super::kernel::Kernel;
-use super::memory::{Buffer, Texels};
-use crate::error::{vk_error, Error, Result};
+use crate::buffer::{Buffer, Texels};
+use crate::device::Device;
+use crate::error::{vk_error, GpuError as Error, Result};
+use crate::info::DeviceInfo;
+use crate::kernel::Kernel;
+use crate::shared::{lock, Garbage, Transient};
 
 /// Timestamp queries per recording: two per stage.
 const MAX_QUERIES: u32 = 256;
@@ -23,32 +25,6 @@ const MAX_QUERIES: u32 = 256;
 const SETS_PER_POOL: u32 = 64;
 /// Storage-buffer descriptors per pool.
 const DESCRIPTORS_PER_POOL: u32 = 512;
-
-/// Per-recording Vulkan objects, destroyed once its submission has finished.
-pub(crate) struct Transient {
-    command_pool: vk::CommandPool,
-    descriptor_pools: Vec<vk::DescriptorPool>,
-    query_pool: Option<vk::QueryPool>,
-    buffer_views: Vec<vk::BufferView>,
-}
-
-impl Transient {
-    pub(crate) fn destroy(self, device: &ash::Device) {
-        // SAFETY: the caller guarantees the GPU has finished with these objects.
-        unsafe {
-            device.destroy_command_pool(self.command_pool, None);
-            for p in self.descriptor_pools {
-                device.destroy_descriptor_pool(p, None);
-            }
-            for v in self.buffer_views {
-                device.destroy_buffer_view(v, None);
-            }
-            if let Some(q) = self.query_pool {
-                device.destroy_query_pool(q, None);
-            }
-        }
-    }
-}
 
 /// One descriptor binding of a dispatch.
 #[derive(Clone, Copy, Debug)]
@@ -60,7 +36,7 @@ pub enum Binding<'a> {
 }
 
 /// Checks a texel-buffer binding against the device's limits.
-fn check_texels(info: &super::DeviceInfo, t: &Texels<'_>) -> std::result::Result<(), String> {
+fn check_texels(info: &DeviceInfo, t: &Texels<'_>) -> std::result::Result<(), String> {
     let name = t.buffer.name();
     if !info.texel_formats.contains(&t.format) {
         return Err(format!("{:?} texel buffers are not supported on this device ({name})", t.format));
@@ -240,14 +216,17 @@ impl Device {
         Ok(Submission { device: self.clone(), seq, transient, stages })
     }
 
-    /// Records with `f`, submits, waits, and returns the stage timings.
-    pub fn run<'a, F>(&'a self, f: F) -> Result<Timings>
+    /// Records with `f`, submits, waits, and returns the stage timings. `f` may
+    /// fail with any error a [`GpuError`](crate::GpuError) converts into, so a
+    /// caller's own error type passes through unchanged.
+    pub fn run<'a, F, E>(&'a self, f: F) -> Result<Timings, E>
     where
-        F: FnOnce(&mut Recording<'a>) -> Result<()>,
+        F: FnOnce(&mut Recording<'a>) -> Result<(), E>,
+        E: From<Error>,
     {
         let mut rec = self.begin()?;
         f(&mut rec)?;
-        self.submit(rec)?.wait()
+        Ok(self.submit(rec)?.wait()?)
     }
 }
 
@@ -400,11 +379,10 @@ impl<'a> Recording<'a> {
         self.check_device(dst)?;
         let fits = |off: u64, b: &Buffer| off.checked_add(size).is_some_and(|e| e <= b.size());
         if !fits(src_offset, src) || !fits(dst_offset, dst) {
-            return Err(Error::InvalidArgument(format!(
-                "copy of {size} bytes from {}+{src_offset} to {}+{dst_offset} is out of bounds",
-                src.name(),
-                dst.name()
-            )));
+            return Err(Error::invalid(
+                "copy",
+                format!("{size} bytes from {}+{src_offset} to {}+{dst_offset} is out of bounds", src.name(), dst.name()),
+            ));
         }
         if size == 0 {
             return Ok(());
@@ -420,7 +398,7 @@ impl<'a> Recording<'a> {
         if std::sync::Arc::ptr_eq(&buffer.shared, &self.device.shared) {
             Ok(())
         } else {
-            Err(Error::InvalidArgument(format!("buffer {} belongs to another device", buffer.name())))
+            Err(Error::invalid(format!("buffer {}", buffer.name()), "belongs to another device"))
         }
     }
 
@@ -518,7 +496,7 @@ impl<'a> Recording<'a> {
                         unsafe { d.create_buffer_view(&create, None) }.map_err(vk_error("vkCreateBufferView"))?;
                     self.transient
                         .as_mut()
-                        .ok_or_else(|| Error::InvalidArgument("recording already submitted".into()))?
+                        .ok_or_else(|| Error::invalid("recording", "already submitted"))?
                         .buffer_views
                         .push(view);
                     views.push([view]);
@@ -654,7 +632,7 @@ impl<'a> Recording<'a> {
     fn allocate_set(&mut self, layout: vk::DescriptorSetLayout, descriptors: u32) -> Result<vk::DescriptorSet> {
         let d = &self.device.shared.device;
         let transient =
-            self.transient.as_mut().ok_or_else(|| Error::InvalidArgument("recording already submitted".into()))?;
+            self.transient.as_mut().ok_or_else(|| Error::invalid("recording", "already submitted"))?;
         if let Some(&pool) = transient.descriptor_pools.last() {
             let layouts = [layout];
             let info = vk::DescriptorSetAllocateInfo::default().descriptor_pool(pool).set_layouts(&layouts);

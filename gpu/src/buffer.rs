@@ -1,7 +1,7 @@
 //! Buffers: named allocations through gpu-allocator, staged upload and readback.
 //!
 //! Invariants:
-//! - every allocation is named and counted in [`MemoryUsage`](super::MemoryUsage);
+//! - every allocation is named and counted in [`MemoryUsage`](crate::MemoryUsage);
 //! - a dropped buffer is destroyed only after every submission made before the
 //!   drop has finished (see `Shared::retire`), so the GPU never reads freed memory;
 //! - storage buffers carry a device address, so kernels can reach buffers larger
@@ -15,8 +15,10 @@ use bytemuck::Pod;
 use gpu_allocator::vulkan::{Allocation, AllocationCreateDesc, AllocationScheme};
 use gpu_allocator::MemoryLocation;
 
-use super::device::{lock, Device, Garbage, Shared};
-use crate::error::{vk_error, Error, Result};
+use crate::device::Device;
+use crate::error::{vk_error, GpuError as Error, Result};
+use crate::format::TexelFormat;
+use crate::shared::{lock, Garbage, Shared};
 
 /// Bytes moved per staging round trip; bounds host memory for huge buffers.
 const STAGING_CHUNK: u64 = 64 << 20;
@@ -77,7 +79,7 @@ impl Buffer {
             .as_mut()
             .and_then(|a| a.mapped_slice_mut())
             .map(|s| &mut s[..size])
-            .ok_or_else(|| Error::InvalidArgument(format!("buffer {name} is not host-visible")))
+            .ok_or_else(|| Error::invalid(format!("buffer {name}"), "is not host-visible"))
     }
 }
 
@@ -171,7 +173,7 @@ impl Device {
     /// (a sentinel, so "never written" differs from "wrote 0").
     pub fn create_filled<T: Pod>(&self, name: &str, count: usize, word: u32) -> Result<Buffer> {
         let size = (count as u64).checked_mul(std::mem::size_of::<T>() as u64).ok_or_else(|| {
-            Error::InvalidArgument(format!("buffer {name}: {count} elements overflow the address space"))
+            Error::invalid(format!("buffer {name}"), format!("{count} elements overflow the address space"))
         })?;
         let buffer = self.create_buffer(name, size, MemoryKind::Storage)?;
         self.run(|rec| rec.fill(&buffer, word))?;
@@ -183,12 +185,10 @@ impl Device {
         let bytes: &[u8] = bytemuck::cast_slice(data);
         let end = byte_offset.checked_add(bytes.len() as u64);
         if end.is_none_or(|e| e > buffer.size) || byte_offset % 4 != 0 {
-            return Err(Error::InvalidArgument(format!(
-                "write of {} bytes at offset {byte_offset} into {} ({} bytes)",
-                bytes.len(),
-                buffer.name,
-                buffer.size
-            )));
+            return Err(Error::invalid(
+                format!("buffer {} ({} bytes)", buffer.name, buffer.size),
+                format!("a write of {} bytes at offset {byte_offset} is out of bounds or not 4-byte aligned", bytes.len()),
+            ));
         }
         if bytes.is_empty() {
             return Ok(());
@@ -209,7 +209,7 @@ impl Device {
         let elem = std::mem::size_of::<T>() as u64;
         let (start, len) = (first * elem, count * elem);
         if start.checked_add(len).is_none_or(|end| end > buffer.size) || elem == 0 {
-            return Err(Error::InvalidArgument(format!("read of {count} elements at {first} from {}", buffer.name)));
+            return Err(Error::invalid(format!("buffer {}", buffer.name), format!("a read of {count} elements at {first} is out of bounds")));
         }
         let part = self.create_buffer(&format!("{} (range)", buffer.name), len, MemoryKind::Storage)?;
         self.run(|rec| rec.copy(buffer, start, &part, 0, len))?;
@@ -220,10 +220,10 @@ impl Device {
     pub fn read_buffer<T: Pod>(&self, buffer: &Buffer) -> Result<Vec<T>> {
         let elem = std::mem::size_of::<T>() as u64;
         if elem == 0 || buffer.size % elem != 0 {
-            return Err(Error::InvalidArgument(format!(
-                "buffer {} holds {} bytes, not a whole number of {}-byte elements",
-                buffer.name, buffer.size, elem
-            )));
+            return Err(Error::invalid(
+                format!("buffer {}", buffer.name),
+                format!("holds {} bytes, not a whole number of {elem}-byte elements", buffer.size),
+            ));
         }
         let mut out: Vec<T> = vec![T::zeroed(); (buffer.size / elem) as usize];
         let dst: &mut [u8] = bytemuck::cast_slice_mut(&mut out);
@@ -239,52 +239,6 @@ impl Device {
             part.copy_from_slice(&staging.mapped()?[..part.len()]);
         }
         Ok(out)
-    }
-}
-
-/// Element formats of texel-buffer views: what `texelFetch` on a
-/// `samplerBuffer` converts to float, or a `usamplerBuffer` returns as uints.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum TexelFormat {
-    /// 32-bit float.
-    R32Float,
-    /// 16-bit float (widened to fp32 by the fetch; no 16-bit storage feature needed).
-    R16Float,
-    /// 32-bit unsigned integer (`usamplerBuffer`).
-    R32Uint,
-    /// Two 32-bit unsigned integers (`usamplerBuffer`, `.xy`), e.g. a 64-bit key as (low, high).
-    Rg32Uint,
-    /// Four 32-bit floats (`samplerBuffer`, a `vec4` per element).
-    Rgba32Float,
-    /// Four 16-bit floats (`samplerBuffer`, widened to a `vec4` per element).
-    Rgba16Float,
-}
-
-impl TexelFormat {
-    /// Every format, in the order [`DeviceInfo::texel_formats`](super::DeviceInfo) lists them.
-    pub const ALL: [Self; 6] =
-        [Self::R32Float, Self::R16Float, Self::R32Uint, Self::Rg32Uint, Self::Rgba32Float, Self::Rgba16Float];
-
-    /// The Vulkan format.
-    pub fn vk(self) -> vk::Format {
-        match self {
-            Self::R32Float => vk::Format::R32_SFLOAT,
-            Self::R16Float => vk::Format::R16_SFLOAT,
-            Self::R32Uint => vk::Format::R32_UINT,
-            Self::Rg32Uint => vk::Format::R32G32_UINT,
-            Self::Rgba32Float => vk::Format::R32G32B32A32_SFLOAT,
-            Self::Rgba16Float => vk::Format::R16G16B16A16_SFLOAT,
-        }
-    }
-
-    /// Bytes per element.
-    pub fn bytes(self) -> u64 {
-        match self {
-            Self::R32Float | Self::R32Uint => 4,
-            Self::R16Float => 2,
-            Self::Rg32Uint | Self::Rgba16Float => 8,
-            Self::Rgba32Float => 16,
-        }
     }
 }
 

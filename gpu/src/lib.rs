@@ -1,11 +1,13 @@
-//! The Vulkan compute core: device, memory, kernels, recording and timing.
+//! srug-gpu: the Vulkan compute core of srug — device, memory, kernels,
+//! recording and timing. It knows no Gaussian, scene, camera or shading type;
+//! the renderer (`srug`) is built on it.
 //!
-//! This layer knows nothing of Gaussians. Its contract:
+//! # Contract
 //! - **Safety.** All `unsafe` Vulkan calls live here. Public types are safe to
 //!   use in any order: every object holds the device alive, and destruction of
 //!   buffers, pipelines and per-recording objects is deferred until the GPU has
 //!   finished every submission made before the drop.
-//! - **Errors.** Vulkan results become [`Error`](crate::Error) in one place
+//! - **Errors.** Vulkan results become [`GpuError`] in one place
 //!   (`error::vk_error`); out-of-memory and device loss have their own variants.
 //! - **Synchronization.** Each recorded command is preceded by a global memory
 //!   barrier; each recording ends with a barrier toward host reads.
@@ -20,17 +22,28 @@
 //!   the view and checks `maxTexelBufferElements` and the offset alignment.
 //!   On lavapipe a `texelFetch` with per-lane indices is a vector gather, while
 //!   storage-buffer and device-address loads run lane by lane.
+//!
+//! # Module graph (no cycles)
+//! `error`, `format` and `info` are leaves; `shared` (instance, device,
+//! allocator, garbage of raw handles) imports only those; `device`, `buffer`,
+//! `kernel` and `recording` import `shared` and the leaves, and `recording`
+//! also imports `buffer` and `kernel`.
 
+mod buffer;
 mod device;
+mod error;
+mod format;
+mod info;
 mod kernel;
-mod memory;
 mod recording;
+mod shared;
 pub mod selftest;
 
-pub use device::{
-    AdapterSummary, Device, DeviceInfo, DeviceOptions, DeviceSelection, MemoryUsage, DEVICE_ENV, VALIDATION_ENV,
-};
+pub use buffer::{Buffer, MemoryKind, Texels};
+pub use device::{Device, DeviceOptions, DeviceSelection, DEVICE_ENV, VALIDATION_ENV};
+pub use error::{GpuError, Result};
+pub use format::TexelFormat;
+pub use info::{AdapterSummary, DeviceInfo, MemoryUsage};
 pub use kernel::{check_decl, specialized_workgroup_size, Kernel, KernelDecl, SpecValue};
-pub use memory::{Buffer, MemoryKind, TexelFormat, Texels};
 pub use recording::{grid_1d, Binding, Recording, StageTime, Submission, Timings};
 pub use srug_spirv::{kernels, BindingInfo, BindingKind, KernelInfo, SpecConstantInfo};

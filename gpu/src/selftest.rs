@@ -4,8 +4,7 @@
 
 use bytemuck::{Pod, Zeroable};
 
-use super::{kernels, BindingKind, Device, Kernel, KernelDecl, SpecValue};
-use crate::error::Result;
+use crate::{kernels, BindingKind, Device, Kernel, KernelDecl, Result, SpecValue};
 
 /// Push constants of `core_affine.comp` (keep in sync with the GLSL `Push` block).
 #[repr(C)]

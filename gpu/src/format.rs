@@ -1,0 +1,49 @@
+//! Texel formats and their Vulkan conversions (a leaf).
+
+use ash::vk;
+
+/// Element formats of texel-buffer views: what `texelFetch` on a
+/// `samplerBuffer` converts to float, or a `usamplerBuffer` returns as uints.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum TexelFormat {
+    /// 32-bit float.
+    R32Float,
+    /// 16-bit float (widened to fp32 by the fetch; no 16-bit storage feature needed).
+    R16Float,
+    /// 32-bit unsigned integer (`usamplerBuffer`).
+    R32Uint,
+    /// Two 32-bit unsigned integers (`usamplerBuffer`, `.xy`), e.g. a 64-bit key as (low, high).
+    Rg32Uint,
+    /// Four 32-bit floats (`samplerBuffer`, a `vec4` per element).
+    Rgba32Float,
+    /// Four 16-bit floats (`samplerBuffer`, widened to a `vec4` per element).
+    Rgba16Float,
+}
+
+impl TexelFormat {
+    /// Every format, in the order [`DeviceInfo::texel_formats`](crate::DeviceInfo::texel_formats) lists them.
+    pub const ALL: [Self; 6] =
+        [Self::R32Float, Self::R16Float, Self::R32Uint, Self::Rg32Uint, Self::Rgba32Float, Self::Rgba16Float];
+
+    /// The Vulkan format.
+    pub fn vk(self) -> vk::Format {
+        match self {
+            Self::R32Float => vk::Format::R32_SFLOAT,
+            Self::R16Float => vk::Format::R16_SFLOAT,
+            Self::R32Uint => vk::Format::R32_UINT,
+            Self::Rg32Uint => vk::Format::R32G32_UINT,
+            Self::Rgba32Float => vk::Format::R32G32B32A32_SFLOAT,
+            Self::Rgba16Float => vk::Format::R16G16B16A16_SFLOAT,
+        }
+    }
+
+    /// Bytes per element.
+    pub fn bytes(self) -> u64 {
+        match self {
+            Self::R32Float | Self::R32Uint => 4,
+            Self::R16Float => 2,
+            Self::Rg32Uint | Self::Rgba16Float => 8,
+            Self::Rgba32Float => 16,
+        }
+    }
+}

@@ -1,0 +1,71 @@
+//! What a device is and can do, as plain data: the one description every
+//! other module reads (a leaf: it imports only the format table).
+
+use ash::vk;
+
+use crate::format::TexelFormat;
+
+/// What the chosen device is and can do.
+#[derive(Clone, Debug)]
+pub struct DeviceInfo {
+    /// Index in enumeration order.
+    pub index: usize,
+    /// `deviceName`.
+    pub name: String,
+    /// Driver name and info, e.g. "llvmpipe" / "Mesa 22.3.6".
+    pub driver: String,
+    /// Discrete, integrated, virtual, CPU or other.
+    pub device_type: vk::PhysicalDeviceType,
+    /// Vulkan API version as "major.minor.patch".
+    pub api_version: String,
+    /// `maxStorageBufferRange`: the largest buffer a descriptor can bind.
+    pub max_storage_buffer_range: u64,
+    /// `maxComputeSharedMemorySize`.
+    pub max_shared_memory: u32,
+    /// `maxComputeWorkGroupCount`.
+    pub max_workgroup_count: [u32; 3],
+    /// `maxComputeWorkGroupSize`.
+    pub max_workgroup_size: [u32; 3],
+    /// `maxComputeWorkGroupInvocations`.
+    pub max_workgroup_invocations: u32,
+    /// Subgroup size (8 on lavapipe; never assume 32).
+    pub subgroup_size: u32,
+    /// Subgroup ballot operations (elect, broadcast) in compute shaders.
+    pub subgroup_ballot: bool,
+    /// Nanoseconds per timestamp tick.
+    pub timestamp_period_ns: f64,
+    /// Valid bits of a timestamp on the compute queue; 0 when unsupported.
+    pub timestamp_valid_bits: u32,
+    /// fp16 arithmetic in shaders.
+    pub shader_float16: bool,
+    /// 16-bit values in storage buffers.
+    pub storage_16bit: bool,
+    /// `maxTexelBufferElements`: the most elements one texel-buffer view holds.
+    pub max_texel_buffer_elements: u64,
+    /// `minTexelBufferOffsetAlignment`, in bytes.
+    pub min_texel_buffer_offset_alignment: u64,
+    /// The [`TexelFormat`]s usable as uniform texel buffers.
+    pub texel_formats: Vec<TexelFormat>,
+}
+
+/// GPU memory in use, as counted by srug's allocations.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct MemoryUsage {
+    /// Bytes allocated now.
+    pub current_bytes: u64,
+    /// Most bytes allocated at once since creation or the last [`Device::reset_peak_memory`](crate::Device::reset_peak_memory).
+    pub peak_bytes: u64,
+}
+
+/// A device as listed before choosing one.
+#[derive(Clone, Debug)]
+pub struct AdapterSummary {
+    /// Index in enumeration order (what [`DeviceSelection::Index`](crate::DeviceSelection::Index) takes).
+    pub index: usize,
+    /// `deviceName`.
+    pub name: String,
+    /// Discrete, integrated, CPU...
+    pub device_type: vk::PhysicalDeviceType,
+    /// Vulkan API version.
+    pub api_version: String,
+}

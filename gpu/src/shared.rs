@@ -1,0 +1,236 @@
+//! The state every GPU object shares: instance, device, queue, allocator,
+//! the validation log, and the garbage that waits for submissions to finish.
+//!
+//! A leaf: garbage is raw Vulkan handles, so this module imports no other
+//! object module (buffers, kernels and recordings import it, never the reverse).
+
+use std::collections::VecDeque;
+use std::ffi::{c_void, CStr};
+use std::mem::ManuallyDrop;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{Mutex, MutexGuard};
+
+use ash::vk;
+use gpu_allocator::vulkan::{Allocation, Allocator};
+
+use crate::error::{vk_error, Result};
+use crate::info::DeviceInfo;
+
+/// Per-recording Vulkan objects, destroyed once its submission has finished.
+pub(crate) struct Transient {
+    pub(crate) command_pool: vk::CommandPool,
+    pub(crate) descriptor_pools: Vec<vk::DescriptorPool>,
+    pub(crate) query_pool: Option<vk::QueryPool>,
+    pub(crate) buffer_views: Vec<vk::BufferView>,
+}
+
+impl Transient {
+    pub(crate) fn destroy(self, device: &ash::Device) {
+        // SAFETY: the caller guarantees the GPU has finished with these objects.
+        unsafe {
+            device.destroy_command_pool(self.command_pool, None);
+            for p in self.descriptor_pools {
+                device.destroy_descriptor_pool(p, None);
+            }
+            for v in self.buffer_views {
+                device.destroy_buffer_view(v, None);
+            }
+            if let Some(q) = self.query_pool {
+                device.destroy_query_pool(q, None);
+            }
+        }
+    }
+}
+
+/// Collects what the validation layer says.
+#[derive(Default)]
+pub(crate) struct ValidationLog {
+    pub(crate) messages: Mutex<Vec<String>>,
+}
+
+/// Something to destroy once the GPU has finished the submission it may be used in.
+pub(crate) enum Garbage {
+    Buffer(vk::Buffer, Allocation),
+    Pipeline { pipeline: vk::Pipeline, layout: vk::PipelineLayout, set_layout: Option<vk::DescriptorSetLayout> },
+    Transient(Transient),
+}
+
+/// Submissions in flight and resources waiting for them.
+#[derive(Default)]
+pub(crate) struct Tracker {
+    /// Sequence number of the latest submission.
+    pub(crate) submitted: u64,
+    /// Every submission up to this one has completed.
+    pub(crate) completed: u64,
+    pub(crate) in_flight: VecDeque<(u64, vk::Fence)>,
+    pub(crate) garbage: Vec<(u64, Garbage)>,
+}
+
+/// State shared by the device and every object made from it. Objects hold an
+/// `Arc` of it, so the device outlives them all.
+pub(crate) struct Shared {
+    pub(crate) _entry: ash::Entry,
+    pub(crate) instance: ash::Instance,
+    pub(crate) debug: Option<(ash::ext::debug_utils::Instance, vk::DebugUtilsMessengerEXT)>,
+    pub(crate) validation_log: Option<Box<ValidationLog>>,
+    pub(crate) device: ash::Device,
+    pub(crate) queue: Mutex<vk::Queue>,
+    pub(crate) queue_family: u32,
+    pub(crate) allocator: Mutex<ManuallyDrop<Allocator>>,
+    pub(crate) tracker: Mutex<Tracker>,
+    pub(crate) info: DeviceInfo,
+    pub(crate) current_bytes: AtomicU64,
+    pub(crate) peak_bytes: AtomicU64,
+}
+
+/// Locks a mutex, recovering the data if a panicking thread poisoned it.
+pub(crate) fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(std::sync::PoisonError::into_inner)
+}
+
+impl Shared {
+    /// Destroys a garbage item now. The caller guarantees the GPU is done with it.
+    fn destroy(&self, item: Garbage) {
+        match item {
+            Garbage::Buffer(buffer, allocation) => {
+                let size = allocation.size();
+                if let Err(e) = lock(&self.allocator).free(allocation) {
+                    log::error!("freeing GPU memory failed: {e}");
+                }
+                self.current_bytes.fetch_sub(size, Ordering::Relaxed);
+                // SAFETY: the buffer belongs to this device and no submission uses it any more.
+                unsafe { self.device.destroy_buffer(buffer, None) };
+            }
+            Garbage::Pipeline { pipeline, layout, set_layout } => {
+                // SAFETY: as above; the objects were created on this device.
+                unsafe {
+                    self.device.destroy_pipeline(pipeline, None);
+                    self.device.destroy_pipeline_layout(layout, None);
+                    if let Some(s) = set_layout {
+                        self.device.destroy_descriptor_set_layout(s, None);
+                    }
+                }
+            }
+            Garbage::Transient(t) => t.destroy(&self.device),
+        }
+    }
+
+    /// Queues `item` for destruction after every submission made so far.
+    pub(crate) fn retire(&self, item: Garbage) {
+        let mut tracker = lock(&self.tracker);
+        if tracker.submitted <= tracker.completed {
+            drop(tracker);
+            self.destroy(item);
+        } else {
+            let seq = tracker.submitted;
+            tracker.garbage.push((seq, item));
+        }
+    }
+
+    /// Records finished submissions and frees what waited on them. With
+    /// `wait_for`, first blocks until that submission has finished.
+    pub(crate) fn maintain(&self, wait_for: Option<u64>) -> Result<()> {
+        let mut freed = Vec::new();
+        {
+            let mut tracker = lock(&self.tracker);
+            while let Some(&(seq, fence)) = tracker.in_flight.front() {
+                let must_wait = wait_for.is_some_and(|w| seq <= w);
+                // SAFETY: the fence belongs to this device and is not destroyed until popped below.
+                let done = unsafe {
+                    if must_wait {
+                        self.device.wait_for_fences(&[fence], true, u64::MAX).map_err(vk_error("vkWaitForFences"))?;
+                        true
+                    } else {
+                        self.device.get_fence_status(fence).map_err(vk_error("vkGetFenceStatus"))?
+                    }
+                };
+                if !done {
+                    break;
+                }
+                tracker.in_flight.pop_front();
+                tracker.completed = seq;
+                // SAFETY: the fence has signalled and is referenced nowhere else.
+                unsafe { self.device.destroy_fence(fence, None) };
+            }
+            let completed = tracker.completed;
+            let (ready, waiting): (Vec<_>, Vec<_>) =
+                std::mem::take(&mut tracker.garbage).into_iter().partition(|(seq, _)| *seq <= completed);
+            tracker.garbage = waiting;
+            freed.extend(ready.into_iter().map(|(_, g)| g));
+        }
+        for item in freed {
+            self.destroy(item);
+        }
+        Ok(())
+    }
+
+    pub(crate) fn take_validation_messages(&self) -> Vec<String> {
+        self.validation_log.as_ref().map(|l| std::mem::take(&mut *lock(&l.messages))).unwrap_or_default()
+    }
+}
+
+impl Drop for Shared {
+    fn drop(&mut self) {
+        // SAFETY: every object made from this device holds an Arc of it, so
+        // none is left; waiting for idle makes destroying what remains safe.
+        unsafe {
+            if let Err(e) = self.device.device_wait_idle() {
+                log::error!("vkDeviceWaitIdle failed while dropping the device: {e}");
+            }
+        }
+        let tracker = std::mem::take(&mut *lock(&self.tracker));
+        for (_, fence) in tracker.in_flight {
+            // SAFETY: the device is idle.
+            unsafe { self.device.destroy_fence(fence, None) };
+        }
+        for (_, item) in tracker.garbage {
+            self.destroy(item);
+        }
+        // SAFETY: the allocator is dropped exactly once, before the device it uses.
+        unsafe { ManuallyDrop::drop(&mut *lock(&self.allocator)) };
+        // SAFETY: all child objects are gone; destruction order is device, messenger, instance.
+        unsafe {
+            self.device.destroy_device(None);
+            if let Some((loader, messenger)) = self.debug.take() {
+                loader.destroy_debug_utils_messenger(messenger, None);
+            }
+            self.instance.destroy_instance(None);
+        }
+        if let Some(log) = &self.validation_log {
+            let left = lock(&log.messages);
+            for m in left.iter() {
+                log::error!("unread validation message: {m}");
+            }
+        }
+    }
+}
+
+
+pub(crate) unsafe extern "system" fn on_validation_message(
+    severity: vk::DebugUtilsMessageSeverityFlagsEXT,
+    types: vk::DebugUtilsMessageTypeFlagsEXT,
+    data: *const vk::DebugUtilsMessengerCallbackDataEXT<'_>,
+    user: *mut c_void,
+) -> vk::Bool32 {
+    // SAFETY: the layer passes valid callback data for the duration of the call.
+    let text = unsafe {
+        data.as_ref()
+            .filter(|d| !d.p_message.is_null())
+            .map(|d| CStr::from_ptr(d.p_message).to_string_lossy().into_owned())
+            .unwrap_or_default()
+    };
+    let counts = severity
+        .intersects(vk::DebugUtilsMessageSeverityFlagsEXT::WARNING | vk::DebugUtilsMessageSeverityFlagsEXT::ERROR)
+        && types
+            .intersects(vk::DebugUtilsMessageTypeFlagsEXT::VALIDATION | vk::DebugUtilsMessageTypeFlagsEXT::PERFORMANCE);
+    if counts {
+        log::error!("Vulkan validation: {text}");
+        // SAFETY: `user` is the ValidationLog boxed in Shared, which outlives the messenger.
+        if let Some(log) = unsafe { user.cast::<ValidationLog>().as_ref() } {
+            lock(&log.messages).push(text);
+        }
+    } else {
+        log::debug!("Vulkan: {text}");
+    }
+    vk::FALSE
+}
