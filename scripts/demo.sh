@@ -3,5 +3,5 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 source scripts/setup.sh
-cargo build --release --locked -p srug
+cargo build --release --locked -p srug-cli
 exec target/release/srug demo "$@"

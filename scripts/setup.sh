@@ -34,3 +34,9 @@ if ! command -v cargo >/dev/null 2>&1; then
   echo "srug setup: cargo not found; install a Rust toolchain (1.85 or newer) first" >&2
   exit 1
 fi
+# The style checks of the test command need rustfmt and clippy.
+if command -v rustup >/dev/null 2>&1; then
+  for c in rustfmt clippy; do
+    rustup component list --installed 2>/dev/null | grep -q "^$c" || rustup component add "$c" >&2
+  done
+fi

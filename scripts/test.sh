@@ -1,12 +1,16 @@
 #!/usr/bin/env bash
-# The whole test suite: set up what is missing, then run every test with the
-# Khronos validation layer on (tests fail on any validation message).
+# The whole test suite: set up what is missing, check style (rustfmt, clippy
+# with warnings as errors, rustdoc with warnings as errors), then run every test
+# with the Khronos validation layer on (tests fail on any validation message).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 source scripts/setup.sh
 export SRUG_VALIDATION=1
 # lavapipe: use both cores for its rasterizer threads.
 export LP_NUM_THREADS="${LP_NUM_THREADS:-2}"
+cargo fmt --all --check
+cargo clippy --locked --workspace --all-targets -- -D warnings
+RUSTDOCFLAGS="-D warnings" cargo doc --locked --workspace --no-deps
 cargo build --locked --workspace --all-targets
 log=$(mktemp)
 trap 'rm -f "$log"' EXIT

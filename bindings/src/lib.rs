@@ -83,9 +83,9 @@ impl Failure {
 /// The one place srug's errors become status codes.
 impl From<srug::Error> for Failure {
     fn from(e: srug::Error) -> Self {
+        use srug::gpu::GpuError as G;
         use srug::Error as E;
         use srug_status::*;
-        use srug::gpu::GpuError as G;
         let status = match &e {
             E::Gpu(G::Loader(_) | G::MissingComponent(_) | G::NoDevice(_)) => SRUG_ERROR_NO_DEVICE,
             E::Gpu(G::OutOfMemory(_)) => SRUG_ERROR_OUT_OF_MEMORY,

@@ -5,7 +5,6 @@
 //! Data flows one way: [`scene`] → [`splat`] → G-buffers → [`shadow`] → [`shade`] → image.
 //! [`gpu`] is the Vulkan core underneath and knows nothing of Gaussians.
 
-pub mod bench;
 pub mod error;
 pub mod indirect;
 pub mod metrics;

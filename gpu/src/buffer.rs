@@ -187,7 +187,10 @@ impl Device {
         if end.is_none_or(|e| e > buffer.size) || byte_offset % 4 != 0 {
             return Err(Error::invalid(
                 format!("buffer {} ({} bytes)", buffer.name, buffer.size),
-                format!("a write of {} bytes at offset {byte_offset} is out of bounds or not 4-byte aligned", bytes.len()),
+                format!(
+                    "a write of {} bytes at offset {byte_offset} is out of bounds or not 4-byte aligned",
+                    bytes.len()
+                ),
             ));
         }
         if bytes.is_empty() {
@@ -209,7 +212,10 @@ impl Device {
         let elem = std::mem::size_of::<T>() as u64;
         let (start, len) = (first * elem, count * elem);
         if start.checked_add(len).is_none_or(|end| end > buffer.size) || elem == 0 {
-            return Err(Error::invalid(format!("buffer {}", buffer.name), format!("a read of {count} elements at {first} is out of bounds")));
+            return Err(Error::invalid(
+                format!("buffer {}", buffer.name),
+                format!("a read of {count} elements at {first} is out of bounds"),
+            ));
         }
         let part = self.create_buffer(&format!("{} (range)", buffer.name), len, MemoryKind::Storage)?;
         self.run(|rec| rec.copy(buffer, start, &part, 0, len))?;

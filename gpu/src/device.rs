@@ -70,7 +70,6 @@ impl std::fmt::Debug for Device {
     }
 }
 
-
 fn version_string(v: u32) -> String {
     format!("{}.{}.{}", vk::api_version_major(v), vk::api_version_minor(v), vk::api_version_patch(v))
 }

@@ -36,8 +36,8 @@ mod format;
 mod info;
 mod kernel;
 mod recording;
-mod shared;
 pub mod selftest;
+mod shared;
 
 pub use buffer::{Buffer, MemoryKind, Texels};
 pub use device::{Device, DeviceOptions, DeviceSelection, DEVICE_ENV, VALIDATION_ENV};

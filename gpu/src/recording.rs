@@ -381,7 +381,11 @@ impl<'a> Recording<'a> {
         if !fits(src_offset, src) || !fits(dst_offset, dst) {
             return Err(Error::invalid(
                 "copy",
-                format!("{size} bytes from {}+{src_offset} to {}+{dst_offset} is out of bounds", src.name(), dst.name()),
+                format!(
+                    "{size} bytes from {}+{src_offset} to {}+{dst_offset} is out of bounds",
+                    src.name(),
+                    dst.name()
+                ),
             ));
         }
         if size == 0 {
@@ -631,8 +635,7 @@ impl<'a> Recording<'a> {
 
     fn allocate_set(&mut self, layout: vk::DescriptorSetLayout, descriptors: u32) -> Result<vk::DescriptorSet> {
         let d = &self.device.shared.device;
-        let transient =
-            self.transient.as_mut().ok_or_else(|| Error::invalid("recording", "already submitted"))?;
+        let transient = self.transient.as_mut().ok_or_else(|| Error::invalid("recording", "already submitted"))?;
         if let Some(&pool) = transient.descriptor_pools.last() {
             let layouts = [layout];
             let info = vk::DescriptorSetAllocateInfo::default().descriptor_pool(pool).set_layouts(&layouts);

@@ -205,7 +205,6 @@ impl Drop for Shared {
     }
 }
 
-
 pub(crate) unsafe extern "system" fn on_validation_message(
     severity: vk::DebugUtilsMessageSeverityFlagsEXT,
     types: vk::DebugUtilsMessageTypeFlagsEXT,

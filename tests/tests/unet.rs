@@ -11,9 +11,9 @@
 
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64Mcg;
-use srug::bench::unet::ConvPath;
 use srug::gpu::Device;
 use srug::indirect::cpu::{conv3x3_cpu, unet_cpu, unet_cpu_stored, winograd_conv3x3_cpu, Tensor};
+use srug::indirect::ConvPath;
 use srug::indirect::WinogradTile;
 use srug::indirect::{Activation, StoragePrecision, UNet, UNetConfig, UNetWeights};
 use srug_tests::{assert_no_validation_messages, device};

@@ -27,7 +27,7 @@
 pub mod cpu;
 pub mod winograd;
 
-pub use winograd::WinogradTile;
+pub use winograd::{ConvPath, WinogradTile};
 
 use std::collections::HashMap;
 use std::path::Path;
@@ -790,7 +790,7 @@ impl UNet {
             }
         }
         // One and four output pixels per invocation (`FOUR`, constant_id 0).
-        let resize = |module: &'static srug_spirv::KernelInfo, bindings: &[BindingKind]| -> Result<[Kernel; 2]> {
+        let resize = |module: &'static srug_gpu::KernelInfo, bindings: &[BindingKind]| -> Result<[Kernel; 2]> {
             let kernel = |four: bool| {
                 let spec = [(0, SpecValue::Bool(four))];
                 let push_constant_size = std::mem::size_of::<UpsamplePush>();
@@ -996,9 +996,7 @@ impl UNet {
     /// two paths compute the same sums (benchmarks and tests compare them).
     pub fn set_texel_inputs(&mut self, on: bool) -> Result<()> {
         if on && !self.convs.keys().any(|k| k.6) {
-            return Err(Error::unsupported(
-                "this device cannot read U-Net activations through uniform texel buffers",
-            ));
+            return Err(Error::unsupported("this device cannot read U-Net activations through uniform texel buffers"));
         }
         self.texel = on;
         Ok(())

@@ -304,7 +304,7 @@ pub struct EnvironmentPrep {
     lut: [Kernel; 2],
 }
 
-fn push_kernel<P>(device: &Device, info: &'static srug_spirv::KernelInfo, spec: &[(u32, SpecValue)]) -> Result<Kernel> {
+fn push_kernel<P>(device: &Device, info: &'static srug_gpu::KernelInfo, spec: &[(u32, SpecValue)]) -> Result<Kernel> {
     Ok(Kernel::new(
         device,
         info,

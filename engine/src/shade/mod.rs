@@ -339,7 +339,7 @@ pub struct Shader {
     compose: Kernel,
 }
 
-fn uniform_kernel(device: &Device, info: &'static srug_spirv::KernelInfo, spec: &[(u32, SpecValue)]) -> Result<Kernel> {
+fn uniform_kernel(device: &Device, info: &'static srug_gpu::KernelInfo, spec: &[(u32, SpecValue)]) -> Result<Kernel> {
     Ok(Kernel::new(
         device,
         info,

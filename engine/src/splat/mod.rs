@@ -533,8 +533,12 @@ pub struct Splatter {
 
 const FRAME_BINDING: [BindingKind; 1] = [BindingKind::UniformBuffer];
 
-fn frame_kernel(device: &Device, info: &'static srug_spirv::KernelInfo, spec: &[(u32, SpecValue)]) -> Result<Kernel> {
-    Ok(Kernel::new(device, info, &KernelDecl { bindings: &FRAME_BINDING, push_constant_size: 0, specialization: spec })?)
+fn frame_kernel(device: &Device, info: &'static srug_gpu::KernelInfo, spec: &[(u32, SpecValue)]) -> Result<Kernel> {
+    Ok(Kernel::new(
+        device,
+        info,
+        &KernelDecl { bindings: &FRAME_BINDING, push_constant_size: 0, specialization: spec },
+    )?)
 }
 
 /// Camera parameters for the frame uniform.
@@ -604,9 +608,7 @@ impl Splatter {
     pub fn set_texel_blend(&mut self, on: bool) -> Result<()> {
         let formats = [TexelFormat::Rgba32Float, TexelFormat::R32Uint];
         if on && !formats.iter().all(|f| self.device.info().texel_formats.contains(f)) {
-            return Err(Error::unsupported(
-                "this device cannot read splats through RGBA32F/R32UI texel buffers",
-            ));
+            return Err(Error::unsupported("this device cannot read splats through RGBA32F/R32UI texel buffers"));
         }
         self.texel_blend = on;
         Ok(())

@@ -42,7 +42,7 @@ pub struct Scan {
     capacity: u64,
 }
 
-fn addressed(device: &Device, info: &'static srug_spirv::KernelInfo, push: usize) -> Result<Kernel> {
+fn addressed(device: &Device, info: &'static srug_gpu::KernelInfo, push: usize) -> Result<Kernel> {
     Ok(Kernel::new(device, info, &KernelDecl { bindings: &[], push_constant_size: push, specialization: &[] })?)
 }
 

@@ -7,48 +7,9 @@
 //! measured in the same run.
 
 use super::median;
-use crate::error::Result;
-use crate::gpu::Device;
-use crate::indirect::{StoragePrecision, UNet, UNetConfig, UNetWeights, WinogradTile};
-
-/// How the conv layers run.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum ConvPath {
-    /// Direct convolution, inputs through texel-buffer views, four pixels per
-    /// fetch where a layer's width is a multiple of 4, else one.
-    Vec4,
-    /// Direct convolution, inputs through texel-buffer views, one pixel per fetch.
-    Texel,
-    /// Direct convolution, inputs by device address.
-    Address,
-    /// Winograd F(4×4, 3×3) for the stride-1 layers (texel inputs, four
-    /// pixels per fetch where the width allows), direct for stride 2; the default.
-    Winograd,
-    /// As [`ConvPath::Winograd`] with F(2×2, 3×3).
-    Winograd2,
-}
-
-impl ConvPath {
-    /// The label in tables and on the command line.
-    pub fn label(self) -> &'static str {
-        match self {
-            Self::Vec4 => "vec4",
-            Self::Texel => "texel",
-            Self::Address => "address",
-            Self::Winograd => "winograd",
-            Self::Winograd2 => "winograd2",
-        }
-    }
-
-    /// The Winograd transform of the stride-1 layers, if any.
-    pub fn winograd(self) -> Option<WinogradTile> {
-        match self {
-            Self::Winograd => Some(WinogradTile::F4x4),
-            Self::Winograd2 => Some(WinogradTile::F2x2),
-            Self::Vec4 | Self::Texel | Self::Address => None,
-        }
-    }
-}
+use srug::error::Result;
+use srug::gpu::Device;
+use srug::indirect::{ConvPath, StoragePrecision, UNet, UNetConfig, UNetWeights};
 
 /// One (size, precision, path) row.
 #[derive(Clone, Debug)]

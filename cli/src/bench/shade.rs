@@ -4,15 +4,15 @@
 //! environment size, plus the BRDF table. GPU timestamps, medians of repeats.
 
 use super::median;
-use crate::error::Result;
-use crate::gpu::Device;
-use crate::scene::activate::GpuScene;
-use crate::scene::demo::{demo_city, DemoOptions};
-use crate::shade::{
+use srug::error::Result;
+use srug::gpu::Device;
+use srug::scene::activate::GpuScene;
+use srug::scene::demo::{demo_city, DemoOptions};
+use srug::shade::{
     BrdfLut, EnvironmentPrep, PrepareSettings, ProceduralSky, ShadeInputs, ShadeSettings, Shader, VisibilitySource,
 };
-use crate::shadow::Sun;
-use crate::splat::{SplatSettings, Splatter};
+use srug::shadow::Sun;
+use srug::splat::{SplatSettings, Splatter};
 
 /// Shading time at one image size.
 #[derive(Clone, Debug)]
@@ -105,7 +105,7 @@ pub fn shade_bench(
     let scene = GpuScene::upload(device, &city.scene)?;
     let sky = ProceduralSky::new(sun.direction, sun.intensity[0]).render()?;
     let env = prep.prepare(&sky, &PrepareSettings::default())?;
-    let brdf = table.ok_or_else(|| crate::Error::InvalidArgument("no BRDF table".into()))?;
+    let brdf = table.ok_or_else(|| srug::Error::InvalidArgument("no BRDF table".into()))?;
     let mut splatter = Splatter::new(device)?;
     let mut shader = Shader::new(device)?;
     let settings = ShadeSettings { visibility: VisibilitySource::Fixed, ..ShadeSettings::default() };

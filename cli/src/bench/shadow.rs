@@ -2,14 +2,14 @@
 //! the shadow map's accuracy (IoU and mean |V_e − V_t| against the traced
 //! visibility) across resolution, k and depth mode. GPU timestamps only.
 
-use crate::error::Result;
-use crate::gpu::Device;
-use crate::scene::activate::GpuScene;
-use crate::scene::demo::{demo_city, DemoOptions};
-use crate::scene::Bounds;
-use crate::shadow::completion::shadow_iou;
-use crate::shadow::{DepthMode, ShadowPass, ShadowSettings, Sun, VisibilityKind};
-use crate::splat::{Channels, SplatSettings, Splatter};
+use srug::error::Result;
+use srug::gpu::Device;
+use srug::scene::activate::GpuScene;
+use srug::scene::demo::{demo_city, DemoOptions};
+use srug::scene::Bounds;
+use srug::shadow::completion::shadow_iou;
+use srug::shadow::{DepthMode, ShadowPass, ShadowSettings, Sun, VisibilityKind};
+use srug::splat::{Channels, SplatSettings, Splatter};
 
 /// One scene size of the speed table.
 #[derive(Clone, Debug)]
@@ -67,7 +67,7 @@ fn repeated(repeats: usize, mut f: impl FnMut() -> Result<f64>) -> Result<f64> {
     Ok(v[v.len() / 2])
 }
 
-fn bounds_of(scene: &crate::scene::Scene) -> Bounds {
+fn bounds_of(scene: &srug::scene::Scene) -> Bounds {
     scene.bounds().unwrap_or(Bounds { min: [0.0; 3], max: [1.0; 3] })
 }
 

@@ -10,13 +10,13 @@
 
 use super::median;
 use super::trade::{group_seconds, STAGE_GROUPS};
-use crate::error::{Error, Result};
-use crate::gpu::Device;
-use crate::scene::activate::GpuScene;
-use crate::scene::demo::{demo_city, DemoOptions};
-use crate::shade::relight::{Preset, RelightSettings, Relighter};
-use crate::shade::{BrdfLut, EnvironmentPrep, PrepareSettings, ProceduralSky};
-use crate::shadow::Sun;
+use srug::error::{Error, Result};
+use srug::gpu::Device;
+use srug::scene::activate::GpuScene;
+use srug::scene::demo::{demo_city, DemoOptions};
+use srug::shade::relight::{Preset, RelightSettings, Relighter};
+use srug::shade::{BrdfLut, EnvironmentPrep, PrepareSettings, ProceduralSky};
+use srug::shadow::Sun;
 
 /// One measured point.
 #[derive(Clone, Debug)]

@@ -14,12 +14,12 @@ use std::time::Instant;
 
 use bytemuck::{Pod, Zeroable};
 
-use crate::error::Result;
-use crate::gpu::{kernels, Device, Kernel, KernelDecl, MemoryKind};
-use crate::scene::activate::GpuScene;
-use crate::scene::demo::{demo_city, DemoOptions};
-use crate::splat::sort::RadixSort;
-use crate::splat::{BlendVariant, SplatSettings, Splatter, TileBounds};
+use srug::error::Result;
+use srug::gpu::{kernels, Device, Kernel, KernelDecl, MemoryKind};
+use srug::scene::activate::GpuScene;
+use srug::scene::demo::{demo_city, DemoOptions};
+use srug::splat::sort::RadixSort;
+use srug::splat::{BlendVariant, SplatSettings, Splatter, TileBounds};
 
 /// Push constants of `bench_fma.comp` (keep in sync with its `Push` block).
 #[repr(C)]
@@ -164,7 +164,7 @@ pub fn splat_bench(
             let Some((gbuffer_bytes, stats)) = last else { continue };
             progress(&format!("{n} Gaussians at {w}x{h}: counting blend work on the CPU"));
             let (blend_evaluations, blend_contributions) =
-                crate::splat::cpu::blend_work(&city.scene, &cam, tile, tile_bounds);
+                srug::splat::cpu::blend_work(&city.scene, &cam, tile, tile_bounds);
             rows.push(SplatBenchRow {
                 gaussians: n,
                 width: w,

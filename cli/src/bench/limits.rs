@@ -21,8 +21,8 @@
 use bytemuck::{Pod, Zeroable};
 
 use super::{BLEND_FLOPS_PER_CONTRIBUTION, BLEND_FLOPS_PER_EVALUATION};
-use crate::error::{Error, Result};
-use crate::gpu::{
+use srug::error::{Error, Result};
+use srug::gpu::{
     kernels, Binding, BindingKind, Buffer, Device, Kernel, KernelDecl, MemoryKind, SpecValue, TexelFormat, Texels,
 };
 

@@ -16,16 +16,16 @@
 //! the same way before its IoU is taken.
 
 use super::median;
-use crate::error::{Error, Result};
-use crate::gpu::Device;
-use crate::indirect::{StoragePrecision, UNet, UNetWeights};
-use crate::metrics::{psnr, ssim, RgbImage};
-use crate::scene::activate::GpuScene;
-use crate::scene::demo::{demo_city, DemoOptions};
-use crate::shade::relight::{Preset, RelightSettings, Relighter};
-use crate::shade::{BrdfLut, EnvironmentPrep, PrepareSettings, ProceduralSky};
-use crate::shadow::completion::shadow_iou;
-use crate::shadow::{DepthMode, Sun, VisibilityKind};
+use srug::error::{Error, Result};
+use srug::gpu::Device;
+use srug::indirect::{StoragePrecision, UNet, UNetWeights};
+use srug::metrics::{psnr, ssim, RgbImage};
+use srug::scene::activate::GpuScene;
+use srug::scene::demo::{demo_city, DemoOptions};
+use srug::shade::relight::{Preset, RelightSettings, Relighter};
+use srug::shade::{BrdfLut, EnvironmentPrep, PrepareSettings, ProceduralSky};
+use srug::shadow::completion::shadow_iou;
+use srug::shadow::{DepthMode, Sun, VisibilityKind};
 
 /// One setting to measure.
 #[derive(Clone, Debug, PartialEq)]
@@ -150,7 +150,7 @@ pub fn stage_group(name: &str) -> &'static str {
 pub const STAGE_GROUPS: [&str; 5] = ["splat", "shadow map", "shadow test", "shading", "indirect"];
 
 /// Seconds per stage group of one frame, in [`STAGE_GROUPS`] order.
-pub fn group_seconds(timings: &crate::gpu::Timings) -> [f64; 5] {
+pub fn group_seconds(timings: &srug::gpu::Timings) -> [f64; 5] {
     let mut out = [0.0; 5];
     for s in &timings.stages {
         if let Some(i) = STAGE_GROUPS.iter().position(|g| *g == stage_group(&s.name)) {
@@ -230,13 +230,13 @@ pub fn trade_bench(device: &Device, setup: &TradeSetup, mut progress: impl FnMut
                 let image = relit.shaded.read(device)?.resampled(width, height)?;
                 m.display = RgbImage { width, height, rgb: image.display };
                 let size = (relit.shaded.width, relit.shaded.height);
-                let full = |v: &[f32]| crate::output::resample_bilinear(v, size, 1, (width, height));
+                let full = |v: &[f32]| srug::output::resample_bilinear(v, size, 1, (width, height));
                 if let Some(v) = &relit.visibility {
                     m.visibility = Some(full(&device.read_buffer(v)?)?);
                 }
                 m.alpha = full(&device.read_buffer(&relit.gbuffer.alpha)?)?;
                 let rgb: Vec<f32> = device.read_buffer(relit.gbuffer.rgb_buffer()?)?;
-                let rgb = crate::output::resample_bilinear(&rgb, size, 3, (width, height))?;
+                let rgb = srug::output::resample_bilinear(&rgb, size, 3, (width, height))?;
                 m.colour = RgbImage { width, height, rgb };
             }
         }
@@ -425,8 +425,8 @@ mod tests {
         assert_eq!(stage_group("shade lights"), "shading");
         assert_eq!(stage_group("blend"), "splat");
         assert_eq!(stage_group("down1"), "indirect");
-        let stage = |name: &str, seconds| crate::gpu::StageTime { name: name.into(), seconds };
-        let timings = crate::gpu::Timings {
+        let stage = |name: &str, seconds| srug::gpu::StageTime { name: name.into(), seconds };
+        let timings = srug::gpu::Timings {
             stages: vec![stage("blend", 1.0), stage("shadow map blend", 2.0), stage("sort", 0.5), stage("inc", 4.0)],
         };
         assert_eq!(group_seconds(&timings), [1.5, 2.0, 0.0, 0.0, 4.0]);

@@ -11,7 +11,7 @@ use plotters::prelude::*;
 use plotters::style::FontStyle;
 
 use super::trade::TradeRow;
-use crate::error::{Error, Result};
+use srug::error::{Error, Result};
 
 const FONT_PATHS: [&str; 3] = [
     "/usr/share/fonts/truetype/dejavu/DejaVuSans.ttf",
@@ -131,6 +131,6 @@ pub fn trade_plot(path: &std::path::Path, rows: &[TradeRow], title: &str) -> Res
         .ok_or_else(|| Error::InvalidArgument("plot buffer size mismatch".into()))?;
     let mut png = std::io::Cursor::new(Vec::new());
     image.write_to(&mut png, image::ImageFormat::Png).map_err(plot_error)?;
-    crate::output::write_atomic(path, png.get_ref())?;
+    srug::output::write_atomic(path, png.get_ref())?;
     Ok(text)
 }

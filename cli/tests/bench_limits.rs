@@ -1,16 +1,16 @@
-//! The benchmark's device-limit probes (`srug::bench::limits`) against their
+//! The benchmark's device-limit probes (`srug_cli::bench::limits`) against their
 //! CPU twins, with validation on: the blend ceiling must compute the blend's
 //! arithmetic with every evaluation contributing (else its flop count would
 //! be wrong), and the pair-move probe must read and write every pair.
 
 #![allow(clippy::unwrap_used, clippy::expect_used, reason = "a failed unwrap is a failed test")]
 
-use srug::bench::limits::{
+use srug::gpu::MemoryKind;
+use srug_cli::bench::limits::{
     blend_ceiling_cpu, blend_ceiling_run, pair_move_cpu, pair_move_run, radix_pass_permutation, random_permutation,
     stable_digit_permutation, BlendCeiling, PairMoveFloor, PairWrites, BLEND_CEILING_MAX_SPLATS, BLEND_CEILING_PIXELS,
 };
-use srug::bench::{BLEND_FLOPS_PER_CONTRIBUTION, BLEND_FLOPS_PER_EVALUATION};
-use srug::gpu::MemoryKind;
+use srug_cli::bench::{BLEND_FLOPS_PER_CONTRIBUTION, BLEND_FLOPS_PER_EVALUATION};
 use srug_tests::{assert_no_validation_messages, device, save_comparison};
 
 #[test]

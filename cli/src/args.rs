@@ -1,0 +1,386 @@
+//! Argument types and groups shared by several subcommands. Every value is
+//! parsed by clap through a typed parser (`FromStr` or an engine `parse`), so a
+//! bad value is refused before anything runs, with clap's usage message.
+
+use std::path::PathBuf;
+use std::str::FromStr;
+
+use srug::gpu::{Device, DeviceOptions, DeviceSelection};
+use srug::scene::{self, Camera};
+use srug::shade::relight::{Preset, RelightSettings};
+use srug::shade::{Background, BrdfLut, ShadeSettings, ToneMap, VisibilitySource};
+use srug::shadow::{sun_path, DepthMode, Sun, UtcTime, VisibilityKind};
+use srug::splat::Channels;
+use srug::{Error, Result};
+
+/// The options every subcommand takes: which device, and validation.
+#[derive(clap::Args, Clone, Debug)]
+pub struct DeviceArgs {
+    /// Device: an index from `srug devices`, `gpu`, `cpu`, or part of a name (default: SRUG_DEVICE, else automatic).
+    #[arg(long, global = true, value_parser = parse_selection)]
+    pub device: Option<DeviceSelection>,
+    /// Run the Khronos validation layer (also SRUG_VALIDATION=1).
+    #[arg(long, global = true)]
+    pub validation: bool,
+}
+
+fn parse_selection(text: &str) -> std::result::Result<DeviceSelection, std::convert::Infallible> {
+    Ok(DeviceSelection::parse(text))
+}
+
+impl DeviceArgs {
+    /// Opens the chosen device.
+    pub fn open(&self) -> Result<Device> {
+        Ok(Device::new(&DeviceOptions { selection: self.device.clone(), validation: self.validation.then_some(true) })?)
+    }
+}
+
+/// An image size, `WxH` (both at least 1).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Size {
+    /// Width in pixels.
+    pub width: u32,
+    /// Height in pixels.
+    pub height: u32,
+}
+
+impl Size {
+    /// `(width, height)`.
+    pub fn pair(self) -> (u32, u32) {
+        (self.width, self.height)
+    }
+}
+
+impl FromStr for Size {
+    type Err = Error;
+    fn from_str(text: &str) -> Result<Self> {
+        let bad = || Error::InvalidArgument(format!("size \"{text}\" is not WxH"));
+        let (w, h) = text.split_once(['x', 'X']).ok_or_else(bad)?;
+        let (width, height): (u32, u32) = (w.trim().parse().map_err(|_| bad())?, h.trim().parse().map_err(|_| bad())?);
+        if width == 0 || height == 0 {
+            return Err(bad());
+        }
+        Ok(Self { width, height })
+    }
+}
+
+/// A point or vector, `x,y,z` (finite numbers).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Vec3Arg(pub glam::Vec3);
+
+impl FromStr for Vec3Arg {
+    type Err = Error;
+    fn from_str(text: &str) -> Result<Self> {
+        let v: Vec<f32> = text
+            .split(',')
+            .map(|p| p.trim().parse::<f32>())
+            .collect::<std::result::Result<_, _>>()
+            .map_err(|_| Error::InvalidArgument(format!("\"{text}\" is not three comma-separated numbers")))?;
+        match v.as_slice() {
+            [x, y, z] if v.iter().all(|c| c.is_finite()) => Ok(Self(glam::Vec3::new(*x, *y, *z))),
+            _ => Err(Error::InvalidArgument(format!("\"{text}\" is not three finite numbers"))),
+        }
+    }
+}
+
+/// A G-buffer channel list as `--channels` takes it.
+#[derive(Clone, Copy, Debug)]
+pub struct ChannelList {
+    /// The channels beyond alpha and depth.
+    pub channels: Channels,
+    /// Whether colour was named (`rgb` or `all`).
+    pub names_rgb: bool,
+}
+
+impl FromStr for ChannelList {
+    type Err = Error;
+    fn from_str(text: &str) -> Result<Self> {
+        Ok(Self { channels: Channels::parse(text)?, names_rgb: Channels::names_rgb(text) })
+    }
+}
+
+/// `out.png` → `out_003.png`.
+pub fn numbered(out: &std::path::Path, i: usize) -> PathBuf {
+    let stem = out.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+    let ext = out.extension().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+    out.with_file_name(format!("{stem}_{i:03}.{ext}"))
+}
+
+/// Output kind from the file name (`.png` or `.exr`); creates the output's folder.
+pub fn output_is_exr(out: &std::path::Path) -> Result<bool> {
+    if let Some(parent) = out.parent().filter(|p| !p.as_os_str().is_empty()) {
+        std::fs::create_dir_all(parent).map_err(Error::io(parent))?;
+    }
+    match out.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).as_deref() {
+        Some("png") => Ok(false),
+        Some("exr") => Ok(true),
+        _ => Err(Error::InvalidArgument(format!("{}: the output must end in .png or .exr", out.display()))),
+    }
+}
+
+/// A spinner on stderr with a message and the elapsed time.
+pub fn spinner(message: &str) -> indicatif::ProgressBar {
+    let bar = indicatif::ProgressBar::new_spinner();
+    bar.set_style(
+        indicatif::ProgressStyle::with_template("{spinner} {msg} [{elapsed}]")
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_spinner()),
+    );
+    bar.set_message(message.to_string());
+    bar.enable_steady_tick(std::time::Duration::from_millis(120));
+    bar
+}
+
+/// A progress bar of `len` steps with `template` (an indicatif template).
+pub fn progress_bar(len: u64, template: &str) -> indicatif::ProgressBar {
+    let bar = indicatif::ProgressBar::new(len);
+    bar.set_style(
+        indicatif::ProgressStyle::with_template(template).unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+    );
+    bar
+}
+
+/// A time span `START..END` of two ISO 8601 times.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TimeSpan {
+    /// The first instant.
+    pub start: UtcTime,
+    /// The last instant.
+    pub end: UtcTime,
+}
+
+impl FromStr for TimeSpan {
+    type Err = Error;
+    fn from_str(text: &str) -> Result<Self> {
+        let (a, b) =
+            text.split_once("..").ok_or_else(|| Error::InvalidArgument(format!("\"{text}\" is not START..END")))?;
+        Ok(Self { start: UtcTime::parse(a)?, end: UtcTime::parse(b)? })
+    }
+}
+
+fn parse_shadow_test(text: &str) -> Result<VisibilityKind> {
+    match text {
+        "sigmoid" => Ok(VisibilityKind::Sigmoid),
+        "traced" => Ok(VisibilityKind::Traced),
+        other => Err(Error::InvalidArgument(format!("--shadow-test \"{other}\" is not sigmoid or traced"))),
+    }
+}
+
+/// Which cameras to render.
+#[derive(clap::Args, Clone, Debug)]
+pub struct CameraArgs {
+    /// INRIA cameras.json; without it, the look-at options define one camera.
+    #[arg(long)]
+    pub cameras: Option<PathBuf>,
+    /// Render only this camera (default: every camera, numbered outputs).
+    #[arg(long)]
+    pub index: Option<usize>,
+    /// Output size WxH (intrinsics scaled to match); required with look-at cameras.
+    #[arg(long)]
+    pub size: Option<Size>,
+    /// Look-at camera: eye position x,y,z.
+    #[arg(long, allow_hyphen_values = true)]
+    pub eye: Option<Vec3Arg>,
+    /// Look-at camera: target x,y,z.
+    #[arg(long, default_value = "0,0,0", allow_hyphen_values = true)]
+    pub target: Vec3Arg,
+    /// Look-at camera: up vector x,y,z.
+    #[arg(long, default_value = "0,0,1", allow_hyphen_values = true)]
+    pub up: Vec3Arg,
+    /// Look-at camera: horizontal field of view in degrees.
+    #[arg(long, default_value_t = 60.0)]
+    pub fov: f32,
+}
+
+impl CameraArgs {
+    /// The cameras selected, resized to `--size` when given.
+    pub fn resolve(&self) -> Result<Vec<Camera>> {
+        let size = self.size.map(Size::pair);
+        let mut cams = match (&self.cameras, &self.eye) {
+            (Some(c), _) => scene::read_cameras_json(c)?,
+            (None, Some(eye)) => {
+                let (w, h) = size.ok_or_else(|| Error::InvalidArgument("--size is required with --eye".into()))?;
+                vec![Camera::look_at(eye.0, self.target.0, self.up.0, self.fov, w, h)?]
+            }
+            (None, None) => return Err(Error::InvalidArgument("give --cameras or --eye".into())),
+        };
+        if let Some(i) = self.index {
+            let n = cams.len();
+            cams = vec![cams
+                .into_iter()
+                .nth(i)
+                .ok_or_else(|| Error::InvalidArgument(format!("--index {i}: there are {n} cameras")))?];
+        }
+        if let (Some((w, h)), Some(_)) = (size, &self.cameras) {
+            for c in &mut cams {
+                *c = c.resized(w, h);
+            }
+        }
+        Ok(cams)
+    }
+}
+
+/// Where the sun is.
+#[derive(clap::Args, Clone, Debug)]
+pub struct SunArgs {
+    /// Sun azimuth, degrees from north toward east.
+    #[arg(long, default_value_t = 260.0, allow_negative_numbers = true)]
+    pub sun_azimuth: f32,
+    /// Sun elevation, degrees (at or below 0: no sun light, no shadow pass).
+    #[arg(long, default_value_t = 50.0, allow_negative_numbers = true)]
+    pub sun_elevation: f32,
+    /// Sun irradiance S_i (π: a white Lambertian surface facing the sun has radiance 1).
+    #[arg(long, default_value_t = std::f32::consts::PI)]
+    pub sun_intensity: f32,
+    /// Sun from a time instead (ISO 8601 with a zone, e.g. 2024-06-21T14:30+02:00); needs --latitude, --longitude.
+    #[arg(long, value_parser = UtcTime::parse)]
+    pub sun_time: Option<UtcTime>,
+    /// Time-lapse: START..END (ISO 8601 times) rendered as --frames frames; needs --latitude, --longitude.
+    #[arg(long)]
+    pub sun_path: Option<TimeSpan>,
+    /// Frames of the time-lapse.
+    #[arg(long, default_value_t = 12)]
+    pub frames: u32,
+    /// Latitude in degrees (north positive), for --sun-time and --sun-path.
+    #[arg(long, allow_negative_numbers = true)]
+    pub latitude: Option<f64>,
+    /// Longitude in degrees (east positive), for --sun-time and --sun-path.
+    #[arg(long, allow_negative_numbers = true)]
+    pub longitude: Option<f64>,
+}
+
+fn format_time(t: &UtcTime) -> String {
+    let s = t.seconds.round() as u64;
+    format!("{}-{:02}-{:02}T{:02}:{:02}Z", t.year, t.month, t.day, s / 3600, (s / 60) % 60)
+}
+
+impl SunArgs {
+    /// The suns of every frame, with a label for each.
+    pub fn resolve(&self) -> Result<Vec<(String, Sun)>> {
+        let intensity = [self.sun_intensity; 3];
+        let place = || match (self.latitude, self.longitude) {
+            (Some(a), Some(o)) => Ok((a, o)),
+            _ => Err(Error::InvalidArgument("--sun-time and --sun-path need --latitude and --longitude".into())),
+        };
+        if let Some(span) = &self.sun_path {
+            let (lat, lon) = place()?;
+            let frames = sun_path(&span.start, &span.end, self.frames, lat, lon)?;
+            return frames
+                .iter()
+                .map(|(t, p)| {
+                    let sun = Sun::from_azimuth_elevation(p.azimuth as f32, p.elevation as f32, intensity)?;
+                    Ok((format!("{} (sun {:.1}°, {:.1}°)", format_time(t), p.azimuth, p.elevation), sun))
+                })
+                .collect();
+        }
+        if let Some(t) = self.sun_time {
+            let (lat, lon) = place()?;
+            let p = srug::shadow::solar_position(&t, lat, lon)?;
+            let sun = Sun::from_azimuth_elevation(p.azimuth as f32, p.elevation as f32, intensity)?;
+            return Ok(vec![(format!("{} (sun {:.1}°, {:.1}°)", format_time(&t), p.azimuth, p.elevation), sun)]);
+        }
+        let sun = Sun::from_azimuth_elevation(self.sun_azimuth, self.sun_elevation, intensity)?;
+        Ok(vec![(format!("sun {:.1}°, {:.1}°", self.sun_azimuth, self.sun_elevation), sun)])
+    }
+}
+
+/// The sky.
+#[derive(clap::Args, Clone, Debug)]
+pub struct EnvArgs {
+    /// Environment: .exr, .hdr or .ktx2 file, or a folder from `srug prefilter`
+    /// (default: a procedural clear sky for the sun).
+    #[arg(long)]
+    pub env: Option<PathBuf>,
+    /// Environment rotation about the up axis, degrees toward east.
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    pub env_rotation: f32,
+    /// Environment radiance scale.
+    #[arg(long, default_value_t = 1.0)]
+    pub env_intensity: f32,
+    /// Turbidity of the procedural sky (2 clear … 10 hazy).
+    #[arg(long, default_value_t = 3.0)]
+    pub turbidity: f32,
+    /// Environment BRDF table: karis or height-correlated.
+    #[arg(long, default_value = "karis", value_parser = BrdfLut::parse)]
+    pub brdf: BrdfLut,
+}
+
+/// Shading options. Quality knobs default to the preset's values; explicit
+/// options override them.
+#[derive(clap::Args, Clone, Debug)]
+pub struct ShadeArgs {
+    /// Quality preset: fast, balanced or reference (`srug bench trade` measures them).
+    #[arg(long, default_value = "balanced", value_parser = Preset::parse)]
+    pub preset: Preset,
+    /// Sun visibility: editable (shadow map), fixed (the Gaussians' V_f) or none.
+    #[arg(long, default_value = "editable", value_parser = VisibilitySource::parse)]
+    pub visibility: VisibilitySource,
+    /// Exposure in stops.
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    pub exposure: f32,
+    /// Tone map: clamp, reinhard or aces.
+    #[arg(long, default_value = "aces", value_parser = ToneMap::parse)]
+    pub tone_map: ToneMap,
+    /// Background r,g,b instead of the environment.
+    #[arg(long)]
+    pub background: Option<Vec3Arg>,
+    /// Shadow-map resolution [preset: fast 512, balanced 2048, reference 4096].
+    #[arg(long)]
+    pub shadow_resolution: Option<u32>,
+    /// Sigmoid sharpness k per metre [preset: 50].
+    #[arg(long)]
+    pub shadow_k: Option<f32>,
+    /// Shadow depth bias, metres; at least the splats' extent along the light, or lit
+    /// surfaces shadow themselves [preset: 0.5, which suits the demo city].
+    #[arg(long, allow_negative_numbers = true)]
+    pub shadow_bias: Option<f32>,
+    /// Receiver depth for the shadow test: median or expected [preset: median].
+    #[arg(long, value_parser = DepthMode::parse)]
+    pub receiver_depth: Option<DepthMode>,
+    /// Shadow test: sigmoid (differentiable) or traced (exact transmittance)
+    /// [preset: reference traced, else sigmoid].
+    #[arg(long, value_parser = parse_shadow_test)]
+    pub shadow_test: Option<VisibilityKind>,
+    /// Spherical-harmonic degree used for colour [preset: fast 0, else the scene's].
+    #[arg(long)]
+    pub sh_degree: Option<u32>,
+    /// Render at this fraction of the output size, then upsample bilinearly
+    /// [preset: fast 0.5, else 1].
+    #[arg(long)]
+    pub render_scale: Option<f32>,
+    /// Tile edge in pixels for the camera's and the shadow map's splatting: 8, 16 or 32 [preset: 16].
+    #[arg(long)]
+    pub tile: Option<u32>,
+}
+
+impl ShadeArgs {
+    /// The relighting settings: the preset's, with the options given on top.
+    pub fn settings(&self) -> Result<RelightSettings> {
+        let mut s = RelightSettings::preset(self.preset);
+        s.shade = ShadeSettings {
+            visibility: self.visibility,
+            exposure_ev: self.exposure,
+            tone_map: self.tone_map,
+            background: match self.background {
+                Some(b) => Background::Color(b.0.to_array()),
+                None => Background::Environment,
+            },
+            ..ShadeSettings::default()
+        };
+        let sh = &mut s.shadow;
+        sh.resolution = self.shadow_resolution.unwrap_or(sh.resolution);
+        sh.k = self.shadow_k.unwrap_or(sh.k);
+        sh.bias = self.shadow_bias.unwrap_or(sh.bias);
+        sh.receiver_depth = self.receiver_depth.unwrap_or(sh.receiver_depth);
+        s.visibility_kind = self.shadow_test.unwrap_or(s.visibility_kind);
+        if self.sh_degree.is_some() {
+            s.sh_degree = self.sh_degree;
+        }
+        s.render_scale = self.render_scale.unwrap_or(s.render_scale);
+        if let Some(tile) = self.tile {
+            s.tile = tile;
+            s.shadow.tile = tile;
+        }
+        s.validate()?;
+        Ok(s)
+    }
+}

@@ -1,0 +1,46 @@
+//! `srug bench <area>`: the benchmarks (GPU timestamps; markdown tables on stdout).
+//! The measuring code lives in [`crate::bench`]; these files parse, run and print.
+
+mod scaling;
+mod shade;
+mod shadow;
+mod splat;
+mod trade;
+mod unet;
+
+use srug::Result;
+
+use crate::args::DeviceArgs;
+
+/// The benchmark areas.
+#[derive(clap::Subcommand, Clone, Debug)]
+pub enum BenchCommand {
+    /// Per-stage splatting times on the demo city; GPU sort against sort_unstable; FMA peak.
+    Splat(splat::SplatBenchArgs),
+    /// Indirect-light U-Net: time per inference per size and precision, GFLOP/s against the FMA peak.
+    Unet(unet::UnetBenchArgs),
+    /// Deferred shading time per frame per image size; one-time environment prefilter cost per size.
+    Shade(shade::ShadeBenchArgs),
+    /// Speed against accuracy of the quality knobs and the presets on a relit demo frame:
+    /// CSV, markdown table and a PNG plot with the Pareto front.
+    Trade(trade::TradeBenchArgs),
+    /// Relit frame time and GPU memory against Gaussian count and against pixel count, with
+    /// fitted log-log slopes (balanced preset, demo city).
+    Scaling(scaling::ScalingBenchArgs),
+    /// Sigmoid shadow pass against the traced pass; shadow-map accuracy across resolution, k and depth mode.
+    Shadow(shadow::ShadowBenchArgs),
+}
+
+impl BenchCommand {
+    /// Runs the benchmark.
+    pub fn run(&self, device: &DeviceArgs) -> Result<()> {
+        match self {
+            Self::Splat(a) => a.run(device),
+            Self::Unet(a) => a.run(device),
+            Self::Shade(a) => a.run(device),
+            Self::Trade(a) => a.run(device),
+            Self::Scaling(a) => a.run(device),
+            Self::Shadow(a) => a.run(device),
+        }
+    }
+}

@@ -1,0 +1,134 @@
+//! `srug bench splat`: per-stage splatting times on the demo city, the GPU sort
+//! against `sort_unstable`, and the device limits beside them (FMA peak, the
+//! blend's arithmetic ceiling, the pair-move floor of a sort pass).
+
+use srug::splat::{check_tile, BlendVariant, TileBounds, DEFAULT_TILE};
+use srug::Result;
+
+use crate::args::{spinner, DeviceArgs, Size};
+use crate::bench;
+
+/// Arguments of `srug bench splat`.
+#[derive(clap::Args, Clone, Debug)]
+pub struct SplatBenchArgs {
+    /// Gaussian counts, comma-separated.
+    #[arg(long, value_delimiter = ',', default_value = "100000,1000000,3000000")]
+    gaussians: Vec<usize>,
+    /// Image sizes, comma-separated WxH.
+    #[arg(long, value_delimiter = ',', default_value = "704x192,1408x384")]
+    sizes: Vec<Size>,
+    /// Repeats per setting (medians are reported).
+    #[arg(long, default_value_t = 3)]
+    repeats: usize,
+    /// Keys for the sort comparison.
+    #[arg(long, default_value_t = 4_000_000)]
+    sort_keys: usize,
+    /// Blend variant: per-pixel, subgroup or batched (default: subgroup where supported).
+    #[arg(long, value_parser = BlendVariant::parse)]
+    blend: Option<BlendVariant>,
+    /// Tile edge in pixels: 8, 16 or 32.
+    #[arg(long, default_value_t = DEFAULT_TILE)]
+    tile: u32,
+    /// Pixels per invocation of the texel-buffer blend: 1, 2 or 4 (default 2).
+    #[arg(long)]
+    blend_pixels: Option<u32>,
+    /// Which tiles list a splat: ellipse (those that can see it at α ≥ 1/255) or rectangle (its 3σ square).
+    #[arg(long, default_value = "ellipse")]
+    tile_bounds: TileBounds,
+}
+
+impl SplatBenchArgs {
+    /// Runs `srug bench splat`.
+    pub fn run(&self, device_args: &DeviceArgs) -> Result<()> {
+        let &Self { ref gaussians, ref sizes, repeats, sort_keys, blend, tile, blend_pixels, tile_bounds } = self;
+        check_tile(tile)?;
+        let counts = gaussians;
+        let sizes: Vec<(u32, u32)> = sizes.iter().map(|s| s.pair()).collect();
+        let device = device_args.open()?;
+        let info = device.info();
+        let peak = bench::fma_peak_gflops(&device, 5)?;
+        println!("device: {} ({}), measured FMA peak {peak:.1} GFLOP/s\n", info.name, info.driver);
+        let bar = spinner("benchmarking");
+        let options = bench::SplatBenchOptions { repeats, blend, blend_pixels, tile, tile_bounds };
+        let rows = bench::splat_bench(&device, counts, &sizes, &options, |m| bar.set_message(m.to_string()))?;
+        bar.set_message("sorting");
+        let sort = bench::sort_bench(&device, sort_keys, 32 + 11, repeats)?;
+        bar.set_message("measuring the blend ceiling and the pair-move floor");
+        let ceiling = bench::limits::blend_ceiling(&device, repeats)?;
+        let floor = bench::limits::pair_move_floor(&device, sort_keys as u64, repeats)?;
+        bar.finish_and_clear();
+        let stage_names: Vec<String> =
+            rows.first().map(|r| r.stages.iter().map(|s| s.0.clone()).collect()).unwrap_or_default();
+        println!(
+            "| Gaussians | size | {} | total ms | pairs | working MiB | scene MiB | G-buffer MiB | blend evals (M) | blend GFLOP/s | % of FMA peak | ceiling % |",
+            stage_names.join(" ms | ") + " ms"
+        );
+        println!("|---:|---|{}---:|---:|---:|---:|---:|---:|---:|---:|---:|", "---:|".repeat(stage_names.len()));
+        for r in &rows {
+            let stages: Vec<String> = stage_names
+                .iter()
+                .map(|n| r.stages.iter().find(|s| &s.0 == n).map_or("-".to_string(), |s| format!("{:.1}", s.1 * 1e3)))
+                .collect();
+            let mib = |b: u64| b as f64 / (1u64 << 20) as f64;
+            println!(
+                "| {} | {}x{} | {} | {:.1} | {} | {:.1} | {:.1} | {:.1} | {:.1} | {:.2} | {:.1} | {:.1} |",
+                r.gaussians,
+                r.width,
+                r.height,
+                stages.join(" | "),
+                r.total() * 1e3,
+                r.pairs,
+                mib(r.working_bytes),
+                mib(r.scene_bytes),
+                mib(r.gbuffer_bytes),
+                r.blend_evaluations as f64 * 1e-6,
+                r.blend_gflops(),
+                r.blend_gflops() / peak * 100.0,
+                ceiling.for_work(r.blend_evaluations, r.blend_contributions) / peak * 100.0
+            );
+        }
+        println!(
+            "\nblend flops: {} per evaluated pair + {} per contributing pair (exp not counted); pairs counted by replaying the blend on the CPU twin",
+            bench::BLEND_FLOPS_PER_EVALUATION,
+            bench::BLEND_FLOPS_PER_CONTRIBUTION
+        );
+        println!(
+            "sort, {} keys on {} bits: GPU {:.1} M keys/s, CPU sort_unstable {:.1} M keys/s (ratio {:.2})",
+            sort.keys,
+            sort.bits,
+            sort.gpu_keys_per_second * 1e-6,
+            sort.cpu_keys_per_second * 1e-6,
+            sort.gpu_keys_per_second / sort.cpu_keys_per_second
+        );
+        println!(
+            "blend ceiling (the blend's arithmetic with no memory traffic, every evaluation contributing, {} pixels per invocation): {:.1} GFLOP/s, {:.1}% of FMA peak; \"ceiling %\" is that bound on each row's mix of evaluations and contributions",
+            ceiling.pixels,
+            ceiling.gflops,
+            ceiling.gflops / peak * 100.0
+        );
+        let ms = |s: f64| s * 1e3;
+        println!(
+            "pair-move floor, {} pairs (each read once; written once to the same index): read only {:.1} ms, writing the value {:.1} ms, writing key and value {:.1} ms; writing the value where a radix pass would put it, by digit width in bits, {} ms; to a random index {:.1} ms",
+            floor.keys,
+            ms(floor.read_seconds),
+            ms(floor.value_seconds),
+            ms(floor.pair_seconds),
+            floor
+                .digit_seconds
+                .iter()
+                .map(|(bits, s)| format!("{bits}: {:.1}", ms(*s)))
+                .collect::<Vec<_>>()
+                .join(", "),
+            ms(floor.random_seconds),
+        );
+        if let Some((digit, bound)) = floor.lsd_bound(sort.bits) {
+            println!(
+                "an LSD radix sort of {}-bit keys needs at least {:.1} ms at these floors (best digit width {digit} bits: each pass writes every pair where it goes and its bucket offsets, and above 4 bits updates a count in memory per key); 2x sort_unstable allows {:.1} ms",
+                sort.bits,
+                ms(bound),
+                ms(floor.keys as f64 / (2.0 * sort.cpu_keys_per_second))
+            );
+        }
+        Ok(())
+    }
+}
