@@ -9,11 +9,11 @@ use std::path::Path;
 use std::sync::{Arc, Mutex};
 
 use glam::{Mat3, Vec3};
+use srug::frame::{Preset, RelightDecisions, RelightSettings, Relighter};
 use srug::gpu::{Device, DeviceOptions, DeviceSelection, Timings};
 use srug::scene::activate::GpuScene;
 use srug::scene::demo::{demo_city, DemoOptions};
 use srug::scene::{AttributeGroups, Bounds, Camera, Projection, Scene};
-use srug::shade::relight::{Preset, RelightDecisions, RelightSettings, Relighter};
 use srug::shade::{
     BrdfLut, BrdfTable, EnvironmentMap, EnvironmentPrep, PrepareSettings, PreparedEnvironment, ProceduralSky,
     ShadedFrame, ToneMap,
@@ -393,7 +393,7 @@ pub unsafe extern "C" fn srug_scene_from_file(
         check_out(out, "out")?;
         // SAFETY: the caller's contract.
         let path = unsafe { text(path, "path") }?;
-        let s = srug::scene::ply::read_ply(Path::new(path))?;
+        let s = srug::io::read_ply(Path::new(path))?;
         register_scene(ctx_id, &c, s, out)
     })
 }
@@ -414,7 +414,7 @@ pub unsafe extern "C" fn srug_scene_from_memory(
         check_out(out, "out")?;
         // SAFETY: the caller's contract.
         let bytes = unsafe { slice(data, len, "data") }?;
-        let s = srug::scene::ply::read_ply_bytes(bytes, "memory buffer").map_err(srug::Error::from)?;
+        let s = srug::io::read_ply_bytes(bytes, "memory buffer").map_err(srug::Error::from)?;
         register_scene(ctx_id, &c, s, out)
     })
 }
@@ -1250,7 +1250,7 @@ impl RendererObject {
             return Ok(values);
         }
         let n = k * size.0 as usize * size.1 as usize;
-        Ok(srug::output::resample_bilinear(&values[..n.min(values.len())], size, k, (self.width, self.height))?)
+        Ok(srug::image::resample_bilinear(&values[..n.min(values.len())], size, k, (self.width, self.height))?)
     }
 
     fn frame(&self) -> FfiResult<&Frame> {
@@ -1312,7 +1312,7 @@ pub unsafe extern "C" fn srug_renderer_read_image(
                     let px = [colour[3 * p], colour[3 * p + 1], colour[3 * p + 2], alpha[p]];
                     if pixel == 4 {
                         for (o, v) in line[4 * x..4 * x + 4].iter_mut().zip(px) {
-                            *o = srug::output::display_byte(v);
+                            *o = srug::io::display_byte(v);
                         }
                     } else {
                         for (o, v) in line[16 * x..16 * x + 16].chunks_exact_mut(4).zip(px) {

@@ -133,7 +133,7 @@ fn abi_renders_plain_colour_without_materials() {
     city.scene.materials = srug::scene::Materials::default();
     let dir = tempfile::tempdir().unwrap();
     let ply = dir.path().join("plain.ply");
-    srug::scene::write_ply(&ply, &city.scene, srug::scene::PlyFormat::BinaryLittleEndian).unwrap();
+    srug::io::write_ply(&ply, &city.scene, srug::io::PlyFormat::BinaryLittleEndian).unwrap();
     let bytes = std::fs::read(&ply).unwrap();
     let (w, h) = (64u32, 32u32);
     let (eye, target, up) = ([-30.0f32, -2.0, 6.0], [10.0f32, -2.0, 2.0], [0.0f32, 0.0, 1.0]);
@@ -170,7 +170,7 @@ fn abi_renders_plain_colour_without_materials() {
 
     // The image is the splatted colour, as the Rust API renders it.
     let d = device();
-    let gpu = GpuScene::upload(&d, &srug::scene::read_ply(&ply).unwrap()).unwrap();
+    let gpu = GpuScene::upload(&d, &srug::io::read_ply(&ply).unwrap()).unwrap();
     let camera = Camera::look_at(Vec3::from(eye), Vec3::from(target), Vec3::from(up), 80.0, w, h).unwrap();
     let (g, _) = Splatter::new(&d).unwrap().render(&gpu, &camera, &SplatSettings::default()).unwrap();
     let g = g.read(&d).unwrap();

@@ -8,10 +8,11 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
+use srug::frame::{RelightSettings, Relighter};
+use srug::io::{read_ply, write_ply, PlyFormat};
 use srug::scene::activate::GpuScene;
 use srug::scene::demo::{demo_city, DemoOptions};
-use srug::scene::{read_ply, write_ply, PlyFormat, Projection};
-use srug::shade::relight::{RelightSettings, Relighter};
+use srug::scene::Projection;
 use srug::shade::{BrdfLut, EnvironmentPrep, PrepareSettings, ProceduralSky, ToneMap};
 use srug::shadow::Sun;
 use srug::splat::Channels;
@@ -121,12 +122,7 @@ fn rust_frame(ply: &Path) -> Vec<u8> {
     let display: Vec<f32> = d.read_buffer(&relit.shaded.display).unwrap();
     let alpha: Vec<f32> = d.read_buffer(&relit.gbuffer.alpha).unwrap();
     assert_no_validation_messages(&d);
-    display
-        .chunks_exact(3)
-        .zip(&alpha)
-        .flat_map(|(c, a)| [c[0], c[1], c[2], *a])
-        .map(srug::output::display_byte)
-        .collect()
+    display.chunks_exact(3).zip(&alpha).flat_map(|(c, a)| [c[0], c[1], c[2], *a]).map(srug::io::display_byte).collect()
 }
 
 #[test]

@@ -5,9 +5,10 @@
 use std::path::PathBuf;
 use std::str::FromStr;
 
+use srug::frame::{Preset, RelightSettings};
 use srug::gpu::{Device, DeviceOptions, DeviceSelection};
-use srug::scene::{self, Camera};
-use srug::shade::relight::{Preset, RelightSettings};
+use srug::io;
+use srug::scene::Camera;
 use srug::shade::{Background, BrdfLut, ShadeSettings, ToneMap, VisibilitySource};
 use srug::shadow::{sun_path, DepthMode, Sun, UtcTime, VisibilityKind};
 use srug::splat::Channels;
@@ -196,7 +197,7 @@ impl CameraArgs {
     pub fn resolve(&self) -> Result<Vec<Camera>> {
         let size = self.size.map(Size::pair);
         let mut cams = match (&self.cameras, &self.eye) {
-            (Some(c), _) => scene::read_cameras_json(c)?,
+            (Some(c), _) => io::read_cameras_json(c)?,
             (None, Some(eye)) => {
                 let (w, h) = size.ok_or_else(|| Error::InvalidArgument("--size is required with --eye".into()))?;
                 vec![Camera::look_at(eye.0, self.target.0, self.up.0, self.fov, w, h)?]

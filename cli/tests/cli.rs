@@ -214,8 +214,48 @@ fn bench_splat_prints_its_tables() {
     ] {
         assert!(t.contains(want), "missing {want:?} in:\n{t}");
     }
-    let o = srug(&["bench", "splat", "--sizes", "64by32"]);
-    assert_eq!(o.status.code(), Some(1));
+}
+
+/// Malformed values are refused by the argument parser before anything runs:
+/// exit status 2, the flag and the reason named, no panic.
+#[test]
+fn malformed_values_are_usage_errors() {
+    let cases: &[(&[&str], &[&str])] = &[
+        (&["bench", "splat", "--sizes", "64by32"], &["--sizes", "size \"64by32\" is not WxH"]),
+        (&["bench", "splat", "--gaussians", "10,x"], &["--gaussians", "x"]),
+        (&["bench", "shadow", "--ks", "5,fast"], &["--ks", "fast"]),
+        (&["bench", "unet", "--inputs", "texels"], &["--inputs", "\"texels\" is not winograd"]),
+        (&["render", "a.ply", "--eye", "1,2", "--size", "8x8", "--out", "x.png"], &["--eye", "three"]),
+        (&["render", "a.ply", "--eye", "1,2,3", "--size", "0x8", "--out", "x.png"], &["--size", "is not WxH"]),
+        (
+            &["render", "a.ply", "--channels", "rgb,shiny", "--eye", "1,2,3", "--size", "8x8", "--out", "x.png"],
+            &["--channels", "unknown channel"],
+        ),
+        (
+            &["relight", "a.ply", "--eye", "1,2,3", "--preset", "best", "--out", "x.png"],
+            &["--preset", "preset \"best\""],
+        ),
+        (&["relight", "a.ply", "--eye", "1,2,3", "--tone-map", "filmic", "--out", "x.png"], &["--tone-map", "filmic"]),
+        (
+            &["relight", "a.ply", "--eye", "1,2,3", "--shadow-test", "exact", "--out", "x.png"],
+            &["--shadow-test", "sigmoid or traced"],
+        ),
+        (
+            &["relight", "a.ply", "--eye", "1,2,3", "--sun-path", "2026-06-21T06:00Z", "--out", "x.png"],
+            &["--sun-path", "START..END"],
+        ),
+        (&["unet", "--weights", "w", "--input", "i", "--out", "o", "--precision", "fp8"], &["--precision", "fp8"]),
+        (&["info", "a.ply", "--size", "704"], &["--size", "is not WxH"]),
+    ];
+    for (args, wants) in cases {
+        let o = srug(args);
+        let t = text(&o);
+        assert_eq!(o.status.code(), Some(2), "{args:?}:\n{t}");
+        for want in *wants {
+            assert!(t.contains(want), "{args:?}: missing {want:?} in:\n{t}");
+        }
+        assert!(!t.contains("panicked"), "{args:?}:\n{t}");
+    }
 }
 
 #[test]
@@ -233,7 +273,7 @@ fn shadow_fit_writes_its_images_scene_and_history() {
         let png = image::open(dir.path().join(format!("visibility_{name}.png"))).unwrap();
         assert_eq!((png.width(), png.height()), (88, 24));
     }
-    let scene = srug::scene::read_ply(dir.path().join("completed.ply")).unwrap();
+    let scene = srug::io::read_ply(dir.path().join("completed.ply")).unwrap();
     assert!(scene.len() > 300);
     let history = std::fs::read_to_string(dir.path().join("history.csv")).unwrap();
     assert_eq!(history.lines().count(), 4, "header and three steps:\n{history}");
@@ -473,7 +513,7 @@ fn bench_unet_prints_its_table() {
     }
     let o = srug(&[&args[..], &["--inputs", "texels"]].concat());
     let t = text(&o);
-    assert!(!o.status.success() && t.contains("\"texels\" is not vec4, texel, address, winograd or winograd2"), "{t}");
+    assert!(!o.status.success() && t.contains("\"texels\" is not winograd, winograd2, vec4, texel or address"), "{t}");
 }
 
 #[test]
@@ -486,11 +526,11 @@ fn eval_reports_psnr_and_ssim_per_image_and_their_mean() {
     let base: Vec<f32> = (0..w * h * 3).map(|i| ((i * 7919) % 251) as f32 / 250.0).collect();
     // 16/255 higher everywhere (in 8 bits, after clamping at 1): PSNR about 24 dB.
     let brighter: Vec<f32> = base.iter().map(|v| (v + 16.0 / 255.0).min(1.0)).collect();
-    srug::output::write_png(refs.join("a.png"), w, h, &base).unwrap();
-    srug::output::write_png(refs.join("b.png"), w, h, &base).unwrap();
-    srug::output::write_png(rendered.join("a.png"), w, h, &base).unwrap();
-    srug::output::write_png(rendered.join("b.png"), w, h, &brighter).unwrap();
-    srug::output::write_png(rendered.join("c.png"), w, h, &base).unwrap();
+    srug::io::write_png(refs.join("a.png"), w, h, &base).unwrap();
+    srug::io::write_png(refs.join("b.png"), w, h, &base).unwrap();
+    srug::io::write_png(rendered.join("a.png"), w, h, &base).unwrap();
+    srug::io::write_png(rendered.join("b.png"), w, h, &brighter).unwrap();
+    srug::io::write_png(rendered.join("c.png"), w, h, &base).unwrap();
     let csv = dir.path().join("eval.csv");
     let o = srug(&["eval", refs.to_str().unwrap(), rendered.to_str().unwrap(), "--csv", csv.to_str().unwrap()]);
     let t = text(&o);
@@ -503,7 +543,7 @@ fn eval_reports_psnr_and_ssim_per_image_and_their_mean() {
     assert!(p > 20.0 && p < 26.0 && s < 1.0 && s > 0.5, "b: PSNR {p}, SSIM {s}");
 
     // Different sizes are an error naming both files.
-    srug::output::write_png(rendered.join("a.png"), w, h + 1, &vec![0.5; (w * (h + 1) * 3) as usize]).unwrap();
+    srug::io::write_png(rendered.join("a.png"), w, h + 1, &vec![0.5; (w * (h + 1) * 3) as usize]).unwrap();
     let o = srug(&["eval", refs.join("a.png").to_str().unwrap(), rendered.join("a.png").to_str().unwrap()]);
     let t = text(&o);
     assert!(!o.status.success() && t.contains("differ in size") && t.contains("a.png"), "{t}");

@@ -2,7 +2,7 @@
 // Splat backward, step 1: one workgroup per tile, one invocation per pixel.
 // Each pixel replays its forward blend (the same splat_alpha, so the same
 // contributors, final transmittance and median splat), then walks its splats
-// back to front (NOTES.md §4): T ← T / (1 − α); dL/dx = α·T·dL/dC;
+// back to front (docs/conventions.md §4): T ← T / (1 − α); dL/dx = α·T·dL/dC;
 // dL/dα = Σ dL/dC·(x·T − S/(1 − α)) + (dL/dA − bg·dL/dC_rgb)·T_final/(1 − α);
 // S ← S + x·α·T; α clamped at 0.99 passes no geometric gradient. The tile's
 // pixels are summed per splat in pixel order (deterministic) into that

@@ -1,14 +1,14 @@
-//! Only what a scene requires runs, and `srug::plan` says so before it runs:
+//! Only what a scene requires runs, and `srug::frame::plan` says so before it runs:
 //! the plan's decisions are checked against what the renderer dispatched
 //! (every dispatch is inside a timed stage, so the stage names list them).
 
 #![allow(clippy::unwrap_used, clippy::expect_used, reason = "test code: a failure should stop the test")]
 
+use srug::frame::plan::{plan_frame, PlanSettings};
+use srug::frame::{RelightSettings, Relighter};
 use srug::indirect::{StoragePrecision, UNet, UNetConfig, UNetWeights};
-use srug::plan::{plan_frame, PlanSettings};
 use srug::scene::activate::GpuScene;
 use srug::scene::demo::{demo_city, DemoOptions};
-use srug::shade::relight::{RelightSettings, Relighter};
 use srug::shade::{BrdfLut, EnvironmentPrep, PrepareSettings, ProceduralSky};
 use srug::shadow::Sun;
 use srug::splat::{BlendVariant, Channels, Splatter};

@@ -7,9 +7,10 @@
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64Mcg;
 use srug::gpu::Device;
+use srug::io::read_ply;
 use srug::scene::activate::{activate, activate_cpu, activate_kernel, GpuScene};
 use srug::scene::demo::{demo_city, DemoOptions};
-use srug::scene::{read_ply, sh_coefficients, Scene};
+use srug::scene::{sh_coefficients, Scene};
 use srug_tests::{assert_no_validation_messages, device, failure_dir};
 
 /// Covariance error relative to the Gaussian's largest covariance entry, and

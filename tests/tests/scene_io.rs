@@ -9,11 +9,11 @@ use glam::Vec3;
 use rand::seq::SliceRandom;
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64Mcg;
-use srug::scene::camera::parse_cameras_json;
-use srug::scene::demo::{demo_city, DemoOptions};
-use srug::scene::{
-    read_cameras_json, read_ply, read_ply_bytes, write_cameras_json, write_ply, PlyFormat, Scene, SceneError,
+use srug::io::{
+    parse_cameras_json, read_cameras_json, read_ply, read_ply_bytes, write_cameras_json, write_ply, PlyFormat,
 };
+use srug::scene::demo::{demo_city, DemoOptions};
+use srug::scene::{Scene, SceneError};
 use srug::Error;
 
 fn small_demo(sh_degree: u32) -> Scene {

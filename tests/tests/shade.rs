@@ -1,5 +1,5 @@
 //! Deferred shading against its f64 CPU twin and against closed forms: the
-//! BRDF tables (both variants) against NOTES.md §6's reference values and the
+//! BRDF tables (both variants) against docs/conventions.md §6's reference values and the
 //! r → 0 limit, the environment prefilter and irradiance, the white furnace,
 //! the shading kernels on random and extreme G-buffers, and a splatted
 //! sun-lit plane against the paper's BRDF evaluated by hand. Outputs are
@@ -93,7 +93,7 @@ fn brdf_tables_match_twin_references_and_limits() {
         for j in 0..size {
             assert!(at(1.0, f64::from(j) / f64::from(size - 1)).1 < 1e-3, "B at N·V = 1 is not ≈ 0");
         }
-        // NOTES.md §6 reference values (a 1024-sample table is within ~5e-3).
+        // docs/conventions.md §6 reference values (a 1024-sample table is within ~5e-3).
         let refs: &[(f64, f64, f64, f64)] = match variant {
             BrdfLut::Karis => &[(0.25, 0.25, 0.6570, 0.1734), (0.5, 0.5, 0.7285, 0.0185), (1.0, 1.0, 0.3068, 0.0)],
             BrdfLut::HeightCorrelated => &[(0.5, 0.5, 0.8348, 0.0223), (1.0, 0.25, 0.5867, 0.0109)],
@@ -104,7 +104,7 @@ fn brdf_tables_match_twin_references_and_limits() {
             assert!((a - ea).abs() < 5e-3 && (b - eb).abs() < 5e-3, "{variant:?} r={r} N·V={nov}: ({a}, {b})");
         }
     }
-    // The two variants differ (by up to 0.16 in A per NOTES.md).
+    // The two variants differ (by up to 0.16 in A per docs/conventions.md §6).
     let k = brdf_lut_point(BrdfLut::Karis, 0.5, 0.5, 1024);
     let h = brdf_lut_point(BrdfLut::HeightCorrelated, 0.5, 0.5, 1024);
     assert!((h.0 - k.0) > 0.05, "the variants should differ: {k:?} vs {h:?}");
@@ -576,7 +576,7 @@ fn bad_environment_inputs_get_clear_errors() {
     let mut g = GBuffer { width: 4, height: 2, rgb: Some(vec![1.0; 24]), alpha: vec![1.0; 8], ..GBuffer::default() };
     g.rgb.as_mut().unwrap()[3 * 6] = f32::INFINITY;
     let exr = dir.path().join("inf.exr");
-    srug::output::write_exr(&exr, &g).unwrap();
+    g.write_exr(&exr).unwrap();
     let e = EnvironmentMap::load(&exr).unwrap_err().to_string();
     assert!(e.contains("inf.exr") && e.contains("texel (2, 1) channel R"), "{e}");
 }
@@ -636,9 +636,9 @@ fn prepared_environment_and_brdf_table_round_trip_through_ktx2() {
 
 #[test]
 fn relit_demo_street_shows_the_offscreen_towers_shadow() {
+    use srug::frame::{RelightSettings, Relighter};
     use srug::scene::activate::GpuScene;
     use srug::scene::demo::{demo_city, DemoOptions};
-    use srug::shade::relight::{RelightSettings, Relighter};
     use srug::shadow::completion::without_offscreen_tower;
     use srug::shadow::ShadowSettings;
     let d = device();
@@ -758,9 +758,9 @@ fn shading_with_the_indirect_network_matches_twin() {
 
 #[test]
 fn relighter_reuses_the_shadow_map_only_while_it_is_current() {
+    use srug::frame::{RelightSettings, Relighter};
     use srug::scene::activate::GpuScene;
     use srug::scene::demo::{demo_city, DemoOptions};
-    use srug::shade::relight::{RelightSettings, Relighter};
     use srug::shadow::{ShadowFit, ShadowSettings};
     let d = device();
     let city = demo_city(&DemoOptions { seed: 4, gaussians: 5000, sh_degree: 1 }).unwrap();

@@ -8,8 +8,8 @@
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64Mcg;
 use srug::gpu::{Device, MemoryKind};
-use srug::splat::scan::{exclusive_scan_cpu, Scan};
-use srug::splat::sort::RadixSort;
+use srug::primitives::scan::{exclusive_scan_cpu, Scan};
+use srug::primitives::sort::RadixSort;
 use srug_tests::{assert_no_validation_messages, device};
 
 fn gpu_scan(d: &Device, scan: &mut Scan, values: &[u32]) -> Vec<u32> {

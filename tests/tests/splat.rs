@@ -8,9 +8,10 @@ use glam::Vec3;
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64Mcg;
 use srug::gpu::Device;
+use srug::io::read_ply;
 use srug::scene::activate::GpuScene;
 use srug::scene::demo::{demo_city, DemoOptions};
-use srug::scene::{read_ply, sh_coefficients, Camera, Scene};
+use srug::scene::{sh_coefficients, Camera, Scene};
 use srug::splat::cpu::{preprocess_one, render_cpu, tile_row_span, CpuSplat};
 use srug::splat::{
     BlendVariant, Channels, GBuffer, NormalSource, SplatSettings, Splatter, TileBounds, BLEND_PIXELS,

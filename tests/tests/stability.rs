@@ -18,13 +18,13 @@
 #![allow(clippy::unwrap_used, clippy::expect_used, reason = "a failed unwrap is a failed test")]
 
 use glam::Vec3;
+use srug::frame::{RelightDecisions, RelightSettings, Relighter};
 use srug::gpu::Device;
 use srug::indirect::{StoragePrecision, UNet, UNetConfig, UNetWeights};
 use srug::scene::activate::GpuScene;
 use srug::scene::demo::{demo_city, DemoOptions};
 use srug::scene::{Camera, Scene};
 use srug::shade::cpu::{shade_cpu, ShadeTables};
-use srug::shade::relight::{RelightDecisions, RelightSettings, Relighter};
 use srug::shade::{BrdfLut, BrdfTable, EnvironmentPrep, PrepareSettings, PreparedEnvironment, ProceduralSky};
 use srug::shadow::backward::GpuVisibilityLoss;
 use srug::shadow::cpu::{sigmoid_visibility_cpu, DepthImage};
@@ -261,7 +261,7 @@ fn street() -> (Scene, Camera) {
 }
 
 fn base_settings() -> RelightSettings {
-    let mut s = RelightSettings::preset(srug::shade::relight::Preset::Balanced);
+    let mut s = RelightSettings::preset(srug::frame::Preset::Balanced);
     s.shadow.resolution = 256;
     s
 }

@@ -16,9 +16,9 @@ use bytemuck::{Pod, Zeroable};
 
 use srug::error::Result;
 use srug::gpu::{kernels, Device, Kernel, KernelDecl, MemoryKind};
+use srug::primitives::sort::RadixSort;
 use srug::scene::activate::GpuScene;
 use srug::scene::demo::{demo_city, DemoOptions};
-use srug::splat::sort::RadixSort;
 use srug::splat::{BlendVariant, SplatSettings, Splatter, TileBounds};
 
 /// Push constants of `bench_fma.comp` (keep in sync with its `Push` block).

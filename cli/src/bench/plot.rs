@@ -131,6 +131,6 @@ pub fn trade_plot(path: &std::path::Path, rows: &[TradeRow], title: &str) -> Res
         .ok_or_else(|| Error::InvalidArgument("plot buffer size mismatch".into()))?;
     let mut png = std::io::Cursor::new(Vec::new());
     image.write_to(&mut png, image::ImageFormat::Png).map_err(plot_error)?;
-    srug::output::write_atomic(path, png.get_ref())?;
+    srug::io::write_atomic(path, png.get_ref())?;
     Ok(text)
 }

@@ -11,10 +11,10 @@
 use super::median;
 use super::trade::{group_seconds, STAGE_GROUPS};
 use srug::error::{Error, Result};
+use srug::frame::{Preset, RelightSettings, Relighter};
 use srug::gpu::Device;
 use srug::scene::activate::GpuScene;
 use srug::scene::demo::{demo_city, DemoOptions};
-use srug::shade::relight::{Preset, RelightSettings, Relighter};
 use srug::shade::{BrdfLut, EnvironmentPrep, PrepareSettings, ProceduralSky};
 use srug::shadow::Sun;
 

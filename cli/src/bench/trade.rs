@@ -17,12 +17,12 @@
 
 use super::median;
 use srug::error::{Error, Result};
+use srug::frame::{Preset, RelightSettings, Relighter};
 use srug::gpu::Device;
 use srug::indirect::{StoragePrecision, UNet, UNetWeights};
 use srug::metrics::{psnr, ssim, RgbImage};
 use srug::scene::activate::GpuScene;
 use srug::scene::demo::{demo_city, DemoOptions};
-use srug::shade::relight::{Preset, RelightSettings, Relighter};
 use srug::shade::{BrdfLut, EnvironmentPrep, PrepareSettings, ProceduralSky};
 use srug::shadow::completion::shadow_iou;
 use srug::shadow::{DepthMode, Sun, VisibilityKind};
@@ -230,13 +230,13 @@ pub fn trade_bench(device: &Device, setup: &TradeSetup, mut progress: impl FnMut
                 let image = relit.shaded.read(device)?.resampled(width, height)?;
                 m.display = RgbImage { width, height, rgb: image.display };
                 let size = (relit.shaded.width, relit.shaded.height);
-                let full = |v: &[f32]| srug::output::resample_bilinear(v, size, 1, (width, height));
+                let full = |v: &[f32]| srug::image::resample_bilinear(v, size, 1, (width, height));
                 if let Some(v) = &relit.visibility {
                     m.visibility = Some(full(&device.read_buffer(v)?)?);
                 }
                 m.alpha = full(&device.read_buffer(&relit.gbuffer.alpha)?)?;
                 let rgb: Vec<f32> = device.read_buffer(relit.gbuffer.rgb_buffer()?)?;
-                let rgb = srug::output::resample_bilinear(&rgb, size, 3, (width, height))?;
+                let rgb = srug::image::resample_bilinear(&rgb, size, 3, (width, height))?;
                 m.colour = RgbImage { width, height, rgb };
             }
         }

@@ -5,8 +5,9 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use srug::gpu;
-use srug::output;
-use srug::scene::{self, activate, demo, human_bytes, PlyFormat};
+use srug::io;
+use srug::io::PlyFormat;
+use srug::scene::{activate, demo, human_bytes};
 use srug::splat::{SplatSettings, Splatter};
 use srug::{Error, Result};
 
@@ -45,8 +46,8 @@ impl DemoArgs {
         let ply = out.join("demo_city.ply");
         let cameras = out.join("cameras.json");
         let bar = spinner(&format!("writing {}", ply.display()));
-        let written = scene::write_ply(&ply, &city.scene, PlyFormat::BinaryLittleEndian)
-            .and_then(|()| scene::write_cameras_json(&cameras, &city.cameras));
+        let written = io::write_ply(&ply, &city.scene, PlyFormat::BinaryLittleEndian)
+            .and_then(|()| io::write_cameras_json(&cameras, &city.cameras));
         bar.finish_and_clear();
         written?;
 
@@ -94,7 +95,7 @@ impl DemoArgs {
         let (gbuffer, stats) = splatter.render(&gpu_scene, &city.cameras[0], &settings)?;
         let g = gbuffer.read(&device)?;
         let image = out.join("demo_city.png");
-        output::write_png(&image, g.width, g.height, g.rgb_values()?)?;
+        io::write_png(&image, g.width, g.height, g.rgb_values()?)?;
         println!(
             "rendered camera {} ({}x{}): {} pairs sorted on {} bits; GPU {}",
             city.cameras[0].name,

@@ -100,7 +100,7 @@ fn evaluate(reference: &Path, rendered: &Path, peak: f64, csv: Option<&Path>) ->
         for (name, p, s) in &rows {
             text += &format!("{name},{p},{s}\n");
         }
-        srug::output::write_atomic(path, text.as_bytes())?;
+        srug::io::write_atomic(path, text.as_bytes())?;
     }
     Ok(())
 }

@@ -4,7 +4,7 @@
 use std::path::PathBuf;
 
 use srug::indirect::{StoragePrecision, UNetWeights};
-use srug::scene;
+use srug::io;
 use srug::splat::Splatter;
 use srug::Result;
 
@@ -42,7 +42,7 @@ impl InfoArgs {
     pub fn run(&self, device_args: &DeviceArgs) -> Result<()> {
         let Self { scene: path, plan, size, channels, sun, shade, indirect, indirect_precision } = self;
         let bar = spinner(&format!("reading {}", path.display()));
-        let scene = scene::read_ply(path);
+        let scene = io::read_ply(path);
         bar.finish_and_clear();
         let scene = scene?;
         println!("{}", path.display());
@@ -56,7 +56,7 @@ impl InfoArgs {
             let weights = indirect.as_ref().map(UNetWeights::load).transpose()?;
             let device = device_args.open()?;
             let blend = Splatter::new(&device)?.blend_variant();
-            let settings = srug::plan::PlanSettings {
+            let settings = srug::frame::plan::PlanSettings {
                 width,
                 height,
                 sun,
@@ -64,7 +64,7 @@ impl InfoArgs {
                 network: weights.as_ref().map(|w| (&w.config, precision)),
                 blend,
             };
-            let p = srug::plan::plan_frame(&scene, &settings)?;
+            let p = srug::frame::plan::plan_frame(&scene, &settings)?;
             println!("\nplan for a {width}x{height} frame on {}:", device.info().name);
             print!("{}", p.text());
         }

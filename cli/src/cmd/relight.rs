@@ -4,16 +4,16 @@
 use std::path::{Path, PathBuf};
 
 use indicatif::ProgressBar;
+use srug::frame::{Preset, Relighter};
 use srug::gpu::Device;
 use srug::indirect::StoragePrecision;
 use srug::scene::{self, activate, Camera};
-use srug::shade::relight::{Preset, Relighter};
 use srug::shade::{
     BrdfLut, BrdfTable, EnvironmentMap, EnvironmentPrep, PrepareSettings, PreparedEnvironment, ProceduralSky, ToneMap,
     VisibilitySource,
 };
 use srug::shadow::Sun;
-use srug::{output, Error, Result};
+use srug::{io, Error, Result};
 
 use crate::args::{numbered, output_is_exr, progress_bar, CameraArgs, DeviceArgs, EnvArgs, ShadeArgs, SunArgs};
 
@@ -80,9 +80,9 @@ pub fn write_relit(path: &Path, exr: bool, image: &srug::shade::ShadedImage, ind
         if let Some(ind) = &interleaved {
             channels.push(("indirect", ind, 3));
         }
-        output::write_exr_channels(path, image.width, image.height, &channels)
+        io::write_exr_channels(path, image.width, image.height, &channels)
     } else {
-        output::write_png(path, image.width, image.height, &image.display)
+        io::write_png(path, image.width, image.height, &image.display)
     }
 }
 
@@ -124,7 +124,7 @@ fn relight(device: &Device, args: &RelightArgs) -> Result<()> {
     let cams = view.resolve()?;
     let suns = sun.resolve()?;
     let settings = shade.settings()?;
-    let scene = scene::read_ply(scene_path)?;
+    let scene = io::read_ply(scene_path)?;
     let attributes = scene.attributes();
     if !attributes.shadeable() {
         return Err(Error::InvalidArgument(format!(
@@ -204,7 +204,7 @@ fn resample_planar(v: &[f32], frame: &srug::shade::ShadedFrame, cam: &Camera) ->
     }
     let mut out = Vec::new();
     for plane in v.chunks_exact(n) {
-        out.extend(output::resample_bilinear(plane, (frame.width, frame.height), 1, (cam.width, cam.height))?);
+        out.extend(srug::image::resample_bilinear(plane, (frame.width, frame.height), 1, (cam.width, cam.height))?);
     }
     Ok(out)
 }

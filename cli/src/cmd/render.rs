@@ -4,8 +4,8 @@
 use std::path::PathBuf;
 
 use indicatif::ProgressBar;
-use srug::output;
-use srug::scene::{self, activate};
+use srug::io;
+use srug::scene::activate;
 use srug::splat::{NormalSource, SplatSettings, Splatter, TileBounds, DEFAULT_TILE};
 use srug::Result;
 
@@ -53,7 +53,7 @@ impl RenderArgs {
         let rgb = !is_exr || channels.names_rgb;
         let cams = view.resolve()?;
         let index = view.index;
-        let scene = scene::read_ply(path)?;
+        let scene = io::read_ply(path)?;
         let device = device_args.open()?;
         let gpu_scene = activate::GpuScene::upload(&device, &scene)?;
         let mut splatter = Splatter::new(&device)?;
@@ -77,9 +77,9 @@ impl RenderArgs {
             let (gpu, stats) = splatter.render(&gpu_scene, cam, &settings)?;
             let g = gpu.read(&device)?;
             if is_exr {
-                output::write_exr(&target, &g)?;
+                g.write_exr(&target)?;
             } else {
-                output::write_png(&target, g.width, g.height, g.rgb_values()?)?;
+                io::write_png(&target, g.width, g.height, g.rgb_values()?)?;
             }
             bar.inc(1);
             bar.println(format!(

@@ -4,8 +4,9 @@
 
 use std::path::PathBuf;
 
-use srug::output;
-use srug::scene::{self, demo, PlyFormat};
+use srug::io;
+use srug::io::PlyFormat;
+use srug::scene::demo;
 use srug::shadow::completion::{complete_demo, shadow_iou, CompletionSettings, DemoCompletion};
 use srug::{Error, Result};
 
@@ -90,10 +91,10 @@ impl ShadowFitArgs {
         for (name, v) in
             [("target", &result.target), ("without", &c.without), ("before", &c.before), ("after", &c.after)]
         {
-            output::write_png(out.join(format!("visibility_{name}.png")), w, h, &grey(v))?;
+            io::write_png(out.join(format!("visibility_{name}.png")), w, h, &grey(v))?;
         }
         let ply = out.join("completed.ply");
-        scene::write_ply(&ply, &c.scene, PlyFormat::BinaryLittleEndian)?;
+        io::write_ply(&ply, &c.scene, PlyFormat::BinaryLittleEndian)?;
         let csv = out.join("history.csv");
         let text = format!("step,loss,shadow_iou,missing_shadow_iou\n{}\n", lines.join("\n"));
         std::fs::write(&csv, text).map_err(Error::io(&csv))?;

@@ -4,7 +4,7 @@
 use std::path::PathBuf;
 
 use srug::indirect::{read_tensor, tensor_bytes, StoragePrecision, UNet, UNetWeights};
-use srug::output;
+use srug::io;
 use srug::scene::human_bytes;
 use srug::{Error, Result};
 
@@ -47,7 +47,7 @@ impl UnetArgs {
         let result = unet.infer(&buffer, w as u32, h as u32)?;
         let output: Vec<f32> = device.read_buffer(&result.output)?;
         let bytes = tensor_bytes("output", net.config.out_channels, h, w, &output)?;
-        output::write_atomic(out, &bytes)?;
+        io::write_atomic(out, &bytes)?;
         println!(
             "{}: {}x{} in, {} out channels; {:.1} ms GPU, {:.2} GFLOP, arena {}",
             out.display(),

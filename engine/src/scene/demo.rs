@@ -18,8 +18,8 @@ use glam::{Mat3, Quat, Vec3};
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64Mcg;
 
-use super::camera::Camera;
 use super::{sh_coefficients, Materials, Scene, SH_C0};
+use crate::camera::Camera;
 use crate::error::{Error, Result};
 
 /// What to generate.

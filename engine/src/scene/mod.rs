@@ -1,4 +1,5 @@
-//! Scenes of 3D Gaussians: the data model, file I/O, cameras and the demo city.
+//! Scenes of 3D Gaussians: the data model, its GPU upload and the demo city
+//! (files are read and written by [`crate::io`]).
 //!
 //! Parameters are stored the way trainers write them, **before activation**:
 //! opacity as a logit, scale as a log, rotation as an unnormalized quaternion
@@ -10,14 +11,11 @@
 //! lengths, finite values and non-zero quaternions; every loader validates.
 
 pub mod activate;
-pub mod camera;
 pub mod demo;
-pub mod ply;
 
 use std::fmt;
 
-pub use camera::{read_cameras_json, write_cameras_json, Camera, Projection};
-pub use ply::{read_ply, read_ply_bytes, write_ply, PlyFormat};
+pub use crate::camera::{Camera, Projection};
 
 /// A malformed scene or camera file: what is wrong and where.
 #[derive(Clone, Debug, PartialEq, Eq)]

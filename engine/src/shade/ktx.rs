@@ -211,7 +211,7 @@ fn align(v: &mut Vec<u8>, to: usize) {
 /// file beside the target so a failure leaves nothing behind.
 pub fn write_float_chain(path: impl AsRef<Path>, chain: &FloatChain<'_>, zstd: bool) -> Result<()> {
     let bytes = encode_float_chain(chain, zstd)?;
-    crate::output::write_atomic(path.as_ref(), &bytes)
+    crate::io::write_atomic(path.as_ref(), &bytes)
 }
 
 /// The bytes of a KTX2 file holding `chain`.

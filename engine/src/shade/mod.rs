@@ -1,5 +1,5 @@
 //! Physically based deferred shading and relighting: the final image from
-//! the G-buffers as the SRUG paper computes it (appendix, NOTES.md §6):
+//! the G-buffers as the SRUG paper computes it (appendix, docs/conventions.md §6):
 //! L_o = L_sun + L_sky + L_ind, composited over the background, then
 //! exposure, tone mapping and sRGB encoding.
 //!
@@ -27,7 +27,6 @@
 pub mod cpu;
 pub mod env;
 pub mod ktx;
-pub mod relight;
 pub mod sky;
 
 use std::collections::HashMap;
@@ -286,7 +285,7 @@ impl ShadedImage {
         if (width, height) == (self.width, self.height) {
             return Ok(self.clone());
         }
-        let r = |v: &[f32]| crate::output::resample_bilinear(v, (self.width, self.height), 3, (width, height));
+        let r = |v: &[f32]| crate::image::resample_bilinear(v, (self.width, self.height), 3, (width, height));
         Ok(ShadedImage {
             width,
             height,

@@ -5,7 +5,7 @@
 //! receiver pixel of a camera G-buffer is turned back into a world point,
 //! projected into light space, and compared with the bilinearly sampled map
 //! depth z_s through the paper's soft test V_e = σ(k·(z_s − z + bias)) (the
-//! *sigmoid shadow map*; NOTES.md §5 has the numerics). `[ShadowPass::traced]`
+//! *sigmoid shadow map*; docs/conventions.md §5 has the numerics). `[ShadowPass::traced]`
 //! computes the accurate transmittance toward the sun from the same light
 //! splat, the reference the sigmoid test is measured against.
 //!
@@ -32,9 +32,9 @@ use glam::Vec3;
 pub use self::sun::{solar_position, sun_path, SolarPosition, Sun, UtcTime};
 use crate::error::{Error, Result};
 use crate::gpu::{kernels, BindingKind, Buffer, Device, Kernel, KernelDecl, MemoryKind, SpecValue, Timings};
+use crate::primitives::sort::RadixSort;
 use crate::scene::activate::GpuScene;
 use crate::scene::{Bounds, Camera, Projection};
-use crate::splat::sort::RadixSort;
 use crate::splat::{Channels, GpuGBuffer, SplatFrame, SplatSettings, Splatter};
 
 /// Which depth a G-buffer gives for shadows.
@@ -197,7 +197,7 @@ pub fn light_camera(
     let centre = 0.5 * (lo + hi);
     let towards = -sun.direction;
     let up = if sun.direction.z.abs() > 0.999 { Vec3::Y } else { Vec3::Z };
-    let rotation = crate::scene::camera::look_rotation(centre, centre + towards, up)?;
+    let rotation = crate::camera::look_rotation(centre, centre + towards, up)?;
     let to_light = |p: Vec3| rotation.transpose() * (p - centre);
     let corners = |a: Vec3, b: Vec3| {
         (0..8).map(move |i| Vec3::new([a.x, b.x][i & 1], [a.y, b.y][(i >> 1) & 1], [a.z, b.z][i >> 2]))

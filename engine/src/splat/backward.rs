@@ -3,7 +3,7 @@
 //!
 //! Two kernels, no atomics, deterministic: `splat_backward_tiles.comp` (one
 //! workgroup per tile) replays each pixel's blend, walks it back to front
-//! (NOTES.md §4) and sums the tile's pixels per splat, in pixel order through
+//! (docs/conventions.md §4) and sums the tile's pixels per splat, in pixel order through
 //! shared memory, into one record per (tile, splat) pair;
 //! `splat_backward_gaussians.comp` (one invocation per Gaussian) sums its
 //! records in order and chains them through the projection. The records sit

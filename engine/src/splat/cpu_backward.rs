@@ -1,6 +1,6 @@
 //! The f64 CPU twin of the splatting backward pass: per-pixel loss gradients
 //! of the blended outputs → per-splat gradients of the projected quantities
-//! (NOTES.md §4) → gradients of each Gaussian's stored parameters (mean,
+//! (docs/conventions.md §4) → gradients of each Gaussian's stored parameters (mean,
 //! log-scale, quaternion, opacity logit). Plain code for tests; the blend
 //! backward keeps every pixel's transmittances instead of dividing them back.
 //!

@@ -14,7 +14,7 @@
 //! 4. **ranges**: each tile's slice of the sorted pairs;
 //! 5. **blend**: per-pixel front-to-back blending into the requested channels.
 //!
-//! Conventions follow the INRIA and gsplat rasterizers (NOTES.md §3): pixel
+//! Conventions follow the INRIA and gsplat rasterizers (docs/conventions.md §3): pixel
 //! centres at +0.5, α = min(0.99, o·exp(−σ)), skip α < 1/255, stop when
 //! T·(1−α) < 1e-4. rgb is composited over the background; every other blended
 //! channel is Σ wᵢ xᵢ (premultiplied by alpha; divide by alpha for the mean).
@@ -23,20 +23,18 @@
 pub mod backward;
 pub mod cpu;
 pub mod cpu_backward;
-pub mod scan;
-pub mod sort;
 
 use std::collections::HashMap;
 
 use bytemuck::{Pod, Zeroable};
 
-use self::scan::Scan;
-use self::sort::RadixSort;
 use crate::error::{Error, Result};
 use crate::gpu::{
     kernels, Binding, BindingKind, Buffer, Device, Kernel, KernelDecl, MemoryKind, SpecValue, TexelFormat, Texels,
     Timings,
 };
+use crate::primitives::scan::Scan;
+use crate::primitives::sort::RadixSort;
 use crate::scene::activate::GpuScene;
 use crate::scene::{Camera, Projection};
 
@@ -339,6 +337,12 @@ pub struct GBuffer {
 }
 
 impl GBuffer {
+    /// Writes every channel as 32-bit float channels of one EXR layer (R, G,
+    /// B, A, Z, median_depth.Y, normal.X/Y/Z, albedo.R/G/B, roughness.Y, ...).
+    pub fn write_exr(&self, path: impl AsRef<std::path::Path>) -> Result<()> {
+        crate::io::write_exr_channels(path.as_ref(), self.width, self.height, &self.channels())
+    }
+
     /// The rgb channel, or an error naming why it is absent.
     pub fn rgb_values(&self) -> Result<&[f32]> {
         self.rgb.as_deref().ok_or_else(|| Error::InvalidArgument(NO_RGB.into()))

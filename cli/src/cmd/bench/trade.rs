@@ -4,7 +4,7 @@
 use std::path::PathBuf;
 
 use srug::indirect::{UNetConfig, UNetWeights};
-use srug::{output, Error, Result};
+use srug::{io, Error, Result};
 
 use crate::args::{spinner, DeviceArgs, Size};
 use crate::bench;
@@ -55,8 +55,8 @@ impl TradeBenchArgs {
         let rows = rows?;
         let table = trade_markdown(&rows);
         print!("{table}");
-        output::write_atomic(&out.join("trade.csv"), trade_csv(&rows).as_bytes())?;
-        output::write_atomic(&out.join("trade.md"), format!("{heading}\n\n{table}").as_bytes())?;
+        io::write_atomic(&out.join("trade.csv"), trade_csv(&rows).as_bytes())?;
+        io::write_atomic(&out.join("trade.md"), format!("{heading}\n\n{table}").as_bytes())?;
         let png = out.join("trade.png");
         let title = format!("srug speed/accuracy, {} at {}x{}", info.name, setup.size.0, setup.size.1);
         let text = bench::plot::trade_plot(&png, &rows, &title)?;

@@ -1,15 +1,12 @@
-//! Cameras: pinhole and orthographic projections, and INRIA `cameras.json`.
+//! Cameras: pinhole and orthographic projections (files of cameras are read
+//! and written by [`crate::io`]).
 //!
-//! Conventions (NOTES.md §3): camera axes are OpenCV's (x right, y down,
+//! Conventions (docs/conventions.md §3): camera axes are OpenCV's (x right, y down,
 //! z forward); `rotation` is camera-to-world (its columns are the camera axes in
 //! world space) and `position` the camera centre; pixel centres are at +0.5.
 
-use std::path::Path;
-
 use glam::{Mat3, Vec2, Vec3};
-use serde::{Deserialize, Serialize};
 
-use super::SceneError;
 use crate::error::{Error, Result};
 
 /// How camera space maps to pixels.
@@ -182,105 +179,4 @@ pub fn look_rotation(eye: Vec3, target: Vec3, up: Vec3) -> Result<Mat3> {
     }
     let down = forward.cross(right);
     Ok(Mat3::from_cols(right, down, forward))
-}
-
-/// One entry of INRIA's cameras.json.
-#[derive(Clone, Debug, Serialize, Deserialize)]
-struct JsonCamera {
-    id: i64,
-    img_name: String,
-    width: u32,
-    height: u32,
-    position: [f64; 3],
-    rotation: [[f64; 3]; 3],
-    fx: f64,
-    fy: f64,
-}
-
-/// Reads an INRIA `cameras.json`.
-pub fn read_cameras_json(path: impl AsRef<Path>) -> Result<Vec<Camera>> {
-    let path = path.as_ref();
-    let text = std::fs::read_to_string(path).map_err(Error::io(path))?;
-    Ok(parse_cameras_json(&text, &path.display().to_string())?)
-}
-
-/// Parses INRIA `cameras.json` text; `origin` names it in errors.
-pub fn parse_cameras_json(text: &str, origin: &str) -> Result<Vec<Camera>, SceneError> {
-    let entries: Vec<JsonCamera> =
-        serde_json::from_str(text).map_err(|e| SceneError::file(origin, format!("malformed cameras.json: {e}")))?;
-    entries.iter().enumerate().map(|(i, e)| from_json(e, i, origin)).collect()
-}
-
-fn from_json(e: &JsonCamera, i: usize, origin: &str) -> Result<Camera, SceneError> {
-    let bad = |field: &str, m: String| SceneError::at(origin, i, field, m);
-    if e.width == 0 || e.height == 0 {
-        return Err(bad("width/height", format!("image size {}x{} is empty", e.width, e.height)));
-    }
-    if !(e.fx.is_finite() && e.fx > 0.0 && e.fy.is_finite() && e.fy > 0.0) {
-        return Err(bad("fx/fy", format!("focal lengths {} / {} must be finite and positive", e.fx, e.fy)));
-    }
-    if e.position.iter().any(|v| !v.is_finite()) {
-        return Err(bad("position", format!("{:?} is not finite", e.position)));
-    }
-    let r = e.rotation;
-    if r.iter().flatten().any(|v| !v.is_finite()) {
-        return Err(bad("rotation", "has non-finite entries".into()));
-    }
-    // rows of the camera-to-world rotation
-    let rotation = Mat3::from_cols(
-        Vec3::new(r[0][0] as f32, r[1][0] as f32, r[2][0] as f32),
-        Vec3::new(r[0][1] as f32, r[1][1] as f32, r[2][1] as f32),
-        Vec3::new(r[0][2] as f32, r[1][2] as f32, r[2][2] as f32),
-    );
-    let orthonormality =
-        (rotation.transpose() * rotation - Mat3::IDENTITY).to_cols_array().iter().fold(0.0f32, |m, v| m.max(v.abs()));
-    if orthonormality > 1e-3 || rotation.determinant() < 0.0 {
-        return Err(bad(
-            "rotation",
-            format!("is not a rotation (|RᵀR − I| = {orthonormality:.2e}, det = {:.3})", rotation.determinant()),
-        ));
-    }
-    Ok(Camera {
-        name: e.img_name.clone(),
-        width: e.width,
-        height: e.height,
-        rotation,
-        position: Vec3::new(e.position[0] as f32, e.position[1] as f32, e.position[2] as f32),
-        projection: Projection::Pinhole {
-            fx: e.fx as f32,
-            fy: e.fy as f32,
-            cx: e.width as f32 * 0.5,
-            cy: e.height as f32 * 0.5,
-        },
-        near: DEFAULT_NEAR,
-        far: DEFAULT_FAR,
-    })
-}
-
-/// Writes pinhole cameras as INRIA `cameras.json` (orthographic ones are refused).
-pub fn write_cameras_json(path: impl AsRef<Path>, cameras: &[Camera]) -> Result<()> {
-    let path = path.as_ref();
-    let mut entries = Vec::with_capacity(cameras.len());
-    for (i, c) in cameras.iter().enumerate() {
-        let Projection::Pinhole { fx, fy, .. } = c.projection else {
-            return Err(Error::InvalidArgument(format!(
-                "camera {i} is orthographic; cameras.json holds pinhole cameras"
-            )));
-        };
-        let r = c.rotation;
-        entries.push(JsonCamera {
-            id: i as i64,
-            img_name: c.name.clone(),
-            width: c.width,
-            height: c.height,
-            position: c.position.to_array().map(f64::from),
-            rotation: [0, 1, 2].map(|row| [0, 1, 2].map(|col| f64::from(r.col(col)[row]))),
-            fx: f64::from(fx),
-            fy: f64::from(fy),
-        });
-    }
-    let text = serde_json::to_string_pretty(&entries).map_err(|e| Error::InvalidArgument(e.to_string()))?;
-    let tmp = path.with_extension("json.tmp");
-    std::fs::write(&tmp, text).map_err(Error::io(&tmp))?;
-    std::fs::rename(&tmp, path).map_err(Error::io(path))
 }

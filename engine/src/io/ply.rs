@@ -13,8 +13,8 @@ use std::collections::HashMap;
 use std::io::Write;
 use std::path::Path;
 
-use super::{sh_coefficients, Materials, Scene, SceneError};
 use crate::error::{Error, Result};
+use crate::scene::{sh_coefficients, Materials, Scene, SceneError};
 
 /// PLY data encodings.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

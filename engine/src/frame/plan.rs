@@ -1,16 +1,16 @@
 //! What a frame of a scene will run, before anything runs (`srug info --plan`):
 //! its stages, the G-buffer channels and shader variants they use, and the GPU
 //! memory known ahead. It is built from [`RelightDecisions`], the same
-//! decisions [`crate::shade::relight::Relighter::render`] follows, so the plan
+//! decisions [`crate::frame::Relighter::render`] follows, so the plan
 //! and the renderer cannot disagree: no materials → plain colour and no
 //! shading; no sun above the horizon → no shadow pass; no network → no inference.
 
 use std::fmt::Write as _;
 
 use crate::error::Result;
+use crate::frame::{RelightDecisions, RelightSettings};
 use crate::indirect::{StoragePrecision, UNetConfig};
 use crate::scene::{human_bytes, Scene};
-use crate::shade::relight::{RelightDecisions, RelightSettings};
 use crate::shadow::{depth_channels, light_camera, Sun};
 use crate::splat::{BlendVariant, Channels, FEATURE_BYTES, SPLAT_BYTES};
 

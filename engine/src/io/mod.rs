@@ -1,0 +1,18 @@
+//! Files in and out: scenes (INRIA PLY), cameras (`cameras.json`), images
+//! (PNG, EXR), and the atomic write every writer goes through.
+//!
+//! Invariants: readers validate everything they return and report a defect
+//! with the file and the place (row, property, field); writers write a
+//! temporary file beside the target and rename it, so a failure leaves
+//! nothing behind. This module knows the host data types (`Scene`, `Camera`)
+//! and no GPU type and no stage.
+
+mod atomic;
+mod cameras;
+mod image;
+mod ply;
+
+pub use atomic::write_atomic;
+pub use cameras::{parse_cameras_json, read_cameras_json, write_cameras_json};
+pub use image::{display_byte, write_exr_channels, write_png};
+pub use ply::{read_ply, read_ply_bytes, write_ply, PlyFormat};
