@@ -1,5 +1,5 @@
 /* The smallest complete use of srug's C API: render the demo city under an
- * evening sun into an RGBA8 buffer. Build (see README, "Embedding srug"):
+ * evening sun into an RGBA8 buffer. Build (see docs/embedding.md):
  *   cc -std=c11 -I bindings/include examples/minimal.c -L target/release -lsrug_c -o minimal
  */
 #include <stdio.h>

@@ -50,9 +50,9 @@ enum srug_status
   SRUG_ERROR_WRONG_ORDER = 5,
   // A file could not be read.
   SRUG_ERROR_IO = 6,
-  // A scene, camera or environment file is malformed (the message names the place).
+  // A scene or camera file is malformed (the message names the file, row and property).
   SRUG_ERROR_BAD_FILE = 7,
-  // No Vulkan loader, layer or usable device.
+  // No Vulkan device matches the selection, or none is usable.
   SRUG_ERROR_NO_DEVICE = 8,
   // Host or device memory ran out.
   SRUG_ERROR_OUT_OF_MEMORY = 9,
@@ -60,10 +60,20 @@ enum srug_status
   SRUG_ERROR_DEVICE_LOST = 10,
   // The device lacks a feature the call needs.
   SRUG_ERROR_UNSUPPORTED = 11,
-  // Another Vulkan or kernel failure.
+  // A Vulkan call failed with a result other than out-of-memory or device loss.
   SRUG_ERROR_GPU = 12,
   // An internal error (a caught panic); the handle involved should be destroyed.
   SRUG_ERROR_PANIC = 13,
+  // The Vulkan loader library (libvulkan) could not be opened.
+  SRUG_ERROR_NO_VULKAN = 14,
+  // A Vulkan layer or extension srug was asked to use is not installed (for validation:
+  // the vulkan-validationlayers package).
+  SRUG_ERROR_MISSING_LAYER = 15,
+  // A kernel disagrees with its SPIR-V or the core was used outside its contract: a defect
+  // in srug, to be reported.
+  SRUG_ERROR_INTERNAL = 16,
+  // An environment map file is malformed or in a form srug cannot use.
+  SRUG_ERROR_BAD_ENVIRONMENT = 17,
 };
 #ifndef __cplusplus
 #if __STDC_VERSION__ >= 202311L
@@ -411,7 +421,7 @@ srug_status srug_renderer_set_shadow(srug_renderer *renderer,
                                      float bias);
 
 // Applies a quality preset by name: `"fast"`, `"balanced"` (the default) or
-// `"reference"` (README: "Speed against accuracy"). It sets the shadow map
+// `"reference"` (docs/bench/trade.md measures them). It sets the shadow map
 // (resolution, k, bias, depth modes, sigmoid or traced test), the SH degree
 // and the render scale; exposure, tone map, channels and the sun are kept.
 // Below scale 1 the frame is rendered smaller and read back resampled
@@ -425,9 +435,8 @@ srug_status srug_renderer_set_preset(srug_renderer *renderer, const char *name);
 // The splatting tile edge in pixels, 8, 16 (the default) or 32, for the
 // camera and the shadow map (presets keep it). It changes speed, not the
 // image beyond rounding. Which is faster depends on the scene and size: 8
-// lists 1.5–2.4× the (splat, tile) pairs but blends fewer pixels per
-// splat; on CPU Vulkan (lavapipe) 16 is faster at 100k Gaussians, 8 slightly
-// faster at a million on a small image (README: "Speed against accuracy").
+// lists more (splat, tile) pairs but blends fewer pixels per splat
+// (docs/bench/trade.md and docs/bench/splat.md have the measurements).
 srug_status srug_renderer_set_tile(srug_renderer *renderer, uint32_t tile);
 
 // Keeps the shadow map between renders (off by default) and splats a new one

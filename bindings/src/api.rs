@@ -1079,7 +1079,7 @@ pub extern "C" fn srug_renderer_set_shadow(
 }
 
 /// Applies a quality preset by name: `"fast"`, `"balanced"` (the default) or
-/// `"reference"` (README: "Speed against accuracy"). It sets the shadow map
+/// `"reference"` (docs/bench/trade.md measures them). It sets the shadow map
 /// (resolution, k, bias, depth modes, sigmoid or traced test), the SH degree
 /// and the render scale; exposure, tone map, channels and the sun are kept.
 /// Below scale 1 the frame is rendered smaller and read back resampled
@@ -1110,9 +1110,8 @@ pub unsafe extern "C" fn srug_renderer_set_preset(renderer: *mut srug_renderer, 
 /// The splatting tile edge in pixels, 8, 16 (the default) or 32, for the
 /// camera and the shadow map (presets keep it). It changes speed, not the
 /// image beyond rounding. Which is faster depends on the scene and size: 8
-/// lists 1.5–2.4× the (splat, tile) pairs but blends fewer pixels per
-/// splat; on CPU Vulkan (lavapipe) 16 is faster at 100k Gaussians, 8 slightly
-/// faster at a million on a small image (README: "Speed against accuracy").
+/// lists more (splat, tile) pairs but blends fewer pixels per splat
+/// (docs/bench/trade.md and docs/bench/splat.md have the measurements).
 #[no_mangle]
 pub extern "C" fn srug_renderer_set_tile(renderer: *mut srug_renderer, tile: u32) -> srug_status {
     guard("srug_renderer_set_tile", || {

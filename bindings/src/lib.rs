@@ -51,9 +51,9 @@ pub enum srug_status {
     SRUG_ERROR_WRONG_ORDER = 5,
     /// A file could not be read.
     SRUG_ERROR_IO = 6,
-    /// A scene, camera or environment file is malformed (the message names the place).
+    /// A scene or camera file is malformed (the message names the file, row and property).
     SRUG_ERROR_BAD_FILE = 7,
-    /// No Vulkan loader, layer or usable device.
+    /// No Vulkan device matches the selection, or none is usable.
     SRUG_ERROR_NO_DEVICE = 8,
     /// Host or device memory ran out.
     SRUG_ERROR_OUT_OF_MEMORY = 9,
@@ -61,10 +61,20 @@ pub enum srug_status {
     SRUG_ERROR_DEVICE_LOST = 10,
     /// The device lacks a feature the call needs.
     SRUG_ERROR_UNSUPPORTED = 11,
-    /// Another Vulkan or kernel failure.
+    /// A Vulkan call failed with a result other than out-of-memory or device loss.
     SRUG_ERROR_GPU = 12,
     /// An internal error (a caught panic); the handle involved should be destroyed.
     SRUG_ERROR_PANIC = 13,
+    /// The Vulkan loader library (libvulkan) could not be opened.
+    SRUG_ERROR_NO_VULKAN = 14,
+    /// A Vulkan layer or extension srug was asked to use is not installed (for validation:
+    /// the vulkan-validationlayers package).
+    SRUG_ERROR_MISSING_LAYER = 15,
+    /// A kernel disagrees with its SPIR-V or the core was used outside its contract: a defect
+    /// in srug, to be reported.
+    SRUG_ERROR_INTERNAL = 16,
+    /// An environment map file is malformed or in a form srug cannot use.
+    SRUG_ERROR_BAD_ENVIRONMENT = 17,
 }
 
 /// A failed call: its status and message.
@@ -87,13 +97,17 @@ impl From<srug::Error> for Failure {
         use srug::Error as E;
         use srug_status::*;
         let status = match &e {
-            E::Gpu(G::Loader(_) | G::MissingComponent(_) | G::NoDevice(_)) => SRUG_ERROR_NO_DEVICE,
+            E::Gpu(G::Loader(_)) => SRUG_ERROR_NO_VULKAN,
+            E::Gpu(G::MissingComponent(_)) => SRUG_ERROR_MISSING_LAYER,
+            E::Gpu(G::NoDevice(_)) => SRUG_ERROR_NO_DEVICE,
             E::Gpu(G::OutOfMemory(_)) => SRUG_ERROR_OUT_OF_MEMORY,
             E::Gpu(G::DeviceLost(_)) => SRUG_ERROR_DEVICE_LOST,
             E::Gpu(G::Unsupported(_)) => SRUG_ERROR_UNSUPPORTED,
-            E::Gpu(G::Vulkan { .. } | G::Kernel { .. } | G::InvalidArgument { .. }) => SRUG_ERROR_GPU,
+            E::Gpu(G::Vulkan { .. }) => SRUG_ERROR_GPU,
+            E::Gpu(G::Kernel { .. } | G::InvalidArgument { .. }) => SRUG_ERROR_INTERNAL,
             E::InvalidArgument(_) => SRUG_ERROR_INVALID_ARGUMENT,
-            E::Scene(_) | E::Environment { .. } => SRUG_ERROR_BAD_FILE,
+            E::Scene(_) => SRUG_ERROR_BAD_FILE,
+            E::Environment { .. } => SRUG_ERROR_BAD_ENVIRONMENT,
             E::Io { .. } => SRUG_ERROR_IO,
         };
         Self { status, message: e.to_string() }
@@ -196,6 +210,10 @@ pub extern "C" fn srug_status_name(status: u32) -> *const c_char {
         11 => "SRUG_ERROR_UNSUPPORTED\0",
         12 => "SRUG_ERROR_GPU\0",
         13 => "SRUG_ERROR_PANIC\0",
+        14 => "SRUG_ERROR_NO_VULKAN\0",
+        15 => "SRUG_ERROR_MISSING_LAYER\0",
+        16 => "SRUG_ERROR_INTERNAL\0",
+        17 => "SRUG_ERROR_BAD_ENVIRONMENT\0",
         _ => "SRUG_UNKNOWN_STATUS\0",
     };
     name.as_ptr().cast()
@@ -260,9 +278,42 @@ mod tests {
         assert_eq!((s, n), (srug_status::SRUG_ERROR_BUFFER_TOO_SMALL, 23));
     }
 
+    /// Every kind of srug error has its own status code, so C callers tell
+    /// them apart without reading the message.
+    #[test]
+    fn error_kinds_map_to_distinct_status_codes() {
+        use srug::gpu::GpuError as G;
+        use srug::Error as E;
+        let io = || std::io::Error::from(std::io::ErrorKind::NotFound);
+        let kinds: Vec<E> = vec![
+            E::Gpu(G::Loader("x".into())),
+            E::Gpu(G::MissingComponent("x".into())),
+            E::Gpu(G::NoDevice("x".into())),
+            E::Gpu(G::OutOfMemory("x".into())),
+            E::Gpu(G::DeviceLost("x")),
+            E::Gpu(G::Unsupported("x".into())),
+            E::Gpu(G::Vulkan { call: "vkX", result: srug::gpu::VkResult::ERROR_UNKNOWN }),
+            E::InvalidArgument("x".into()),
+            E::Scene(srug::scene::SceneError::file("a.ply", "x")),
+            E::Environment { origin: "sky.exr".into(), message: "x".into() },
+            E::Io { path: "a".into(), source: io() },
+        ];
+        let codes: Vec<srug_status> = kinds.into_iter().map(|e| Failure::from(e).status).collect();
+        for (i, a) in codes.iter().enumerate() {
+            assert_ne!(*a, srug_status::SRUG_OK);
+            for b in &codes[i + 1..] {
+                assert_ne!(a, b, "two error kinds share {a:?}: {codes:?}");
+            }
+        }
+        // Defects of srug itself share one code.
+        let internal = |e: G| Failure::from(E::Gpu(e)).status;
+        assert_eq!(internal(G::Kernel { kernel: "k", message: "x".into() }), srug_status::SRUG_ERROR_INTERNAL);
+        assert_eq!(internal(G::invalid("a", "b")), srug_status::SRUG_ERROR_INTERNAL);
+    }
+
     #[test]
     fn status_names_cover_the_enumeration() {
-        for v in 0..=13u32 {
+        for v in 0..=17u32 {
             // SAFETY: static NUL-terminated strings.
             let name = unsafe { std::ffi::CStr::from_ptr(srug_status_name(v)) }.to_str().unwrap();
             assert!(name.starts_with("SRUG_") && name != "SRUG_UNKNOWN_STATUS", "{v}: {name}");

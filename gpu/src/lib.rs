@@ -39,6 +39,8 @@ mod recording;
 pub mod selftest;
 mod shared;
 
+/// The Vulkan result a failed call returned (in [`GpuError::Vulkan`]).
+pub use ash::vk::Result as VkResult;
 pub use buffer::{Buffer, MemoryKind, Texels};
 pub use device::{Device, DeviceOptions, DeviceSelection, DEVICE_ENV, VALIDATION_ENV};
 pub use error::{GpuError, Result};

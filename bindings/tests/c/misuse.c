@@ -6,6 +6,7 @@
 #define _GNU_SOURCE /* dl_iterate_phdr, RTLD_NODELETE */
 #include <math.h>
 #include <stdint.h>
+#include <unistd.h>
 
 #include "check.h"
 
@@ -48,6 +49,18 @@ int main(int argc, char **argv) {
   EXPECT(srug_scene_create_demo(ctx, 10, 1, &scene), SRUG_ERROR_INVALID_ARGUMENT);
   REQUIRE(scene == NULL);
   EXPECT(srug_environment_from_file(ctx, "/nonexistent/sky.exr", NULL), SRUG_ERROR_NULL_POINTER);
+  {
+    /* A malformed environment map has its own status, distinct from a malformed scene. */
+    char bad_env[] = "/tmp/srug-misuse-XXXXXX.hdr";
+    int fd = mkstemps(bad_env, 4);
+    REQUIRE(fd >= 0);
+    REQUIRE(write(fd, "not a radiance file", 19) == 19);
+    close(fd);
+    srug_environment *bad = NULL;
+    EXPECT(srug_environment_from_file(ctx, bad_env, &bad), SRUG_ERROR_BAD_ENVIRONMENT);
+    REQUIRE(bad == NULL);
+    unlink(bad_env);
+  }
   srug_environment *env = NULL;
   EXPECT(srug_environment_from_file(ctx, "/nonexistent/sky.exr", &env), SRUG_ERROR_IO);
   EXPECT(srug_environment_sky(ctx, NAN, &env), SRUG_ERROR_INVALID_ARGUMENT);

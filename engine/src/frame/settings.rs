@@ -101,7 +101,7 @@ impl RelightSettings {
 }
 
 /// Named quality presets: points on the speed/accuracy curve `srug bench
-/// trade` measures (README: "Speed against accuracy").
+/// trade` measures (docs/bench/trade.md).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 pub enum Preset {
     /// Half-resolution render, SH degree 0, a 512 shadow map, fp16 network activations.

@@ -422,26 +422,8 @@ pub fn channel_block(out_channels: usize, texel: bool) -> usize {
 /// Output pixels per invocation along x (the `PX` specialization constant of
 /// `unet_conv.comp`, at most 8). With [`channel_block`] an invocation keeps
 /// PX·OCB fp32 accumulators; on lavapipe every one is a SIMD register, and
-/// past about 48 they spill. Measured at 352×96 (fastest of 3, default
-/// widths), texel inputs: 8 channels × 5 pixels 309 ms fp32 / 285 ms fp16;
-/// 8 × 6 282 ms fp32 but 1.36 s fp16 (spills); 8 × 4 319–395 ms; 16 × 3
-/// 322 ms; 16 × 2 362 ms; 32 × 1 521 ms; 64 accumulators (8 × 8, 16 × 4)
-/// 1.40–1.44 s. The 3-channel output layer: 4 × 8 8.6 ms, 8 × 4 23.5 ms.
-/// Re-measured once the weights came through a texel view too (704×192,
-/// two alternating runs, median ms fp32 / fp16): PX 5 774–826 / 673–682,
-/// 4 812–1034 / 712–836, 3 861–935 / 810–1189, 6 904 / 6475 (fp16 spills).
-/// Device-address inputs (each load lane by lane on lavapipe): 16 × 2 (8 × 4
-/// below 16 channels), measured earlier as 32 × 1 1.72 s, 8 × 4 1.44 s,
-/// 16 × 2 1.31 s. These figures predate the fetch-first loop order of
-/// 92e7048 (one pixel's accumulators in registers at a time), which made the
-/// accumulator count matter less; there, 8 × 8 took llvmpipe's compiler over
-/// ten minutes to build until every loop over the accumulators was unrolled
-/// (a loop left to the compiler put them in scratch memory), and 4 × 8 read
-/// four pixels per fetch was slower than 8 × 4 (704×192 fp32 up4: 303–330
-/// against 190–258 ms, two alternating runs). Four-pixel fetches now use 8 × 16
-/// ([`vec4_pixel_block`]). With the unrolled loops, 8 × 8 here (one pixel per
-/// fetch) read fp32 506 / 672 / 749 against 646 / 712 / 821 ms but fp16 634 /
-/// 686 / 599 against 546 / 618 / 566 (704×192, three rounds), so 8 × 5 stays.
+/// past about 48 they spill. The choice is measured; docs/bench/unet.md
+/// ("Tuning") has the figures behind it.
 pub fn pixel_block(out_channels: usize, texel: bool) -> usize {
     match (channel_block(out_channels, texel), texel) {
         (8, true) => 5,
@@ -454,11 +436,7 @@ pub fn pixel_block(out_channels: usize, texel: bool) -> usize {
 /// per texel (`VEC4` in `unet_conv.comp`): 16 with 8 output channels per
 /// invocation, 8 with 4 (PX·STRIDE a multiple of 4, so a row segment starts
 /// one pixel before a texel boundary). 128 accumulators compile quickly once
-/// every loop over them is unrolled. Measured at 704×192 (four alternating
-/// runs, median ms): 8 × 16 fp32 587–697 / fp16 687–719, 8 × 8 671–799 /
-/// 732–794, 8 × 4 (before) 737–886 / 758–817; at 1408×384 8 × 16 was 3–6%
-/// faster than 8 × 8. Building both precisions' kernels: 2.4 s against
-/// 2.0–2.3 s (`srug bench unet --sizes 64x16`, device start included).
+/// every loop over them is unrolled (figures: docs/bench/unet.md, "Tuning").
 pub fn vec4_pixel_block(out_channels: usize) -> usize {
     if channel_block(out_channels, true) == 8 {
         16
@@ -478,8 +456,6 @@ pub fn resize_four(out_width: usize) -> bool {
 /// exact-2× kernel (`EXACT2` in `unet_upsample.comp`): `to` is exactly twice
 /// `from` with align_corners false, so every output pixel is ¼ / ¾ of two
 /// source pixels per axis, and the source rows start on four-pixel texels.
-/// Measured at 704×192 (`srug bench unet --inputs vec4,winograd`, one run
-/// each): the four resizes fp32 12.1 against 31.7 ms, fp16 19.7 against 36.7 ms.
 pub fn resize_exact2(from: (usize, usize), to: (usize, usize), align_corners: bool) -> bool {
     !align_corners && to == (2 * from.0, 2 * from.1) && vec4_fits(from.0)
 }
@@ -877,10 +853,9 @@ impl UNet {
     /// The Winograd transform the stride-1 layers run by
     /// (`unet_winograd_body.glsl`), where their inputs go through texel-buffer
     /// views, or `None` for direct convolution. F(4×4, 3×3) by default where
-    /// the device has texel views: a quarter of the multiplies, and on
-    /// lavapipe the network at 704×192 fp32 takes about 228 against 349 ms
-    /// (F(2×2, 3×3) 273 ms; README, U-Net benchmark). Its kernels are built
-    /// at the first inference of a size that needs them.
+    /// the device has texel views: a quarter of the multiplies, and the faster
+    /// on lavapipe (docs/bench/unet.md). Its kernels are built at the first
+    /// inference of a size that needs them.
     pub fn winograd(&self) -> Option<WinogradTile> {
         self.winograd
     }

@@ -16,9 +16,7 @@
 //! channel and tile, so it trades multiplies for accumulator traffic and
 //! transform additions; on lavapipe, where every fetch is expensive, the
 //! larger tile also needs fewer input and weight fetches per output pixel.
-//! Measured at 704×192 fp32 (`srug bench unet --inputs winograd,winograd2,vec4`
-//! at c90a109, whole network; direct convolution 349 ms, the direct-convolution
-//! floor 249 ms): F(4×4) 228 ms, F(2×2) 273 ms (README, U-Net benchmark).
+//! The measured comparison with direct convolution is in docs/bench/unet.md.
 
 use super::ConvWeights;
 
@@ -108,12 +106,8 @@ impl WinogradTile {
     /// x: each weight fetch serves all of them, and their row reads its input
     /// patch four pixels per fetch, so m·TT is a multiple of 4 (every
     /// invocation's row starts on a four-pixel texel, and with F(2×2) two
-    /// tiles' rows make one four-pixel store). Measured on lavapipe at 704×192
-    /// (`srug bench unet`, whole network fp32): F(4×4) 4 tiles × 2 channels
-    /// per step 218 ms, 6 × 2 223 ms (the 88-pixel level then runs 3.7 blocks
-    /// a row), 4 × 1 242 ms; F(2×2) 8 × 2 268 ms (its best). llvmpipe's
-    /// compile time grows with TT·CH: with a cold shader cache about 45 s per
-    /// F(4×4) variant set at 4 × 1 and over 2 minutes at 6 × 2.
+    /// tiles' rows make one four-pixel store). llvmpipe's compile time grows
+    /// with TT·CH; the chosen values are measured (docs/bench/unet.md, "Tuning").
     pub const fn tiles_per_invocation(self) -> usize {
         match self {
             Self::F2x2 => 8,

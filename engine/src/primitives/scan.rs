@@ -6,7 +6,7 @@
 //! its exclusive prefix from the run's scanned sum. Invocations work alone in
 //! registers: no shared memory (on CPU implementations such as lavapipe a
 //! shared-memory access indexed by lane is a loop over the lanes; the earlier
-//! shared-memory Hillis–Steele scan was 4× slower there), no subgroup
+//! shared-memory Hillis–Steele scan was several times slower there), no subgroup
 //! operations, and no workgroup waits on another, so no forward-progress
 //! guarantee is needed. Sums wrap modulo 2³² like `u32`.
 

@@ -6,7 +6,7 @@
 //! scatter (`sort_scatter.comp`). Counts live in registers, never in shared
 //! memory: on CPU implementations (lavapipe) shared-memory accesses indexed
 //! by lane are loops over the lanes, and the earlier per-workgroup design
-//! spent about two thirds of its scatter time in them. Only
+//! spent most of its scatter time in them. Only
 //! `ceil(bits / 4)` passes run, so callers sort just the bits in use. The
 //! kernels use no subgroup operations and no workgroup waits on another, so
 //! the sort is correct for any subgroup size (lavapipe's is 8) and needs no

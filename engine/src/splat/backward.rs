@@ -12,7 +12,7 @@
 //! loads each splat once per subgroup (subgroup ballot).
 //!
 //! Cost on lavapipe: the barriers between batches of splats dominate (a
-//! barrier spills every invocation's state); subgroupAdd reductions were 3×
+//! barrier spills every invocation's state); subgroupAdd reductions were
 //! slower there still.
 //!
 //! What is not differentiated is listed in [`super::cpu_backward`], the f64 twin.

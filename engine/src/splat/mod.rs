@@ -202,7 +202,7 @@ pub enum BlendVariant {
     /// Each invocation loads every splat of its tile (`splat_blend_portable.comp`).
     PerPixel,
     /// One load per subgroup, broadcast to the others (`splat_blend.comp`); needs
-    /// subgroup ballot. The default where available: 3× faster on lavapipe.
+    /// subgroup ballot. The default where available (the faster on lavapipe).
     #[default]
     SubgroupLoads,
     /// Splats staged in shared-memory batches of 256 with whole-tile early exit

@@ -17,8 +17,8 @@ float load_input(uvec2 a, uint i) {
 }
 
 // The fp16 bits of v, rounded to nearest even, saturated to ±65504 (fp16 storage holds no more; no
-// overflow to infinity); NaN becomes a quiet NaN. By integer operations: llvmpipe's own conversion
-// (float16_t(), packHalf2x16) made the fp16 network at 704×192 take 249 against 233 ms.
+// overflow to infinity); NaN becomes a quiet NaN. By integer operations, which beat llvmpipe's own
+// conversion (float16_t(), packHalf2x16); docs/bench/unet.md has the figures.
 // CPU twin: engine/src/indirect/cpu.rs `half_bits` (keep in sync).
 uint half_bits(float v) {
     uint f = floatBitsToUint(v);
