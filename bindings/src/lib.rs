@@ -105,7 +105,8 @@ impl From<srug::Error> for Failure {
             E::Gpu(G::Unsupported(_)) => SRUG_ERROR_UNSUPPORTED,
             E::Gpu(G::Vulkan { .. }) => SRUG_ERROR_GPU,
             E::Gpu(G::Kernel { .. } | G::InvalidArgument { .. }) => SRUG_ERROR_INTERNAL,
-            E::InvalidArgument(_) => SRUG_ERROR_INVALID_ARGUMENT,
+            E::InvalidArgument { .. } => SRUG_ERROR_INVALID_ARGUMENT,
+            E::Internal(_) => SRUG_ERROR_INTERNAL,
             E::Scene(_) => SRUG_ERROR_BAD_FILE,
             E::Environment { .. } => SRUG_ERROR_BAD_ENVIRONMENT,
             E::Io { .. } => SRUG_ERROR_IO,
@@ -254,7 +255,7 @@ mod tests {
         let s = guard("srug_test", || panic!("boom {}", 7));
         assert_eq!(s, srug_status::SRUG_ERROR_PANIC);
         assert_eq!(last_error(), "srug_test: internal error (caught panic): boom 7");
-        let s = guard("srug_test", || Err(srug::Error::InvalidArgument("k is NaN".into()).into()));
+        let s = guard("srug_test", || Err(srug::Error::invalid("k", "is NaN").into()));
         assert_eq!(s, srug_status::SRUG_ERROR_INVALID_ARGUMENT);
         assert_eq!(last_error(), "srug_test: invalid argument: k is NaN");
         assert_eq!(guard("srug_test", || Ok(())), srug_status::SRUG_OK);
@@ -293,7 +294,7 @@ mod tests {
             E::Gpu(G::DeviceLost("x")),
             E::Gpu(G::Unsupported("x".into())),
             E::Gpu(G::Vulkan { call: "vkX", result: srug::gpu::VkResult::ERROR_UNKNOWN }),
-            E::InvalidArgument("x".into()),
+            E::invalid("x", "y"),
             E::Scene(srug::scene::SceneError::file("a.ply", "x")),
             E::Environment { origin: "sky.exr".into(), message: "x".into() },
             E::Io { path: "a".into(), source: io() },
@@ -309,6 +310,7 @@ mod tests {
         let internal = |e: G| Failure::from(E::Gpu(e)).status;
         assert_eq!(internal(G::Kernel { kernel: "k", message: "x".into() }), srug_status::SRUG_ERROR_INTERNAL);
         assert_eq!(internal(G::invalid("a", "b")), srug_status::SRUG_ERROR_INTERNAL);
+        assert_eq!(Failure::from(E::Internal("x".into())).status, srug_status::SRUG_ERROR_INTERNAL);
     }
 
     #[test]

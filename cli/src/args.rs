@@ -55,7 +55,7 @@ impl Size {
 impl FromStr for Size {
     type Err = Error;
     fn from_str(text: &str) -> Result<Self> {
-        let bad = || Error::InvalidArgument(format!("size \"{text}\" is not WxH"));
+        let bad = || Error::invalid(format!("size \"{text}\""), "is not WxH");
         let (w, h) = text.split_once(['x', 'X']).ok_or_else(bad)?;
         let (width, height): (u32, u32) = (w.trim().parse().map_err(|_| bad())?, h.trim().parse().map_err(|_| bad())?);
         if width == 0 || height == 0 {
@@ -76,10 +76,10 @@ impl FromStr for Vec3Arg {
             .split(',')
             .map(|p| p.trim().parse::<f32>())
             .collect::<std::result::Result<_, _>>()
-            .map_err(|_| Error::InvalidArgument(format!("\"{text}\" is not three comma-separated numbers")))?;
+            .map_err(|_| Error::invalid(format!("\"{text}\""), "is not three comma-separated numbers"))?;
         match v.as_slice() {
             [x, y, z] if v.iter().all(|c| c.is_finite()) => Ok(Self(glam::Vec3::new(*x, *y, *z))),
-            _ => Err(Error::InvalidArgument(format!("\"{text}\" is not three finite numbers"))),
+            _ => Err(Error::invalid(format!("\"{text}\""), "is not three finite numbers")),
         }
     }
 }
@@ -115,7 +115,7 @@ pub fn output_is_exr(out: &std::path::Path) -> Result<bool> {
     match out.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).as_deref() {
         Some("png") => Ok(false),
         Some("exr") => Ok(true),
-        _ => Err(Error::InvalidArgument(format!("{}: the output must end in .png or .exr", out.display()))),
+        _ => Err(Error::invalid(out.display().to_string(), "the output must end in .png or .exr")),
     }
 }
 
@@ -152,8 +152,7 @@ pub struct TimeSpan {
 impl FromStr for TimeSpan {
     type Err = Error;
     fn from_str(text: &str) -> Result<Self> {
-        let (a, b) =
-            text.split_once("..").ok_or_else(|| Error::InvalidArgument(format!("\"{text}\" is not START..END")))?;
+        let (a, b) = text.split_once("..").ok_or_else(|| Error::invalid(format!("\"{text}\""), "is not START..END"))?;
         Ok(Self { start: UtcTime::parse(a)?, end: UtcTime::parse(b)? })
     }
 }
@@ -162,7 +161,7 @@ fn parse_shadow_test(text: &str) -> Result<VisibilityKind> {
     match text {
         "sigmoid" => Ok(VisibilityKind::Sigmoid),
         "traced" => Ok(VisibilityKind::Traced),
-        other => Err(Error::InvalidArgument(format!("--shadow-test \"{other}\" is not sigmoid or traced"))),
+        other => Err(Error::invalid(format!("--shadow-test \"{other}\""), "is not sigmoid or traced")),
     }
 }
 
@@ -199,17 +198,17 @@ impl CameraArgs {
         let mut cams = match (&self.cameras, &self.eye) {
             (Some(c), _) => io::read_cameras_json(c)?,
             (None, Some(eye)) => {
-                let (w, h) = size.ok_or_else(|| Error::InvalidArgument("--size is required with --eye".into()))?;
+                let (w, h) = size.ok_or_else(|| Error::invalid("--eye", "needs --size"))?;
                 vec![Camera::look_at(eye.0, self.target.0, self.up.0, self.fov, w, h)?]
             }
-            (None, None) => return Err(Error::InvalidArgument("give --cameras or --eye".into())),
+            (None, None) => return Err(Error::invalid("camera", "give --cameras or --eye")),
         };
         if let Some(i) = self.index {
             let n = cams.len();
             cams = vec![cams
                 .into_iter()
                 .nth(i)
-                .ok_or_else(|| Error::InvalidArgument(format!("--index {i}: there are {n} cameras")))?];
+                .ok_or_else(|| Error::invalid(format!("--index {i}"), format!("there are {n} cameras")))?];
         }
         if let (Some((w, h)), Some(_)) = (size, &self.cameras) {
             for c in &mut cams {
@@ -260,7 +259,7 @@ impl SunArgs {
         let intensity = [self.sun_intensity; 3];
         let place = || match (self.latitude, self.longitude) {
             (Some(a), Some(o)) => Ok((a, o)),
-            _ => Err(Error::InvalidArgument("--sun-time and --sun-path need --latitude and --longitude".into())),
+            _ => Err(Error::invalid("--sun-time and --sun-path", "need --latitude and --longitude")),
         };
         if let Some(span) = &self.sun_path {
             let (lat, lon) = place()?;

@@ -180,7 +180,7 @@ fn bad_input_fails_with_a_clear_message() {
         "--out",
         "x.png",
     ]);
-    assert!(text(&o).contains("unknown channel"), "{}", text(&o));
+    assert!(text(&o).contains("channel \"shiny\": is unknown"), "{}", text(&o));
 }
 
 #[test]
@@ -221,15 +221,15 @@ fn bench_splat_prints_its_tables() {
 #[test]
 fn malformed_values_are_usage_errors() {
     let cases: &[(&[&str], &[&str])] = &[
-        (&["bench", "splat", "--sizes", "64by32"], &["--sizes", "size \"64by32\" is not WxH"]),
+        (&["bench", "splat", "--sizes", "64by32"], &["--sizes", "size \"64by32\": is not WxH"]),
         (&["bench", "splat", "--gaussians", "10,x"], &["--gaussians", "x"]),
         (&["bench", "shadow", "--ks", "5,fast"], &["--ks", "fast"]),
-        (&["bench", "unet", "--inputs", "texels"], &["--inputs", "\"texels\" is not winograd"]),
+        (&["bench", "unet", "--inputs", "texels"], &["--inputs", "conv path \"texels\": is not winograd"]),
         (&["render", "a.ply", "--eye", "1,2", "--size", "8x8", "--out", "x.png"], &["--eye", "three"]),
         (&["render", "a.ply", "--eye", "1,2,3", "--size", "0x8", "--out", "x.png"], &["--size", "is not WxH"]),
         (
             &["render", "a.ply", "--channels", "rgb,shiny", "--eye", "1,2,3", "--size", "8x8", "--out", "x.png"],
-            &["--channels", "unknown channel"],
+            &["--channels", "channel \"shiny\": is unknown"],
         ),
         (
             &["relight", "a.ply", "--eye", "1,2,3", "--preset", "best", "--out", "x.png"],
@@ -513,7 +513,10 @@ fn bench_unet_prints_its_table() {
     }
     let o = srug(&[&args[..], &["--inputs", "texels"]].concat());
     let t = text(&o);
-    assert!(!o.status.success() && t.contains("\"texels\" is not winograd, winograd2, vec4, texel or address"), "{t}");
+    assert!(
+        !o.status.success() && t.contains("conv path \"texels\": is not winograd, winograd2, vec4, texel or address"),
+        "{t}"
+    );
 }
 
 #[test]
@@ -682,5 +685,5 @@ fn relight_presets_and_quality_options() {
         "--out",
         "x.png",
     ]);
-    assert!(!o.status.success() && text(&o).contains("tile size 12 is not one of [8, 16, 32]"), "{}", text(&o));
+    assert!(!o.status.success() && text(&o).contains("tile size 12: is not one of [8, 16, 32]"), "{}", text(&o));
 }

@@ -24,7 +24,7 @@ fn main() -> srug::Result<()> {
 
     let mut relighter = Relighter::new(&device)?;
     let settings = RelightSettings::preset(Preset::Balanced);
-    let bounds = scene.bounds().ok_or_else(|| srug::Error::InvalidArgument("the scene is empty".into()))?;
+    let bounds = scene.bounds().ok_or_else(|| srug::Error::invalid("scene", "is empty"))?;
     let frame =
         relighter.render(&gpu_scene, &scene.attributes(), &bounds, camera, Some(&sun), &sky, &brdf, &settings)?;
     let image = frame.shaded.read(&device)?;

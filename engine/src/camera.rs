@@ -68,9 +68,10 @@ impl Camera {
     pub fn look_at(eye: Vec3, target: Vec3, up: Vec3, fov_x_degrees: f32, width: u32, height: u32) -> Result<Self> {
         let rotation = look_rotation(eye, target, up)?;
         if !(fov_x_degrees > 0.0 && fov_x_degrees < 180.0) || width == 0 || height == 0 {
-            return Err(Error::InvalidArgument(format!(
-                "fov {fov_x_degrees}° / size {width}x{height} is not a camera"
-            )));
+            return Err(Error::invalid(
+                format!("camera with fov {fov_x_degrees}° and size {width}x{height}"),
+                "needs a fov in (0°, 180°) and a non-empty size",
+            ));
         }
         let fx = width as f32 * 0.5 / (fov_x_degrees.to_radians() * 0.5).tan();
         Ok(Self {
@@ -103,9 +104,10 @@ impl Camera {
         let rotation = look_rotation(eye, eye + direction, up)?;
         let valid = extent_x > 0.0 && extent_y > 0.0 && extent_x.is_finite() && extent_y.is_finite() && near < far;
         if !valid || width == 0 || height == 0 {
-            return Err(Error::InvalidArgument(format!(
-                "orthographic extent {extent_x}x{extent_y}, size {width}x{height}, depth {near}..{far} is not a camera"
-            )));
+            return Err(Error::invalid(
+                format!("orthographic camera {extent_x}x{extent_y}, size {width}x{height}, depth {near}..{far}"),
+                "needs a positive finite extent, a non-empty size and near < far",
+            ));
         }
         Ok(Self {
             name: String::new(),
@@ -175,7 +177,7 @@ pub fn look_rotation(eye: Vec3, target: Vec3, up: Vec3) -> Result<Mat3> {
     let forward = (target - eye).normalize_or_zero();
     let right = forward.cross(up).normalize_or_zero();
     if forward == Vec3::ZERO || right == Vec3::ZERO || !forward.is_finite() {
-        return Err(Error::InvalidArgument(format!("look-at from {eye} to {target} with up {up} is degenerate")));
+        return Err(Error::invalid(format!("look-at from {eye} to {target} with up {up}"), "is degenerate"));
     }
     let down = forward.cross(right);
     Ok(Mat3::from_cols(right, down, forward))

@@ -12,9 +12,18 @@ pub enum Error {
     /// that disagrees with its SPIR-V, a missing feature...
     #[error(transparent)]
     Gpu(#[from] GpuError),
-    /// An argument is outside what the API accepts.
-    #[error("invalid argument: {0}")]
-    InvalidArgument(String),
+    /// An argument is outside what the API accepts: which one, and why.
+    #[error("invalid argument: {what}: {why}")]
+    InvalidArgument {
+        /// The argument or object at fault, as the caller named it (with its value
+        /// where that helps: `tile size 12`, `preset "best"`, `camera 3`).
+        what: String,
+        /// What is wrong with it.
+        why: String,
+    },
+    /// A state srug's own code should never reach: a defect to report, not a bad input.
+    #[error("internal error: {0}")]
+    Internal(String),
     /// A scene or camera file is malformed.
     #[error(transparent)]
     Scene(#[from] crate::scene::SceneError),
@@ -40,6 +49,11 @@ pub enum Error {
 pub type Result<T, E = Error> = std::result::Result<T, E>;
 
 impl Error {
+    /// An [`Error::InvalidArgument`]: `what` is at fault, `why`.
+    pub fn invalid(what: impl Into<String>, why: impl Into<String>) -> Self {
+        Self::InvalidArgument { what: what.into(), why: why.into() }
+    }
+
     /// An [`Error::Gpu`] for a feature the device lacks.
     pub fn unsupported(what: impl Into<String>) -> Self {
         Self::Gpu(GpuError::Unsupported(what.into()))

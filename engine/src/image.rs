@@ -13,10 +13,10 @@ pub fn resample_bilinear(
 ) -> Result<Vec<f32>> {
     let (w, h) = (width as usize, height as usize);
     if w == 0 || h == 0 || new_width == 0 || new_height == 0 || src.len() != w * h * channels {
-        return Err(Error::InvalidArgument(format!(
-            "cannot resample {} values as a {width}x{height} image of {channels} channels to {new_width}x{new_height}",
-            src.len()
-        )));
+        return Err(Error::invalid(
+            format!("{} values as a {width}x{height} image of {channels} channels", src.len()),
+            format!("cannot be resampled to {new_width}x{new_height}"),
+        ));
     }
     let (sx, sy) = (f64::from(width) / f64::from(new_width), f64::from(height) / f64::from(new_height));
     let axis = |i: u32, scale: f64, n: usize| {

@@ -23,17 +23,17 @@ pub struct RgbImage {
 
 fn check_pair(a: &RgbImage, b: &RgbImage) -> Result<()> {
     if (a.width, a.height) != (b.width, b.height) {
-        return Err(Error::InvalidArgument(format!(
-            "the images differ in size: {}x{} and {}x{}",
-            a.width, a.height, b.width, b.height
-        )));
+        return Err(Error::invalid(
+            "image pair",
+            format!("the images differ in size: {}x{} and {}x{}", a.width, a.height, b.width, b.height),
+        ));
     }
     let n = 3 * a.width as usize * a.height as usize;
     if a.rgb.len() != n || b.rgb.len() != n {
-        return Err(Error::InvalidArgument(format!("an image holds the wrong number of values for its size ({n})")));
+        return Err(Error::invalid("image", format!("holds the wrong number of values for its size ({n})")));
     }
     if let Some(i) = a.rgb.iter().chain(&b.rgb).position(|v| !v.is_finite()) {
-        return Err(Error::InvalidArgument(format!("value {i} is not finite")));
+        return Err(Error::invalid(format!("value {i}"), "is not finite"));
     }
     Ok(())
 }
@@ -64,7 +64,7 @@ pub fn ssim(a: &RgbImage, b: &RgbImage, peak: f64) -> Result<f64> {
     check_pair(a, b)?;
     let (w, h) = (a.width as usize, a.height as usize);
     if w < 11 || h < 11 {
-        return Err(Error::InvalidArgument(format!("SSIM needs at least 11x11 pixels, not {w}x{h}")));
+        return Err(Error::invalid(format!("image of {w}x{h}"), "is smaller than the 11x11 pixels SSIM needs"));
     }
     let g = window();
     let (c1, c2) = ((0.01 * peak).powi(2), (0.03 * peak).powi(2));
@@ -113,7 +113,7 @@ pub fn read_image(path: &Path) -> Result<RgbImage> {
     match ext.as_deref() {
         Some("png") => {
             let img = image::open(path)
-                .map_err(|e| Error::InvalidArgument(format!("{}: cannot read the PNG: {e}", path.display())))?
+                .map_err(|e| Error::invalid(path.display().to_string(), format!("cannot read the PNG: {e}")))?
                 .into_rgb32f();
             Ok(RgbImage { width: img.width(), height: img.height(), rgb: img.into_raw() })
         }
@@ -121,7 +121,7 @@ pub fn read_image(path: &Path) -> Result<RgbImage> {
             let map = crate::shade::EnvironmentMap::load(path)?;
             Ok(RgbImage { width: map.width, height: map.height, rgb: map.rgb })
         }
-        _ => Err(Error::InvalidArgument(format!("{}: images must be .png, .exr or .hdr", path.display()))),
+        _ => Err(Error::invalid(path.display().to_string(), "images must be .png, .exr or .hdr")),
     }
 }
 

@@ -3,10 +3,57 @@
 //! Every GPU test makes its device with [`device`], which turns on the Khronos
 //! validation layer with synchronization validation, and ends with
 //! [`assert_no_validation_messages`]: any message fails the test that caused it.
+//! GPU outputs are pre-filled with [`NAN_SENTINEL`] so "not written" differs from
+//! "wrote 0"; [`psnr`] and [`random_scene`] are the comparisons and inputs the
+//! stage tests share.
 
 use std::path::PathBuf;
 
+use rand::{Rng, SeedableRng};
 use srug::gpu::{Device, DeviceOptions};
+use srug::scene::{sh_coefficients, Scene};
+
+/// The bits of a quiet NaN: what GPU outputs are pre-filled with before a kernel
+/// runs (the `prefill` of the stages' settings), so an unwritten value fails
+/// every finiteness check.
+pub const NAN_SENTINEL: u32 = 0x7fc0_0000;
+
+/// Peak signal-to-noise ratio in dB of `a` against `b` (peak 1); infinite when equal.
+pub fn psnr<T: Copy + Into<f64>>(a: &[f32], b: &[T]) -> f64 {
+    assert_eq!(a.len(), b.len(), "psnr of slices of different lengths");
+    let mse = a.iter().zip(b).map(|(x, y)| (f64::from(*x) - (*y).into()).powi(2)).sum::<f64>() / a.len().max(1) as f64;
+    if mse == 0.0 {
+        f64::INFINITY
+    } else {
+        -10.0 * mse.log10()
+    }
+}
+
+/// `n` random Gaussians of SH degree `sh_degree` from `seed`: means uniform in
+/// ±`spread`, log-scales in [−3, −0.5], random rotations, opacity logits in
+/// [−2, 4], SH coefficients in ±0.6 — an ordinary scene, not the extremes.
+pub fn random_scene(n: usize, sh_degree: u32, seed: u64, spread: f32) -> Scene {
+    let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(seed);
+    let k = sh_coefficients(sh_degree);
+    let mut s = Scene { sh_degree, ..Scene::default() };
+    for _ in 0..n {
+        s.means.push([
+            rng.random_range(-spread..spread),
+            rng.random_range(-spread..spread),
+            rng.random_range(-spread..spread),
+        ]);
+        s.log_scales.push([rng.random_range(-3.0..-0.5), rng.random_range(-3.0..-0.5), rng.random_range(-3.0..-0.5)]);
+        s.rotations.push([
+            rng.random_range(-1.0..1.0),
+            rng.random_range(-1.0..1.0),
+            rng.random_range(-1.0..1.0),
+            rng.random_range(0.1..1.0),
+        ]);
+        s.opacity_logits.push(rng.random_range(-2.0..4.0));
+        s.sh.extend((0..k * 3).map(|_| rng.random_range(-0.6..0.6f32)));
+    }
+    s
+}
 
 /// A device with validation on (device choice from `SRUG_DEVICE`, else automatic).
 pub fn device() -> Device {

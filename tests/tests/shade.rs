@@ -24,7 +24,7 @@ use srug::shadow::Sun;
 use srug::splat::{GBuffer, GpuGBuffer};
 use srug_tests::{assert_no_validation_messages, device, save_comparison};
 
-const NAN: u32 = 0x7fc0_0000;
+const NAN: u32 = srug_tests::NAN_SENTINEL;
 
 fn to64(v: &[f32]) -> Vec<f64> {
     v.iter().map(|&x| f64::from(x)).collect()

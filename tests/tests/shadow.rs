@@ -17,7 +17,7 @@ use srug::shadow::{light_camera, DepthMode, ShadowFit, ShadowMap, ShadowPass, Sh
 use srug::splat::{Channels, GBuffer, SplatSettings, Splatter};
 use srug_tests::{assert_no_validation_messages, device, save_comparison};
 
-const NAN: u32 = 0x7fc0_0000;
+const NAN: u32 = srug_tests::NAN_SENTINEL;
 
 struct Setup {
     d: Device,

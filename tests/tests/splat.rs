@@ -11,29 +11,19 @@ use srug::gpu::Device;
 use srug::io::read_ply;
 use srug::scene::activate::GpuScene;
 use srug::scene::demo::{demo_city, DemoOptions};
-use srug::scene::{sh_coefficients, Camera, Scene};
+use srug::scene::{Camera, Scene};
 use srug::splat::cpu::{preprocess_one, render_cpu, tile_row_span, CpuSplat};
 use srug::splat::{
     BlendVariant, Channels, GBuffer, NormalSource, SplatSettings, Splatter, TileBounds, BLEND_PIXELS,
     DEFAULT_BLEND_PIXELS, DEFAULT_TILE, TILE_SIZES,
 };
-use srug_tests::{assert_no_validation_messages, device, save_comparison};
+use srug_tests::{assert_no_validation_messages, device, psnr, random_scene, save_comparison, NAN_SENTINEL};
 
-const NAN: u32 = 0x7fc0_0000;
+const NAN: u32 = NAN_SENTINEL;
 /// rgb must agree with the CPU twin to this PSNR (peak 1).
 const MIN_PSNR_DB: f64 = 50.0;
 /// Largest error allowed in alpha, relative to 1.
 const ALPHA_TOLERANCE: f64 = 2e-3;
-
-fn psnr(a: &[f32], b: &[f32]) -> f64 {
-    let mse =
-        a.iter().zip(b).map(|(x, y)| (f64::from(*x) - f64::from(*y)).powi(2)).sum::<f64>() / a.len().max(1) as f64;
-    if mse == 0.0 {
-        f64::INFINITY
-    } else {
-        -10.0 * mse.log10()
-    }
-}
 
 /// Compares every channel; the tolerance of premultiplied channels scales
 /// with their largest value.
@@ -80,29 +70,6 @@ fn render_both(
     compare(&gpu, &cpu, label);
     eprintln!("{label}: {} pairs, {} key bits", stats.pairs, stats.key_bits);
     gpu
-}
-
-fn random_scene(n: usize, sh_degree: u32, seed: u64, spread: f32) -> Scene {
-    let mut rng = Pcg64Mcg::seed_from_u64(seed);
-    let k = sh_coefficients(sh_degree);
-    let mut s = Scene { sh_degree, ..Scene::default() };
-    for _ in 0..n {
-        s.means.push([
-            rng.random_range(-spread..spread),
-            rng.random_range(-spread..spread),
-            rng.random_range(-spread..spread),
-        ]);
-        s.log_scales.push([rng.random_range(-3.0..-0.5), rng.random_range(-3.0..-0.5), rng.random_range(-3.0..-0.5)]);
-        s.rotations.push([
-            rng.random_range(-1.0..1.0),
-            rng.random_range(-1.0..1.0),
-            rng.random_range(-1.0..1.0),
-            rng.random_range(0.1..1.0),
-        ]);
-        s.opacity_logits.push(rng.random_range(-2.0..4.0));
-        s.sh.extend((0..k * 3).map(|_| rng.random_range(-0.6..0.6f32)));
-    }
-    s
 }
 
 /// Every blend variant the device runs (subgroup loads where it has subgroup ballot).
@@ -341,12 +308,12 @@ fn every_tile_size_matches_cpu_twin_in_every_variant() {
     }
     for bad in [0u32, 3, 8] {
         let text = splatter.set_blend_pixels(bad).err().map(|e| e.to_string()).unwrap_or_default();
-        assert!(text.contains(&format!("{bad} pixels per blend invocation is not one of")), "{bad}: {text:?}");
+        assert!(text.contains(&format!("{bad} pixels per blend invocation: is not one of")), "{bad}: {text:?}");
     }
     for bad in [0u32, 4, 12, 64] {
         let e = splatter.render(&gpu_scene, &cam, &SplatSettings { tile: bad, ..all_settings() }).err();
         let text = e.map(|e| e.to_string()).unwrap_or_default();
-        assert!(text.contains(&format!("tile size {bad} is not one of")), "tile {bad}: {text:?}");
+        assert!(text.contains(&format!("tile size {bad}: is not one of")), "tile {bad}: {text:?}");
     }
     assert_no_validation_messages(&d);
 }
@@ -515,7 +482,9 @@ fn requested_channels_only_and_missing_attributes_refused() {
     let settings =
         SplatSettings { channels: Channels { albedo: true, ..Channels::default() }, ..SplatSettings::default() };
     match splatter.render(&gpu_scene, &cam, &settings) {
-        Err(srug::Error::InvalidArgument(m)) => assert!(m.contains("albedo"), "{m}"),
+        Err(srug::Error::InvalidArgument { what, why }) => {
+            assert!(what.contains("albedo") && why.contains("scene has no albedo"), "{what}: {why}")
+        }
         other => panic!("expected a refusal, got {:?}", other.map(|_| ())),
     }
     assert!(

@@ -31,9 +31,9 @@ use srug::shadow::cpu::{sigmoid_visibility_cpu, DepthImage};
 use srug::shadow::{ShadowPass, ShadowSettings, Sun, VisibilityKind};
 use srug::splat::cpu::render_cpu;
 use srug::splat::SplatSettings;
-use srug_tests::{assert_no_validation_messages, device, save_comparison};
+use srug_tests::{assert_no_validation_messages, device, psnr, save_comparison, NAN_SENTINEL};
 
-const NAN: u32 = 0x7fc0_0000;
+const NAN: u32 = NAN_SENTINEL;
 
 /// One extreme.
 struct Case {
@@ -102,15 +102,6 @@ fn within(label: &str, what: &str, v: &[f32], lo: f32, hi: f32) {
     all_finite(label, what, v);
     if let Some(i) = v.iter().position(|x| *x < lo || *x > hi) {
         panic!("{label}: {what}[{i}] = {} outside [{lo}, {hi}]", v[i]);
-    }
-}
-
-fn psnr(a: &[f32], b: &[f64]) -> f64 {
-    let mse = a.iter().zip(b).map(|(x, y)| (f64::from(*x) - y).powi(2)).sum::<f64>() / a.len().max(1) as f64;
-    if mse == 0.0 {
-        f64::INFINITY
-    } else {
-        10.0 * (1.0 / mse).log10()
     }
 }
 

@@ -18,7 +18,7 @@ use srug::indirect::WinogradTile;
 use srug::indirect::{Activation, StoragePrecision, UNet, UNetConfig, UNetWeights};
 use srug_tests::{assert_no_validation_messages, device};
 
-const NAN: u32 = 0x7fc0_0000;
+const NAN: u32 = srug_tests::NAN_SENTINEL;
 
 const PATHS: [ConvPath; 4] = [ConvPath::Texel, ConvPath::Address, ConvPath::Winograd, ConvPath::Winograd2];
 

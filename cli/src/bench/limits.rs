@@ -50,14 +50,16 @@ pub const BLEND_CEILING_PIXELS: [u32; 7] = [1, 2, 4, 8, 16, 32, 64];
 
 fn check_ceiling_args(pixels: u32, splats: u32) -> Result<()> {
     if !BLEND_CEILING_PIXELS.contains(&pixels) {
-        return Err(Error::InvalidArgument(format!(
-            "{pixels} pixels per invocation is not one of {BLEND_CEILING_PIXELS:?}"
-        )));
+        return Err(Error::invalid(
+            format!("{pixels} pixels per invocation"),
+            format!("is not one of {BLEND_CEILING_PIXELS:?}"),
+        ));
     }
     if splats > BLEND_CEILING_MAX_SPLATS {
-        return Err(Error::InvalidArgument(format!(
-            "{splats} splats per pixel: the probe keeps every evaluation contributing only up to {BLEND_CEILING_MAX_SPLATS}"
-        )));
+        return Err(Error::invalid(
+            format!("{splats} splats per pixel"),
+            format!("the probe keeps every evaluation contributing only up to {BLEND_CEILING_MAX_SPLATS}"),
+        ));
     }
     Ok(())
 }
@@ -230,10 +232,13 @@ pub fn pair_move_run(
         return Err(Error::unsupported("this device cannot view buffers as RG32UI/R32UI texels"));
     }
     if count == 0 || count > info.max_texel_buffer_elements || count > u64::from(u32::MAX) {
-        return Err(Error::InvalidArgument(format!(
-            "pair-move probe over {count} pairs: needs 1 to {} (the device's texel-buffer limit)",
-            info.max_texel_buffer_elements.min(u64::from(u32::MAX))
-        )));
+        return Err(Error::invalid(
+            format!("pair-move probe over {count} pairs"),
+            format!(
+                "needs 1 to {} (the device's texel-buffer limit)",
+                info.max_texel_buffer_elements.min(u64::from(u32::MAX))
+            ),
+        ));
     }
     if keys.size() < count * 8
         || values.size() < count * 4
@@ -241,7 +246,7 @@ pub fn pair_move_run(
         || keys_out.size() < count * 8
         || values_out.size() < count * 4
     {
-        return Err(Error::InvalidArgument(format!("pair-move probe over {count} pairs: a buffer is too small")));
+        return Err(Error::invalid(format!("pair-move probe over {count} pairs"), "a buffer is too small"));
     }
     let kernel = Kernel::new(
         device,
@@ -353,7 +358,7 @@ impl PairMoveFloor {
 /// Measures the pair-move floor over `n` pairs.
 pub fn pair_move_floor(device: &Device, n: u64, repeats: usize) -> Result<PairMoveFloor> {
     if n == 0 || n > u64::from(u32::MAX) {
-        return Err(Error::InvalidArgument(format!("pair-move floor over {n} pairs: needs 1 to 2³² − 1")));
+        return Err(Error::invalid(format!("pair-move floor over {n} pairs"), "needs 1 to 2³² − 1"));
     }
     let keys: Vec<[u32; 2]> = (0..n as u32).map(|i| [i.wrapping_mul(0x9e37_79b9), i]).collect();
     let values: Vec<u32> = (0..n as u32).collect();

@@ -39,7 +39,7 @@ fn font_available() -> bool {
 }
 
 fn plot_error(e: impl std::fmt::Display) -> Error {
-    Error::InvalidArgument(format!("drawing the plot: {e}"))
+    Error::Internal(format!("drawing the plot: {e}"))
 }
 
 /// Draws the trade plot into `path` (PNG, written atomically). Returns false
@@ -56,7 +56,7 @@ pub fn trade_plot(path: &std::path::Path, rows: &[TradeRow], title: &str) -> Res
     let times: Vec<f64> = rows.iter().map(|r| r.seconds[0] * 1e3).collect();
     let (tmin, tmax) = times.iter().fold((f64::INFINITY, 0.0f64), |(a, b), t| (a.min(*t), b.max(*t)));
     if rows.is_empty() || !(tmin > 0.0 && tmax.is_finite()) {
-        return Err(Error::InvalidArgument("nothing to plot: no rows with a positive frame time".into()));
+        return Err(Error::invalid("plot", "no rows with a positive frame time"));
     }
     let mut buffer = vec![0u8; width as usize * height as usize * 3];
     {
@@ -128,7 +128,7 @@ pub fn trade_plot(path: &std::path::Path, rows: &[TradeRow], title: &str) -> Res
         root.present().map_err(plot_error)?;
     }
     let image = image::RgbImage::from_raw(width, height, buffer)
-        .ok_or_else(|| Error::InvalidArgument("plot buffer size mismatch".into()))?;
+        .ok_or_else(|| Error::Internal("plot buffer size mismatch".into()))?;
     let mut png = std::io::Cursor::new(Vec::new());
     image.write_to(&mut png, image::ImageFormat::Png).map_err(plot_error)?;
     srug::io::write_atomic(path, png.get_ref())?;

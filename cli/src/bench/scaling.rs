@@ -88,7 +88,7 @@ pub fn scaling_bench(
         let city = demo_city(&DemoOptions { seed: 7, gaussians: n, sh_degree: 1 })?;
         let gpu = GpuScene::upload(device, &city.scene)?;
         let attributes = city.scene.attributes();
-        let bounds = city.scene.bounds().ok_or_else(|| Error::InvalidArgument("the demo city is empty".into()))?;
+        let bounds = city.scene.bounds().ok_or_else(|| Error::invalid("demo city", "is empty"))?;
         let mut rows = Vec::new();
         for &(w, h) in sizes {
             let camera = city.cameras[0].resized(w, h);

@@ -105,7 +105,7 @@ pub fn shade_bench(
     let scene = GpuScene::upload(device, &city.scene)?;
     let sky = ProceduralSky::new(sun.direction, sun.intensity[0]).render()?;
     let env = prep.prepare(&sky, &PrepareSettings::default())?;
-    let brdf = table.ok_or_else(|| srug::Error::InvalidArgument("no BRDF table".into()))?;
+    let brdf = table.ok_or_else(|| srug::Error::Internal("no BRDF table was prepared".into()))?;
     let mut splatter = Splatter::new(device)?;
     let mut shader = Shader::new(device)?;
     let settings = ShadeSettings { visibility: VisibilitySource::Fixed, ..ShadeSettings::default() };

@@ -177,7 +177,7 @@ pub fn trade_bench(device: &Device, setup: &TradeSetup, mut progress: impl FnMut
     let city = demo_city(&DemoOptions { seed: 7, gaussians: setup.gaussians, sh_degree: 3 })?;
     let gpu = GpuScene::upload(device, &city.scene)?;
     let attributes = city.scene.attributes();
-    let bounds = city.scene.bounds().ok_or_else(|| Error::InvalidArgument("the demo city is empty".into()))?;
+    let bounds = city.scene.bounds().ok_or_else(|| Error::invalid("demo city", "is empty"))?;
     let camera = city.cameras[0].resized(width, height);
     let sun = Sun::from_azimuth_elevation(setup.sun.0, setup.sun.1, [std::f32::consts::PI; 3])?;
     progress("preparing the sky");

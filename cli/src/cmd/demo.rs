@@ -15,7 +15,7 @@ use crate::args::{spinner, DeviceArgs};
 
 /// Arguments of `srug demo`.
 #[derive(clap::Args, Clone, Debug)]
-pub struct DemoArgs {
+pub(super) struct DemoArgs {
     /// Number of Gaussians.
     #[arg(long, default_value_t = 200_000)]
     gaussians: usize,
@@ -32,7 +32,7 @@ pub struct DemoArgs {
 
 impl DemoArgs {
     /// Runs `srug demo`.
-    pub fn run(&self, device_args: &DeviceArgs) -> Result<()> {
+    pub(super) fn run(&self, device_args: &DeviceArgs) -> Result<()> {
         let &Self { gaussians, seed, sh_degree, ref out } = self;
         let bar = spinner(&format!("generating the demo city ({gaussians} Gaussians)"));
         let started = Instant::now();
@@ -123,7 +123,7 @@ impl DemoArgs {
         println!("cameras: {}", cameras.display());
         println!("image: {}", image.display());
         if !report.passed() || !ok || !messages.is_empty() {
-            return Err(Error::InvalidArgument("the GPU disagreed with the CPU twin (see above)".into()));
+            return Err(Error::Internal("the GPU disagreed with the CPU twin (see above)".into()));
         }
         Ok(())
     }

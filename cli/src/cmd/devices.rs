@@ -4,7 +4,7 @@ use srug::gpu::Device;
 use srug::Result;
 
 /// Runs `srug devices`.
-pub fn run() -> Result<()> {
+pub(super) fn run() -> Result<()> {
     for a in Device::list()? {
         println!("#{} {} ({:?}, Vulkan {})", a.index, a.name, a.device_type, a.api_version);
     }

@@ -7,7 +7,7 @@ use srug::{Error, Result};
 
 /// Arguments of `srug eval`.
 #[derive(clap::Args, Clone, Debug)]
-pub struct EvalArgs {
+pub(super) struct EvalArgs {
     /// Reference image or folder (.png, .exr, .hdr).
     reference: PathBuf,
     /// Rendered image or folder.
@@ -22,7 +22,7 @@ pub struct EvalArgs {
 
 impl EvalArgs {
     /// Runs `srug eval`.
-    pub fn run(&self) -> Result<()> {
+    pub(super) fn run(&self) -> Result<()> {
         evaluate(&self.reference, &self.rendered, self.peak, self.csv.as_deref())
     }
 }
@@ -40,11 +40,10 @@ fn eval_pairs(reference: &Path, rendered: &Path) -> Result<Vec<(String, PathBuf,
         return Ok(vec![(name, reference.to_path_buf(), rendered.to_path_buf())]);
     }
     if !(reference.is_dir() && rendered.is_dir()) {
-        return Err(Error::InvalidArgument(format!(
-            "{} and {} must both be image files or both be folders",
-            reference.display(),
-            rendered.display()
-        )));
+        return Err(Error::invalid(
+            format!("{} and {}", reference.display(), rendered.display()),
+            "must both be image files or both be folders",
+        ));
     }
     let list = |dir: &Path| -> Result<Vec<PathBuf>> {
         let mut v: Vec<PathBuf> = std::fs::read_dir(dir)
@@ -66,11 +65,10 @@ fn eval_pairs(reference: &Path, rendered: &Path) -> Result<Vec<(String, PathBuf,
         }
     }
     if pairs.is_empty() {
-        return Err(Error::InvalidArgument(format!(
-            "no image of {} has a reference of the same name in {}",
-            rendered.display(),
-            reference.display()
-        )));
+        return Err(Error::invalid(
+            rendered.display().to_string(),
+            format!("no image has a reference of the same name in {}", reference.display()),
+        ));
     }
     Ok(pairs)
 }
@@ -78,13 +76,13 @@ fn eval_pairs(reference: &Path, rendered: &Path) -> Result<Vec<(String, PathBuf,
 /// `srug eval`: PSNR and SSIM per image pair and their means.
 fn evaluate(reference: &Path, rendered: &Path, peak: f64, csv: Option<&Path>) -> Result<()> {
     if !(peak > 0.0 && peak.is_finite()) {
-        return Err(Error::InvalidArgument(format!("--peak {peak} must be positive")));
+        return Err(Error::invalid(format!("--peak {peak}"), "must be positive"));
     }
     let mut rows = Vec::new();
     println!("| image | PSNR (dB) | SSIM |\n|---|---:|---:|");
     for (name, r, q) in eval_pairs(reference, rendered)? {
         let (a, b) = (srug::metrics::read_image(&r)?, srug::metrics::read_image(&q)?);
-        let context = |e: Error| Error::InvalidArgument(format!("{} against {}: {e}", q.display(), r.display()));
+        let context = |e: Error| Error::invalid(format!("{} against {}", q.display(), r.display()), e.to_string());
         let p = srug::metrics::psnr(&a, &b, peak).map_err(context)?;
         let s = srug::metrics::ssim(&a, &b, peak).map_err(context)?;
         println!("| {name} | {p:.3} | {s:.4} |");

@@ -12,7 +12,7 @@ use crate::args::{spinner, ChannelList, DeviceArgs, ShadeArgs, Size, SunArgs};
 
 /// Arguments of `srug info`.
 #[derive(clap::Args, Clone, Debug)]
-pub struct InfoArgs {
+pub(super) struct InfoArgs {
     /// A 3DGS PLY file.
     scene: PathBuf,
     /// Also list the stages, G-buffer channels, shader variants and GPU memory a relit
@@ -39,7 +39,7 @@ pub struct InfoArgs {
 
 impl InfoArgs {
     /// Runs `srug info`.
-    pub fn run(&self, device_args: &DeviceArgs) -> Result<()> {
+    pub(super) fn run(&self, device_args: &DeviceArgs) -> Result<()> {
         let Self { scene: path, plan, size, channels, sun, shade, indirect, indirect_precision } = self;
         let bar = spinner(&format!("reading {}", path.display()));
         let scene = io::read_ply(path);

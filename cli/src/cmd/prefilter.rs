@@ -11,7 +11,7 @@ use crate::args::DeviceArgs;
 
 /// Arguments of `srug prefilter`.
 #[derive(clap::Args, Clone, Debug)]
-pub struct PrefilterArgs {
+pub(super) struct PrefilterArgs {
     /// An .exr, .hdr or .ktx2 environment.
     env: PathBuf,
     /// Output folder (specular.ktx2, irradiance.ktx2).
@@ -30,7 +30,7 @@ pub struct PrefilterArgs {
 
 impl PrefilterArgs {
     /// Runs `srug prefilter`.
-    pub fn run(&self, device: &DeviceArgs) -> Result<()> {
+    pub(super) fn run(&self, device: &DeviceArgs) -> Result<()> {
         let settings = PrepareSettings { levels: self.levels, samples: self.samples, ..Default::default() };
         prefilter(&device.open()?, &self.env, &self.out, &settings, self.zstd)
     }

@@ -18,7 +18,7 @@ use srug::{io, Error, Result};
 use crate::args::{numbered, output_is_exr, progress_bar, CameraArgs, DeviceArgs, EnvArgs, ShadeArgs, SunArgs};
 
 /// Lighting resources reused across frames.
-pub struct Lights {
+pub(super) struct Lights {
     prep: EnvironmentPrep,
     fixed_env: Option<PreparedEnvironment>,
     /// The BRDF table.
@@ -28,7 +28,7 @@ pub struct Lights {
 
 impl Lights {
     /// Prepares (or loads) the environment and the BRDF table.
-    pub fn new(device: &Device, args: &EnvArgs) -> Result<Self> {
+    pub(super) fn new(device: &Device, args: &EnvArgs) -> Result<Self> {
         let prep = EnvironmentPrep::new(device)?;
         let brdf = prep.brdf_table(args.brdf, 129, 1024)?;
         let fixed_env = match &args.env {
@@ -40,7 +40,7 @@ impl Lights {
     }
 
     /// The environment for a sun: the given one, or a procedural sky made for it.
-    pub fn environment(&self, sun: &Sun) -> Result<EnvRef<'_>> {
+    pub(super) fn environment(&self, sun: &Sun) -> Result<EnvRef<'_>> {
         if let Some(e) = &self.fixed_env {
             return Ok(EnvRef::Given(e));
         }
@@ -52,7 +52,7 @@ impl Lights {
 }
 
 /// The given environment or one made for a frame.
-pub enum EnvRef<'a> {
+pub(super) enum EnvRef<'a> {
     /// From `--env`.
     Given(&'a PreparedEnvironment),
     /// A procedural sky.
@@ -71,7 +71,12 @@ impl std::ops::Deref for EnvRef<'_> {
 
 /// Writes a relit frame: PNG of the display image, or EXR with the linear
 /// radiance (R, G, B) plus L_sun, L_sky and (planar) L_ind when it was computed.
-pub fn write_relit(path: &Path, exr: bool, image: &srug::shade::ShadedImage, indirect: Option<&[f32]>) -> Result<()> {
+pub(super) fn write_relit(
+    path: &Path,
+    exr: bool,
+    image: &srug::shade::ShadedImage,
+    indirect: Option<&[f32]>,
+) -> Result<()> {
     if exr {
         let n = image.width as usize * image.height as usize;
         let interleaved: Option<Vec<f32>> = indirect.map(|v| (0..3 * n).map(|i| v[(i % 3) * n + i / 3]).collect());
@@ -88,7 +93,7 @@ pub fn write_relit(path: &Path, exr: bool, image: &srug::shade::ShadedImage, ind
 
 /// Arguments of `srug relight`.
 #[derive(clap::Args, Clone, Debug)]
-pub struct RelightArgs {
+pub(super) struct RelightArgs {
     /// A 3DGS PLY file with material attributes (albedo at least).
     pub scene: PathBuf,
     #[command(flatten)]
@@ -112,7 +117,7 @@ pub struct RelightArgs {
 
 impl RelightArgs {
     /// Runs `srug relight`.
-    pub fn run(&self, device: &DeviceArgs) -> Result<()> {
+    pub(super) fn run(&self, device: &DeviceArgs) -> Result<()> {
         relight(&device.open()?, self)
     }
 }
@@ -127,12 +132,12 @@ fn relight(device: &Device, args: &RelightArgs) -> Result<()> {
     let scene = io::read_ply(scene_path)?;
     let attributes = scene.attributes();
     if !attributes.shadeable() {
-        return Err(Error::InvalidArgument(format!(
-            "{}: the scene has no albedo attribute, so it cannot be relit; `srug render` renders its colour",
-            scene_path.display()
-        )));
+        return Err(Error::invalid(
+            scene_path.display().to_string(),
+            "the scene has no albedo attribute, so it cannot be relit; `srug render` renders its colour",
+        ));
     }
-    let bounds = scene.bounds().ok_or_else(|| Error::InvalidArgument("the scene is empty".into()))?;
+    let bounds = scene.bounds().ok_or_else(|| Error::invalid("scene", "is empty"))?;
     let gpu_scene = activate::GpuScene::upload(device, &scene)?;
     let lights = Lights::new(device, env)?;
     let mut relighter = Relighter::new(device)?;
@@ -239,7 +244,7 @@ pub(crate) fn relight_demo(
     };
     let settings = shade.settings()?;
     let attributes = city.scene.attributes();
-    let bounds = city.scene.bounds().ok_or_else(|| Error::InvalidArgument("the demo is empty".into()))?;
+    let bounds = city.scene.bounds().ok_or_else(|| Error::invalid("demo scene", "is empty"))?;
     let mut relighter = Relighter::new(device)?;
     let camera = &city.cameras[0];
     let relit =

@@ -13,7 +13,7 @@ use crate::args::{numbered, output_is_exr, progress_bar, CameraArgs, ChannelList
 
 /// Arguments of `srug render`.
 #[derive(clap::Args, Clone, Debug)]
-pub struct RenderArgs {
+pub(super) struct RenderArgs {
     /// A 3DGS PLY file.
     scene: PathBuf,
     #[command(flatten)]
@@ -46,7 +46,7 @@ pub struct RenderArgs {
 
 impl RenderArgs {
     /// Runs `srug render`.
-    pub fn run(&self, device_args: &DeviceArgs) -> Result<()> {
+    pub(super) fn run(&self, device_args: &DeviceArgs) -> Result<()> {
         let Self { scene: path, view, out, channels, background, stored_normals, sh_degree, tile, tile_bounds } = self;
         let is_exr = output_is_exr(out)?;
         // A PNG is the colour; an EXR holds what was asked for.

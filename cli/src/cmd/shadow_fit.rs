@@ -14,7 +14,7 @@ use crate::args::{progress_bar, DeviceArgs, Size};
 
 /// Arguments of `srug shadow-fit`.
 #[derive(clap::Args, Clone, Debug)]
-pub struct ShadowFitArgs {
+pub(super) struct ShadowFitArgs {
     /// Demo city size.
     #[arg(long, default_value_t = 40_000)]
     gaussians: usize,
@@ -52,7 +52,7 @@ pub struct ShadowFitArgs {
 
 impl ShadowFitArgs {
     /// Runs `srug shadow-fit`.
-    pub fn run(&self, device_args: &DeviceArgs) -> Result<()> {
+    pub(super) fn run(&self, device_args: &DeviceArgs) -> Result<()> {
         let &Self { gaussians, seed, steps, added, camera, size, sun_azimuth, sun_elevation, resolution, k, ref out } =
             self;
         let mut settings = CompletionSettings { steps, gaussians: added, ..CompletionSettings::default() };

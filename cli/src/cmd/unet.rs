@@ -12,7 +12,7 @@ use crate::args::DeviceArgs;
 
 /// Arguments of `srug unet`.
 #[derive(clap::Args, Clone, Debug)]
-pub struct UnetArgs {
+pub(super) struct UnetArgs {
     /// Weights: safetensors with PyTorch state_dict names, the architecture in its metadata.
     #[arg(long)]
     weights: PathBuf,
@@ -29,17 +29,16 @@ pub struct UnetArgs {
 
 impl UnetArgs {
     /// Runs `srug unet`.
-    pub fn run(&self, device_args: &DeviceArgs) -> Result<()> {
+    pub(super) fn run(&self, device_args: &DeviceArgs) -> Result<()> {
         let Self { weights, input, out, precision } = self;
         let net = UNetWeights::load(weights)?;
         let bytes = std::fs::read(input).map_err(Error::io(input))?;
         let (c, h, w, values) = read_tensor(&bytes, "input", &input.display().to_string())?;
         if c != net.config.in_channels {
-            return Err(Error::InvalidArgument(format!(
-                "{}: input has {c} channels, the network takes {}",
-                input.display(),
-                net.config.in_channels
-            )));
+            return Err(Error::invalid(
+                input.display().to_string(),
+                format!("input has {c} channels, the network takes {}", net.config.in_channels),
+            ));
         }
         let device = device_args.open()?;
         let mut unet = UNet::with_precision(&device, &net, *precision)?;

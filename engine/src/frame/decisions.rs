@@ -32,7 +32,7 @@ impl RelightDecisions {
         let sun = sun.filter(|s| s.above_horizon()).copied();
         let mut visibility = settings.shade.visibility;
         if shading && visibility == VisibilitySource::Fixed && !attributes.visibility {
-            return Err(Error::InvalidArgument("fixed visibility needs the scene's visibility attribute".into()));
+            return Err(Error::invalid("fixed visibility", "needs the scene's visibility attribute"));
         }
         if sun.is_none() {
             visibility = VisibilitySource::None;

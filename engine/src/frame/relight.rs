@@ -131,8 +131,9 @@ impl Relighter {
         let d = RelightDecisions::new(attributes, sun, settings)?;
         let camera = &settings.render_camera(camera);
         if !d.shading {
-            return Err(Error::InvalidArgument(
-                "the scene has no albedo attribute: it cannot be relit (render its colour with `srug render`)".into(),
+            return Err(Error::invalid(
+                "scene",
+                "has no albedo attribute: it cannot be relit (render its colour with `srug render`)",
             ));
         }
         let (sun, editable, channels) = (d.sun.as_ref(), d.shadow_pass, d.channels);
@@ -170,7 +171,7 @@ impl Relighter {
                 self.shadow_map = Some((key, map));
             }
             let Some((_, map)) = &self.shadow_map else {
-                return Err(Error::InvalidArgument("no shadow map".into()));
+                return Err(Error::Internal("the shadow pass ran without a shadow map".into()));
             };
             let (v, t) = self.shadows.visibility(map, &gbuffer, camera, shadow, settings.visibility_kind)?;
             timings.stages.extend(t.stages);

@@ -53,10 +53,10 @@ impl RelightSettings {
         self.shadow.validate()?;
         crate::splat::check_tile(self.tile)?;
         if !(self.render_scale >= 0.0 && self.render_scale <= 1.0) {
-            return Err(Error::InvalidArgument(format!("render scale {} is not in (0, 1]", self.render_scale)));
+            return Err(Error::invalid(format!("render scale {}", self.render_scale), "is not in (0, 1]"));
         }
         if let Some(d) = self.sh_degree.filter(|d| *d > 3) {
-            return Err(Error::InvalidArgument(format!("SH degree {d} is not 0 to 3")));
+            return Err(Error::invalid(format!("SH degree {d}"), "is not 0 to 3"));
         }
         Ok(())
     }
@@ -124,7 +124,7 @@ impl Preset {
             "fast" => Ok(Preset::Fast),
             "balanced" => Ok(Preset::Balanced),
             "reference" => Ok(Preset::Reference),
-            other => Err(Error::InvalidArgument(format!("preset \"{other}\" is not one of fast, balanced, reference"))),
+            other => Err(Error::invalid(format!("preset \"{other}\""), "is not one of fast, balanced, reference")),
         }
     }
 

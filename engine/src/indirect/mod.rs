@@ -59,7 +59,7 @@ impl Activation {
             "none" | "identity" => Ok(Self::None),
             "relu" => Ok(Self::Relu),
             "leaky_relu" => Ok(Self::LeakyRelu),
-            other => Err(Error::InvalidArgument(format!("activation \"{other}\" is not none, relu or leaky_relu"))),
+            other => Err(Error::invalid(format!("activation \"{other}\""), "is not none, relu or leaky_relu")),
         }
     }
 
@@ -174,15 +174,12 @@ impl UNetConfig {
     /// Reads the architecture from metadata (missing keys take the defaults,
     /// except that a present key must parse).
     pub fn from_metadata(meta: &HashMap<String, String>, origin: &str) -> Result<Self> {
-        let bad = |key: &str, v: &str| {
-            Error::InvalidArgument(format!("{origin}: metadata \"{key}\" = \"{v}\" cannot be read"))
-        };
+        let bad =
+            |key: &str, v: &str| Error::invalid(format!("{origin}: metadata \"{key}\" = \"{v}\""), "cannot be read");
         let mut c = Self::default();
         if let Some(a) = meta.get("architecture") {
             if a != "srug-indirect-unet" {
-                return Err(Error::InvalidArgument(format!(
-                    "{origin}: architecture \"{a}\" is not srug-indirect-unet"
-                )));
+                return Err(Error::invalid(format!("{origin}: architecture \"{a}\""), "is not srug-indirect-unet"));
             }
         }
         let num = |key: &str, v: &str| v.trim().parse::<usize>().ok().filter(|n| *n > 0).ok_or_else(|| bad(key, v));
@@ -212,14 +209,13 @@ impl UNetConfig {
             c.input_order = (0..c.in_channels).map(|i| format!("input.{i}")).collect();
         }
         if c.input_order.len() != c.in_channels {
-            return Err(Error::InvalidArgument(format!(
-                "{origin}: input_order names {} channels, in_channels is {}",
-                c.input_order.len(),
-                c.in_channels
-            )));
+            return Err(Error::invalid(
+                format!("{origin}: input_order"),
+                format!("names {} channels, in_channels is {}", c.input_order.len(), c.in_channels),
+            ));
         }
         if c.widths.iter().chain([&c.in_channels, &c.out_channels]).any(|&n| n > 4096) {
-            return Err(Error::InvalidArgument(format!("{origin}: a layer wider than 4096 channels")));
+            return Err(Error::invalid(origin, "has a layer wider than 4096 channels"));
         }
         Ok(c)
     }
@@ -277,7 +273,7 @@ impl UNetWeights {
     /// Parses safetensors bytes; a missing tensor or a shape mismatch is an
     /// error naming the tensor.
     pub fn from_bytes(bytes: &[u8], origin: &str) -> Result<Self> {
-        let bad = |m: String| Error::InvalidArgument(format!("{origin}: {m}"));
+        let bad = |m: String| Error::invalid(origin, m);
         let (_, meta) =
             safetensors::SafeTensors::read_metadata(bytes).map_err(|e| bad(format!("not a safetensors file: {e}")))?;
         let config = UNetConfig::from_metadata(&meta.metadata().clone().unwrap_or_default(), origin)?;
@@ -320,9 +316,9 @@ impl UNetWeights {
                 safetensors::tensor::TensorView::new(safetensors::Dtype::F32, s.clone(), d).map(|v| (n.clone(), v))
             })
             .collect::<Result<_, _>>()
-            .map_err(|e| Error::InvalidArgument(format!("cannot serialize weights: {e}")))?;
+            .map_err(|e| Error::Internal(format!("cannot serialize weights: {e}")))?;
         safetensors::serialize(views, Some(self.config.metadata()))
-            .map_err(|e| Error::InvalidArgument(format!("cannot serialize weights: {e}")))
+            .map_err(|e| Error::Internal(format!("cannot serialize weights: {e}")))
     }
 
     /// Multiply-adds of one inference at `width`×`height`, ×2 for flops.
@@ -587,7 +583,7 @@ impl StoragePrecision {
         match text {
             "fp32" => Ok(Self::Fp32),
             "fp16" => Ok(Self::Fp16),
-            other => Err(Error::InvalidArgument(format!("precision \"{other}\" is not fp32 or fp16"))),
+            other => Err(Error::invalid(format!("precision \"{other}\""), "is not fp32 or fp16")),
         }
     }
 
@@ -706,7 +702,7 @@ impl UNet {
                 (l.in_channels, l.out_channels) != (e.1, e.2) || l.weight.len() != e.1 * e.2 * 9 || l.bias.len() != e.2
             })
         {
-            return Err(Error::InvalidArgument("U-Net weights do not match their configuration".into()));
+            return Err(Error::invalid("U-Net weights", "do not match their configuration"));
         }
         let half = precision == StoragePrecision::Fp16;
         if half && !device.info().storage_16bit {
@@ -1032,21 +1028,28 @@ impl UNet {
     /// network whose metadata asks for another input order.
     pub fn predict(&mut self, inputs: &NetworkInputs<'_>) -> Result<UNetOutput> {
         if self.config.input_order.iter().map(String::as_str).ne(DEFAULT_INPUT_ORDER) || self.config.out_channels != 3 {
-            return Err(Error::InvalidArgument(format!(
-                "the shading stage feeds {} and reads 3 output channels; this network expects [{}] and gives {}",
-                DEFAULT_INPUT_ORDER.join(","),
-                self.config.input_order.join(","),
-                self.config.out_channels
-            )));
+            return Err(Error::invalid(
+                format!(
+                    "network with inputs [{}] and {} outputs",
+                    self.config.input_order.join(","),
+                    self.config.out_channels
+                ),
+                format!("the shading stage feeds {} and reads 3 output channels", DEFAULT_INPUT_ORDER.join(",")),
+            ));
         }
         let g = inputs.gbuffer;
         let (normal, albedo) = match (&g.normal, &g.albedo) {
             (Some(n), Some(a)) => (n, a),
-            _ => return Err(Error::InvalidArgument("the indirect network needs normal and albedo G-buffers".into())),
+            _ => {
+                return Err(Error::invalid(
+                    "G-buffer",
+                    "lacks the normal and albedo channels the indirect network needs",
+                ))
+            }
         };
         let pixels = u64::from(g.width) * u64::from(g.height);
         if inputs.sun.size() < pixels * 12 || inputs.sky.size() < pixels * 12 {
-            return Err(Error::InvalidArgument("L_sun or L_sky is smaller than the image".into()));
+            return Err(Error::invalid("L_sun or L_sky buffer", "is smaller than the image"));
         }
         let packed = self.device.create_buffer("u-net input", pixels * 14 * 4, MemoryKind::Storage)?;
         let opt = |b: &Option<Buffer>| b.as_ref().map_or(0, Buffer::device_address);
@@ -1059,7 +1062,8 @@ impl UNet {
             sun: inputs.sun.device_address(),
             sky: inputs.sky.device_address(),
             o: packed.device_address(),
-            pixels: u32::try_from(pixels).map_err(|_| Error::InvalidArgument("image too large".into()))?,
+            pixels: u32::try_from(pixels)
+                .map_err(|_| Error::invalid(format!("image of {pixels} pixels"), "is too large"))?,
             min_alpha: inputs.min_alpha,
         };
         let pack = &self.pack;
@@ -1081,15 +1085,17 @@ impl UNet {
         let c = self.config.clone();
         let (w, h) = (width as usize, height as usize);
         if w == 0 || h == 0 || w > 16384 || h > 16384 {
-            return Err(Error::InvalidArgument(format!("U-Net input size {width}x{height} is outside 1..=16384")));
+            return Err(Error::invalid(format!("U-Net input size {width}x{height}"), "is outside 1..=16384"));
         }
         if input.size() < (c.in_channels * w * h * 4) as u64 {
-            return Err(Error::InvalidArgument(format!(
-                "U-Net input buffer holds {} bytes, {} channels at {width}x{height} need {}",
-                input.size(),
-                c.in_channels,
-                c.in_channels * w * h * 4
-            )));
+            return Err(Error::invalid(
+                format!("U-Net input buffer of {} bytes", input.size()),
+                format!(
+                    "is smaller than {} channels at {width}x{height} need ({})",
+                    c.in_channels,
+                    c.in_channels * w * h * 4
+                ),
+            ));
         }
         // Winograd runs only on texel inputs (else the layers fall back to direct convolution).
         if let Some(tile) = self.winograd.filter(|_| self.texel) {
@@ -1101,7 +1107,7 @@ impl UNet {
             self.arena = None;
             self.arena = Some(self.device.create_buffer("u-net arena", need, MemoryKind::Storage)?);
         }
-        let arena = self.arena.as_ref().ok_or_else(|| Error::InvalidArgument("no arena".into()))?;
+        let arena = self.arena.as_ref().ok_or_else(|| Error::Internal("U-Net inference without an arena".into()))?;
         let output =
             self.device.create_buffer("u-net output", (c.out_channels * w * h * 4) as u64, MemoryKind::Storage)?;
         let base = arena.device_address();
@@ -1113,7 +1119,7 @@ impl UNet {
         let kernel = |i: usize, texel: bool, vec4: bool| {
             convs
                 .get(&Self::conv_key(&c, i, half, texel, vec4))
-                .ok_or_else(|| Error::InvalidArgument("missing U-Net kernel variant".into()))
+                .ok_or_else(|| Error::Internal("a U-Net kernel variant was not built".into()))
         };
         let max_groups = self.device.info().max_workgroup_count;
         let names = layers(&c);
@@ -1206,9 +1212,10 @@ impl UNet {
                     let per_group = if four { 256 } else { 64 };
                     let grid = [s[lout].0.div_ceil(per_group) as u32, s[lout].1 as u32, ch as u32];
                     if grid[1] > max_groups[1] || grid[2] > max_groups[2] {
-                        return Err(Error::InvalidArgument(format!(
-                            "{name} resize: {grid:?} workgroups exceed the device's limits"
-                        )));
+                        return Err(Error::invalid(
+                            format!("{name} resize"),
+                            format!("{grid:?} workgroups exceed the device's limits"),
+                        ));
                     }
                     let elements = ch * s[from].0 * s[from].1;
                     let k = usize::from(four);
@@ -1262,9 +1269,10 @@ impl UNet {
                 let gz = groups.div_ceil(max_groups[1]);
                 let grid = [co.div_ceil(ob) as u32, groups.div_ceil(gz), gz];
                 if grid[0] > max_groups[0] || grid[2] > max_groups[2] {
-                    return Err(Error::InvalidArgument(format!(
-                        "{name}: {grid:?} workgroups exceed the device's limits"
-                    )));
+                    return Err(Error::invalid(
+                        name.to_string(),
+                        format!("{grid:?} workgroups exceed the device's limits"),
+                    ));
                 }
                 // Four pixels per fetch, by Winograd or direct convolution.
                 if use_vec4 {
@@ -1317,7 +1325,7 @@ impl UNet {
 /// Reads a tensor named `name` of shape `[1, C, H, W]` or `[C, H, W]` from
 /// safetensors bytes: (C, H, W, values).
 pub fn read_tensor(bytes: &[u8], name: &str, origin: &str) -> Result<(usize, usize, usize, Vec<f32>)> {
-    let bad = |m: String| Error::InvalidArgument(format!("{origin}: {m}"));
+    let bad = |m: String| Error::invalid(origin, m);
     let st = safetensors::SafeTensors::deserialize(bytes).map_err(|e| bad(format!("not a safetensors file: {e}")))?;
     let t = st.tensor(name).map_err(|_| bad(format!("tensor \"{name}\" is missing")))?;
     let (c, h, w) = match t.shape() {
@@ -1335,7 +1343,7 @@ pub fn read_tensor(bytes: &[u8], name: &str, origin: &str) -> Result<(usize, usi
 pub fn tensor_bytes(name: &str, c: usize, h: usize, w: usize, values: &[f32]) -> Result<Vec<u8>> {
     let view =
         safetensors::tensor::TensorView::new(safetensors::Dtype::F32, vec![1, c, h, w], bytemuck::cast_slice(values))
-            .map_err(|e| Error::InvalidArgument(format!("cannot serialize {name}: {e}")))?;
+            .map_err(|e| Error::Internal(format!("cannot serialize {name}: {e}")))?;
     safetensors::serialize([(name.to_string(), view)], None)
-        .map_err(|e| Error::InvalidArgument(format!("cannot serialize {name}: {e}")))
+        .map_err(|e| Error::Internal(format!("cannot serialize {name}: {e}")))
 }

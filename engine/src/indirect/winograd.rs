@@ -234,7 +234,10 @@ impl std::str::FromStr for ConvPath {
             .into_iter()
             .find(|p| p.label() == text.trim())
             .ok_or_else(|| {
-                crate::Error::InvalidArgument(format!("\"{text}\" is not winograd, winograd2, vec4, texel or address"))
+                crate::Error::invalid(
+                    format!("conv path \"{text}\""),
+                    "is not winograd, winograd2, vec4, texel or address",
+                )
             })
     }
 }

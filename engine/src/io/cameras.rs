@@ -91,9 +91,7 @@ pub fn write_cameras_json(path: impl AsRef<Path>, cameras: &[Camera]) -> Result<
     let mut entries = Vec::with_capacity(cameras.len());
     for (i, c) in cameras.iter().enumerate() {
         let Projection::Pinhole { fx, fy, .. } = c.projection else {
-            return Err(Error::InvalidArgument(format!(
-                "camera {i} is orthographic; cameras.json holds pinhole cameras"
-            )));
+            return Err(Error::invalid(format!("camera {i}"), "is orthographic; cameras.json holds pinhole cameras"));
         };
         let r = c.rotation;
         entries.push(JsonCamera {
@@ -107,7 +105,8 @@ pub fn write_cameras_json(path: impl AsRef<Path>, cameras: &[Camera]) -> Result<
             fy: f64::from(fy),
         });
     }
-    let text = serde_json::to_string_pretty(&entries).map_err(|e| Error::InvalidArgument(e.to_string()))?;
+    let text = serde_json::to_string_pretty(&entries)
+        .map_err(|e| Error::Internal(format!("cannot serialize cameras: {e}")))?;
     let tmp = path.with_extension("json.tmp");
     std::fs::write(&tmp, text).map_err(Error::io(&tmp))?;
     std::fs::rename(&tmp, path).map_err(Error::io(path))

@@ -19,12 +19,12 @@ pub fn display_byte(v: f32) -> u8 {
 pub fn write_png(path: impl AsRef<Path>, width: u32, height: u32, rgb: &[f32]) -> Result<()> {
     let path = path.as_ref();
     if rgb.len() != 3 * width as usize * height as usize {
-        return Err(Error::InvalidArgument(format!("{} values for a {width}x{height} RGB image", rgb.len())));
+        return Err(Error::invalid(format!("{} values", rgb.len()), format!("are not a {width}x{height} RGB image")));
     }
     let bytes: Vec<u8> = rgb.iter().copied().map(display_byte).collect();
     let tmp = temp_beside(path);
     let written = image::RgbImage::from_raw(width, height, bytes)
-        .ok_or_else(|| Error::InvalidArgument("image size mismatch".into()))
+        .ok_or_else(|| Error::Internal("PNG buffer size mismatch".into()))
         .and_then(|img| {
             img.save_with_format(&tmp, image::ImageFormat::Png)
                 .map_err(|e| Error::Io { path: tmp.clone(), source: std::io::Error::other(e) })
@@ -55,11 +55,10 @@ pub fn write_exr_channels(path: &Path, width: u32, height: u32, channels: &[(&st
     let mut list: Vec<AnyChannel<FlatSamples>> = Vec::new();
     for &(name, values, k) in channels {
         if values.len() != k * w * h {
-            return Err(Error::InvalidArgument(format!(
-                "channel {name} holds {} values, not {}",
-                values.len(),
-                k * w * h
-            )));
+            return Err(Error::invalid(
+                format!("channel {name} of {} values", values.len()),
+                format!("needs {}", k * w * h),
+            ));
         }
         for (c, exr_name) in exr_names(name, k).into_iter().enumerate() {
             let plane: Vec<f32> = (0..w * h).map(|p| values[p * k + c]).collect();

@@ -85,12 +85,10 @@ impl Scan {
     /// Call [`Scan::reserve`] with at least `count` first.
     pub fn record<'a>(&'a self, rec: &mut Recording<'a>, data: &'a Buffer, count: u64) -> Result<()> {
         if count > self.capacity || count * 4 > data.size() || count > u64::from(u32::MAX) {
-            return Err(crate::Error::InvalidArgument(format!(
-                "scan of {count} values: scratch holds {}, buffer {} holds {} bytes",
-                self.capacity,
-                data.name(),
-                data.size()
-            )));
+            return Err(crate::Error::invalid(
+                format!("scan of {count} values"),
+                format!("exceeds the scratch ({}) or buffer {} ({} bytes)", self.capacity, data.name(), data.size()),
+            ));
         }
         rec.keep(&[data])?;
         self.record_level(rec, data.device_address(), count, 0)

@@ -120,7 +120,7 @@ impl RadixSort {
             return Ok(());
         }
         if count > u64::from(u32::MAX) {
-            return Err(Error::InvalidArgument(format!("cannot sort {count} pairs (at most 2³² − 1)")));
+            return Err(Error::invalid(format!("sort of {count} pairs"), "exceeds 2³² − 1 pairs"));
         }
         self.keys_tmp = Some(device.create_buffer("sort keys (ping-pong)", count * 8, MemoryKind::Storage)?);
         self.values_tmp = Some(device.create_buffer("sort values (ping-pong)", count * 4, MemoryKind::Storage)?);
@@ -169,16 +169,19 @@ impl RadixSort {
             return if count == 0 {
                 Ok(())
             } else {
-                Err(Error::InvalidArgument("RadixSort::reserve was not called".into()))
+                Err(Error::Internal("RadixSort::record before RadixSort::reserve".into()))
             };
         };
         if count > self.capacity || keys.size() < count * 8 || values.size() < count * 4 || bits > 64 {
-            return Err(Error::InvalidArgument(format!(
-                "sort of {count} pairs on {bits} bits: capacity {}, keys {} bytes, values {} bytes",
-                self.capacity,
-                keys.size(),
-                values.size()
-            )));
+            return Err(Error::invalid(
+                format!("sort of {count} pairs on {bits} bits"),
+                format!(
+                    "exceeds the capacity {} or the buffers (keys {} bytes, values {} bytes)",
+                    self.capacity,
+                    keys.size(),
+                    values.size()
+                ),
+            ));
         }
         if count <= 1 || bits == 0 {
             return Ok(());

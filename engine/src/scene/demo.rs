@@ -184,13 +184,10 @@ fn add_box(out: &mut Vec<Surface>, b: Aabb, walls: Material, roof: Material) {
 /// Generates the demo city.
 pub fn demo_city(options: &DemoOptions) -> Result<DemoCity> {
     if options.gaussians < 1000 {
-        return Err(Error::InvalidArgument(format!(
-            "the demo needs at least 1000 Gaussians, not {}",
-            options.gaussians
-        )));
+        return Err(Error::invalid(format!("demo of {} Gaussians", options.gaussians), "needs at least 1000"));
     }
     if options.sh_degree > 3 {
-        return Err(Error::InvalidArgument(format!("SH degree {} is not supported (0 to 3)", options.sh_degree)));
+        return Err(Error::invalid(format!("SH degree {}", options.sh_degree), "is not supported (0 to 3)"));
     }
     let mut rng = Pcg64Mcg::seed_from_u64(options.seed);
     let mut surfaces: Vec<Surface> = Vec::new();

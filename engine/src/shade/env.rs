@@ -158,7 +158,7 @@ impl BrdfLut {
         match text {
             "karis" => Ok(Self::Karis),
             "height-correlated" => Ok(Self::HeightCorrelated),
-            other => Err(Error::InvalidArgument(format!("BRDF table \"{other}\" is not karis or height-correlated"))),
+            other => Err(Error::invalid(format!("BRDF table \"{other}\""), "is not karis or height-correlated")),
         }
     }
 
@@ -328,9 +328,10 @@ impl EnvironmentPrep {
     /// Computes the BRDF table (`size` ≥ 2 texels per side, `samples` ≥ 1).
     pub fn brdf_table(&self, variant: BrdfLut, size: u32, samples: u32) -> Result<BrdfTable> {
         if !(2..=4096).contains(&size) || samples == 0 {
-            return Err(Error::InvalidArgument(format!(
-                "BRDF table size {size} (2..=4096) or {samples} samples (≥ 1) out of range"
-            )));
+            return Err(Error::invalid(
+                format!("BRDF table of size {size} with {samples} samples"),
+                "needs a size in 2..=4096 and at least 1 sample",
+            ));
         }
         let device = &self.device;
         let buffer = device.create_buffer("brdf table", u64::from(size * size) * 8, MemoryKind::Storage)?;
@@ -351,7 +352,7 @@ impl EnvironmentPrep {
     pub fn prepare(&self, env: &EnvironmentMap, settings: &PrepareSettings) -> Result<PreparedEnvironment> {
         let (iw, ih) = settings.irradiance_size;
         if settings.levels == 0 || settings.samples == 0 || iw == 0 || ih == 0 || iw > 1024 || ih > 1024 {
-            return Err(Error::InvalidArgument(format!("environment preparation settings out of range: {settings:?}")));
+            return Err(Error::invalid(format!("environment preparation settings {settings:?}"), "are out of range"));
         }
         let device = &self.device;
         let base = (env.width, env.height);

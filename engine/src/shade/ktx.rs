@@ -220,17 +220,20 @@ pub fn encode_float_chain(chain: &FloatChain<'_>, zstd: bool) -> Result<Vec<u8>>
         2 => Format::R32G32_SFLOAT,
         3 => Format::R32G32B32_SFLOAT,
         4 => Format::R32G32B32A32_SFLOAT,
-        n => return Err(Error::InvalidArgument(format!("{n} channels per texel cannot be written to KTX2"))),
+        n => return Err(Error::invalid(format!("{n} channels per texel"), "cannot be written to KTX2")),
     };
     let n = chain.levels.len();
     for (l, level) in chain.levels.iter().enumerate() {
         let (w, h) = ((chain.width >> l).max(1) as usize, (chain.height >> l).max(1) as usize);
         if level.len() != w * h * chain.channels {
-            return Err(Error::InvalidArgument(format!("level {l} holds {} floats, not {w}x{h}", level.len())));
+            return Err(Error::invalid(
+                format!("KTX2 level {l} of {} floats", level.len()),
+                format!("does not hold {w}x{h} texels"),
+            ));
         }
     }
     let (mut basic, type_size) = ktx2::dfd::Basic::from_format(format)
-        .map_err(|e| Error::InvalidArgument(format!("no KTX2 descriptor for {format:?}: {e:?}")))?;
+        .map_err(|e| Error::Internal(format!("no KTX2 descriptor for {format:?}: {e:?}")))?;
     if zstd {
         basic.bytes_planes = [0; 8];
     }

@@ -60,7 +60,7 @@ impl VisibilitySource {
             "none" => Ok(Self::None),
             "fixed" => Ok(Self::Fixed),
             "editable" => Ok(Self::Editable),
-            other => Err(Error::InvalidArgument(format!("visibility \"{other}\" is not none, fixed or editable"))),
+            other => Err(Error::invalid(format!("visibility \"{other}\""), "is not none, fixed or editable")),
         }
     }
 
@@ -124,7 +124,7 @@ impl ToneMap {
             "clamp" => Ok(Self::Clamp),
             "reinhard" => Ok(Self::Reinhard),
             "aces" => Ok(Self::Aces),
-            other => Err(Error::InvalidArgument(format!("tone map \"{other}\" is not clamp, reinhard or aces"))),
+            other => Err(Error::invalid(format!("tone map \"{other}\""), "is not clamp, reinhard or aces")),
         }
     }
 
@@ -202,7 +202,7 @@ impl ShadeSettings {
             && self.env_intensity >= 0.0
             && bg_ok)
         {
-            return Err(Error::InvalidArgument(format!("shading settings out of range: {self:?}")));
+            return Err(Error::invalid(format!("shading settings {self:?}"), "are out of range"));
         }
         Ok(())
     }
@@ -365,18 +365,18 @@ impl Shader {
         settings.validate()?;
         let (g, camera) = (inputs.gbuffer, inputs.camera);
         if (g.width, g.height) != (camera.width, camera.height) {
-            return Err(Error::InvalidArgument(format!(
-                "G-buffer {}x{} does not match camera {}x{}",
-                g.width, g.height, camera.width, camera.height
-            )));
+            return Err(Error::invalid(
+                format!("G-buffer {}x{}", g.width, g.height),
+                format!("does not match camera {}x{}", camera.width, camera.height),
+            ));
         }
         let (normal, albedo) = match (&g.normal, &g.albedo) {
             (Some(n), Some(a)) => (n, a),
             _ => {
-                return Err(Error::InvalidArgument(
-                    "shading needs the normal and albedo G-buffer channels (a scene without albedo renders \
-                     plain colour, unshaded)"
-                        .into(),
+                return Err(Error::invalid(
+                    "G-buffer",
+                    "lacks the normal and albedo channels shading needs (a scene without albedo renders plain \
+                     colour, unshaded)",
                 ))
             }
         };
@@ -386,20 +386,20 @@ impl Shader {
             visibility = VisibilitySource::None;
         }
         if visibility == VisibilitySource::Fixed && g.visibility.is_none() {
-            return Err(Error::InvalidArgument("fixed visibility needs the visibility G-buffer channel".into()));
+            return Err(Error::invalid("fixed visibility", "needs the visibility G-buffer channel"));
         }
         let pixels = u64::from(g.width) * u64::from(g.height);
         if visibility == VisibilitySource::Editable {
-            let v = inputs.editable_visibility.ok_or_else(|| {
-                Error::InvalidArgument("editable visibility needs the shadow pass's visibility buffer".into())
-            })?;
+            let v = inputs
+                .editable_visibility
+                .ok_or_else(|| Error::invalid("editable visibility", "needs the shadow pass's visibility buffer"))?;
             if v.size() < pixels * 4 {
-                return Err(Error::InvalidArgument("the editable visibility buffer is smaller than the image".into()));
+                return Err(Error::invalid("editable visibility buffer", "is smaller than the image"));
             }
         }
         if let Some(ind) = inputs.indirect {
             if ind.size() < pixels * 12 {
-                return Err(Error::InvalidArgument("the indirect light buffer is smaller than the image".into()));
+                return Err(Error::invalid("indirect light buffer", "is smaller than the image"));
             }
         }
         let env = inputs.environment;
@@ -453,7 +453,7 @@ impl Shader {
         network: &mut crate::indirect::UNet,
     ) -> Result<ShadedFrame> {
         if inputs.indirect.is_some() {
-            return Err(Error::InvalidArgument("give either an L_ind buffer or a network, not both".into()));
+            return Err(Error::invalid("indirect light", "give either an L_ind buffer or a network, not both"));
         }
         self.shade_impl(inputs, settings, Some(network))
     }

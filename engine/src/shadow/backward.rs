@@ -99,16 +99,13 @@ impl ShadowPass {
             GpuVisibilityLoss::Bce(b) => (b, true),
         };
         if upstream.size() < pixels * 4 {
-            return Err(Error::InvalidArgument(format!(
-                "the visibility gradient/target holds {} bytes; {}x{} receivers need {}",
-                upstream.size(),
-                camera.width,
-                camera.height,
-                pixels * 4
-            )));
+            return Err(Error::invalid(
+                format!("visibility gradient or target of {} bytes", upstream.size()),
+                format!("does not fit {}x{} receivers ({} bytes)", camera.width, camera.height, pixels * 4),
+            ));
         }
         if pixels >= u64::from(u32::MAX) || texels >= u64::from(u32::MAX) {
-            return Err(Error::InvalidArgument("image or shadow map too large for the backward pass".into()));
+            return Err(Error::invalid("image or shadow map", "is too large for the backward pass"));
         }
         let f = |name: &str, n: u64| device.create_buffer(name, n * 4, MemoryKind::Storage);
         let loss_px = f("shadow loss per pixel", pixels)?;

@@ -169,12 +169,10 @@ pub fn complete_from_shadow(
 ) -> Result<Completion> {
     let pixels = (camera.width * camera.height) as usize;
     if target.len() != pixels || target.iter().any(|v| !v.is_finite()) {
-        return Err(Error::InvalidArgument(format!(
-            "the target visibility has {} values (finite?), the {}x{} camera needs {pixels}",
-            target.len(),
-            camera.width,
-            camera.height
-        )));
+        return Err(Error::invalid(
+            format!("target visibility of {} values", target.len()),
+            format!("needs {pixels} finite values for the {}x{} camera", camera.width, camera.height),
+        ));
     }
     let st = settings.shadow;
     let added_st = ShadowSettings { map_depth: DepthMode::ExpectedOverFar, ..st };
@@ -216,7 +214,7 @@ pub fn complete_from_shadow(
         }
     }
     if lo.x > hi.x {
-        return Err(Error::InvalidArgument("no receiver in view has a surface".into()));
+        return Err(Error::invalid("receivers", "none in view has a surface"));
     }
     lo = lo.max(DVec3::from_array(bounds.min.map(f64::from)));
     hi = hi.min(DVec3::from_array(bounds.max.map(f64::from)) + DVec3::new(0.0, 0.0, 0.5 * reach));
@@ -243,7 +241,7 @@ pub fn complete_from_shadow(
         added.sh.extend(std::iter::repeat_n(0.0, 3 * k));
     }
     if added.means.is_empty() {
-        return Err(Error::InvalidArgument("every point of the occluder region is seen by a camera".into()));
+        return Err(Error::invalid("occluder region", "every point of it is seen by a camera"));
     }
     let added_gpu = GpuScene::upload(device, &added)?;
 
@@ -420,16 +418,15 @@ pub fn complete_demo(
 ) -> Result<DemoCompletionResult> {
     let demo = crate::scene::demo::demo_city(&options.demo)?;
     let base = demo.cameras.get(options.camera).ok_or_else(|| {
-        Error::InvalidArgument(format!(
-            "camera {} does not exist (the demo has {})",
-            options.camera,
-            demo.cameras.len()
-        ))
+        Error::invalid(
+            format!("camera {}", options.camera),
+            format!("does not exist (the demo has {})", demo.cameras.len()),
+        )
     })?;
     let camera = base.resized(options.size.0, options.size.1);
     let sun = Sun::from_azimuth_elevation(options.sun.0, options.sun.1, [1.0; 3])?;
     if !sun.above_horizon() {
-        return Err(Error::InvalidArgument("the sun must be above the horizon to cast a shadow".into()));
+        return Err(Error::invalid("sun", "must be above the horizon to cast a shadow"));
     }
     let without = without_offscreen_tower(&demo);
     let st = options.settings.shadow;
@@ -441,7 +438,7 @@ pub fn complete_demo(
     let receivers = splatter.render_frame(&full, &camera, &SplatSettings { channels, ..SplatSettings::default() })?;
     // Occluders may be anywhere in the city's extent (the tower included: what is
     // removed is unknown to the fit, the extent of the place is not).
-    let bounds = demo.scene.bounds().ok_or_else(|| Error::InvalidArgument("the demo is empty".into()))?;
+    let bounds = demo.scene.bounds().ok_or_else(|| Error::invalid("demo scene", "is empty"))?;
     let light = light_camera(&bounds, &sun, st.resolution, st.fit, Some(&camera))?;
     let map = pass.shadow_map_from(&mut splatter, &full, light, &sun, &st)?;
     let (v, _) = pass.visibility(&map, &receivers.gbuffer, &camera, &st, VisibilityKind::Sigmoid)?;

@@ -61,9 +61,9 @@ impl DepthMode {
             "median" => Ok(Self::Median),
             "expected" => Ok(Self::Expected),
             "expected-over-far" => Ok(Self::ExpectedOverFar),
-            other => Err(Error::InvalidArgument(format!(
-                "depth mode \"{other}\" is not median, expected or expected-over-far"
-            ))),
+            other => {
+                Err(Error::invalid(format!("depth mode \"{other}\""), "is not median, expected or expected-over-far"))
+            }
         }
     }
 
@@ -152,11 +152,14 @@ impl ShadowSettings {
         if ok {
             Ok(())
         } else {
-            Err(Error::InvalidArgument(format!(
-                "shadow settings: resolution {} must be 1..=16384, k {} positive and finite, bias {} finite, \
-                 minimum alpha {} in (0, 1], receiver depth {:?} median or expected",
-                self.resolution, self.k, self.bias, self.min_alpha, self.receiver_depth
-            )))
+            Err(Error::invalid(
+                format!(
+                    "shadow settings (resolution {}, k {}, bias {}, minimum alpha {}, receiver depth {:?})",
+                    self.resolution, self.k, self.bias, self.min_alpha, self.receiver_depth
+                ),
+                "need a resolution in 1..=16384, k positive and finite, a finite bias, a minimum alpha in (0, 1] \
+                 and a median or expected receiver depth",
+            ))
         }
     }
 
@@ -185,11 +188,11 @@ pub fn light_camera(
     view: Option<&Camera>,
 ) -> Result<Camera> {
     if resolution == 0 || resolution > 16384 {
-        return Err(Error::InvalidArgument(format!("shadow-map resolution {resolution} is not in 1..=16384")));
+        return Err(Error::invalid(format!("shadow-map resolution {resolution}"), "is not in 1..=16384"));
     }
     let (lo, hi) = (Vec3::from_array(bounds.min), Vec3::from_array(bounds.max));
     if !lo.is_finite() || !hi.is_finite() || lo.cmpgt(hi).any() {
-        return Err(Error::InvalidArgument(format!("scene bounds {lo}..{hi} are not a box")));
+        return Err(Error::invalid(format!("scene bounds {lo}..{hi}"), "are not a box"));
     }
     let diagonal = (hi - lo).length();
     let pad = 0.02 * diagonal + 1e-3 * (lo.abs().max(hi.abs()).max_element() + 1.0);
@@ -207,7 +210,7 @@ pub fn light_camera(
     let (xy_lo, xy_hi) = match (fit, view) {
         (ShadowFit::ViewFrustum, Some(v)) => frustum_box(v, lo, hi).unwrap_or((lo, hi)),
         (ShadowFit::ViewFrustum, None) => {
-            return Err(Error::InvalidArgument("a view-frustum shadow fit needs the view camera".into()))
+            return Err(Error::invalid("view-frustum shadow fit", "needs the view camera"))
         }
         (ShadowFit::SceneBounds, _) => (lo, hi),
     };
@@ -402,9 +405,7 @@ impl ShadowPass {
     ) -> Result<ShadowMap> {
         settings.validate()?;
         if !sun.above_horizon() || !matches!(camera.projection, Projection::Orthographic { .. }) {
-            return Err(Error::InvalidArgument(
-                "a shadow map needs a sun above the horizon and an orthographic camera".into(),
-            ));
+            return Err(Error::invalid("shadow map", "needs a sun above the horizon and an orthographic camera"));
         }
         let splat = SplatSettings {
             channels: depth_channels(settings.map_depth),
@@ -476,33 +477,33 @@ fn shadow_uniform<'a>(
 ) -> Result<(ShadowUniform, ShadowInputs<'a>)> {
     settings.validate()?;
     if (gbuffer.width, gbuffer.height) != (camera.width, camera.height) {
-        return Err(Error::InvalidArgument(format!(
-            "G-buffer {}x{} does not match camera {}x{}",
-            gbuffer.width, gbuffer.height, camera.width, camera.height
-        )));
+        return Err(Error::invalid(
+            format!("G-buffer {}x{}", gbuffer.width, gbuffer.height),
+            format!("does not match camera {}x{}", camera.width, camera.height),
+        ));
     }
     if settings.map_depth != map.depth {
-        return Err(Error::InvalidArgument(format!(
-            "the shadow map holds {:?} depth; the settings ask for {:?}",
-            map.depth, settings.map_depth
-        )));
+        return Err(Error::invalid(
+            format!("shadow map of {:?} depth", map.depth),
+            format!("does not match the settings' {:?} depth", settings.map_depth),
+        ));
     }
     let receiver_depth = match settings.receiver_depth {
         DepthMode::Median => gbuffer.median_depth.as_ref(),
         DepthMode::Expected | DepthMode::ExpectedOverFar => gbuffer.depth.as_ref(),
     }
     .ok_or_else(|| {
-        Error::InvalidArgument(format!(
-            "the receiver G-buffer lacks the {:?} depth channel the shadow settings ask for",
-            settings.receiver_depth
-        ))
+        Error::invalid(
+            "receiver G-buffer",
+            format!("lacks the {:?} depth channel the shadow settings ask for", settings.receiver_depth),
+        )
     })?;
     let g = &map.frame.gbuffer;
     let map_depth = match map.depth {
         DepthMode::Median => g.median_depth.as_ref(),
         DepthMode::Expected | DepthMode::ExpectedOverFar => g.depth.as_ref(),
     }
-    .ok_or_else(|| Error::InvalidArgument("the shadow map lacks its depth channel".into()))?;
+    .ok_or_else(|| Error::Internal("the shadow map lacks its depth channel".into()))?;
     let mut u = ShadowUniform::zeroed();
     let r = camera.rotation;
     for (row, i) in u.cam_rot.iter_mut().zip(0..3) {

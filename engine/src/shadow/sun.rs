@@ -25,7 +25,7 @@ impl Sun {
     pub fn from_direction(direction: Vec3, intensity: [f32; 3]) -> Result<Self> {
         let d = direction.normalize_or_zero();
         if d == Vec3::ZERO || !d.is_finite() {
-            return Err(Error::InvalidArgument(format!("sun direction {direction} is not a direction")));
+            return Err(Error::invalid(format!("sun direction {direction}"), "is not a direction"));
         }
         check_intensity(intensity)?;
         Ok(Self { direction: d, intensity })
@@ -35,9 +35,10 @@ impl Sun {
     /// degrees above the horizon (negative: below it).
     pub fn from_azimuth_elevation(azimuth: f32, elevation: f32, intensity: [f32; 3]) -> Result<Self> {
         if !azimuth.is_finite() || !(-90.0..=90.0).contains(&elevation) {
-            return Err(Error::InvalidArgument(format!(
-                "sun azimuth {azimuth}° / elevation {elevation}°: elevation must lie in [-90°, 90°]"
-            )));
+            return Err(Error::invalid(
+                format!("sun azimuth {azimuth}° / elevation {elevation}°"),
+                "needs finite angles and an elevation in [-90°, 90°]",
+            ));
         }
         let (az, el) = (f64::from(azimuth).to_radians(), f64::from(elevation).to_radians());
         let d = glam::DVec3::new(az.sin() * el.cos(), az.cos() * el.cos(), el.sin());
@@ -61,7 +62,7 @@ fn check_intensity(intensity: [f32; 3]) -> Result<()> {
     if intensity.iter().all(|v| v.is_finite() && *v >= 0.0) {
         Ok(())
     } else {
-        Err(Error::InvalidArgument(format!("sun intensity {intensity:?} must be finite and non-negative")))
+        Err(Error::invalid(format!("sun intensity {intensity:?}"), "must be finite and non-negative"))
     }
 }
 
@@ -83,9 +84,10 @@ impl UtcTime {
     /// offset `±HH:MM` (a space may replace the `T`).
     pub fn parse(text: &str) -> Result<Self> {
         let bad = |why: &str| {
-            Error::InvalidArgument(format!(
-                "time \"{text}\" {why} (expected e.g. 2024-06-21T12:30:00Z or 2024-06-21T14:30+02:00)"
-            ))
+            Error::invalid(
+                format!("time \"{text}\""),
+                format!("{why} (expected e.g. 2024-06-21T12:30:00Z or 2024-06-21T14:30+02:00)"),
+            )
         };
         let t = text.trim();
         let (date, rest) = t.split_once(['T', ' ']).ok_or_else(|| bad("has no time part"))?;
@@ -171,9 +173,10 @@ pub fn sun_path(
 ) -> Result<Vec<(UtcTime, SolarPosition)>> {
     let span = (end.julian_date() - start.julian_date()) * 86_400.0;
     if frames == 0 || !(0.0..=366.0 * 86_400.0).contains(&span) {
-        return Err(Error::InvalidArgument(format!(
-            "a sun path needs at least one frame and an end within a year after its start ({frames} frames, {span:.0} s)"
-        )));
+        return Err(Error::invalid(
+            format!("sun path of {frames} frames over {span:.0} s"),
+            "needs at least one frame and an end within a year after its start",
+        ));
     }
     (0..frames)
         .map(|i| {
@@ -210,7 +213,7 @@ pub struct SolarPosition {
 /// east positive), by NOAA's formulas.
 pub fn solar_position(time: &UtcTime, latitude: f64, longitude: f64) -> Result<SolarPosition> {
     if !(-90.0..=90.0).contains(&latitude) || !(-180.0..=360.0).contains(&longitude) {
-        return Err(Error::InvalidArgument(format!("latitude {latitude}° / longitude {longitude}° is not on Earth")));
+        return Err(Error::invalid(format!("latitude {latitude}° / longitude {longitude}°"), "is not on Earth"));
     }
     let jc = (time.julian_date() - 2_451_545.0) / 36_525.0;
     let l0 = (280.466_46 + jc * (36_000.769_83 + jc * 0.000_303_2)).rem_euclid(360.0);

@@ -182,31 +182,32 @@ impl Splatter {
             ));
         }
         if frame.scene_means != scene.means.device_address() || frame.gaussians != scene.count as u64 {
-            return Err(Error::InvalidArgument("the splat frame was rendered from another scene".into()));
+            return Err(Error::invalid("splat frame", "was rendered from another scene"));
         }
         let pixels = u64::from(frame.camera.width) * u64::from(frame.camera.height);
         for (b, k, name) in grads.buffers() {
             if b.size() < k * pixels * 4 {
-                return Err(Error::InvalidArgument(format!(
-                    "gradient of {name} holds {} bytes; the {}x{} frame needs {}",
-                    b.size(),
-                    frame.camera.width,
-                    frame.camera.height,
-                    k * pixels * 4
-                )));
+                return Err(Error::invalid(
+                    format!("gradient of {name} ({} bytes)", b.size()),
+                    format!(
+                        "does not fit the {}x{} frame, which needs {} bytes",
+                        frame.camera.width,
+                        frame.camera.height,
+                        k * pixels * 4
+                    ),
+                ));
             }
         }
         let bits = grads.bits();
         if bits & 252 != 0 && frame.features.is_none() {
-            return Err(Error::InvalidArgument(
-                "feature gradients need a frame rendered with a feature channel (normal or materials)".into(),
+            return Err(Error::invalid(
+                "feature gradient",
+                "needs a frame rendered with a feature channel (normal or materials)",
             ));
         }
         if grads.rgb.is_some() && frame.gbuffer.rgb.is_none() {
             // Its splats' colours were not evaluated (SH degree 0).
-            return Err(Error::InvalidArgument(
-                "an rgb gradient needs a frame rendered with rgb (SplatSettings::rgb on)".into(),
-            ));
+            return Err(Error::invalid("rgb gradient", "needs a frame rendered with rgb (SplatSettings::rgb on)"));
         }
         let tile = frame.tile;
         if let std::collections::hash_map::Entry::Vacant(e) = self.backward.entry((bits, tile)) {

@@ -55,7 +55,7 @@ pub fn check_tile(tile: u32) -> Result<()> {
     if TILE_SIZES.contains(&tile) {
         Ok(())
     } else {
-        Err(Error::InvalidArgument(format!("tile size {tile} is not one of {TILE_SIZES:?}")))
+        Err(Error::invalid(format!("tile size {tile}"), format!("is not one of {TILE_SIZES:?}")))
     }
 }
 
@@ -179,10 +179,11 @@ impl Channels {
                 }
                 "all" => c = Channels::ALL,
                 other => {
-                    return Err(Error::InvalidArgument(format!(
-                        "unknown channel \"{other}\" (rgb, alpha, depth, median_depth, normal, albedo, roughness, \
-                         metallic, ao, visibility, materials, all)"
-                    )))
+                    return Err(Error::invalid(
+                        format!("channel \"{other}\""),
+                        "is unknown (rgb, alpha, depth, median_depth, normal, albedo, roughness, metallic, ao, \
+                         visibility, materials, all)",
+                    ))
                 }
             }
         }
@@ -217,9 +218,7 @@ impl BlendVariant {
             "per-pixel" => Ok(Self::PerPixel),
             "subgroup" => Ok(Self::SubgroupLoads),
             "batched" => Ok(Self::SharedBatches),
-            other => {
-                Err(Error::InvalidArgument(format!("blend variant \"{other}\" is not per-pixel, subgroup or batched")))
-            }
+            other => Err(Error::invalid(format!("blend variant \"{other}\""), "is not per-pixel, subgroup or batched")),
         }
     }
 }
@@ -258,7 +257,7 @@ impl std::str::FromStr for TileBounds {
         match s {
             "ellipse" => Ok(Self::Ellipse),
             "rectangle" => Ok(Self::Rectangle),
-            other => Err(Error::InvalidArgument(format!("tile bounds \"{other}\" are not ellipse or rectangle"))),
+            other => Err(Error::invalid(format!("tile bounds \"{other}\""), "are not ellipse or rectangle")),
         }
     }
 }
@@ -345,7 +344,7 @@ impl GBuffer {
 
     /// The rgb channel, or an error naming why it is absent.
     pub fn rgb_values(&self) -> Result<&[f32]> {
-        self.rgb.as_deref().ok_or_else(|| Error::InvalidArgument(NO_RGB.into()))
+        self.rgb.as_deref().ok_or_else(|| Error::invalid("rgb channel", NO_RGB))
     }
 
     /// The channels present as (name, values, floats per pixel), rgb (when
@@ -423,7 +422,7 @@ pub struct GpuGBuffer {
 impl GpuGBuffer {
     /// The rgb channel, or an error naming why it is absent.
     pub fn rgb_buffer(&self) -> Result<&Buffer> {
-        self.rgb.as_ref().ok_or_else(|| Error::InvalidArgument(NO_RGB.into()))
+        self.rgb.as_ref().ok_or_else(|| Error::invalid("rgb channel", NO_RGB))
     }
 
     /// Reads every channel back.
@@ -548,7 +547,7 @@ fn frame_kernel(device: &Device, info: &'static srug_gpu::KernelInfo, spec: &[(u
 /// Camera parameters for the frame uniform.
 fn camera_frame(camera: &Camera, frame: &mut FrameUniform) -> Result<()> {
     if camera.width == 0 || camera.height == 0 {
-        return Err(Error::InvalidArgument(format!("image size {}x{} is empty", camera.width, camera.height)));
+        return Err(Error::invalid(format!("image size {}x{}", camera.width, camera.height), "is empty"));
     }
     let r = camera.rotation;
     let w = r.transpose();
@@ -569,7 +568,7 @@ fn camera_frame(camera: &Camera, frame: &mut FrameUniform) -> Result<()> {
     frame.view_dir = [r.z_axis.x, r.z_axis.y, r.z_axis.z, 0.0];
     let valid = frame.translation.iter().chain(&frame.intrinsics).chain(&frame.clip).all(|v| v.is_finite());
     if !valid || camera.near.partial_cmp(&camera.far) != Some(std::cmp::Ordering::Less) {
-        return Err(Error::InvalidArgument("the camera has non-finite or inverted parameters".into()));
+        return Err(Error::invalid("camera", "has non-finite or inverted parameters"));
     }
     Ok(())
 }
@@ -646,9 +645,10 @@ impl Splatter {
     /// [`BLEND_PIXELS`]; the image does not change, only how the fetches are shared.
     pub fn set_blend_pixels(&mut self, pixels: u32) -> Result<()> {
         if !BLEND_PIXELS.contains(&pixels) {
-            return Err(Error::InvalidArgument(format!(
-                "{pixels} pixels per blend invocation is not one of {BLEND_PIXELS:?}"
-            )));
+            return Err(Error::invalid(
+                format!("{pixels} pixels per blend invocation"),
+                format!("is not one of {BLEND_PIXELS:?}"),
+            ));
         }
         self.blend_pixels = pixels;
         Ok(())
@@ -663,7 +663,7 @@ impl Splatter {
     /// Chooses the blend variant; subgroup loads need subgroup ballot support.
     pub fn set_blend_variant(&mut self, variant: BlendVariant) -> Result<()> {
         if variant == BlendVariant::SubgroupLoads && !self.device.info().subgroup_ballot {
-            return Err(Error::InvalidArgument("the device lacks subgroup ballot in compute shaders".into()));
+            return Err(Error::unsupported("subgroup ballot in compute shaders"));
         }
         self.blend_variant = variant;
         Ok(())
@@ -730,14 +730,17 @@ impl Splatter {
             (ch.visibility, &scene.visibility, "visibility"),
         ];
         if let Some((_, _, name)) = missing.iter().find(|(want, have, _)| *want && have.is_none()) {
-            return Err(Error::InvalidArgument(format!("channel {name} was requested but the scene has no {name}")));
+            return Err(Error::invalid(
+                format!("channel {name}"),
+                format!("was requested but the scene has no {name}"),
+            ));
         }
         let tile = settings.tile;
         check_tile(tile)?;
         let features = ch.needs_features();
         let n = scene.count as u64;
         if n >= u64::from(u32::MAX) {
-            return Err(Error::InvalidArgument(format!("{n} Gaussians exceed the 2³² − 1 the kernels index")));
+            return Err(Error::invalid(format!("scene of {n} Gaussians"), "exceeds the 2³² − 1 the kernels index"));
         }
         // The scene arrays the texel preprocess views (binding 1 on), each as R32F.
         let scene_inputs = [&scene.means, &scene.log_scales, &scene.rotations, &scene.opacity_logits, &scene.sh];
@@ -766,7 +769,7 @@ impl Splatter {
         let tiles = u64::from(tiles_x) * u64::from(tiles_y);
         let pixels = u64::from(w) * u64::from(h);
         if tiles >= 1 << 32 || pixels * 3 >= 1 << 32 {
-            return Err(Error::InvalidArgument(format!("image {w}x{h} is too large")));
+            return Err(Error::invalid(format!("image {w}x{h}"), "is too large"));
         }
         let mut frame = FrameUniform::zeroed();
         camera_frame(camera, &mut frame)?;

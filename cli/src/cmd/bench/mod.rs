@@ -14,7 +14,7 @@ use crate::args::DeviceArgs;
 
 /// The benchmark areas.
 #[derive(clap::Subcommand, Clone, Debug)]
-pub enum BenchCommand {
+pub(super) enum BenchCommand {
     /// Per-stage splatting times on the demo city; GPU sort against sort_unstable; FMA peak.
     Splat(splat::SplatBenchArgs),
     /// Indirect-light U-Net: time per inference per size and precision, GFLOP/s against the FMA peak.
@@ -33,7 +33,7 @@ pub enum BenchCommand {
 
 impl BenchCommand {
     /// Runs the benchmark.
-    pub fn run(&self, device: &DeviceArgs) -> Result<()> {
+    pub(super) fn run(&self, device: &DeviceArgs) -> Result<()> {
         match self {
             Self::Splat(a) => a.run(device),
             Self::Unet(a) => a.run(device),

@@ -8,7 +8,7 @@ use crate::bench::scaling::{scaling_bench, scaling_markdown, ScalingSetup};
 
 /// Arguments of `srug bench scaling`.
 #[derive(clap::Args, Clone, Debug)]
-pub struct ScalingBenchArgs {
+pub(crate) struct ScalingBenchArgs {
     /// Gaussian counts, comma-separated.
     #[arg(long, value_delimiter = ',', default_value = "10000,30000,100000,300000,1000000,3000000")]
     gaussians: Vec<usize>,
@@ -28,7 +28,7 @@ pub struct ScalingBenchArgs {
 
 impl ScalingBenchArgs {
     /// Runs `srug bench scaling`.
-    pub fn run(&self, device_args: &DeviceArgs) -> Result<()> {
+    pub(crate) fn run(&self, device_args: &DeviceArgs) -> Result<()> {
         let &Self { ref gaussians, size, ref sizes, pixel_sweep_gaussians, repeats } = self;
         let setup = ScalingSetup {
             counts: gaussians.clone(),

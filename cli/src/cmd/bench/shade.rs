@@ -8,7 +8,7 @@ use crate::bench;
 
 /// Arguments of `srug bench shade`.
 #[derive(clap::Args, Clone, Debug)]
-pub struct ShadeBenchArgs {
+pub(crate) struct ShadeBenchArgs {
     /// Demo city size for the G-buffers.
     #[arg(long, default_value_t = 200_000)]
     gaussians: usize,
@@ -25,7 +25,7 @@ pub struct ShadeBenchArgs {
 
 impl ShadeBenchArgs {
     /// Runs `srug bench shade`.
-    pub fn run(&self, device_args: &DeviceArgs) -> Result<()> {
+    pub(crate) fn run(&self, device_args: &DeviceArgs) -> Result<()> {
         let &Self { gaussians, ref sizes, ref env_sizes, repeats } = self;
         let sizes: Vec<(u32, u32)> = sizes.iter().map(|s| s.pair()).collect();
         let env_sizes: Vec<(u32, u32)> = env_sizes.iter().map(|s| s.pair()).collect();

@@ -9,7 +9,7 @@ use crate::bench::shadow::{shadow_accuracy, shadow_speed, ShadowBenchSetup};
 
 /// Arguments of `srug bench shadow`.
 #[derive(clap::Args, Clone, Debug)]
-pub struct ShadowBenchArgs {
+pub(crate) struct ShadowBenchArgs {
     /// Demo sizes for the speed table, comma-separated.
     #[arg(long, value_delimiter = ',', default_value = "100000,1000000,3000000")]
     gaussians: Vec<usize>,
@@ -32,7 +32,7 @@ pub struct ShadowBenchArgs {
 
 impl ShadowBenchArgs {
     /// Runs `srug bench shadow`.
-    pub fn run(&self, device_args: &DeviceArgs) -> Result<()> {
+    pub(crate) fn run(&self, device_args: &DeviceArgs) -> Result<()> {
         let &Self { ref gaussians, accuracy_gaussians, ref resolutions, ref ks, size, repeats } = self;
         let counts = gaussians;
         let setup = ShadowBenchSetup { size: size.pair(), sun: (260.0, 50.0), repeats };

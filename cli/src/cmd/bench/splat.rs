@@ -10,7 +10,7 @@ use crate::bench;
 
 /// Arguments of `srug bench splat`.
 #[derive(clap::Args, Clone, Debug)]
-pub struct SplatBenchArgs {
+pub(crate) struct SplatBenchArgs {
     /// Gaussian counts, comma-separated.
     #[arg(long, value_delimiter = ',', default_value = "100000,1000000,3000000")]
     gaussians: Vec<usize>,
@@ -39,7 +39,7 @@ pub struct SplatBenchArgs {
 
 impl SplatBenchArgs {
     /// Runs `srug bench splat`.
-    pub fn run(&self, device_args: &DeviceArgs) -> Result<()> {
+    pub(crate) fn run(&self, device_args: &DeviceArgs) -> Result<()> {
         let &Self { ref gaussians, ref sizes, repeats, sort_keys, blend, tile, blend_pixels, tile_bounds } = self;
         check_tile(tile)?;
         let counts = gaussians;

@@ -12,7 +12,7 @@ use crate::bench::trade::{trade_bench, trade_csv, trade_markdown, TradeSetup};
 
 /// Arguments of `srug bench trade`.
 #[derive(clap::Args, Clone, Debug)]
-pub struct TradeBenchArgs {
+pub(crate) struct TradeBenchArgs {
     /// Demo city size (SH degree 3, materials).
     #[arg(long, default_value_t = 200_000)]
     gaussians: usize,
@@ -33,7 +33,7 @@ pub struct TradeBenchArgs {
 
 impl TradeBenchArgs {
     /// Runs `srug bench trade`.
-    pub fn run(&self, device_args: &DeviceArgs) -> Result<()> {
+    pub(crate) fn run(&self, device_args: &DeviceArgs) -> Result<()> {
         let &Self { gaussians, size, repeats, ref network, ref out } = self;
         let weights = match network.as_str() {
             "none" => None,

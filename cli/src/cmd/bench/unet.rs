@@ -9,7 +9,7 @@ use crate::bench;
 
 /// Arguments of `srug bench unet`.
 #[derive(clap::Args, Clone, Debug)]
-pub struct UnetBenchArgs {
+pub(crate) struct UnetBenchArgs {
     /// Widths w0..w4.
     #[arg(long, value_delimiter = ',', default_value = "32,32,64,64,128")]
     widths: Vec<usize>,
@@ -31,12 +31,12 @@ pub struct UnetBenchArgs {
 
 impl UnetBenchArgs {
     /// Runs `srug bench unet`.
-    pub fn run(&self, device_args: &DeviceArgs) -> Result<()> {
+    pub(crate) fn run(&self, device_args: &DeviceArgs) -> Result<()> {
         let &Self { ref widths, ref sizes, repeats, ref inputs } = self;
         let w: [usize; 5] = widths
             .as_slice()
             .try_into()
-            .map_err(|_| Error::InvalidArgument(format!("--widths {widths:?} is not five numbers")))?;
+            .map_err(|_| Error::invalid(format!("--widths {widths:?}"), "is not five numbers"))?;
         let sizes: Vec<(u32, u32)> = sizes.iter().map(|s| s.pair()).collect();
         let device = device_args.open()?;
         let info = device.info();
