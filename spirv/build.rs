@@ -48,8 +48,10 @@ fn main() {
         for b in &mut info.bindings {
             if let Some(n) = named.bindings.iter().find(|n| (n.set, n.binding) == (b.set, b.binding)) {
                 b.name.clone_from(&n.name);
+                b.block.clone_from(&n.block);
             }
         }
+        info.push_block.clone_from(&named.push_block);
         for s in &mut info.specs {
             if let Some(n) = named.specs.iter().find(|n| n.id == s.id) {
                 s.name.clone_from(&n.name);
@@ -135,6 +137,15 @@ struct Binding {
     binding: u32,
     kind: &'static str,
     name: String,
+    /// For a uniform block: the block's type name and its members.
+    block: Option<Block>,
+}
+
+/// A uniform or push-constant block's type name and members (name, offset, size).
+#[derive(Clone, Default)]
+struct Block {
+    name: String,
+    members: Vec<(String, u32, u32)>,
 }
 
 struct Spec {
@@ -149,6 +160,7 @@ struct Reflected {
     local_size_ids: [Option<u32>; 3],
     bindings: Vec<Binding>,
     push_size: u32,
+    push_block: Option<Block>,
     specs: Vec<Spec>,
 }
 
@@ -221,8 +233,33 @@ fn reflect(module: &Module) -> Result<Reflected, String> {
             ))
         })
         .collect();
+    let member_names: HashMap<(u32, u32), String> = module
+        .debug_names
+        .iter()
+        .filter(|i| i.class.opcode == Op::MemberName)
+        .filter_map(|i| match i.operands.as_slice() {
+            [Operand::IdRef(t), Operand::LiteralBit32(m), Operand::LiteralString(s)] => Some(((*t, *m), s.clone())),
+            _ => None,
+        })
+        .collect();
     let defs: HashMap<u32, &Instruction> =
         module.types_global_values.iter().filter_map(|i| i.result_id.map(|r| (r, i))).collect();
+    let block_of = |struct_id: u32| -> Result<Block, String> {
+        let def = defs.get(&struct_id).ok_or("unknown block type")?;
+        let mut members = Vec::new();
+        for (m, member) in def.operands.iter().enumerate() {
+            let m = m as u32;
+            let member_type = id(member).ok_or("bad block member")?;
+            let offset = decorations
+                .on_member
+                .get(&(struct_id, m, Decoration::Offset))
+                .and_then(|v| v.first().copied())
+                .ok_or("block member without offset")?;
+            let size = type_size(member_type, &defs, &decorations)?;
+            members.push((member_names.get(&(struct_id, m)).cloned().unwrap_or_default(), offset, size));
+        }
+        Ok(Block { name: names.get(&struct_id).cloned().unwrap_or_default(), members })
+    };
 
     let mut local_size = None;
     for inst in &module.execution_modes {
@@ -255,6 +292,7 @@ fn reflect(module: &Module) -> Result<Reflected, String> {
 
     let mut bindings = Vec::new();
     let mut push_size = 0;
+    let mut push_block = None;
     for inst in &module.types_global_values {
         if inst.class.opcode != Op::Variable {
             continue;
@@ -287,7 +325,8 @@ fn reflect(module: &Module) -> Result<Reflected, String> {
                     "BindingKind::UniformBuffer"
                 };
                 let name = names.get(&var).cloned().unwrap_or_default();
-                bindings.push(Binding { set, binding, kind, name });
+                let block = if is_storage { None } else { Some(block_of(struct_id)?) };
+                bindings.push(Binding { set, binding, kind, name, block });
             }
             StorageClass::UniformConstant => {
                 // `samplerBuffer`: a sampled image of dimension Buffer (a uniform texel buffer).
@@ -304,10 +343,11 @@ fn reflect(module: &Module) -> Result<Reflected, String> {
                 }
                 let (set, binding) = set_and_binding(&decorations, var).ok_or("samplerBuffer without a binding")?;
                 let name = names.get(&var).cloned().unwrap_or_default();
-                bindings.push(Binding { set, binding, kind: "BindingKind::UniformTexelBuffer", name });
+                bindings.push(Binding { set, binding, kind: "BindingKind::UniformTexelBuffer", name, block: None });
             }
             StorageClass::PushConstant => {
                 push_size = type_size(pointee, &defs, &decorations)?;
+                push_block = Some(block_of(pointee)?);
             }
             _ => {}
         }
@@ -328,7 +368,7 @@ fn reflect(module: &Module) -> Result<Reflected, String> {
         }
     }
     specs.sort_by_key(|s| s.id);
-    Ok(Reflected { local_size, local_size_ids, bindings, push_size, specs })
+    Ok(Reflected { local_size, local_size_ids, bindings, push_size, push_block, specs })
 }
 
 fn strip_arrays(mut t: u32, defs: &HashMap<u32, &Instruction>) -> u32 {
@@ -397,11 +437,27 @@ fn write_kernel(out: &mut String, ident: &str, stem: &str, words: &[u32], info: 
         let _ = write!(w, "0x{word:08x}, ");
     }
     let _ = writeln!(out, "    static {ident}_WORDS: [u32; {}] = [{w}\n    ];", words.len());
+    let block = |b: &Option<Block>| {
+        let b = b.clone().unwrap_or_default();
+        let members: Vec<String> = b
+            .members
+            .iter()
+            .map(|(name, offset, size)| format!("MemberInfo {{ name: {name:?}, offset: {offset}, size: {size} }}"))
+            .collect();
+        format!("BlockInfo {{ name: {:?}, members: &[{}] }}", b.name, members.join(", "))
+    };
     let bindings: Vec<String> = info
         .bindings
         .iter()
         .map(|b| {
-            format!("BindingInfo {{ set: {}, binding: {}, kind: {}, name: {:?} }}", b.set, b.binding, b.kind, b.name)
+            format!(
+                "BindingInfo {{ set: {}, binding: {}, kind: {}, name: {:?}, block: {} }}",
+                b.set,
+                b.binding,
+                b.kind,
+                b.name,
+                block(&b.block)
+            )
         })
         .collect();
     let specs: Vec<String> = info
@@ -412,11 +468,12 @@ fn write_kernel(out: &mut String, ident: &str, stem: &str, words: &[u32], info: 
     let _ = writeln!(out, "    /// Kernel `shaders/{stem}.comp`.");
     let _ = writeln!(
         out,
-        "    pub const {ident}: KernelInfo = KernelInfo {{ name: {stem:?}, words: &{ident}_WORDS, workgroup_size: {:?}, workgroup_size_ids: {:?}, bindings: &[{}], push_constant_size: {}, spec_constants: &[{}] }};",
+        "    pub const {ident}: KernelInfo = KernelInfo {{ name: {stem:?}, words: &{ident}_WORDS, workgroup_size: {:?}, workgroup_size_ids: {:?}, bindings: &[{}], push_constant_size: {}, push_constant_block: {}, spec_constants: &[{}] }};",
         info.local_size,
         info.local_size_ids,
         bindings.join(", "),
         info.push_size,
+        block(&info.push_block),
         specs.join(", ")
     );
 }

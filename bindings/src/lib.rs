@@ -257,9 +257,9 @@ mod tests {
         assert_eq!(last_error(), "srug_test: internal error (caught panic): boom 7");
         let s = guard("srug_test", || Err(srug::Error::invalid("k", "is NaN").into()));
         assert_eq!(s, srug_status::SRUG_ERROR_INVALID_ARGUMENT);
-        assert_eq!(last_error(), "srug_test: invalid argument: k is NaN");
+        assert_eq!(last_error(), "srug_test: invalid argument: k: is NaN");
         assert_eq!(guard("srug_test", || Ok(())), srug_status::SRUG_OK);
-        assert_eq!(last_error(), "srug_test: invalid argument: k is NaN", "success leaves the last error");
+        assert_eq!(last_error(), "srug_test: invalid argument: k: is NaN", "success leaves the last error");
     }
 
     #[test]

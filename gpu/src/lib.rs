@@ -23,8 +23,14 @@
 //!   On lavapipe a `texelFetch` with per-lane indices is a vector gather, while
 //!   storage-buffer and device-address loads run lane by lane.
 //!
+//! - **Device addresses.** A kernel that reaches a buffer by address gets the
+//!   address from [`Recording::addr`], which keeps the buffer borrowed until
+//!   the recording is submitted; host structs that carry addresses use
+//!   [`DeviceAddress`] fields and check their layout against the GLSL block
+//!   ([`GpuLayout`], [`check_layout`]).
+//!
 //! # Module graph (no cycles)
-//! `error`, `format` and `info` are leaves; `shared` (instance, device,
+//! `error`, `format`, `info` and `layout` are leaves; `shared` (instance, device,
 //! allocator, garbage of raw handles) imports only those; `device`, `buffer`,
 //! `kernel` and `recording` import `shared` and the leaves, and `recording`
 //! also imports `buffer` and `kernel`.
@@ -35,6 +41,7 @@ mod error;
 mod format;
 mod info;
 mod kernel;
+mod layout;
 mod recording;
 pub mod selftest;
 mod shared;
@@ -47,5 +54,6 @@ pub use error::{GpuError, Result};
 pub use format::TexelFormat;
 pub use info::{AdapterSummary, DeviceInfo, MemoryUsage};
 pub use kernel::{check_decl, specialized_workgroup_size, Kernel, KernelDecl, SpecValue};
+pub use layout::{check_block, check_layout, DeviceAddress, GpuLayout};
 pub use recording::{grid_1d, Binding, Recording, StageTime, Submission, Timings};
-pub use srug_spirv::{kernels, BindingInfo, BindingKind, KernelInfo, SpecConstantInfo};
+pub use srug_spirv::{kernels, BindingInfo, BindingKind, BlockInfo, KernelInfo, MemberInfo, SpecConstantInfo};

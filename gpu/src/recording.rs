@@ -17,6 +17,7 @@ use crate::device::Device;
 use crate::error::{vk_error, GpuError as Error, Result};
 use crate::info::DeviceInfo;
 use crate::kernel::Kernel;
+use crate::layout::DeviceAddress;
 use crate::shared::{lock, Garbage, Transient};
 
 /// Timestamp queries per recording: two per stage.
@@ -306,6 +307,7 @@ impl<'a> Recording<'a> {
         self.barrier(
             vk::PipelineStageFlags::COMPUTE_SHADER | vk::PipelineStageFlags::TRANSFER,
             vk::AccessFlags::SHADER_READ
+                | vk::AccessFlags::UNIFORM_READ
                 | vk::AccessFlags::SHADER_WRITE
                 | vk::AccessFlags::TRANSFER_READ
                 | vk::AccessFlags::TRANSFER_WRITE,
@@ -557,6 +559,50 @@ impl<'a> Recording<'a> {
             }
             d.cmd_dispatch(self.cmd, groups[0], groups[1], groups[2]);
         }
+        Ok(())
+    }
+
+    /// The device address of a storage `buffer`, for a uniform or push-constant
+    /// block; the recording keeps `buffer` borrowed until it is submitted, so
+    /// it cannot be dropped while a kernel may still follow the address.
+    pub fn addr(&mut self, buffer: &'a Buffer) -> Result<DeviceAddress> {
+        self.check_device(buffer)?;
+        if buffer.device_address() == 0 {
+            return Err(Error::invalid(
+                format!("buffer {}", buffer.name()),
+                "has no device address (not a storage buffer)",
+            ));
+        }
+        Ok(DeviceAddress::new(buffer.device_address()))
+    }
+
+    /// [`Recording::addr`] of an optional buffer; [`DeviceAddress::NULL`] for none.
+    pub fn addr_or_null(&mut self, buffer: Option<&'a Buffer>) -> Result<DeviceAddress> {
+        buffer.map_or(Ok(DeviceAddress::NULL), |b| self.addr(b))
+    }
+
+    /// Writes `data` into `buffer` at byte `offset` as a recorded command
+    /// (`vkCmdUpdateBuffer`: at most 65536 bytes, offset and size multiples of
+    /// 4), ordered with the commands around it. Uniform blocks that carry
+    /// addresses from [`Recording::addr`] are written this way.
+    pub fn update<T: Pod>(&mut self, buffer: &'a Buffer, offset: u64, data: &T) -> Result<()> {
+        self.update_bytes(buffer, offset, bytemuck::bytes_of(data))
+    }
+
+    /// [`Recording::update`] with raw bytes.
+    pub fn update_bytes(&mut self, buffer: &'a Buffer, offset: u64, bytes: &[u8]) -> Result<()> {
+        self.check_device(buffer)?;
+        let size = bytes.len() as u64;
+        let fits = offset.checked_add(size).is_some_and(|e| e <= buffer.size());
+        if !fits || size == 0 || size > 65536 || size % 4 != 0 || offset % 4 != 0 {
+            return Err(Error::invalid(
+                format!("buffer {} ({} bytes)", buffer.name(), buffer.size()),
+                format!("an update of {size} bytes at {offset} is out of bounds, empty, over 65536 bytes or unaligned"),
+            ));
+        }
+        self.before_command();
+        // SAFETY: recording state; in-bounds, 4-aligned update of a live TRANSFER_DST buffer of this device.
+        unsafe { self.device.shared.device.cmd_update_buffer(self.cmd, buffer.raw, offset, bytes) };
         Ok(())
     }
 

@@ -4,9 +4,9 @@
 
 use bytemuck::{Pod, Zeroable};
 
-use crate::{kernels, BindingKind, Device, Kernel, KernelDecl, Result, SpecValue};
+use crate::{kernels, BindingKind, Device, DeviceAddress, Kernel, KernelDecl, Result, SpecValue};
 
-/// Push constants of `core_affine.comp` (keep in sync with the GLSL `Push` block).
+/// Push constants of `core_affine.comp` (the GLSL `Push` block; checked by [`check_layout`](crate::check_layout)).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
 pub struct AffinePush {
@@ -19,16 +19,16 @@ pub struct AffinePush {
     /// Padding to the GLSL block size.
     pub pad: u32,
 }
-const _: () = assert!(std::mem::size_of::<AffinePush>() == 16);
+crate::gpu_layout!(AffinePush, "Push", [a, b, count, pad]);
 
-/// Push constants of `core_affine_addressed.comp` (keep in sync with the GLSL `Push` block).
+/// Push constants of `core_affine_addressed.comp` (the GLSL `AddressedPush` block).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
 pub struct AffineAddressedPush {
-    /// Device address of the input floats.
-    pub x: u64,
-    /// Device address of the output floats.
-    pub y: u64,
+    /// The input floats.
+    pub x: DeviceAddress,
+    /// The output floats.
+    pub y: DeviceAddress,
     /// Multiplier.
     pub a: f32,
     /// Offset.
@@ -38,7 +38,7 @@ pub struct AffineAddressedPush {
     /// Padding to the GLSL block size.
     pub pad: u32,
 }
-const _: () = assert!(std::mem::size_of::<AffineAddressedPush>() == 32);
+crate::gpu_layout!(AffineAddressedPush, "AddressedPush", [x, y, a, b, count, pad]);
 
 /// The bindings `core_affine.comp` declares.
 pub const AFFINE_BINDINGS: [BindingKind; 2] =

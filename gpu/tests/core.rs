@@ -210,15 +210,12 @@ fn buffers_above_max_storage_buffer_range() {
     )
     .unwrap();
     d.run(|rec| rec.fill(&out, NAN)).unwrap();
-    let push = AffineAddressedPush {
-        x: big.device_address(),
-        y: out.device_address(),
-        a: 0.5,
-        b: 3.0,
-        count: n as u32,
-        pad: 0,
-    };
-    d.run(|rec| rec.dispatch_1d(&addressed, &[], &push, n as u64)).unwrap();
+    d.run(|rec| {
+        let push =
+            AffineAddressedPush { x: rec.addr(&big)?, y: rec.addr(&out)?, a: 0.5, b: 3.0, count: n as u32, pad: 0 };
+        rec.dispatch_1d(&addressed, &[], &push, n as u64)
+    })
+    .unwrap();
     let y: Vec<f32> = d.read_buffer(&out).unwrap();
     let expected = affine_cpu(&x, 0.5, 3.0, 0);
     let err = max_rel_error(&y, &expected);
@@ -444,4 +441,68 @@ fn texel_buffer_views() {
 
 fn grid(n: usize) -> [u32; 3] {
     [n.div_ceil(64) as u32, 1, 1]
+}
+
+/// Host push-constant structs match the blocks their shaders declare, and the
+/// check fails on a struct that does not.
+#[test]
+fn host_layouts_match_their_glsl_blocks() {
+    // Block names repeat across kernels ("Push"): check against the kernels a struct serves.
+    assert_eq!(gpu::check_layout::<AffinePush>(&[&kernels::CORE_AFFINE]), Ok(1));
+    assert_eq!(gpu::check_layout::<AffineAddressedPush>(kernels::ALL), Ok(1));
+    // Fields swapped: same size, wrong offsets.
+    #[repr(C)]
+    #[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+    struct Swapped {
+        b: f32,
+        a: f32,
+        count: u32,
+        pad: u32,
+    }
+    gpu::gpu_layout!(Swapped, "Push", [b, a, count, pad]);
+    let e = gpu::check_layout::<Swapped>(&[&kernels::CORE_AFFINE]).unwrap_err();
+    assert!(e.contains("core_affine") && e.contains("does not match"), "{e}");
+    // A block name no kernel declares checks nothing.
+    #[repr(C)]
+    #[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+    struct Orphan {
+        a: f32,
+    }
+    gpu::gpu_layout!(Orphan, "NoSuchBlock", [a]);
+    assert_eq!(gpu::check_layout::<Orphan>(kernels::ALL), Ok(0));
+}
+
+/// `Recording::update` writes in command order: a fill, an update over part of
+/// the buffer, and a copy after it see each other's results.
+#[test]
+fn recorded_updates_are_ordered_with_other_commands() {
+    let d = device();
+    let a = d.create_buffer("a", 64, MemoryKind::Storage).unwrap();
+    let b = d.create_buffer("b", 64, MemoryKind::Storage).unwrap();
+    d.run(|rec| {
+        rec.fill(&a, NAN)?;
+        rec.update(&a, 16, &[1.0f32, 2.0, 3.0, 4.0])?;
+        rec.copy(&a, 0, &b, 0, 64)?;
+        rec.update(&b, 60, &5.0f32)
+    })
+    .unwrap();
+    let got: Vec<u32> = d.read_buffer(&b).unwrap();
+    let mut want = vec![NAN; 16];
+    want[4..8].copy_from_slice(&[1.0f32, 2.0, 3.0, 4.0].map(f32::to_bits));
+    want[15] = 5.0f32.to_bits();
+    assert_eq!(got, want);
+    // Out of bounds, unaligned, empty or over 64 KiB: refused before recording.
+    let big = d.create_buffer("big", 1 << 17, MemoryKind::Storage).unwrap();
+    let staging = d.create_buffer("staging", 64, MemoryKind::Upload).unwrap();
+    let mut rec = d.begin().unwrap();
+    assert!(rec.update(&a, 60, &[0u32; 2]).is_err());
+    assert!(rec.update(&a, 2, &0u32).is_err());
+    assert!(rec.update(&a, 0, &[0u8; 0]).is_err());
+    assert!(rec.update_bytes(&big, 0, &vec![0u8; 65540]).is_err());
+    // A buffer without a device address (staging) has no address to give.
+    assert!(rec.addr(&staging).is_err());
+    assert!(rec.addr_or_null(None).unwrap().is_null());
+    assert!(!rec.addr(&a).unwrap().is_null());
+    drop(rec);
+    assert_no_validation_messages(&d);
 }

@@ -7,8 +7,8 @@
 #include "address.glsl"
 
 
-// Keep in sync with engine/src/gpu/selftest.rs `AffineAddressedPush`.
-layout(push_constant) uniform Push {
+// Host mirror: gpu/src/selftest.rs `AffineAddressedPush` (its layout is checked against this block).
+layout(push_constant) uniform AddressedPush {
     uvec2 x;
     uvec2 y;
     float a;

@@ -21,22 +21,22 @@ float srgb_encode(float c) {
 void main() {
     uint p = linear_index();
     if (p >= shade.size.x * shade.size.y) return;
-    float alpha = clamp(FloatsIn(shade.addr3.zw).v[p], 0.0, 1.0);
+    float alpha = clamp(FloatsIn(shade.alpha).v[p], 0.0, 1.0);
     vec3 lo = vec3(0.0);
     if (alpha >= shade.env.w) {
-        lo = read3(shade.addr5.zw, p) + read3(shade.addr6.xy, p);
-        if (has(shade.addr6.zw)) {
+        lo = read3(shade.l_sun, p) + read3(shade.l_sky, p);
+        if (has(shade.l_ind)) {
             // L_ind is planar (CHW), as the indirect network writes it.
-            FloatsIn ind = FloatsIn(shade.addr6.zw);
+            FloatsIn ind = FloatsIn(shade.l_ind);
             uint n = shade.size.x * shade.size.y;
             lo += vec3(ind.v[p], ind.v[n + p], ind.v[2u * n + p]);
         }
     }
     vec3 bg = shade.background.w > 0.0
-        ? latlong_sample(shade.addr4.xy, 0u, shade.env_size.xy, env_dir(pixel_ray(p))) * shade.env.z
+        ? latlong_sample(shade.specular, 0u, shade.env_size.xy, env_dir(pixel_ray(p))) * shade.env.z
         : shade.background.rgb;
     vec3 radiance = alpha * lo + (1.0 - alpha) * bg;
-    write3(shade.addr7.xy, p, radiance);
+    write3(shade.out_radiance, p, radiance);
     vec3 c = max(tone_map(max(radiance * shade.display.x, 0.0), uint(shade.display.y)), 0.0);
-    write3(shade.addr7.zw, p, vec3(srgb_encode(c.x), srgb_encode(c.y), srgb_encode(c.z)));
+    write3(shade.out_display, p, vec3(srgb_encode(c.x), srgb_encode(c.y), srgb_encode(c.z)));
 }

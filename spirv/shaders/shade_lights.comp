@@ -19,21 +19,21 @@ float channel(uvec2 a, uint p, float inv_alpha, float fallback) {
 void main() {
     uint p = linear_index();
     if (p >= shade.size.x * shade.size.y) return;
-    float alpha = FloatsIn(shade.addr3.zw).v[p];
+    float alpha = FloatsIn(shade.alpha).v[p];
     vec3 sun = vec3(0.0), sky = vec3(0.0);
     if (alpha >= shade.env.w) {
         float ia = 1.0 / alpha;
         vec3 v = -pixel_ray(p);
-        vec3 n = read3(shade.addr0.xy, p);
+        vec3 n = read3(shade.normal, p);
         float len = length(n);
         n = len > 1e-12 ? n / len : v;
-        vec3 albedo = clamp(read3(shade.addr0.zw, p) * ia, 0.0, 1.0);
-        float r = channel(shade.addr1.xy, p, ia, 1.0);
-        float m = channel(shade.addr1.zw, p, ia, 0.0);
-        float ao = channel(shade.addr2.xy, p, ia, 1.0);
+        vec3 albedo = clamp(read3(shade.albedo, p) * ia, 0.0, 1.0);
+        float r = channel(shade.roughness, p, ia, 1.0);
+        float m = channel(shade.metallic, p, ia, 0.0);
+        float ao = channel(shade.ao, p, ia, 1.0);
         float vis = 1.0;
-        if (shade.modes.x == 1u) vis = channel(shade.addr2.zw, p, ia, 1.0);
-        if (shade.modes.x == 2u) vis = clamp(FloatsIn(shade.addr3.xy).v[p], 0.0, 1.0);
+        if (shade.modes.x == 1u) vis = channel(shade.fixed_visibility, p, ia, 1.0);
+        if (shade.modes.x == 2u) vis = clamp(FloatsIn(shade.editable_visibility).v[p], 0.0, 1.0);
         vec3 f0 = mix(vec3(0.04), albedo, m);
         vec3 diffuse = (1.0 - m) * albedo / PI;
         float nov = max(dot(n, v), MIN_NOV);
@@ -56,20 +56,20 @@ void main() {
             sun = f * shade.sun_radiance.rgb * vis;
         }
         if ((TERMS & 4u) != 0u) {
-            vec3 e = latlong_sample(shade.addr4.zw, 0u, shade.env_size.zw, env_dir(n)) * shade.env.z;
+            vec3 e = latlong_sample(shade.irradiance, 0u, shade.env_size.zw, env_dir(n)) * shade.env.z;
             sky += diffuse * e * ao;
         }
         if ((TERMS & 8u) != 0u) {
             vec3 refl = 2.0 * dot(n, v) * n - v;
             uint levels = shade.size.z;
-            vec3 pre = latlong_sample_lod(shade.addr4.xy, shade.env_size.xy, levels, env_dir(normalize(refl)),
+            vec3 pre = latlong_sample_lod(shade.specular, shade.env_size.xy, levels, env_dir(normalize(refl)),
                                           r * float(levels - 1u)) * shade.env.z;
             float ts = float(shade.size.w - 1u);
             vec2 s = vec2(nov, r) * ts;
             vec2 f = floor(min(s, vec2(ts - 1.0)));
             vec2 w = s - f;
             uint base = uint(f.y) * shade.size.w + uint(f.x);
-            Uvec2sIn lut = Uvec2sIn(shade.addr5.xy);
+            Uvec2sIn lut = Uvec2sIn(shade.brdf);
             vec2 t00 = uintBitsToFloat(lut.v[base]), t10 = uintBitsToFloat(lut.v[base + 1u]);
             vec2 t01 = uintBitsToFloat(lut.v[base + shade.size.w]);
             vec2 t11 = uintBitsToFloat(lut.v[base + shade.size.w + 1u]);
@@ -77,6 +77,6 @@ void main() {
             sky += pre * (f0 * ab.x + ab.y);
         }
     }
-    write3(shade.addr5.zw, p, sun);
-    write3(shade.addr6.xy, p, sky);
+    write3(shade.l_sun, p, sun);
+    write3(shade.l_sky, p, sky);
 }

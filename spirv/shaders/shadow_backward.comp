@@ -35,9 +35,9 @@ void main() {
     vec3 l = valid ? light_coords(world) : vec3(0.0);
     valid = valid && inside_map(l.xy);
     // A negative BCE target marks a pixel the loss ignores.
-    if (LOSS != 0u) valid = valid && FloatsIn(sbw.b0.xy).v[p] >= 0.0;
+    if (LOSS != 0u) valid = valid && FloatsIn(sbw.upstream).v[p] >= 0.0;
     if (push.pass_index == 0u) {
-        if (valid) atomicAdd(Uints(sbw.b6.zw).v[0], 1u);
+        if (valid) atomicAdd(Uints(sbw.receiver_count).v[0], 1u);
         return;
     }
     float loss = 0.0, d_k = 0.0, d_z = 0.0, d_zs = 0.0, d_depth = 0.0;
@@ -54,12 +54,12 @@ void main() {
         if (LOSS == 0u) {
             if (abs(raw) < LOGIT_LIMIT) {
                 float s = stable_sigmoid(raw);
-                d_logit = FloatsIn(sbw.b0.xy).v[p] * s * (1.0 - s);
+                d_logit = FloatsIn(sbw.upstream).v[p] * s * (1.0 - s);
             }
         } else {
-            float n = float(max(Uints(sbw.b6.zw).v[0], 1u));
+            float n = float(max(Uints(sbw.receiver_count).v[0], 1u));
             float x = clamp(raw, -BCE_LOGIT_LIMIT, BCE_LOGIT_LIMIT);
-            float vf = FloatsIn(sbw.b0.xy).v[p];
+            float vf = FloatsIn(sbw.upstream).v[p];
             loss = -(vf * log_sigmoid(x) + (1.0 - vf) * log_sigmoid(-x)) / n;
             if (abs(raw) < BCE_LOGIT_LIMIT) d_logit = (stable_sigmoid(x) - vf) / n;
         }
@@ -84,24 +84,24 @@ void main() {
         d_depth = d_z * dl.z + d_zs * (dzs_du * duv.x + dzs_dv * duv.y);
         key = uint(t[0].y) * shadow.size.z + uint(t[0].x);
     }
-    if (LOSS != 0u) FloatsOut(sbw.b0.zw).v[p] = loss;
-    FloatsOut(sbw.b1.xy).v[p] = d_k;
-    FloatsOut(sbw.b1.zw).v[p] = d_z;
+    if (LOSS != 0u) FloatsOut(sbw.loss).v[p] = loss;
+    FloatsOut(sbw.dk).v[p] = d_k;
+    FloatsOut(sbw.light_depth).v[p] = d_z;
     // Receiver G-buffer: median depth directly, or z = Σwz / alpha.
     float g_depth = 0.0, g_alpha = 0.0;
     if (valid) {
         if (shadow.modes.y == 1u) {
             g_depth = d_depth;
         } else {
-            float a = FloatsIn(shadow.addr0.zw).v[p];
+            float a = FloatsIn(shadow.receiver_alpha).v[p];
             g_depth = d_depth / a;
-            g_alpha = -d_depth * FloatsIn(shadow.addr0.xy).v[p] / (a * a);
+            g_alpha = -d_depth * FloatsIn(shadow.receiver_depth).v[p] / (a * a);
         }
     }
-    FloatsOut(sbw.b2.xy).v[p] = g_depth;
-    if (shadow.modes.y == 0u) FloatsOut(sbw.b2.zw).v[p] = g_alpha;
+    FloatsOut(sbw.d_receiver_depth).v[p] = g_depth;
+    if (shadow.modes.y == 0u) FloatsOut(sbw.d_receiver_alpha).v[p] = g_alpha;
     // Bin by the footprint's first texel for the deterministic gather.
-    Uvec2sOut(sbw.b3.xy).v[p] = uvec2(d_zs != 0.0 ? key : sbw.counts.z, 0u);
-    UintsOut(sbw.b3.zw).v[p] = p;
-    Vec4s(sbw.b4.xy).v[p] = vec4(l.xy, d_zs, 0.0);
+    Uvec2sOut(sbw.bin_keys).v[p] = uvec2(d_zs != 0.0 ? key : sbw.counts.z, 0u);
+    UintsOut(sbw.bin_pixels).v[p] = p;
+    Vec4s(sbw.records).v[p] = vec4(l.xy, d_zs, 0.0);
 }

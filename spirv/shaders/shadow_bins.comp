@@ -6,8 +6,8 @@
 #include "common.glsl"
 #include "address.glsl"
 
-// Keep in sync with engine/src/shadow/backward.rs `BinsPush`.
-layout(push_constant) uniform Push {
+// Host mirror: engine/src/shadow/backward.rs `BinsPush` (its layout is checked against this block).
+layout(push_constant) uniform BinsPush {
     uvec2 keys;    // sorted uvec2 keys (texel, 0)
     uvec2 ranges;  // uvec2 per texel
     uint count;    // pixels

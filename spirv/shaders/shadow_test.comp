@@ -24,5 +24,5 @@ void main() {
             v = stable_sigmoid(shadow_logit(zs, l.z));
         }
     }
-    FloatsOut(shadow.addr2.xy).v[p] = v;
+    FloatsOut(shadow.visibility).v[p] = v;
 }

@@ -17,9 +17,9 @@ void main() {
     if (texel >= sbw.counts.y) return;
     uint mw = shadow.size.z;
     ivec2 tt = ivec2(int(texel % mw), int(texel / mw));
-    Uvec2sIn ranges = Uvec2sIn(sbw.b4.zw);
-    UintsIn order = UintsIn(sbw.b3.zw);
-    Vec4s records = Vec4s(sbw.b4.xy);
+    Uvec2sIn ranges = Uvec2sIn(sbw.bin_ranges);
+    UintsIn order = UintsIn(sbw.bin_pixels);
+    Vec4s records = Vec4s(sbw.records);
     float sum = 0.0;
     for (int dy = 0; dy < 2; dy++) {
         for (int dx = 0; dx < 2; dx++) {
@@ -37,22 +37,22 @@ void main() {
             }
         }
     }
-    FloatsOut(sbw.b5.xy).v[texel] = sum;
+    FloatsOut(sbw.texel_depth).v[texel] = sum;
     float g_depth = 0.0, g_alpha = 0.0;
     float z;
     if (sum != 0.0 && shadow.modes.x == 2u) {
         // z_s = Σwz + (1 − alpha)·empty depth.
         g_depth = sum;
         g_alpha = -sum * shadow.params.w;
-    } else if (sum != 0.0 && resolve_depth(shadow.modes.x, shadow.addr1.xy, shadow.addr1.zw, texel, z)) {
+    } else if (sum != 0.0 && resolve_depth(shadow.modes.x, shadow.map_depth, shadow.map_alpha, texel, z)) {
         if (shadow.modes.x == 1u) {
             g_depth = sum;
         } else {
-            float a = FloatsIn(shadow.addr1.zw).v[texel];
+            float a = FloatsIn(shadow.map_alpha).v[texel];
             g_depth = sum / a;
-            g_alpha = -sum * FloatsIn(shadow.addr1.xy).v[texel] / (a * a);
+            g_alpha = -sum * FloatsIn(shadow.map_depth).v[texel] / (a * a);
         }
     }
-    FloatsOut(sbw.b5.zw).v[texel] = g_depth;
-    if (shadow.modes.x != 1u) FloatsOut(sbw.b6.xy).v[texel] = g_alpha;
+    FloatsOut(sbw.d_map_depth).v[texel] = g_depth;
+    if (shadow.modes.x != 1u) FloatsOut(sbw.d_map_alpha).v[texel] = g_alpha;
 }

@@ -21,9 +21,9 @@ void main() {
         vec3 l = light_coords(world);
         if (inside_map(l.xy)) {
             uvec2 tile = uvec2(l.xy) / shadow.modes.w;  // the map's tile edge
-            uvec2 range = Uvec2s(shadow.addr4.xy).v[tile.y * shadow.modes.z + tile.x];
-            Splats splats = Splats(shadow.addr3.xy);
-            Uints order = Uints(shadow.addr3.zw);
+            uvec2 range = Uvec2s(shadow.ranges).v[tile.y * shadow.modes.z + tile.x];
+            Splats splats = Splats(shadow.splats);
+            Uints order = Uints(shadow.sorted_gaussians);
             vec2 centre = l.xy;  // the ray itself, not its texel centre
             float limit = l.z - shadow.params.y;
             for (uint j = range.x; j < range.y; j++) {
@@ -38,5 +38,5 @@ void main() {
             }
         }
     }
-    FloatsOut(shadow.addr2.xy).v[p] = T;
+    FloatsOut(shadow.visibility).v[p] = T;
 }

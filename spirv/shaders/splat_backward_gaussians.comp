@@ -15,12 +15,12 @@
 void main() {
     uint i = linear_index();
     if (i >= frame.counts.x) return;
-    Splat sp = Splats(frame.scene5.zw).v[i];
-    uint first = Uints(frame.work0.zw).v[i];
-    uint count = Uints(frame.work0.zw).v[i + 1u] - first;
+    Splat sp = Splats(frame.splats).v[i];
+    uint first = Uints(frame.tile_counts).v[i];
+    uint count = Uints(frame.tile_counts).v[i + 1u] - first;
     float sum[MAX_STRIDE];
     for (uint c = 0u; c < MAX_STRIDE; c++) sum[c] = 0.0;
-    FloatsIn pairs = FloatsIn(bwd.pairs.xy);
+    FloatsIn pairs = FloatsIn(bwd.pairs);
     for (uint k = 0u; k < count; k++) {
         for (uint c = 0u; c < STRIDE; c++) sum[c] += pairs.v[(first + k) * STRIDE + c];
     }
@@ -33,8 +33,8 @@ void main() {
         uint o = GRAD_RGB ? 12u : 8u;
         d_normal = vec3(sum[o], sum[o + 1u], sum[o + 2u]);
     }
-    if ((bwd.out2.x | bwd.out2.y) != 0u) {
-        Floats values = Floats(bwd.out2.xy);
+    if ((bwd.d_values.x | bwd.d_values.y) != 0u) {
+        Floats values = Floats(bwd.d_values);
         for (uint c = 0u; c < 16u; c++) values.v[16u * i + c] = 0.0;
         if (GRAD_RGB) for (uint c = 0u; c < 3u; c++) values.v[16u * i + c] = sum[8u + c];
         if (GRAD_FEATURES) {
@@ -48,13 +48,13 @@ void main() {
     float d_logit = 0.0;
     if (count > 0u) {
         // Recompute the forward quantities (as splat_preprocess.comp).
-        FloatsIn means = FloatsIn(frame.scene0.xy);
+        FloatsIn means = FloatsIn(frame.means);
         vec3 p = vec3(means.v[3 * i], means.v[3 * i + 1], means.v[3 * i + 2]);
         mat3 W = transpose(mat3(frame.rot0.xyz, frame.rot1.xyz, frame.rot2.xyz));
         vec3 t = W * p + frame.translation.xyz;
         bool ortho = frame.translation.w != 0.0;
-        FloatsIn ls = FloatsIn(frame.scene0.zw);
-        FloatsIn rot = FloatsIn(frame.scene1.xy);
+        FloatsIn ls = FloatsIn(frame.log_scales);
+        FloatsIn rot = FloatsIn(frame.rotations);
         vec3 s = exp(vec3(ls.v[3 * i], ls.v[3 * i + 1], ls.v[3 * i + 2]));
         vec4 q_raw = vec4(rot.v[4 * i], rot.v[4 * i + 1], rot.v[4 * i + 2], rot.v[4 * i + 3]);
         float q_scale = max(max(abs(q_raw.x), abs(q_raw.y)), max(abs(q_raw.z), abs(q_raw.w)));
@@ -120,9 +120,9 @@ void main() {
         d_ls = vec3(dot(R[0], d_M[0]), dot(R[1], d_M[1]), dot(R[2], d_M[2])) * s;
 
         // Shortest-axis normal turned toward the camera (when it is the normal used).
-        bool stored = frame.counts.z == 1u && (frame.scene2.z | frame.scene2.w) != 0u;
+        bool stored = frame.counts.z == 1u && (frame.normals.x | frame.normals.y) != 0u;
         if (stored) {
-            FloatsIn nb = FloatsIn(frame.scene2.zw);
+            FloatsIn nb = FloatsIn(frame.normals);
             stored = dot(vec3(nb.v[3 * i], nb.v[3 * i + 1], nb.v[3 * i + 2]),
                          vec3(nb.v[3 * i], nb.v[3 * i + 1], nb.v[3 * i + 2])) != 0.0;
         }
@@ -148,11 +148,11 @@ void main() {
         d_p = transpose(W) * d_t;
         d_logit = d_opacity * opacity * (1.0 - opacity);
     }
-    Floats dm = Floats(bwd.out0.xy), dls = Floats(bwd.out0.zw), dr = Floats(bwd.out1.xy);
+    Floats dm = Floats(bwd.d_means), dls = Floats(bwd.d_log_scales), dr = Floats(bwd.d_rotations);
     for (uint c = 0u; c < 3u; c++) {
         dm.v[3u * i + c] = d_p[c];
         dls.v[3u * i + c] = d_ls[c];
     }
     for (uint c = 0u; c < 4u; c++) dr.v[4u * i + c] = d_q[c];
-    Floats(bwd.out1.zw).v[i] = d_logit;
+    Floats(bwd.d_opacity_logits).v[i] = d_logit;
 }

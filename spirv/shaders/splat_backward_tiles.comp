@@ -49,26 +49,26 @@ void main() {
     bool inside = pix.x < frame.size.x && pix.y < frame.size.y;
     uint p = pix.y * frame.size.x + pix.x;
     vec2 centre = vec2(pix) + 0.5;
-    uvec2 range = Uvec2s(frame.work2.xy).v[tile];
-    Uints order = Uints(frame.work1.zw);
-    Splats splats = Splats(frame.scene5.zw);
-    Features features = Features(frame.work0.xy);
+    uvec2 range = Uvec2s(frame.ranges).v[tile];
+    Uints order = Uints(frame.values);
+    Splats splats = Splats(frame.splats);
+    Features features = Features(frame.features);
 
     // This pixel's loss gradients: values (rgb, depth, ten features), alpha, median.
     float dv[14];
     for (uint k = 0u; k < 14u; k++) dv[k] = 0.0;
     float d_alpha_out = 0.0, d_median = 0.0;
     if (inside) {
-        if (GRAD_RGB) for (uint c = 0u; c < 3u; c++) dv[c] = grad_in(bwd.in0.xy, 3u * p + c);
-        if ((GRADS & 512u) != 0u) d_alpha_out = grad_in(bwd.in0.zw, p);
-        if ((GRADS & 1u) != 0u) dv[3] = grad_in(bwd.in1.xy, p);
-        if ((GRADS & 2u) != 0u) d_median = grad_in(bwd.in1.zw, p);
-        if ((GRADS & 4u) != 0u) for (uint c = 0u; c < 3u; c++) dv[4u + c] = grad_in(bwd.in2.xy, 3u * p + c);
-        if ((GRADS & 16u) != 0u) dv[7] = grad_in(bwd.in3.xy, p);
-        if ((GRADS & 8u) != 0u) for (uint c = 0u; c < 3u; c++) dv[8u + c] = grad_in(bwd.in2.zw, 3u * p + c);
-        if ((GRADS & 32u) != 0u) dv[11] = grad_in(bwd.in3.zw, p);
-        if ((GRADS & 64u) != 0u) dv[12] = grad_in(bwd.in4.xy, p);
-        if ((GRADS & 128u) != 0u) dv[13] = grad_in(bwd.in4.zw, p);
+        if (GRAD_RGB) for (uint c = 0u; c < 3u; c++) dv[c] = grad_in(bwd.d_rgb, 3u * p + c);
+        if ((GRADS & 512u) != 0u) d_alpha_out = grad_in(bwd.d_alpha, p);
+        if ((GRADS & 1u) != 0u) dv[3] = grad_in(bwd.d_depth, p);
+        if ((GRADS & 2u) != 0u) d_median = grad_in(bwd.d_median_depth, p);
+        if ((GRADS & 4u) != 0u) for (uint c = 0u; c < 3u; c++) dv[4u + c] = grad_in(bwd.d_normal, 3u * p + c);
+        if ((GRADS & 16u) != 0u) dv[7] = grad_in(bwd.d_roughness, p);
+        if ((GRADS & 8u) != 0u) for (uint c = 0u; c < 3u; c++) dv[8u + c] = grad_in(bwd.d_albedo, 3u * p + c);
+        if ((GRADS & 32u) != 0u) dv[11] = grad_in(bwd.d_metallic, p);
+        if ((GRADS & 64u) != 0u) dv[12] = grad_in(bwd.d_ao, p);
+        if ((GRADS & 128u) != 0u) dv[13] = grad_in(bwd.d_visibility, p);
     }
 
     // Replay the forward blend: where it stopped, the final T and the median splat.
@@ -178,13 +178,13 @@ void main() {
             for (uint k = 0u; k < TILE_PIXELS; k++) s += terms[at + k];
             uint g = order.v[last - 1u - (base + b)];
             // The splat's pairs start at its offset, in increasing tile order: find this tile's.
-            Uints pair_tiles = Uints(frame.work3.xy);
-            uint slot = Uints(frame.work0.zw).v[g], end = Uints(frame.work0.zw).v[g + 1u];
+            Uints pair_tiles = Uints(frame.pair_tiles);
+            uint slot = Uints(frame.tile_counts).v[g], end = Uints(frame.tile_counts).v[g + 1u];
             while (slot < end) {
                 uint mid = (slot + end) / 2u;
                 if (pair_tiles.v[mid] < tile) slot = mid + 1u; else end = mid;
             }
-            Floats(bwd.pairs.xy).v[slot * STRIDE + c] = s;
+            Floats(bwd.pairs).v[slot * STRIDE + c] = s;
         }
         barrier();
     }

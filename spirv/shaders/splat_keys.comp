@@ -18,13 +18,13 @@ layout(constant_id = 15) const uint TILE = 16u;
 void main() {
     uint i = linear_index();
     if (i >= frame.counts.x) return;
-    Splat s = Splats(frame.scene5.zw).v[i];
-    Uints offsets = Uints(frame.work0.zw);
+    Splat s = Splats(frame.splats).v[i];
+    Uints offsets = Uints(frame.tile_counts);
     uint offset = offsets.v[i], end = offsets.v[i + 1u];
     uint depth_bits = floatBitsToUint(s.head.z);
-    Uvec2s keys = Uvec2s(frame.work1.xy);
-    Uints values = Uints(frame.work1.zw);
-    Uints pair_tiles = Uints(frame.work3.xy);
+    Uvec2s keys = Uvec2s(frame.keys);
+    Uints values = Uints(frame.values);
+    Uints pair_tiles = Uints(frame.pair_tiles);
     TileEllipse e = tile_ellipse(s.head, s.conic.xyz);
     for (uint y = s.rect.y; y < s.rect.w; y++) {
         uvec2 span = ELLIPSE_TILES ? tile_row_span(e, s.head.xy, s.rect, y, TILE) : s.rect.xz;

@@ -11,8 +11,8 @@ void main() {
     uint i = linear_index();
     uint n = frame.counts.w;
     if (i >= n) return;
-    Uvec2s keys = Uvec2s(frame.work1.xy);
-    Uvec2s ranges = Uvec2s(frame.work2.xy);
+    Uvec2s keys = Uvec2s(frame.keys);
+    Uvec2s ranges = Uvec2s(frame.ranges);
     uint tile = keys.v[i].y;
     if (tile >= frame.size.z * frame.size.w) return;
     if (i == 0u || keys.v[i - 1u].y != tile) ranges.v[tile].x = i;

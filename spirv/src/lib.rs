@@ -5,7 +5,8 @@
 //! descriptor bindings, push-constant size and specialization constants. The
 //! engine checks the bindings it declares in Rust against this table when it
 //! builds a pipeline, so a shader and its host code cannot drift apart
-//! silently. A GLSL error fails the build with the file and line.
+//! silently; uniform and push-constant blocks carry their members' names and
+//! offsets, against which host structs check their own layout. A GLSL error fails the build with the file and line.
 
 /// What a descriptor binding holds, as the shader declares it.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -21,6 +22,27 @@ pub enum BindingKind {
     UniformTexelBuffer,
 }
 
+/// One member of a uniform or push-constant block, as the shader lays it out.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct MemberInfo {
+    /// The member's GLSL name, or "" when the compiler dropped it.
+    pub name: &'static str,
+    /// Byte offset in the block.
+    pub offset: u32,
+    /// Size in bytes.
+    pub size: u32,
+}
+
+/// A uniform or push-constant block: its GLSL type name and members in order
+/// (empty for storage buffers, texel buffers and kernels without push constants).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct BlockInfo {
+    /// The block's type name in GLSL (`Frame` in `uniform Frame { ... } frame;`).
+    pub name: &'static str,
+    /// Its members.
+    pub members: &'static [MemberInfo],
+}
+
 /// One descriptor binding of a kernel.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct BindingInfo {
@@ -32,6 +54,8 @@ pub struct BindingInfo {
     pub kind: BindingKind,
     /// The block's instance name in GLSL, or "" when the compiler dropped it.
     pub name: &'static str,
+    /// For a uniform block, its layout (members empty otherwise).
+    pub block: BlockInfo,
 }
 
 /// One specialization constant of a kernel.
@@ -61,6 +85,8 @@ pub struct KernelInfo {
     pub bindings: &'static [BindingInfo],
     /// Size in bytes of the push-constant block, 0 when there is none.
     pub push_constant_size: u32,
+    /// The push-constant block's layout (members empty when there is none).
+    pub push_constant_block: BlockInfo,
     /// Specialization constants, sorted by id.
     pub spec_constants: &'static [SpecConstantInfo],
 }

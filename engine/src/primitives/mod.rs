@@ -4,3 +4,18 @@
 
 pub mod scan;
 pub mod sort;
+
+#[cfg(test)]
+mod layout_tests {
+    use super::scan::ScanPush;
+    use super::sort::SortPush;
+    use crate::gpu::{check_layout, kernels};
+
+    /// The push-constant structs match the GLSL blocks of every kernel that declares them.
+    #[test]
+    fn push_layouts_match_glsl() {
+        assert_eq!(check_layout::<ScanPush>(&[&kernels::SCAN_REDUCE, &kernels::SCAN_APPLY]), Ok(2));
+        let sort = check_layout::<SortPush>(kernels::ALL);
+        assert!(sort.as_ref().is_ok_and(|n| *n == 4), "{sort:?}");
+    }
+}

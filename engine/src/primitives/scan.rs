@@ -13,25 +13,26 @@
 use bytemuck::{Pod, Zeroable};
 
 use crate::error::Result;
-use crate::gpu::{kernels, Buffer, Device, Kernel, KernelDecl, MemoryKind, Recording};
+use crate::gpu::{kernels, Buffer, Device, DeviceAddress, Kernel, KernelDecl, MemoryKind, Recording};
 
 /// Values per invocation (keep in sync with `scan_common.glsl`).
 pub const SCAN_ITEMS: u64 = 32;
 
-/// Push constants of `scan_reduce.comp` and `scan_apply.comp` (keep in sync with `scan_common.glsl`).
+/// Push constants of `scan_reduce.comp` and `scan_apply.comp` (`ScanPush` in
+/// `scan_common.glsl`; checked by `check_layout`).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
 pub struct ScanPush {
-    /// Address of the values, scanned in place.
-    pub data: u64,
-    /// Address of the per-invocation sums.
-    pub sums: u64,
+    /// The values, scanned in place.
+    pub data: DeviceAddress,
+    /// The per-invocation sums.
+    pub sums: DeviceAddress,
     /// Number of values.
     pub count: u32,
     /// `scan_apply.comp`: whether `sums` holds scanned offsets (else all start at 0).
     pub has_sums: u32,
 }
-const _: () = assert!(std::mem::size_of::<ScanPush>() == 24);
+crate::gpu::gpu_layout!(ScanPush, "ScanPush", [data, sums, count, has_sums]);
 
 /// The scan kernels and their scratch memory.
 pub struct Scan {
@@ -90,26 +91,27 @@ impl Scan {
                 format!("exceeds the scratch ({}) or buffer {} ({} bytes)", self.capacity, data.name(), data.size()),
             ));
         }
-        rec.keep(&[data])?;
-        self.record_level(rec, data.device_address(), count, 0)
+        let data = rec.addr(data)?;
+        self.record_level(rec, data, count, 0)
     }
 
-    fn record_level<'a>(&'a self, rec: &mut Recording<'a>, data: u64, count: u64, level: usize) -> Result<()> {
+    fn record_level<'a>(
+        &'a self,
+        rec: &mut Recording<'a>,
+        data: DeviceAddress,
+        count: u64,
+        level: usize,
+    ) -> Result<()> {
         if count == 0 {
             return Ok(());
         }
         let invocations = count.div_ceil(SCAN_ITEMS);
         let sums = self.levels.get(level).filter(|_| invocations > 1);
-        let push = ScanPush {
-            data,
-            sums: sums.map_or(0, Buffer::device_address),
-            count: count as u32,
-            has_sums: u32::from(sums.is_some()),
-        };
-        if let Some(s) = sums {
-            rec.keep(&[s])?;
+        let sums_address = rec.addr_or_null(sums)?;
+        let push = ScanPush { data, sums: sums_address, count: count as u32, has_sums: u32::from(sums.is_some()) };
+        if sums.is_some() {
             rec.dispatch_1d(&self.reduce, &[], &push, invocations)?;
-            self.record_level(rec, s.device_address(), invocations, level + 1)?;
+            self.record_level(rec, sums_address, invocations, level + 1)?;
         }
         Ok(rec.dispatch_1d(&self.apply, &[], &push, invocations)?)
     }

@@ -21,7 +21,8 @@ use bytemuck::{Pod, Zeroable};
 use super::scan::Scan;
 use crate::error::{Error, Result};
 use crate::gpu::{
-    kernels, Binding, BindingKind, Buffer, Device, Kernel, KernelDecl, MemoryKind, Recording, TexelFormat, Texels,
+    kernels, Binding, BindingKind, Buffer, Device, DeviceAddress, Kernel, KernelDecl, MemoryKind, Recording,
+    TexelFormat, Texels,
 };
 
 /// Keys per invocation (keep in sync with the sort kernels' `ITEMS`).
@@ -40,20 +41,21 @@ fn histogram_len(count: u64) -> u64 {
     RADIX * count.div_ceil(SORT_BLOCK) * SORT_WORKGROUP
 }
 
-/// Push constants of `sort_histogram.comp` and `sort_scatter.comp` (keep in sync with their `Push` blocks).
+/// Push constants of `sort_histogram.comp` and `sort_scatter.comp` (`SortPush`
+/// in `sort_common.glsl`; checked by `check_layout`).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
 pub struct SortPush {
-    /// Address of the input keys (`[u32; 2]` each).
-    pub keys_in: u64,
-    /// Address of the input values.
-    pub values_in: u64,
-    /// Address of the output keys.
-    pub keys_out: u64,
-    /// Address of the output values.
-    pub values_out: u64,
-    /// Address of the digit-major histogram (one column per invocation).
-    pub hist: u64,
+    /// The input keys (`[u32; 2]` each).
+    pub keys_in: DeviceAddress,
+    /// The input values.
+    pub values_in: DeviceAddress,
+    /// The output keys.
+    pub keys_out: DeviceAddress,
+    /// The output values.
+    pub values_out: DeviceAddress,
+    /// The digit-major histogram (one column per invocation).
+    pub hist: DeviceAddress,
     /// Number of pairs.
     pub count: u32,
     /// Bit position of this pass's digit.
@@ -63,7 +65,11 @@ pub struct SortPush {
     /// Mask of this pass's digit: 15, or fewer bits on the last pass.
     pub digit_mask: u32,
 }
-const _: () = assert!(std::mem::size_of::<SortPush>() == 56);
+crate::gpu::gpu_layout!(
+    SortPush,
+    "SortPush",
+    [keys_in, values_in, keys_out, values_out, hist, count, shift, blocks, digit_mask]
+);
 
 /// The sort kernels and their scratch memory.
 pub struct RadixSort {
@@ -186,7 +192,6 @@ impl RadixSort {
         if count <= 1 || bits == 0 {
             return Ok(());
         }
-        rec.keep(&[keys, values, keys_tmp, values_tmp, hist])?;
         let blocks = count.div_ceil(SORT_BLOCK);
         let passes = bits.div_ceil(DIGIT_BITS);
         let mut src = (keys, values);
@@ -195,11 +200,11 @@ impl RadixSort {
         let texel = self.texel.as_ref().filter(|_| self.use_texel && count <= self.max_texels);
         for pass in 0..passes {
             let push = SortPush {
-                keys_in: src.0.device_address(),
-                values_in: src.1.device_address(),
-                keys_out: dst.0.device_address(),
-                values_out: dst.1.device_address(),
-                hist: hist.device_address(),
+                keys_in: rec.addr(src.0)?,
+                values_in: rec.addr(src.1)?,
+                keys_out: rec.addr(dst.0)?,
+                values_out: rec.addr(dst.1)?,
+                hist: rec.addr(hist)?,
                 count: count as u32,
                 shift: pass * DIGIT_BITS,
                 blocks: blocks as u32,

@@ -36,7 +36,9 @@ use bytemuck::{Pod, Zeroable};
 pub use self::env::{BrdfLut, BrdfTable, EnvironmentMap, EnvironmentPrep, PrepareSettings, PreparedEnvironment};
 pub use self::sky::ProceduralSky;
 use crate::error::{Error, Result};
-use crate::gpu::{kernels, BindingKind, Buffer, Device, Kernel, KernelDecl, MemoryKind, SpecValue, Timings};
+use crate::gpu::{
+    kernels, BindingKind, Buffer, Device, DeviceAddress, Kernel, KernelDecl, MemoryKind, Recording, SpecValue, Timings,
+};
 use crate::scene::{Camera, Projection};
 use crate::shadow::Sun;
 use crate::splat::{Channels, GpuGBuffer};
@@ -311,12 +313,15 @@ impl ShadedFrame {
     }
 }
 
-/// The shading kernels' uniform (keep in sync with `Shade` in `shade.glsl`;
-/// std140 with vec4/uvec4 members only, addresses as (low, high) pairs).
+/// The shading kernels' uniform: `Shade` in `shade.glsl` (std140; checked
+/// against it by `check_layout`). Addresses are filled by
+/// [`ShadeUniform::record`] in the recording that dispatches with it.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
 pub struct ShadeUniform {
-    cam_rot: [[f32; 4]; 3],
+    cam_rot0: [f32; 4],
+    cam_rot1: [f32; 4],
+    cam_rot2: [f32; 4],
     cam_pos: [f32; 4],
     cam_intr: [f32; 4],
     size: [u32; 4],
@@ -327,9 +332,97 @@ pub struct ShadeUniform {
     background: [f32; 4],
     display: [f32; 4],
     modes: [u32; 4],
-    addr: [[u64; 2]; 8],
+    normal: DeviceAddress,
+    albedo: DeviceAddress,
+    roughness: DeviceAddress,
+    metallic: DeviceAddress,
+    ao: DeviceAddress,
+    fixed_visibility: DeviceAddress,
+    editable_visibility: DeviceAddress,
+    alpha: DeviceAddress,
+    specular: DeviceAddress,
+    irradiance: DeviceAddress,
+    brdf: DeviceAddress,
+    l_sun: DeviceAddress,
+    l_sky: DeviceAddress,
+    l_ind: DeviceAddress,
+    out_radiance: DeviceAddress,
+    out_display: DeviceAddress,
 }
-const _: () = assert!(std::mem::size_of::<ShadeUniform>() == 21 * 16);
+crate::gpu::gpu_layout!(
+    ShadeUniform,
+    "Shade",
+    [
+        cam_rot0,
+        cam_rot1,
+        cam_rot2,
+        cam_pos,
+        cam_intr,
+        size,
+        env_size,
+        sun_dir,
+        sun_radiance,
+        env,
+        background,
+        display,
+        modes,
+        normal,
+        albedo,
+        roughness,
+        metallic,
+        ao,
+        fixed_visibility,
+        editable_visibility,
+        alpha,
+        specular,
+        irradiance,
+        brdf,
+        l_sun,
+        l_sky,
+        l_ind,
+        out_radiance,
+        out_display
+    ]
+);
+
+/// The buffers the shading kernels reach by address.
+struct ShadeBuffers<'b> {
+    inputs: &'b ShadeInputs<'b>,
+    /// The shadow test's V_e when the visibility is editable.
+    editable: Option<&'b Buffer>,
+    /// L_ind: given, or the network's output.
+    indirect: Option<&'b Buffer>,
+    sun: &'b Buffer,
+    sky: &'b Buffer,
+    radiance: &'b Buffer,
+    display: &'b Buffer,
+}
+
+impl ShadeUniform {
+    /// Takes every address from `b` through `rec` (which keeps the buffers
+    /// borrowed until it is submitted) and writes the uniform into `uniform`.
+    fn record<'a>(mut self, rec: &mut Recording<'a>, uniform: &'a Buffer, b: &ShadeBuffers<'a>) -> Result<()> {
+        let g = b.inputs.gbuffer;
+        let env = b.inputs.environment;
+        self.normal = rec.addr_or_null(g.normal.as_ref())?;
+        self.albedo = rec.addr_or_null(g.albedo.as_ref())?;
+        self.roughness = rec.addr_or_null(g.roughness.as_ref())?;
+        self.metallic = rec.addr_or_null(g.metallic.as_ref())?;
+        self.ao = rec.addr_or_null(g.ao.as_ref())?;
+        self.fixed_visibility = rec.addr_or_null(g.visibility.as_ref())?;
+        self.editable_visibility = rec.addr_or_null(b.editable)?;
+        self.alpha = rec.addr(&g.alpha)?;
+        self.specular = rec.addr(&env.specular)?;
+        self.irradiance = rec.addr(&env.irradiance)?;
+        self.brdf = rec.addr(&b.inputs.brdf.buffer)?;
+        self.l_sun = rec.addr(b.sun)?;
+        self.l_sky = rec.addr(b.sky)?;
+        self.l_ind = rec.addr_or_null(b.indirect)?;
+        self.out_radiance = rec.addr(b.radiance)?;
+        self.out_display = rec.addr(b.display)?;
+        Ok(rec.update(uniform, 0, &self)?)
+    }
+}
 
 /// The shading kernels.
 pub struct Shader {
@@ -344,10 +437,6 @@ fn uniform_kernel(device: &Device, info: &'static srug_gpu::KernelInfo, spec: &[
         info,
         &KernelDecl { bindings: &[BindingKind::UniformBuffer], push_constant_size: 0, specialization: spec },
     )?)
-}
-
-fn addr(b: Option<&Buffer>) -> u64 {
-    b.map_or(0, Buffer::device_address)
 }
 
 impl Shader {
@@ -370,16 +459,13 @@ impl Shader {
                 format!("does not match camera {}x{}", camera.width, camera.height),
             ));
         }
-        let (normal, albedo) = match (&g.normal, &g.albedo) {
-            (Some(n), Some(a)) => (n, a),
-            _ => {
-                return Err(Error::invalid(
-                    "G-buffer",
-                    "lacks the normal and albedo channels shading needs (a scene without albedo renders plain \
-                     colour, unshaded)",
-                ))
-            }
-        };
+        if g.normal.is_none() || g.albedo.is_none() {
+            return Err(Error::invalid(
+                "G-buffer",
+                "lacks the normal and albedo channels shading needs (a scene without albedo renders plain colour, \
+                 unshaded)",
+            ));
+        }
         let sun = inputs.sun.filter(|s| s.above_horizon());
         let mut visibility = settings.visibility;
         if sun.is_none() {
@@ -405,7 +491,7 @@ impl Shader {
         let env = inputs.environment;
         let mut u = ShadeUniform::zeroed();
         let r = camera.rotation;
-        for (row, i) in u.cam_rot.iter_mut().zip(0..3) {
+        for (row, i) in [&mut u.cam_rot0, &mut u.cam_rot1, &mut u.cam_rot2].into_iter().zip(0..3) {
             *row = [r.x_axis[i], r.y_axis[i], r.z_axis[i], 0.0];
         }
         let (k, kind) = match camera.projection {
@@ -428,14 +514,6 @@ impl Shader {
         };
         u.display = [2f32.powf(settings.exposure_ev), settings.tone_map.code() as f32, 0.0, 0.0];
         u.modes = [visibility.code(), 0, 0, 0];
-        let editable = if visibility == VisibilitySource::Editable { inputs.editable_visibility } else { None };
-        u.addr[0] = [normal.device_address(), albedo.device_address()];
-        u.addr[1] = [addr(g.roughness.as_ref()), addr(g.metallic.as_ref())];
-        u.addr[2] = [addr(g.ao.as_ref()), addr(g.visibility.as_ref())];
-        u.addr[3] = [addr(editable), g.alpha.device_address()];
-        u.addr[4] = [env.specular.device_address(), env.irradiance.device_address()];
-        u.addr[5] = [inputs.brdf.buffer.device_address(), 0];
-        u.addr[6] = [0, addr(inputs.indirect)];
         Ok(u)
     }
 
@@ -464,16 +542,16 @@ impl Shader {
         settings: &ShadeSettings,
         network: Option<&mut crate::indirect::UNet>,
     ) -> Result<ShadedFrame> {
-        let mut u = Self::uniform(inputs, settings)?;
+        let u = Self::uniform(inputs, settings)?;
         let device = self.device.clone();
         let g = inputs.gbuffer;
         let pixels = u64::from(g.width) * u64::from(g.height);
         let make = |name: &str| device.create_buffer(name, pixels * 12, MemoryKind::Storage);
         let (sun, sky, radiance, display) = (make("L_sun")?, make("L_sky")?, make("radiance")?, make("display")?);
-        u.addr[5][1] = sun.device_address();
-        u.addr[6][0] = sky.device_address();
-        u.addr[7] = [radiance.device_address(), display.device_address()];
-        let uniform = device.upload("shade uniform", bytemuck::bytes_of(&u))?;
+        let uniform =
+            device.create_buffer("shade uniform", std::mem::size_of::<ShadeUniform>() as u64, MemoryKind::Storage)?;
+        // The visibility the uniform settled on (none without a sun above the horizon).
+        let editable = if u.modes[0] == VisibilitySource::Editable.code() { inputs.editable_visibility } else { None };
         let bits = settings.terms.bits();
         let lights = match self.lights.entry(bits) {
             std::collections::hash_map::Entry::Occupied(e) => e.into_mut(),
@@ -482,18 +560,17 @@ impl Shader {
             }
         };
         let lights: &Kernel = lights;
-        let mut reads: Vec<&Buffer> = vec![&g.alpha, &inputs.environment.specular, &inputs.environment.irradiance];
-        reads.push(&inputs.brdf.buffer);
-        reads.extend(
-            [&g.normal, &g.albedo, &g.roughness, &g.metallic, &g.ao, &g.visibility]
-                .into_iter()
-                .filter_map(Option::as_ref),
-        );
-        reads.extend(inputs.editable_visibility);
-        reads.extend(inputs.indirect);
         let mut timings = device.run(|rec| -> Result<()> {
-            rec.keep(&reads)?;
-            rec.keep(&[&sun, &sky, &radiance, &display])?;
+            let buffers = ShadeBuffers {
+                inputs,
+                editable,
+                indirect: inputs.indirect,
+                sun: &sun,
+                sky: &sky,
+                radiance: &radiance,
+                display: &display,
+            };
+            u.record(rec, &uniform, &buffers)?;
             if let Some(word) = settings.prefill {
                 for b in [&sun, &sky, &radiance, &display] {
                     rec.fill(b, word)?;
@@ -510,17 +587,20 @@ impl Shader {
                 crate::indirect::NetworkInputs { gbuffer: g, sun: &sun, sky: &sky, min_alpha: settings.min_alpha };
             let out = net.predict(&inputs)?;
             timings.stages.extend(out.timings.stages);
-            u.addr[6][1] = out.output.device_address();
             indirect = Some(out.output);
         }
-        // The compose reads L_ind's address: a new uniform only when the network ran.
-        let uniform =
-            if indirect.is_some() { device.upload("shade uniform", bytemuck::bytes_of(&u))? } else { uniform };
         let compose = &self.compose;
         let t = device.run(|rec| -> Result<()> {
-            rec.keep(&reads)?;
-            rec.keep(&[&sun, &sky, &radiance, &display])?;
-            rec.keep(&indirect.iter().collect::<Vec<_>>())?;
+            let buffers = ShadeBuffers {
+                inputs,
+                editable,
+                indirect: indirect.as_ref().or(inputs.indirect),
+                sun: &sun,
+                sky: &sky,
+                radiance: &radiance,
+                display: &display,
+            };
+            u.record(rec, &uniform, &buffers)?;
             rec.begin_stage("shade compose");
             rec.dispatch_1d(compose, &[&uniform], &(), pixels)?;
             rec.end_stage();
@@ -528,5 +608,17 @@ impl Shader {
         })?;
         timings.stages.extend(t.stages);
         Ok(ShadedFrame { width: g.width, height: g.height, sun, sky, radiance, display, indirect, timings })
+    }
+}
+
+#[cfg(test)]
+mod layout_tests {
+    use super::ShadeUniform;
+    use crate::gpu::{check_layout, kernels};
+
+    /// The host struct matches the `Shade` block of both shading kernels.
+    #[test]
+    fn uniform_layout_matches_glsl() {
+        assert_eq!(check_layout::<ShadeUniform>(&[&kernels::SHADE_LIGHTS, &kernels::SHADE_COMPOSE]), Ok(2));
     }
 }

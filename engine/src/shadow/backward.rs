@@ -15,7 +15,7 @@ use bytemuck::{Pod, Zeroable};
 
 use super::{shadow_uniform, DepthMode, ShadowMap, ShadowPass, ShadowSettings};
 use crate::error::{Error, Result};
-use crate::gpu::{Buffer, MemoryKind, Timings};
+use crate::gpu::{Buffer, DeviceAddress, MemoryKind, Timings};
 use crate::scene::Camera;
 use crate::splat::backward::BlendGrads;
 use crate::splat::GpuGBuffer;
@@ -50,26 +50,60 @@ pub struct ShadowBackward {
     pub timings: Timings,
 }
 
-/// Addresses for the backward kernels (keep in sync with `ShadowBackward` in
-/// `shadow_backward.glsl`; std140, uvec4 members).
+/// Addresses for the backward kernels: `ShadowBackward` in
+/// `shadow_backward.glsl` (std140; checked against it by `check_layout`),
+/// filled in the recording.
 #[repr(C)]
-#[derive(Clone, Copy, Debug, Pod, Zeroable)]
-struct ShadowBackwardUniform {
-    addr: [[u64; 2]; 7],
+#[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
+pub(crate) struct ShadowBackwardUniform {
+    upstream: DeviceAddress,
+    loss: DeviceAddress,
+    dk: DeviceAddress,
+    light_depth: DeviceAddress,
+    d_receiver_depth: DeviceAddress,
+    d_receiver_alpha: DeviceAddress,
+    bin_keys: DeviceAddress,
+    bin_pixels: DeviceAddress,
+    records: DeviceAddress,
+    bin_ranges: DeviceAddress,
+    texel_depth: DeviceAddress,
+    d_map_depth: DeviceAddress,
+    d_map_alpha: DeviceAddress,
+    receiver_count: DeviceAddress,
     counts: [u32; 4],
 }
-const _: () = assert!(std::mem::size_of::<ShadowBackwardUniform>() == 8 * 16);
+crate::gpu::gpu_layout!(
+    ShadowBackwardUniform,
+    "ShadowBackward",
+    [
+        upstream,
+        loss,
+        dk,
+        light_depth,
+        d_receiver_depth,
+        d_receiver_alpha,
+        bin_keys,
+        bin_pixels,
+        records,
+        bin_ranges,
+        texel_depth,
+        d_map_depth,
+        d_map_alpha,
+        receiver_count,
+        counts
+    ]
+);
 
-/// Push constants of `shadow_bins.comp` (keep in sync with its `Push` block).
+/// Push constants of `shadow_bins.comp` (its `BinsPush` block; checked by `check_layout`).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
-pub(super) struct BinsPush {
-    keys: u64,
-    ranges: u64,
+pub(crate) struct BinsPush {
+    keys: DeviceAddress,
+    ranges: DeviceAddress,
     count: u32,
     none: u32,
 }
-const _: () = assert!(std::mem::size_of::<BinsPush>() == 24);
+crate::gpu::gpu_layout!(BinsPush, "BinsPush", [keys, ranges, count, none]);
 
 fn depth_grads(mode: DepthMode, depth: Buffer, alpha: Option<Buffer>) -> BlendGrads {
     match mode {
@@ -91,7 +125,7 @@ impl ShadowPass {
         loss: GpuVisibilityLoss<'_>,
     ) -> Result<ShadowBackward> {
         let device = self.device.clone();
-        let (u, inputs) = shadow_uniform(map, gbuffer, camera, settings, 0)?;
+        let (u, inputs) = shadow_uniform(map, gbuffer, camera, settings)?;
         let pixels = u64::from(camera.width) * u64::from(camera.height);
         let texels = u64::from(map.camera.width) * u64::from(map.camera.height);
         let (upstream, bce) = match loss {
@@ -122,47 +156,40 @@ impl ShadowPass {
         let map_depth = f("dL/d map depth", texels)?;
         let map_alpha = (map.depth != DepthMode::Median).then(|| f("dL/d map alpha", texels)).transpose()?;
         let count = f("shadow receiver count", 1)?;
-        let addr = |b: &Buffer| b.device_address();
-        let opt = |b: &Option<Buffer>| b.as_ref().map_or(0, Buffer::device_address);
-        let bu = ShadowBackwardUniform {
-            addr: [
-                [addr(upstream), addr(&loss_px)],
-                [addr(&dk_px), addr(&light_depth)],
-                [addr(&receiver_depth), opt(&receiver_alpha)],
-                [addr(&keys), addr(&order)],
-                [addr(&records), addr(&ranges)],
-                [addr(&texel_depth), addr(&map_depth)],
-                [opt(&map_alpha), addr(&count)],
-            ],
-            counts: [pixels as u32, texels as u32, texels as u32, 0],
-        };
-        let shadow_u = device.upload("shadow uniform", bytemuck::bytes_of(&u))?;
-        let backward_u = device.upload("shadow backward uniform", bytemuck::bytes_of(&bu))?;
+        let shadow_u = device.create_buffer(
+            "shadow uniform",
+            std::mem::size_of::<super::ShadowUniform>() as u64,
+            MemoryKind::Storage,
+        )?;
+        let backward_u = device.create_buffer(
+            "shadow backward uniform",
+            std::mem::size_of::<ShadowBackwardUniform>() as u64,
+            MemoryKind::Storage,
+        )?;
         let key_bits = 64 - texels.leading_zeros();
         self.sort.reserve(&device, pixels)?;
         let kernel = if bce { &self.backward_bce } else { &self.backward_upstream };
         let (bins, gather, sort) = (&self.bins, &self.gather, &self.sort);
-        let g = &map.frame.gbuffer;
-        let outputs: Vec<&Buffer> = [
-            &loss_px,
-            &dk_px,
-            &light_depth,
-            &receiver_depth,
-            &keys,
-            &order,
-            &records,
-            &ranges,
-            &texel_depth,
-            &map_depth,
-            &count,
-        ]
-        .into_iter()
-        .chain(receiver_alpha.as_ref())
-        .chain(map_alpha.as_ref())
-        .collect();
         let timings = device.run(|rec| -> Result<()> {
-            rec.keep(&[inputs.receiver_depth, &gbuffer.alpha, inputs.map_depth, &g.alpha, upstream])?;
-            rec.keep(&outputs)?;
+            u.record(rec, &shadow_u, &inputs, None)?;
+            let bu = ShadowBackwardUniform {
+                upstream: rec.addr(upstream)?,
+                loss: rec.addr(&loss_px)?,
+                dk: rec.addr(&dk_px)?,
+                light_depth: rec.addr(&light_depth)?,
+                d_receiver_depth: rec.addr(&receiver_depth)?,
+                d_receiver_alpha: rec.addr_or_null(receiver_alpha.as_ref())?,
+                bin_keys: rec.addr(&keys)?,
+                bin_pixels: rec.addr(&order)?,
+                records: rec.addr(&records)?,
+                bin_ranges: rec.addr(&ranges)?,
+                texel_depth: rec.addr(&texel_depth)?,
+                d_map_depth: rec.addr(&map_depth)?,
+                d_map_alpha: rec.addr_or_null(map_alpha.as_ref())?,
+                receiver_count: rec.addr(&count)?,
+                counts: [pixels as u32, texels as u32, texels as u32, 0],
+            };
+            rec.update(&backward_u, 0, &bu)?;
             let both = [&shadow_u, &backward_u];
             rec.begin_stage("shadow backward");
             rec.fill(&count, 0)?;
@@ -172,8 +199,8 @@ impl ShadowPass {
             sort.record(rec, &keys, &order, pixels, key_bits)?;
             rec.fill(&ranges, 0)?;
             let push = BinsPush {
-                keys: keys.device_address(),
-                ranges: ranges.device_address(),
+                keys: rec.addr(&keys)?,
+                ranges: rec.addr(&ranges)?,
                 count: pixels as u32,
                 none: texels as u32,
             };

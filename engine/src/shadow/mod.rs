@@ -31,7 +31,9 @@ use glam::Vec3;
 
 pub use self::sun::{solar_position, sun_path, SolarPosition, Sun, UtcTime};
 use crate::error::{Error, Result};
-use crate::gpu::{kernels, BindingKind, Buffer, Device, Kernel, KernelDecl, MemoryKind, SpecValue, Timings};
+use crate::gpu::{
+    kernels, BindingKind, Buffer, Device, DeviceAddress, Kernel, KernelDecl, MemoryKind, Recording, SpecValue, Timings,
+};
 use crate::primitives::sort::RadixSort;
 use crate::scene::activate::GpuScene;
 use crate::scene::{Bounds, Camera, Projection};
@@ -292,23 +294,88 @@ impl ShadowMap {
     }
 }
 
-/// Parameters of the shadow kernels (keep in sync with `Shadow` in `shadow.glsl`;
-/// std140 with vec4/uvec4 members only, addresses as (low, high) pairs).
+/// The shadow kernels' uniform: `Shadow` in `shadow.glsl` (std140; checked
+/// against it by `check_layout`). Addresses are filled by
+/// [`ShadowUniform::record`] in the recording that dispatches with it.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
 pub struct ShadowUniform {
-    cam_rot: [[f32; 4]; 3],
+    cam_rot0: [f32; 4],
+    cam_rot1: [f32; 4],
+    cam_rot2: [f32; 4],
     cam_pos: [f32; 4],
     cam_intr: [f32; 4],
-    light_rot: [[f32; 4]; 3],
+    light_rot0: [f32; 4],
+    light_rot1: [f32; 4],
+    light_rot2: [f32; 4],
     light_t: [f32; 4],
     light_intr: [f32; 4],
     size: [u32; 4],
     params: [f32; 4],
     modes: [u32; 4],
-    addr: [[u64; 2]; 5],
+    receiver_depth: DeviceAddress,
+    receiver_alpha: DeviceAddress,
+    map_depth: DeviceAddress,
+    map_alpha: DeviceAddress,
+    visibility: DeviceAddress,
+    unused0: DeviceAddress,
+    splats: DeviceAddress,
+    sorted_gaussians: DeviceAddress,
+    ranges: DeviceAddress,
+    unused1: DeviceAddress,
 }
-const _: () = assert!(std::mem::size_of::<ShadowUniform>() == 18 * 16);
+crate::gpu::gpu_layout!(
+    ShadowUniform,
+    "Shadow",
+    [
+        cam_rot0,
+        cam_rot1,
+        cam_rot2,
+        cam_pos,
+        cam_intr,
+        light_rot0,
+        light_rot1,
+        light_rot2,
+        light_t,
+        light_intr,
+        size,
+        params,
+        modes,
+        receiver_depth,
+        receiver_alpha,
+        map_depth,
+        map_alpha,
+        visibility,
+        unused0,
+        splats,
+        sorted_gaussians,
+        ranges,
+        unused1
+    ]
+);
+
+impl ShadowUniform {
+    /// Takes every address through `rec` (which keeps the buffers borrowed
+    /// until it is submitted) and writes the uniform into `uniform`.
+    /// `visibility` is the forward's output (none in the backward pass).
+    pub(crate) fn record<'a>(
+        mut self,
+        rec: &mut Recording<'a>,
+        uniform: &'a Buffer,
+        inputs: &ShadowInputs<'a>,
+        visibility: Option<&'a Buffer>,
+    ) -> Result<()> {
+        self.receiver_depth = rec.addr(inputs.receiver_depth)?;
+        self.receiver_alpha = rec.addr(inputs.receiver_alpha)?;
+        self.map_depth = rec.addr(inputs.map_depth)?;
+        self.map_alpha = rec.addr(&inputs.map.frame.gbuffer.alpha)?;
+        self.visibility = rec.addr_or_null(visibility)?;
+        self.splats = rec.addr(&inputs.map.frame.splats)?;
+        self.sorted_gaussians = rec.addr(&inputs.map.frame.sorted_gaussians)?;
+        self.ranges = rec.addr(&inputs.map.frame.ranges)?;
+        Ok(rec.update(uniform, 0, &self)?)
+    }
+}
 
 fn intrinsics(camera: &Camera) -> ([f32; 4], f32) {
     match camera.projection {
@@ -435,19 +502,15 @@ impl ShadowPass {
         let device = &self.device;
         let pixels = u64::from(camera.width) * u64::from(camera.height);
         let out = device.create_buffer("visibility", pixels * 4, MemoryKind::Storage)?;
-        let (u, inputs) = shadow_uniform(map, gbuffer, camera, settings, out.device_address())?;
-        let ShadowInputs { receiver_depth, map_depth } = inputs;
-        let g = &map.frame.gbuffer;
-        let uniform = device.upload("shadow uniform", bytemuck::bytes_of(&u))?;
+        let (u, inputs) = shadow_uniform(map, gbuffer, camera, settings)?;
+        let uniform =
+            device.create_buffer("shadow uniform", std::mem::size_of::<ShadowUniform>() as u64, MemoryKind::Storage)?;
         let (kernel, stage) = match kind {
             VisibilityKind::Sigmoid => (&self.test, "sigmoid shadow test"),
             VisibilityKind::Traced => (&self.traced, "traced visibility"),
         };
         let timings = device.run(|rec| -> Result<()> {
-            rec.keep(&[receiver_depth, &gbuffer.alpha, map_depth, &g.alpha, &out])?;
-            if kind == VisibilityKind::Traced {
-                rec.keep(&[&map.frame.splats, &map.frame.sorted_gaussians, &map.frame.ranges])?;
-            }
+            u.record(rec, &uniform, &inputs, Some(&out))?;
             if let Some(word) = settings.prefill {
                 rec.fill(&out, word)?;
             }
@@ -460,20 +523,22 @@ impl ShadowPass {
     }
 }
 
-/// The receiver's and the map's depth buffers the settings select.
-struct ShadowInputs<'a> {
-    receiver_depth: &'a Buffer,
-    map_depth: &'a Buffer,
+/// The buffers the shadow kernels read: the receiver's and the map's depth
+/// channels the settings select, the receiver's alpha, and the map itself.
+pub(crate) struct ShadowInputs<'a> {
+    pub(crate) receiver_depth: &'a Buffer,
+    pub(crate) receiver_alpha: &'a Buffer,
+    pub(crate) map_depth: &'a Buffer,
+    pub(crate) map: &'a ShadowMap,
 }
 
-/// The shadow kernels' uniform for `map`, receivers `gbuffer` seen from
-/// `camera`, and `settings`; `out` is the visibility output (0 for none).
+/// The shadow kernels' uniform (without addresses) for `map`, receivers
+/// `gbuffer` seen from `camera`, and `settings`, and the buffers it reads.
 fn shadow_uniform<'a>(
     map: &'a ShadowMap,
     gbuffer: &'a GpuGBuffer,
     camera: &Camera,
     settings: &ShadowSettings,
-    out: u64,
 ) -> Result<(ShadowUniform, ShadowInputs<'a>)> {
     settings.validate()?;
     if (gbuffer.width, gbuffer.height) != (camera.width, camera.height) {
@@ -506,7 +571,7 @@ fn shadow_uniform<'a>(
     .ok_or_else(|| Error::Internal("the shadow map lacks its depth channel".into()))?;
     let mut u = ShadowUniform::zeroed();
     let r = camera.rotation;
-    for (row, i) in u.cam_rot.iter_mut().zip(0..3) {
+    for (row, i) in [&mut u.cam_rot0, &mut u.cam_rot1, &mut u.cam_rot2].into_iter().zip(0..3) {
         *row = [r.x_axis[i], r.y_axis[i], r.z_axis[i], 0.0];
     }
     let (cam_k, cam_kind) = intrinsics(camera);
@@ -514,7 +579,7 @@ fn shadow_uniform<'a>(
     u.cam_intr = cam_k;
     let l = &map.camera;
     let w = l.rotation.transpose();
-    for (row, i) in u.light_rot.iter_mut().zip(0..3) {
+    for (row, i) in [&mut u.light_rot0, &mut u.light_rot1, &mut u.light_rot2].into_iter().zip(0..3) {
         *row = [w.x_axis[i], w.y_axis[i], w.z_axis[i], 0.0];
     }
     let t = -(w * l.position);
@@ -523,12 +588,22 @@ fn shadow_uniform<'a>(
     u.size = [camera.width, camera.height, l.width, l.height];
     u.params = [settings.k, settings.bias, settings.min_alpha, map.depth.empty_depth(l.far)];
     u.modes = [map.depth.code(), settings.receiver_depth.code(), map.frame.tiles().0, map.frame.tile];
-    u.addr = [
-        [receiver_depth.device_address(), gbuffer.alpha.device_address()],
-        [map_depth.device_address(), g.alpha.device_address()],
-        [out, 0],
-        [map.frame.splats.device_address(), map.frame.sorted_gaussians.device_address()],
-        [map.frame.ranges.device_address(), 0],
-    ];
-    Ok((u, ShadowInputs { receiver_depth, map_depth }))
+    Ok((u, ShadowInputs { receiver_depth, receiver_alpha: &gbuffer.alpha, map_depth, map }))
+}
+
+#[cfg(test)]
+mod layout_tests {
+    use super::backward::{BinsPush, ShadowBackwardUniform};
+    use super::ShadowUniform;
+    use crate::gpu::{check_layout, kernels};
+
+    /// The host structs match the GLSL blocks of every kernel that declares them.
+    #[test]
+    fn uniform_layouts_match_glsl() {
+        let shadow = check_layout::<ShadowUniform>(kernels::ALL);
+        assert!(shadow.as_ref().is_ok_and(|n| *n >= 4), "{shadow:?}");
+        let backward = check_layout::<ShadowBackwardUniform>(kernels::ALL);
+        assert!(backward.as_ref().is_ok_and(|n| *n >= 2), "{backward:?}");
+        assert_eq!(check_layout::<BinsPush>(&[&kernels::SHADOW_BINS]), Ok(1));
+    }
 }

@@ -19,9 +19,11 @@
 
 use bytemuck::{Pod, Zeroable};
 
-use super::{SplatFrame, Splatter};
+use super::{FrameBuffers, SplatFrame, Splatter};
 use crate::error::{Error, Result};
-use crate::gpu::{kernels, BindingKind, Buffer, Device, Kernel, KernelDecl, MemoryKind, SpecValue, Timings};
+use crate::gpu::{
+    kernels, BindingKind, Buffer, Device, DeviceAddress, Kernel, KernelDecl, MemoryKind, SpecValue, Timings,
+};
 use crate::scene::activate::GpuScene;
 
 /// Per-pixel loss gradients of the blended channels (layout as
@@ -136,24 +138,58 @@ impl GaussianGradients {
     }
 }
 
-/// Addresses for the backward kernels (keep in sync with `Backward` in
-/// `splat_backward.glsl`; std140, uvec4 members, addresses as (low, high)).
+/// Addresses for the backward kernels: `Backward` in `splat_backward.glsl`
+/// (std140; checked against it by `check_layout`), filled in the recording.
 #[repr(C)]
-#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+#[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
 pub struct BackwardUniform {
-    inputs: [[u64; 2]; 5],
-    pairs: [u64; 2],
-    outputs: [[u64; 2]; 3],
+    d_rgb: DeviceAddress,
+    d_alpha: DeviceAddress,
+    d_depth: DeviceAddress,
+    d_median_depth: DeviceAddress,
+    d_normal: DeviceAddress,
+    d_albedo: DeviceAddress,
+    d_roughness: DeviceAddress,
+    d_metallic: DeviceAddress,
+    d_ao: DeviceAddress,
+    d_visibility: DeviceAddress,
+    pairs: DeviceAddress,
+    unused0: DeviceAddress,
+    d_means: DeviceAddress,
+    d_log_scales: DeviceAddress,
+    d_rotations: DeviceAddress,
+    d_opacity_logits: DeviceAddress,
+    d_values: DeviceAddress,
+    unused1: DeviceAddress,
 }
-const _: () = assert!(std::mem::size_of::<BackwardUniform>() == 9 * 16);
+crate::gpu::gpu_layout!(
+    BackwardUniform,
+    "Backward",
+    [
+        d_rgb,
+        d_alpha,
+        d_depth,
+        d_median_depth,
+        d_normal,
+        d_albedo,
+        d_roughness,
+        d_metallic,
+        d_ao,
+        d_visibility,
+        pairs,
+        unused0,
+        d_means,
+        d_log_scales,
+        d_rotations,
+        d_opacity_logits,
+        d_values,
+        unused1
+    ]
+);
 
 /// Floats per (tile, splat) record for gradient set `bits` (keep in sync with `STRIDE`).
 fn record_stride(bits: u32) -> u64 {
     8 + if bits & 256 != 0 { 4 } else { 0 } + if bits & 252 != 0 { 12 } else { 0 }
-}
-
-fn address(b: &Option<Buffer>) -> u64 {
-    b.as_ref().map_or(0, Buffer::device_address)
 }
 
 /// The two backward kernels for one gradient set.
@@ -255,46 +291,46 @@ impl Splatter {
             values: with_values.then(|| f("dL/d values", 16)).transpose()?,
             timings: Timings::default(),
         };
-        let u = BackwardUniform {
-            inputs: [
-                [address(&grads.rgb), address(&grads.alpha)],
-                [address(&grads.depth), address(&grads.median_depth)],
-                [address(&grads.normal), address(&grads.albedo)],
-                [address(&grads.roughness), address(&grads.metallic)],
-                [address(&grads.ao), address(&grads.visibility)],
-            ],
-            pairs: [pairs.device_address(), 0],
-            outputs: [
-                [out.means.device_address(), out.log_scales.device_address()],
-                [out.rotations.device_address(), out.opacity_logits.device_address()],
-                [address(&out.values), 0],
-            ],
-        };
-        let uniform = device.upload("backward uniform", bytemuck::bytes_of(&u))?;
+        let uniform = device.create_buffer(
+            "backward uniform",
+            std::mem::size_of::<BackwardUniform>() as u64,
+            MemoryKind::Storage,
+        )?;
         let (tiles_x, tiles_y) = frame.tiles();
-        let scene_buffers: Vec<&Buffer> =
-            [&scene.means, &scene.log_scales, &scene.rotations, &scene.opacity_logits, &scene.sh]
-                .into_iter()
-                .chain(scene.normals.as_ref())
-                .collect();
-        let inputs: Vec<&Buffer> = grads.buffers().into_iter().map(|(b, _, _)| b).collect();
-        let outputs: Vec<&Buffer> =
-            [&out.means, &out.log_scales, &out.rotations, &out.opacity_logits].into_iter().chain(&out.values).collect();
         let timings = device.run(|rec| -> Result<()> {
-            rec.keep(&scene_buffers)?;
-            rec.keep(&inputs)?;
-            rec.keep(&outputs)?;
-            rec.keep(&[
-                &frame.splats,
-                &frame.pair_offsets,
-                &frame.sorted_gaussians,
-                &frame.pair_tiles,
-                &frame.ranges,
-                &pairs,
-            ])?;
-            if let Some(fb) = &frame.features {
-                rec.keep(&[fb])?;
-            }
+            let buffers = FrameBuffers {
+                scene,
+                splats: &frame.splats,
+                features: frame.features.as_ref(),
+                tile_counts: &frame.pair_offsets,
+                keys: None,
+                values: Some(&frame.sorted_gaussians),
+                pair_tiles: Some(&frame.pair_tiles),
+                ranges: &frame.ranges,
+                out: &frame.gbuffer,
+            };
+            frame.params.record(rec, &frame.uniform, &buffers)?;
+            let g = grads;
+            let u = BackwardUniform {
+                d_rgb: rec.addr_or_null(g.rgb.as_ref())?,
+                d_alpha: rec.addr_or_null(g.alpha.as_ref())?,
+                d_depth: rec.addr_or_null(g.depth.as_ref())?,
+                d_median_depth: rec.addr_or_null(g.median_depth.as_ref())?,
+                d_normal: rec.addr_or_null(g.normal.as_ref())?,
+                d_albedo: rec.addr_or_null(g.albedo.as_ref())?,
+                d_roughness: rec.addr_or_null(g.roughness.as_ref())?,
+                d_metallic: rec.addr_or_null(g.metallic.as_ref())?,
+                d_ao: rec.addr_or_null(g.ao.as_ref())?,
+                d_visibility: rec.addr_or_null(g.visibility.as_ref())?,
+                pairs: rec.addr(&pairs)?,
+                d_means: rec.addr(&out.means)?,
+                d_log_scales: rec.addr(&out.log_scales)?,
+                d_rotations: rec.addr(&out.rotations)?,
+                d_opacity_logits: rec.addr(&out.opacity_logits)?,
+                d_values: rec.addr_or_null(out.values.as_ref())?,
+                ..BackwardUniform::default()
+            };
+            rec.update(&uniform, 0, &u)?;
             rec.begin_stage("backward blend");
             rec.fill(&pairs, 0)?;
             rec.dispatch_groups(&k.tiles, &[&frame.uniform, &uniform], &(), u64::from(tiles_x) * u64::from(tiles_y))?;

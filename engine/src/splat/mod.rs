@@ -30,8 +30,8 @@ use bytemuck::{Pod, Zeroable};
 
 use crate::error::{Error, Result};
 use crate::gpu::{
-    kernels, Binding, BindingKind, Buffer, Device, Kernel, KernelDecl, MemoryKind, SpecValue, TexelFormat, Texels,
-    Timings,
+    kernels, Binding, BindingKind, Buffer, Device, DeviceAddress, Kernel, KernelDecl, MemoryKind, Recording, SpecValue,
+    TexelFormat, Texels, Timings,
 };
 use crate::primitives::scan::Scan;
 use crate::primitives::sort::RadixSort;
@@ -367,12 +367,16 @@ impl GBuffer {
     }
 }
 
-/// Frame parameters shared by every splat kernel (keep in sync with `Frame` in
-/// `splat.glsl`; std140 with vec4/uvec4 members only, addresses as (low, high) pairs).
+/// Frame parameters shared by every splat kernel: `Frame` in `splat.glsl`
+/// (std140; checked against it by `check_layout`). The camera and sizes are
+/// set on the host; every address is filled by [`FrameUniform::record`] in the
+/// recording that dispatches with it, which keeps each buffer alive.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
 pub struct FrameUniform {
-    rot: [[f32; 4]; 3],
+    rot0: [f32; 4],
+    rot1: [f32; 4],
+    rot2: [f32; 4],
     translation: [f32; 4],
     intrinsics: [f32; 4],
     clip: [f32; 4],
@@ -381,14 +385,141 @@ pub struct FrameUniform {
     background: [f32; 4],
     size: [u32; 4],
     counts: [u32; 4],
-    scene: [[u64; 2]; 6],
-    work: [[u64; 2]; 4],
-    out: [[u64; 2]; 5],
+    means: DeviceAddress,
+    log_scales: DeviceAddress,
+    rotations: DeviceAddress,
+    opacity_logits: DeviceAddress,
+    sh: DeviceAddress,
+    normals: DeviceAddress,
+    albedo: DeviceAddress,
+    roughness: DeviceAddress,
+    metallic: DeviceAddress,
+    ao: DeviceAddress,
+    visibility: DeviceAddress,
+    splats: DeviceAddress,
+    features: DeviceAddress,
+    tile_counts: DeviceAddress,
+    keys: DeviceAddress,
+    values: DeviceAddress,
+    ranges: DeviceAddress,
+    g_rgb: DeviceAddress,
+    pair_tiles: DeviceAddress,
+    unused0: DeviceAddress,
+    g_alpha: DeviceAddress,
+    g_depth: DeviceAddress,
+    g_median_depth: DeviceAddress,
+    g_normal: DeviceAddress,
+    g_albedo: DeviceAddress,
+    g_roughness: DeviceAddress,
+    g_metallic: DeviceAddress,
+    g_ao: DeviceAddress,
+    g_visibility: DeviceAddress,
+    unused1: DeviceAddress,
 }
-const _: () = assert!(std::mem::size_of::<FrameUniform>() == 26 * 16);
+crate::gpu::gpu_layout!(
+    FrameUniform,
+    "Frame",
+    [
+        rot0,
+        rot1,
+        rot2,
+        translation,
+        intrinsics,
+        clip,
+        eye,
+        view_dir,
+        background,
+        size,
+        counts,
+        means,
+        log_scales,
+        rotations,
+        opacity_logits,
+        sh,
+        normals,
+        albedo,
+        roughness,
+        metallic,
+        ao,
+        visibility,
+        splats,
+        features,
+        tile_counts,
+        keys,
+        values,
+        ranges,
+        g_rgb,
+        pair_tiles,
+        unused0,
+        g_alpha,
+        g_depth,
+        g_median_depth,
+        g_normal,
+        g_albedo,
+        g_roughness,
+        g_metallic,
+        g_ao,
+        g_visibility,
+        unused1
+    ]
+);
 
-fn address(b: &Option<Buffer>) -> u64 {
-    b.as_ref().map_or(0, Buffer::device_address)
+/// The buffers a splat frame's kernels reach by address.
+pub(crate) struct FrameBuffers<'b> {
+    pub(crate) scene: &'b GpuScene,
+    pub(crate) splats: &'b Buffer,
+    pub(crate) features: Option<&'b Buffer>,
+    pub(crate) tile_counts: &'b Buffer,
+    /// Absent before the sort's buffers exist and after they are freed.
+    pub(crate) keys: Option<&'b Buffer>,
+    pub(crate) values: Option<&'b Buffer>,
+    pub(crate) pair_tiles: Option<&'b Buffer>,
+    pub(crate) ranges: &'b Buffer,
+    pub(crate) out: &'b GpuGBuffer,
+}
+
+impl FrameUniform {
+    /// Takes every address from `b` through `rec` (which keeps the buffers
+    /// borrowed until it is submitted) and writes the uniform into `uniform`
+    /// as a recorded command.
+    pub(crate) fn record<'a>(
+        mut self,
+        rec: &mut Recording<'a>,
+        uniform: &'a Buffer,
+        b: &FrameBuffers<'a>,
+    ) -> Result<()> {
+        let s = b.scene;
+        self.means = rec.addr(&s.means)?;
+        self.log_scales = rec.addr(&s.log_scales)?;
+        self.rotations = rec.addr(&s.rotations)?;
+        self.opacity_logits = rec.addr(&s.opacity_logits)?;
+        self.sh = rec.addr(&s.sh)?;
+        self.normals = rec.addr_or_null(s.normals.as_ref())?;
+        self.albedo = rec.addr_or_null(s.albedo.as_ref())?;
+        self.roughness = rec.addr_or_null(s.roughness.as_ref())?;
+        self.metallic = rec.addr_or_null(s.metallic.as_ref())?;
+        self.ao = rec.addr_or_null(s.ao.as_ref())?;
+        self.visibility = rec.addr_or_null(s.visibility.as_ref())?;
+        self.splats = rec.addr(b.splats)?;
+        self.features = rec.addr_or_null(b.features)?;
+        self.tile_counts = rec.addr(b.tile_counts)?;
+        self.keys = rec.addr_or_null(b.keys)?;
+        self.values = rec.addr_or_null(b.values)?;
+        self.ranges = rec.addr(b.ranges)?;
+        self.pair_tiles = rec.addr_or_null(b.pair_tiles)?;
+        let o = b.out;
+        self.g_rgb = rec.addr_or_null(o.rgb.as_ref())?;
+        self.g_alpha = rec.addr(&o.alpha)?;
+        self.g_depth = rec.addr_or_null(o.depth.as_ref())?;
+        self.g_median_depth = rec.addr_or_null(o.median_depth.as_ref())?;
+        self.g_normal = rec.addr_or_null(o.normal.as_ref())?;
+        self.g_albedo = rec.addr_or_null(o.albedo.as_ref())?;
+        self.g_roughness = rec.addr_or_null(o.roughness.as_ref())?;
+        self.g_metallic = rec.addr_or_null(o.metallic.as_ref())?;
+        self.g_ao = rec.addr_or_null(o.ao.as_ref())?;
+        self.g_visibility = rec.addr_or_null(o.visibility.as_ref())?;
+        Ok(rec.update(uniform, 0, &self)?)
+    }
 }
 
 /// G-buffers on the GPU.
@@ -498,10 +629,12 @@ pub struct SplatFrame {
     pub ranges: Buffer,
     /// Per-splat features (normal, materials) when any feature channel was rendered.
     pub features: Option<Buffer>,
-    /// The frame uniform (camera, sizes, every address above), for the backward pass.
-    /// Its sort-key address is stale: the keys are freed after the render and no
-    /// later kernel reads them.
+    /// The frame uniform (camera, sizes, every address above), for the backward
+    /// pass, which rewrites its addresses in its own recording (`params`).
     pub uniform: Buffer,
+    /// The uniform's camera and sizes, from which each recording that
+    /// dispatches with `uniform` writes it again with its own addresses.
+    pub(crate) params: FrameUniform,
     /// Address of the scene's means, to check the backward pass gets the same scene.
     pub(crate) scene_means: u64,
     /// Gaussians in the scene.
@@ -552,7 +685,9 @@ fn camera_frame(camera: &Camera, frame: &mut FrameUniform) -> Result<()> {
     let r = camera.rotation;
     let w = r.transpose();
     let t = -(w * camera.position);
-    for (row, col) in frame.rot.iter_mut().zip([r.x_axis, r.y_axis, r.z_axis]) {
+    for (row, col) in
+        [&mut frame.rot0, &mut frame.rot1, &mut frame.rot2].into_iter().zip([r.x_axis, r.y_axis, r.z_axis])
+    {
         *row = [col.x, col.y, col.z, 0.0];
     }
     let (kind, k, limits) = match camera.projection {
@@ -803,48 +938,26 @@ impl Splatter {
             .transpose()?;
         let tile_counts = device.create_buffer("tile counts", (n + 1) * 4, MemoryKind::Storage)?;
         let ranges = device.create_buffer("tile ranges", tiles * 8, MemoryKind::Storage)?;
-        frame.scene = [
-            [scene.means.device_address(), scene.log_scales.device_address()],
-            [scene.rotations.device_address(), scene.opacity_logits.device_address()],
-            [scene.sh.device_address(), address(&scene.normals)],
-            [address(&scene.albedo), address(&scene.roughness)],
-            [address(&scene.metallic), address(&scene.ao)],
-            [address(&scene.visibility), splats.device_address()],
-        ];
-        frame.work = [
-            [address(&feature_buf), tile_counts.device_address()],
-            [0, 0],
-            [ranges.device_address(), address(&out.rgb)],
-            [0, 0],
-        ];
-        frame.out = [
-            [out.alpha.device_address(), address(&out.depth)],
-            [address(&out.median_depth), address(&out.normal)],
-            [address(&out.albedo), address(&out.roughness)],
-            [address(&out.metallic), address(&out.ao)],
-            [address(&out.visibility), 0],
-        ];
-        let uniform = device.upload("splat frame", bytemuck::bytes_of(&frame))?;
+        let uniform =
+            device.create_buffer("splat frame", std::mem::size_of::<FrameUniform>() as u64, MemoryKind::Storage)?;
         self.scan.reserve(&device, n + 1)?;
 
         // Phase 1: preprocess and scan the tile counts; the total sizes phase 2.
-        let scene_buffers: Vec<&Buffer> =
-            [&scene.means, &scene.log_scales, &scene.rotations, &scene.opacity_logits, &scene.sh]
-                .into_iter()
-                .chain(
-                    [&scene.normals, &scene.albedo, &scene.roughness, &scene.metallic, &scene.ao, &scene.visibility]
-                        .into_iter()
-                        .flatten(),
-                )
-                .collect();
         let preprocess = &self.preprocess[&preprocess_key];
         let scan = &self.scan;
-        let mut timings = device.run(|rec| {
-            rec.keep(&scene_buffers)?;
-            rec.keep(&[&splats, &tile_counts])?;
-            if let Some(fb) = &feature_buf {
-                rec.keep(&[fb])?;
-            }
+        let mut timings = device.run(|rec| -> Result<()> {
+            let buffers = FrameBuffers {
+                scene,
+                splats: &splats,
+                features: feature_buf.as_ref(),
+                tile_counts: &tile_counts,
+                keys: None,
+                values: None,
+                pair_tiles: None,
+                ranges: &ranges,
+                out: &out,
+            };
+            frame.record(rec, &uniform, &buffers)?;
             rec.begin_stage("preprocess");
             rec.fill(&tile_counts, 0)?;
             if texel_preprocess {
@@ -872,9 +985,6 @@ impl Splatter {
         let pair_tiles = device.create_buffer("pair tiles", pairs * 4, MemoryKind::Storage)?;
         self.sort.reserve(&device, pairs)?;
         frame.counts[3] = pairs as u32;
-        frame.work[1] = [keys.device_address(), values.device_address()];
-        frame.work[3] = [pair_tiles.device_address(), 0];
-        device.write_buffer(&uniform, 0, bytemuck::bytes_of(&frame))?;
         // Tile ids 0..=tiles: `tiles` marks the keys kernel's padding (splat_keys.comp).
         let key_bits = 32 + (64 - tiles.leading_zeros());
         if let std::collections::hash_map::Entry::Vacant(e) = self.keys.entry((tile, bounds)) {
@@ -908,11 +1018,18 @@ impl Splatter {
             )
             .collect();
         let phase2 = device.run(|rec| -> Result<()> {
-            rec.keep(&[&splats, &tile_counts, &keys, &values, &pair_tiles, &ranges])?;
-            rec.keep(&outputs)?;
-            if let Some(fb) = &feature_buf {
-                rec.keep(&[fb])?;
-            }
+            let buffers = FrameBuffers {
+                scene,
+                splats: &splats,
+                features: feature_buf.as_ref(),
+                tile_counts: &tile_counts,
+                keys: Some(&keys),
+                values: Some(&values),
+                pair_tiles: Some(&pair_tiles),
+                ranges: &ranges,
+                out: &out,
+            };
+            frame.record(rec, &uniform, &buffers)?;
             if let Some(word) = settings.prefill {
                 for b in &outputs {
                     rec.fill(b, word)?;
@@ -979,9 +1096,26 @@ impl Splatter {
             ranges,
             features: feature_buf,
             uniform,
+            params: frame,
             scene_means: scene.means.device_address(),
             gaussians: n,
             tile,
         })
+    }
+}
+
+#[cfg(test)]
+mod layout_tests {
+    use super::backward::BackwardUniform;
+    use super::FrameUniform;
+    use crate::gpu::{check_layout, kernels};
+
+    /// The host structs match the GLSL blocks of every kernel that declares them.
+    #[test]
+    fn uniform_layouts_match_glsl() {
+        let frame = check_layout::<FrameUniform>(kernels::ALL);
+        assert!(frame.as_ref().is_ok_and(|n| *n >= 6), "{frame:?}");
+        let backward = check_layout::<BackwardUniform>(kernels::ALL);
+        assert!(backward.as_ref().is_ok_and(|n| *n == 2), "{backward:?}");
     }
 }

@@ -9,7 +9,7 @@
 #define SCAN_ITEMS 32
 
 // Keep in sync with engine/src/splat/scan.rs `ScanPush`.
-layout(push_constant) uniform Push {
+layout(push_constant) uniform ScanPush {
     uvec2 data;  // uint[count], scanned in place
     uvec2 sums;  // uint[ceil(count / SCAN_ITEMS)], one per invocation
     uint count;

@@ -5,7 +5,7 @@
 #include "address.glsl"
 #include "latlong.glsl"
 
-// Keep in sync with engine/src/shade/mod.rs `ShadeUniform` (std140: vec4/uvec4 only).
+// Host mirror: engine/src/shade/mod.rs `ShadeUniform` (its layout is checked against this block).
 layout(std140, set = 0, binding = 0) uniform Shade {
     vec4 cam_rot0;      // camera-to-world rotation, rows
     vec4 cam_rot1;
@@ -20,14 +20,22 @@ layout(std140, set = 0, binding = 0) uniform Shade {
     vec4 background;    // rgb; w: 1 shows the environment instead
     vec4 display;       // exposure multiplier, tone map (0 clamp, 1 Reinhard, 2 ACES), unused, unused
     uvec4 modes;        // visibility (0 none, 1 fixed, 2 editable), unused...
-    uvec4 addr0;        // normal, albedo
-    uvec4 addr1;        // roughness, metallic (0: 1 and 0)
-    uvec4 addr2;        // ao, fixed visibility (0: 1)
-    uvec4 addr3;        // editable visibility, alpha
-    uvec4 addr4;        // specular chain, irradiance
-    uvec4 addr5;        // BRDF table, L_sun
-    uvec4 addr6;        // L_sky, L_ind (planar RGB; 0: none)
-    uvec4 addr7;        // radiance out, display out
+    uvec2 normal;               // G-buffer inputs by device address (low, high)
+    uvec2 albedo;
+    uvec2 roughness;            // 0: 1
+    uvec2 metallic;             // 0: 0
+    uvec2 ao;                   // 0: 1
+    uvec2 fixed_visibility;     // 0: 1
+    uvec2 editable_visibility;  // the shadow test's V_e
+    uvec2 alpha;
+    uvec2 specular;             // prefiltered specular chain
+    uvec2 irradiance;
+    uvec2 brdf;                 // BRDF table
+    uvec2 l_sun;                // L_sun (written by shade_lights, read by shade_compose)
+    uvec2 l_sky;
+    uvec2 l_ind;                // planar RGB; 0: none
+    uvec2 out_radiance;
+    uvec2 out_display;
 } shade;
 
 bool has(uvec2 a) { return a != uvec2(0u); }

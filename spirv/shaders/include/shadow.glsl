@@ -4,7 +4,7 @@
 #define SRUG_SHADOW_GLSL
 #include "address.glsl"
 
-// Keep in sync with engine/src/shadow/mod.rs `ShadowUniform` (std140: vec4/uvec4 only).
+// Host mirror: engine/src/shadow/mod.rs `ShadowUniform` (its layout is checked against this block).
 layout(std140, set = 0, binding = 0) uniform Shadow {
     vec4 cam_rot0;     // camera-to-world rotation, rows
     vec4 cam_rot1;
@@ -19,11 +19,16 @@ layout(std140, set = 0, binding = 0) uniform Shadow {
     uvec4 size;        // camera width, height, map width, height
     vec4 params;       // k, bias, minimum alpha of a surface, depth of an empty texel
     uvec4 modes;       // map depth (0 expected, 1 median, 2 expected over far), receiver depth (0, 1), map tiles across, map tile edge
-    uvec4 addr0;       // receiver depth, receiver alpha
-    uvec4 addr1;       // map depth, map alpha
-    uvec4 addr2;       // visibility out, dL/dV in
-    uvec4 addr3;       // splats, sorted gaussians (traced)
-    uvec4 addr4;       // ranges (traced), gradient out
+    uvec2 receiver_depth;     // by device address (low, high)
+    uvec2 receiver_alpha;
+    uvec2 map_depth;
+    uvec2 map_alpha;
+    uvec2 visibility;         // out; 0 in the backward pass
+    uvec2 unused0;
+    uvec2 splats;             // the map's splats and sorted pairs (traced test)
+    uvec2 sorted_gaussians;
+    uvec2 ranges;
+    uvec2 unused1;
 } shadow;
 
 // Depth of one pixel of a G-buffer: expected (Σwz / alpha) or median; false
@@ -42,7 +47,7 @@ bool resolve_depth(uint mode, uvec2 depth_addr, uvec2 alpha_addr, uint p, out fl
 bool receiver_point(uint p, out vec3 world) {
     float z;
     world = vec3(0.0);
-    if (!resolve_depth(shadow.modes.y, shadow.addr0.xy, shadow.addr0.zw, p, z)) return false;
+    if (!resolve_depth(shadow.modes.y, shadow.receiver_depth, shadow.receiver_alpha, p, z)) return false;
     uint w = shadow.size.x;
     vec2 px = vec2(float(p % w), float(p / w)) + 0.5;
     vec4 k = shadow.cam_intr;
@@ -67,10 +72,10 @@ float texel_depth(ivec2 t) {
     uint i = uint(t.y) * shadow.size.z + uint(t.x);
     float far = shadow.params.w;
     if (shadow.modes.x == 2u) {
-        return FloatsIn(shadow.addr1.xy).v[i] + (1.0 - FloatsIn(shadow.addr1.zw).v[i]) * far;
+        return FloatsIn(shadow.map_depth).v[i] + (1.0 - FloatsIn(shadow.map_alpha).v[i]) * far;
     }
     float z;
-    return resolve_depth(shadow.modes.x, shadow.addr1.xy, shadow.addr1.zw, i, z) ? z : far;
+    return resolve_depth(shadow.modes.x, shadow.map_depth, shadow.map_alpha, i, z) ? z : far;
 }
 
 // Bilinear footprint of light coordinates uv: the four texels (clamped to the

@@ -3,15 +3,22 @@
 #ifndef SRUG_SHADOW_BACKWARD_GLSL
 #define SRUG_SHADOW_BACKWARD_GLSL
 
-// Keep in sync with engine/src/shadow/backward.rs `ShadowBackwardUniform` (std140: uvec4 only).
+// Host mirror: engine/src/shadow/backward.rs `ShadowBackwardUniform` (its layout is checked against this block).
 layout(std140, set = 0, binding = 1) uniform ShadowBackward {
-    uvec4 b0;      // dL/dV in (or the BCE target V_f), per-pixel loss out
-    uvec4 b1;      // per-pixel dL/dk out, dL/dz (light depth) out
-    uvec4 b2;      // dL/d receiver depth channel out (Σwz or median), dL/d receiver alpha out
-    uvec4 b3;      // bin keys (uvec2) out, bin values (pixel) out
-    uvec4 b4;      // per-pixel (u, v, dL/dz_s, 0) out, per-texel bin ranges
-    uvec4 b5;      // dL/dz_s per texel out, dL/d map depth channel out (Σwz or median)
-    uvec4 b6;      // dL/d map alpha out, receiver count (uint)
+    uvec2 upstream;          // dL/dV in (or the BCE target V_f)
+    uvec2 loss;              // per-pixel loss out
+    uvec2 dk;                // per-pixel dL/dk out
+    uvec2 light_depth;       // dL/dz (light depth) out
+    uvec2 d_receiver_depth;  // dL/d receiver depth channel out (Σwz or median)
+    uvec2 d_receiver_alpha;  // dL/d receiver alpha out
+    uvec2 bin_keys;          // bin keys (uvec2) out
+    uvec2 bin_pixels;        // bin values (pixel) out
+    uvec2 records;           // per-pixel (u, v, dL/dz_s, 0) out
+    uvec2 bin_ranges;        // per-texel bin ranges
+    uvec2 texel_depth;       // dL/dz_s per texel out
+    uvec2 d_map_depth;       // dL/d map depth channel out (Σwz or median)
+    uvec2 d_map_alpha;       // dL/d map alpha out
+    uvec2 receiver_count;    // uint
     uvec4 counts;  // pixels, texels, bin key of "no texel", pairs (sorted)
 } sbw;
 

@@ -23,7 +23,7 @@
 #define RADIX 16
 
 // Keep in sync with engine/src/splat/sort.rs `SortPush`.
-layout(push_constant) uniform Push {
+layout(push_constant) uniform SortPush {
     uvec2 keys_in;    // uvec2[count] (low, high)
     uvec2 values_in;  // uint[count]
     uvec2 keys_out;

@@ -4,7 +4,7 @@
 #include "address.glsl"
 #include "splat_types.glsl"
 
-// Keep in sync with engine/src/splat/mod.rs `FrameUniform` (std140: vec4/uvec4 only).
+// Host mirror: engine/src/splat/mod.rs `FrameUniform` (its layout is checked against this block).
 layout(std140, set = 0, binding = 0) uniform Frame {
     vec4 rot0;         // world-to-camera rotation, rows
     vec4 rot1;
@@ -17,21 +17,36 @@ layout(std140, set = 0, binding = 0) uniform Frame {
     vec4 background;   // rgb
     uvec4 size;        // width, height, tiles_x, tiles_y
     uvec4 counts;      // gaussians, SH degree stored | used << 8, normal_source (0 shortest axis, 1 stored), pairs
-    uvec4 scene0;      // means, log_scales
-    uvec4 scene1;      // rotations, opacity_logits
-    uvec4 scene2;      // sh, normals
-    uvec4 scene3;      // albedo, roughness
-    uvec4 scene4;      // metallic, ao
-    uvec4 scene5;      // visibility, splats
-    uvec4 work0;       // features, tile_counts (offsets after the scan)
-    uvec4 work1;       // keys, values
-    uvec4 work2;       // ranges, rgb
-    uvec4 work3;       // pair tiles (tile id of each unsorted pair), unused
-    uvec4 out0;        // alpha, depth
-    uvec4 out1;        // median_depth, normal
-    uvec4 out2;        // albedo, roughness
-    uvec4 out3;        // metallic, ao
-    uvec4 out4;        // visibility, unused
+    uvec2 means;            // scene inputs, by device address (low, high)
+    uvec2 log_scales;
+    uvec2 rotations;
+    uvec2 opacity_logits;
+    uvec2 sh;
+    uvec2 normals;          // 0 when the scene has none
+    uvec2 albedo;
+    uvec2 roughness;
+    uvec2 metallic;
+    uvec2 ao;
+    uvec2 visibility;
+    uvec2 splats;           // working buffers
+    uvec2 features;
+    uvec2 tile_counts;      // offsets after the scan
+    uvec2 keys;
+    uvec2 values;
+    uvec2 ranges;
+    uvec2 g_rgb;            // G-buffer outputs; 0 where a channel is not kept
+    uvec2 pair_tiles;       // tile id of each unsorted pair
+    uvec2 unused0;
+    uvec2 g_alpha;
+    uvec2 g_depth;
+    uvec2 g_median_depth;
+    uvec2 g_normal;
+    uvec2 g_albedo;
+    uvec2 g_roughness;
+    uvec2 g_metallic;
+    uvec2 g_ao;
+    uvec2 g_visibility;
+    uvec2 unused1;
 } frame;
 
 // The per-splat part of `tile_row_span`, computed once per splat: r² (≤ 0:

@@ -14,17 +14,27 @@ const bool GRAD_FEATURES = (GRADS & 252u) != 0u;
 const uint STRIDE = 8u + (GRAD_RGB ? 4u : 0u) + (GRAD_FEATURES ? 12u : 0u);
 const uint MAX_STRIDE = 24u;
 
-// Keep in sync with engine/src/splat/backward.rs `BackwardUniform` (std140: uvec4 only).
+// Host mirror: engine/src/splat/backward.rs `BackwardUniform` (its layout is checked against this block).
+// Addresses (low, high); 0 where a gradient is not given.
 layout(std140, set = 0, binding = 1) uniform Backward {
-    uvec4 in0;     // dL/d rgb, dL/d alpha
-    uvec4 in1;     // dL/d depth, dL/d median depth
-    uvec4 in2;     // dL/d normal, dL/d albedo
-    uvec4 in3;     // dL/d roughness, dL/d metallic
-    uvec4 in4;     // dL/d ao, dL/d visibility
-    uvec4 pairs;   // per-(tile, splat) records, unused
-    uvec4 out0;    // dL/d means, dL/d log-scales
-    uvec4 out1;    // dL/d rotations, dL/d opacity logits
-    uvec4 out2;    // dL/d values (16 floats per Gaussian: rgb, 0, ten features, 0, 0), unused
+    uvec2 d_rgb;             // per-pixel gradients in
+    uvec2 d_alpha;
+    uvec2 d_depth;
+    uvec2 d_median_depth;
+    uvec2 d_normal;
+    uvec2 d_albedo;
+    uvec2 d_roughness;
+    uvec2 d_metallic;
+    uvec2 d_ao;
+    uvec2 d_visibility;
+    uvec2 pairs;             // per-(tile, splat) records
+    uvec2 unused0;
+    uvec2 d_means;           // per-Gaussian gradients out
+    uvec2 d_log_scales;
+    uvec2 d_rotations;
+    uvec2 d_opacity_logits;
+    uvec2 d_values;          // 16 floats per Gaussian: rgb, 0, ten features, 0, 0
+    uvec2 unused1;
 } bwd;
 
 #endif

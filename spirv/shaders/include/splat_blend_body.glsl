@@ -24,8 +24,8 @@ layout(set = 0, binding = 3) uniform usamplerBuffer value_texels;
 #define SPLAT_COLOR(g) texelFetch(splat_texels, int(4u * (g) + 2u)).rgb
 #define FEATURE(i) texelFetch(feature_texels, int(i))
 #else
-#define SPLAT_COLOR(g) Splats(frame.scene5.zw).v[g].color.rgb
-#define FEATURE(i) Features(frame.work0.xy).v[i]
+#define SPLAT_COLOR(g) Splats(frame.splats).v[g].color.rgb
+#define FEATURE(i) Features(frame.features).v[i]
 #endif
 
 // What one pixel has accumulated so far.
@@ -109,30 +109,30 @@ void store_pixel(uvec2 pix, Accumulated acc) {
     uint p = pix.y * frame.size.x + pix.x;
     if (RGB) {
         vec3 color = rgb + T * frame.background.rgb;
-        Floats out_rgb = Floats(frame.work2.zw);
+        Floats out_rgb = Floats(frame.g_rgb);
         out_rgb.v[3 * p] = color.r;
         out_rgb.v[3 * p + 1] = color.g;
         out_rgb.v[3 * p + 2] = color.b;
     }
-    Floats(frame.out0.xy).v[p] = 1.0 - T;
-    if ((CHANNELS & 1u) != 0u) Floats(frame.out0.zw).v[p] = depth;
-    if ((CHANNELS & 2u) != 0u) Floats(frame.out1.xy).v[p] = median;
+    Floats(frame.g_alpha).v[p] = 1.0 - T;
+    if ((CHANNELS & 1u) != 0u) Floats(frame.g_depth).v[p] = depth;
+    if ((CHANNELS & 2u) != 0u) Floats(frame.g_median_depth).v[p] = median;
     if ((CHANNELS & 4u) != 0u) {
-        Floats o = Floats(frame.out1.zw);
+        Floats o = Floats(frame.g_normal);
         o.v[3 * p] = normal.x;
         o.v[3 * p + 1] = normal.y;
         o.v[3 * p + 2] = normal.z;
     }
     if ((CHANNELS & 8u) != 0u) {
-        Floats o = Floats(frame.out2.xy);
+        Floats o = Floats(frame.g_albedo);
         o.v[3 * p] = albedo.r;
         o.v[3 * p + 1] = albedo.g;
         o.v[3 * p + 2] = albedo.b;
     }
-    if ((CHANNELS & 16u) != 0u) Floats(frame.out2.zw).v[p] = rough;
-    if ((CHANNELS & 32u) != 0u) Floats(frame.out3.xy).v[p] = metal;
-    if ((CHANNELS & 64u) != 0u) Floats(frame.out3.zw).v[p] = ao;
-    if ((CHANNELS & 128u) != 0u) Floats(frame.out4.xy).v[p] = vis;
+    if ((CHANNELS & 16u) != 0u) Floats(frame.g_roughness).v[p] = rough;
+    if ((CHANNELS & 32u) != 0u) Floats(frame.g_metallic).v[p] = metal;
+    if ((CHANNELS & 64u) != 0u) Floats(frame.g_ao).v[p] = ao;
+    if ((CHANNELS & 128u) != 0u) Floats(frame.g_visibility).v[p] = vis;
 }
 
 #ifdef TEXEL_SPLATS
@@ -147,7 +147,7 @@ void main() {
     uint tiles_x = frame.size.z;
     uvec2 base = uvec2(tile % tiles_x, tile / tiles_x) * TILE + gl_LocalInvocationID.xy;
     const uint STEP = TILE / PIXELS;
-    uvec2 range = Uvec2s(frame.work2.xy).v[tile];
+    uvec2 range = Uvec2s(frame.ranges).v[tile];
     Accumulated acc[PIXELS];
     bool live[PIXELS];
     bool any_live = false;
@@ -194,9 +194,9 @@ void main() {
     uvec2 pix = uvec2(tile % tiles_x, tile / tiles_x) * TILE + gl_LocalInvocationID.xy;
     bool inside = pix.x < frame.size.x && pix.y < frame.size.y;
     vec2 centre = vec2(pix) + 0.5;
-    uvec2 range = Uvec2s(frame.work2.xy).v[tile];
-    Uints values = Uints(frame.work1.zw);
-    Splats splats = Splats(frame.scene5.zw);
+    uvec2 range = Uvec2s(frame.ranges).v[tile];
+    Uints values = Uints(frame.values);
+    Splats splats = Splats(frame.splats);
     Accumulated acc = Accumulated(1.0, vec3(0.0), 0.0, 0.0, vec3(0.0), vec3(0.0), 0.0, 0.0, 0.0, 0.0);
 
 #ifdef SHARED_BATCHES

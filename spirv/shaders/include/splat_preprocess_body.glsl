@@ -23,11 +23,11 @@ layout(set = 0, binding = 5) uniform samplerBuffer sh_texels;
 #define OPACITY_LOGIT(k) texelFetch(opacity_texels, int(k)).x
 #define SH(k) texelFetch(sh_texels, int(k)).x
 #else
-#define MEAN(k) FloatsIn(frame.scene0.xy).v[k]
-#define LOG_SCALE(k) FloatsIn(frame.scene0.zw).v[k]
-#define ROTATION(k) FloatsIn(frame.scene1.xy).v[k]
-#define OPACITY_LOGIT(k) FloatsIn(frame.scene1.zw).v[k]
-#define SH(k) FloatsIn(frame.scene2.xy).v[k]
+#define MEAN(k) FloatsIn(frame.means).v[k]
+#define LOG_SCALE(k) FloatsIn(frame.log_scales).v[k]
+#define ROTATION(k) FloatsIn(frame.rotations).v[k]
+#define OPACITY_LOGIT(k) FloatsIn(frame.opacity_logits).v[k]
+#define SH(k) FloatsIn(frame.sh).v[k]
 #endif
 
 layout(constant_id = 0) const bool WRITE_FEATURES = false;
@@ -45,8 +45,8 @@ float sigmoid(float x) {
 bool finite(float x) { return !isnan(x) && !isinf(x); }
 
 void cull(uint i) {
-    Uints(frame.work0.zw).v[i] = 0u;
-    Splats(frame.scene5.zw).v[i].rect = uvec4(0u);
+    Uints(frame.tile_counts).v[i] = 0u;
+    Splats(frame.splats).v[i].rect = uvec4(0u);
 }
 
 void main() {
@@ -127,14 +127,14 @@ void main() {
     }
     color = max(color + 0.5, vec3(0.0));
 
-    Splats(frame.scene5.zw).v[i] = Splat(head, vec4(conic, radius), vec4(color, 0.0), rect);
-    Uints(frame.work0.zw).v[i] = count;
+    Splats(frame.splats).v[i] = Splat(head, vec4(conic, radius), vec4(color, 0.0), rect);
+    Uints(frame.tile_counts).v[i] = count;
 
     if (WRITE_FEATURES) {
         // Normal: the stored one when asked for and non-zero, else the shortest axis; toward the camera.
         vec3 n = vec3(0.0);
-        if (frame.counts.z == 1u && frame.scene2.z + frame.scene2.w != 0u) {
-            FloatsIn nb = FloatsIn(frame.scene2.zw);
+        if (frame.counts.z == 1u && frame.normals.x + frame.normals.y != 0u) {
+            FloatsIn nb = FloatsIn(frame.normals);
             n = vec3(nb.v[3 * i], nb.v[3 * i + 1], nb.v[3 * i + 2]);
         }
         if (dot(n, n) == 0.0) {
@@ -145,15 +145,15 @@ void main() {
         if (dot(n, toward) < 0.0) n = -n;
         vec3 albedo = vec3(0.0);
         float rough = 0.0, metal = 0.0, ao = 0.0, vis = 0.0;
-        if (frame.scene3.x + frame.scene3.y != 0u) {
-            FloatsIn al = FloatsIn(frame.scene3.xy);
+        if (frame.albedo.x + frame.albedo.y != 0u) {
+            FloatsIn al = FloatsIn(frame.albedo);
             albedo = vec3(sigmoid(al.v[3 * i]), sigmoid(al.v[3 * i + 1]), sigmoid(al.v[3 * i + 2]));
         }
-        if (frame.scene3.z + frame.scene3.w != 0u) rough = sigmoid(FloatsIn(frame.scene3.zw).v[i]);
-        if (frame.scene4.x + frame.scene4.y != 0u) metal = sigmoid(FloatsIn(frame.scene4.xy).v[i]);
-        if (frame.scene4.z + frame.scene4.w != 0u) ao = sigmoid(FloatsIn(frame.scene4.zw).v[i]);
-        if (frame.scene5.x + frame.scene5.y != 0u) vis = sigmoid(FloatsIn(frame.scene5.xy).v[i]);
-        Features f = Features(frame.work0.xy);
+        if (frame.roughness.x + frame.roughness.y != 0u) rough = sigmoid(FloatsIn(frame.roughness).v[i]);
+        if (frame.metallic.x + frame.metallic.y != 0u) metal = sigmoid(FloatsIn(frame.metallic).v[i]);
+        if (frame.ao.x + frame.ao.y != 0u) ao = sigmoid(FloatsIn(frame.ao).v[i]);
+        if (frame.visibility.x + frame.visibility.y != 0u) vis = sigmoid(FloatsIn(frame.visibility).v[i]);
+        Features f = Features(frame.features);
         f.v[3 * i] = vec4(n, rough);
         f.v[3 * i + 1] = vec4(albedo, metal);
         f.v[3 * i + 2] = vec4(ao, vis, 0.0, 0.0);
