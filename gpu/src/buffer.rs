@@ -43,7 +43,11 @@ pub struct Buffer {
     name: String,
     address: u64,
     kind: MemoryKind,
+    id: u64,
 }
+
+/// Source of [`Buffer::id`]s: unique for the life of the process.
+static NEXT_BUFFER_ID: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(1);
 
 impl std::fmt::Debug for Buffer {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
@@ -62,9 +66,17 @@ impl Buffer {
         &self.name
     }
 
-    /// Device address for `buffer_reference` access (0 for non-storage buffers).
-    pub fn device_address(&self) -> u64 {
+    /// Device address for `buffer_reference` access (0 for non-storage
+    /// buffers). Outside this crate an address comes only from
+    /// [`Recording::addr`](crate::Recording::addr), which keeps the buffer alive.
+    pub(crate) fn device_address(&self) -> u64 {
         self.address
+    }
+
+    /// A number no other buffer of this process has had: tells buffers apart
+    /// (the scene a frame was rendered from) without exposing their addresses.
+    pub fn id(&self) -> u64 {
+        self.id
     }
 
     /// The memory kind.
@@ -158,6 +170,7 @@ impl Device {
             name: name.to_string(),
             address,
             kind,
+            id: NEXT_BUFFER_ID.fetch_add(1, Ordering::Relaxed),
         })
     }
 

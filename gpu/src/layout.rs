@@ -28,6 +28,10 @@ impl DeviceAddress {
         Self(address)
     }
 
+    pub(crate) fn offset(self, bytes: u64) -> Self {
+        Self(self.0 + bytes)
+    }
+
     /// Whether this is [`DeviceAddress::NULL`].
     pub fn is_null(self) -> bool {
         self.0 == 0

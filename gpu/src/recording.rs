@@ -576,6 +576,19 @@ impl<'a> Recording<'a> {
         Ok(DeviceAddress::new(buffer.device_address()))
     }
 
+    /// The device address `offset` bytes into `buffer` (a level of a mip chain
+    /// packed in one buffer), borrowed as [`Recording::addr`] borrows.
+    pub fn addr_at(&mut self, buffer: &'a Buffer, offset: u64) -> Result<DeviceAddress> {
+        let base = self.addr(buffer)?;
+        if offset >= buffer.size() {
+            return Err(Error::invalid(
+                format!("buffer {} ({} bytes)", buffer.name(), buffer.size()),
+                format!("offset {offset} is past its end"),
+            ));
+        }
+        Ok(base.offset(offset))
+    }
+
     /// [`Recording::addr`] of an optional buffer; [`DeviceAddress::NULL`] for none.
     pub fn addr_or_null(&mut self, buffer: Option<&'a Buffer>) -> Result<DeviceAddress> {
         buffer.map_or(Ok(DeviceAddress::NULL), |b| self.addr(b))
@@ -604,13 +617,6 @@ impl<'a> Recording<'a> {
         // SAFETY: recording state; in-bounds, 4-aligned update of a live TRANSFER_DST buffer of this device.
         unsafe { self.device.shared.device.cmd_update_buffer(self.cmd, buffer.raw, offset, bytes) };
         Ok(())
-    }
-
-    /// Keeps buffers that kernels reach by device address borrowed until
-    /// submission, so they cannot be dropped while the commands still refer to
-    /// them (descriptor-bound buffers are kept by [`Recording::dispatch`] itself).
-    pub fn keep(&mut self, buffers: &[&'a Buffer]) -> Result<()> {
-        buffers.iter().try_for_each(|b| self.check_device(b))
     }
 
     /// Dispatches `groups` workgroups laid out as a 2D grid (x first); shaders

@@ -15,7 +15,7 @@
 layout(constant_id = 0) const uint PIXELS = 4u;
 
 // Keep in sync with engine/src/bench.rs `BlendCeilingPush`.
-layout(push_constant) uniform Push {
+layout(push_constant) uniform BlendCeilingPush {
     uvec2 out_addr;  // one float per invocation: Σ over its pixels of T + r + g + b
     uint splats;     // splats every pixel blends (at most 1024 keep T above 1e-4)
     uint count;      // invocations

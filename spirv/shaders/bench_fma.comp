@@ -7,7 +7,7 @@
 #include "address.glsl"
 
 // Keep in sync with engine/src/bench.rs `FmaPush`.
-layout(push_constant) uniform Push {
+layout(push_constant) uniform FmaPush {
     uvec2 out_addr;
     uint iterations;
     uint count;

@@ -21,7 +21,7 @@ layout(constant_id = 0) const uint WORDS = 3u;
 layout(constant_id = 1) const bool SCATTER = false;
 
 // Keep in sync with engine/src/bench.rs `PairMovePush`.
-layout(push_constant) uniform Push {
+layout(push_constant) uniform PairMovePush {
     uvec2 keys_out;    // uvec2[count]
     uvec2 values_out;  // uint[count]; with WORDS 0, one checksum per invocation
     uint count;

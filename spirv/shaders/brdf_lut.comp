@@ -13,7 +13,7 @@
 layout(constant_id = 0) const uint VARIANT = 0;
 
 // Keep in sync with engine/src/shade/env.rs `LutPush`.
-layout(push_constant) uniform Push {
+layout(push_constant) uniform LutPush {
     uvec2 dst;      // vec2 per texel
     uint size;
     uint samples;

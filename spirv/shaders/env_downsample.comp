@@ -8,7 +8,7 @@
 #include "latlong.glsl"
 
 // Keep in sync with engine/src/shade/env.rs `DownsamplePush`.
-layout(push_constant) uniform Push {
+layout(push_constant) uniform DownsamplePush {
     uvec2 src;      // source level (address of its first texel)
     uvec2 dst;      // output level
     uvec2 src_size;

@@ -8,7 +8,7 @@
 #include "latlong.glsl"
 
 // Keep in sync with engine/src/shade/env.rs `IrradiancePush`.
-layout(push_constant) uniform Push {
+layout(push_constant) uniform DownsamplePush {
     uvec2 src;       // source level
     uvec2 dst;       // irradiance map
     uvec2 src_size;

@@ -10,7 +10,7 @@
 #include "latlong.glsl"
 
 // Keep in sync with engine/src/shade/env.rs `PrefilterPush`.
-layout(push_constant) uniform Push {
+layout(push_constant) uniform PrefilterPush {
     uvec2 pyramid;   // source pyramid (level 0 first)
     uvec2 dst;       // output level
     uvec2 base;      // pyramid level-0 size

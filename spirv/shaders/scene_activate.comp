@@ -9,7 +9,7 @@
 
 
 // Keep in sync with engine/src/scene/activate.rs `ActivatePush`.
-layout(push_constant) uniform Push {
+layout(push_constant) uniform ActivatePush {
     uvec2 log_scales;      // float[3N]
     uvec2 rotations;       // float[4N], w x y z, not normalized
     uvec2 opacity_logits;  // float[N]

@@ -8,7 +8,7 @@
 #include "address.glsl"
 
 // Keep in sync with engine/src/indirect/mod.rs `PackPush`.
-layout(push_constant) uniform Push {
+layout(push_constant) uniform PackPush {
     uvec2 normal;     // Σw·n, 3 per pixel
     uvec2 albedo;     // Σw·a, 3 per pixel
     uvec2 roughness;  // Σw·r (0: 1)

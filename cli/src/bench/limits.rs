@@ -23,21 +23,22 @@ use bytemuck::{Pod, Zeroable};
 use super::{BLEND_FLOPS_PER_CONTRIBUTION, BLEND_FLOPS_PER_EVALUATION};
 use srug::error::{Error, Result};
 use srug::gpu::{
-    kernels, Binding, BindingKind, Buffer, Device, Kernel, KernelDecl, MemoryKind, SpecValue, TexelFormat, Texels,
+    kernels, Binding, BindingKind, Buffer, Device, DeviceAddress, Kernel, KernelDecl, MemoryKind, SpecValue,
+    TexelFormat, Texels,
 };
 
 /// Push constants of `bench_blend_ceiling.comp` (keep in sync with its `Push` block).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
 pub struct BlendCeilingPush {
-    /// Address of the output floats (one per invocation).
-    pub out: u64,
+    /// The output floats (one per invocation).
+    pub out_addr: DeviceAddress,
     /// Splats every pixel blends.
     pub splats: u32,
     /// Invocations.
     pub count: u32,
 }
-const _: () = assert!(std::mem::size_of::<BlendCeilingPush>() == 16);
+srug::gpu::gpu_layout!(BlendCeilingPush, "BlendCeilingPush", [out_addr, splats, count]);
 
 /// Flops each evaluation of the ceiling probe counts: all of them contribute.
 pub const BLEND_CEILING_FLOPS: u64 = BLEND_FLOPS_PER_EVALUATION + BLEND_FLOPS_PER_CONTRIBUTION;
@@ -81,9 +82,8 @@ pub fn blend_ceiling_run(device: &Device, pixels: u32, count: u32, splats: u32) 
     let out = device.create_buffer("blend ceiling sums", u64::from(count.max(1)) * 4, MemoryKind::Storage)?;
     let mut seconds = f64::NAN;
     if count > 0 {
-        let push = BlendCeilingPush { out: out.device_address(), splats, count };
         let t = device.run(|rec| {
-            rec.keep(&[&out])?;
+            let push = BlendCeilingPush { out_addr: rec.addr(&out)?, splats, count };
             rec.fill(&out, f32::NAN.to_bits())?;
             rec.begin_stage("blend ceiling");
             rec.dispatch_1d(&kernel, &[], &push, u64::from(count))
@@ -174,16 +174,16 @@ pub fn blend_ceiling(device: &Device, repeats: usize) -> Result<BlendCeiling> {
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
 pub struct PairMovePush {
-    /// Address of the output keys.
-    pub keys_out: u64,
-    /// Address of the output values (checksums with [`PairWrites::None`]).
-    pub values_out: u64,
+    /// The output keys.
+    pub keys_out: DeviceAddress,
+    /// The output values (checksums with [`PairWrites::None`]).
+    pub values_out: DeviceAddress,
     /// Pairs.
     pub count: u32,
     /// Workgroups.
     pub blocks: u32,
 }
-const _: () = assert!(std::mem::size_of::<PairMovePush>() == 24);
+srug::gpu::gpu_layout!(PairMovePush, "PairMovePush", [keys_out, values_out, count, blocks]);
 
 /// Pairs each invocation of `bench_pair_move.comp` owns (keep in sync with its `ITEMS`).
 pub const PAIR_MOVE_ITEMS: u64 = 64;
@@ -261,19 +261,18 @@ pub fn pair_move_run(
         },
     )?;
     let blocks = count.div_ceil(PAIR_MOVE_BLOCK);
-    let push = PairMovePush {
-        keys_out: keys_out.device_address(),
-        values_out: values_out.device_address(),
-        count: count as u32,
-        blocks: blocks as u32,
-    };
     let views = [
         Binding::Texels(Texels { buffer: keys, offset: 0, elements: count, format: TexelFormat::Rg32Uint }),
         Binding::Texels(Texels { buffer: values, offset: 0, elements: count, format: TexelFormat::R32Uint }),
         Binding::Texels(Texels { buffer: dest, offset: 0, elements: count, format: TexelFormat::R32Uint }),
     ];
     let t = device.run(|rec| {
-        rec.keep(&[keys_out, values_out])?;
+        let push = PairMovePush {
+            keys_out: rec.addr(keys_out)?,
+            values_out: rec.addr(values_out)?,
+            count: count as u32,
+            blocks: blocks as u32,
+        };
         rec.begin_stage("pair move");
         rec.dispatch_groups_bound(&kernel, &views, &push, blocks)
     })?;
@@ -437,4 +436,19 @@ pub fn random_permutation(n: u32, seed: u64) -> Vec<u32> {
         p.swap(i, (state % (i as u64 + 1)) as usize);
     }
     p
+}
+
+#[cfg(test)]
+mod layout_tests {
+    use super::{BlendCeilingPush, PairMovePush};
+    use crate::bench::FmaPush;
+    use srug::gpu::{check_layout, kernels};
+
+    /// The probes' push-constant structs match their kernels' GLSL blocks.
+    #[test]
+    fn push_layouts_match_glsl() {
+        assert_eq!(check_layout::<BlendCeilingPush>(&[&kernels::BENCH_BLEND_CEILING]), Ok(1));
+        assert_eq!(check_layout::<PairMovePush>(&[&kernels::BENCH_PAIR_MOVE]), Ok(1));
+        assert_eq!(check_layout::<FmaPush>(&[&kernels::BENCH_FMA]), Ok(1));
+    }
 }

@@ -15,7 +15,7 @@ use std::time::Instant;
 use bytemuck::{Pod, Zeroable};
 
 use srug::error::Result;
-use srug::gpu::{kernels, Device, Kernel, KernelDecl, MemoryKind};
+use srug::gpu::{kernels, Device, DeviceAddress, Kernel, KernelDecl, MemoryKind};
 use srug::primitives::sort::RadixSort;
 use srug::scene::activate::GpuScene;
 use srug::scene::demo::{demo_city, DemoOptions};
@@ -25,13 +25,14 @@ use srug::splat::{BlendVariant, SplatSettings, Splatter, TileBounds};
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
 pub struct FmaPush {
-    /// Address of the output floats.
-    pub out: u64,
+    /// The output floats.
+    pub out_addr: DeviceAddress,
     /// Loop iterations per invocation.
     pub iterations: u32,
     /// Invocations.
     pub count: u32,
 }
+srug::gpu::gpu_layout!(FmaPush, "FmaPush", [out_addr, iterations, count]);
 
 /// Measures the device's FMA throughput in GFLOP/s (best of `repeats`).
 pub fn fma_peak_gflops(device: &Device, repeats: usize) -> Result<f64> {
@@ -43,11 +44,10 @@ pub fn fma_peak_gflops(device: &Device, repeats: usize) -> Result<f64> {
     let count = 1u32 << 16;
     let iterations = 2048u32;
     let out = device.create_buffer("fma probe", u64::from(count) * 4, MemoryKind::Storage)?;
-    let push = FmaPush { out: out.device_address(), iterations, count };
     let mut best = 0.0f64;
     for _ in 0..repeats.max(1) {
         let t = device.run(|rec| {
-            rec.keep(&[&out])?;
+            let push = FmaPush { out_addr: rec.addr(&out)?, iterations, count };
             rec.begin_stage("fma");
             rec.dispatch_1d(&kernel, &[], &push, u64::from(count))
         })?;

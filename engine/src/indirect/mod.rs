@@ -36,8 +36,8 @@ use bytemuck::{Pod, Zeroable};
 
 use crate::error::{Error, Result};
 use crate::gpu::{
-    kernels, Binding, BindingKind, Buffer, Device, Kernel, KernelDecl, MemoryKind, SpecValue, TexelFormat, Texels,
-    Timings,
+    kernels, Binding, BindingKind, Buffer, Device, DeviceAddress, Kernel, KernelDecl, MemoryKind, SpecValue,
+    TexelFormat, Texels, Timings,
 };
 
 /// Activation after every layer but the last.
@@ -370,10 +370,10 @@ fn input_level(i: usize) -> usize {
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
 pub struct ConvPush {
-    a: u64,
-    b: u64,
-    o: u64,
-    partial: u64,
+    a: DeviceAddress,
+    b: DeviceAddress,
+    o: DeviceAddress,
+    partial: DeviceAddress,
     ca: u32,
     cb: u32,
     oc: u32,
@@ -383,7 +383,7 @@ pub struct ConvPush {
     in_size: [u32; 2],
     out_size: [u32; 2],
 }
-const _: () = assert!(std::mem::size_of::<ConvPush>() == 72);
+crate::gpu::gpu_layout!(ConvPush, "ConvPush", [a, b, o, partial, ca, cb, oc, ic0, ic1, flags, in_size, out_size]);
 
 /// Floats in one weight pass's uniform buffer (64 KiB, the least
 /// `maxUniformBufferRange` Vulkan guarantees; keep in sync with `wts[4096]`
@@ -394,14 +394,14 @@ pub const CONV_UBO_FLOATS: usize = 16384;
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
 pub struct UpsamplePush {
-    src: u64,
-    dst: u64,
+    src: DeviceAddress,
+    dst: DeviceAddress,
     in_size: [u32; 2],
     out_size: [u32; 2],
     channels: u32,
     align_corners: u32,
 }
-const _: () = assert!(std::mem::size_of::<UpsamplePush>() == 40);
+crate::gpu::gpu_layout!(UpsamplePush, "UpsamplePush", [src, dst, in_size, out_size, channels, align_corners]);
 
 /// Output channels per invocation of a layer (the `OCB` specialization
 /// constant of `unet_conv.comp`), for inputs read through texel-buffer views
@@ -509,18 +509,22 @@ pub fn pack_conv(l: &ConvWeights, texel: bool) -> (Vec<Vec<f32>>, Vec<f32>) {
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
 pub struct PackPush {
-    normal: u64,
-    albedo: u64,
-    roughness: u64,
-    metallic: u64,
-    alpha: u64,
-    sun: u64,
-    sky: u64,
-    o: u64,
+    normal: DeviceAddress,
+    albedo: DeviceAddress,
+    roughness: DeviceAddress,
+    metallic: DeviceAddress,
+    alpha: DeviceAddress,
+    sun: DeviceAddress,
+    sky: DeviceAddress,
+    o: DeviceAddress,
     pixels: u32,
     min_alpha: f32,
 }
-const _: () = assert!(std::mem::size_of::<PackPush>() == 72);
+crate::gpu::gpu_layout!(
+    PackPush,
+    "PackPush",
+    [normal, albedo, roughness, metallic, alpha, sun, sky, o, pixels, min_alpha]
+);
 
 /// The deferred buffers the network reads (see [`DEFAULT_INPUT_ORDER`]).
 pub struct NetworkInputs<'a> {
@@ -631,7 +635,8 @@ struct Step {
     cb: usize,
     lin: usize,
     lout: usize,
-    out: u64,
+    /// Byte offset of the output in the arena; `None`: the network's output buffer.
+    out: Option<u64>,
 }
 
 /// Where a conv input lies: the network's input buffer (fp32) or the arena.
@@ -1052,24 +1057,22 @@ impl UNet {
             return Err(Error::invalid("L_sun or L_sky buffer", "is smaller than the image"));
         }
         let packed = self.device.create_buffer("u-net input", pixels * 14 * 4, MemoryKind::Storage)?;
-        let opt = |b: &Option<Buffer>| b.as_ref().map_or(0, Buffer::device_address);
-        let push = PackPush {
-            normal: normal.device_address(),
-            albedo: albedo.device_address(),
-            roughness: opt(&g.roughness),
-            metallic: opt(&g.metallic),
-            alpha: g.alpha.device_address(),
-            sun: inputs.sun.device_address(),
-            sky: inputs.sky.device_address(),
-            o: packed.device_address(),
-            pixels: u32::try_from(pixels)
-                .map_err(|_| Error::invalid(format!("image of {pixels} pixels"), "is too large"))?,
-            min_alpha: inputs.min_alpha,
-        };
+        let pixel_count =
+            u32::try_from(pixels).map_err(|_| Error::invalid(format!("image of {pixels} pixels"), "is too large"))?;
         let pack = &self.pack;
         let mut timings = self.device.run(|rec| -> Result<()> {
-            rec.keep(&[normal, albedo, &g.alpha, inputs.sun, inputs.sky, &packed])?;
-            rec.keep(&[&g.roughness, &g.metallic].into_iter().filter_map(Option::as_ref).collect::<Vec<_>>())?;
+            let push = PackPush {
+                normal: rec.addr(normal)?,
+                albedo: rec.addr(albedo)?,
+                roughness: rec.addr_or_null(g.roughness.as_ref())?,
+                metallic: rec.addr_or_null(g.metallic.as_ref())?,
+                alpha: rec.addr(&g.alpha)?,
+                sun: rec.addr(inputs.sun)?,
+                sky: rec.addr(inputs.sky)?,
+                o: rec.addr(&packed)?,
+                pixels: pixel_count,
+                min_alpha: inputs.min_alpha,
+            };
             rec.begin_stage("indirect input");
             rec.dispatch_1d(pack, &[], &push, pixels)?;
             rec.end_stage();
@@ -1110,8 +1113,6 @@ impl UNet {
         let arena = self.arena.as_ref().ok_or_else(|| Error::Internal("U-Net inference without an arena".into()))?;
         let output =
             self.device.create_buffer("u-net output", (c.out_channels * w * h * 4) as u64, MemoryKind::Storage)?;
-        let base = arena.device_address();
-        let at = |offset: u64| base + offset;
         let s = level_sizes(w, h);
         let size = |l: usize| [s[l].0 as u32, s[l].1 as u32];
         let half = self.precision == StoragePrecision::Fp16;
@@ -1136,10 +1137,18 @@ impl UNet {
         // inc, the four downsamplings, the four up stages (resized ++ skip), outc.
         let arena_src = |offset: u64| Src { offset, input: false, half };
         let none = Src { offset: 0, input: true, half: false };
-        let mut steps =
-            vec![Step { layer: 0, a: none, ca: c.in_channels, b: none, cb: 0, lin: 0, lout: 0, out: at(layout.f[0]) }];
+        let mut steps = vec![Step {
+            layer: 0,
+            a: none,
+            ca: c.in_channels,
+            b: none,
+            cb: 0,
+            lin: 0,
+            lout: 0,
+            out: Some(layout.f[0]),
+        }];
         for l in 1..5 {
-            let (a, ca, out) = (arena_src(layout.f[l - 1]), wd[l - 1], at(layout.f[l]));
+            let (a, ca, out) = (arena_src(layout.f[l - 1]), wd[l - 1], Some(layout.f[l]));
             steps.push(Step { layer: l, a, ca, b: none, cb: 0, lin: l - 1, lout: l, out });
         }
         for k in 0..4 {
@@ -1152,14 +1161,12 @@ impl UNet {
                 cb: wd[level],
                 lin: level,
                 lout: level,
-                out: at(layout.u[k]),
+                out: Some(layout.u[k]),
             });
         }
-        let out = output.device_address();
-        steps.push(Step { layer: 9, a: arena_src(layout.u[3]), ca: wd[0], b: none, cb: 0, lin: 0, lout: 0, out });
+        steps.push(Step { layer: 9, a: arena_src(layout.u[3]), ca: wd[0], b: none, cb: 0, lin: 0, lout: 0, out: None });
         let max_texels = self.device.info().max_texel_buffer_elements;
         let texel = self.texel;
-        let address = |src: Src| if src.input { input.device_address() + src.offset } else { at(src.offset) };
         // An input as a texel-buffer view: one element per texel, or four consecutive ones (`four`;
         // `elements` a multiple of 4 then).
         let view = |src: Src, elements: usize, four: bool| Texels {
@@ -1184,22 +1191,31 @@ impl UNet {
         let mut exact_resizes = Vec::new();
         let upsample_exact2 = self.upsample_exact2.as_ref().filter(|_| self.texel && self.vec4);
         let timings = self.device.run(|rec| {
-            rec.keep(&[input, arena, &output])?;
+            // Every address the kernels follow, through the recording that keeps its buffer alive.
+            macro_rules! address {
+                ($src:expr) => {
+                    if $src.input {
+                        rec.addr_at(input, $src.offset)?
+                    } else {
+                        rec.addr_at(arena, $src.offset)?
+                    }
+                };
+            }
             if let Some(word) = prefill {
                 rec.fill(arena, word)?;
                 rec.fill(&output, word)?;
             }
-            for l in weights.iter().flatten() {
-                rec.keep(&l.passes.iter().chain([&l.bias]).collect::<Vec<_>>())?;
-            }
-            rec.keep(&self.winograd_weights.iter().flat_map(|(_, w)| w.iter().flatten()).collect::<Vec<_>>())?;
             for &Step { layer: li, a, ca, b, cb, lin, lout, out } in &steps {
+                let out = match out {
+                    Some(offset) => rec.addr_at(arena, offset)?,
+                    None => rec.addr(&output)?,
+                };
                 let (name, _, co, _) = names[li];
                 if (5..9).contains(&li) {
                     let (src, ch, from) = resize_from[li - 5];
                     let push = UpsamplePush {
-                        src: address(src),
-                        dst: at(layout.resized),
+                        src: address!(src),
+                        dst: rec.addr_at(arena, layout.resized)?,
                         in_size: size(from),
                         out_size: size(lout),
                         channels: ch as u32,
@@ -1282,10 +1298,10 @@ impl UNet {
                 let last = layer.passes.len() - 1;
                 for (pass, ubo) in layer.passes.iter().enumerate() {
                     let push = ConvPush {
-                        a: address(a),
-                        b: if cb > 0 { address(b) } else { 0 },
+                        a: address!(a),
+                        b: if cb > 0 { address!(b) } else { DeviceAddress::NULL },
                         o: out,
-                        partial: at(layout.partial),
+                        partial: rec.addr_at(arena, layout.partial)?,
                         ca: ca as u32,
                         cb: cb as u32,
                         oc: co as u32,
@@ -1346,4 +1362,20 @@ pub fn tensor_bytes(name: &str, c: usize, h: usize, w: usize, values: &[f32]) ->
             .map_err(|e| Error::Internal(format!("cannot serialize {name}: {e}")))?;
     safetensors::serialize([(name.to_string(), view)], None)
         .map_err(|e| Error::Internal(format!("cannot serialize {name}: {e}")))
+}
+
+#[cfg(test)]
+mod layout_tests {
+    use super::{ConvPush, PackPush, UpsamplePush};
+    use crate::gpu::{check_layout, kernels};
+
+    /// The push-constant structs match the GLSL blocks of every kernel that declares them.
+    #[test]
+    fn push_layouts_match_glsl() {
+        let conv = check_layout::<ConvPush>(kernels::ALL);
+        assert!(conv.as_ref().is_ok_and(|n| *n == 8), "{conv:?}");
+        let upsample = check_layout::<UpsamplePush>(kernels::ALL);
+        assert!(upsample.as_ref().is_ok_and(|n| *n == 4), "{upsample:?}");
+        assert_eq!(check_layout::<PackPush>(&[&kernels::UNET_PACK]), Ok(1));
+    }
 }

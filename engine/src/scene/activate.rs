@@ -11,7 +11,7 @@ use bytemuck::{Pod, Zeroable};
 
 use super::Scene;
 use crate::error::Result;
-use crate::gpu::{kernels, Buffer, Device, Kernel, KernelDecl, Timings};
+use crate::gpu::{kernels, Buffer, Device, DeviceAddress, Kernel, KernelDecl, Timings};
 
 /// A scene's stored parameters in GPU memory.
 pub struct GpuScene {
@@ -96,22 +96,26 @@ impl GpuScene {
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
 pub struct ActivatePush {
-    /// Address of `float[3N]` log scales.
-    pub log_scales: u64,
-    /// Address of `float[4N]` quaternions.
-    pub rotations: u64,
-    /// Address of `float[N]` opacity logits.
-    pub opacity_logits: u64,
-    /// Address of the `float[6N]` covariance output.
-    pub covariances: u64,
-    /// Address of the `float[N]` opacity output.
-    pub opacities: u64,
+    /// `float[3N]` log scales.
+    pub log_scales: DeviceAddress,
+    /// `float[4N]` quaternions.
+    pub rotations: DeviceAddress,
+    /// `float[N]` opacity logits.
+    pub opacity_logits: DeviceAddress,
+    /// The `float[6N]` covariance output.
+    pub covariances: DeviceAddress,
+    /// The `float[N]` opacity output.
+    pub opacities: DeviceAddress,
     /// N.
     pub count: u32,
     /// Padding to the GLSL block size.
     pub pad: u32,
 }
-const _: () = assert!(std::mem::size_of::<ActivatePush>() == 48);
+crate::gpu::gpu_layout!(
+    ActivatePush,
+    "ActivatePush",
+    [log_scales, rotations, opacity_logits, covariances, opacities, count, pad]
+);
 
 /// Activated parameters on the GPU.
 pub struct Activated {
@@ -138,16 +142,16 @@ pub fn activate(device: &Device, kernel: &Kernel, scene: &GpuScene) -> Result<Ac
     const NAN: u32 = 0x7fc0_0000;
     let covariances = device.create_filled::<[f32; 6]>("activated covariances", scene.count, NAN)?;
     let opacities = device.create_filled::<f32>("activated opacities", scene.count, NAN)?;
-    let push = ActivatePush {
-        log_scales: scene.log_scales.device_address(),
-        rotations: scene.rotations.device_address(),
-        opacity_logits: scene.opacity_logits.device_address(),
-        covariances: covariances.device_address(),
-        opacities: opacities.device_address(),
-        count: scene.count as u32,
-        pad: 0,
-    };
     let timings = device.run(|rec| {
+        let push = ActivatePush {
+            log_scales: rec.addr(&scene.log_scales)?,
+            rotations: rec.addr(&scene.rotations)?,
+            opacity_logits: rec.addr(&scene.opacity_logits)?,
+            covariances: rec.addr(&covariances)?,
+            opacities: rec.addr(&opacities)?,
+            count: scene.count as u32,
+            pad: 0,
+        };
         rec.begin_stage("activate");
         rec.dispatch_1d(kernel, &[], &push, scene.count as u64)
     })?;
@@ -172,4 +176,16 @@ pub fn activate_cpu(scene: &Scene) -> Vec<([f64; 6], f64)> {
             ([cov(0, 0), cov(0, 1), cov(0, 2), cov(1, 1), cov(1, 2), cov(2, 2)], 1.0 / (1.0 + (-logit).exp()))
         })
         .collect()
+}
+
+#[cfg(test)]
+mod layout_tests {
+    use super::ActivatePush;
+    use crate::gpu::{check_layout, kernels};
+
+    /// The push-constant struct matches the GLSL block of its kernel.
+    #[test]
+    fn push_layout_matches_glsl() {
+        assert_eq!(check_layout::<ActivatePush>(&[&kernels::SCENE_ACTIVATE]), Ok(1));
+    }
 }

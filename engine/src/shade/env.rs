@@ -19,7 +19,7 @@ use std::path::Path;
 use bytemuck::{Pod, Zeroable};
 
 use crate::error::{Error, Result};
-use crate::gpu::{kernels, Buffer, Device, Kernel, KernelDecl, MemoryKind, SpecValue, Timings};
+use crate::gpu::{kernels, Buffer, Device, DeviceAddress, Kernel, KernelDecl, MemoryKind, SpecValue, Timings};
 
 /// Lat-long radiance, RGB floats, rows top (zenith) to bottom (nadir).
 #[derive(Clone, Debug, PartialEq)]
@@ -260,19 +260,19 @@ pub struct BrdfTable {
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
 pub struct DownsamplePush {
-    src: u64,
-    dst: u64,
+    src: DeviceAddress,
+    dst: DeviceAddress,
     src_size: [u32; 2],
     dst_size: [u32; 2],
 }
-const _: () = assert!(std::mem::size_of::<DownsamplePush>() == 32);
+crate::gpu::gpu_layout!(DownsamplePush, "DownsamplePush", [src, dst, src_size, dst_size]);
 
 /// Push constants of `env_prefilter.comp` (keep in sync).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
 pub struct PrefilterPush {
-    pyramid: u64,
-    dst: u64,
+    pyramid: DeviceAddress,
+    dst: DeviceAddress,
     base: [u32; 2],
     dst_size: [u32; 2],
     levels: u32,
@@ -280,7 +280,11 @@ pub struct PrefilterPush {
     samples: u32,
     pad: u32,
 }
-const _: () = assert!(std::mem::size_of::<PrefilterPush>() == 48);
+crate::gpu::gpu_layout!(
+    PrefilterPush,
+    "PrefilterPush",
+    [pyramid, dst, base, dst_size, levels, roughness, samples, pad]
+);
 
 /// Push constants of `env_irradiance.comp` (keep in sync; same layout as downsampling).
 pub type IrradiancePush = DownsamplePush;
@@ -289,11 +293,11 @@ pub type IrradiancePush = DownsamplePush;
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
 pub struct LutPush {
-    dst: u64,
+    dst: DeviceAddress,
     size: u32,
     samples: u32,
 }
-const _: () = assert!(std::mem::size_of::<LutPush>() == 16);
+crate::gpu::gpu_layout!(LutPush, "LutPush", [dst, size, samples]);
 
 /// The environment-preparation kernels.
 pub struct EnvironmentPrep {
@@ -335,10 +339,9 @@ impl EnvironmentPrep {
         }
         let device = &self.device;
         let buffer = device.create_buffer("brdf table", u64::from(size * size) * 8, MemoryKind::Storage)?;
-        let push = LutPush { dst: buffer.device_address(), size, samples };
         let kernel = &self.lut[variant.code() as usize];
         let timings = device.run(|rec| -> Result<()> {
-            rec.keep(&[&buffer])?;
+            let push = LutPush { dst: rec.addr(&buffer)?, size, samples };
             rec.begin_stage("brdf table");
             rec.dispatch_1d(kernel, &[], &push, u64::from(size * size))?;
             rec.end_stage();
@@ -365,15 +368,13 @@ impl EnvironmentPrep {
             device.create_buffer("prefiltered environment", level_offset(base, levels) * 12, MemoryKind::Storage)?;
         let irradiance = device.create_buffer("irradiance", u64::from(iw * ih) * 12, MemoryKind::Storage)?;
         let irr_level = Self::irradiance_level(base, settings);
-        let at = |b: &Buffer, l: u32| b.device_address() + 12 * level_offset(base, l);
         let timings = device.run(|rec| -> Result<()> {
-            rec.keep(&[&pyramid, &specular, &irradiance])?;
             rec.begin_stage("environment pyramid");
             for l in 1..pyramid_n {
                 let (s, d) = (level_size(base, l - 1), level_size(base, l));
                 let push = DownsamplePush {
-                    src: at(&pyramid, l - 1),
-                    dst: at(&pyramid, l),
+                    src: rec.addr_at(&pyramid, 12 * level_offset(base, l - 1))?,
+                    dst: rec.addr_at(&pyramid, 12 * level_offset(base, l))?,
                     src_size: [s.0, s.1],
                     dst_size: [d.0, d.1],
                 };
@@ -385,8 +386,8 @@ impl EnvironmentPrep {
             for l in 1..levels {
                 let d = level_size(base, l);
                 let push = PrefilterPush {
-                    pyramid: pyramid.device_address(),
-                    dst: at(&specular, l),
+                    pyramid: rec.addr(&pyramid)?,
+                    dst: rec.addr_at(&specular, 12 * level_offset(base, l))?,
                     base: [base.0, base.1],
                     dst_size: [d.0, d.1],
                     levels: pyramid_n,
@@ -400,8 +401,8 @@ impl EnvironmentPrep {
             rec.begin_stage("irradiance");
             let s = level_size(base, irr_level);
             let push = IrradiancePush {
-                src: at(&pyramid, irr_level),
-                dst: irradiance.device_address(),
+                src: rec.addr_at(&pyramid, 12 * level_offset(base, irr_level))?,
+                dst: rec.addr(&irradiance)?,
                 src_size: [s.0, s.1],
                 dst_size: [iw, ih],
             };
@@ -526,5 +527,19 @@ impl BrdfTable {
             buffer: device.upload("brdf table", &chain.levels[0])?,
             timings: Timings::default(),
         })
+    }
+}
+
+#[cfg(test)]
+mod layout_tests {
+    use super::{DownsamplePush, LutPush, PrefilterPush};
+    use crate::gpu::{check_layout, kernels};
+
+    /// The push-constant structs match the GLSL blocks of their kernels.
+    #[test]
+    fn push_layouts_match_glsl() {
+        assert_eq!(check_layout::<DownsamplePush>(&[&kernels::ENV_DOWNSAMPLE, &kernels::ENV_IRRADIANCE]), Ok(2));
+        assert_eq!(check_layout::<PrefilterPush>(&[&kernels::ENV_PREFILTER]), Ok(1));
+        assert_eq!(check_layout::<LutPush>(&[&kernels::BRDF_LUT]), Ok(1));
     }
 }

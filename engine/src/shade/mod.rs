@@ -315,7 +315,7 @@ impl ShadedFrame {
 
 /// The shading kernels' uniform: `Shade` in `shade.glsl` (std140; checked
 /// against it by `check_layout`). Addresses are filled by
-/// [`ShadeUniform::record`] in the recording that dispatches with it.
+/// `ShadeUniform::record` in the recording that dispatches with it.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
 pub struct ShadeUniform {

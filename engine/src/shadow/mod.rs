@@ -296,7 +296,7 @@ impl ShadowMap {
 
 /// The shadow kernels' uniform: `Shadow` in `shadow.glsl` (std140; checked
 /// against it by `check_layout`). Addresses are filled by
-/// [`ShadowUniform::record`] in the recording that dispatches with it.
+/// `ShadowUniform::record` in the recording that dispatches with it.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
 pub struct ShadowUniform {

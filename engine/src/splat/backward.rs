@@ -217,7 +217,7 @@ impl Splatter {
                 "the splat backward pass needs subgroup ballot (elect, broadcast) in compute shaders",
             ));
         }
-        if frame.scene_means != scene.means.device_address() || frame.gaussians != scene.count as u64 {
+        if frame.scene_means != scene.means.id() || frame.gaussians != scene.count as u64 {
             return Err(Error::invalid("splat frame", "was rendered from another scene"));
         }
         let pixels = u64::from(frame.camera.width) * u64::from(frame.camera.height);

@@ -369,7 +369,7 @@ impl GBuffer {
 
 /// Frame parameters shared by every splat kernel: `Frame` in `splat.glsl`
 /// (std140; checked against it by `check_layout`). The camera and sizes are
-/// set on the host; every address is filled by [`FrameUniform::record`] in the
+/// set on the host; every address is filled by `FrameUniform::record` in the
 /// recording that dispatches with it, which keeps each buffer alive.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
@@ -635,7 +635,7 @@ pub struct SplatFrame {
     /// The uniform's camera and sizes, from which each recording that
     /// dispatches with `uniform` writes it again with its own addresses.
     pub(crate) params: FrameUniform,
-    /// Address of the scene's means, to check the backward pass gets the same scene.
+    /// [`Buffer::id`] of the scene's means, to check the backward pass gets the same scene.
     pub(crate) scene_means: u64,
     /// Gaussians in the scene.
     pub(crate) gaussians: u64,
@@ -1097,7 +1097,7 @@ impl Splatter {
             features: feature_buf,
             uniform,
             params: frame,
-            scene_means: scene.means.device_address(),
+            scene_means: scene.means.id(),
             gaussians: n,
             tile,
         })

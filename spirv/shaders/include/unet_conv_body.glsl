@@ -41,7 +41,7 @@ layout(constant_id = 4) const bool VEC4 = false;
 #endif
 
 // Keep in sync with engine/src/indirect/mod.rs `ConvPush`.
-layout(push_constant) uniform Push {
+layout(push_constant) uniform ConvPush {
     uvec2 a;        // first input, ca channels
     uvec2 b;        // second input, cb channels (skip)
     uvec2 o;        // output, oc channels

@@ -7,7 +7,7 @@
 #include "unet_storage.glsl"
 
 // Keep in sync with engine/src/indirect/mod.rs `UpsamplePush`.
-layout(push_constant) uniform Push {
+layout(push_constant) uniform UpsamplePush {
     uvec2 src;
     uvec2 dst;
     uvec2 in_size;

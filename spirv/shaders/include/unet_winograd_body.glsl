@@ -39,7 +39,7 @@ layout(set = 0, binding = 3) uniform samplerBuffer input_b;
 
 // Keep in sync with engine/src/indirect/mod.rs `ConvPush` (the fields this
 // kernel reads: o, ca, cb, oc, in_size, out_size).
-layout(push_constant) uniform Push {
+layout(push_constant) uniform ConvPush {
     uvec2 a;
     uvec2 b;
     uvec2 o;        // output, oc channels
