@@ -1,5 +1,6 @@
 //! Instance and device choice, validation, and the device handle.
 
+use std::collections::HashMap;
 use std::ffi::{c_void, CStr, CString};
 use std::mem::ManuallyDrop;
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -62,6 +63,19 @@ pub struct DeviceOptions {
 #[derive(Clone)]
 pub struct Device {
     pub(crate) shared: Arc<Shared>,
+    /// Shared by every clone of this handle; its drop empties the kernel cache.
+    _cache_owner: Arc<CacheOwner>,
+}
+
+/// Empties the kernel cache when the last [`Device`] handle drops, so cached
+/// kernels (which hold the shared state) do not keep the device alive forever.
+struct CacheOwner(Arc<Shared>);
+
+impl Drop for CacheOwner {
+    fn drop(&mut self) {
+        let cached = std::mem::take(&mut *lock(&self.0.kernel_cache));
+        drop(cached);
+    }
 }
 
 impl std::fmt::Debug for Device {
@@ -253,22 +267,22 @@ impl Device {
             info.api_version,
             if validation { "on (with synchronization validation)" } else { "off" }
         );
-        Ok(Self {
-            shared: Arc::new(Shared {
-                _entry: entry,
-                instance,
-                debug,
-                validation_log: log_box,
-                device,
-                queue: Mutex::new(queue),
-                queue_family,
-                allocator: Mutex::new(ManuallyDrop::new(allocator)),
-                tracker: Mutex::new(Tracker::default()),
-                info,
-                current_bytes: AtomicU64::new(0),
-                peak_bytes: AtomicU64::new(0),
-            }),
-        })
+        let shared = Arc::new(Shared {
+            _entry: entry,
+            instance,
+            debug,
+            validation_log: log_box,
+            device,
+            queue: Mutex::new(queue),
+            queue_family,
+            allocator: Mutex::new(ManuallyDrop::new(allocator)),
+            tracker: Mutex::new(Tracker::default()),
+            info,
+            current_bytes: AtomicU64::new(0),
+            peak_bytes: AtomicU64::new(0),
+            kernel_cache: Mutex::new(HashMap::new()),
+        });
+        Ok(Self { _cache_owner: Arc::new(CacheOwner(shared.clone())), shared })
     }
 
     /// What the device is and can do.

@@ -12,7 +12,7 @@ use srug_spirv::{BindingKind, KernelInfo};
 
 use crate::device::Device;
 use crate::error::{vk_error, GpuError as Error, Result};
-use crate::shared::{Garbage, Shared};
+use crate::shared::{lock, Garbage, KernelKey, Shared};
 
 /// A specialization constant's value (every GLSL scalar constant is 32 bits).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -218,6 +218,11 @@ impl Kernel {
         Ok(kernel)
     }
 
+    /// [`Device::kernel`]: the cached, shared kernel for `info` and `decl`.
+    pub fn cached(device: &Device, info: &'static KernelInfo, decl: &KernelDecl<'_>) -> Result<Arc<Kernel>> {
+        device.kernel(info, decl)
+    }
+
     /// The kernel's table entry.
     pub fn info(&self) -> &'static KernelInfo {
         self.info
@@ -226,6 +231,35 @@ impl Kernel {
     /// The workgroup size this pipeline was specialized to.
     pub fn workgroup_size(&self) -> [u32; 3] {
         self.workgroup_size
+    }
+}
+
+impl Device {
+    /// The kernel for `info` with `decl`: built on first use, then shared by
+    /// every caller on this device (and every clone of it) for as long as the
+    /// device lives. This is the one kernel cache; stages ask it for the
+    /// variant they need each time instead of keeping their own.
+    pub fn kernel(&self, info: &'static KernelInfo, decl: &KernelDecl<'_>) -> Result<Arc<Kernel>> {
+        let key = KernelKey {
+            name: info.name,
+            bindings: decl.bindings.to_vec(),
+            push_constant_size: decl.push_constant_size,
+            specialization: decl.specialization.iter().map(|(id, v)| (*id, v.bits())).collect(),
+        };
+        let cached = lock(&self.shared.kernel_cache).get(&key).cloned();
+        if let Some(kernel) = cached.and_then(|k| k.downcast::<Kernel>().ok()) {
+            return Ok(kernel);
+        }
+        // Built outside the lock: a pipeline compile can take seconds on a CPU driver.
+        let kernel = Arc::new(Kernel::new(self, info, decl)?);
+        let erased: Arc<dyn std::any::Any + Send + Sync> = kernel.clone();
+        lock(&self.shared.kernel_cache).entry(key).or_insert(erased);
+        Ok(kernel)
+    }
+
+    /// Kernels in the cache (built through [`Device::kernel`]).
+    pub fn cached_kernels(&self) -> usize {
+        lock(&self.shared.kernel_cache).len()
     }
 }
 

@@ -577,10 +577,11 @@ impl<'a> Recording<'a> {
     }
 
     /// The device address `offset` bytes into `buffer` (a level of a mip chain
-    /// packed in one buffer), borrowed as [`Recording::addr`] borrows.
+    /// packed in one buffer), borrowed as [`Recording::addr`] borrows. An
+    /// offset equal to the size is the end of the buffer (an empty region).
     pub fn addr_at(&mut self, buffer: &'a Buffer, offset: u64) -> Result<DeviceAddress> {
         let base = self.addr(buffer)?;
-        if offset >= buffer.size() {
+        if offset > buffer.size() {
             return Err(Error::invalid(
                 format!("buffer {} ({} bytes)", buffer.name(), buffer.size()),
                 format!("offset {offset} is past its end"),

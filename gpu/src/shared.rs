@@ -4,14 +4,16 @@
 //! A leaf: garbage is raw Vulkan handles, so this module imports no other
 //! object module (buffers, kernels and recordings import it, never the reverse).
 
-use std::collections::VecDeque;
+use std::any::Any;
+use std::collections::{HashMap, VecDeque};
 use std::ffi::{c_void, CStr};
 use std::mem::ManuallyDrop;
 use std::sync::atomic::{AtomicU64, Ordering};
-use std::sync::{Mutex, MutexGuard};
+use std::sync::{Arc, Mutex, MutexGuard};
 
 use ash::vk;
 use gpu_allocator::vulkan::{Allocation, Allocator};
+use srug_spirv::BindingKind;
 
 use crate::error::{vk_error, Result};
 use crate::info::DeviceInfo;
@@ -81,6 +83,21 @@ pub(crate) struct Shared {
     pub(crate) info: DeviceInfo,
     pub(crate) current_bytes: AtomicU64,
     pub(crate) peak_bytes: AtomicU64,
+    /// Every kernel built through `Device::kernel`, by what makes it that
+    /// pipeline. Type-erased so this leaf does not import `kernel`; cleared
+    /// when the last `Device` handle drops (`CacheOwner`), which breaks the
+    /// kernels' references back to this state.
+    pub(crate) kernel_cache: Mutex<HashMap<KernelKey, Arc<dyn Any + Send + Sync>>>,
+}
+
+/// What makes two kernels one pipeline: the SPIR-V (by kernel name), the
+/// declared bindings and push-constant size, and the specialization.
+#[derive(Clone, Debug, PartialEq, Eq, Hash)]
+pub(crate) struct KernelKey {
+    pub(crate) name: &'static str,
+    pub(crate) bindings: Vec<BindingKind>,
+    pub(crate) push_constant_size: usize,
+    pub(crate) specialization: Vec<(u32, u32)>,
 }
 
 /// Locks a mutex, recovering the data if a panicking thread poisoned it.

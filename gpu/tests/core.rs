@@ -503,6 +503,38 @@ fn recorded_updates_are_ordered_with_other_commands() {
     assert!(rec.addr(&staging).is_err());
     assert!(rec.addr_or_null(None).unwrap().is_null());
     assert!(!rec.addr(&a).unwrap().is_null());
+    assert!(rec.addr_at(&a, 64).is_ok(), "the end (an empty region) is valid");
+    assert!(rec.addr_at(&a, 65).is_err(), "past the end");
     drop(rec);
     assert_no_validation_messages(&d);
+}
+
+/// `Device::kernel` builds a variant once and shares it; other specializations
+/// are other kernels; the cache lets go of its kernels when the last device
+/// handle drops.
+#[test]
+fn kernel_cache_shares_variants_and_lets_go_with_the_device() {
+    let d = device();
+    let decl = |mode: &'static [(u32, SpecValue)]| KernelDecl {
+        bindings: &AFFINE_BINDINGS,
+        push_constant_size: std::mem::size_of::<AffinePush>(),
+        specialization: mode,
+    };
+    const LINEAR: &[(u32, SpecValue)] = &[(0, SpecValue::U32(0))];
+    const SQUARE: &[(u32, SpecValue)] = &[(0, SpecValue::U32(1))];
+    let a = d.kernel(&kernels::CORE_AFFINE, &decl(LINEAR)).unwrap();
+    let b = d.clone().kernel(&kernels::CORE_AFFINE, &decl(LINEAR)).unwrap();
+    assert!(std::sync::Arc::ptr_eq(&a, &b), "the same variant is built once");
+    let c = d.kernel(&kernels::CORE_AFFINE, &decl(SQUARE)).unwrap();
+    assert!(!std::sync::Arc::ptr_eq(&a, &c));
+    assert_eq!(d.cached_kernels(), 2);
+    // A declaration the SPIR-V refuses is an error, and nothing is cached.
+    let bad = KernelDecl { bindings: &AFFINE_BINDINGS[..1], push_constant_size: 16, specialization: LINEAR };
+    assert!(matches!(d.kernel(&kernels::CORE_AFFINE, &bad), Err(Error::Kernel { .. })));
+    assert_eq!(d.cached_kernels(), 2);
+    assert_no_validation_messages(&d);
+    drop(b);
+    assert_eq!(std::sync::Arc::strong_count(&a), 2, "the cache holds one reference");
+    drop(d);
+    assert_eq!(std::sync::Arc::strong_count(&a), 1, "dropping the device empties the cache");
 }

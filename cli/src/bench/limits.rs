@@ -70,7 +70,7 @@ fn check_ceiling_args(pixels: u32, splats: u32) -> Result<()> {
 /// its pixels and the GPU seconds.
 pub fn blend_ceiling_run(device: &Device, pixels: u32, count: u32, splats: u32) -> Result<(Vec<f32>, f64)> {
     check_ceiling_args(pixels, splats)?;
-    let kernel = Kernel::new(
+    let kernel = Kernel::cached(
         device,
         &kernels::BENCH_BLEND_CEILING,
         &KernelDecl {
@@ -248,7 +248,7 @@ pub fn pair_move_run(
     {
         return Err(Error::invalid(format!("pair-move probe over {count} pairs"), "a buffer is too small"));
     }
-    let kernel = Kernel::new(
+    let kernel = Kernel::cached(
         device,
         &kernels::BENCH_PAIR_MOVE,
         &KernelDecl {

@@ -36,7 +36,7 @@ srug::gpu::gpu_layout!(FmaPush, "FmaPush", [out_addr, iterations, count]);
 
 /// Measures the device's FMA throughput in GFLOP/s (best of `repeats`).
 pub fn fma_peak_gflops(device: &Device, repeats: usize) -> Result<f64> {
-    let kernel = Kernel::new(
+    let kernel = Kernel::cached(
         device,
         &kernels::BENCH_FMA,
         &KernelDecl { bindings: &[], push_constant_size: std::mem::size_of::<FmaPush>(), specialization: &[] },

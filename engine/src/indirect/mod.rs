@@ -31,6 +31,7 @@ pub use winograd::{ConvPath, WinogradTile};
 
 use std::collections::HashMap;
 use std::path::Path;
+use std::sync::Arc;
 
 use bytemuck::{Pod, Zeroable};
 
@@ -543,17 +544,17 @@ pub struct UNet {
     device: Device,
     config: UNetConfig,
     precision: StoragePrecision,
-    convs: HashMap<ConvKey, Kernel>,
+    convs: HashMap<ConvKey, Arc<Kernel>>,
     /// The resize with one and with four output pixels per invocation ([`resize_four`]).
-    upsample: [Kernel; 2],
-    upsample_texel: Option<[Kernel; 2]>,
+    upsample: [Arc<Kernel>; 2],
+    upsample_texel: Option<[Arc<Kernel>; 2]>,
     /// The exact-2× resize from a four-pixel view ([`resize_exact2`]), where the device has RGBA views.
-    upsample_exact2: Option<Kernel>,
-    pack: Kernel,
+    upsample_exact2: Option<Arc<Kernel>>,
+    pack: Arc<Kernel>,
     /// Packed weights for device-address inputs, then for texel inputs (empty without them).
     weights: [Vec<LayerBuffers>; 2],
     /// Winograd kernels per [`WinogradKey`]; built at the first inference of a size that needs them.
-    winograd_kernels: HashMap<WinogradKey, Kernel>,
+    winograd_kernels: HashMap<WinogradKey, Arc<Kernel>>,
     /// Transformed weights per layer (`None` for stride 2) for the tile they were made for;
     /// empty until Winograd is first chosen.
     winograd_weights: Option<(WinogradTile, Vec<Option<Buffer>>)>,
@@ -755,7 +756,7 @@ impl UNet {
                     .into_iter()
                     .chain(views.into_iter().take(if texel { 2 } else { 0 }))
                     .collect();
-                e.insert(Kernel::new(
+                e.insert(Kernel::cached(
                     device,
                     module,
                     &KernelDecl {
@@ -767,11 +768,11 @@ impl UNet {
             }
         }
         // One and four output pixels per invocation (`FOUR`, constant_id 0).
-        let resize = |module: &'static srug_gpu::KernelInfo, bindings: &[BindingKind]| -> Result<[Kernel; 2]> {
+        let resize = |module: &'static srug_gpu::KernelInfo, bindings: &[BindingKind]| -> Result<[Arc<Kernel>; 2]> {
             let kernel = |four: bool| {
                 let spec = [(0, SpecValue::Bool(four))];
                 let push_constant_size = std::mem::size_of::<UpsamplePush>();
-                Kernel::new(device, module, &KernelDecl { bindings, push_constant_size, specialization: &spec })
+                Kernel::cached(device, module, &KernelDecl { bindings, push_constant_size, specialization: &spec })
             };
             Ok([kernel(false)?, kernel(true)?])
         };
@@ -783,7 +784,7 @@ impl UNet {
             let spec = [(1, SpecValue::Bool(true))];
             let bindings = &[BindingKind::UniformTexelBuffer];
             let push_constant_size = std::mem::size_of::<UpsamplePush>();
-            Some(Kernel::new(
+            Some(Kernel::cached(
                 device,
                 texel_module,
                 &KernelDecl { bindings, push_constant_size, specialization: &spec },
@@ -791,7 +792,7 @@ impl UNet {
         } else {
             None
         };
-        let pack = Kernel::new(
+        let pack = Kernel::cached(
             device,
             &kernels::UNET_PACK,
             &KernelDecl { bindings: &[], push_constant_size: std::mem::size_of::<PackPush>(), specialization: &[] },
@@ -927,7 +928,7 @@ impl UNet {
                 (WinogradTile::F4x4, false) => &kernels::UNET_WINOGRAD_TEXEL,
                 (WinogradTile::F4x4, true) => &kernels::UNET_WINOGRAD_TEXEL_HALF,
             };
-            let kernel = Kernel::new(
+            let kernel = Kernel::cached(
                 &self.device,
                 code,
                 &KernelDecl {
@@ -1274,7 +1275,7 @@ impl UNet {
                         channel_block(co, true),
                     ),
                     None => (
-                        kernel(li, use_texel, use_vec4)?,
+                        &**kernel(li, use_texel, use_vec4)?,
                         s[lout].0.div_ceil(if use_vec4 { vec4_pixel_block(co) } else { pixel_block(co, use_texel) })
                             * s[lout].1,
                         channel_block(co, use_texel),

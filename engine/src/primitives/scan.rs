@@ -11,6 +11,7 @@
 //! guarantee is needed. Sums wrap modulo 2³² like `u32`.
 
 use bytemuck::{Pod, Zeroable};
+use std::sync::Arc;
 
 use crate::error::Result;
 use crate::gpu::{kernels, Buffer, Device, DeviceAddress, Kernel, KernelDecl, MemoryKind, Recording};
@@ -36,15 +37,15 @@ crate::gpu::gpu_layout!(ScanPush, "ScanPush", [data, sums, count, has_sums]);
 
 /// The scan kernels and their scratch memory.
 pub struct Scan {
-    reduce: Kernel,
-    apply: Kernel,
+    reduce: Arc<Kernel>,
+    apply: Arc<Kernel>,
     /// Per-invocation sums for each level above the first.
     levels: Vec<Buffer>,
     capacity: u64,
 }
 
-fn addressed(device: &Device, info: &'static srug_gpu::KernelInfo, push: usize) -> Result<Kernel> {
-    Ok(Kernel::new(device, info, &KernelDecl { bindings: &[], push_constant_size: push, specialization: &[] })?)
+fn addressed(device: &Device, info: &'static srug_gpu::KernelInfo, push: usize) -> Result<Arc<Kernel>> {
+    Ok(Kernel::cached(device, info, &KernelDecl { bindings: &[], push_constant_size: push, specialization: &[] })?)
 }
 
 impl Scan {

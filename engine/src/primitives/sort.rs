@@ -17,6 +17,7 @@
 //! device-address load is a loop over the lanes); outputs are written by address.
 
 use bytemuck::{Pod, Zeroable};
+use std::sync::Arc;
 
 use super::scan::Scan;
 use crate::error::{Error, Result};
@@ -73,11 +74,11 @@ crate::gpu::gpu_layout!(
 
 /// The sort kernels and their scratch memory.
 pub struct RadixSort {
-    histogram: Kernel,
-    scatter: Kernel,
+    histogram: Arc<Kernel>,
+    scatter: Arc<Kernel>,
     /// Variants reading keys and values through texel-buffer views; `None`
     /// where the device cannot view RG32UI/R32UI buffers.
-    texel: Option<(Kernel, Kernel)>,
+    texel: Option<(Arc<Kernel>, Arc<Kernel>)>,
     use_texel: bool,
     max_texels: u64,
     scan: Scan,
@@ -100,15 +101,15 @@ impl RadixSort {
                 specialization: &[],
             };
             Some((
-                Kernel::new(device, &kernels::SORT_HISTOGRAM_TEXEL, &views(1))?,
-                Kernel::new(device, &kernels::SORT_SCATTER_TEXEL, &views(2))?,
+                Kernel::cached(device, &kernels::SORT_HISTOGRAM_TEXEL, &views(1))?,
+                Kernel::cached(device, &kernels::SORT_SCATTER_TEXEL, &views(2))?,
             ))
         } else {
             None
         };
         Ok(Self {
-            histogram: Kernel::new(device, &kernels::SORT_HISTOGRAM, &decl)?,
-            scatter: Kernel::new(device, &kernels::SORT_SCATTER, &decl)?,
+            histogram: Kernel::cached(device, &kernels::SORT_HISTOGRAM, &decl)?,
+            scatter: Kernel::cached(device, &kernels::SORT_SCATTER, &decl)?,
             use_texel: texel.is_some(),
             texel,
             max_texels: info.max_texel_buffer_elements,

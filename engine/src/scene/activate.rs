@@ -8,6 +8,7 @@
 //! [`activate_cpu`] is its f64 CPU twin.
 
 use bytemuck::{Pod, Zeroable};
+use std::sync::Arc;
 
 use super::Scene;
 use crate::error::Result;
@@ -128,8 +129,8 @@ pub struct Activated {
 }
 
 /// Builds the activation kernel.
-pub fn activate_kernel(device: &Device) -> Result<Kernel> {
-    Ok(Kernel::new(
+pub fn activate_kernel(device: &Device) -> Result<Arc<Kernel>> {
+    Ok(Kernel::cached(
         device,
         &kernels::SCENE_ACTIVATE,
         &KernelDecl { bindings: &[], push_constant_size: std::mem::size_of::<ActivatePush>(), specialization: &[] },

@@ -15,6 +15,7 @@
 //! with the texel named).
 
 use std::path::Path;
+use std::sync::Arc;
 
 use bytemuck::{Pod, Zeroable};
 
@@ -302,14 +303,18 @@ crate::gpu::gpu_layout!(LutPush, "LutPush", [dst, size, samples]);
 /// The environment-preparation kernels.
 pub struct EnvironmentPrep {
     device: Device,
-    downsample: Kernel,
-    prefilter: Kernel,
-    irradiance: Kernel,
-    lut: [Kernel; 2],
+    downsample: Arc<Kernel>,
+    prefilter: Arc<Kernel>,
+    irradiance: Arc<Kernel>,
+    lut: [Arc<Kernel>; 2],
 }
 
-fn push_kernel<P>(device: &Device, info: &'static srug_gpu::KernelInfo, spec: &[(u32, SpecValue)]) -> Result<Kernel> {
-    Ok(Kernel::new(
+fn push_kernel<P>(
+    device: &Device,
+    info: &'static srug_gpu::KernelInfo,
+    spec: &[(u32, SpecValue)],
+) -> Result<Arc<Kernel>> {
+    Ok(Kernel::cached(
         device,
         info,
         &KernelDecl { bindings: &[], push_constant_size: std::mem::size_of::<P>(), specialization: spec },

@@ -29,7 +29,7 @@ pub mod env;
 pub mod ktx;
 pub mod sky;
 
-use std::collections::HashMap;
+use std::sync::Arc;
 
 use bytemuck::{Pod, Zeroable};
 
@@ -427,12 +427,15 @@ impl ShadeUniform {
 /// The shading kernels.
 pub struct Shader {
     device: Device,
-    lights: HashMap<u32, Kernel>,
-    compose: Kernel,
+    compose: Arc<Kernel>,
 }
 
-fn uniform_kernel(device: &Device, info: &'static srug_gpu::KernelInfo, spec: &[(u32, SpecValue)]) -> Result<Kernel> {
-    Ok(Kernel::new(
+fn uniform_kernel(
+    device: &Device,
+    info: &'static srug_gpu::KernelInfo,
+    spec: &[(u32, SpecValue)],
+) -> Result<Arc<Kernel>> {
+    Ok(Kernel::cached(
         device,
         info,
         &KernelDecl { bindings: &[BindingKind::UniformBuffer], push_constant_size: 0, specialization: spec },
@@ -442,11 +445,7 @@ fn uniform_kernel(device: &Device, info: &'static srug_gpu::KernelInfo, spec: &[
 impl Shader {
     /// Builds the compose kernel (light kernels are built per term set on first use).
     pub fn new(device: &Device) -> Result<Self> {
-        Ok(Self {
-            device: device.clone(),
-            lights: HashMap::new(),
-            compose: uniform_kernel(device, &kernels::SHADE_COMPOSE, &[])?,
-        })
+        Ok(Self { device: device.clone(), compose: uniform_kernel(device, &kernels::SHADE_COMPOSE, &[])? })
     }
 
     /// The uniform for `inputs`; output addresses filled by the caller.
@@ -553,13 +552,8 @@ impl Shader {
         // The visibility the uniform settled on (none without a sun above the horizon).
         let editable = if u.modes[0] == VisibilitySource::Editable.code() { inputs.editable_visibility } else { None };
         let bits = settings.terms.bits();
-        let lights = match self.lights.entry(bits) {
-            std::collections::hash_map::Entry::Occupied(e) => e.into_mut(),
-            std::collections::hash_map::Entry::Vacant(e) => {
-                e.insert(uniform_kernel(&device, &kernels::SHADE_LIGHTS, &[(0, SpecValue::U32(bits))])?)
-            }
-        };
-        let lights: &Kernel = lights;
+        let lights = uniform_kernel(&device, &kernels::SHADE_LIGHTS, &[(0, SpecValue::U32(bits))])?;
+        let lights: &Kernel = &lights;
         let mut timings = device.run(|rec| -> Result<()> {
             let buffers = ShadeBuffers {
                 inputs,

@@ -28,6 +28,7 @@ pub mod sun;
 
 use bytemuck::{Pod, Zeroable};
 use glam::Vec3;
+use std::sync::Arc;
 
 pub use self::sun::{solar_position, sun_path, SolarPosition, Sun, UtcTime};
 use crate::error::{Error, Result};
@@ -387,12 +388,12 @@ fn intrinsics(camera: &Camera) -> ([f32; 4], f32) {
 /// The shadow kernels (forward and backward) and the backward's sort scratch.
 pub struct ShadowPass {
     device: Device,
-    test: Kernel,
-    traced: Kernel,
-    backward_upstream: Kernel,
-    backward_bce: Kernel,
-    bins: Kernel,
-    gather: Kernel,
+    test: Arc<Kernel>,
+    traced: Arc<Kernel>,
+    backward_upstream: Arc<Kernel>,
+    backward_bce: Arc<Kernel>,
+    bins: Arc<Kernel>,
+    gather: Arc<Kernel>,
     sort: RadixSort,
 }
 
@@ -413,7 +414,7 @@ impl ShadowPass {
         let two = [BindingKind::UniformBuffer, BindingKind::UniformBuffer];
         let backward = |loss: u32| {
             let spec = [(0, SpecValue::U32(loss))];
-            Kernel::new(
+            Kernel::cached(
                 device,
                 &kernels::SHADOW_BACKWARD,
                 &KernelDecl { bindings: &two, push_constant_size: 4, specialization: &spec },
@@ -422,11 +423,11 @@ impl ShadowPass {
         let plain = KernelDecl { bindings: &two, push_constant_size: 0, specialization: &[] };
         Ok(Self {
             device: device.clone(),
-            test: Kernel::new(device, &kernels::SHADOW_TEST, &decl)?,
-            traced: Kernel::new(device, &kernels::SHADOW_TRACED, &decl)?,
+            test: Kernel::cached(device, &kernels::SHADOW_TEST, &decl)?,
+            traced: Kernel::cached(device, &kernels::SHADOW_TRACED, &decl)?,
             backward_upstream: backward(0)?,
             backward_bce: backward(1)?,
-            bins: Kernel::new(
+            bins: Kernel::cached(
                 device,
                 &kernels::SHADOW_BINS,
                 &KernelDecl {
@@ -435,7 +436,7 @@ impl ShadowPass {
                     specialization: &[],
                 },
             )?,
-            gather: Kernel::new(device, &kernels::SHADOW_TEXEL_GRADS, &plain)?,
+            gather: Kernel::cached(device, &kernels::SHADOW_TEXEL_GRADS, &plain)?,
             sort: RadixSort::new(device)?,
         })
     }

@@ -18,6 +18,7 @@
 //! What is not differentiated is listed in [`super::cpu_backward`], the f64 twin.
 
 use bytemuck::{Pod, Zeroable};
+use std::sync::Arc;
 
 use super::{FrameBuffers, SplatFrame, Splatter};
 use crate::error::{Error, Result};
@@ -194,8 +195,8 @@ fn record_stride(bits: u32) -> u64 {
 
 /// The two backward kernels for one gradient set.
 pub(super) struct BackwardKernels {
-    tiles: Kernel,
-    gaussians: Kernel,
+    tiles: Arc<Kernel>,
+    gaussians: Arc<Kernel>,
 }
 
 impl Splatter {
@@ -246,7 +247,7 @@ impl Splatter {
             return Err(Error::invalid("rgb gradient", "needs a frame rendered with rgb (SplatSettings::rgb on)"));
         }
         let tile = frame.tile;
-        if let std::collections::hash_map::Entry::Vacant(e) = self.backward.entry((bits, tile)) {
+        let k = {
             // Splats per barrier: as many as every pixel's terms (batch × stride ×
             // tile² floats) fit in shared memory (32 KiB on lavapipe) and one
             // invocation per (splat, component) can sum them (batch × stride ≤ tile²).
@@ -268,16 +269,15 @@ impl Splatter {
                 push_constant_size: 0,
                 specialization: &spec,
             };
-            e.insert(BackwardKernels {
-                tiles: Kernel::new(&device, &kernels::SPLAT_BACKWARD_TILES, &with_spec)?,
-                gaussians: Kernel::new(
+            BackwardKernels {
+                tiles: Kernel::cached(&device, &kernels::SPLAT_BACKWARD_TILES, &with_spec)?,
+                gaussians: Kernel::cached(
                     &device,
                     &kernels::SPLAT_BACKWARD_GAUSSIANS,
                     &KernelDecl { specialization: &spec[..1], ..with_spec },
                 )?,
-            });
-        }
-        let k = &self.backward[&(bits, tile)];
+            }
+        };
         let n = frame.gaussians;
         let stride = record_stride(bits);
         let pairs =

@@ -24,7 +24,7 @@ pub mod backward;
 pub mod cpu;
 pub mod cpu_backward;
 
-use std::collections::HashMap;
+use std::sync::Arc;
 
 use bytemuck::{Pod, Zeroable};
 
@@ -654,23 +654,23 @@ impl SplatFrame {
 /// first use) and the sort's scratch memory, reused across frames.
 pub struct Splatter {
     device: Device,
-    preprocess: HashMap<(bool, u32, bool, TileBounds), Kernel>,
-    keys: HashMap<(u32, TileBounds), Kernel>,
-    ranges: Kernel,
-    blend: HashMap<(u32, BlendVariant, u32, bool, u32), Kernel>,
+    ranges: Arc<Kernel>,
     blend_variant: BlendVariant,
     texel_blend: bool,
     texel_preprocess: bool,
     blend_pixels: u32,
     scan: Scan,
     sort: RadixSort,
-    backward: HashMap<(u32, u32), backward::BackwardKernels>,
 }
 
 const FRAME_BINDING: [BindingKind; 1] = [BindingKind::UniformBuffer];
 
-fn frame_kernel(device: &Device, info: &'static srug_gpu::KernelInfo, spec: &[(u32, SpecValue)]) -> Result<Kernel> {
-    Ok(Kernel::new(
+fn frame_kernel(
+    device: &Device,
+    info: &'static srug_gpu::KernelInfo,
+    spec: &[(u32, SpecValue)],
+) -> Result<Arc<Kernel>> {
+    Ok(Kernel::cached(
         device,
         info,
         &KernelDecl { bindings: &FRAME_BINDING, push_constant_size: 0, specialization: spec },
@@ -713,10 +713,7 @@ impl Splatter {
     pub fn new(device: &Device) -> Result<Self> {
         Ok(Self {
             device: device.clone(),
-            preprocess: HashMap::new(),
-            keys: HashMap::new(),
             ranges: frame_kernel(device, &kernels::SPLAT_RANGES, &[])?,
-            blend: HashMap::new(),
             blend_variant: if device.info().subgroup_ballot {
                 BlendVariant::SubgroupLoads
             } else {
@@ -729,7 +726,6 @@ impl Splatter {
             blend_pixels: DEFAULT_BLEND_PIXELS,
             scan: Scan::new(device)?,
             sort: RadixSort::new(device)?,
-            backward: HashMap::new(),
         })
     }
 
@@ -804,42 +800,37 @@ impl Splatter {
         Ok(())
     }
 
-    /// The blend kernel for `bits` channels, `tile` and texel-buffer reads,
-    /// built on first use; returns its key in `self.blend`.
-    fn blend_kernel(&mut self, bits: u32, tile: u32, texel: bool) -> Result<(u32, BlendVariant, u32, bool, u32)> {
-        let device = self.device.clone();
+    /// The blend kernel for channel bits `bits`, `tile` and the texel path,
+    /// from the device's kernel cache.
+    fn blend_kernel(&self, bits: u32, tile: u32, texel: bool) -> Result<Arc<Kernel>> {
         let pixels = if texel { self.blend_pixels } else { 1 };
-        let blend_key = (bits, self.blend_variant, tile, texel, pixels);
-        if let std::collections::hash_map::Entry::Vacant(e) = self.blend.entry(blend_key) {
-            let info = match (self.blend_variant, texel) {
-                (BlendVariant::PerPixel, _) => &kernels::SPLAT_BLEND_PORTABLE,
-                (BlendVariant::SubgroupLoads, false) => &kernels::SPLAT_BLEND,
-                (BlendVariant::SubgroupLoads, true) => &kernels::SPLAT_BLEND_TEXEL,
-                (BlendVariant::SharedBatches, _) => &kernels::SPLAT_BLEND_BATCHED,
-            };
-            let mut spec = vec![(0, SpecValue::U32(bits))];
-            spec.extend(tile_spec(tile));
-            if self.blend_variant == BlendVariant::SharedBatches {
-                // 36 bytes of shared memory per staged splat: at most 256 (9 KiB).
-                spec.push((1, SpecValue::U32((tile * tile).min(256))));
-            }
-            e.insert(if texel {
-                // PIXELS per invocation along x: TILE / PIXELS invocations across.
-                spec[1].1 = SpecValue::U32(tile / pixels);
-                spec.push((2, SpecValue::U32(pixels)));
-                // The frame; splats, features and sorted indices as texel-buffer views.
-                let mut bindings = vec![BindingKind::UniformBuffer];
-                bindings.extend([BindingKind::UniformTexelBuffer; 3]);
-                Kernel::new(
-                    &device,
-                    info,
-                    &KernelDecl { bindings: &bindings, push_constant_size: 0, specialization: &spec },
-                )?
-            } else {
-                frame_kernel(&device, info, &spec)?
-            });
+        let info = match (self.blend_variant, texel) {
+            (BlendVariant::PerPixel, _) => &kernels::SPLAT_BLEND_PORTABLE,
+            (BlendVariant::SubgroupLoads, false) => &kernels::SPLAT_BLEND,
+            (BlendVariant::SubgroupLoads, true) => &kernels::SPLAT_BLEND_TEXEL,
+            (BlendVariant::SharedBatches, _) => &kernels::SPLAT_BLEND_BATCHED,
+        };
+        let mut spec = vec![(0, SpecValue::U32(bits))];
+        spec.extend(tile_spec(tile));
+        if self.blend_variant == BlendVariant::SharedBatches {
+            // 36 bytes of shared memory per staged splat: at most 256 (9 KiB).
+            spec.push((1, SpecValue::U32((tile * tile).min(256))));
         }
-        Ok(blend_key)
+        if texel {
+            // PIXELS per invocation along x: TILE / PIXELS invocations across.
+            spec[1].1 = SpecValue::U32(tile / pixels);
+            spec.push((2, SpecValue::U32(pixels)));
+            // The frame; splats, features and sorted indices as texel-buffer views.
+            let mut bindings = vec![BindingKind::UniformBuffer];
+            bindings.extend([BindingKind::UniformTexelBuffer; 3]);
+            Ok(Kernel::cached(
+                &self.device,
+                info,
+                &KernelDecl { bindings: &bindings, push_constant_size: 0, specialization: &spec },
+            )?)
+        } else {
+            frame_kernel(&self.device, info, &spec)
+        }
     }
 
     /// Renders `scene` from `camera` into new G-buffers.
@@ -884,21 +875,18 @@ impl Splatter {
             self.texel_preprocess && n > 0 && scene_inputs.iter().all(|b| b.size() / 4 <= max_texels);
         let bounds = settings.tile_bounds;
         let ellipse = SpecValue::Bool(bounds == TileBounds::Ellipse);
-        let preprocess_key = (features, tile, texel_preprocess, bounds);
-        if let std::collections::hash_map::Entry::Vacant(e) = self.preprocess.entry(preprocess_key) {
-            let spec = [(0, SpecValue::Bool(features)), (1, ellipse), tile_spec(tile)[0]];
-            e.insert(if texel_preprocess {
-                let mut bindings = vec![BindingKind::UniformBuffer];
-                bindings.extend([BindingKind::UniformTexelBuffer; 5]);
-                Kernel::new(
-                    &device,
-                    &kernels::SPLAT_PREPROCESS_TEXEL,
-                    &KernelDecl { bindings: &bindings, push_constant_size: 0, specialization: &spec },
-                )?
-            } else {
-                frame_kernel(&device, &kernels::SPLAT_PREPROCESS, &spec)?
-            });
-        }
+        let preprocess_spec = [(0, SpecValue::Bool(features)), (1, ellipse), tile_spec(tile)[0]];
+        let preprocess = if texel_preprocess {
+            let mut bindings = vec![BindingKind::UniformBuffer];
+            bindings.extend([BindingKind::UniformTexelBuffer; 5]);
+            Kernel::cached(
+                &device,
+                &kernels::SPLAT_PREPROCESS_TEXEL,
+                &KernelDecl { bindings: &bindings, push_constant_size: 0, specialization: &preprocess_spec },
+            )?
+        } else {
+            frame_kernel(&device, &kernels::SPLAT_PREPROCESS, &preprocess_spec)?
+        };
         let (w, h) = (camera.width, camera.height);
         let (tiles_x, tiles_y) = (w.div_ceil(tile), h.div_ceil(tile));
         let tiles = u64::from(tiles_x) * u64::from(tiles_y);
@@ -943,7 +931,7 @@ impl Splatter {
         self.scan.reserve(&device, n + 1)?;
 
         // Phase 1: preprocess and scan the tile counts; the total sizes phase 2.
-        let preprocess = &self.preprocess[&preprocess_key];
+        let preprocess = &*preprocess;
         let scan = &self.scan;
         let mut timings = device.run(|rec| -> Result<()> {
             let buffers = FrameBuffers {
@@ -987,18 +975,15 @@ impl Splatter {
         frame.counts[3] = pairs as u32;
         // Tile ids 0..=tiles: `tiles` marks the keys kernel's padding (splat_keys.comp).
         let key_bits = 32 + (64 - tiles.leading_zeros());
-        if let std::collections::hash_map::Entry::Vacant(e) = self.keys.entry((tile, bounds)) {
-            e.insert(frame_kernel(&device, &kernels::SPLAT_KEYS, &[(1, ellipse), tile_spec(tile)[0]])?);
-        }
+        let keys_kernel = frame_kernel(&device, &kernels::SPLAT_KEYS, &[(1, ellipse), tile_spec(tile)[0]])?;
         // Texel-buffer reads where the device has RGBA32F/R32UI views and the splats and pairs fit them.
         let texel = self.texel_blend
             && self.blend_variant == BlendVariant::SubgroupLoads
             && n > 0
             && 4 * n <= max_texels
             && pairs <= max_texels;
-        let blend_key = self.blend_kernel(ch.blend_bits(settings.rgb), tile, texel)?;
-        let (sort, keys_kernel, ranges_kernel, blend) =
-            (&self.sort, &self.keys[&(tile, bounds)], &self.ranges, &self.blend[&blend_key]);
+        let blend = self.blend_kernel(ch.blend_bits(settings.rgb), tile, texel)?;
+        let (sort, keys_kernel, ranges_kernel, blend) = (&self.sort, &*keys_kernel, &*self.ranges, &*blend);
         let outputs: Vec<&Buffer> = [&out.alpha]
             .into_iter()
             .chain(
