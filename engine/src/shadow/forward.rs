@@ -1,0 +1,151 @@
+//! The shadow pass: the map splatted from the sun, and the per-pixel
+//! visibility of the receivers by the sigmoid test or the traced reference.
+
+use std::sync::Arc;
+
+use super::*;
+use crate::error::{Error, Result};
+use crate::gpu::{kernels, BindingKind, Buffer, Device, Kernel, KernelDecl, MemoryKind, SpecValue, Timings};
+use crate::primitives::sort::RadixSort;
+use crate::scene::activate::GpuScene;
+use crate::scene::{Bounds, Camera, Projection};
+use crate::splat::{GpuGBuffer, SplatSettings, Splatter};
+
+/// The shadow kernels (forward and backward) and the backward's sort scratch.
+pub struct ShadowPass {
+    pub(super) device: Device,
+    pub(super) test: Arc<Kernel>,
+    pub(super) traced: Arc<Kernel>,
+    pub(super) backward_upstream: Arc<Kernel>,
+    pub(super) backward_bce: Arc<Kernel>,
+    pub(super) bins: Arc<Kernel>,
+    pub(super) gather: Arc<Kernel>,
+    pub(super) sort: RadixSort,
+}
+
+/// Which visibility [`ShadowPass::visibility`] computes.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum VisibilityKind {
+    /// The sigmoid shadow test V_e.
+    #[default]
+    Sigmoid,
+    /// The traced transmittance V_t.
+    Traced,
+}
+
+impl ShadowPass {
+    /// Builds the kernels.
+    pub fn new(device: &Device) -> Result<Self> {
+        let decl = KernelDecl { bindings: &[BindingKind::UniformBuffer], push_constant_size: 0, specialization: &[] };
+        let two = [BindingKind::UniformBuffer, BindingKind::UniformBuffer];
+        let backward = |loss: u32| {
+            let spec = [(0, SpecValue::U32(loss))];
+            Kernel::cached(
+                device,
+                &kernels::SHADOW_BACKWARD,
+                &KernelDecl { bindings: &two, push_constant_size: 4, specialization: &spec },
+            )
+        };
+        let plain = KernelDecl { bindings: &two, push_constant_size: 0, specialization: &[] };
+        Ok(Self {
+            device: device.clone(),
+            test: Kernel::cached(device, &kernels::SHADOW_TEST, &decl)?,
+            traced: Kernel::cached(device, &kernels::SHADOW_TRACED, &decl)?,
+            backward_upstream: backward(0)?,
+            backward_bce: backward(1)?,
+            bins: Kernel::cached(
+                device,
+                &kernels::SHADOW_BINS,
+                &KernelDecl {
+                    bindings: &[],
+                    push_constant_size: std::mem::size_of::<backward::BinsPush>(),
+                    specialization: &[],
+                },
+            )?,
+            gather: Kernel::cached(device, &kernels::SHADOW_TEXEL_GRADS, &plain)?,
+            sort: RadixSort::new(device)?,
+        })
+    }
+
+    /// Splats the scene from the sun; `None` when the sun is at or below the
+    /// horizon (no sun light, nothing runs). `bounds` are the scene's; `view`
+    /// is needed for [`ShadowFit::ViewFrustum`].
+    pub fn shadow_map(
+        &self,
+        splatter: &mut Splatter,
+        scene: &GpuScene,
+        bounds: &Bounds,
+        sun: &Sun,
+        settings: &ShadowSettings,
+        view: Option<&Camera>,
+    ) -> Result<Option<ShadowMap>> {
+        settings.validate()?;
+        if !sun.above_horizon() {
+            return Ok(None);
+        }
+        let camera = light_camera(bounds, sun, settings.resolution, settings.fit, view)?;
+        self.shadow_map_from(splatter, scene, camera, sun, settings).map(Some)
+    }
+
+    /// Splats the scene into a shadow map from a given light camera (fixed
+    /// across optimisation steps, say); the sun must be above the horizon.
+    pub fn shadow_map_from(
+        &self,
+        splatter: &mut Splatter,
+        scene: &GpuScene,
+        camera: Camera,
+        sun: &Sun,
+        settings: &ShadowSettings,
+    ) -> Result<ShadowMap> {
+        settings.validate()?;
+        if !sun.above_horizon() || !matches!(camera.projection, Projection::Orthographic { .. }) {
+            return Err(Error::invalid("shadow map", "needs a sun above the horizon and an orthographic camera"));
+        }
+        let splat = SplatSettings {
+            channels: depth_channels(settings.map_depth),
+            tile: settings.tile,
+            // The map is depth and alpha only: no colour to evaluate or read.
+            rgb: false,
+            ..SplatSettings::default()
+        };
+        let mut frame = splatter.render_frame(scene, &camera, &splat)?;
+        for stage in &mut frame.stats.timings.stages {
+            stage.name = format!("shadow map {}", stage.name);
+        }
+        Ok(ShadowMap { camera, sun: *sun, depth: settings.map_depth, frame })
+    }
+
+    /// Per-pixel visibility of the receivers in `gbuffer` (rendered from
+    /// `camera` with [`ShadowSettings::receiver_channels`]): the sigmoid test or
+    /// the traced reference. Returns the buffer (float per pixel) and its GPU time.
+    pub fn visibility(
+        &self,
+        map: &ShadowMap,
+        gbuffer: &GpuGBuffer,
+        camera: &Camera,
+        settings: &ShadowSettings,
+        kind: VisibilityKind,
+    ) -> Result<(Buffer, Timings)> {
+        let device = &self.device;
+        let pixels = u64::from(camera.width) * u64::from(camera.height);
+        let out = device.create_buffer("visibility", pixels * 4, MemoryKind::Storage)?;
+        let (u, inputs) = shadow_uniform(map, gbuffer, camera, settings)?;
+        let uniform =
+            device.create_buffer("shadow uniform", std::mem::size_of::<ShadowUniform>() as u64, MemoryKind::Storage)?;
+        let (kernel, stage) = match kind {
+            VisibilityKind::Sigmoid => (&self.test, "sigmoid shadow test"),
+            VisibilityKind::Traced => (&self.traced, "traced visibility"),
+        };
+        let timings = device.run(|rec| -> Result<()> {
+            u.record(rec, &uniform, &inputs, Some(&out))?;
+            if let Some(word) = settings.prefill {
+                rec.fill(&out, word)?;
+            }
+            rec.begin_stage(stage);
+            rec.dispatch_1d(kernel, &[&uniform], &(), pixels)?;
+            rec.end_stage();
+            Ok(())
+        })?;
+        Ok((out, timings))
+    }
+}

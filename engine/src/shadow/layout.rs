@@ -1,0 +1,185 @@
+//! The shadow kernels' uniform (`Shadow` in `shadow.glsl`, checked against
+//! it), the buffers it reads, and its camera and light packing.
+
+use bytemuck::{Pod, Zeroable};
+
+use super::*;
+use crate::error::{Error, Result};
+use crate::gpu::{Buffer, DeviceAddress, Recording};
+use crate::scene::{Camera, Projection};
+use crate::splat::GpuGBuffer;
+
+/// The shadow kernels' uniform: `Shadow` in `shadow.glsl` (std140; checked
+/// against it by `check_layout`). Addresses are filled by
+/// `ShadowUniform::record` in the recording that dispatches with it.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+pub struct ShadowUniform {
+    pub(super) cam_rot0: [f32; 4],
+    pub(super) cam_rot1: [f32; 4],
+    pub(super) cam_rot2: [f32; 4],
+    pub(super) cam_pos: [f32; 4],
+    pub(super) cam_intr: [f32; 4],
+    pub(super) light_rot0: [f32; 4],
+    pub(super) light_rot1: [f32; 4],
+    pub(super) light_rot2: [f32; 4],
+    pub(super) light_t: [f32; 4],
+    pub(super) light_intr: [f32; 4],
+    pub(super) size: [u32; 4],
+    pub(super) params: [f32; 4],
+    pub(super) modes: [u32; 4],
+    pub(super) receiver_depth: DeviceAddress,
+    pub(super) receiver_alpha: DeviceAddress,
+    pub(super) map_depth: DeviceAddress,
+    pub(super) map_alpha: DeviceAddress,
+    pub(super) visibility: DeviceAddress,
+    pub(super) unused0: DeviceAddress,
+    pub(super) splats: DeviceAddress,
+    pub(super) sorted_gaussians: DeviceAddress,
+    pub(super) ranges: DeviceAddress,
+    pub(super) unused1: DeviceAddress,
+}
+crate::gpu::gpu_layout!(
+    ShadowUniform,
+    "Shadow",
+    [
+        cam_rot0,
+        cam_rot1,
+        cam_rot2,
+        cam_pos,
+        cam_intr,
+        light_rot0,
+        light_rot1,
+        light_rot2,
+        light_t,
+        light_intr,
+        size,
+        params,
+        modes,
+        receiver_depth,
+        receiver_alpha,
+        map_depth,
+        map_alpha,
+        visibility,
+        unused0,
+        splats,
+        sorted_gaussians,
+        ranges,
+        unused1
+    ]
+);
+
+impl ShadowUniform {
+    /// Takes every address through `rec` (which keeps the buffers borrowed
+    /// until it is submitted) and writes the uniform into `uniform`.
+    /// `visibility` is the forward's output (none in the backward pass).
+    pub(crate) fn record<'a>(
+        mut self,
+        rec: &mut Recording<'a>,
+        uniform: &'a Buffer,
+        inputs: &ShadowInputs<'a>,
+        visibility: Option<&'a Buffer>,
+    ) -> Result<()> {
+        self.receiver_depth = rec.addr(inputs.receiver_depth)?;
+        self.receiver_alpha = rec.addr(inputs.receiver_alpha)?;
+        self.map_depth = rec.addr(inputs.map_depth)?;
+        self.map_alpha = rec.addr(&inputs.map.frame.gbuffer.alpha)?;
+        self.visibility = rec.addr_or_null(visibility)?;
+        self.splats = rec.addr(&inputs.map.frame.splats)?;
+        self.sorted_gaussians = rec.addr(&inputs.map.frame.sorted_gaussians)?;
+        self.ranges = rec.addr(&inputs.map.frame.ranges)?;
+        Ok(rec.update(uniform, 0, &self)?)
+    }
+}
+
+pub(super) fn intrinsics(camera: &Camera) -> ([f32; 4], f32) {
+    match camera.projection {
+        Projection::Pinhole { fx, fy, cx, cy } => ([fx, fy, cx, cy], 0.0),
+        Projection::Orthographic { sx, sy, cx, cy } => ([sx, sy, cx, cy], 1.0),
+    }
+}
+
+/// The buffers the shadow kernels read: the receiver's and the map's depth
+/// channels the settings select, the receiver's alpha, and the map itself.
+pub(crate) struct ShadowInputs<'a> {
+    pub(crate) receiver_depth: &'a Buffer,
+    pub(crate) receiver_alpha: &'a Buffer,
+    pub(crate) map_depth: &'a Buffer,
+    pub(crate) map: &'a ShadowMap,
+}
+
+/// The shadow kernels' uniform (without addresses) for `map`, receivers
+/// `gbuffer` seen from `camera`, and `settings`, and the buffers it reads.
+pub(super) fn shadow_uniform<'a>(
+    map: &'a ShadowMap,
+    gbuffer: &'a GpuGBuffer,
+    camera: &Camera,
+    settings: &ShadowSettings,
+) -> Result<(ShadowUniform, ShadowInputs<'a>)> {
+    settings.validate()?;
+    if (gbuffer.width, gbuffer.height) != (camera.width, camera.height) {
+        return Err(Error::invalid(
+            format!("G-buffer {}x{}", gbuffer.width, gbuffer.height),
+            format!("does not match camera {}x{}", camera.width, camera.height),
+        ));
+    }
+    if settings.map_depth != map.depth {
+        return Err(Error::invalid(
+            format!("shadow map of {:?} depth", map.depth),
+            format!("does not match the settings' {:?} depth", settings.map_depth),
+        ));
+    }
+    let receiver_depth = match settings.receiver_depth {
+        DepthMode::Median => gbuffer.median_depth.as_ref(),
+        DepthMode::Expected | DepthMode::ExpectedOverFar => gbuffer.depth.as_ref(),
+    }
+    .ok_or_else(|| {
+        Error::invalid(
+            "receiver G-buffer",
+            format!("lacks the {:?} depth channel the shadow settings ask for", settings.receiver_depth),
+        )
+    })?;
+    let g = &map.frame.gbuffer;
+    let map_depth = match map.depth {
+        DepthMode::Median => g.median_depth.as_ref(),
+        DepthMode::Expected | DepthMode::ExpectedOverFar => g.depth.as_ref(),
+    }
+    .ok_or_else(|| Error::Internal("the shadow map lacks its depth channel".into()))?;
+    let mut u = ShadowUniform::zeroed();
+    let r = camera.rotation;
+    for (row, i) in [&mut u.cam_rot0, &mut u.cam_rot1, &mut u.cam_rot2].into_iter().zip(0..3) {
+        *row = [r.x_axis[i], r.y_axis[i], r.z_axis[i], 0.0];
+    }
+    let (cam_k, cam_kind) = intrinsics(camera);
+    u.cam_pos = [camera.position.x, camera.position.y, camera.position.z, cam_kind];
+    u.cam_intr = cam_k;
+    let l = &map.camera;
+    let w = l.rotation.transpose();
+    for (row, i) in [&mut u.light_rot0, &mut u.light_rot1, &mut u.light_rot2].into_iter().zip(0..3) {
+        *row = [w.x_axis[i], w.y_axis[i], w.z_axis[i], 0.0];
+    }
+    let t = -(w * l.position);
+    u.light_t = [t.x, t.y, t.z, l.far];
+    u.light_intr = intrinsics(l).0;
+    u.size = [camera.width, camera.height, l.width, l.height];
+    u.params = [settings.k, settings.bias, settings.min_alpha, map.depth.empty_depth(l.far)];
+    u.modes = [map.depth.code(), settings.receiver_depth.code(), map.frame.tiles().0, map.frame.tile];
+    Ok((u, ShadowInputs { receiver_depth, receiver_alpha: &gbuffer.alpha, map_depth, map }))
+}
+
+#[cfg(test)]
+mod layout_tests {
+    use super::backward::{BinsPush, ShadowBackwardUniform};
+    use super::ShadowUniform;
+    use crate::gpu::{check_layout, kernels};
+
+    /// The host structs match the GLSL blocks of every kernel that declares them.
+    #[test]
+    fn uniform_layouts_match_glsl() {
+        let shadow = check_layout::<ShadowUniform>(kernels::ALL);
+        assert!(shadow.as_ref().is_ok_and(|n| *n >= 4), "{shadow:?}");
+        let backward = check_layout::<ShadowBackwardUniform>(kernels::ALL);
+        assert!(backward.as_ref().is_ok_and(|n| *n >= 2), "{backward:?}");
+        assert_eq!(check_layout::<BinsPush>(&[&kernels::SHADOW_BINS]), Ok(1));
+    }
+}

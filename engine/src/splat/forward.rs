@@ -1,0 +1,483 @@
+//! The forward pass: preprocess, scan, keys, sort, ranges and blend, recorded
+//! as two submissions (the scan's total sizes the second).
+
+use std::sync::Arc;
+
+use bytemuck::Zeroable;
+
+use super::*;
+use crate::error::{Error, Result};
+use crate::gpu::{
+    kernels, Binding, BindingKind, Buffer, Device, Kernel, KernelDecl, MemoryKind, SpecValue, TexelFormat, Texels,
+    Timings,
+};
+use crate::primitives::scan::Scan;
+use crate::primitives::sort::RadixSort;
+use crate::scene::activate::GpuScene;
+use crate::scene::Camera;
+
+/// What one render did, besides its G-buffers.
+#[derive(Clone, Debug, Default)]
+pub struct SplatStats {
+    /// Per-stage GPU times.
+    pub timings: Timings,
+    /// (Gaussian, tile) pairs sorted.
+    pub pairs: u64,
+    /// Key bits sorted.
+    pub key_bits: u32,
+    /// GPU bytes of per-frame working memory (splats, features, keys, sort scratch, ranges).
+    pub working_bytes: u64,
+}
+
+/// One rendered frame with the per-frame buffers later stages walk again:
+/// the traced shadow reference and the backward pass read the projected
+/// splats, the sorted pair list and the per-tile ranges.
+pub struct SplatFrame {
+    /// The G-buffers.
+    pub gbuffer: GpuGBuffer,
+    /// What the render did.
+    pub stats: SplatStats,
+    /// The camera it was rendered from.
+    pub camera: Camera,
+    /// Projected splats, [`SPLAT_BYTES`] each (culled ones have an empty rectangle).
+    pub splats: Buffer,
+    /// Per-Gaussian offsets into the unsorted pair list (exclusive scan of tile counts), n + 1 values.
+    pub pair_offsets: Buffer,
+    /// Gaussian index of each sorted pair.
+    pub sorted_gaussians: Buffer,
+    /// Tile id of each unsorted pair: each Gaussian's pairs from its offset on,
+    /// in increasing tile order (the keys kernel's padding last, with id = tiles).
+    /// The backward pass finds a pair's gradient record by searching these.
+    pub pair_tiles: Buffer,
+    /// Per-tile [start, end) into the sorted pairs, `uvec2` per tile.
+    pub ranges: Buffer,
+    /// Per-splat features (normal, materials) when any feature channel was rendered.
+    pub features: Option<Buffer>,
+    /// The frame uniform (camera, sizes, every address above), for the backward
+    /// pass, which rewrites its addresses in its own recording (`params`).
+    pub uniform: Buffer,
+    /// The uniform's camera and sizes, from which each recording that
+    /// dispatches with `uniform` writes it again with its own addresses.
+    pub(crate) params: FrameUniform,
+    /// [`Buffer::id`] of the scene's means, to check the backward pass gets the same scene.
+    pub(crate) scene_means: u64,
+    /// Gaussians in the scene.
+    pub(crate) gaussians: u64,
+    /// Tile edge in pixels it was rendered with.
+    pub tile: u32,
+}
+
+impl SplatFrame {
+    /// Tiles across and down.
+    pub fn tiles(&self) -> (u32, u32) {
+        (self.camera.width.div_ceil(self.tile), self.camera.height.div_ceil(self.tile))
+    }
+}
+
+/// The splatting pipeline: kernels (one variant per channel set, built on
+/// first use) and the sort's scratch memory, reused across frames.
+pub struct Splatter {
+    pub(super) device: Device,
+    ranges: Arc<Kernel>,
+    blend_variant: BlendVariant,
+    texel_blend: bool,
+    texel_preprocess: bool,
+    blend_pixels: u32,
+    scan: Scan,
+    sort: RadixSort,
+}
+
+const FRAME_BINDING: [BindingKind; 1] = [BindingKind::UniformBuffer];
+
+fn frame_kernel(
+    device: &Device,
+    info: &'static srug_gpu::KernelInfo,
+    spec: &[(u32, SpecValue)],
+) -> Result<Arc<Kernel>> {
+    Ok(Kernel::cached(
+        device,
+        info,
+        &KernelDecl { bindings: &FRAME_BINDING, push_constant_size: 0, specialization: spec },
+    )?)
+}
+
+impl Splatter {
+    /// Builds the fixed kernels; channel variants are built on first use.
+    pub fn new(device: &Device) -> Result<Self> {
+        Ok(Self {
+            device: device.clone(),
+            ranges: frame_kernel(device, &kernels::SPLAT_RANGES, &[])?,
+            blend_variant: if device.info().subgroup_ballot {
+                BlendVariant::SubgroupLoads
+            } else {
+                BlendVariant::PerPixel
+            },
+            texel_blend: [TexelFormat::Rgba32Float, TexelFormat::R32Uint]
+                .iter()
+                .all(|f| device.info().texel_formats.contains(f)),
+            texel_preprocess: device.info().texel_formats.contains(&TexelFormat::R32Float),
+            blend_pixels: DEFAULT_BLEND_PIXELS,
+            scan: Scan::new(device)?,
+            sort: RadixSort::new(device)?,
+        })
+    }
+
+    /// Whether the subgroup-load blend reads each contribution's colour and
+    /// features through texel-buffer views (where the splats fit
+    /// `maxTexelBufferElements`) rather than by device address. On by default
+    /// where the device has RGBA32F texel buffers; the image is the same.
+    pub fn texel_blend(&self) -> bool {
+        self.texel_blend
+    }
+
+    /// Chooses how the subgroup-load blend reads colour and features (see
+    /// [`Splatter::texel_blend`]); on where the device lacks the views is an error.
+    pub fn set_texel_blend(&mut self, on: bool) -> Result<()> {
+        let formats = [TexelFormat::Rgba32Float, TexelFormat::R32Uint];
+        if on && !formats.iter().all(|f| self.device.info().texel_formats.contains(f)) {
+            return Err(Error::unsupported("this device cannot read splats through RGBA32F/R32UI texel buffers"));
+        }
+        self.texel_blend = on;
+        Ok(())
+    }
+
+    /// Whether the preprocess reads the Gaussians' means, log-scales,
+    /// rotations, opacity logits and SH coefficients through R32F texel-buffer
+    /// views (where each array fits `maxTexelBufferElements`) rather than by
+    /// device address. On by default where the device has R32F texel buffers;
+    /// the splats are the same.
+    pub fn texel_preprocess(&self) -> bool {
+        self.texel_preprocess
+    }
+
+    /// Chooses how the preprocess reads the scene (see
+    /// [`Splatter::texel_preprocess`]); on where the device lacks R32F views is an error.
+    pub fn set_texel_preprocess(&mut self, on: bool) -> Result<()> {
+        if on && !self.device.info().texel_formats.contains(&TexelFormat::R32Float) {
+            return Err(Error::unsupported("this device cannot read the scene through R32F texel buffers"));
+        }
+        self.texel_preprocess = on;
+        Ok(())
+    }
+
+    /// Pixels each invocation of the texel-buffer blend shades ([`BLEND_PIXELS`]).
+    pub fn blend_pixels(&self) -> u32 {
+        self.blend_pixels
+    }
+
+    /// Sets the pixels per invocation of the texel-buffer blend, one of
+    /// [`BLEND_PIXELS`]; the image does not change, only how the fetches are shared.
+    pub fn set_blend_pixels(&mut self, pixels: u32) -> Result<()> {
+        if !BLEND_PIXELS.contains(&pixels) {
+            return Err(Error::invalid(
+                format!("{pixels} pixels per blend invocation"),
+                format!("is not one of {BLEND_PIXELS:?}"),
+            ));
+        }
+        self.blend_pixels = pixels;
+        Ok(())
+    }
+
+    /// The blend variant in use (subgroup loads where the device has subgroup
+    /// ballot, else per-pixel loads).
+    pub fn blend_variant(&self) -> BlendVariant {
+        self.blend_variant
+    }
+
+    /// Chooses the blend variant; subgroup loads need subgroup ballot support.
+    pub fn set_blend_variant(&mut self, variant: BlendVariant) -> Result<()> {
+        if variant == BlendVariant::SubgroupLoads && !self.device.info().subgroup_ballot {
+            return Err(Error::unsupported("subgroup ballot in compute shaders"));
+        }
+        self.blend_variant = variant;
+        Ok(())
+    }
+
+    /// The blend kernel for channel bits `bits`, `tile` and the texel path,
+    /// from the device's kernel cache.
+    fn blend_kernel(&self, bits: u32, tile: u32, texel: bool) -> Result<Arc<Kernel>> {
+        let pixels = if texel { self.blend_pixels } else { 1 };
+        let info = match (self.blend_variant, texel) {
+            (BlendVariant::PerPixel, _) => &kernels::SPLAT_BLEND_PORTABLE,
+            (BlendVariant::SubgroupLoads, false) => &kernels::SPLAT_BLEND,
+            (BlendVariant::SubgroupLoads, true) => &kernels::SPLAT_BLEND_TEXEL,
+            (BlendVariant::SharedBatches, _) => &kernels::SPLAT_BLEND_BATCHED,
+        };
+        let mut spec = vec![(0, SpecValue::U32(bits))];
+        spec.extend(tile_spec(tile));
+        if self.blend_variant == BlendVariant::SharedBatches {
+            // 36 bytes of shared memory per staged splat: at most 256 (9 KiB).
+            spec.push((1, SpecValue::U32((tile * tile).min(256))));
+        }
+        if texel {
+            // PIXELS per invocation along x: TILE / PIXELS invocations across.
+            spec[1].1 = SpecValue::U32(tile / pixels);
+            spec.push((2, SpecValue::U32(pixels)));
+            // The frame; splats, features and sorted indices as texel-buffer views.
+            let mut bindings = vec![BindingKind::UniformBuffer];
+            bindings.extend([BindingKind::UniformTexelBuffer; 3]);
+            Ok(Kernel::cached(
+                &self.device,
+                info,
+                &KernelDecl { bindings: &bindings, push_constant_size: 0, specialization: &spec },
+            )?)
+        } else {
+            frame_kernel(&self.device, info, &spec)
+        }
+    }
+
+    /// Renders `scene` from `camera` into new G-buffers.
+    pub fn render(
+        &mut self,
+        scene: &GpuScene,
+        camera: &Camera,
+        settings: &SplatSettings,
+    ) -> Result<(GpuGBuffer, SplatStats)> {
+        let frame = self.render_frame(scene, camera, settings)?;
+        Ok((frame.gbuffer, frame.stats))
+    }
+
+    /// Renders like [`Splatter::render`] and keeps the per-frame buffers.
+    pub fn render_frame(&mut self, scene: &GpuScene, camera: &Camera, settings: &SplatSettings) -> Result<SplatFrame> {
+        let device = self.device.clone();
+        let ch = settings.channels;
+        let missing = [
+            (ch.albedo, &scene.albedo, "albedo"),
+            (ch.roughness, &scene.roughness, "roughness"),
+            (ch.metallic, &scene.metallic, "metallic"),
+            (ch.ao, &scene.ao, "ao"),
+            (ch.visibility, &scene.visibility, "visibility"),
+        ];
+        if let Some((_, _, name)) = missing.iter().find(|(want, have, _)| *want && have.is_none()) {
+            return Err(Error::invalid(
+                format!("channel {name}"),
+                format!("was requested but the scene has no {name}"),
+            ));
+        }
+        let tile = settings.tile;
+        check_tile(tile)?;
+        let features = ch.needs_features();
+        let n = scene.count as u64;
+        if n >= u64::from(u32::MAX) {
+            return Err(Error::invalid(format!("scene of {n} Gaussians"), "exceeds the 2³² − 1 the kernels index"));
+        }
+        // The scene arrays the texel preprocess views (binding 1 on), each as R32F.
+        let scene_inputs = [&scene.means, &scene.log_scales, &scene.rotations, &scene.opacity_logits, &scene.sh];
+        let max_texels = device.info().max_texel_buffer_elements;
+        let texel_preprocess =
+            self.texel_preprocess && n > 0 && scene_inputs.iter().all(|b| b.size() / 4 <= max_texels);
+        let bounds = settings.tile_bounds;
+        let ellipse = SpecValue::Bool(bounds == TileBounds::Ellipse);
+        let preprocess_spec = [(0, SpecValue::Bool(features)), (1, ellipse), tile_spec(tile)[0]];
+        let preprocess = if texel_preprocess {
+            let mut bindings = vec![BindingKind::UniformBuffer];
+            bindings.extend([BindingKind::UniformTexelBuffer; 5]);
+            Kernel::cached(
+                &device,
+                &kernels::SPLAT_PREPROCESS_TEXEL,
+                &KernelDecl { bindings: &bindings, push_constant_size: 0, specialization: &preprocess_spec },
+            )?
+        } else {
+            frame_kernel(&device, &kernels::SPLAT_PREPROCESS, &preprocess_spec)?
+        };
+        let (w, h) = (camera.width, camera.height);
+        let (tiles_x, tiles_y) = (w.div_ceil(tile), h.div_ceil(tile));
+        let tiles = u64::from(tiles_x) * u64::from(tiles_y);
+        let pixels = u64::from(w) * u64::from(h);
+        if tiles >= 1 << 32 || pixels * 3 >= 1 << 32 {
+            return Err(Error::invalid(format!("image {w}x{h}"), "is too large"));
+        }
+        let mut frame = FrameUniform::zeroed();
+        camera_frame(camera, &mut frame)?;
+        frame.background = [settings.background[0], settings.background[1], settings.background[2], 0.0];
+        frame.size = [w, h, tiles_x, tiles_y];
+        // Without rgb the colour is never read: degree 0 spares the SH reads.
+        let sh_used =
+            if settings.rgb { settings.sh_degree.map_or(scene.sh_degree, |d| d.min(scene.sh_degree)) } else { 0 };
+        frame.counts =
+            [n as u32, scene.sh_degree | sh_used << 8, u32::from(settings.normal_source == NormalSource::Stored), 0];
+
+        let f = |name: &str, floats: u64| device.create_buffer(name, floats * 4, MemoryKind::Storage);
+        let opt = |on: bool, name: &str, floats: u64| on.then(|| f(name, floats)).transpose();
+        let out = GpuGBuffer {
+            width: w,
+            height: h,
+            rgb: opt(settings.rgb, "gbuffer rgb", 3 * pixels)?,
+            alpha: f("gbuffer alpha", pixels)?,
+            depth: opt(ch.depth, "gbuffer depth", pixels)?,
+            median_depth: opt(ch.median_depth, "gbuffer median depth", pixels)?,
+            normal: opt(ch.normal, "gbuffer normal", 3 * pixels)?,
+            albedo: opt(ch.albedo, "gbuffer albedo", 3 * pixels)?,
+            roughness: opt(ch.roughness, "gbuffer roughness", pixels)?,
+            metallic: opt(ch.metallic, "gbuffer metallic", pixels)?,
+            ao: opt(ch.ao, "gbuffer ao", pixels)?,
+            visibility: opt(ch.visibility, "gbuffer visibility", pixels)?,
+        };
+        let splats = device.create_buffer("splats", n * SPLAT_BYTES, MemoryKind::Storage)?;
+        let feature_buf = features
+            .then(|| device.create_buffer("splat features", n * FEATURE_BYTES, MemoryKind::Storage))
+            .transpose()?;
+        let tile_counts = device.create_buffer("tile counts", (n + 1) * 4, MemoryKind::Storage)?;
+        let ranges = device.create_buffer("tile ranges", tiles * 8, MemoryKind::Storage)?;
+        let uniform =
+            device.create_buffer("splat frame", std::mem::size_of::<FrameUniform>() as u64, MemoryKind::Storage)?;
+        self.scan.reserve(&device, n + 1)?;
+
+        // Phase 1: preprocess and scan the tile counts; the total sizes phase 2.
+        let preprocess = &*preprocess;
+        let scan = &self.scan;
+        let mut timings = device.run(|rec| -> Result<()> {
+            let buffers = FrameBuffers {
+                scene,
+                splats: &splats,
+                features: feature_buf.as_ref(),
+                tile_counts: &tile_counts,
+                keys: None,
+                values: None,
+                pair_tiles: None,
+                ranges: &ranges,
+                out: &out,
+            };
+            frame.record(rec, &uniform, &buffers)?;
+            rec.begin_stage("preprocess");
+            rec.fill(&tile_counts, 0)?;
+            if texel_preprocess {
+                let mut bindings = vec![Binding::Buffer(&uniform)];
+                bindings.extend(scene_inputs.iter().map(|&buffer| {
+                    Binding::Texels(Texels {
+                        buffer,
+                        offset: 0,
+                        elements: buffer.size() / 4,
+                        format: TexelFormat::R32Float,
+                    })
+                }));
+                rec.dispatch_1d_bound(preprocess, &bindings, &(), n)?;
+            } else {
+                rec.dispatch_1d(preprocess, &[&uniform], &(), n)?;
+            }
+            rec.begin_stage("scan");
+            scan.record(rec, &tile_counts, n + 1)
+        })?;
+        let pairs = u64::from(device.read_range::<u32>(&tile_counts, n, 1)?[0]);
+
+        // Phase 2: keys, sort, ranges, blend.
+        let keys = device.create_buffer("sort keys", pairs * 8, MemoryKind::Storage)?;
+        let values = device.create_buffer("sort values", pairs * 4, MemoryKind::Storage)?;
+        let pair_tiles = device.create_buffer("pair tiles", pairs * 4, MemoryKind::Storage)?;
+        self.sort.reserve(&device, pairs)?;
+        frame.counts[3] = pairs as u32;
+        // Tile ids 0..=tiles: `tiles` marks the keys kernel's padding (splat_keys.comp).
+        let key_bits = 32 + (64 - tiles.leading_zeros());
+        let keys_kernel = frame_kernel(&device, &kernels::SPLAT_KEYS, &[(1, ellipse), tile_spec(tile)[0]])?;
+        // Texel-buffer reads where the device has RGBA32F/R32UI views and the splats and pairs fit them.
+        let texel = self.texel_blend
+            && self.blend_variant == BlendVariant::SubgroupLoads
+            && n > 0
+            && 4 * n <= max_texels
+            && pairs <= max_texels;
+        let blend = self.blend_kernel(ch.blend_bits(settings.rgb), tile, texel)?;
+        let (sort, keys_kernel, ranges_kernel, blend) = (&self.sort, &*keys_kernel, &*self.ranges, &*blend);
+        let outputs: Vec<&Buffer> = [&out.alpha]
+            .into_iter()
+            .chain(
+                [
+                    &out.rgb,
+                    &out.depth,
+                    &out.median_depth,
+                    &out.normal,
+                    &out.albedo,
+                    &out.roughness,
+                    &out.metallic,
+                    &out.ao,
+                    &out.visibility,
+                ]
+                .into_iter()
+                .flatten(),
+            )
+            .collect();
+        let phase2 = device.run(|rec| -> Result<()> {
+            let buffers = FrameBuffers {
+                scene,
+                splats: &splats,
+                features: feature_buf.as_ref(),
+                tile_counts: &tile_counts,
+                keys: Some(&keys),
+                values: Some(&values),
+                pair_tiles: Some(&pair_tiles),
+                ranges: &ranges,
+                out: &out,
+            };
+            frame.record(rec, &uniform, &buffers)?;
+            if let Some(word) = settings.prefill {
+                for b in &outputs {
+                    rec.fill(b, word)?;
+                }
+            }
+            if pairs > 0 {
+                rec.begin_stage("keys");
+                rec.dispatch_1d(keys_kernel, &[&uniform], &(), n)?;
+                rec.begin_stage("sort");
+                sort.record(rec, &keys, &values, pairs, key_bits)?;
+            }
+            rec.begin_stage("ranges");
+            rec.fill(&ranges, 0)?;
+            if pairs > 0 {
+                rec.dispatch_1d(ranges_kernel, &[&uniform], &(), pairs)?;
+            }
+            rec.begin_stage("blend");
+            if texel {
+                let view = |buffer, elements| {
+                    Binding::Texels(Texels { buffer, offset: 0, elements, format: TexelFormat::Rgba32Float })
+                };
+                // Without features the kernel never reads binding 2; the splats stand in.
+                let features = feature_buf.as_ref().map_or(view(&splats, 4 * n), |fb| view(fb, 3 * n));
+                rec.dispatch_groups_bound(
+                    blend,
+                    &[
+                        Binding::Buffer(&uniform),
+                        view(&splats, 4 * n),
+                        features,
+                        Binding::Texels(Texels {
+                            buffer: &values,
+                            offset: 0,
+                            elements: pairs,
+                            format: TexelFormat::R32Uint,
+                        }),
+                    ],
+                    &(),
+                    tiles,
+                )?;
+            } else {
+                rec.dispatch_groups(blend, &[&uniform], &(), tiles)?;
+            }
+            rec.end_stage();
+            Ok(())
+        })?;
+        timings.stages.extend(phase2.stages);
+        let working_bytes = splats.size()
+            + feature_buf.as_ref().map_or(0, Buffer::size)
+            + tile_counts.size()
+            + keys.size()
+            + values.size()
+            + pair_tiles.size()
+            + ranges.size()
+            + self.sort.scratch_bytes()
+            + self.scan.scratch_bytes();
+        Ok(SplatFrame {
+            gbuffer: out,
+            stats: SplatStats { timings, pairs, key_bits, working_bytes },
+            camera: camera.clone(),
+            splats,
+            pair_offsets: tile_counts,
+            sorted_gaussians: values,
+            pair_tiles,
+            ranges,
+            features: feature_buf,
+            uniform,
+            params: frame,
+            scene_means: scene.means.id(),
+            gaussians: n,
+            tile,
+        })
+    }
+}

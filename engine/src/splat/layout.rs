@@ -1,0 +1,212 @@
+//! The frame uniform every splat kernel reads (`Frame` in `splat.glsl`,
+//! checked against it), the buffers it addresses, and the camera's packing into it.
+
+use bytemuck::{Pod, Zeroable};
+
+use super::*;
+use crate::error::{Error, Result};
+use crate::gpu::{Buffer, DeviceAddress, Recording};
+use crate::scene::activate::GpuScene;
+use crate::scene::{Camera, Projection};
+
+/// Frame parameters shared by every splat kernel: `Frame` in `splat.glsl`
+/// (std140; checked against it by `check_layout`). The camera and sizes are
+/// set on the host; every address is filled by `FrameUniform::record` in the
+/// recording that dispatches with it, which keeps each buffer alive.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+pub struct FrameUniform {
+    rot0: [f32; 4],
+    rot1: [f32; 4],
+    rot2: [f32; 4],
+    translation: [f32; 4],
+    intrinsics: [f32; 4],
+    clip: [f32; 4],
+    eye: [f32; 4],
+    view_dir: [f32; 4],
+    pub(super) background: [f32; 4],
+    pub(super) size: [u32; 4],
+    pub(super) counts: [u32; 4],
+    means: DeviceAddress,
+    log_scales: DeviceAddress,
+    rotations: DeviceAddress,
+    opacity_logits: DeviceAddress,
+    sh: DeviceAddress,
+    normals: DeviceAddress,
+    albedo: DeviceAddress,
+    roughness: DeviceAddress,
+    metallic: DeviceAddress,
+    ao: DeviceAddress,
+    visibility: DeviceAddress,
+    splats: DeviceAddress,
+    features: DeviceAddress,
+    tile_counts: DeviceAddress,
+    keys: DeviceAddress,
+    values: DeviceAddress,
+    ranges: DeviceAddress,
+    g_rgb: DeviceAddress,
+    pair_tiles: DeviceAddress,
+    unused0: DeviceAddress,
+    g_alpha: DeviceAddress,
+    g_depth: DeviceAddress,
+    g_median_depth: DeviceAddress,
+    g_normal: DeviceAddress,
+    g_albedo: DeviceAddress,
+    g_roughness: DeviceAddress,
+    g_metallic: DeviceAddress,
+    g_ao: DeviceAddress,
+    g_visibility: DeviceAddress,
+    unused1: DeviceAddress,
+}
+crate::gpu::gpu_layout!(
+    FrameUniform,
+    "Frame",
+    [
+        rot0,
+        rot1,
+        rot2,
+        translation,
+        intrinsics,
+        clip,
+        eye,
+        view_dir,
+        background,
+        size,
+        counts,
+        means,
+        log_scales,
+        rotations,
+        opacity_logits,
+        sh,
+        normals,
+        albedo,
+        roughness,
+        metallic,
+        ao,
+        visibility,
+        splats,
+        features,
+        tile_counts,
+        keys,
+        values,
+        ranges,
+        g_rgb,
+        pair_tiles,
+        unused0,
+        g_alpha,
+        g_depth,
+        g_median_depth,
+        g_normal,
+        g_albedo,
+        g_roughness,
+        g_metallic,
+        g_ao,
+        g_visibility,
+        unused1
+    ]
+);
+
+/// The buffers a splat frame's kernels reach by address.
+pub(crate) struct FrameBuffers<'b> {
+    pub(crate) scene: &'b GpuScene,
+    pub(crate) splats: &'b Buffer,
+    pub(crate) features: Option<&'b Buffer>,
+    pub(crate) tile_counts: &'b Buffer,
+    /// Absent before the sort's buffers exist and after they are freed.
+    pub(crate) keys: Option<&'b Buffer>,
+    pub(crate) values: Option<&'b Buffer>,
+    pub(crate) pair_tiles: Option<&'b Buffer>,
+    pub(crate) ranges: &'b Buffer,
+    pub(crate) out: &'b GpuGBuffer,
+}
+
+impl FrameUniform {
+    /// Takes every address from `b` through `rec` (which keeps the buffers
+    /// borrowed until it is submitted) and writes the uniform into `uniform`
+    /// as a recorded command.
+    pub(crate) fn record<'a>(
+        mut self,
+        rec: &mut Recording<'a>,
+        uniform: &'a Buffer,
+        b: &FrameBuffers<'a>,
+    ) -> Result<()> {
+        let s = b.scene;
+        self.means = rec.addr(&s.means)?;
+        self.log_scales = rec.addr(&s.log_scales)?;
+        self.rotations = rec.addr(&s.rotations)?;
+        self.opacity_logits = rec.addr(&s.opacity_logits)?;
+        self.sh = rec.addr(&s.sh)?;
+        self.normals = rec.addr_or_null(s.normals.as_ref())?;
+        self.albedo = rec.addr_or_null(s.albedo.as_ref())?;
+        self.roughness = rec.addr_or_null(s.roughness.as_ref())?;
+        self.metallic = rec.addr_or_null(s.metallic.as_ref())?;
+        self.ao = rec.addr_or_null(s.ao.as_ref())?;
+        self.visibility = rec.addr_or_null(s.visibility.as_ref())?;
+        self.splats = rec.addr(b.splats)?;
+        self.features = rec.addr_or_null(b.features)?;
+        self.tile_counts = rec.addr(b.tile_counts)?;
+        self.keys = rec.addr_or_null(b.keys)?;
+        self.values = rec.addr_or_null(b.values)?;
+        self.ranges = rec.addr(b.ranges)?;
+        self.pair_tiles = rec.addr_or_null(b.pair_tiles)?;
+        let o = b.out;
+        self.g_rgb = rec.addr_or_null(o.rgb.as_ref())?;
+        self.g_alpha = rec.addr(&o.alpha)?;
+        self.g_depth = rec.addr_or_null(o.depth.as_ref())?;
+        self.g_median_depth = rec.addr_or_null(o.median_depth.as_ref())?;
+        self.g_normal = rec.addr_or_null(o.normal.as_ref())?;
+        self.g_albedo = rec.addr_or_null(o.albedo.as_ref())?;
+        self.g_roughness = rec.addr_or_null(o.roughness.as_ref())?;
+        self.g_metallic = rec.addr_or_null(o.metallic.as_ref())?;
+        self.g_ao = rec.addr_or_null(o.ao.as_ref())?;
+        self.g_visibility = rec.addr_or_null(o.visibility.as_ref())?;
+        Ok(rec.update(uniform, 0, &self)?)
+    }
+}
+
+/// Camera parameters for the frame uniform.
+pub(super) fn camera_frame(camera: &Camera, frame: &mut FrameUniform) -> Result<()> {
+    if camera.width == 0 || camera.height == 0 {
+        return Err(Error::invalid(format!("image size {}x{}", camera.width, camera.height), "is empty"));
+    }
+    let r = camera.rotation;
+    let w = r.transpose();
+    let t = -(w * camera.position);
+    for (row, col) in
+        [&mut frame.rot0, &mut frame.rot1, &mut frame.rot2].into_iter().zip([r.x_axis, r.y_axis, r.z_axis])
+    {
+        *row = [col.x, col.y, col.z, 0.0];
+    }
+    let (kind, k, limits) = match camera.projection {
+        Projection::Pinhole { fx, fy, cx, cy } => {
+            (0.0, [fx, fy, cx, cy], [1.3 * 0.5 * camera.width as f32 / fx, 1.3 * 0.5 * camera.height as f32 / fy])
+        }
+        Projection::Orthographic { sx, sy, cx, cy } => (1.0, [sx, sy, cx, cy], [0.0, 0.0]),
+    };
+    frame.translation = [t.x, t.y, t.z, kind];
+    frame.intrinsics = k;
+    frame.clip = [camera.near, camera.far, limits[0], limits[1]];
+    frame.eye = [camera.position.x, camera.position.y, camera.position.z, 0.0];
+    frame.view_dir = [r.z_axis.x, r.z_axis.y, r.z_axis.z, 0.0];
+    let valid = frame.translation.iter().chain(&frame.intrinsics).chain(&frame.clip).all(|v| v.is_finite());
+    if !valid || camera.near.partial_cmp(&camera.far) != Some(std::cmp::Ordering::Less) {
+        return Err(Error::invalid("camera", "has non-finite or inverted parameters"));
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod layout_tests {
+    use super::backward::BackwardUniform;
+    use super::FrameUniform;
+    use crate::gpu::{check_layout, kernels};
+
+    /// The host structs match the GLSL blocks of every kernel that declares them.
+    #[test]
+    fn uniform_layouts_match_glsl() {
+        let frame = check_layout::<FrameUniform>(kernels::ALL);
+        assert!(frame.as_ref().is_ok_and(|n| *n >= 6), "{frame:?}");
+        let backward = check_layout::<BackwardUniform>(kernels::ALL);
+        assert!(backward.as_ref().is_ok_and(|n| *n == 2), "{backward:?}");
+    }
+}
