@@ -12,7 +12,7 @@ use crate::frame::{RelightDecisions, RelightSettings};
 use crate::indirect::{StoragePrecision, UNetConfig};
 use crate::scene::{human_bytes, Scene};
 use crate::shadow::{depth_channels, light_camera, Sun};
-use crate::splat::{BlendVariant, Channels, FEATURE_BYTES, SPLAT_BYTES};
+use crate::splat::{BlendVariant, Channel, Channels, FEATURE_BYTES, SPLAT_BYTES};
 
 /// What the plan is for.
 #[derive(Clone, Debug)]
@@ -89,25 +89,13 @@ impl FramePlan {
 /// Channel names, rgb (when blended) and alpha first.
 pub fn channel_names(c: Channels, rgb: bool) -> Vec<&'static str> {
     let mut v: Vec<&'static str> = if rgb { vec!["rgb", "alpha"] } else { vec!["alpha"] };
-    let named = [
-        (c.depth, "depth"),
-        (c.median_depth, "median_depth"),
-        (c.normal, "normal"),
-        (c.albedo, "albedo"),
-        (c.roughness, "roughness"),
-        (c.metallic, "metallic"),
-        (c.ao, "ao"),
-        (c.visibility, "visibility"),
-    ];
-    v.extend(named.iter().filter(|(on, _)| *on).map(|(_, n)| *n));
+    v.extend(c.iter().map(Channel::name));
     v
 }
 
 /// Floats per pixel of a G-buffer with these channels (alpha and, when blended, rgb included).
 fn floats_per_pixel(c: Channels, rgb: bool) -> u64 {
-    let three = [c.normal, c.albedo].iter().filter(|b| **b).count() as u64;
-    let one = [c.depth, c.median_depth, c.roughness, c.metallic, c.ao, c.visibility].iter().filter(|b| **b).count();
-    1 + 3 * u64::from(rgb) + 3 * three + one as u64
+    1 + 3 * u64::from(rgb) + c.iter().map(|ch| ch.floats() as u64).sum::<u64>()
 }
 
 fn splat_stage(

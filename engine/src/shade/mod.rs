@@ -34,7 +34,6 @@ pub mod sky;
 pub use forward::*;
 pub use layout::*;
 
-
 pub use self::env::{BrdfLut, BrdfTable, EnvironmentMap, EnvironmentPrep, PrepareSettings, PreparedEnvironment};
 pub use self::sky::ProceduralSky;
 use crate::error::{Error, Result};

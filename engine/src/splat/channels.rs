@@ -4,6 +4,74 @@
 use super::*;
 use crate::error::{Error, Result};
 
+/// One optional G-buffer channel: the list, its order (the blend kernel's
+/// `CHANNELS` bit is the position), names and sizes are written here once.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Channel {
+    /// Expected depth Σ wᵢ zᵢ.
+    Depth,
+    /// Depth where transmittance first falls to 0.5.
+    MedianDepth,
+    /// World-space normal.
+    Normal,
+    /// Albedo.
+    Albedo,
+    /// Roughness.
+    Roughness,
+    /// Metallic.
+    Metallic,
+    /// Ambient occlusion.
+    Ao,
+    /// Fixed sun visibility.
+    Visibility,
+}
+
+impl Channel {
+    /// Every optional channel, in bit order.
+    pub const ALL: [Channel; 8] = [
+        Self::Depth,
+        Self::MedianDepth,
+        Self::Normal,
+        Self::Albedo,
+        Self::Roughness,
+        Self::Metallic,
+        Self::Ao,
+        Self::Visibility,
+    ];
+
+    /// The name on the command line, in EXR layers and in the plan.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Depth => "depth",
+            Self::MedianDepth => "median_depth",
+            Self::Normal => "normal",
+            Self::Albedo => "albedo",
+            Self::Roughness => "roughness",
+            Self::Metallic => "metallic",
+            Self::Ao => "ao",
+            Self::Visibility => "visibility",
+        }
+    }
+
+    /// Floats per pixel.
+    pub fn floats(self) -> usize {
+        match self {
+            Self::Normal | Self::Albedo => 3,
+            _ => 1,
+        }
+    }
+
+    /// Its bit in [`Channels::bits`].
+    pub fn bit(self) -> u32 {
+        1 << (self as u32)
+    }
+
+    /// A per-splat feature (read from the splat's feature record, not its depth).
+    pub fn is_feature(self) -> bool {
+        !matches!(self, Self::Depth | Self::MedianDepth)
+    }
+}
+
 /// Which G-buffer channels to blend besides rgb and alpha (alpha always
 /// produced, rgb unless [`SplatSettings::rgb`] is off).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
@@ -39,38 +107,53 @@ impl Channels {
         visibility: true,
     };
 
+    /// Whether `channel` is kept.
+    pub fn has(&self, channel: Channel) -> bool {
+        match channel {
+            Channel::Depth => self.depth,
+            Channel::MedianDepth => self.median_depth,
+            Channel::Normal => self.normal,
+            Channel::Albedo => self.albedo,
+            Channel::Roughness => self.roughness,
+            Channel::Metallic => self.metallic,
+            Channel::Ao => self.ao,
+            Channel::Visibility => self.visibility,
+        }
+    }
+
+    /// Keeps `channel`.
+    pub fn set(&mut self, channel: Channel) {
+        let flag = match channel {
+            Channel::Depth => &mut self.depth,
+            Channel::MedianDepth => &mut self.median_depth,
+            Channel::Normal => &mut self.normal,
+            Channel::Albedo => &mut self.albedo,
+            Channel::Roughness => &mut self.roughness,
+            Channel::Metallic => &mut self.metallic,
+            Channel::Ao => &mut self.ao,
+            Channel::Visibility => &mut self.visibility,
+        };
+        *flag = true;
+    }
+
+    /// The kept channels, in bit order.
+    pub fn iter(self) -> impl Iterator<Item = Channel> {
+        Channel::ALL.into_iter().filter(move |c| self.has(*c))
+    }
+
     /// The `CHANNELS` specialization constant of `splat_blend.comp`, less
     /// its rgb bit ([`RGB_BIT`], from [`SplatSettings::rgb`]).
     pub fn bits(&self) -> u32 {
-        [
-            self.depth,
-            self.median_depth,
-            self.normal,
-            self.albedo,
-            self.roughness,
-            self.metallic,
-            self.ao,
-            self.visibility,
-        ]
-        .iter()
-        .enumerate()
-        .map(|(i, on)| u32::from(*on) << i)
-        .sum()
+        self.iter().map(Channel::bit).sum()
     }
 
     /// The inverse of [`Channels::bits`] (bits above 7 are ignored).
     pub fn from_bits(bits: u32) -> Self {
-        let on = |i: u32| bits & (1 << i) != 0;
-        Channels {
-            depth: on(0),
-            median_depth: on(1),
-            normal: on(2),
-            albedo: on(3),
-            roughness: on(4),
-            metallic: on(5),
-            ao: on(6),
-            visibility: on(7),
+        let mut c = Channels::default();
+        for channel in Channel::ALL.into_iter().filter(|ch| bits & ch.bit() != 0) {
+            c.set(channel);
         }
+        c
     }
 
     /// The whole `CHANNELS` specialization constant: [`Channels::bits`] plus
@@ -81,7 +164,7 @@ impl Channels {
 
     /// Whether per-splat features (normal or materials) are needed.
     pub fn needs_features(&self) -> bool {
-        self.bits() & 0b1111_1100 != 0
+        self.iter().any(Channel::is_feature)
     }
 
     /// Parses a comma-separated list (`rgb` and `alpha` are accepted: alpha is
@@ -90,16 +173,13 @@ impl Channels {
     pub fn parse(list: &str) -> Result<Self> {
         let mut c = Channels::default();
         for item in list.split(',').map(str::trim).filter(|s| !s.is_empty()) {
+            if let Some(channel) = Channel::ALL.into_iter().find(|ch| ch.name() == item) {
+                c.set(channel);
+                continue;
+            }
             match item {
                 "rgb" | "alpha" => {}
-                "depth" => c.depth = true,
-                "median_depth" | "median" => c.median_depth = true,
-                "normal" => c.normal = true,
-                "albedo" => c.albedo = true,
-                "roughness" => c.roughness = true,
-                "metallic" => c.metallic = true,
-                "ao" => c.ao = true,
-                "visibility" => c.visibility = true,
+                "median" => c.median_depth = true,
                 "materials" => {
                     c = Channels { albedo: true, roughness: true, metallic: true, ao: true, visibility: true, ..c }
                 }
@@ -120,5 +200,28 @@ impl Channels {
     /// for callers that blend colour only when asked (`srug render` to EXR).
     pub fn names_rgb(list: &str) -> bool {
         list.split(',').map(str::trim).any(|s| s == "rgb" || s == "all")
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used, reason = "a failed unwrap is a failed test")]
+    use super::{Channel, Channels};
+
+    /// Bits, names and parsing agree for every channel and every set of them.
+    #[test]
+    fn channel_list_round_trips() {
+        for mask in 0..256u32 {
+            assert_eq!(Channels::from_bits(mask).bits(), mask);
+        }
+        for (i, c) in Channel::ALL.into_iter().enumerate() {
+            assert_eq!(c.bit(), 1 << i);
+            let parsed = Channels::parse(c.name()).unwrap();
+            assert_eq!(parsed.iter().collect::<Vec<_>>(), [c], "{}", c.name());
+        }
+        assert_eq!(Channels::ALL.iter().count(), 8);
+        assert_eq!(Channels::ALL.iter().map(|c| c.floats()).sum::<usize>(), 2 * 3 + 6);
+        let names: Vec<&str> = Channel::ALL.into_iter().map(Channel::name).collect();
+        assert_eq!(Channels::parse(&names.join(",")).unwrap(), Channels::ALL);
     }
 }

@@ -229,18 +229,22 @@ impl GBuffer {
     pub fn channels(&self) -> Vec<(&'static str, &[f32], usize)> {
         let mut out: Vec<_> = self.rgb.as_deref().map(|v| ("rgb", v, 3)).into_iter().collect();
         out.push(("alpha", self.alpha.as_slice(), 1));
-        let optional: [(&'static str, &Option<Vec<f32>>, usize); 8] = [
-            ("depth", &self.depth, 1),
-            ("median_depth", &self.median_depth, 1),
-            ("normal", &self.normal, 3),
-            ("albedo", &self.albedo, 3),
-            ("roughness", &self.roughness, 1),
-            ("metallic", &self.metallic, 1),
-            ("ao", &self.ao, 1),
-            ("visibility", &self.visibility, 1),
-        ];
-        out.extend(optional.into_iter().filter_map(|(n, v, k)| v.as_deref().map(|v| (n, v, k))));
+        out.extend(Channel::ALL.into_iter().filter_map(|c| self.get(c).map(|v| (c.name(), v, c.floats()))));
         out
+    }
+
+    /// The values of an optional channel, when it was kept.
+    pub fn get(&self, channel: Channel) -> Option<&[f32]> {
+        match channel {
+            Channel::Depth => self.depth.as_deref(),
+            Channel::MedianDepth => self.median_depth.as_deref(),
+            Channel::Normal => self.normal.as_deref(),
+            Channel::Albedo => self.albedo.as_deref(),
+            Channel::Roughness => self.roughness.as_deref(),
+            Channel::Metallic => self.metallic.as_deref(),
+            Channel::Ao => self.ao.as_deref(),
+            Channel::Visibility => self.visibility.as_deref(),
+        }
     }
 }
 
