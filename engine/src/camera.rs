@@ -62,7 +62,47 @@ pub const DEFAULT_NEAR: f32 = 0.01;
 /// Default far plane.
 pub const DEFAULT_FAR: f32 = 1.0e4;
 
+/// A camera as every shader uniform carries it: rows of vec4s, the
+/// projection kind in a `w`. Packed here once; each stage's layout copies the
+/// parts its GLSL block declares.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PackedCamera {
+    /// Rows of the camera-to-world rotation (`w` 0).
+    pub camera_to_world: [[f32; 4]; 3],
+    /// Rows of the world-to-camera rotation (`w` 0).
+    pub world_to_camera: [[f32; 4]; 3],
+    /// The world-to-camera translation; `w`: 0 pinhole, 1 orthographic.
+    pub translation: [f32; 4],
+    /// The camera centre; `w`: 0 pinhole, 1 orthographic.
+    pub position: [f32; 4],
+    /// fx, fy, cx, cy (orthographic: pixels per unit x, y, cx, cy).
+    pub intrinsics: [f32; 4],
+    /// 0 pinhole, 1 orthographic.
+    pub kind: f32,
+}
+
 impl Camera {
+    /// The camera packed for the shaders.
+    pub fn packed(&self) -> PackedCamera {
+        let r = self.rotation;
+        let w = r.transpose();
+        let rows = |m: Mat3| [0, 1, 2].map(|i| [m.x_axis[i], m.y_axis[i], m.z_axis[i], 0.0]);
+        let (intrinsics, kind) = match self.projection {
+            Projection::Pinhole { fx, fy, cx, cy } => ([fx, fy, cx, cy], 0.0),
+            Projection::Orthographic { sx, sy, cx, cy } => ([sx, sy, cx, cy], 1.0),
+        };
+        let t = -(w * self.position);
+        let p = self.position;
+        PackedCamera {
+            camera_to_world: rows(r),
+            world_to_camera: rows(w),
+            translation: [t.x, t.y, t.z, kind],
+            position: [p.x, p.y, p.z, kind],
+            intrinsics,
+            kind,
+        }
+    }
+
     /// A pinhole camera at `eye` looking at `target`, with `up` roughly up in
     /// the image and `fov_x_degrees` horizontal field of view.
     pub fn look_at(eye: Vec3, target: Vec3, up: Vec3, fov_x_degrees: f32, width: u32, height: u32) -> Result<Self> {
@@ -181,4 +221,33 @@ pub fn look_rotation(eye: Vec3, target: Vec3, up: Vec3) -> Result<Mat3> {
     }
     let down = forward.cross(right);
     Ok(Mat3::from_cols(right, down, forward))
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used, reason = "a failed unwrap is a failed test")]
+    use super::*;
+
+    /// The packed rows are the two rotations, and the translation takes the
+    /// camera centre to the origin.
+    #[test]
+    fn packed_camera_is_consistent() {
+        let c = Camera::look_at(Vec3::new(3.0, -4.0, 1.5), Vec3::new(0.5, 2.0, 0.0), Vec3::Z, 70.0, 64, 32).unwrap();
+        let p = c.packed();
+        for i in 0..3 {
+            for j in 0..3 {
+                assert_eq!(p.camera_to_world[i][j], p.world_to_camera[j][i]);
+            }
+        }
+        let row = |r: [f32; 4]| Vec3::new(r[0], r[1], r[2]);
+        let t = row(p.translation);
+        let moved = Vec3::new(
+            row(p.world_to_camera[0]).dot(c.position),
+            row(p.world_to_camera[1]).dot(c.position),
+            row(p.world_to_camera[2]).dot(c.position),
+        ) + t;
+        assert!(moved.length() < 1e-5, "{moved}");
+        assert_eq!((p.kind, p.translation[3], p.position[3]), (0.0, 0.0, 0.0));
+        assert_eq!(p.intrinsics[2..], [32.0, 16.0]);
+    }
 }

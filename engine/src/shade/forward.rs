@@ -8,7 +8,6 @@ use bytemuck::Zeroable;
 use super::*;
 use crate::error::{Error, Result};
 use crate::gpu::{kernels, BindingKind, Device, Kernel, KernelDecl, MemoryKind, SpecValue};
-use crate::scene::Projection;
 
 /// The shading kernels.
 pub struct Shader {
@@ -75,16 +74,10 @@ impl Shader {
         }
         let env = inputs.environment;
         let mut u = ShadeUniform::zeroed();
-        let r = camera.rotation;
-        for (row, i) in [&mut u.cam_rot0, &mut u.cam_rot1, &mut u.cam_rot2].into_iter().zip(0..3) {
-            *row = [r.x_axis[i], r.y_axis[i], r.z_axis[i], 0.0];
-        }
-        let (k, kind) = match camera.projection {
-            Projection::Pinhole { fx, fy, cx, cy } => ([fx, fy, cx, cy], 0.0),
-            Projection::Orthographic { sx, sy, cx, cy } => ([sx, sy, cx, cy], 1.0),
-        };
-        u.cam_pos = [camera.position.x, camera.position.y, camera.position.z, kind];
-        u.cam_intr = k;
+        let p = camera.packed();
+        [u.cam_rot0, u.cam_rot1, u.cam_rot2] = p.camera_to_world;
+        u.cam_pos = p.position;
+        u.cam_intr = p.intrinsics;
         u.size = [g.width, g.height, env.levels, inputs.brdf.size];
         u.env_size = [env.base.0, env.base.1, env.irradiance_size.0, env.irradiance_size.1];
         if let Some(s) = sun {

@@ -6,7 +6,7 @@ use bytemuck::{Pod, Zeroable};
 use super::*;
 use crate::error::{Error, Result};
 use crate::gpu::{Buffer, DeviceAddress, Recording};
-use crate::scene::{Camera, Projection};
+use crate::scene::Camera;
 use crate::splat::GpuGBuffer;
 
 /// The shadow kernels' uniform: `Shadow` in `shadow.glsl` (std140; checked
@@ -92,13 +92,6 @@ impl ShadowUniform {
     }
 }
 
-pub(super) fn intrinsics(camera: &Camera) -> ([f32; 4], f32) {
-    match camera.projection {
-        Projection::Pinhole { fx, fy, cx, cy } => ([fx, fy, cx, cy], 0.0),
-        Projection::Orthographic { sx, sy, cx, cy } => ([sx, sy, cx, cy], 1.0),
-    }
-}
-
 /// The buffers the shadow kernels read: the receiver's and the map's depth
 /// channels the settings select, the receiver's alpha, and the map itself.
 pub(crate) struct ShadowInputs<'a> {
@@ -146,21 +139,15 @@ pub(super) fn shadow_uniform<'a>(
     }
     .ok_or_else(|| Error::Internal("the shadow map lacks its depth channel".into()))?;
     let mut u = ShadowUniform::zeroed();
-    let r = camera.rotation;
-    for (row, i) in [&mut u.cam_rot0, &mut u.cam_rot1, &mut u.cam_rot2].into_iter().zip(0..3) {
-        *row = [r.x_axis[i], r.y_axis[i], r.z_axis[i], 0.0];
-    }
-    let (cam_k, cam_kind) = intrinsics(camera);
-    u.cam_pos = [camera.position.x, camera.position.y, camera.position.z, cam_kind];
-    u.cam_intr = cam_k;
+    let c = camera.packed();
+    [u.cam_rot0, u.cam_rot1, u.cam_rot2] = c.camera_to_world;
+    u.cam_pos = c.position;
+    u.cam_intr = c.intrinsics;
     let l = &map.camera;
-    let w = l.rotation.transpose();
-    for (row, i) in [&mut u.light_rot0, &mut u.light_rot1, &mut u.light_rot2].into_iter().zip(0..3) {
-        *row = [w.x_axis[i], w.y_axis[i], w.z_axis[i], 0.0];
-    }
-    let t = -(w * l.position);
-    u.light_t = [t.x, t.y, t.z, l.far];
-    u.light_intr = intrinsics(l).0;
+    let light = l.packed();
+    [u.light_rot0, u.light_rot1, u.light_rot2] = light.world_to_camera;
+    u.light_t = [light.translation[0], light.translation[1], light.translation[2], l.far];
+    u.light_intr = light.intrinsics;
     u.size = [camera.width, camera.height, l.width, l.height];
     u.params = [settings.k, settings.bias, settings.min_alpha, map.depth.empty_depth(l.far)];
     u.modes = [map.depth.code(), settings.receiver_depth.code(), map.frame.tiles().0, map.frame.tile];

@@ -169,25 +169,21 @@ pub(super) fn camera_frame(camera: &Camera, frame: &mut FrameUniform) -> Result<
     if camera.width == 0 || camera.height == 0 {
         return Err(Error::invalid(format!("image size {}x{}", camera.width, camera.height), "is empty"));
     }
-    let r = camera.rotation;
-    let w = r.transpose();
-    let t = -(w * camera.position);
-    for (row, col) in
-        [&mut frame.rot0, &mut frame.rot1, &mut frame.rot2].into_iter().zip([r.x_axis, r.y_axis, r.z_axis])
-    {
-        *row = [col.x, col.y, col.z, 0.0];
-    }
-    let (kind, k, limits) = match camera.projection {
-        Projection::Pinhole { fx, fy, cx, cy } => {
-            (0.0, [fx, fy, cx, cy], [1.3 * 0.5 * camera.width as f32 / fx, 1.3 * 0.5 * camera.height as f32 / fy])
+    let p = camera.packed();
+    [frame.rot0, frame.rot1, frame.rot2] = p.world_to_camera;
+    // The Jacobian's clamp: 1.3 × tan of the half field of view (docs/conventions.md §3).
+    let limits = match camera.projection {
+        Projection::Pinhole { fx, fy, .. } => {
+            [1.3 * 0.5 * camera.width as f32 / fx, 1.3 * 0.5 * camera.height as f32 / fy]
         }
-        Projection::Orthographic { sx, sy, cx, cy } => (1.0, [sx, sy, cx, cy], [0.0, 0.0]),
+        Projection::Orthographic { .. } => [0.0, 0.0],
     };
-    frame.translation = [t.x, t.y, t.z, kind];
-    frame.intrinsics = k;
+    frame.translation = p.translation;
+    frame.intrinsics = p.intrinsics;
     frame.clip = [camera.near, camera.far, limits[0], limits[1]];
-    frame.eye = [camera.position.x, camera.position.y, camera.position.z, 0.0];
-    frame.view_dir = [r.z_axis.x, r.z_axis.y, r.z_axis.z, 0.0];
+    frame.eye = [p.position[0], p.position[1], p.position[2], 0.0];
+    let view = camera.rotation.z_axis;
+    frame.view_dir = [view.x, view.y, view.z, 0.0];
     let valid = frame.translation.iter().chain(&frame.intrinsics).chain(&frame.clip).all(|v| v.is_finite());
     if !valid || camera.near.partial_cmp(&camera.far) != Some(std::cmp::Ordering::Less) {
         return Err(Error::invalid("camera", "has non-finite or inverted parameters"));
