@@ -11,10 +11,10 @@ use crate::{srug_status, Failure, FfiResult};
 /// A live object behind a handle.
 #[derive(Clone)]
 pub(crate) enum Object {
-    Context(Arc<crate::api::Context>),
-    Scene(Arc<Mutex<crate::api::SceneObject>>),
-    Environment(Arc<crate::api::EnvironmentObject>),
-    Renderer(Arc<Mutex<crate::api::RendererObject>>),
+    Context(Arc<crate::context::Context>),
+    Scene(Arc<Mutex<crate::scene::SceneObject>>),
+    Environment(Arc<crate::environment::EnvironmentObject>),
+    Renderer(Arc<Mutex<crate::renderer::RendererObject>>),
 }
 
 impl Object {

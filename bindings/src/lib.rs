@@ -22,10 +22,23 @@
 
 #![allow(non_camel_case_types, reason = "C type names follow the C API's snake_case convention")]
 
-mod api;
+// Entry points by object, in the order the header lists them (cbindgen
+// follows the declaration order).
+mod context;
+
+mod scene;
+
+mod environment;
+
+mod renderer;
+
+mod ffi;
 mod handle;
 
-pub use api::*;
+pub use context::*;
+pub use environment::*;
+pub use renderer::*;
+pub use scene::*;
 
 use std::cell::RefCell;
 use std::ffi::c_char;

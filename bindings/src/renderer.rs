@@ -1,636 +1,26 @@
-//! The entry points: contexts, scenes, environments, renderers.
-//!
-//! Each `extern "C"` function checks its pointers, looks its handles up
-//! ([`crate::handle`]), and runs its body inside [`crate::guard`]. Outputs are
-//! written only after everything they depend on succeeded.
+//! Renderers: camera, sun, environment, shadow and preset settings; rendering;
+//! reading images, channels and timings; the shadow forward and backward.
 
-use std::ffi::{c_char, c_void, CStr};
-use std::path::Path;
+use std::ffi::{c_char, c_void};
 use std::sync::{Arc, Mutex};
 
 use glam::{Mat3, Vec3};
 use srug::frame::{Preset, RelightDecisions, RelightSettings, Relighter};
-use srug::gpu::{Device, DeviceOptions, DeviceSelection, Timings};
-use srug::scene::activate::GpuScene;
-use srug::scene::demo::{demo_city, DemoOptions};
-use srug::scene::{AttributeGroups, Bounds, Camera, Projection, Scene};
+use srug::gpu::{Device, Timings};
+use srug::scene::{Camera, Projection};
 use srug::shade::{
-    BrdfLut, BrdfTable, EnvironmentMap, EnvironmentPrep, PrepareSettings, PreparedEnvironment, ProceduralSky,
-    ShadedFrame, ToneMap,
+    BrdfLut, BrdfTable, EnvironmentPrep, PrepareSettings, PreparedEnvironment, ProceduralSky, ShadedFrame, ToneMap,
 };
 use srug::shadow::backward::GpuVisibilityLoss;
 use srug::shadow::{ShadowMap, ShadowPass, Sun, VisibilityKind};
 use srug::splat::{Channels, GpuGBuffer, SplatFrame, SplatSettings};
 
+use crate::context::*;
+use crate::environment::*;
+use crate::ffi::*;
 use crate::handle::{self, id_of, lock, ptr_of, Object};
+use crate::scene::*;
 use crate::{guard, srug_status, Failure, FfiResult};
-
-fn invalid(message: impl Into<String>) -> Failure {
-    Failure::new(srug_status::SRUG_ERROR_INVALID_ARGUMENT, message)
-}
-
-fn wrong_order(message: impl Into<String>) -> Failure {
-    Failure::new(srug_status::SRUG_ERROR_WRONG_ORDER, message)
-}
-
-fn null(what: &str) -> Failure {
-    Failure::new(srug_status::SRUG_ERROR_NULL_POINTER, format!("{what} is NULL"))
-}
-
-/// Writes `value` through an out-pointer checked for NULL.
-///
-/// # Safety
-/// `p` must be NULL or valid for one write of `T`.
-unsafe fn write_out<T>(p: *mut T, what: &str, value: T) -> FfiResult {
-    if p.is_null() {
-        return Err(null(what));
-    }
-    // SAFETY: non-null, and valid for a write by the caller's contract.
-    unsafe { p.write(value) };
-    Ok(())
-}
-
-/// Checks an out-pointer before the work that fills it.
-fn check_out<T>(p: *mut T, what: &str) -> FfiResult {
-    if p.is_null() {
-        Err(null(what))
-    } else {
-        Ok(())
-    }
-}
-
-/// A UTF-8 string argument.
-///
-/// # Safety
-/// `p` must be NULL or a NUL-terminated string that outlives the call.
-unsafe fn text<'a>(p: *const c_char, what: &str) -> FfiResult<&'a str> {
-    if p.is_null() {
-        return Err(null(what));
-    }
-    // SAFETY: non-null and NUL-terminated by the caller's contract.
-    unsafe { CStr::from_ptr(p) }.to_str().map_err(|_| invalid(format!("{what} is not valid UTF-8")))
-}
-
-/// A slice argument of `len` elements (NULL allowed only when `len` is 0).
-///
-/// # Safety
-/// `p` must be NULL or valid for `len` reads of `T` for the call's duration.
-unsafe fn slice<'a, T>(p: *const T, len: usize, what: &str) -> FfiResult<&'a [T]> {
-    if len == 0 {
-        return Ok(&[]);
-    }
-    if p.is_null() {
-        return Err(null(what));
-    }
-    if p.cast::<u8>().align_offset(std::mem::align_of::<T>()) != 0 {
-        return Err(invalid(format!("{what} is not aligned to {} bytes", std::mem::align_of::<T>())));
-    }
-    // SAFETY: non-null, aligned, and valid for `len` reads by the caller's contract.
-    Ok(unsafe { std::slice::from_raw_parts(p, len) })
-}
-
-/// A mutable slice argument; see [`slice`].
-///
-/// # Safety
-/// `p` must be NULL or valid for `len` writes of `T`, not aliased during the call.
-unsafe fn slice_mut<'a, T>(p: *mut T, len: usize, what: &str) -> FfiResult<&'a mut [T]> {
-    if len == 0 {
-        return Ok(&mut []);
-    }
-    if p.is_null() {
-        return Err(null(what));
-    }
-    if p.cast::<u8>().align_offset(std::mem::align_of::<T>()) != 0 {
-        return Err(invalid(format!("{what} is not aligned to {} bytes", std::mem::align_of::<T>())));
-    }
-    // SAFETY: non-null, aligned, valid for `len` writes and unaliased by the caller's contract.
-    Ok(unsafe { std::slice::from_raw_parts_mut(p, len) })
-}
-
-/// `N` floats from a pointer.
-///
-/// # Safety
-/// As [`slice`] with `len` = `N`.
-unsafe fn floats<const N: usize>(p: *const f32, what: &str) -> FfiResult<[f32; N]> {
-    // SAFETY: forwarded contract.
-    let s = unsafe { slice(p, N, what) }?;
-    let mut out = [0.0; N];
-    out.copy_from_slice(s);
-    if let Some(i) = out.iter().position(|v| !v.is_finite()) {
-        return Err(invalid(format!("{what}[{i}] is {} (values must be finite)", out[i])));
-    }
-    Ok(out)
-}
-
-fn finite(v: f32, what: &str) -> FfiResult<f32> {
-    if v.is_finite() {
-        Ok(v)
-    } else {
-        Err(invalid(format!("{what} is {v} (must be finite)")))
-    }
-}
-
-/// Copies `s` into a caller's buffer like [`crate::srug_last_error`] does.
-///
-/// # Safety
-/// `buf` valid for `len` bytes of writes (or NULL with `len` 0); `written` NULL or valid.
-unsafe fn copy_text(s: &str, buf: *mut c_char, len: usize, written: *mut usize) -> FfiResult {
-    if !written.is_null() {
-        // SAFETY: the caller's contract.
-        unsafe { written.write(s.len()) };
-    }
-    if len == 0 {
-        return if s.is_empty() { Ok(()) } else { Err(too_small(s.len() + 1, 0, "bytes")) };
-    }
-    // SAFETY: the caller's contract.
-    let out = unsafe { slice_mut(buf.cast::<u8>(), len, "buf") }?;
-    if s.len() + 1 > len {
-        return Err(too_small(s.len() + 1, len, "bytes"));
-    }
-    out[..s.len()].copy_from_slice(s.as_bytes());
-    out[s.len()] = 0;
-    Ok(())
-}
-
-fn too_small(needed: usize, given: usize, unit: &str) -> Failure {
-    Failure::new(
-        srug_status::SRUG_ERROR_BUFFER_TOO_SMALL,
-        format!("the buffer holds {given} {unit}; {needed} are needed"),
-    )
-}
-
-// ---------------------------------------------------------------------------
-// Contexts
-
-/// A Vulkan device and everything made on it. Thread-safe.
-pub struct srug_context {
-    _private: [u8; 0],
-}
-
-/// `srug_context_create` flag: run the Khronos validation layer (with
-/// synchronization validation); its messages are counted by
-/// `srug_context_take_validation_messages`.
-pub const SRUG_CONTEXT_VALIDATION: u32 = 1;
-
-/// The object behind a context handle.
-pub(crate) struct Context {
-    device: Device,
-}
-
-fn context(p: *const srug_context) -> FfiResult<(u64, Arc<Context>)> {
-    let id = id_of(p)?;
-    match handle::get(id, "context")? {
-        (Object::Context(c), _) => Ok((id, c)),
-        _ => Err(Failure::new(srug_status::SRUG_ERROR_INVALID_HANDLE, "not a context")),
-    }
-}
-
-/// Opens a Vulkan device. `device` selects it: NULL or "" for automatic (a GPU
-/// when there is one, else a CPU device such as lavapipe; the `SRUG_DEVICE`
-/// environment variable applies), "gpu", "cpu", an index from `srug devices`, or
-/// part of a device name. `flags`: 0 or `SRUG_CONTEXT_VALIDATION` (with 0 the
-/// `SRUG_VALIDATION` environment variable decides).
-///
-/// # Safety
-/// `device` NULL or a NUL-terminated string; `out` valid for one write.
-#[no_mangle]
-pub unsafe extern "C" fn srug_context_create(
-    device: *const c_char,
-    flags: u32,
-    out: *mut *mut srug_context,
-) -> srug_status {
-    guard("srug_context_create", || {
-        check_out(out, "out")?;
-        if flags & !SRUG_CONTEXT_VALIDATION != 0 {
-            return Err(invalid(format!("unknown flags {flags:#x}")));
-        }
-        let selection = if device.is_null() {
-            None
-        } else {
-            // SAFETY: the caller's contract.
-            let t = unsafe { text(device, "device") }?;
-            (!t.trim().is_empty()).then(|| DeviceSelection::parse(t))
-        };
-        let validation = (flags & SRUG_CONTEXT_VALIDATION != 0).then_some(true);
-        let device = Device::new(&DeviceOptions { selection, validation })?;
-        let id = handle::insert(Object::Context(Arc::new(Context { device })), 0);
-        // SAFETY: checked non-null above; the caller's contract.
-        unsafe { write_out(out, "out", ptr_of(id)) }
-    })
-}
-
-/// Destroys a context. Fails with `SRUG_ERROR_WRONG_ORDER` while scenes,
-/// environments or renderers made on it are alive. NULL is accepted and ignored.
-///
-/// # Safety
-/// Any pointer value is accepted; it is never dereferenced.
-#[no_mangle]
-pub unsafe extern "C" fn srug_context_destroy(ctx: *mut srug_context) -> srug_status {
-    guard("srug_context_destroy", || {
-        if ctx.is_null() {
-            return Ok(());
-        }
-        handle::remove(id_of(ctx)?, "context")
-    })
-}
-
-/// The device's name (e.g. "llvmpipe (LLVM 15.0.6, 256 bits)"), copied like
-/// `srug_last_error` copies its message.
-///
-/// # Safety
-/// `buf` valid for `len` bytes (or NULL with `len` 0); `written` NULL or valid for one write.
-#[no_mangle]
-pub unsafe extern "C" fn srug_context_device_name(
-    ctx: *const srug_context,
-    buf: *mut c_char,
-    len: usize,
-    written: *mut usize,
-) -> srug_status {
-    guard("srug_context_device_name", || {
-        let (_, c) = context(ctx)?;
-        // SAFETY: the caller's contract.
-        unsafe { copy_text(&c.device.info().name, buf, len, written) }
-    })
-}
-
-/// GPU memory the context's objects hold now and at most since its creation, in bytes.
-///
-/// # Safety
-/// `current` and `peak` each NULL or valid for one write (at least one non-NULL).
-#[no_mangle]
-pub unsafe extern "C" fn srug_context_memory(
-    ctx: *const srug_context,
-    current: *mut u64,
-    peak: *mut u64,
-) -> srug_status {
-    guard("srug_context_memory", || {
-        let (_, c) = context(ctx)?;
-        if current.is_null() && peak.is_null() {
-            return Err(null("both current and peak"));
-        }
-        let m = c.device.memory_usage();
-        if !current.is_null() {
-            // SAFETY: non-null; the caller's contract.
-            unsafe { current.write(m.current_bytes) };
-        }
-        if !peak.is_null() {
-            // SAFETY: non-null; the caller's contract.
-            unsafe { peak.write(m.peak_bytes) };
-        }
-        Ok(())
-    })
-}
-
-/// Takes the validation messages collected since the last call: their number
-/// into `count`, and the messages (one per line) into `buf` like
-/// `srug_last_error` copies text (`buf` may be NULL with `len` 0). Without
-/// validation the count is always 0.
-///
-/// # Safety
-/// `count` valid for one write; `buf` valid for `len` bytes or NULL with `len` 0.
-#[no_mangle]
-pub unsafe extern "C" fn srug_context_take_validation_messages(
-    ctx: *const srug_context,
-    count: *mut usize,
-    buf: *mut c_char,
-    len: usize,
-) -> srug_status {
-    guard("srug_context_take_validation_messages", || {
-        let (_, c) = context(ctx)?;
-        check_out(count, "count")?;
-        let messages = c.device.take_validation_messages();
-        // SAFETY: checked non-null; the caller's contract.
-        unsafe { count.write(messages.len()) };
-        if len > 0 || !buf.is_null() {
-            let mut text = messages.join("\n");
-            let mut cut = text.len().min(len.saturating_sub(1));
-            while !text.is_char_boundary(cut) {
-                cut -= 1;
-            }
-            text.truncate(cut);
-            // SAFETY: the caller's contract; the text fits after the cut.
-            unsafe { copy_text(&text, buf, len, std::ptr::null_mut()) }?;
-        }
-        Ok(())
-    })
-}
-
-/// The number of live handles of every kind in the process, for callers that
-/// check their own clean-up (0 after destroying everything they made).
-///
-/// # Safety
-/// `count` valid for one write.
-#[no_mangle]
-pub unsafe extern "C" fn srug_live_handle_count(count: *mut usize) -> srug_status {
-    guard("srug_live_handle_count", || {
-        // SAFETY: the caller's contract.
-        unsafe { write_out(count, "count", handle::live()) }
-    })
-}
-
-// ---------------------------------------------------------------------------
-// Scenes
-
-/// 3D Gaussians on the GPU. Thread-safe; calls on one scene are serialized.
-pub struct srug_scene {
-    _private: [u8; 0],
-}
-
-/// The object behind a scene handle.
-pub(crate) struct SceneObject {
-    device: Device,
-    scene: Scene,
-    gpu: GpuScene,
-    attributes: AttributeGroups,
-    bounds: Option<Bounds>,
-    /// Bumped by every parameter update (a shadow pass remembers the one it saw).
-    version: u64,
-}
-
-impl SceneObject {
-    fn new(device: &Device, scene: Scene) -> FfiResult<Self> {
-        let gpu = GpuScene::upload(device, &scene)?;
-        Ok(Self {
-            device: device.clone(),
-            attributes: scene.attributes(),
-            bounds: scene.bounds(),
-            scene,
-            gpu,
-            version: 0,
-        })
-    }
-}
-
-fn scene(p: *const srug_scene) -> FfiResult<(u64, u64, Arc<Mutex<SceneObject>>)> {
-    let id = id_of(p)?;
-    match handle::get(id, "scene")? {
-        (Object::Scene(s), ctx) => Ok((id, ctx, s)),
-        _ => Err(Failure::new(srug_status::SRUG_ERROR_INVALID_HANDLE, "not a scene")),
-    }
-}
-
-fn register_scene(ctx_id: u64, c: &Context, s: Scene, out: *mut *mut srug_scene) -> FfiResult {
-    let obj = SceneObject::new(&c.device, s)?;
-    let id = handle::insert(Object::Scene(Arc::new(Mutex::new(obj))), ctx_id);
-    // SAFETY: `out` was checked by the caller of this helper; the C caller's contract.
-    unsafe { write_out(out, "out", ptr_of(id)) }
-}
-
-/// Loads a 3DGS PLY file (INRIA layout, binary or ASCII, optional material
-/// attributes) and uploads it. Malformed files fail with `SRUG_ERROR_BAD_FILE`
-/// and a message naming the row and property.
-///
-/// # Safety
-/// `path` a NUL-terminated string; `out` valid for one write.
-#[no_mangle]
-pub unsafe extern "C" fn srug_scene_from_file(
-    ctx: *const srug_context,
-    path: *const c_char,
-    out: *mut *mut srug_scene,
-) -> srug_status {
-    guard("srug_scene_from_file", || {
-        let (ctx_id, c) = context(ctx)?;
-        check_out(out, "out")?;
-        // SAFETY: the caller's contract.
-        let path = unsafe { text(path, "path") }?;
-        let s = srug::io::read_ply(Path::new(path))?;
-        register_scene(ctx_id, &c, s, out)
-    })
-}
-
-/// Parses a PLY file held in memory (`len` bytes; copied, the caller keeps its buffer).
-///
-/// # Safety
-/// `data` valid for `len` bytes of reads; `out` valid for one write.
-#[no_mangle]
-pub unsafe extern "C" fn srug_scene_from_memory(
-    ctx: *const srug_context,
-    data: *const u8,
-    len: usize,
-    out: *mut *mut srug_scene,
-) -> srug_status {
-    guard("srug_scene_from_memory", || {
-        let (ctx_id, c) = context(ctx)?;
-        check_out(out, "out")?;
-        // SAFETY: the caller's contract.
-        let bytes = unsafe { slice(data, len, "data") }?;
-        let s = srug::io::read_ply_bytes(bytes, "memory buffer").map_err(srug::Error::from)?;
-        register_scene(ctx_id, &c, s, out)
-    })
-}
-
-/// The built-in demo city (the one `srug demo` renders): `gaussians` ≥ 1000,
-/// SH degree 1, every material attribute; the same seed gives the same scene.
-///
-/// # Safety
-/// `out` valid for one write.
-#[no_mangle]
-pub unsafe extern "C" fn srug_scene_create_demo(
-    ctx: *const srug_context,
-    gaussians: usize,
-    seed: u64,
-    out: *mut *mut srug_scene,
-) -> srug_status {
-    guard("srug_scene_create_demo", || {
-        let (ctx_id, c) = context(ctx)?;
-        check_out(out, "out")?;
-        let city = demo_city(&DemoOptions { seed, gaussians, sh_degree: 1 })?;
-        register_scene(ctx_id, &c, city.scene, out)
-    })
-}
-
-/// Destroys a scene (renderers keep what they need of it until their next
-/// render). NULL is accepted and ignored.
-///
-/// # Safety
-/// Any pointer value is accepted; it is never dereferenced.
-#[no_mangle]
-pub unsafe extern "C" fn srug_scene_destroy(scene: *mut srug_scene) -> srug_status {
-    guard("srug_scene_destroy", || {
-        if scene.is_null() {
-            return Ok(());
-        }
-        handle::remove(id_of(scene)?, "scene")
-    })
-}
-
-/// The number of Gaussians, and whether the scene has the material attributes
-/// that relighting needs (`has_materials` is 1 or 0; either pointer may be NULL).
-///
-/// # Safety
-/// `count` and `has_materials` each NULL or valid for one write.
-#[no_mangle]
-pub unsafe extern "C" fn srug_scene_info(
-    scene: *const srug_scene,
-    count: *mut usize,
-    has_materials: *mut u32,
-) -> srug_status {
-    guard("srug_scene_info", || {
-        let (_, _, s) = self::scene(scene)?;
-        let s = lock(&s)?;
-        if !count.is_null() {
-            // SAFETY: non-null; the caller's contract.
-            unsafe { count.write(s.scene.len()) };
-        }
-        if !has_materials.is_null() {
-            // SAFETY: non-null; the caller's contract.
-            unsafe { has_materials.write(u32::from(s.attributes.shadeable())) };
-        }
-        Ok(())
-    })
-}
-
-/// Replaces the Gaussians' geometry (a training step): `means` and `log_scales`
-/// 3 floats each, `rotations` 4 (w, x, y, z), `opacity_logits` 1, for all
-/// `count` Gaussians (`count` must equal the scene's). Non-finite values are
-/// refused, naming the first; nothing changes on failure.
-///
-/// # Safety
-/// Each array valid for reads of its length.
-#[no_mangle]
-pub unsafe extern "C" fn srug_scene_set_gaussians(
-    scene: *mut srug_scene,
-    means: *const f32,
-    log_scales: *const f32,
-    rotations: *const f32,
-    opacity_logits: *const f32,
-    count: usize,
-) -> srug_status {
-    guard("srug_scene_set_gaussians", || {
-        let (_, _, s) = self::scene(scene)?;
-        let mut s = lock(&s)?;
-        if count != s.scene.len() {
-            return Err(invalid(format!("count is {count}; the scene has {} Gaussians", s.scene.len())));
-        }
-        let n3 = count.checked_mul(4).ok_or_else(|| invalid("count overflows"))?;
-        // SAFETY: the caller's contract.
-        let (m, l, r, o) = unsafe {
-            (
-                slice(means, 3 * count, "means")?,
-                slice(log_scales, 3 * count, "log_scales")?,
-                slice(rotations, n3, "rotations")?,
-                slice(opacity_logits, count, "opacity_logits")?,
-            )
-        };
-        for (name, values, k) in [("means", m, 3), ("log_scales", l, 3), ("rotations", r, 4), ("opacity_logits", o, 1)]
-        {
-            if let Some(i) = values.iter().position(|v| !v.is_finite()) {
-                return Err(invalid(format!("{name}[{i}] (Gaussian {}) is {}", i / k, values[i])));
-            }
-        }
-        let dev = s.device.clone();
-        // Before writing: even a partial write must not leave a reused shadow map looking current.
-        s.gpu.mark_changed();
-        dev.write_buffer(&s.gpu.means, 0, m)?;
-        dev.write_buffer(&s.gpu.log_scales, 0, l)?;
-        dev.write_buffer(&s.gpu.rotations, 0, r)?;
-        dev.write_buffer(&s.gpu.opacity_logits, 0, o)?;
-        for i in 0..count {
-            s.scene.means[i] = [m[3 * i], m[3 * i + 1], m[3 * i + 2]];
-            s.scene.log_scales[i] = [l[3 * i], l[3 * i + 1], l[3 * i + 2]];
-            s.scene.rotations[i] = [r[4 * i], r[4 * i + 1], r[4 * i + 2], r[4 * i + 3]];
-            s.scene.opacity_logits[i] = o[i];
-        }
-        s.bounds = s.scene.bounds();
-        s.version += 1;
-        Ok(())
-    })
-}
-
-// ---------------------------------------------------------------------------
-// Environments
-
-/// Sky light: a prepared environment map or the procedural sky. Immutable,
-/// thread-safe; a renderer keeps the one it was given alive.
-pub struct srug_environment {
-    _private: [u8; 0],
-}
-
-/// The object behind an environment handle.
-pub(crate) enum EnvironmentObject {
-    /// Prefiltered once.
-    Prepared(Box<PreparedEnvironment>),
-    /// Made per sun (Preetham), with this turbidity.
-    Sky(f32),
-}
-
-fn environment(p: *const srug_environment) -> FfiResult<(u64, Arc<EnvironmentObject>)> {
-    let id = id_of(p)?;
-    match handle::get(id, "environment")? {
-        (Object::Environment(e), ctx) => Ok((ctx, e)),
-        _ => Err(Failure::new(srug_status::SRUG_ERROR_INVALID_HANDLE, "not an environment")),
-    }
-}
-
-fn register_environment(ctx_id: u64, e: EnvironmentObject, out: *mut *mut srug_environment) -> FfiResult {
-    let id = handle::insert(Object::Environment(Arc::new(e)), ctx_id);
-    // SAFETY: checked by the caller of this helper; the C caller's contract.
-    unsafe { write_out(out, "out", ptr_of(id)) }
-}
-
-/// Loads an environment map (lat-long EXR or Radiance .hdr, KTX2 lat-long or
-/// cube) and prefilters it once on the GPU; or loads a folder written by
-/// `srug prefilter`.
-///
-/// # Safety
-/// `path` a NUL-terminated string; `out` valid for one write.
-#[no_mangle]
-pub unsafe extern "C" fn srug_environment_from_file(
-    ctx: *const srug_context,
-    path: *const c_char,
-    out: *mut *mut srug_environment,
-) -> srug_status {
-    guard("srug_environment_from_file", || {
-        let (ctx_id, c) = context(ctx)?;
-        check_out(out, "out")?;
-        // SAFETY: the caller's contract.
-        let path = Path::new(unsafe { text(path, "path") }?);
-        let prepared = if path.is_dir() {
-            PreparedEnvironment::load(&c.device, path)?
-        } else {
-            EnvironmentPrep::new(&c.device)?.prepare(&EnvironmentMap::load(path)?, &PrepareSettings::default())?
-        };
-        register_environment(ctx_id, EnvironmentObject::Prepared(Box::new(prepared)), out)
-    })
-}
-
-/// The procedural (Preetham) sky, remade for each sun position; `turbidity` in [1.7, 10].
-///
-/// # Safety
-/// `out` valid for one write.
-#[no_mangle]
-pub unsafe extern "C" fn srug_environment_sky(
-    ctx: *const srug_context,
-    turbidity: f32,
-    out: *mut *mut srug_environment,
-) -> srug_status {
-    guard("srug_environment_sky", || {
-        let (ctx_id, _) = context(ctx)?;
-        check_out(out, "out")?;
-        if !(1.7..=10.0).contains(&turbidity) {
-            return Err(invalid(format!("turbidity {turbidity} is outside [1.7, 10]")));
-        }
-        register_environment(ctx_id, EnvironmentObject::Sky(turbidity), out)
-    })
-}
-
-/// Destroys an environment (a renderer using it keeps it until it gets another).
-/// NULL is accepted and ignored.
-///
-/// # Safety
-/// Any pointer value is accepted; it is never dereferenced.
-#[no_mangle]
-pub unsafe extern "C" fn srug_environment_destroy(env: *mut srug_environment) -> srug_status {
-    guard("srug_environment_destroy", || {
-        if env.is_null() {
-            return Ok(());
-        }
-        handle::remove(id_of(env)?, "environment")
-    })
-}
-
-// ---------------------------------------------------------------------------
-// Renderers
 
 /// Renders and relights scenes for one camera at a time; keeps its kernels,
 /// its last frame and its shadow pass. Thread-safe; calls on one renderer are serialized.
@@ -712,41 +102,41 @@ pub struct srug_gaussian_gradients {
 }
 
 /// The last rendered frame.
-struct Frame {
-    gbuffer: GpuGBuffer,
-    shaded: Option<ShadedFrame>,
+pub(crate) struct Frame {
+    pub(crate) gbuffer: GpuGBuffer,
+    pub(crate) shaded: Option<ShadedFrame>,
 }
 
 /// The last shadow forward pass, kept for the backward pass.
-struct ShadowState {
-    scene: u64,
-    version: u64,
-    map: ShadowMap,
-    receivers: SplatFrame,
+pub(crate) struct ShadowState {
+    pub(crate) scene: u64,
+    pub(crate) version: u64,
+    pub(crate) map: ShadowMap,
+    pub(crate) receivers: SplatFrame,
 }
 
 /// The object behind a renderer handle.
 pub(crate) struct RendererObject {
-    device: Device,
-    width: u32,
-    height: u32,
-    settings: RelightSettings,
-    camera: Option<Camera>,
-    sun: Option<Sun>,
-    environment: Option<Arc<EnvironmentObject>>,
-    relighter: Relighter,
-    prep: EnvironmentPrep,
-    brdf: Option<BrdfTable>,
+    pub(crate) device: Device,
+    pub(crate) width: u32,
+    pub(crate) height: u32,
+    pub(crate) settings: RelightSettings,
+    pub(crate) camera: Option<Camera>,
+    pub(crate) sun: Option<Sun>,
+    pub(crate) environment: Option<Arc<EnvironmentObject>>,
+    pub(crate) relighter: Relighter,
+    pub(crate) prep: EnvironmentPrep,
+    pub(crate) brdf: Option<BrdfTable>,
     /// The procedural sky for (sun direction, intensity, turbidity) as bits.
-    sky: Option<([u32; 7], PreparedEnvironment)>,
-    shadows: Option<ShadowPass>,
-    frame: Option<Frame>,
-    shadow: Option<ShadowState>,
+    pub(crate) sky: Option<([u32; 7], PreparedEnvironment)>,
+    pub(crate) shadows: Option<ShadowPass>,
+    pub(crate) frame: Option<Frame>,
+    pub(crate) shadow: Option<ShadowState>,
     /// GPU stages of the last render or shadow pass.
-    timings: Option<Timings>,
+    pub(crate) timings: Option<Timings>,
 }
 
-fn renderer(p: *const srug_renderer) -> FfiResult<(u64, Arc<Mutex<RendererObject>>)> {
+pub(crate) fn renderer(p: *const srug_renderer) -> FfiResult<(u64, Arc<Mutex<RendererObject>>)> {
     let id = id_of(p)?;
     match handle::get(id, "renderer")? {
         (Object::Renderer(r), ctx) => Ok((ctx, r)),
@@ -755,14 +145,14 @@ fn renderer(p: *const srug_renderer) -> FfiResult<(u64, Arc<Mutex<RendererObject
 }
 
 /// Runs `f` on a renderer's object.
-fn with_renderer(p: *const srug_renderer, f: impl FnOnce(&mut RendererObject) -> FfiResult) -> FfiResult {
+pub(crate) fn with_renderer(p: *const srug_renderer, f: impl FnOnce(&mut RendererObject) -> FfiResult) -> FfiResult {
     let (_, r) = renderer(p)?;
     let mut r = lock(&r)?;
     f(&mut r)
 }
 
 /// Runs `f` on a renderer and a scene of the same context.
-fn with_renderer_and_scene(
+pub(crate) fn with_renderer_and_scene(
     rp: *const srug_renderer,
     sp: *const srug_scene,
     f: impl FnOnce(&mut RendererObject, u64, &SceneObject) -> FfiResult,
@@ -848,7 +238,7 @@ pub unsafe extern "C" fn srug_renderer_destroy(renderer: *mut srug_renderer) -> 
     })
 }
 
-fn set_camera(
+pub(crate) fn set_camera(
     r: &mut RendererObject,
     rotation: Mat3,
     position: Vec3,
