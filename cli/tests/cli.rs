@@ -653,37 +653,14 @@ fn relight_presets_and_quality_options() {
         let img = image::open(&out).unwrap();
         assert_eq!((img.width(), img.height()), (64, 24), "{preset}: written at the camera's size");
     }
-    let o = srug(&[
-        "relight",
-        scene.to_str().unwrap(),
-        "--cameras",
-        cams.to_str().unwrap(),
-        "--preset",
-        "best",
-        "--out",
-        "x.png",
-    ]);
-    assert!(!o.status.success() && text(&o).contains("preset \"best\""), "{}", text(&o));
-    let o = srug(&[
-        "relight",
-        scene.to_str().unwrap(),
-        "--cameras",
-        cams.to_str().unwrap(),
-        "--render-scale",
-        "1.5",
-        "--out",
-        "x.png",
-    ]);
-    assert!(!o.status.success() && text(&o).contains("render scale 1.5"), "{}", text(&o));
-    let o = srug(&[
-        "relight",
-        scene.to_str().unwrap(),
-        "--cameras",
-        cams.to_str().unwrap(),
-        "--tile",
-        "12",
-        "--out",
-        "x.png",
-    ]);
-    assert!(!o.status.success() && text(&o).contains("tile size 12: is not one of [8, 16, 32]"), "{}", text(&o));
+    // Refused settings: (option, value, what the message says).
+    for (option, value, want) in [
+        ("--preset", "best", "preset \"best\""),
+        ("--render-scale", "1.5", "render scale 1.5"),
+        ("--tile", "12", "tile size 12: is not one of [8, 16, 32]"),
+    ] {
+        let args = ["relight", scene.to_str().unwrap(), "--cameras", cams.to_str().unwrap(), option, value];
+        let o = srug(&[&args[..], &["--out", "x.png"]].concat());
+        assert!(!o.status.success() && text(&o).contains(want), "{option} {value}: {}", text(&o));
+    }
 }

@@ -49,6 +49,18 @@ pub struct KernelDecl<'a> {
     pub specialization: &'a [(u32, SpecValue)],
 }
 
+impl<'a> KernelDecl<'a> {
+    /// A kernel that reads one uniform block at binding 0 and no push constants.
+    pub const fn uniform(specialization: &'a [(u32, SpecValue)]) -> Self {
+        Self { bindings: &[BindingKind::UniformBuffer], push_constant_size: 0, specialization }
+    }
+
+    /// A kernel that binds nothing and takes push constants `P` (buffers by address).
+    pub const fn push<P>(specialization: &'a [(u32, SpecValue)]) -> Self {
+        Self { bindings: &[], push_constant_size: std::mem::size_of::<P>(), specialization }
+    }
+}
+
 /// A compute pipeline ready to dispatch. Dropping it is safe at any time.
 pub struct Kernel {
     pub(crate) shared: Arc<Shared>,

@@ -44,16 +44,12 @@ pub struct Scan {
     capacity: u64,
 }
 
-fn addressed(device: &Device, info: &'static srug_gpu::KernelInfo, push: usize) -> Result<Arc<Kernel>> {
-    Ok(Kernel::cached(device, info, &KernelDecl { bindings: &[], push_constant_size: push, specialization: &[] })?)
-}
-
 impl Scan {
     /// Builds the kernels.
     pub fn new(device: &Device) -> Result<Self> {
         Ok(Self {
-            reduce: addressed(device, &kernels::SCAN_REDUCE, std::mem::size_of::<ScanPush>())?,
-            apply: addressed(device, &kernels::SCAN_APPLY, std::mem::size_of::<ScanPush>())?,
+            reduce: device.kernel(&kernels::SCAN_REDUCE, &KernelDecl::push::<ScanPush>(&[]))?,
+            apply: device.kernel(&kernels::SCAN_APPLY, &KernelDecl::push::<ScanPush>(&[]))?,
             levels: Vec::new(),
             capacity: 0,
         })

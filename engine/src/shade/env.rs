@@ -309,27 +309,17 @@ pub struct EnvironmentPrep {
     lut: [Arc<Kernel>; 2],
 }
 
-fn push_kernel<P>(
-    device: &Device,
-    info: &'static srug_gpu::KernelInfo,
-    spec: &[(u32, SpecValue)],
-) -> Result<Arc<Kernel>> {
-    Ok(Kernel::cached(
-        device,
-        info,
-        &KernelDecl { bindings: &[], push_constant_size: std::mem::size_of::<P>(), specialization: spec },
-    )?)
-}
-
 impl EnvironmentPrep {
     /// Builds the kernels.
     pub fn new(device: &Device) -> Result<Self> {
-        let lut = |v: BrdfLut| push_kernel::<LutPush>(device, &kernels::BRDF_LUT, &[(0, SpecValue::U32(v.code()))]);
+        let lut = |v: BrdfLut| {
+            device.kernel(&kernels::BRDF_LUT, &KernelDecl::push::<LutPush>(&[(0, SpecValue::U32(v.code()))]))
+        };
         Ok(Self {
             device: device.clone(),
-            downsample: push_kernel::<DownsamplePush>(device, &kernels::ENV_DOWNSAMPLE, &[])?,
-            prefilter: push_kernel::<PrefilterPush>(device, &kernels::ENV_PREFILTER, &[])?,
-            irradiance: push_kernel::<IrradiancePush>(device, &kernels::ENV_IRRADIANCE, &[])?,
+            downsample: device.kernel(&kernels::ENV_DOWNSAMPLE, &KernelDecl::push::<DownsamplePush>(&[]))?,
+            prefilter: device.kernel(&kernels::ENV_PREFILTER, &KernelDecl::push::<PrefilterPush>(&[]))?,
+            irradiance: device.kernel(&kernels::ENV_IRRADIANCE, &KernelDecl::push::<IrradiancePush>(&[]))?,
             lut: [lut(BrdfLut::Karis)?, lut(BrdfLut::HeightCorrelated)?],
         })
     }

@@ -7,7 +7,7 @@ use bytemuck::Zeroable;
 
 use super::*;
 use crate::error::{Error, Result};
-use crate::gpu::{kernels, BindingKind, Device, Kernel, KernelDecl, MemoryKind, SpecValue};
+use crate::gpu::{kernels, Device, Kernel, KernelDecl, MemoryKind, SpecValue};
 
 /// The shading kernels.
 pub struct Shader {
@@ -15,22 +15,10 @@ pub struct Shader {
     compose: Arc<Kernel>,
 }
 
-fn uniform_kernel(
-    device: &Device,
-    info: &'static srug_gpu::KernelInfo,
-    spec: &[(u32, SpecValue)],
-) -> Result<Arc<Kernel>> {
-    Ok(Kernel::cached(
-        device,
-        info,
-        &KernelDecl { bindings: &[BindingKind::UniformBuffer], push_constant_size: 0, specialization: spec },
-    )?)
-}
-
 impl Shader {
     /// Builds the compose kernel (light kernels are built per term set on first use).
     pub fn new(device: &Device) -> Result<Self> {
-        Ok(Self { device: device.clone(), compose: uniform_kernel(device, &kernels::SHADE_COMPOSE, &[])? })
+        Ok(Self { device: device.clone(), compose: device.kernel(&kernels::SHADE_COMPOSE, &KernelDecl::uniform(&[]))? })
     }
 
     /// The uniform for `inputs`; output addresses filled by the caller.
@@ -131,7 +119,7 @@ impl Shader {
         // The visibility the uniform settled on (none without a sun above the horizon).
         let editable = if u.modes[0] == VisibilitySource::Editable.code() { inputs.editable_visibility } else { None };
         let bits = settings.terms.bits();
-        let lights = uniform_kernel(&device, &kernels::SHADE_LIGHTS, &[(0, SpecValue::U32(bits))])?;
+        let lights = device.kernel(&kernels::SHADE_LIGHTS, &KernelDecl::uniform(&[(0, SpecValue::U32(bits))]))?;
         let lights: &Kernel = &lights;
         let mut timings = device.run(|rec| -> Result<()> {
             let buffers = ShadeBuffers {

@@ -87,26 +87,12 @@ pub struct Splatter {
     sort: RadixSort,
 }
 
-const FRAME_BINDING: [BindingKind; 1] = [BindingKind::UniformBuffer];
-
-fn frame_kernel(
-    device: &Device,
-    info: &'static srug_gpu::KernelInfo,
-    spec: &[(u32, SpecValue)],
-) -> Result<Arc<Kernel>> {
-    Ok(Kernel::cached(
-        device,
-        info,
-        &KernelDecl { bindings: &FRAME_BINDING, push_constant_size: 0, specialization: spec },
-    )?)
-}
-
 impl Splatter {
     /// Builds the fixed kernels; channel variants are built on first use.
     pub fn new(device: &Device) -> Result<Self> {
         Ok(Self {
             device: device.clone(),
-            ranges: frame_kernel(device, &kernels::SPLAT_RANGES, &[])?,
+            ranges: device.kernel(&kernels::SPLAT_RANGES, &KernelDecl::uniform(&[]))?,
             blend_variant: if device.info().subgroup_ballot {
                 BlendVariant::SubgroupLoads
             } else {
@@ -222,7 +208,7 @@ impl Splatter {
                 &KernelDecl { bindings: &bindings, push_constant_size: 0, specialization: &spec },
             )?)
         } else {
-            frame_kernel(&self.device, info, &spec)
+            Ok(self.device.kernel(info, &KernelDecl::uniform(&spec))?)
         }
     }
 
@@ -278,7 +264,7 @@ impl Splatter {
                 &KernelDecl { bindings: &bindings, push_constant_size: 0, specialization: &preprocess_spec },
             )?
         } else {
-            frame_kernel(&device, &kernels::SPLAT_PREPROCESS, &preprocess_spec)?
+            device.kernel(&kernels::SPLAT_PREPROCESS, &KernelDecl::uniform(&preprocess_spec))?
         };
         let (w, h) = (camera.width, camera.height);
         let (tiles_x, tiles_y) = (w.div_ceil(tile), h.div_ceil(tile));
@@ -368,7 +354,8 @@ impl Splatter {
         frame.counts[3] = pairs as u32;
         // Tile ids 0..=tiles: `tiles` marks the keys kernel's padding (splat_keys.comp).
         let key_bits = 32 + (64 - tiles.leading_zeros());
-        let keys_kernel = frame_kernel(&device, &kernels::SPLAT_KEYS, &[(1, ellipse), tile_spec(tile)[0]])?;
+        let keys_kernel =
+            device.kernel(&kernels::SPLAT_KEYS, &KernelDecl::uniform(&[(1, ellipse), tile_spec(tile)[0]]))?;
         // Texel-buffer reads where the device has RGBA32F/R32UI views and the splats and pairs fit them.
         let texel = self.texel_blend
             && self.blend_variant == BlendVariant::SubgroupLoads
