@@ -18,7 +18,7 @@
 //!   `maxStorageBufferRange` (128 MiB on lavapipe); larger data is reached by
 //!   device address (`shaders/include/address.glsl`).
 //! - **Texel buffers.** A kernel may read a buffer through a `samplerBuffer`
-//!   ([`Texels`], bound with [`Recording::dispatch_bound`]); the recording makes
+//!   ([`Texels`], bound with [`Recording::dispatch`]); the recording makes
 //!   the view and checks `maxTexelBufferElements` and the offset alignment.
 //!   On lavapipe a `texelFetch` with per-lane indices is a vector gather, while
 //!   storage-buffer and device-address loads run lane by lane.
@@ -55,5 +55,5 @@ pub use format::TexelFormat;
 pub use info::{AdapterSummary, DeviceInfo, MemoryUsage};
 pub use kernel::{check_decl, specialized_workgroup_size, Kernel, KernelDecl, SpecValue};
 pub use layout::{check_block, check_layout, DeviceAddress, GpuLayout};
-pub use recording::{grid_1d, Binding, Recording, StageTime, Submission, Timings};
+pub use recording::{grid_1d, Binding, Grid, Recording, StageTime, Submission, Timings};
 pub use srug_spirv::{kernels, BindingInfo, BindingKind, BlockInfo, KernelInfo, MemberInfo, SpecConstantInfo};

@@ -36,6 +36,25 @@ pub enum Binding<'a> {
     Texels(Texels<'a>),
 }
 
+impl<'a> From<&'a Buffer> for Binding<'a> {
+    fn from(buffer: &'a Buffer) -> Self {
+        Binding::Buffer(buffer)
+    }
+}
+
+/// How many workgroups a dispatch runs.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Grid {
+    /// One invocation per item: enough workgroups of the kernel's (1D) width,
+    /// laid out as a 2D grid; shaders index items with `linear_index()`.
+    Items(u64),
+    /// This many workgroups laid out as a 2D grid (x first); shaders index
+    /// them with `block_index()` from `common.glsl`.
+    Groups(u64),
+    /// Exactly this grid of workgroups.
+    Exact([u32; 3]),
+}
+
 /// Checks a texel-buffer binding against the device's limits.
 fn check_texels(info: &DeviceInfo, t: &Texels<'_>) -> std::result::Result<(), String> {
     let name = t.buffer.name();
@@ -408,22 +427,41 @@ impl<'a> Recording<'a> {
         }
     }
 
-    /// Records a dispatch of `groups` workgroups with `bindings` bound in order
-    /// (set 0, bindings 0..n) and `push` as the push constants.
+    /// Records one dispatch: `kernel` over `grid`, with `bindings` bound in
+    /// order (set 0, bindings 0..n; buffers or texel-buffer views, each of the
+    /// kind the shader declares) and `push` as the push constants. The one
+    /// dispatch entry point.
     pub fn dispatch<P: Pod>(
         &mut self,
         kernel: &'a Kernel,
-        bindings: &[&'a Buffer],
+        grid: Grid,
+        bindings: &[Binding<'a>],
         push: &P,
-        groups: [u32; 3],
     ) -> Result<()> {
-        let bound: Vec<Binding<'a>> = bindings.iter().map(|b| Binding::Buffer(b)).collect();
-        self.dispatch_bound(kernel, &bound, push, groups)
+        let limits = self.device.shared.info.max_workgroup_count;
+        let groups = match grid {
+            Grid::Exact(groups) => groups,
+            Grid::Groups(count) => grid_1d(count, 1, limits).ok_or_else(|| Error::Kernel {
+                kernel: kernel.info.name,
+                message: format!("{count} workgroups exceed the dispatch limits"),
+            })?,
+            Grid::Items(count) => {
+                if kernel.workgroup_size[1] * kernel.workgroup_size[2] != 1 {
+                    return Err(Error::Kernel {
+                        kernel: kernel.info.name,
+                        message: format!("workgroup size {:?} is not one-dimensional", kernel.workgroup_size),
+                    });
+                }
+                grid_1d(count, kernel.workgroup_size[0], limits).ok_or_else(|| Error::Kernel {
+                    kernel: kernel.info.name,
+                    message: format!("{count} invocations exceed the dispatch limits"),
+                })?
+            }
+        };
+        self.record_dispatch(kernel, bindings, push, groups)
     }
 
-    /// [`Recording::dispatch`] with buffers and texel-buffer views: each
-    /// binding must match the kind the shader declares.
-    pub fn dispatch_bound<P: Pod>(
+    fn record_dispatch<P: Pod>(
         &mut self,
         kernel: &'a Kernel,
         bindings: &[Binding<'a>],
@@ -618,72 +656,6 @@ impl<'a> Recording<'a> {
         // SAFETY: recording state; in-bounds, 4-aligned update of a live TRANSFER_DST buffer of this device.
         unsafe { self.device.shared.device.cmd_update_buffer(self.cmd, buffer.raw, offset, bytes) };
         Ok(())
-    }
-
-    /// Dispatches `groups` workgroups laid out as a 2D grid (x first); shaders
-    /// index their workgroup with `block_index()` from `common.glsl`.
-    pub fn dispatch_groups<P: Pod>(
-        &mut self,
-        kernel: &'a Kernel,
-        bindings: &[&'a Buffer],
-        push: &P,
-        groups: u64,
-    ) -> Result<()> {
-        let bound: Vec<Binding<'a>> = bindings.iter().map(|b| Binding::Buffer(b)).collect();
-        self.dispatch_groups_bound(kernel, &bound, push, groups)
-    }
-
-    /// [`Recording::dispatch_groups`] with buffers and texel-buffer views.
-    pub fn dispatch_groups_bound<P: Pod>(
-        &mut self,
-        kernel: &'a Kernel,
-        bindings: &[Binding<'a>],
-        push: &P,
-        groups: u64,
-    ) -> Result<()> {
-        let grid = grid_1d(groups, 1, self.device.shared.info.max_workgroup_count).ok_or_else(|| Error::Kernel {
-            kernel: kernel.info.name,
-            message: format!("{groups} workgroups exceed the dispatch limits"),
-        })?;
-        self.dispatch_bound(kernel, bindings, push, grid)
-    }
-
-    /// Dispatches enough workgroups for `count` invocations in x, laid out as a
-    /// 2D grid when one row would exceed the workgroup-count limit. Shaders
-    /// index with `linear_index()` from `common.glsl` and bound-check `count`.
-    pub fn dispatch_1d<P: Pod>(
-        &mut self,
-        kernel: &'a Kernel,
-        bindings: &[&'a Buffer],
-        push: &P,
-        count: u64,
-    ) -> Result<()> {
-        let bound: Vec<Binding<'a>> = bindings.iter().map(|b| Binding::Buffer(b)).collect();
-        self.dispatch_1d_bound(kernel, &bound, push, count)
-    }
-
-    /// [`Recording::dispatch_1d`] with buffers and texel-buffer views.
-    pub fn dispatch_1d_bound<P: Pod>(
-        &mut self,
-        kernel: &'a Kernel,
-        bindings: &[Binding<'a>],
-        push: &P,
-        count: u64,
-    ) -> Result<()> {
-        if kernel.workgroup_size[1] * kernel.workgroup_size[2] != 1 {
-            return Err(Error::Kernel {
-                kernel: kernel.info.name,
-                message: format!("workgroup size {:?} is not one-dimensional", kernel.workgroup_size),
-            });
-        }
-        let groups =
-            grid_1d(count, kernel.workgroup_size[0], self.device.shared.info.max_workgroup_count).ok_or_else(|| {
-                Error::Kernel {
-                    kernel: kernel.info.name,
-                    message: format!("{count} invocations exceed the dispatch limits"),
-                }
-            })?;
-        self.dispatch_bound(kernel, bindings, push, groups)
     }
 
     fn allocate_set(&mut self, layout: vk::DescriptorSetLayout, descriptors: u32) -> Result<vk::DescriptorSet> {

@@ -4,7 +4,7 @@
 
 use bytemuck::{Pod, Zeroable};
 
-use crate::{kernels, BindingKind, Device, DeviceAddress, Kernel, KernelDecl, Result, SpecValue};
+use crate::{kernels, Binding, BindingKind, Device, DeviceAddress, Grid, Kernel, KernelDecl, Result, SpecValue};
 
 /// Push constants of `core_affine.comp` (the GLSL `Push` block; checked by [`check_layout`](crate::check_layout)).
 #[repr(C)]
@@ -94,7 +94,7 @@ pub fn run(device: &Device, n: usize) -> Result<SelfTestReport> {
         let stage = format!("affine mode {mode}");
         let timings = device.run(|rec| {
             rec.begin_stage(&stage);
-            rec.dispatch_1d(&kernel, &[&input, &output], &push, n as u64)
+            rec.dispatch(&kernel, Grid::Items(n as u64), &[Binding::from(&input), Binding::from(&output)], &push)
         })?;
         let y: Vec<f32> = device.read_buffer(&output)?;
         for (got, want) in y.iter().zip(affine_cpu(&x, push.a, push.b, mode)) {

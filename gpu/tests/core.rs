@@ -8,7 +8,7 @@
 use srug_gpu::selftest::{self, affine_cpu, affine_kernel, AffineAddressedPush, AffinePush, AFFINE_BINDINGS};
 use srug_gpu::{
     self as gpu, kernels, specialized_workgroup_size, Binding, BindingKind, Device, DeviceOptions, DeviceSelection,
-    GpuError as Error, Kernel, KernelDecl, MemoryKind, SpecValue, TexelFormat, Texels,
+    GpuError as Error, Grid, Kernel, KernelDecl, MemoryKind, SpecValue, TexelFormat, Texels,
 };
 
 /// A device with validation on (device choice from `SRUG_DEVICE`, else automatic).
@@ -83,7 +83,10 @@ fn kernel_push_and_specialization_constants() {
             let kernel = affine_kernel(&d, mode).unwrap();
             let output = d.create_filled::<f32>("y", n, NAN).unwrap();
             let push = AffinePush { a: -2.5, b: 0.75, count: n as u32, pad: 0 };
-            d.run(|rec| rec.dispatch_1d(&kernel, &[&input, &output], &push, n as u64)).unwrap();
+            d.run(|rec| {
+                rec.dispatch(&kernel, Grid::Items(n as u64), &[Binding::from(&input), Binding::from(&output)], &push)
+            })
+            .unwrap();
             let y: Vec<f32> = d.read_buffer(&output).unwrap();
             let err = max_rel_error(&y, &affine_cpu(&x, push.a, push.b, mode));
             // fp32: one rounding per operation, at most 3 operations.
@@ -129,10 +132,18 @@ fn declarations_are_checked_against_spirv() {
     let a = d.upload("a", &[1.0f32; 4]).unwrap();
     let mut rec = d.begin().unwrap();
     assert!(matches!(
-        rec.dispatch(&kernel, &[&a], &AffinePush { a: 1.0, b: 0.0, count: 4, pad: 0 }, [1, 1, 1]),
+        rec.dispatch(
+            &kernel,
+            Grid::Exact([1, 1, 1]),
+            &[Binding::from(&a)],
+            &AffinePush { a: 1.0, b: 0.0, count: 4, pad: 0 }
+        ),
         Err(Error::Kernel { .. })
     ));
-    assert!(matches!(rec.dispatch(&kernel, &[&a, &a], &[0u32; 2], [1, 1, 1]), Err(Error::Kernel { .. })));
+    assert!(matches!(
+        rec.dispatch(&kernel, Grid::Exact([1, 1, 1]), &[Binding::from(&a), Binding::from(&a)], &[0u32; 2]),
+        Err(Error::Kernel { .. })
+    ));
     drop(rec);
     // The table itself: every kernel reflects a workgroup size and set-0 bindings.
     for k in kernels::ALL {
@@ -158,7 +169,7 @@ fn declarations_are_checked_against_spirv() {
     // A 2D workgroup cannot be dispatched as 1D work.
     let u = d.upload("frame", &[0u32; 4]).unwrap();
     let mut rec = d.begin().unwrap();
-    assert!(matches!(rec.dispatch_1d(&k, &[&u], &(), 64), Err(Error::Kernel { .. })));
+    assert!(matches!(rec.dispatch(&k, Grid::Items(64), &[Binding::from(&u)], &()), Err(Error::Kernel { .. })));
     drop(rec);
     // Zero, or more invocations than the device allows, is refused before Vulkan sees it.
     let zero = [(15, SpecValue::U32(0))];
@@ -192,7 +203,12 @@ fn buffers_above_max_storage_buffer_range() {
     let kernel = affine_kernel(&d, 0).unwrap();
     let out = d.create_buffer("big y", big.size(), MemoryKind::Storage).unwrap();
     let mut rec = d.begin().unwrap();
-    match rec.dispatch_1d(&kernel, &[&big, &out], &AffinePush { a: 1.0, b: 0.0, count: n as u32, pad: 0 }, n as u64) {
+    match rec.dispatch(
+        &kernel,
+        Grid::Items(n as u64),
+        &[Binding::from(&big), Binding::from(&out)],
+        &AffinePush { a: 1.0, b: 0.0, count: n as u32, pad: 0 },
+    ) {
         Err(Error::Kernel { message, .. }) => assert!(message.contains("maxStorageBufferRange"), "{message}"),
         other => panic!("expected a range error, got {other:?}"),
     }
@@ -213,7 +229,7 @@ fn buffers_above_max_storage_buffer_range() {
     d.run(|rec| {
         let push =
             AffineAddressedPush { x: rec.addr(&big)?, y: rec.addr(&out)?, a: 0.5, b: 3.0, count: n as u32, pad: 0 };
-        rec.dispatch_1d(&addressed, &[], &push, n as u64)
+        rec.dispatch(&addressed, Grid::Items(n as u64), &[], &push)
     })
     .unwrap();
     let y: Vec<f32> = d.read_buffer(&out).unwrap();
@@ -251,10 +267,10 @@ fn timestamps_time_each_stage() {
     let timings = d
         .run(|rec| {
             rec.begin_stage("first");
-            rec.dispatch_1d(&k0, &[&input, &output], &push, n as u64)?;
+            rec.dispatch(&k0, Grid::Items(n as u64), &[Binding::from(&input), Binding::from(&output)], &push)?;
             rec.begin_stage("second");
             for _ in 0..4 {
-                rec.dispatch_1d(&k1, &[&input, &output], &push, n as u64)?;
+                rec.dispatch(&k1, Grid::Items(n as u64), &[Binding::from(&input), Binding::from(&output)], &push)?;
             }
             rec.end_stage();
             rec.fill(&output, 0)
@@ -288,8 +304,13 @@ fn memory_accounting_and_deferred_destruction() {
     // buffers must outlive the work (validation would report a use after free).
     let kernel = affine_kernel(&d, 1).unwrap();
     let mut rec = d.begin().unwrap();
-    rec.dispatch_1d(&kernel, &[&input, &output], &AffinePush { a: 1.0, b: 0.0, count: n as u32, pad: 0 }, n as u64)
-        .unwrap();
+    rec.dispatch(
+        &kernel,
+        Grid::Items(n as u64),
+        &[Binding::from(&input), Binding::from(&output)],
+        &AffinePush { a: 1.0, b: 0.0, count: n as u32, pad: 0 },
+    )
+    .unwrap();
     let submission = d.submit(rec).unwrap();
     drop(input);
     drop(output);
@@ -400,8 +421,10 @@ fn texel_buffer_views() {
     for (format, buffer) in &cases {
         let view = Texels { buffer, offset: first as u64 * format.bytes(), elements: n as u64, format: *format };
         d.run(|rec| rec.fill(&out, NAN)).unwrap();
-        d.run(|rec| rec.dispatch_bound(&copy, &[Binding::Texels(view), Binding::Buffer(&out)], &(n as u32), grid(n)))
-            .unwrap();
+        d.run(|rec| {
+            rec.dispatch(&copy, Grid::Exact(grid(n)), &[Binding::Texels(view), Binding::Buffer(&out)], &(n as u32))
+        })
+        .unwrap();
         let got: Vec<f32> = d.read_buffer(&out).unwrap();
         // The twin: the element itself, rounded to fp16 for an R16F view.
         let want: Vec<f32> = values[first..first + n]
@@ -420,7 +443,7 @@ fn texel_buffer_views() {
     let (_, buffer) = &cases[0];
     let expect = |bindings: &[Binding<'_>], needle: &str| {
         let mut rec = d.begin().unwrap();
-        match rec.dispatch_bound(&copy, bindings, &(n as u32), grid(n)) {
+        match rec.dispatch(&copy, Grid::Exact(grid(n)), bindings, &(n as u32)) {
             Err(Error::Kernel { message, .. }) => assert!(message.contains(needle), "{needle}: {message}"),
             other => panic!("expected an error containing {needle}, got {other:?}"),
         }

@@ -23,7 +23,7 @@ use bytemuck::{Pod, Zeroable};
 use super::{BLEND_FLOPS_PER_CONTRIBUTION, BLEND_FLOPS_PER_EVALUATION};
 use srug::error::{Error, Result};
 use srug::gpu::{
-    kernels, Binding, BindingKind, Buffer, Device, DeviceAddress, Kernel, KernelDecl, MemoryKind, SpecValue,
+    kernels, Binding, BindingKind, Buffer, Device, DeviceAddress, Grid, Kernel, KernelDecl, MemoryKind, SpecValue,
     TexelFormat, Texels,
 };
 
@@ -86,7 +86,7 @@ pub fn blend_ceiling_run(device: &Device, pixels: u32, count: u32, splats: u32) 
             let push = BlendCeilingPush { out_addr: rec.addr(&out)?, splats, count };
             rec.fill(&out, f32::NAN.to_bits())?;
             rec.begin_stage("blend ceiling");
-            rec.dispatch_1d(&kernel, &[], &push, u64::from(count))
+            rec.dispatch(&kernel, Grid::Items(u64::from(count)), &[], &push)
         })?;
         seconds = t.get("blend ceiling").unwrap_or(f64::NAN);
     }
@@ -274,7 +274,7 @@ pub fn pair_move_run(
             blocks: blocks as u32,
         };
         rec.begin_stage("pair move");
-        rec.dispatch_groups_bound(&kernel, &views, &push, blocks)
+        rec.dispatch(&kernel, Grid::Groups(blocks), &views, &push)
     })?;
     Ok(t.get("pair move").unwrap_or(f64::NAN))
 }

@@ -15,7 +15,7 @@ use std::time::Instant;
 use bytemuck::{Pod, Zeroable};
 
 use srug::error::Result;
-use srug::gpu::{kernels, Device, DeviceAddress, Kernel, KernelDecl, MemoryKind};
+use srug::gpu::{kernels, Device, DeviceAddress, Grid, Kernel, KernelDecl, MemoryKind};
 use srug::primitives::sort::RadixSort;
 use srug::scene::activate::GpuScene;
 use srug::scene::demo::{demo_city, DemoOptions};
@@ -49,7 +49,7 @@ pub fn fma_peak_gflops(device: &Device, repeats: usize) -> Result<f64> {
         let t = device.run(|rec| {
             let push = FmaPush { out_addr: rec.addr(&out)?, iterations, count };
             rec.begin_stage("fma");
-            rec.dispatch_1d(&kernel, &[], &push, u64::from(count))
+            rec.dispatch(&kernel, Grid::Items(u64::from(count)), &[], &push)
         })?;
         let seconds = t.get("fma").unwrap_or(f64::NAN);
         let flops = f64::from(count) * f64::from(iterations) * 64.0;

@@ -7,7 +7,7 @@ use std::sync::Arc;
 use super::*;
 use crate::error::{Error, Result};
 use crate::gpu::{
-    kernels, Binding, BindingKind, Buffer, Device, DeviceAddress, Kernel, KernelDecl, MemoryKind, SpecValue,
+    kernels, Binding, BindingKind, Buffer, Device, DeviceAddress, Grid, Kernel, KernelDecl, MemoryKind, SpecValue,
     TexelFormat, Texels, Timings,
 };
 
@@ -559,7 +559,7 @@ impl UNet {
                 min_alpha: inputs.min_alpha,
             };
             rec.begin_stage("indirect input");
-            rec.dispatch_1d(pack, &[], &push, pixels)?;
+            rec.dispatch(pack, Grid::Items(pixels), &[], &push)?;
             rec.end_stage();
             Ok(())
         })?;
@@ -727,12 +727,20 @@ impl UNet {
                             // Four source pixels per invocation along x, a source row per grid y.
                             exact_resizes.push(name);
                             let grid = [(s[from].0 / 4).div_ceil(64) as u32, s[from].1 as u32, ch as u32];
-                            rec.dispatch_bound(kernel, &[Binding::Texels(view(src, elements, true))], &push, grid)?
+                            rec.dispatch(
+                                kernel,
+                                Grid::Exact(grid),
+                                &[Binding::Texels(view(src, elements, true))],
+                                &push,
+                            )?
                         }
-                        (None, Some(ks)) => {
-                            rec.dispatch_bound(&ks[k], &[Binding::Texels(view(src, elements, false))], &push, grid)?
-                        }
-                        (None, None) => rec.dispatch(&upsample[k], &[], &push, grid)?,
+                        (None, Some(ks)) => rec.dispatch(
+                            &ks[k],
+                            Grid::Exact(grid),
+                            &[Binding::Texels(view(src, elements, false))],
+                            &push,
+                        )?,
+                        (None, None) => rec.dispatch(&upsample[k], Grid::Exact(grid), &[], &push)?,
                     }
                     rec.end_stage();
                 }
@@ -810,9 +818,9 @@ impl UNet {
                             Binding::Texels(view(a, ca * in_plane, use_vec4)),
                             Binding::Texels(vb),
                         ];
-                        rec.dispatch_bound(k, &bound, &push, grid)?;
+                        rec.dispatch(k, Grid::Exact(grid), &bound, &push)?;
                     } else {
-                        rec.dispatch(k, &[ubo, &layer.bias], &push, grid)?;
+                        rec.dispatch(k, Grid::Exact(grid), &[Binding::from(ubo), Binding::from(&layer.bias)], &push)?;
                     }
                 }
                 rec.end_stage();

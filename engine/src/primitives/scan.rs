@@ -14,7 +14,7 @@ use bytemuck::{Pod, Zeroable};
 use std::sync::Arc;
 
 use crate::error::Result;
-use crate::gpu::{kernels, Buffer, Device, DeviceAddress, Kernel, KernelDecl, MemoryKind, Recording};
+use crate::gpu::{kernels, Buffer, Device, DeviceAddress, Grid, Kernel, KernelDecl, MemoryKind, Recording};
 
 /// Values per invocation (keep in sync with `scan_common.glsl`).
 pub const SCAN_ITEMS: u64 = 32;
@@ -107,10 +107,10 @@ impl Scan {
         let sums_address = rec.addr_or_null(sums)?;
         let push = ScanPush { data, sums: sums_address, count: count as u32, has_sums: u32::from(sums.is_some()) };
         if sums.is_some() {
-            rec.dispatch_1d(&self.reduce, &[], &push, invocations)?;
+            rec.dispatch(&self.reduce, Grid::Items(invocations), &[], &push)?;
             self.record_level(rec, sums_address, invocations, level + 1)?;
         }
-        Ok(rec.dispatch_1d(&self.apply, &[], &push, invocations)?)
+        Ok(rec.dispatch(&self.apply, Grid::Items(invocations), &[], &push)?)
     }
 }
 

@@ -22,7 +22,7 @@ use std::sync::Arc;
 use super::scan::Scan;
 use crate::error::{Error, Result};
 use crate::gpu::{
-    kernels, Binding, BindingKind, Buffer, Device, DeviceAddress, Kernel, KernelDecl, MemoryKind, Recording,
+    kernels, Binding, BindingKind, Buffer, Device, DeviceAddress, Grid, Kernel, KernelDecl, MemoryKind, Recording,
     TexelFormat, Texels,
 };
 
@@ -216,13 +216,13 @@ impl RadixSort {
             };
             let (key_view, value_view) = (view(src.0, TexelFormat::Rg32Uint), view(src.1, TexelFormat::R32Uint));
             match texel {
-                Some((histogram, _)) => rec.dispatch_groups_bound(histogram, &[key_view], &push, blocks)?,
-                None => rec.dispatch_groups(&self.histogram, &[], &push, blocks)?,
+                Some((histogram, _)) => rec.dispatch(histogram, Grid::Groups(blocks), &[key_view], &push)?,
+                None => rec.dispatch(&self.histogram, Grid::Groups(blocks), &[], &push)?,
             }
             self.scan.record(rec, hist, histogram_len(count))?;
             match texel {
-                Some((_, scatter)) => rec.dispatch_groups_bound(scatter, &[key_view, value_view], &push, blocks)?,
-                None => rec.dispatch_groups(&self.scatter, &[], &push, blocks)?,
+                Some((_, scatter)) => rec.dispatch(scatter, Grid::Groups(blocks), &[key_view, value_view], &push)?,
+                None => rec.dispatch(&self.scatter, Grid::Groups(blocks), &[], &push)?,
             }
             std::mem::swap(&mut src, &mut dst);
         }

@@ -12,7 +12,7 @@ use std::sync::Arc;
 
 use super::Scene;
 use crate::error::Result;
-use crate::gpu::{kernels, Buffer, Device, DeviceAddress, Kernel, KernelDecl, Timings};
+use crate::gpu::{kernels, Buffer, Device, DeviceAddress, Grid, Kernel, KernelDecl, Timings};
 
 /// A scene's stored parameters in GPU memory.
 pub struct GpuScene {
@@ -154,7 +154,7 @@ pub fn activate(device: &Device, kernel: &Kernel, scene: &GpuScene) -> Result<Ac
             pad: 0,
         };
         rec.begin_stage("activate");
-        rec.dispatch_1d(kernel, &[], &push, scene.count as u64)
+        rec.dispatch(kernel, Grid::Items(scene.count as u64), &[], &push)
     })?;
     Ok(Activated { covariances, opacities, timings })
 }

@@ -20,7 +20,7 @@ use std::sync::Arc;
 use bytemuck::{Pod, Zeroable};
 
 use crate::error::{Error, Result};
-use crate::gpu::{kernels, Buffer, Device, DeviceAddress, Kernel, KernelDecl, MemoryKind, SpecValue, Timings};
+use crate::gpu::{kernels, Buffer, Device, DeviceAddress, Grid, Kernel, KernelDecl, MemoryKind, SpecValue, Timings};
 
 /// Lat-long radiance, RGB floats, rows top (zenith) to bottom (nadir).
 #[derive(Clone, Debug, PartialEq)]
@@ -338,7 +338,7 @@ impl EnvironmentPrep {
         let timings = device.run(|rec| -> Result<()> {
             let push = LutPush { dst: rec.addr(&buffer)?, size, samples };
             rec.begin_stage("brdf table");
-            rec.dispatch_1d(kernel, &[], &push, u64::from(size * size))?;
+            rec.dispatch(kernel, Grid::Items(u64::from(size * size)), &[], &push)?;
             rec.end_stage();
             Ok(())
         })?;
@@ -373,7 +373,7 @@ impl EnvironmentPrep {
                     src_size: [s.0, s.1],
                     dst_size: [d.0, d.1],
                 };
-                rec.dispatch_1d(&self.downsample, &[], &push, u64::from(d.0 * d.1))?;
+                rec.dispatch(&self.downsample, Grid::Items(u64::from(d.0 * d.1)), &[], &push)?;
             }
             rec.end_stage();
             rec.begin_stage("specular prefilter");
@@ -390,7 +390,7 @@ impl EnvironmentPrep {
                     samples: settings.samples,
                     pad: 0,
                 };
-                rec.dispatch_1d(&self.prefilter, &[], &push, u64::from(d.0 * d.1))?;
+                rec.dispatch(&self.prefilter, Grid::Items(u64::from(d.0 * d.1)), &[], &push)?;
             }
             rec.end_stage();
             rec.begin_stage("irradiance");
@@ -401,7 +401,7 @@ impl EnvironmentPrep {
                 src_size: [s.0, s.1],
                 dst_size: [iw, ih],
             };
-            rec.dispatch_1d(&self.irradiance, &[], &push, u64::from(iw * ih))?;
+            rec.dispatch(&self.irradiance, Grid::Items(u64::from(iw * ih)), &[], &push)?;
             rec.end_stage();
             Ok(())
         })?;

@@ -7,7 +7,7 @@ use bytemuck::Zeroable;
 
 use super::*;
 use crate::error::{Error, Result};
-use crate::gpu::{kernels, Device, Kernel, KernelDecl, MemoryKind, SpecValue};
+use crate::gpu::{kernels, Binding, Device, Grid, Kernel, KernelDecl, MemoryKind, SpecValue};
 
 /// The shading kernels.
 pub struct Shader {
@@ -138,7 +138,7 @@ impl Shader {
                 }
             }
             rec.begin_stage("shade lights");
-            rec.dispatch_1d(lights, &[&uniform], &(), pixels)?;
+            rec.dispatch(lights, Grid::Items(pixels), &[Binding::from(&uniform)], &())?;
             rec.end_stage();
             Ok(())
         })?;
@@ -163,7 +163,7 @@ impl Shader {
             };
             u.record(rec, &uniform, &buffers)?;
             rec.begin_stage("shade compose");
-            rec.dispatch_1d(compose, &[&uniform], &(), pixels)?;
+            rec.dispatch(compose, Grid::Items(pixels), &[Binding::from(&uniform)], &())?;
             rec.end_stage();
             Ok(())
         })?;

@@ -15,7 +15,7 @@ use bytemuck::{Pod, Zeroable};
 
 use super::{shadow_uniform, DepthMode, ShadowMap, ShadowPass, ShadowSettings};
 use crate::error::{Error, Result};
-use crate::gpu::{Buffer, DeviceAddress, MemoryKind, Timings};
+use crate::gpu::{Binding, Buffer, DeviceAddress, Grid, MemoryKind, Timings};
 use crate::scene::Camera;
 use crate::splat::backward::BlendGrads;
 use crate::splat::GpuGBuffer;
@@ -190,11 +190,11 @@ impl ShadowPass {
                 counts: [pixels as u32, texels as u32, texels as u32, 0],
             };
             rec.update(&backward_u, 0, &bu)?;
-            let both = [&shadow_u, &backward_u];
+            let both = [Binding::from(&shadow_u), Binding::from(&backward_u)];
             rec.begin_stage("shadow backward");
             rec.fill(&count, 0)?;
-            rec.dispatch_1d(kernel, &both, &0u32, pixels)?;
-            rec.dispatch_1d(kernel, &both, &1u32, pixels)?;
+            rec.dispatch(kernel, Grid::Items(pixels), &both, &0u32)?;
+            rec.dispatch(kernel, Grid::Items(pixels), &both, &1u32)?;
             rec.begin_stage("shadow gradient gather");
             sort.record(rec, &keys, &order, pixels, key_bits)?;
             rec.fill(&ranges, 0)?;
@@ -204,8 +204,8 @@ impl ShadowPass {
                 count: pixels as u32,
                 none: texels as u32,
             };
-            rec.dispatch_1d(bins, &[], &push, pixels)?;
-            rec.dispatch_1d(gather, &both, &(), texels)?;
+            rec.dispatch(bins, Grid::Items(pixels), &[], &push)?;
+            rec.dispatch(gather, Grid::Items(texels), &both, &())?;
             rec.end_stage();
             Ok(())
         })?;

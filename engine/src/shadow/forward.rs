@@ -5,7 +5,9 @@ use std::sync::Arc;
 
 use super::*;
 use crate::error::{Error, Result};
-use crate::gpu::{kernels, BindingKind, Buffer, Device, Kernel, KernelDecl, MemoryKind, SpecValue, Timings};
+use crate::gpu::{
+    kernels, Binding, BindingKind, Buffer, Device, Grid, Kernel, KernelDecl, MemoryKind, SpecValue, Timings,
+};
 use crate::primitives::sort::RadixSort;
 use crate::scene::activate::GpuScene;
 use crate::scene::{Bounds, Camera, Projection};
@@ -142,7 +144,7 @@ impl ShadowPass {
                 rec.fill(&out, word)?;
             }
             rec.begin_stage(stage);
-            rec.dispatch_1d(kernel, &[&uniform], &(), pixels)?;
+            rec.dispatch(kernel, Grid::Items(pixels), &[Binding::from(&uniform)], &())?;
             rec.end_stage();
             Ok(())
         })?;

@@ -23,7 +23,8 @@ use std::sync::Arc;
 use super::{FrameBuffers, SplatFrame, Splatter};
 use crate::error::{Error, Result};
 use crate::gpu::{
-    kernels, BindingKind, Buffer, Device, DeviceAddress, Kernel, KernelDecl, MemoryKind, SpecValue, Timings,
+    kernels, Binding, BindingKind, Buffer, Device, DeviceAddress, Grid, Kernel, KernelDecl, MemoryKind, SpecValue,
+    Timings,
 };
 use crate::scene::activate::GpuScene;
 
@@ -333,9 +334,14 @@ impl Splatter {
             rec.update(&uniform, 0, &u)?;
             rec.begin_stage("backward blend");
             rec.fill(&pairs, 0)?;
-            rec.dispatch_groups(&k.tiles, &[&frame.uniform, &uniform], &(), u64::from(tiles_x) * u64::from(tiles_y))?;
+            rec.dispatch(
+                &k.tiles,
+                Grid::Groups(u64::from(tiles_x) * u64::from(tiles_y)),
+                &[Binding::from(&frame.uniform), Binding::from(&uniform)],
+                &(),
+            )?;
             rec.begin_stage("backward projection");
-            rec.dispatch_1d(&k.gaussians, &[&frame.uniform, &uniform], &(), n)?;
+            rec.dispatch(&k.gaussians, Grid::Items(n), &[Binding::from(&frame.uniform), Binding::from(&uniform)], &())?;
             rec.end_stage();
             Ok(())
         })?;

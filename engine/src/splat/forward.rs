@@ -8,8 +8,8 @@ use bytemuck::Zeroable;
 use super::*;
 use crate::error::{Error, Result};
 use crate::gpu::{
-    kernels, Binding, BindingKind, Buffer, Device, Kernel, KernelDecl, MemoryKind, SpecValue, TexelFormat, Texels,
-    Timings,
+    kernels, Binding, BindingKind, Buffer, Device, Grid, Kernel, KernelDecl, MemoryKind, SpecValue, TexelFormat,
+    Texels, Timings,
 };
 use crate::primitives::scan::Scan;
 use crate::primitives::sort::RadixSort;
@@ -337,9 +337,9 @@ impl Splatter {
                         format: TexelFormat::R32Float,
                     })
                 }));
-                rec.dispatch_1d_bound(preprocess, &bindings, &(), n)?;
+                rec.dispatch(preprocess, Grid::Items(n), &bindings, &())?;
             } else {
-                rec.dispatch_1d(preprocess, &[&uniform], &(), n)?;
+                rec.dispatch(preprocess, Grid::Items(n), &[Binding::from(&uniform)], &())?;
             }
             rec.begin_stage("scan");
             scan.record(rec, &tile_counts, n + 1)
@@ -402,14 +402,14 @@ impl Splatter {
             }
             if pairs > 0 {
                 rec.begin_stage("keys");
-                rec.dispatch_1d(keys_kernel, &[&uniform], &(), n)?;
+                rec.dispatch(keys_kernel, Grid::Items(n), &[Binding::from(&uniform)], &())?;
                 rec.begin_stage("sort");
                 sort.record(rec, &keys, &values, pairs, key_bits)?;
             }
             rec.begin_stage("ranges");
             rec.fill(&ranges, 0)?;
             if pairs > 0 {
-                rec.dispatch_1d(ranges_kernel, &[&uniform], &(), pairs)?;
+                rec.dispatch(ranges_kernel, Grid::Items(pairs), &[Binding::from(&uniform)], &())?;
             }
             rec.begin_stage("blend");
             if texel {
@@ -418,8 +418,9 @@ impl Splatter {
                 };
                 // Without features the kernel never reads binding 2; the splats stand in.
                 let features = feature_buf.as_ref().map_or(view(&splats, 4 * n), |fb| view(fb, 3 * n));
-                rec.dispatch_groups_bound(
+                rec.dispatch(
                     blend,
+                    Grid::Groups(tiles),
                     &[
                         Binding::Buffer(&uniform),
                         view(&splats, 4 * n),
@@ -432,10 +433,9 @@ impl Splatter {
                         }),
                     ],
                     &(),
-                    tiles,
                 )?;
             } else {
-                rec.dispatch_groups(blend, &[&uniform], &(), tiles)?;
+                rec.dispatch(blend, Grid::Groups(tiles), &[Binding::from(&uniform)], &())?;
             }
             rec.end_stage();
             Ok(())
