@@ -127,6 +127,7 @@ impl Relighter {
         brdf: &BrdfTable,
         settings: &RelightSettings,
     ) -> Result<RelitFrame> {
+        // What runs, decided before anything runs (the plan reports the same).
         settings.validate()?;
         let d = RelightDecisions::new(attributes, sun, settings)?;
         let camera = &settings.render_camera(camera);
@@ -136,11 +137,13 @@ impl Relighter {
                 "has no albedo attribute: it cannot be relit (render its colour with `srug render`)",
             ));
         }
-        let (sun, editable, channels) = (d.sun.as_ref(), d.shadow_pass, d.channels);
+        let sun = d.sun.as_ref();
         let mut shade = settings.shade;
         shade.visibility = d.visibility;
+
+        // 1. The camera's G-buffers: only the channels the shading needs.
         let splat = SplatSettings {
-            channels,
+            channels: d.channels,
             normal_source: settings.normal_source,
             prefill: shade.prefill,
             sh_degree: settings.sh_degree,
@@ -149,44 +152,23 @@ impl Relighter {
         };
         let (gbuffer, stats) = self.splatter.render(scene, camera, &splat)?;
         let (mut timings, pairs) = (stats.timings, stats.pairs);
-        let mut visibility = None;
-        let mut reused = false;
-        if let (true, Some(s)) = (editable, sun) {
-            let shadow = &settings.shadow;
-            let key = ShadowMapKey {
-                scene: scene.version(),
-                light: light_camera(bounds, s, shadow.resolution, shadow.fit, Some(camera))?,
-                direction: s.direction,
-                depth: shadow.map_depth,
-                tile: shadow.tile,
-            };
-            reused = self.reuse_shadow_map && self.shadow_map.as_ref().is_some_and(|(k, _)| *k == key);
-            if !reused {
-                // Free the old map before splatting the new one.
-                self.shadow_map = None;
-                let light = key.light.clone();
-                let map = self.shadows.shadow_map_from(&mut self.splatter, scene, light, s, shadow)?;
-                // Its stages are named "shadow map …" already.
-                timings.stages.extend(map.frame.stats.timings.stages.iter().cloned());
-                self.shadow_map = Some((key, map));
-            }
-            let Some((_, map)) = &self.shadow_map else {
-                return Err(Error::Internal("the shadow pass ran without a shadow map".into()));
-            };
-            let (v, t) = self.shadows.visibility(map, &gbuffer, camera, shadow, settings.visibility_kind)?;
-            timings.stages.extend(t.stages);
-            visibility = Some(v);
-            if !self.reuse_shadow_map {
-                self.shadow_map = None;
-            }
+
+        // 2. and 3. The sun's shadow map (splatted, or the last frame's) and its
+        // test at every camera pixel, when the visibility is editable and there is a sun.
+        let mut shadow = None;
+        if let (true, Some(s)) = (d.shadow_pass, sun) {
+            shadow = Some(self.shadow_pass(scene, bounds, camera, s, &gbuffer, settings, &mut timings)?);
         }
+        let visibility = shadow.as_ref().map(|(v, _)| v);
+
+        // 4. and 5. Shading, with the indirect network's L_ind when one is set.
         let inputs = ShadeInputs {
             gbuffer: &gbuffer,
             camera,
             environment,
             brdf,
             sun,
-            editable_visibility: visibility.as_ref(),
+            editable_visibility: visibility,
             indirect: None,
         };
         let shaded = match self.network.as_mut() {
@@ -194,14 +176,58 @@ impl Relighter {
             None => self.shader.shade(&inputs, &shade)?,
         };
         timings.stages.extend(shaded.timings.stages.iter().cloned());
+        let shadow_map_reused = shadow.as_ref().is_some_and(|(_, reused)| *reused);
         Ok(RelitFrame {
             shaded,
             timings,
-            shadow_pass_ran: visibility.is_some(),
-            shadow_map_reused: reused,
+            shadow_pass_ran: shadow.is_some(),
+            shadow_map_reused,
             gbuffer,
-            visibility,
+            visibility: shadow.map(|(v, _)| v),
             pairs,
         })
+    }
+
+    /// The shadow map of `sun` (reused from the last frame when reuse is on and
+    /// nothing it depends on changed) and the per-pixel visibility of the
+    /// receivers in `gbuffer`; returns the visibility and whether the map was reused.
+    #[allow(clippy::too_many_arguments, reason = "one pass's inputs, each of a different stage")]
+    fn shadow_pass(
+        &mut self,
+        scene: &GpuScene,
+        bounds: &Bounds,
+        camera: &Camera,
+        sun: &Sun,
+        gbuffer: &GpuGBuffer,
+        settings: &RelightSettings,
+        timings: &mut Timings,
+    ) -> Result<(crate::gpu::Buffer, bool)> {
+        let shadow = &settings.shadow;
+        let key = ShadowMapKey {
+            scene: scene.version(),
+            light: light_camera(bounds, sun, shadow.resolution, shadow.fit, Some(camera))?,
+            direction: sun.direction,
+            depth: shadow.map_depth,
+            tile: shadow.tile,
+        };
+        let reused = self.reuse_shadow_map && self.shadow_map.as_ref().is_some_and(|(k, _)| *k == key);
+        if !reused {
+            // Free the old map before splatting the new one.
+            self.shadow_map = None;
+            let light = key.light.clone();
+            let map = self.shadows.shadow_map_from(&mut self.splatter, scene, light, sun, shadow)?;
+            // Its stages are named "shadow map …" already.
+            timings.stages.extend(map.frame.stats.timings.stages.iter().cloned());
+            self.shadow_map = Some((key, map));
+        }
+        let Some((_, map)) = &self.shadow_map else {
+            return Err(Error::Internal("the shadow pass ran without a shadow map".into()));
+        };
+        let (visibility, t) = self.shadows.visibility(map, gbuffer, camera, shadow, settings.visibility_kind)?;
+        timings.stages.extend(t.stages);
+        if !self.reuse_shadow_map {
+            self.shadow_map = None;
+        }
+        Ok((visibility, reused))
     }
 }
