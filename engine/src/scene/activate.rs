@@ -7,12 +7,12 @@
 //! normalized quaternion, and the world covariance Σ = R S Sᵀ Rᵀ.
 //! [`activate_cpu`] is its f64 CPU twin.
 
-use bytemuck::{Pod, Zeroable};
 use std::sync::Arc;
 
+use super::layout::ActivatePush;
 use super::Scene;
 use crate::error::Result;
-use crate::gpu::{kernels, Buffer, Device, DeviceAddress, Grid, Kernel, KernelDecl, Timings};
+use crate::gpu::{kernels, Buffer, Device, Grid, Kernel, KernelDecl, Timings};
 
 /// A scene's stored parameters in GPU memory.
 pub struct GpuScene {
@@ -93,31 +93,6 @@ impl GpuScene {
     }
 }
 
-/// Push constants of `scene_activate.comp` (keep in sync with its `Push` block).
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Pod, Zeroable)]
-pub struct ActivatePush {
-    /// `float[3N]` log scales.
-    pub log_scales: DeviceAddress,
-    /// `float[4N]` quaternions.
-    pub rotations: DeviceAddress,
-    /// `float[N]` opacity logits.
-    pub opacity_logits: DeviceAddress,
-    /// The `float[6N]` covariance output.
-    pub covariances: DeviceAddress,
-    /// The `float[N]` opacity output.
-    pub opacities: DeviceAddress,
-    /// N.
-    pub count: u32,
-    /// Padding to the GLSL block size.
-    pub pad: u32,
-}
-crate::gpu::gpu_layout!(
-    ActivatePush,
-    "ActivatePush",
-    [log_scales, rotations, opacity_logits, covariances, opacities, count, pad]
-);
-
 /// Activated parameters on the GPU.
 pub struct Activated {
     /// `float[6N]`: Σ as (xx, xy, xz, yy, yz, zz).
@@ -130,11 +105,7 @@ pub struct Activated {
 
 /// Builds the activation kernel.
 pub fn activate_kernel(device: &Device) -> Result<Arc<Kernel>> {
-    Ok(Kernel::cached(
-        device,
-        &kernels::SCENE_ACTIVATE,
-        &KernelDecl { bindings: &[], push_constant_size: std::mem::size_of::<ActivatePush>(), specialization: &[] },
-    )?)
+    Ok(Kernel::cached(device, &kernels::SCENE_ACTIVATE, &KernelDecl::push::<ActivatePush>(&[]))?)
 }
 
 /// Activates `scene` on the GPU. Outputs are pre-filled with NaN so an
@@ -177,16 +148,4 @@ pub fn activate_cpu(scene: &Scene) -> Vec<([f64; 6], f64)> {
             ([cov(0, 0), cov(0, 1), cov(0, 2), cov(1, 1), cov(1, 2), cov(2, 2)], 1.0 / (1.0 + (-logit).exp()))
         })
         .collect()
-}
-
-#[cfg(test)]
-mod layout_tests {
-    use super::ActivatePush;
-    use crate::gpu::{check_layout, kernels};
-
-    /// The push-constant struct matches the GLSL block of its kernel.
-    #[test]
-    fn push_layout_matches_glsl() {
-        assert_eq!(check_layout::<ActivatePush>(&[&kernels::SCENE_ACTIVATE]), Ok(1));
-    }
 }

@@ -12,6 +12,9 @@
 
 pub mod activate;
 pub mod demo;
+mod layout;
+
+pub use layout::ActivatePush;
 
 use std::fmt;
 
