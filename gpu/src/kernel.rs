@@ -230,11 +230,6 @@ impl Kernel {
         Ok(kernel)
     }
 
-    /// [`Device::kernel`]: the cached, shared kernel for `info` and `decl`.
-    pub fn cached(device: &Device, info: &'static KernelInfo, decl: &KernelDecl<'_>) -> Result<Arc<Kernel>> {
-        device.kernel(info, decl)
-    }
-
     /// The kernel's table entry.
     pub fn info(&self) -> &'static KernelInfo {
         self.info

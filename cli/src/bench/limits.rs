@@ -23,8 +23,8 @@ use bytemuck::{Pod, Zeroable};
 use super::{BLEND_FLOPS_PER_CONTRIBUTION, BLEND_FLOPS_PER_EVALUATION};
 use srug::error::{Error, Result};
 use srug::gpu::{
-    kernels, Binding, BindingKind, Buffer, Device, DeviceAddress, Grid, Kernel, KernelDecl, MemoryKind, SpecValue,
-    TexelFormat, Texels,
+    kernels, Binding, BindingKind, Buffer, Device, DeviceAddress, Grid, KernelDecl, MemoryKind, SpecValue, TexelFormat,
+    Texels,
 };
 
 /// Push constants of `bench_blend_ceiling.comp` (keep in sync with its `Push` block).
@@ -70,8 +70,7 @@ fn check_ceiling_args(pixels: u32, splats: u32) -> Result<()> {
 /// its pixels and the GPU seconds.
 pub fn blend_ceiling_run(device: &Device, pixels: u32, count: u32, splats: u32) -> Result<(Vec<f32>, f64)> {
     check_ceiling_args(pixels, splats)?;
-    let kernel = Kernel::cached(
-        device,
+    let kernel = device.kernel(
         &kernels::BENCH_BLEND_CEILING,
         &KernelDecl {
             bindings: &[],
@@ -248,8 +247,7 @@ pub fn pair_move_run(
     {
         return Err(Error::invalid(format!("pair-move probe over {count} pairs"), "a buffer is too small"));
     }
-    let kernel = Kernel::cached(
-        device,
+    let kernel = device.kernel(
         &kernels::BENCH_PAIR_MOVE,
         &KernelDecl {
             bindings: &[BindingKind::UniformTexelBuffer; 3],

@@ -15,7 +15,7 @@ use std::time::Instant;
 use bytemuck::{Pod, Zeroable};
 
 use srug::error::Result;
-use srug::gpu::{kernels, Device, DeviceAddress, Grid, Kernel, KernelDecl, MemoryKind};
+use srug::gpu::{kernels, Device, DeviceAddress, Grid, KernelDecl, MemoryKind};
 use srug::primitives::sort::RadixSort;
 use srug::scene::activate::GpuScene;
 use srug::scene::demo::{demo_city, DemoOptions};
@@ -36,8 +36,7 @@ srug::gpu::gpu_layout!(FmaPush, "FmaPush", [out_addr, iterations, count]);
 
 /// Measures the device's FMA throughput in GFLOP/s (best of `repeats`).
 pub fn fma_peak_gflops(device: &Device, repeats: usize) -> Result<f64> {
-    let kernel = Kernel::cached(
-        device,
+    let kernel = device.kernel(
         &kernels::BENCH_FMA,
         &KernelDecl { bindings: &[], push_constant_size: std::mem::size_of::<FmaPush>(), specialization: &[] },
     )?;

@@ -240,8 +240,7 @@ impl UNet {
                     .into_iter()
                     .chain(views.into_iter().take(if texel { 2 } else { 0 }))
                     .collect();
-                e.insert(Kernel::cached(
-                    device,
+                e.insert(device.kernel(
                     module,
                     &KernelDecl {
                         bindings: &all,
@@ -256,7 +255,7 @@ impl UNet {
             let kernel = |four: bool| {
                 let spec = [(0, SpecValue::Bool(four))];
                 let push_constant_size = std::mem::size_of::<UpsamplePush>();
-                Kernel::cached(device, module, &KernelDecl { bindings, push_constant_size, specialization: &spec })
+                device.kernel(module, &KernelDecl { bindings, push_constant_size, specialization: &spec })
             };
             Ok([kernel(false)?, kernel(true)?])
         };
@@ -268,16 +267,11 @@ impl UNet {
             let spec = [(1, SpecValue::Bool(true))];
             let bindings = &[BindingKind::UniformTexelBuffer];
             let push_constant_size = std::mem::size_of::<UpsamplePush>();
-            Some(Kernel::cached(
-                device,
-                texel_module,
-                &KernelDecl { bindings, push_constant_size, specialization: &spec },
-            )?)
+            Some(device.kernel(texel_module, &KernelDecl { bindings, push_constant_size, specialization: &spec })?)
         } else {
             None
         };
-        let pack = Kernel::cached(
-            device,
+        let pack = device.kernel(
             &kernels::UNET_PACK,
             &KernelDecl { bindings: &[], push_constant_size: std::mem::size_of::<PackPush>(), specialization: &[] },
         )?;
@@ -412,8 +406,7 @@ impl UNet {
                 (WinogradTile::F4x4, false) => &kernels::UNET_WINOGRAD_TEXEL,
                 (WinogradTile::F4x4, true) => &kernels::UNET_WINOGRAD_TEXEL_HALF,
             };
-            let kernel = Kernel::cached(
-                &self.device,
+            let kernel = self.device.kernel(
                 code,
                 &KernelDecl {
                     bindings: &[view, BindingKind::StorageBuffer { read_only: true }, view, view],

@@ -101,15 +101,15 @@ impl RadixSort {
                 specialization: &[],
             };
             Some((
-                Kernel::cached(device, &kernels::SORT_HISTOGRAM_TEXEL, &views(1))?,
-                Kernel::cached(device, &kernels::SORT_SCATTER_TEXEL, &views(2))?,
+                device.kernel(&kernels::SORT_HISTOGRAM_TEXEL, &views(1))?,
+                device.kernel(&kernels::SORT_SCATTER_TEXEL, &views(2))?,
             ))
         } else {
             None
         };
         Ok(Self {
-            histogram: Kernel::cached(device, &kernels::SORT_HISTOGRAM, &decl)?,
-            scatter: Kernel::cached(device, &kernels::SORT_SCATTER, &decl)?,
+            histogram: device.kernel(&kernels::SORT_HISTOGRAM, &decl)?,
+            scatter: device.kernel(&kernels::SORT_SCATTER, &decl)?,
             use_texel: texel.is_some(),
             texel,
             max_texels: info.max_texel_buffer_elements,

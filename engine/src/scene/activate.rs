@@ -105,7 +105,7 @@ pub struct Activated {
 
 /// Builds the activation kernel.
 pub fn activate_kernel(device: &Device) -> Result<Arc<Kernel>> {
-    Ok(Kernel::cached(device, &kernels::SCENE_ACTIVATE, &KernelDecl::push::<ActivatePush>(&[]))?)
+    Ok(device.kernel(&kernels::SCENE_ACTIVATE, &KernelDecl::push::<ActivatePush>(&[]))?)
 }
 
 /// Activates `scene` on the GPU. Outputs are pre-filled with NaN so an

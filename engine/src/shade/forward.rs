@@ -22,7 +22,9 @@ impl Shader {
     }
 
     /// The uniform for `inputs`; output addresses filled by the caller.
-    fn uniform(inputs: &ShadeInputs<'_>, settings: &ShadeSettings) -> Result<ShadeUniform> {
+    /// The uniform (without addresses) and the visibility it settled on
+    /// (none without a sun above the horizon).
+    fn uniform(inputs: &ShadeInputs<'_>, settings: &ShadeSettings) -> Result<(ShadeUniform, VisibilitySource)> {
         settings.validate()?;
         let (g, camera) = (inputs.gbuffer, inputs.camera);
         if (g.width, g.height) != (camera.width, camera.height) {
@@ -80,7 +82,7 @@ impl Shader {
         };
         u.display = [2f32.powf(settings.exposure_ev), settings.tone_map.code() as f32, 0.0, 0.0];
         u.modes = [visibility.code(), 0, 0, 0];
-        Ok(u)
+        Ok((u, visibility))
     }
 
     /// Shades one frame: L_sun and L_sky, then the composite and display image.
@@ -108,7 +110,7 @@ impl Shader {
         settings: &ShadeSettings,
         network: Option<&mut crate::indirect::UNet>,
     ) -> Result<ShadedFrame> {
-        let u = Self::uniform(inputs, settings)?;
+        let (u, visibility) = Self::uniform(inputs, settings)?;
         let device = self.device.clone();
         let g = inputs.gbuffer;
         let pixels = u64::from(g.width) * u64::from(g.height);
@@ -116,8 +118,7 @@ impl Shader {
         let (sun, sky, radiance, display) = (make("L_sun")?, make("L_sky")?, make("radiance")?, make("display")?);
         let uniform =
             device.create_buffer("shade uniform", std::mem::size_of::<ShadeUniform>() as u64, MemoryKind::Storage)?;
-        // The visibility the uniform settled on (none without a sun above the horizon).
-        let editable = if u.modes[0] == VisibilitySource::Editable.code() { inputs.editable_visibility } else { None };
+        let editable = if visibility == VisibilitySource::Editable { inputs.editable_visibility } else { None };
         let bits = settings.terms.bits();
         let lights = device.kernel(&kernels::SHADE_LIGHTS, &KernelDecl::uniform(&[(0, SpecValue::U32(bits))]))?;
         let lights: &Kernel = &lights;

@@ -42,8 +42,7 @@ impl ShadowPass {
         let two = [BindingKind::UniformBuffer, BindingKind::UniformBuffer];
         let backward = |loss: u32| {
             let spec = [(0, SpecValue::U32(loss))];
-            Kernel::cached(
-                device,
+            device.kernel(
                 &kernels::SHADOW_BACKWARD,
                 &KernelDecl { bindings: &two, push_constant_size: 4, specialization: &spec },
             )
@@ -51,12 +50,11 @@ impl ShadowPass {
         let plain = KernelDecl { bindings: &two, push_constant_size: 0, specialization: &[] };
         Ok(Self {
             device: device.clone(),
-            test: Kernel::cached(device, &kernels::SHADOW_TEST, &decl)?,
-            traced: Kernel::cached(device, &kernels::SHADOW_TRACED, &decl)?,
+            test: device.kernel(&kernels::SHADOW_TEST, &decl)?,
+            traced: device.kernel(&kernels::SHADOW_TRACED, &decl)?,
             backward_upstream: backward(0)?,
             backward_bce: backward(1)?,
-            bins: Kernel::cached(
-                device,
+            bins: device.kernel(
                 &kernels::SHADOW_BINS,
                 &KernelDecl {
                     bindings: &[],
@@ -64,7 +62,7 @@ impl ShadowPass {
                     specialization: &[],
                 },
             )?,
-            gather: Kernel::cached(device, &kernels::SHADOW_TEXEL_GRADS, &plain)?,
+            gather: device.kernel(&kernels::SHADOW_TEXEL_GRADS, &plain)?,
             sort: RadixSort::new(device)?,
         })
     }

@@ -271,9 +271,8 @@ impl Splatter {
                 specialization: &spec,
             };
             BackwardKernels {
-                tiles: Kernel::cached(&device, &kernels::SPLAT_BACKWARD_TILES, &with_spec)?,
-                gaussians: Kernel::cached(
-                    &device,
+                tiles: device.kernel(&kernels::SPLAT_BACKWARD_TILES, &with_spec)?,
+                gaussians: device.kernel(
                     &kernels::SPLAT_BACKWARD_GAUSSIANS,
                     &KernelDecl { specialization: &spec[..1], ..with_spec },
                 )?,

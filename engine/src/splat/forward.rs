@@ -202,11 +202,9 @@ impl Splatter {
             // The frame; splats, features and sorted indices as texel-buffer views.
             let mut bindings = vec![BindingKind::UniformBuffer];
             bindings.extend([BindingKind::UniformTexelBuffer; 3]);
-            Ok(Kernel::cached(
-                &self.device,
-                info,
-                &KernelDecl { bindings: &bindings, push_constant_size: 0, specialization: &spec },
-            )?)
+            Ok(self
+                .device
+                .kernel(info, &KernelDecl { bindings: &bindings, push_constant_size: 0, specialization: &spec })?)
         } else {
             Ok(self.device.kernel(info, &KernelDecl::uniform(&spec))?)
         }
@@ -258,8 +256,7 @@ impl Splatter {
         let preprocess = if texel_preprocess {
             let mut bindings = vec![BindingKind::UniformBuffer];
             bindings.extend([BindingKind::UniformTexelBuffer; 5]);
-            Kernel::cached(
-                &device,
+            device.kernel(
                 &kernels::SPLAT_PREPROCESS_TEXEL,
                 &KernelDecl { bindings: &bindings, push_constant_size: 0, specialization: &preprocess_spec },
             )?
