@@ -244,20 +244,39 @@ fn reflect(module: &Module) -> Result<Reflected, String> {
         .collect();
     let defs: HashMap<u32, &Instruction> =
         module.types_global_values.iter().filter_map(|i| i.result_id.map(|r| (r, i))).collect();
-    let block_of = |struct_id: u32| -> Result<Block, String> {
+    // Members of a struct inside a block are listed flattened as
+    // `outer.inner` at their offset in the block.
+    fn flatten(
+        struct_id: u32,
+        prefix: &str,
+        base: u32,
+        defs: &HashMap<u32, &Instruction>,
+        decorations: &Decorations,
+        member_names: &HashMap<(u32, u32), String>,
+        out: &mut Vec<(String, u32, u32)>,
+    ) -> Result<(), String> {
         let def = defs.get(&struct_id).ok_or("unknown block type")?;
-        let mut members = Vec::new();
         for (m, member) in def.operands.iter().enumerate() {
             let m = m as u32;
             let member_type = id(member).ok_or("bad block member")?;
-            let offset = decorations
-                .on_member
-                .get(&(struct_id, m, Decoration::Offset))
-                .and_then(|v| v.first().copied())
-                .ok_or("block member without offset")?;
-            let size = type_size(member_type, &defs, &decorations)?;
-            members.push((member_names.get(&(struct_id, m)).cloned().unwrap_or_default(), offset, size));
+            let offset = base
+                + decorations
+                    .on_member
+                    .get(&(struct_id, m, Decoration::Offset))
+                    .and_then(|v| v.first().copied())
+                    .ok_or("block member without offset")?;
+            let name = format!("{prefix}{}", member_names.get(&(struct_id, m)).cloned().unwrap_or_default());
+            if defs.get(&member_type).is_some_and(|d| d.class.opcode == Op::TypeStruct) {
+                flatten(member_type, &format!("{name}."), offset, defs, decorations, member_names, out)?;
+            } else {
+                out.push((name, offset, type_size(member_type, defs, decorations)?));
+            }
         }
+        Ok(())
+    }
+    let block_of = |struct_id: u32| -> Result<Block, String> {
+        let mut members = Vec::new();
+        flatten(struct_id, "", 0, &defs, &decorations, &member_names, &mut members)?;
         Ok(Block { name: names.get(&struct_id).cloned().unwrap_or_default(), members })
     };
 

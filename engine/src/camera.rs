@@ -5,6 +5,7 @@
 //! z forward); `rotation` is camera-to-world (its columns are the camera axes in
 //! world space) and `position` the camera centre; pixel centres are at +0.5.
 
+use bytemuck::{Pod, Zeroable};
 use glam::{Mat3, Vec2, Vec3};
 
 use crate::error::{Error, Result};
@@ -62,28 +63,47 @@ pub const DEFAULT_NEAR: f32 = 0.01;
 /// Default far plane.
 pub const DEFAULT_FAR: f32 = 1.0e4;
 
-/// A camera as every shader uniform carries it: rows of vec4s, the
-/// projection kind in a `w`. Packed here once; each stage's layout copies the
-/// parts its GLSL block declares.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct PackedCamera {
+/// The camera as a uniform block embeds it to unproject pixels:
+/// `CameraToWorld` in `camera.glsl` (checked against it wherever a block
+/// embeds one).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub(crate) struct CameraToWorldBlock {
     /// Rows of the camera-to-world rotation (`w` 0).
-    pub camera_to_world: [[f32; 4]; 3],
-    /// Rows of the world-to-camera rotation (`w` 0).
-    pub world_to_camera: [[f32; 4]; 3],
-    /// The world-to-camera translation; `w`: 0 pinhole, 1 orthographic.
-    pub translation: [f32; 4],
+    pub(crate) rot0: [f32; 4],
+    pub(crate) rot1: [f32; 4],
+    pub(crate) rot2: [f32; 4],
     /// The camera centre; `w`: 0 pinhole, 1 orthographic.
-    pub position: [f32; 4],
+    pub(crate) position: [f32; 4],
     /// fx, fy, cx, cy (orthographic: pixels per unit x, y, cx, cy).
-    pub intrinsics: [f32; 4],
-    /// 0 pinhole, 1 orthographic.
-    pub kind: f32,
+    pub(crate) intrinsics: [f32; 4],
+}
+
+/// The camera as a uniform block embeds it to project points:
+/// `WorldToCamera` in `camera.glsl`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub(crate) struct WorldToCameraBlock {
+    /// Rows of the world-to-camera rotation (`w` 0).
+    pub(crate) rot0: [f32; 4],
+    pub(crate) rot1: [f32; 4],
+    pub(crate) rot2: [f32; 4],
+    /// The world-to-camera translation; `w`: 0 pinhole, 1 orthographic.
+    pub(crate) translation: [f32; 4],
+    /// fx, fy, cx, cy (orthographic: pixels per unit x, y, cx, cy).
+    pub(crate) intrinsics: [f32; 4],
+}
+
+/// A camera packed once for the shaders, in both directions.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct PackedCamera {
+    pub(crate) to_world: CameraToWorldBlock,
+    pub(crate) to_camera: WorldToCameraBlock,
 }
 
 impl Camera {
     /// The camera packed for the shaders.
-    pub fn packed(&self) -> PackedCamera {
+    pub(crate) fn packed(&self) -> PackedCamera {
         let r = self.rotation;
         let w = r.transpose();
         let rows = |m: Mat3| [0, 1, 2].map(|i| [m.x_axis[i], m.y_axis[i], m.z_axis[i], 0.0]);
@@ -93,14 +113,11 @@ impl Camera {
         };
         let t = -(w * self.position);
         let p = self.position;
-        PackedCamera {
-            camera_to_world: rows(r),
-            world_to_camera: rows(w),
-            translation: [t.x, t.y, t.z, kind],
-            position: [p.x, p.y, p.z, kind],
-            intrinsics,
-            kind,
-        }
+        let [rot0, rot1, rot2] = rows(r);
+        let to_world = CameraToWorldBlock { rot0, rot1, rot2, position: [p.x, p.y, p.z, kind], intrinsics };
+        let [rot0, rot1, rot2] = rows(w);
+        let to_camera = WorldToCameraBlock { rot0, rot1, rot2, translation: [t.x, t.y, t.z, kind], intrinsics };
+        PackedCamera { to_world, to_camera }
     }
 
     /// A pinhole camera at `eye` looking at `target`, with `up` roughly up in
@@ -234,20 +251,24 @@ mod tests {
     fn packed_camera_is_consistent() {
         let c = Camera::look_at(Vec3::new(3.0, -4.0, 1.5), Vec3::new(0.5, 2.0, 0.0), Vec3::Z, 70.0, 64, 32).unwrap();
         let p = c.packed();
+        let (w, v) = (p.to_world, p.to_camera);
+        let (to_world, to_camera) = ([w.rot0, w.rot1, w.rot2], [v.rot0, v.rot1, v.rot2]);
         for i in 0..3 {
             for j in 0..3 {
-                assert_eq!(p.camera_to_world[i][j], p.world_to_camera[j][i]);
+                assert_eq!(to_world[i][j], to_camera[j][i]);
             }
         }
         let row = |r: [f32; 4]| Vec3::new(r[0], r[1], r[2]);
-        let t = row(p.translation);
+        let t = row(v.translation);
         let moved = Vec3::new(
-            row(p.world_to_camera[0]).dot(c.position),
-            row(p.world_to_camera[1]).dot(c.position),
-            row(p.world_to_camera[2]).dot(c.position),
+            row(to_camera[0]).dot(c.position),
+            row(to_camera[1]).dot(c.position),
+            row(to_camera[2]).dot(c.position),
         ) + t;
         assert!(moved.length() < 1e-5, "{moved}");
-        assert_eq!((p.kind, p.translation[3], p.position[3]), (0.0, 0.0, 0.0));
-        assert_eq!(p.intrinsics[2..], [32.0, 16.0]);
+        assert_eq!((v.translation[3], w.position[3]), (0.0, 0.0));
+        assert_eq!(row(w.position), c.position);
+        assert_eq!(v.intrinsics, w.intrinsics);
+        assert_eq!(v.intrinsics[2..], [32.0, 16.0]);
     }
 }

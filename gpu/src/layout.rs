@@ -49,13 +49,16 @@ pub trait GpuLayout: Pod {
 
 /// Implements [`GpuLayout`] for a struct whose fields carry the GLSL block's
 /// member names: `gpu_layout!(FrameUniform, "Frame", [rot0, rot1, size, means]);`.
+/// A GLSL struct inside the block is listed member by member as
+/// `camera.rot0, camera.rot1, ...` (a host field `camera` whose own fields
+/// carry the GLSL struct's member names), as the reflection flattens it.
 #[macro_export]
 macro_rules! gpu_layout {
-    ($ty:ty, $block:literal, [$($field:ident),* $(,)?]) => {
+    ($ty:ty, $block:literal, [$($($field:ident).+),* $(,)?]) => {
         impl $crate::GpuLayout for $ty {
             const BLOCK: &'static str = $block;
             const FIELDS: &'static [(&'static str, usize)] =
-                &[$((stringify!($field), ::core::mem::offset_of!($ty, $field))),*];
+                &[$((stringify!($($field).+), ::core::mem::offset_of!($ty, $($field).+))),*];
         }
     };
 }

@@ -68,12 +68,7 @@ void main() {
         d_z = -d_logit * k;
         d_k = d_logit * delta;
         // ∂/∂(camera depth): the world point moves along R·(ray at depth 1).
-        uint cw = shadow.size.x;
-        vec2 px = vec2(float(p % cw), float(p / cw)) + 0.5;
-        vec4 ci = shadow.cam_intr;
-        vec3 ray_cam = shadow.cam_pos.w == 0.0 ? vec3((px - ci.zw) / ci.xy, 1.0) : vec3(0.0, 0.0, 1.0);
-        vec3 ray = vec3(dot(shadow.cam_rot0.xyz, ray_cam), dot(shadow.cam_rot1.xyz, ray_cam),
-                        dot(shadow.cam_rot2.xyz, ray_cam));
+        vec3 ray = camera_ray(shadow.camera, pixel_centre(p, shadow.size.x));
         vec3 dl = vec3(dot(shadow.light_rot0.xyz, ray), dot(shadow.light_rot1.xyz, ray),
                        dot(shadow.light_rot2.xyz, ray));
         vec2 duv = shadow.light_intr.xy * dl.xy;

@@ -50,9 +50,9 @@ void main() {
         // Recompute the forward quantities (as splat_preprocess.comp).
         FloatsIn means = FloatsIn(frame.means);
         vec3 p = vec3(means.v[3 * i], means.v[3 * i + 1], means.v[3 * i + 2]);
-        mat3 W = transpose(mat3(frame.rot0.xyz, frame.rot1.xyz, frame.rot2.xyz));
-        vec3 t = W * p + frame.translation.xyz;
-        bool ortho = frame.translation.w != 0.0;
+        mat3 W = world_to_camera_rotation(frame.camera);
+        vec3 t = W * p + frame.camera.translation.xyz;
+        bool ortho = frame.camera.translation.w != 0.0;
         FloatsIn ls = FloatsIn(frame.log_scales);
         FloatsIn rot = FloatsIn(frame.rotations);
         vec3 s = exp(vec3(ls.v[3 * i], ls.v[3 * i + 1], ls.v[3 * i + 2]));
@@ -68,7 +68,7 @@ void main() {
             2.0 * (qx * qz + qw * qy), 2.0 * (qy * qz - qw * qx), 1.0 - 2.0 * (qx * qx + qy * qy));
         mat3 M = R * mat3(s.x, 0.0, 0.0, 0.0, s.y, 0.0, 0.0, 0.0, s.z);
         mat3 cov_cam = W * (M * transpose(M)) * transpose(W);
-        vec4 k = frame.intrinsics;
+        vec4 k = frame.camera.intrinsics;
         mat3 J;
         if (ortho) {
             J = mat3(k.x, 0.0, 0.0, 0.0, k.y, 0.0, 0.0, 0.0, 0.0);

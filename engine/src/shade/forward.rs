@@ -64,10 +64,7 @@ impl Shader {
         }
         let env = inputs.environment;
         let mut u = ShadeUniform::zeroed();
-        let p = camera.packed();
-        [u.cam_rot0, u.cam_rot1, u.cam_rot2] = p.camera_to_world;
-        u.cam_pos = p.position;
-        u.cam_intr = p.intrinsics;
+        u.camera = camera.packed().to_world;
         u.size = [g.width, g.height, env.levels, inputs.brdf.size];
         u.env_size = [env.base.0, env.base.1, env.irradiance_size.0, env.irradiance_size.1];
         if let Some(s) = sun {

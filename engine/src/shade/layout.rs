@@ -3,6 +3,8 @@
 
 use bytemuck::{Pod, Zeroable};
 
+use crate::camera::CameraToWorldBlock;
+
 use super::*;
 use crate::error::Result;
 use crate::gpu::{Buffer, DeviceAddress, Recording};
@@ -13,11 +15,7 @@ use crate::gpu::{Buffer, DeviceAddress, Recording};
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
 pub struct ShadeUniform {
-    pub(super) cam_rot0: [f32; 4],
-    pub(super) cam_rot1: [f32; 4],
-    pub(super) cam_rot2: [f32; 4],
-    pub(super) cam_pos: [f32; 4],
-    pub(super) cam_intr: [f32; 4],
+    pub(super) camera: CameraToWorldBlock,
     pub(super) size: [u32; 4],
     pub(super) env_size: [u32; 4],
     pub(super) sun_dir: [f32; 4],
@@ -47,11 +45,11 @@ crate::gpu::gpu_layout!(
     ShadeUniform,
     "Shade",
     [
-        cam_rot0,
-        cam_rot1,
-        cam_rot2,
-        cam_pos,
-        cam_intr,
+        camera.rot0,
+        camera.rot1,
+        camera.rot2,
+        camera.position,
+        camera.intrinsics,
         size,
         env_size,
         sun_dir,

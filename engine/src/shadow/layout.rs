@@ -3,6 +3,8 @@
 
 use bytemuck::{Pod, Zeroable};
 
+use crate::camera::CameraToWorldBlock;
+
 use super::*;
 use crate::error::{Error, Result};
 use crate::gpu::{Buffer, DeviceAddress, Recording};
@@ -15,11 +17,7 @@ use crate::splat::GpuGBuffer;
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
 pub struct ShadowUniform {
-    pub(super) cam_rot0: [f32; 4],
-    pub(super) cam_rot1: [f32; 4],
-    pub(super) cam_rot2: [f32; 4],
-    pub(super) cam_pos: [f32; 4],
-    pub(super) cam_intr: [f32; 4],
+    pub(super) camera: CameraToWorldBlock,
     pub(super) light_rot0: [f32; 4],
     pub(super) light_rot1: [f32; 4],
     pub(super) light_rot2: [f32; 4],
@@ -43,11 +41,11 @@ crate::gpu::gpu_layout!(
     ShadowUniform,
     "Shadow",
     [
-        cam_rot0,
-        cam_rot1,
-        cam_rot2,
-        cam_pos,
-        cam_intr,
+        camera.rot0,
+        camera.rot1,
+        camera.rot2,
+        camera.position,
+        camera.intrinsics,
         light_rot0,
         light_rot1,
         light_rot2,
@@ -139,13 +137,11 @@ pub(super) fn shadow_uniform<'a>(
     }
     .ok_or_else(|| Error::Internal("the shadow map lacks its depth channel".into()))?;
     let mut u = ShadowUniform::zeroed();
-    let c = camera.packed();
-    [u.cam_rot0, u.cam_rot1, u.cam_rot2] = c.camera_to_world;
-    u.cam_pos = c.position;
-    u.cam_intr = c.intrinsics;
+    u.camera = camera.packed().to_world;
     let l = &map.camera;
     let light = l.packed();
-    [u.light_rot0, u.light_rot1, u.light_rot2] = light.world_to_camera;
+    let light = light.to_camera;
+    [u.light_rot0, u.light_rot1, u.light_rot2] = [light.rot0, light.rot1, light.rot2];
     u.light_t = [light.translation[0], light.translation[1], light.translation[2], l.far];
     u.light_intr = light.intrinsics;
     u.size = [camera.width, camera.height, l.width, l.height];

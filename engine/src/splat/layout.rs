@@ -4,6 +4,7 @@
 use bytemuck::{Pod, Zeroable};
 
 use super::*;
+use crate::camera::WorldToCameraBlock;
 use crate::error::{Error, Result};
 use crate::gpu::{Buffer, DeviceAddress, Recording};
 use crate::scene::activate::GpuScene;
@@ -16,11 +17,7 @@ use crate::scene::{Camera, Projection};
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
 pub struct FrameUniform {
-    rot0: [f32; 4],
-    rot1: [f32; 4],
-    rot2: [f32; 4],
-    translation: [f32; 4],
-    intrinsics: [f32; 4],
+    camera: WorldToCameraBlock,
     clip: [f32; 4],
     eye: [f32; 4],
     view_dir: [f32; 4],
@@ -62,11 +59,11 @@ crate::gpu::gpu_layout!(
     FrameUniform,
     "Frame",
     [
-        rot0,
-        rot1,
-        rot2,
-        translation,
-        intrinsics,
+        camera.rot0,
+        camera.rot1,
+        camera.rot2,
+        camera.translation,
+        camera.intrinsics,
         clip,
         eye,
         view_dir,
@@ -170,7 +167,7 @@ pub(super) fn camera_frame(camera: &Camera, frame: &mut FrameUniform) -> Result<
         return Err(Error::invalid(format!("image size {}x{}", camera.width, camera.height), "is empty"));
     }
     let p = camera.packed();
-    [frame.rot0, frame.rot1, frame.rot2] = p.world_to_camera;
+    frame.camera = p.to_camera;
     // The Jacobian's clamp: 1.3 × tan of the half field of view (docs/conventions.md §3).
     let limits = match camera.projection {
         Projection::Pinhole { fx, fy, .. } => {
@@ -178,13 +175,13 @@ pub(super) fn camera_frame(camera: &Camera, frame: &mut FrameUniform) -> Result<
         }
         Projection::Orthographic { .. } => [0.0, 0.0],
     };
-    frame.translation = p.translation;
-    frame.intrinsics = p.intrinsics;
     frame.clip = [camera.near, camera.far, limits[0], limits[1]];
-    frame.eye = [p.position[0], p.position[1], p.position[2], 0.0];
+    let eye = p.to_world.position;
+    frame.eye = [eye[0], eye[1], eye[2], 0.0];
     let view = camera.rotation.z_axis;
     frame.view_dir = [view.x, view.y, view.z, 0.0];
-    let valid = frame.translation.iter().chain(&frame.intrinsics).chain(&frame.clip).all(|v| v.is_finite());
+    let valid =
+        frame.camera.translation.iter().chain(&frame.camera.intrinsics).chain(&frame.clip).all(|v| v.is_finite());
     if !valid || camera.near.partial_cmp(&camera.far) != Some(std::cmp::Ordering::Less) {
         return Err(Error::invalid("camera", "has non-finite or inverted parameters"));
     }

@@ -3,15 +3,12 @@
 #ifndef SRUG_SHADE_GLSL
 #define SRUG_SHADE_GLSL
 #include "address.glsl"
+#include "camera.glsl"
 #include "latlong.glsl"
 
 // Host mirror: engine/src/shade/mod.rs `ShadeUniform` (its layout is checked against this block).
 layout(std140, set = 0, binding = 0) uniform Shade {
-    vec4 cam_rot0;      // camera-to-world rotation, rows
-    vec4 cam_rot1;
-    vec4 cam_rot2;
-    vec4 cam_pos;       // w: 0 pinhole, 1 orthographic
-    vec4 cam_intr;      // fx, fy, cx, cy (orthographic: pixels per unit)
+    CameraToWorld camera;
     uvec4 size;         // width, height, specular levels, BRDF table size
     uvec4 env_size;     // specular level-0 width, height; irradiance width, height
     vec4 sun_dir;       // unit vector toward the sun; w: 1 when there is sun light
@@ -54,11 +51,7 @@ void write3(uvec2 a, uint p, vec3 v) {
 
 // Unit world direction of the camera ray through pixel p.
 vec3 pixel_ray(uint p) {
-    uint w = shade.size.x;
-    vec2 px = vec2(float(p % w), float(p / w)) + 0.5;
-    vec4 k = shade.cam_intr;
-    vec3 c = shade.cam_pos.w == 0.0 ? vec3((px - k.zw) / k.xy, 1.0) : vec3(0.0, 0.0, 1.0);
-    return normalize(vec3(dot(shade.cam_rot0.xyz, c), dot(shade.cam_rot1.xyz, c), dot(shade.cam_rot2.xyz, c)));
+    return normalize(camera_ray(shade.camera, pixel_centre(p, shade.size.x)));
 }
 
 // A world direction in the environment's own frame (rotated by −ρ about z).

@@ -3,14 +3,11 @@
 #ifndef SRUG_SHADOW_GLSL
 #define SRUG_SHADOW_GLSL
 #include "address.glsl"
+#include "camera.glsl"
 
 // Host mirror: engine/src/shadow/mod.rs `ShadowUniform` (its layout is checked against this block).
 layout(std140, set = 0, binding = 0) uniform Shadow {
-    vec4 cam_rot0;     // camera-to-world rotation, rows
-    vec4 cam_rot1;
-    vec4 cam_rot2;
-    vec4 cam_pos;      // camera centre; w: 0 pinhole, 1 orthographic
-    vec4 cam_intr;     // fx, fy, cx, cy (orthographic: pixels per unit x, y, cx, cy)
+    CameraToWorld camera;  // the receivers' camera
     vec4 light_rot0;   // world-to-light rotation, rows
     vec4 light_rot1;
     vec4 light_rot2;
@@ -48,12 +45,7 @@ bool receiver_point(uint p, out vec3 world) {
     float z;
     world = vec3(0.0);
     if (!resolve_depth(shadow.modes.y, shadow.receiver_depth, shadow.receiver_alpha, p, z)) return false;
-    uint w = shadow.size.x;
-    vec2 px = vec2(float(p % w), float(p / w)) + 0.5;
-    vec4 k = shadow.cam_intr;
-    vec3 c = shadow.cam_pos.w == 0.0 ? vec3((px - k.zw) / k.xy * z, z) : vec3((px - k.zw) / k.xy, z);
-    world = vec3(dot(shadow.cam_rot0.xyz, c), dot(shadow.cam_rot1.xyz, c), dot(shadow.cam_rot2.xyz, c))
-          + shadow.cam_pos.xyz;
+    world = camera_unproject(shadow.camera, pixel_centre(p, shadow.size.x), z);
     return true;
 }
 

@@ -2,15 +2,12 @@
 #ifndef SRUG_SPLAT_GLSL
 #define SRUG_SPLAT_GLSL
 #include "address.glsl"
+#include "camera.glsl"
 #include "splat_types.glsl"
 
 // Host mirror: engine/src/splat/mod.rs `FrameUniform` (its layout is checked against this block).
 layout(std140, set = 0, binding = 0) uniform Frame {
-    vec4 rot0;         // world-to-camera rotation, rows
-    vec4 rot1;
-    vec4 rot2;
-    vec4 translation;  // xyz: world-to-camera translation; w: 0 pinhole, 1 orthographic
-    vec4 intrinsics;   // fx, fy, cx, cy (orthographic: pixels per unit x, y, cx, cy)
+    WorldToCamera camera;
     vec4 clip;         // near, far, Jacobian limit x, y (tan of the half fov × 1.3)
     vec4 eye;          // camera centre
     vec4 view_dir;     // viewing direction (orthographic SH direction)

@@ -53,9 +53,9 @@ void main() {
     uint i = linear_index();
     if (i >= frame.counts.x) return;
     vec3 p = vec3(MEAN(3 * i), MEAN(3 * i + 1), MEAN(3 * i + 2));
-    mat3 W = transpose(mat3(frame.rot0.xyz, frame.rot1.xyz, frame.rot2.xyz));  // columns from rows
-    vec3 t = W * p + frame.translation.xyz;
-    bool ortho = frame.translation.w != 0.0;
+    mat3 W = world_to_camera_rotation(frame.camera);
+    vec3 t = W * p + frame.camera.translation.xyz;
+    bool ortho = frame.camera.translation.w != 0.0;
     float near = frame.clip.x, far = frame.clip.y;
     if (!(t.z > near && t.z < far)) { cull(i); return; }
 
@@ -74,7 +74,7 @@ void main() {
     mat3 cov_cam = W * cov_world * transpose(W);
 
     // EWA: J Σ Jᵀ, Jacobian clamped beyond the image (pinhole), + 0.3 px² dilation.
-    vec4 k = frame.intrinsics;
+    vec4 k = frame.camera.intrinsics;
     vec2 mean;
     mat3 J;  // only the first two rows are used
     if (ortho) {
