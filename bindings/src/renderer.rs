@@ -21,6 +21,7 @@ use crate::ffi::*;
 use crate::handle::{self, id_of, lock, ptr_of, Object};
 use crate::scene::*;
 use crate::{guard, srug_status, Failure, FfiResult};
+use srug::splat::Channel;
 
 /// Renders and relights scenes for one camera at a time; keeps its kernels,
 /// its last frame and its shadow pass. Thread-safe; calls on one renderer are serialized.
@@ -740,14 +741,14 @@ pub unsafe extern "C" fn srug_renderer_read_channel(
             let buffer = match channel {
                 SRUG_CHANNEL_RGB => g.rgb.as_ref(),
                 SRUG_CHANNEL_ALPHA => Some(&g.alpha),
-                SRUG_CHANNEL_DEPTH => g.depth.as_ref(),
-                SRUG_CHANNEL_MEDIAN_DEPTH => g.median_depth.as_ref(),
-                SRUG_CHANNEL_NORMAL => g.normal.as_ref(),
-                SRUG_CHANNEL_ALBEDO => g.albedo.as_ref(),
-                SRUG_CHANNEL_ROUGHNESS => g.roughness.as_ref(),
-                SRUG_CHANNEL_METALLIC => g.metallic.as_ref(),
-                SRUG_CHANNEL_AO => g.ao.as_ref(),
-                SRUG_CHANNEL_VISIBILITY => g.visibility.as_ref(),
+                SRUG_CHANNEL_DEPTH => g.get(Channel::Depth),
+                SRUG_CHANNEL_MEDIAN_DEPTH => g.get(Channel::MedianDepth),
+                SRUG_CHANNEL_NORMAL => g.get(Channel::Normal),
+                SRUG_CHANNEL_ALBEDO => g.get(Channel::Albedo),
+                SRUG_CHANNEL_ROUGHNESS => g.get(Channel::Roughness),
+                SRUG_CHANNEL_METALLIC => g.get(Channel::Metallic),
+                SRUG_CHANNEL_AO => g.get(Channel::Ao),
+                SRUG_CHANNEL_VISIBILITY => g.get(Channel::Visibility),
                 SRUG_CHANNEL_SUN_LIGHT => s.map(|s| &s.sun),
                 SRUG_CHANNEL_SKY_LIGHT => s.map(|s| &s.sky),
                 _ => s.map(|s| &s.radiance),

@@ -80,16 +80,7 @@ fn plan_matches_what_runs_and_nothing_unneeded_runs() {
 
         // The G-buffer holds exactly the planned channels.
         let g = &relit.gbuffer;
-        let made = Channels {
-            depth: g.depth.is_some(),
-            median_depth: g.median_depth.is_some(),
-            normal: g.normal.is_some(),
-            albedo: g.albedo.is_some(),
-            roughness: g.roughness.is_some(),
-            metallic: g.metallic.is_some(),
-            ao: g.ao.is_some(),
-            visibility: g.visibility.is_some(),
-        };
+        let made = g.channels.present();
         assert_eq!(made, plan.decisions.channels, "{label}");
         assert!(made.depth, "the extra channel asked for is there");
         assert!(plan.stages[0].bytes >= g.bytes(), "the camera stage's known bytes cover its G-buffer: {label}");

@@ -21,6 +21,7 @@ use srug::shade::{
     ShadeSettings, ShadeTerms, Shader, ToneMap, VisibilitySource,
 };
 use srug::shadow::Sun;
+use srug::splat::Channel;
 use srug::splat::{GBuffer, GpuGBuffer};
 use srug_tests::{assert_no_validation_messages, device, save_comparison};
 
@@ -190,20 +191,12 @@ fn prefilter_and_irradiance_match_twin() {
 
 /// A host G-buffer and its GPU copy.
 fn upload(d: &Device, g: &GBuffer) -> GpuGBuffer {
-    let up = |name: &str, v: &Option<Vec<f32>>| v.as_ref().map(|v| d.upload(name, v).unwrap());
     GpuGBuffer {
         width: g.width,
         height: g.height,
-        rgb: up("rgb", &g.rgb),
+        rgb: g.rgb.as_ref().map(|v| d.upload("rgb", v).unwrap()),
         alpha: d.upload("alpha", &g.alpha).unwrap(),
-        depth: None,
-        median_depth: None,
-        normal: up("normal", &g.normal),
-        albedo: up("albedo", &g.albedo),
-        roughness: up("roughness", &g.roughness),
-        metallic: up("metallic", &g.metallic),
-        ao: up("ao", &g.ao),
-        visibility: up("visibility", &g.visibility),
+        channels: g.channels.iter().map(|(c, v)| (c, d.upload(c.name(), v).unwrap())).collect(),
     }
 }
 
@@ -217,13 +210,7 @@ fn random_gbuffer(w: u32, h: u32, camera: &Camera, seed: u64) -> GBuffer {
         height: h,
         rgb: Some(vec![0.0; 3 * n]),
         alpha: vec![0.0; n],
-        normal: Some(vec![0.0; 3 * n]),
-        albedo: Some(vec![0.0; 3 * n]),
-        roughness: Some(vec![0.0; n]),
-        metallic: Some(vec![0.0; n]),
-        ao: Some(vec![0.0; n]),
-        visibility: Some(vec![0.0; n]),
-        ..GBuffer::default()
+        channels: Channel::ALL.into_iter().filter(|c| c.is_feature()).map(|c| (c, vec![0.0; c.floats() * n])).collect(),
     };
     for p in 0..n {
         let extreme = p % 4 == 0;
@@ -244,13 +231,13 @@ fn random_gbuffer(w: u32, h: u32, camera: &Camera, seed: u64) -> GBuffer {
             |rng: &mut Pcg64Mcg| if extreme { f32::from(rng.random_bool(0.5)) } else { rng.random_range(0.0..1.0) };
         let (r, m) = (pick(&mut rng), pick(&mut rng));
         for c in 0..3 {
-            g.normal.as_mut().unwrap()[3 * p + c] = nrm[c] * alpha * 0.8;
-            g.albedo.as_mut().unwrap()[3 * p + c] = rng.random_range(0.0..1.0f32) * alpha;
+            g.get_mut(Channel::Normal).unwrap()[3 * p + c] = nrm[c] * alpha * 0.8;
+            g.get_mut(Channel::Albedo).unwrap()[3 * p + c] = rng.random_range(0.0..1.0f32) * alpha;
         }
-        g.roughness.as_mut().unwrap()[p] = r * alpha;
-        g.metallic.as_mut().unwrap()[p] = m * alpha;
-        g.ao.as_mut().unwrap()[p] = rng.random_range(0.0..1.0f32) * alpha;
-        g.visibility.as_mut().unwrap()[p] = rng.random_range(0.0..1.0f32) * alpha;
+        g.get_mut(Channel::Roughness).unwrap()[p] = r * alpha;
+        g.get_mut(Channel::Metallic).unwrap()[p] = m * alpha;
+        g.get_mut(Channel::Ao).unwrap()[p] = rng.random_range(0.0..1.0f32) * alpha;
+        g.get_mut(Channel::Visibility).unwrap()[p] = rng.random_range(0.0..1.0f32) * alpha;
     }
     g
 }
@@ -368,7 +355,8 @@ fn shading_matches_twin_on_random_and_extreme_gbuffers() {
     // Misuse: editable visibility without its buffer; a G-buffer without albedo.
     let bad = inputs(&s.env, &s.brdf, &g, &camera, Some(&suns[0]));
     assert!(s.shader.shade(&bad, &ShadeSettings::default()).is_err());
-    let plain = GpuGBuffer { albedo: None, ..upload(&s.d, &host) };
+    let mut plain = upload(&s.d, &host);
+    plain.channels.remove(Channel::Albedo);
     let no_albedo = ShadeInputs { gbuffer: &plain, ..bad };
     let err =
         s.shader.shade(&no_albedo, &ShadeSettings { visibility: VisibilitySource::None, ..ShadeSettings::default() });
@@ -387,19 +375,19 @@ fn white_furnace() {
         let old = host.alpha[p].max(1e-3);
         host.alpha[p] = a;
         for c in 0..3 {
-            host.albedo.as_mut().unwrap()[3 * p + c] = 1.0;
-            host.normal.as_mut().unwrap()[3 * p + c] /= old;
+            host.get_mut(Channel::Albedo).unwrap()[3 * p + c] = 1.0;
+            host.get_mut(Channel::Normal).unwrap()[3 * p + c] /= old;
         }
-        host.roughness.as_mut().unwrap()[p] /= old;
-        host.metallic.as_mut().unwrap()[p] /= old;
-        host.ao.as_mut().unwrap()[p] = 1.0;
+        host.get_mut(Channel::Roughness).unwrap()[p] /= old;
+        host.get_mut(Channel::Metallic).unwrap()[p] /= old;
+        host.get_mut(Channel::Ao).unwrap()[p] = 1.0;
     }
     let mut s = lit(&EnvironmentMap::uniform([1.0; 3], 64, 32).unwrap(), BrdfLut::Karis);
     let g = upload(&s.d, &host);
     let run = |s: &mut Lit, terms: ShadeTerms, metallic: Option<f32>| {
         let mut hm = host.clone();
         if let Some(m) = metallic {
-            hm.metallic.as_mut().unwrap().iter_mut().for_each(|v| *v = m);
+            hm.get_mut(Channel::Metallic).unwrap().iter_mut().for_each(|v| *v = m);
         }
         let gm = upload(&s.d, &hm);
         let inputs = inputs(&s.env, &s.brdf, if metallic.is_some() { &gm } else { &g }, &camera, None);

@@ -14,6 +14,7 @@ use srug::shadow::backward::GpuVisibilityLoss;
 use srug::shadow::completion::shadow_iou;
 use srug::shadow::cpu::{sigmoid_visibility_cpu, traced_visibility_cpu, DepthImage};
 use srug::shadow::{light_camera, DepthMode, ShadowFit, ShadowMap, ShadowPass, ShadowSettings, Sun, VisibilityKind};
+use srug::splat::Channel;
 use srug::splat::{Channels, GBuffer, SplatSettings, Splatter};
 use srug_tests::{assert_no_validation_messages, device, save_comparison};
 
@@ -122,7 +123,7 @@ fn shadows_agree_with_the_demo_exact_visibility() {
     let (g, host) = receiver(&mut s, &camera, Channels { visibility: true, ..Channels::default() });
     let map = shadow_map(&mut s, &sun, &st, None);
     let vf: Vec<f32> =
-        host.visibility.as_ref().unwrap().iter().zip(&host.alpha).map(|(v, a)| v / a.max(1e-6)).collect();
+        host.get(Channel::Visibility).unwrap().iter().zip(&host.alpha).map(|(v, a)| v / a.max(1e-6)).collect();
     let (v, _) = s.pass.visibility(&map, &g, &camera, &st, VisibilityKind::Sigmoid).unwrap();
     let ve: Vec<f32> = s.d.read_buffer(&v).unwrap();
     let (t, _) = s.pass.visibility(&map, &g, &camera, &st, VisibilityKind::Traced).unwrap();

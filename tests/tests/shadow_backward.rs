@@ -19,11 +19,12 @@ use srug::shadow::{light_camera, DepthMode, ShadowFit, ShadowPass, ShadowSetting
 use srug::splat::backward::HostGaussianGradients;
 use srug::splat::cpu::{render_blends, Gaussian64};
 use srug::splat::cpu_backward::{blend_backward_cpu, project_backward, GaussianGrad};
+use srug::splat::Channel;
 use srug::splat::{Channels, NormalSource, SplatFrame, SplatSettings, Splatter, DEFAULT_TILE};
 use srug_tests::{assert_no_validation_messages, device, save_comparison};
 
-fn read(d: &Device, b: &Option<Buffer>) -> Vec<f64> {
-    d.read_buffer::<f32>(b.as_ref().expect("gradient present")).unwrap().iter().map(|v| f64::from(*v)).collect()
+fn read(d: &Device, b: Option<&Buffer>) -> Vec<f64> {
+    d.read_buffer::<f32>(b.expect("gradient present")).unwrap().iter().map(|v| f64::from(*v)).collect()
 }
 
 /// |gpu − cpu| ≤ tol·max(|cpu|, floor·max|cpu|) everywhere.
@@ -66,8 +67,7 @@ fn shadow_backward_matches_cpu_twin() {
     let upstream: Vec<f32> = (0..pixels).map(|_| rng.random_range(-1.0..1.0)).collect();
     // V_f: the demo's exact visibility, alpha-normalised; every tenth pixel −1 (left out).
     let vf: Vec<f32> = host_rec
-        .visibility
-        .as_ref()
+        .get(Channel::Visibility)
         .unwrap()
         .iter()
         .zip(&host_rec.alpha)
@@ -104,8 +104,8 @@ fn shadow_backward_matches_cpu_twin() {
         close(&format!("{label}_light_depth"), &light, &cpu.light_depth, 1e-2, 1e-2, csize);
         let (map_channel, rec_channel) = (map_depth, receiver_depth);
         let pick = |g: &srug::splat::backward::BlendGrads, m: DepthMode| match m {
-            DepthMode::Median => read(&d, &g.median_depth),
-            DepthMode::Expected | DepthMode::ExpectedOverFar => read(&d, &g.depth),
+            DepthMode::Median => read(&d, g.get(Channel::MedianDepth)),
+            DepthMode::Expected | DepthMode::ExpectedOverFar => read(&d, g.get(Channel::Depth)),
         };
         let cpu_pick = |g: &srug::splat::cpu_backward::PixelGrads, m: DepthMode| -> Vec<f64> {
             match m {
@@ -130,12 +130,12 @@ fn shadow_backward_matches_cpu_twin() {
             csize,
         );
         if map_channel != DepthMode::Median {
-            close(&format!("{label}_map_alpha"), &read(&d, &gpu.map.alpha), &cpu.map.alpha, 1e-2, 1e-2, msize);
+            close(&format!("{label}_map_alpha"), &read(&d, gpu.map.alpha.as_ref()), &cpu.map.alpha, 1e-2, 1e-2, msize);
         }
         if rec_channel == DepthMode::Expected {
             close(
                 &format!("{label}_receiver_alpha"),
-                &read(&d, &gpu.receiver.alpha),
+                &read(&d, gpu.receiver.alpha.as_ref()),
                 &cpu.receiver.alpha,
                 1e-2,
                 1e-2,
@@ -324,7 +324,11 @@ fn shadow_backward_is_finite_at_the_extremes() {
                     let b = pass.backward(&map, &receivers.gbuffer, &camera, &st, loss).unwrap();
                     let label = format!("el {el} k {k} bias {bias}");
                     assert!(b.k.is_finite() && b.loss.is_finite(), "{label}: dk {} loss {}", b.k, b.loss);
-                    for v in [read(&d, &b.map.median_depth), read(&d, &b.receiver.depth), read(&d, &b.receiver.alpha)] {
+                    for v in [
+                        read(&d, b.map.get(Channel::MedianDepth)),
+                        read(&d, b.receiver.get(Channel::Depth)),
+                        read(&d, b.receiver.alpha.as_ref()),
+                    ] {
                         assert!(v.iter().all(|x| x.is_finite()), "{label}: non-finite gradient");
                     }
                     // On to the Gaussians at the extremes of k (the slow part; once each).

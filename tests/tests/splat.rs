@@ -13,6 +13,7 @@ use srug::scene::activate::GpuScene;
 use srug::scene::demo::{demo_city, DemoOptions};
 use srug::scene::{Camera, Scene};
 use srug::splat::cpu::{preprocess_one, render_cpu, tile_row_span, CpuSplat};
+use srug::splat::Channel;
 use srug::splat::{
     BlendVariant, Channels, GBuffer, NormalSource, SplatSettings, Splatter, TileBounds, BLEND_PIXELS,
     DEFAULT_BLEND_PIXELS, DEFAULT_TILE, TILE_SIZES,
@@ -477,7 +478,10 @@ fn requested_channels_only_and_missing_attributes_refused() {
     let gpu_scene = GpuScene::upload(&d, &scene).unwrap();
     let cam = Camera::look_at(Vec3::new(0.0, -6.0, 0.0), Vec3::ZERO, Vec3::Z, 70.0, 32, 32).unwrap();
     let (out, _) = splatter.render(&gpu_scene, &cam, &SplatSettings::default()).unwrap();
-    assert!(out.depth.is_none() && out.normal.is_none() && out.albedo.is_none(), "unrequested channels were allocated");
+    assert!(
+        out.get(Channel::Depth).is_none() && out.get(Channel::Normal).is_none() && out.get(Channel::Albedo).is_none(),
+        "unrequested channels were allocated"
+    );
     assert_eq!(out.bytes(), 4 * 32 * 32 * 4);
     let settings =
         SplatSettings { channels: Channels { albedo: true, ..Channels::default() }, ..SplatSettings::default() };

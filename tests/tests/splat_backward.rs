@@ -14,6 +14,8 @@ use srug::scene::{Camera, Materials, Scene};
 use srug::splat::backward::{BlendGrads, HostGaussianGradients};
 use srug::splat::cpu::{preprocess_one, render_blends, CpuSplat, Gaussian64};
 use srug::splat::cpu_backward::{blend_backward_cpu, project_backward, GaussianGrad, PixelGrads};
+use srug::splat::Channel;
+use srug::splat::PerChannel;
 use srug::splat::{Channels, NormalSource, SplatSettings, Splatter, TileBounds, DEFAULT_TILE, TILE_SIZES};
 use srug_tests::{assert_no_validation_messages, device};
 
@@ -53,18 +55,23 @@ fn random_grads(d: &Device, pixels: usize, seed: u64) -> (PixelGrads, BlendGrads
     let planar = |range: std::ops::Range<usize>| -> Vec<f32> {
         host.values.iter().flat_map(|v| v[range.clone()].iter().map(|x| *x as f32).collect::<Vec<_>>()).collect()
     };
-    let up = |name: &str, v: Vec<f32>| Some(d.upload(name, &v).unwrap());
+    let up = |name: &str, v: Vec<f32>| d.upload(name, &v).unwrap();
     let grads = BlendGrads {
-        rgb: up("d rgb", planar(0..3)),
-        alpha: up("d alpha", host.alpha.iter().map(|x| *x as f32).collect()),
-        depth: up("d depth", planar(3..4)),
-        median_depth: up("d median", host.median.iter().map(|x| *x as f32).collect()),
-        normal: up("d normal", planar(4..7)),
-        roughness: up("d roughness", planar(7..8)),
-        albedo: up("d albedo", planar(8..11)),
-        metallic: up("d metallic", planar(11..12)),
-        ao: up("d ao", planar(12..13)),
-        visibility: up("d visibility", planar(13..14)),
+        rgb: Some(up("d rgb", planar(0..3))),
+        alpha: Some(up("d alpha", host.alpha.iter().map(|x| *x as f32).collect())),
+        channels: [
+            (Channel::Depth, planar(3..4)),
+            (Channel::MedianDepth, host.median.iter().map(|x| *x as f32).collect()),
+            (Channel::Normal, planar(4..7)),
+            (Channel::Roughness, planar(7..8)),
+            (Channel::Albedo, planar(8..11)),
+            (Channel::Metallic, planar(11..12)),
+            (Channel::Ao, planar(12..13)),
+            (Channel::Visibility, planar(13..14)),
+        ]
+        .into_iter()
+        .map(|(c, v)| (c, up(c.name(), v)))
+        .collect(),
     };
     (host, grads)
 }
@@ -331,8 +338,9 @@ fn backward_refuses_mismatched_inputs() {
     };
     let e = splatter.backward(&frame, &other, &ok, false).err().unwrap().to_string();
     assert!(e.contains("another scene"), "{e}");
+    let normal = d.create_filled::<f32>("n", 3 * 32 * 32, 0).unwrap();
     let features =
-        BlendGrads { normal: Some(d.create_filled::<f32>("n", 3 * 32 * 32, 0).unwrap()), ..BlendGrads::default() };
+        BlendGrads { channels: PerChannel::default().with(Channel::Normal, normal), ..BlendGrads::default() };
     let e = splatter.backward(&frame, &gpu_scene, &features, false).err().unwrap().to_string();
     assert!(e.contains("feature"), "{e}");
     // Zero upstream gradient gives exactly zero gradients.

@@ -3,6 +3,7 @@
 //! as the kernels.
 
 use super::{layers, level_sizes, Activation, ConvWeights, UNetWeights, WinogradTile};
+use crate::splat::Channel;
 
 /// A CHW tensor.
 #[derive(Clone, Debug, PartialEq)]
@@ -235,7 +236,7 @@ pub fn pack_cpu(g: &crate::splat::GBuffer, sun: &[f32], sky: &[f32], min_alpha: 
             continue;
         }
         let ia = 1.0 / a;
-        let nv = g.normal.as_ref().map_or([0.0; 3], |v| [v[3 * p], v[3 * p + 1], v[3 * p + 2]].map(f64::from));
+        let nv = g.get(Channel::Normal).map_or([0.0; 3], |v| [v[3 * p], v[3 * p + 1], v[3 * p + 2]].map(f64::from));
         let len = (nv[0] * nv[0] + nv[1] * nv[1] + nv[2] * nv[2]).sqrt();
         let mut v = [0.0f64; 14];
         if len > 1e-12 {
@@ -243,16 +244,14 @@ pub fn pack_cpu(g: &crate::splat::GBuffer, sun: &[f32], sky: &[f32], min_alpha: 
                 v[c] = nv[c] / len;
             }
         }
-        let one = |b: &Option<Vec<f32>>, fallback: f64| {
-            b.as_ref().map_or(fallback, |b| (f64::from(b[p]) * ia).clamp(0.0, 1.0))
-        };
+        let one = |b: Option<&[f32]>, fallback: f64| b.map_or(fallback, |b| (f64::from(b[p]) * ia).clamp(0.0, 1.0));
         for c in 0..3 {
-            v[3 + c] = g.albedo.as_ref().map_or(0.0, |b| (f64::from(b[3 * p + c]) * ia).clamp(0.0, 1.0));
+            v[3 + c] = g.get(Channel::Albedo).map_or(0.0, |b| (f64::from(b[3 * p + c]) * ia).clamp(0.0, 1.0));
             v[8 + c] = f64::from(sun[3 * p + c]);
             v[11 + c] = f64::from(sky[3 * p + c]);
         }
-        v[6] = one(&g.roughness, 1.0);
-        v[7] = one(&g.metallic, 0.0);
+        v[6] = one(g.get(Channel::Roughness), 1.0);
+        v[7] = one(g.get(Channel::Metallic), 0.0);
         for (c, x) in v.iter().enumerate() {
             data[c * n + p] = *x;
         }

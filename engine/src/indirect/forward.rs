@@ -10,6 +10,7 @@ use crate::gpu::{
     kernels, Binding, BindingKind, Buffer, Device, DeviceAddress, Grid, Kernel, KernelDecl, MemoryKind, SpecValue,
     TexelFormat, Texels, Timings,
 };
+use crate::splat::Channel;
 
 /// The deferred buffers the network reads (see [`DEFAULT_INPUT_ORDER`]).
 pub struct NetworkInputs<'a> {
@@ -521,7 +522,7 @@ impl UNet {
             ));
         }
         let g = inputs.gbuffer;
-        let (normal, albedo) = match (&g.normal, &g.albedo) {
+        let (normal, albedo) = match (g.get(Channel::Normal), g.get(Channel::Albedo)) {
             (Some(n), Some(a)) => (n, a),
             _ => {
                 return Err(Error::invalid(
@@ -542,8 +543,8 @@ impl UNet {
             let push = PackPush {
                 normal: rec.addr(normal)?,
                 albedo: rec.addr(albedo)?,
-                roughness: rec.addr_or_null(g.roughness.as_ref())?,
-                metallic: rec.addr_or_null(g.metallic.as_ref())?,
+                roughness: rec.addr_or_null(g.get(Channel::Roughness))?,
+                metallic: rec.addr_or_null(g.get(Channel::Metallic))?,
                 alpha: rec.addr(&g.alpha)?,
                 sun: rec.addr(inputs.sun)?,
                 sky: rec.addr(inputs.sky)?,

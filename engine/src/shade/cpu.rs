@@ -11,6 +11,7 @@ use super::env::{level_size, BrdfLut};
 use super::{Background, ShadeSettings, ShadeTerms, ToneMap, VisibilitySource};
 use crate::scene::{Camera, Projection};
 use crate::shadow::Sun;
+use crate::splat::Channel;
 use crate::splat::GBuffer;
 
 /// N·V is clamped from below (keep in sync with `MIN_NOV` in `brdf.glsl`).
@@ -339,11 +340,10 @@ pub fn shade_cpu(
     let rho = f64::from(settings.env_rotation_degrees).to_radians();
     let intensity = f64::from(settings.env_intensity);
     let levels = tables.specular.len();
-    let f3 = |v: &Option<Vec<f32>>, p: usize| {
-        v.as_ref().map(|v| DVec3::new(v[3 * p].into(), v[3 * p + 1].into(), v[3 * p + 2].into()))
-    };
-    let f1 = |v: &Option<Vec<f32>>, p: usize, ia: f64, fallback: f64| {
-        v.as_ref().map_or(fallback, |v| (f64::from(v[p]) * ia).clamp(0.0, 1.0))
+    let f3 =
+        |v: Option<&[f32]>, p: usize| v.map(|v| DVec3::new(v[3 * p].into(), v[3 * p + 1].into(), v[3 * p + 2].into()));
+    let f1 = |v: Option<&[f32]>, p: usize, ia: f64, fallback: f64| {
+        v.map_or(fallback, |v| (f64::from(v[p]) * ia).clamp(0.0, 1.0))
     };
     let mut out = ShadedCpu {
         sun: vec![0.0; 3 * pixels],
@@ -359,15 +359,15 @@ pub fn shade_cpu(
         if alpha >= min_alpha {
             let ia = 1.0 / alpha;
             let v = -ray;
-            let n = f3(&g.normal, p).unwrap_or(DVec3::ZERO);
+            let n = f3(g.get(Channel::Normal), p).unwrap_or(DVec3::ZERO);
             let n = if n.length() > 1e-12 { n.normalize() } else { v };
-            let albedo = (f3(&g.albedo, p).unwrap_or(DVec3::ZERO) * ia).clamp(DVec3::ZERO, DVec3::ONE);
-            let r = f1(&g.roughness, p, ia, 1.0);
-            let m = f1(&g.metallic, p, ia, 0.0);
-            let ao = f1(&g.ao, p, ia, 1.0);
+            let albedo = (f3(g.get(Channel::Albedo), p).unwrap_or(DVec3::ZERO) * ia).clamp(DVec3::ZERO, DVec3::ONE);
+            let r = f1(g.get(Channel::Roughness), p, ia, 1.0);
+            let m = f1(g.get(Channel::Metallic), p, ia, 0.0);
+            let ao = f1(g.get(Channel::Ao), p, ia, 1.0);
             let vis = match visibility {
                 VisibilitySource::None => 1.0,
-                VisibilitySource::Fixed => f1(&g.visibility, p, ia, 1.0),
+                VisibilitySource::Fixed => f1(g.get(Channel::Visibility), p, ia, 1.0),
                 VisibilitySource::Editable => editable.map_or(1.0, |e| f64::from(e[p]).clamp(0.0, 1.0)),
             };
             let f0 = DVec3::splat(0.04).lerp(albedo, m);

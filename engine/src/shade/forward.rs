@@ -8,6 +8,7 @@ use bytemuck::Zeroable;
 use super::*;
 use crate::error::{Error, Result};
 use crate::gpu::{kernels, Binding, Device, Grid, Kernel, KernelDecl, MemoryKind, SpecValue};
+use crate::splat::Channel;
 
 /// The shading kernels.
 pub struct Shader {
@@ -33,7 +34,7 @@ impl Shader {
                 format!("does not match camera {}x{}", camera.width, camera.height),
             ));
         }
-        if g.normal.is_none() || g.albedo.is_none() {
+        if g.get(Channel::Normal).is_none() || g.get(Channel::Albedo).is_none() {
             return Err(Error::invalid(
                 "G-buffer",
                 "lacks the normal and albedo channels shading needs (a scene without albedo renders plain colour, \
@@ -45,7 +46,7 @@ impl Shader {
         if sun.is_none() {
             visibility = VisibilitySource::None;
         }
-        if visibility == VisibilitySource::Fixed && g.visibility.is_none() {
+        if visibility == VisibilitySource::Fixed && g.get(Channel::Visibility).is_none() {
             return Err(Error::invalid("fixed visibility", "needs the visibility G-buffer channel"));
         }
         let pixels = u64::from(g.width) * u64::from(g.height);

@@ -8,6 +8,7 @@ use crate::camera::CameraToWorldBlock;
 use super::*;
 use crate::error::Result;
 use crate::gpu::{Buffer, DeviceAddress, Recording};
+use crate::splat::Channel;
 
 /// The shading kernels' uniform: `Shade` in `shade.glsl` (std140; checked
 /// against it by `check_layout`). Addresses are filled by
@@ -101,12 +102,12 @@ impl ShadeUniform {
     ) -> Result<()> {
         let g = b.inputs.gbuffer;
         let env = b.inputs.environment;
-        self.normal = rec.addr_or_null(g.normal.as_ref())?;
-        self.albedo = rec.addr_or_null(g.albedo.as_ref())?;
-        self.roughness = rec.addr_or_null(g.roughness.as_ref())?;
-        self.metallic = rec.addr_or_null(g.metallic.as_ref())?;
-        self.ao = rec.addr_or_null(g.ao.as_ref())?;
-        self.fixed_visibility = rec.addr_or_null(g.visibility.as_ref())?;
+        self.normal = rec.addr_or_null(g.get(Channel::Normal))?;
+        self.albedo = rec.addr_or_null(g.get(Channel::Albedo))?;
+        self.roughness = rec.addr_or_null(g.get(Channel::Roughness))?;
+        self.metallic = rec.addr_or_null(g.get(Channel::Metallic))?;
+        self.ao = rec.addr_or_null(g.get(Channel::Ao))?;
+        self.fixed_visibility = rec.addr_or_null(g.get(Channel::Visibility))?;
         self.editable_visibility = rec.addr_or_null(b.editable)?;
         self.alpha = rec.addr(&g.alpha)?;
         self.specular = rec.addr(&env.specular)?;

@@ -18,7 +18,7 @@ use crate::error::{Error, Result};
 use crate::gpu::{Binding, Buffer, DeviceAddress, Grid, MemoryKind, Timings};
 use crate::scene::Camera;
 use crate::splat::backward::BlendGrads;
-use crate::splat::GpuGBuffer;
+use crate::splat::{Channel, GpuGBuffer, PerChannel};
 
 /// What drives the backward pass (per receiver pixel, float each).
 #[derive(Clone, Copy)]
@@ -107,9 +107,11 @@ crate::gpu::gpu_layout!(BinsPush, "BinsPush", [keys, ranges, count, none]);
 
 fn depth_grads(mode: DepthMode, depth: Buffer, alpha: Option<Buffer>) -> BlendGrads {
     match mode {
-        DepthMode::Median => BlendGrads { median_depth: Some(depth), ..BlendGrads::default() },
+        DepthMode::Median => {
+            BlendGrads { channels: PerChannel::default().with(Channel::MedianDepth, depth), ..BlendGrads::default() }
+        }
         DepthMode::Expected | DepthMode::ExpectedOverFar => {
-            BlendGrads { depth: Some(depth), alpha, ..BlendGrads::default() }
+            BlendGrads { channels: PerChannel::default().with(Channel::Depth, depth), alpha, ..BlendGrads::default() }
         }
     }
 }

@@ -7,6 +7,7 @@ use super::{DepthMode, ShadowSettings};
 use crate::scene::{Camera, Projection, Scene};
 use crate::splat::cpu::{preprocess_one, splat_alpha, tile_lists, CpuSplat, PixelBlend, VALUES};
 use crate::splat::cpu_backward::PixelGrads;
+use crate::splat::Channel;
 use crate::splat::{GBuffer, NormalSource};
 
 /// The logit clamp (keep in sync with `LOGIT_LIMIT` in `shadow.glsl`).
@@ -57,14 +58,13 @@ impl DepthImage {
     /// From G-buffers read back from the GPU (missing channels read as 0).
     pub fn from_gbuffer(g: &GBuffer) -> Self {
         let n = g.alpha.len();
-        let wide =
-            |v: &Option<Vec<f32>>| v.as_ref().map_or(vec![0.0; n], |v| v.iter().map(|x| f64::from(*x)).collect());
+        let wide = |v: Option<&[f32]>| v.map_or(vec![0.0; n], |v| v.iter().map(|x| f64::from(*x)).collect());
         Self {
             width: g.width,
             height: g.height,
-            depth_sum: wide(&g.depth),
+            depth_sum: wide(g.get(Channel::Depth)),
             alpha: g.alpha.iter().map(|x| f64::from(*x)).collect(),
-            median: wide(&g.median_depth),
+            median: wide(g.get(Channel::MedianDepth)),
         }
     }
 

@@ -9,6 +9,7 @@ use super::*;
 use crate::error::{Error, Result};
 use crate::gpu::{Buffer, DeviceAddress, Recording};
 use crate::scene::Camera;
+use crate::splat::Channel;
 use crate::splat::GpuGBuffer;
 
 /// The shadow kernels' uniform: `Shadow` in `shadow.glsl` (std140; checked
@@ -121,8 +122,8 @@ pub(super) fn shadow_uniform<'a>(
         ));
     }
     let receiver_depth = match settings.receiver_depth {
-        DepthMode::Median => gbuffer.median_depth.as_ref(),
-        DepthMode::Expected | DepthMode::ExpectedOverFar => gbuffer.depth.as_ref(),
+        DepthMode::Median => gbuffer.get(Channel::MedianDepth),
+        DepthMode::Expected | DepthMode::ExpectedOverFar => gbuffer.get(Channel::Depth),
     }
     .ok_or_else(|| {
         Error::invalid(
@@ -132,8 +133,8 @@ pub(super) fn shadow_uniform<'a>(
     })?;
     let g = &map.frame.gbuffer;
     let map_depth = match map.depth {
-        DepthMode::Median => g.median_depth.as_ref(),
-        DepthMode::Expected | DepthMode::ExpectedOverFar => g.depth.as_ref(),
+        DepthMode::Median => g.get(Channel::MedianDepth),
+        DepthMode::Expected | DepthMode::ExpectedOverFar => g.get(Channel::Depth),
     }
     .ok_or_else(|| Error::Internal("the shadow map lacks its depth channel".into()))?;
     let mut u = ShadowUniform::zeroed();

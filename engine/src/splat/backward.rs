@@ -20,7 +20,7 @@
 use bytemuck::{Pod, Zeroable};
 use std::sync::Arc;
 
-use super::{FrameBuffers, SplatFrame, Splatter};
+use super::{Channel, FrameBuffers, PerChannel, SplatFrame, Splatter};
 use crate::error::{Error, Result};
 use crate::gpu::{
     kernels, Binding, BindingKind, Buffer, Device, DeviceAddress, Grid, Kernel, KernelDecl, MemoryKind, SpecValue,
@@ -37,61 +37,30 @@ pub struct BlendGrads {
     pub rgb: Option<Buffer>,
     /// dL/d alpha.
     pub alpha: Option<Buffer>,
-    /// dL/d Σwz.
-    pub depth: Option<Buffer>,
-    /// dL/d median depth.
-    pub median_depth: Option<Buffer>,
-    /// dL/d Σw·normal.
-    pub normal: Option<Buffer>,
-    /// dL/d Σw·albedo.
-    pub albedo: Option<Buffer>,
-    /// dL/d Σw·roughness.
-    pub roughness: Option<Buffer>,
-    /// dL/d Σw·metallic.
-    pub metallic: Option<Buffer>,
-    /// dL/d Σw·ao.
-    pub ao: Option<Buffer>,
-    /// dL/d Σw·visibility.
-    pub visibility: Option<Buffer>,
+    /// dL/d of each optional channel.
+    pub channels: PerChannel<Buffer>,
 }
 
 impl BlendGrads {
-    /// The `GRADS` specialization constant (keep in sync with `splat_backward.glsl`).
+    /// The `GRADS` specialization constant (keep in sync with
+    /// `splat_backward.glsl`): the channel bits, then rgb and alpha.
     pub fn bits(&self) -> u32 {
-        [
-            &self.depth,
-            &self.median_depth,
-            &self.normal,
-            &self.albedo,
-            &self.roughness,
-            &self.metallic,
-            &self.ao,
-            &self.visibility,
-            &self.rgb,
-            &self.alpha,
-        ]
-        .iter()
-        .enumerate()
-        .map(|(i, b)| u32::from(b.is_some()) << i)
-        .sum()
+        let n = Channel::ALL.len();
+        self.channels.present().bits() | u32::from(self.rgb.is_some()) << n | u32::from(self.alpha.is_some()) << (n + 1)
+    }
+
+    /// The gradient of an optional channel, when given.
+    pub fn get(&self, channel: Channel) -> Option<&Buffer> {
+        self.channels.get(channel)
     }
 
     fn buffers(&self) -> Vec<(&Buffer, u64, &'static str)> {
-        [
-            (&self.rgb, 3, "rgb"),
-            (&self.alpha, 1, "alpha"),
-            (&self.depth, 1, "depth"),
-            (&self.median_depth, 1, "median depth"),
-            (&self.normal, 3, "normal"),
-            (&self.albedo, 3, "albedo"),
-            (&self.roughness, 1, "roughness"),
-            (&self.metallic, 1, "metallic"),
-            (&self.ao, 1, "ao"),
-            (&self.visibility, 1, "visibility"),
-        ]
-        .into_iter()
-        .filter_map(|(b, k, n)| b.as_ref().map(|b| (b, k, n)))
-        .collect()
+        let fixed = [(&self.rgb, 3, "rgb"), (&self.alpha, 1, "alpha")];
+        fixed
+            .into_iter()
+            .filter_map(|(b, k, n)| b.as_ref().map(|b| (b, k, n)))
+            .chain(self.channels.iter().map(|(c, b)| (b, c.floats() as u64, c.name())))
+            .collect()
     }
 }
 
@@ -314,14 +283,14 @@ impl Splatter {
             let u = BackwardUniform {
                 d_rgb: rec.addr_or_null(g.rgb.as_ref())?,
                 d_alpha: rec.addr_or_null(g.alpha.as_ref())?,
-                d_depth: rec.addr_or_null(g.depth.as_ref())?,
-                d_median_depth: rec.addr_or_null(g.median_depth.as_ref())?,
-                d_normal: rec.addr_or_null(g.normal.as_ref())?,
-                d_albedo: rec.addr_or_null(g.albedo.as_ref())?,
-                d_roughness: rec.addr_or_null(g.roughness.as_ref())?,
-                d_metallic: rec.addr_or_null(g.metallic.as_ref())?,
-                d_ao: rec.addr_or_null(g.ao.as_ref())?,
-                d_visibility: rec.addr_or_null(g.visibility.as_ref())?,
+                d_depth: rec.addr_or_null(g.channels.get(Channel::Depth))?,
+                d_median_depth: rec.addr_or_null(g.channels.get(Channel::MedianDepth))?,
+                d_normal: rec.addr_or_null(g.channels.get(Channel::Normal))?,
+                d_albedo: rec.addr_or_null(g.channels.get(Channel::Albedo))?,
+                d_roughness: rec.addr_or_null(g.channels.get(Channel::Roughness))?,
+                d_metallic: rec.addr_or_null(g.channels.get(Channel::Metallic))?,
+                d_ao: rec.addr_or_null(g.channels.get(Channel::Ao))?,
+                d_visibility: rec.addr_or_null(g.channels.get(Channel::Visibility))?,
                 pairs: rec.addr(&pairs)?,
                 d_means: rec.addr(&out.means)?,
                 d_log_scales: rec.addr(&out.log_scales)?,

@@ -72,6 +72,75 @@ impl Channel {
     }
 }
 
+/// One optional value per [`Channel`]: a G-buffer's channels on the host or
+/// the GPU, or their gradients. Indexed by the channel, so code that walks the
+/// channels never lists them again.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PerChannel<T>([Option<T>; Channel::ALL.len()]);
+
+impl<T> Default for PerChannel<T> {
+    fn default() -> Self {
+        Self(std::array::from_fn(|_| None))
+    }
+}
+
+impl<T> PerChannel<T> {
+    /// The value of `channel`, when present.
+    pub fn get(&self, channel: Channel) -> Option<&T> {
+        self.0[channel as usize].as_ref()
+    }
+
+    /// The value of `channel` to change, when present.
+    pub fn get_mut(&mut self, channel: Channel) -> Option<&mut T> {
+        self.0[channel as usize].as_mut()
+    }
+
+    /// Sets `channel` to `value`.
+    pub fn set(&mut self, channel: Channel, value: T) {
+        self.0[channel as usize] = Some(value);
+    }
+
+    /// Removes `channel`, returning its value.
+    pub fn remove(&mut self, channel: Channel) -> Option<T> {
+        self.0[channel as usize].take()
+    }
+
+    /// `self` with `channel` set to `value`.
+    pub fn with(mut self, channel: Channel, value: T) -> Self {
+        self.set(channel, value);
+        self
+    }
+
+    /// The present channels and their values, in bit order.
+    pub fn iter(&self) -> impl Iterator<Item = (Channel, &T)> {
+        Channel::ALL.into_iter().zip(&self.0).filter_map(|(c, v)| v.as_ref().map(|v| (c, v)))
+    }
+
+    /// Which channels are present.
+    pub fn present(&self) -> Channels {
+        let mut c = Channels::default();
+        self.iter().for_each(|(channel, _)| c.set(channel));
+        c
+    }
+
+    /// A value for every channel `f` returns one for (the first error stops it).
+    pub fn try_from_fn<E>(
+        mut f: impl FnMut(Channel) -> std::result::Result<Option<T>, E>,
+    ) -> std::result::Result<Self, E> {
+        let mut out = Self::default();
+        for c in Channel::ALL {
+            out.0[c as usize] = f(c)?;
+        }
+        Ok(out)
+    }
+}
+
+impl<T> FromIterator<(Channel, T)> for PerChannel<T> {
+    fn from_iter<I: IntoIterator<Item = (Channel, T)>>(iter: I) -> Self {
+        iter.into_iter().fold(Self::default(), |acc, (c, v)| acc.with(c, v))
+    }
+}
+
 /// Which G-buffer channels to blend besides rgb and alpha (alpha always
 /// produced, rgb unless [`SplatSettings::rgb`] is off).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]

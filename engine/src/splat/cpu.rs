@@ -6,7 +6,7 @@
 
 use glam::{DMat3, DVec2, DVec3};
 
-use super::{GBuffer, NormalSource, SplatSettings, TileBounds};
+use super::{Channel, GBuffer, NormalSource, SplatSettings, TileBounds};
 use crate::scene::{sh_coefficients, Camera, Projection, Scene};
 
 /// One projected Gaussian.
@@ -523,14 +523,7 @@ pub fn render_cpu(scene: &Scene, camera: &Camera, settings: &SplatSettings) -> G
         height: camera.height,
         rgb: opt(settings.rgb, 3),
         alpha: vec![0.0; p],
-        depth: opt(ch.depth, 1),
-        median_depth: opt(ch.median_depth, 1),
-        normal: opt(ch.normal, 3),
-        albedo: opt(ch.albedo, 3),
-        roughness: opt(ch.roughness, 1),
-        metallic: opt(ch.metallic, 1),
-        ao: opt(ch.ao, 1),
-        visibility: opt(ch.visibility, 1),
+        channels: ch.iter().map(|c| (c, vec![0.0f32; c.floats() * p])).collect(),
     };
     let bg = settings.background.map(f64::from);
     for y in 0..h {
@@ -543,22 +536,23 @@ pub fn render_cpu(scene: &Scene, camera: &Camera, settings: &SplatSettings) -> G
                 }
             }
             g.alpha[px] = (1.0 - b.t_final) as f32;
-            let put = |v: &mut Option<Vec<f32>>, vals: &[f64]| {
-                if let Some(v) = v {
+            let f = &b.values[4..];
+            for (c, vals) in [
+                (Channel::Depth, &b.values[3..4]),
+                (Channel::MedianDepth, &[b.median][..]),
+                (Channel::Normal, &f[0..3]),
+                (Channel::Roughness, &f[3..4]),
+                (Channel::Albedo, &f[4..7]),
+                (Channel::Metallic, &f[7..8]),
+                (Channel::Ao, &f[8..9]),
+                (Channel::Visibility, &f[9..10]),
+            ] {
+                if let Some(v) = g.get_mut(c) {
                     for (k, val) in vals.iter().enumerate() {
                         v[vals.len() * px + k] = *val as f32;
                     }
                 }
-            };
-            let f = &b.values[4..];
-            put(&mut g.depth, &b.values[3..4]);
-            put(&mut g.median_depth, &[b.median]);
-            put(&mut g.normal, &f[0..3]);
-            put(&mut g.roughness, &f[3..4]);
-            put(&mut g.albedo, &f[4..7]);
-            put(&mut g.metallic, &f[7..8]);
-            put(&mut g.ao, &f[8..9]);
-            put(&mut g.visibility, &f[9..10]);
+            }
         }
     }
     g

@@ -287,14 +287,9 @@ impl Splatter {
             height: h,
             rgb: opt(settings.rgb, "gbuffer rgb", 3 * pixels)?,
             alpha: f("gbuffer alpha", pixels)?,
-            depth: opt(ch.depth, "gbuffer depth", pixels)?,
-            median_depth: opt(ch.median_depth, "gbuffer median depth", pixels)?,
-            normal: opt(ch.normal, "gbuffer normal", 3 * pixels)?,
-            albedo: opt(ch.albedo, "gbuffer albedo", 3 * pixels)?,
-            roughness: opt(ch.roughness, "gbuffer roughness", pixels)?,
-            metallic: opt(ch.metallic, "gbuffer metallic", pixels)?,
-            ao: opt(ch.ao, "gbuffer ao", pixels)?,
-            visibility: opt(ch.visibility, "gbuffer visibility", pixels)?,
+            channels: PerChannel::try_from_fn(|c| {
+                opt(ch.has(c), &format!("gbuffer {}", c.name()), c.floats() as u64 * pixels)
+            })?,
         };
         let splats = device.create_buffer("splats", n * SPLAT_BYTES, MemoryKind::Storage)?;
         let feature_buf = features
@@ -361,24 +356,8 @@ impl Splatter {
             && pairs <= max_texels;
         let blend = self.blend_kernel(ch.blend_bits(settings.rgb), tile, texel)?;
         let (sort, keys_kernel, ranges_kernel, blend) = (&self.sort, &*keys_kernel, &*self.ranges, &*blend);
-        let outputs: Vec<&Buffer> = [&out.alpha]
-            .into_iter()
-            .chain(
-                [
-                    &out.rgb,
-                    &out.depth,
-                    &out.median_depth,
-                    &out.normal,
-                    &out.albedo,
-                    &out.roughness,
-                    &out.metallic,
-                    &out.ao,
-                    &out.visibility,
-                ]
-                .into_iter()
-                .flatten(),
-            )
-            .collect();
+        let outputs: Vec<&Buffer> =
+            [&out.alpha].into_iter().chain(out.rgb.as_ref()).chain(out.channels.iter().map(|(_, b)| b)).collect();
         let phase2 = device.run(|rec| -> Result<()> {
             let buffers = FrameBuffers {
                 scene,

@@ -149,14 +149,14 @@ impl FrameUniform {
         let o = b.out;
         self.g_rgb = rec.addr_or_null(o.rgb.as_ref())?;
         self.g_alpha = rec.addr(&o.alpha)?;
-        self.g_depth = rec.addr_or_null(o.depth.as_ref())?;
-        self.g_median_depth = rec.addr_or_null(o.median_depth.as_ref())?;
-        self.g_normal = rec.addr_or_null(o.normal.as_ref())?;
-        self.g_albedo = rec.addr_or_null(o.albedo.as_ref())?;
-        self.g_roughness = rec.addr_or_null(o.roughness.as_ref())?;
-        self.g_metallic = rec.addr_or_null(o.metallic.as_ref())?;
-        self.g_ao = rec.addr_or_null(o.ao.as_ref())?;
-        self.g_visibility = rec.addr_or_null(o.visibility.as_ref())?;
+        self.g_depth = rec.addr_or_null(o.get(Channel::Depth))?;
+        self.g_median_depth = rec.addr_or_null(o.get(Channel::MedianDepth))?;
+        self.g_normal = rec.addr_or_null(o.get(Channel::Normal))?;
+        self.g_albedo = rec.addr_or_null(o.get(Channel::Albedo))?;
+        self.g_roughness = rec.addr_or_null(o.get(Channel::Roughness))?;
+        self.g_metallic = rec.addr_or_null(o.get(Channel::Metallic))?;
+        self.g_ao = rec.addr_or_null(o.get(Channel::Ao))?;
+        self.g_visibility = rec.addr_or_null(o.get(Channel::Visibility))?;
         Ok(rec.update(uniform, 0, &self)?)
     }
 }

@@ -194,22 +194,11 @@ pub struct GBuffer {
     pub rgb: Option<Vec<f32>>,
     /// 1 − final transmittance.
     pub alpha: Vec<f32>,
-    /// Σ wᵢ zᵢ.
-    pub depth: Option<Vec<f32>>,
-    /// Depth where T first falls to 0.5 (0 where it never does).
-    pub median_depth: Option<Vec<f32>>,
-    /// Σ wᵢ nᵢ, 3 floats per pixel.
-    pub normal: Option<Vec<f32>>,
-    /// Σ wᵢ albedoᵢ, 3 floats per pixel.
-    pub albedo: Option<Vec<f32>>,
-    /// Σ wᵢ roughnessᵢ.
-    pub roughness: Option<Vec<f32>>,
-    /// Σ wᵢ metallicᵢ.
-    pub metallic: Option<Vec<f32>>,
-    /// Σ wᵢ aoᵢ.
-    pub ao: Option<Vec<f32>>,
-    /// Σ wᵢ visibilityᵢ.
-    pub visibility: Option<Vec<f32>>,
+    /// The optional channels kept ([`Channels`]): planar, 3 floats per
+    /// pixel for normal and albedo, else 1. Blended values are Σ wᵢ xᵢ
+    /// (divide by alpha for the mean); median depth is the depth where T
+    /// first falls to 0.5 (0 where it never does).
+    pub channels: PerChannel<Vec<f32>>,
 }
 
 impl GBuffer {
@@ -235,16 +224,12 @@ impl GBuffer {
 
     /// The values of an optional channel, when it was kept.
     pub fn get(&self, channel: Channel) -> Option<&[f32]> {
-        match channel {
-            Channel::Depth => self.depth.as_deref(),
-            Channel::MedianDepth => self.median_depth.as_deref(),
-            Channel::Normal => self.normal.as_deref(),
-            Channel::Albedo => self.albedo.as_deref(),
-            Channel::Roughness => self.roughness.as_deref(),
-            Channel::Metallic => self.metallic.as_deref(),
-            Channel::Ao => self.ao.as_deref(),
-            Channel::Visibility => self.visibility.as_deref(),
-        }
+        self.channels.get(channel).map(Vec::as_slice)
+    }
+
+    /// The values of an optional channel to change, when it was kept.
+    pub fn get_mut(&mut self, channel: Channel) -> Option<&mut [f32]> {
+        self.channels.get_mut(channel).map(Vec::as_mut_slice)
     }
 }
 
@@ -258,22 +243,8 @@ pub struct GpuGBuffer {
     pub rgb: Option<Buffer>,
     /// `float[P]`.
     pub alpha: Buffer,
-    /// Optional channels, as in [`GBuffer`].
-    pub depth: Option<Buffer>,
-    /// Median depth.
-    pub median_depth: Option<Buffer>,
-    /// Normal, `float[3P]`.
-    pub normal: Option<Buffer>,
-    /// Albedo, `float[3P]`.
-    pub albedo: Option<Buffer>,
-    /// Roughness.
-    pub roughness: Option<Buffer>,
-    /// Metallic.
-    pub metallic: Option<Buffer>,
-    /// Ambient occlusion.
-    pub ao: Option<Buffer>,
-    /// Visibility.
-    pub visibility: Option<Buffer>,
+    /// The optional channels kept, laid out as in [`GBuffer::channels`].
+    pub channels: PerChannel<Buffer>,
 }
 
 impl GpuGBuffer {
@@ -282,38 +253,25 @@ impl GpuGBuffer {
         self.rgb.as_ref().ok_or_else(|| Error::invalid("rgb channel", NO_RGB))
     }
 
+    /// An optional channel's buffer, when it was kept.
+    pub fn get(&self, channel: Channel) -> Option<&Buffer> {
+        self.channels.get(channel)
+    }
+
     /// Reads every channel back.
     pub fn read(&self, device: &Device) -> Result<GBuffer> {
-        let opt = |b: &Option<Buffer>| b.as_ref().map(|b| device.read_buffer::<f32>(b)).transpose();
         Ok(GBuffer {
             width: self.width,
             height: self.height,
-            rgb: opt(&self.rgb)?,
+            rgb: self.rgb.as_ref().map(|b| device.read_buffer::<f32>(b)).transpose()?,
             alpha: device.read_buffer(&self.alpha)?,
-            depth: opt(&self.depth)?,
-            median_depth: opt(&self.median_depth)?,
-            normal: opt(&self.normal)?,
-            albedo: opt(&self.albedo)?,
-            roughness: opt(&self.roughness)?,
-            metallic: opt(&self.metallic)?,
-            ao: opt(&self.ao)?,
-            visibility: opt(&self.visibility)?,
+            channels: PerChannel::try_from_fn(|c| self.get(c).map(|b| device.read_buffer::<f32>(b)).transpose())?,
         })
     }
 
     /// GPU bytes held by the channels.
     pub fn bytes(&self) -> u64 {
-        let opt = [
-            &self.rgb,
-            &self.depth,
-            &self.median_depth,
-            &self.normal,
-            &self.albedo,
-            &self.roughness,
-            &self.metallic,
-            &self.ao,
-            &self.visibility,
-        ];
-        self.alpha.size() + opt.iter().filter_map(|b| b.as_ref().map(Buffer::size)).sum::<u64>()
+        let opt = self.rgb.iter().chain(self.channels.iter().map(|(_, b)| b));
+        self.alpha.size() + opt.map(Buffer::size).sum::<u64>()
     }
 }
