@@ -59,7 +59,7 @@ pub struct FramePlan {
 
 impl FramePlan {
     /// Scene plus every stage's known bytes.
-    pub fn known_bytes(&self) -> u64 {
+    pub(crate) fn known_bytes(&self) -> u64 {
         self.scene_bytes + self.stages.iter().map(|s| s.bytes).sum::<u64>()
     }
 
@@ -87,7 +87,7 @@ impl FramePlan {
 }
 
 /// Channel names, rgb (when blended) and alpha first.
-pub fn channel_names(c: Channels, rgb: bool) -> Vec<&'static str> {
+pub(crate) fn channel_names(c: Channels, rgb: bool) -> Vec<&'static str> {
     let mut v: Vec<&'static str> = if rgb { vec!["rgb", "alpha"] } else { vec!["alpha"] };
     v.extend(c.iter().map(Channel::name));
     v

@@ -161,7 +161,7 @@ fn source(d: usize, n_in: usize, n_out: usize, align_corners: bool) -> (usize, u
 }
 
 /// Bilinear resize to `width`×`height` (`F.interpolate(mode="bilinear")`).
-pub fn upsample_cpu(x: &Tensor, width: usize, height: usize, align_corners: bool) -> Tensor {
+pub(crate) fn upsample_cpu(x: &Tensor, width: usize, height: usize, align_corners: bool) -> Tensor {
     let mut data = Vec::with_capacity(x.channels * width * height);
     for c in 0..x.channels {
         for y in 0..height {
@@ -183,7 +183,7 @@ pub fn unet_cpu(weights: &UNetWeights, input: &Tensor) -> Tensor {
 }
 
 /// Rounds to the nearest fp16, saturating at ±65504 (as the fp16 kernels store).
-pub fn round_half(t: &mut Tensor) {
+pub(crate) fn round_half(t: &mut Tensor) {
     for v in &mut t.data {
         *v = f64::from(half::f16::from_f64(v.clamp(-65504.0, 65504.0)).to_f32());
     }

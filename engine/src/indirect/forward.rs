@@ -107,7 +107,7 @@ pub struct UNetOutput {
     /// The layers that read their inputs four pixels per texel fetch
     /// ([`UNet::vec4_inputs`]), in execution order.
     pub vec4_layers: Vec<&'static str>,
-    /// The up layers whose resize ran the exact-2× kernel ([`resize_exact2`]), in execution order.
+    /// The up layers whose resize ran the exact-2× kernel (`resize_exact2`), in execution order.
     pub exact_resizes: Vec<&'static str>,
 }
 
@@ -458,7 +458,7 @@ impl UNet {
     }
 
     /// Whether texel-input layers read four pixels per fetch (RGBA views)
-    /// where their input width is a multiple of 4 ([`vec4_fits`]); other
+    /// where their input width is a multiple of 4 (`vec4_fits`); other
     /// layers read one pixel per fetch. On by default where the device has
     /// the formats.
     pub fn vec4_inputs(&self) -> bool {

@@ -30,7 +30,7 @@ pub(super) fn input_level(i: usize) -> usize {
 /// Push constants of `unet_conv.comp` (keep in sync).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
-pub struct ConvPush {
+pub(crate) struct ConvPush {
     pub(super) a: DeviceAddress,
     pub(super) b: DeviceAddress,
     pub(super) o: DeviceAddress,
@@ -49,12 +49,12 @@ crate::gpu::gpu_layout!(ConvPush, "ConvPush", [a, b, o, partial, ca, cb, oc, ic0
 /// Floats in one weight pass's uniform buffer (64 KiB, the least
 /// `maxUniformBufferRange` Vulkan guarantees; keep in sync with `wts[4096]`
 /// vec4s in `unet_conv.comp`).
-pub const CONV_UBO_FLOATS: usize = 16384;
+pub(crate) const CONV_UBO_FLOATS: usize = 16384;
 
 /// Push constants of `unet_upsample.comp` (keep in sync).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
-pub struct UpsamplePush {
+pub(crate) struct UpsamplePush {
     pub(super) src: DeviceAddress,
     pub(super) dst: DeviceAddress,
     pub(super) in_size: [u32; 2],
@@ -67,7 +67,7 @@ crate::gpu::gpu_layout!(UpsamplePush, "UpsamplePush", [src, dst, in_size, out_si
 /// Output channels per invocation of a layer (the `OCB` specialization
 /// constant of `unet_conv.comp`), for inputs read through texel-buffer views
 /// (`texel`: 8, or 4 below 8 channels) or by device address (16, or 8 below 16).
-pub fn channel_block(out_channels: usize, texel: bool) -> usize {
+pub(crate) fn channel_block(out_channels: usize, texel: bool) -> usize {
     let wide = if texel { 8 } else { 16 };
     if out_channels >= wide {
         wide
@@ -81,7 +81,7 @@ pub fn channel_block(out_channels: usize, texel: bool) -> usize {
 /// PX·OCB fp32 accumulators; on lavapipe every one is a SIMD register, and
 /// past about 48 they spill. The choice is measured; docs/bench/unet.md
 /// ("Tuning") has the figures behind it.
-pub fn pixel_block(out_channels: usize, texel: bool) -> usize {
+pub(crate) fn pixel_block(out_channels: usize, texel: bool) -> usize {
     match (channel_block(out_channels, texel), texel) {
         (8, true) => 5,
         (4, true) => 8,
@@ -94,7 +94,7 @@ pub fn pixel_block(out_channels: usize, texel: bool) -> usize {
 /// invocation, 8 with 4 (PX·STRIDE a multiple of 4, so a row segment starts
 /// one pixel before a texel boundary). 128 accumulators compile quickly once
 /// every loop over them is unrolled (figures: docs/bench/unet.md, "Tuning").
-pub fn vec4_pixel_block(out_channels: usize) -> usize {
+pub(crate) fn vec4_pixel_block(out_channels: usize) -> usize {
     if channel_block(out_channels, true) == 8 {
         16
     } else {
@@ -105,7 +105,7 @@ pub fn vec4_pixel_block(out_channels: usize) -> usize {
 /// Whether the resize to an `out_width`-wide level writes four pixels per
 /// invocation (`FOUR` in `unet_upsample.comp`): each row's pixels then start
 /// on a 16-byte boundary (arena tensors are 256-byte aligned).
-pub fn resize_four(out_width: usize) -> bool {
+pub(crate) fn resize_four(out_width: usize) -> bool {
     out_width % 4 == 0
 }
 
@@ -113,13 +113,13 @@ pub fn resize_four(out_width: usize) -> bool {
 /// exact-2× kernel (`EXACT2` in `unet_upsample.comp`): `to` is exactly twice
 /// `from` with align_corners false, so every output pixel is ¼ / ¾ of two
 /// source pixels per axis, and the source rows start on four-pixel texels.
-pub fn resize_exact2(from: (usize, usize), to: (usize, usize), align_corners: bool) -> bool {
+pub(crate) fn resize_exact2(from: (usize, usize), to: (usize, usize), align_corners: bool) -> bool {
     !align_corners && to == (2 * from.0, 2 * from.1) && vec4_fits(from.0)
 }
 
 /// Whether a layer whose input rows are `in_width` pixels wide can read its
 /// inputs four pixels per texel: every row must start on a texel boundary.
-pub fn vec4_fits(in_width: usize) -> bool {
+pub(crate) fn vec4_fits(in_width: usize) -> bool {
     in_width % 4 == 0
 }
 
@@ -127,7 +127,7 @@ pub fn vec4_fits(in_width: usize) -> bool {
 /// through one RGBA32F view, so a layer is one pass; device-address kernels
 /// read them from a uniform buffer and take as many channels per pass as fit
 /// one with every output block.
-pub fn pass_channels(in_channels: usize, out_channels: usize, texel: bool) -> usize {
+pub(crate) fn pass_channels(in_channels: usize, out_channels: usize, texel: bool) -> usize {
     if texel {
         return in_channels.max(1);
     }
@@ -137,7 +137,7 @@ pub fn pass_channels(in_channels: usize, out_channels: usize, texel: bool) -> us
 
 /// Floats of one layer's packed weights on the texel path (one pass: every
 /// input channel, output channels padded to the block).
-pub fn texel_weight_floats(in_channels: usize, out_channels: usize) -> usize {
+pub(crate) fn texel_weight_floats(in_channels: usize, out_channels: usize) -> usize {
     let ob = channel_block(out_channels, true);
     out_channels.div_ceil(ob) * ob * in_channels * 9
 }
@@ -147,7 +147,7 @@ pub fn texel_weight_floats(in_channels: usize, out_channels: usize) -> usize {
 /// kernels in a zero-padded buffer of [`CONV_UBO_FLOATS`] per pass, for
 /// texel-input kernels in one buffer of [`texel_weight_floats`]; and the bias
 /// padded to a multiple of B.
-pub fn pack_conv(l: &ConvWeights, texel: bool) -> (Vec<Vec<f32>>, Vec<f32>) {
+pub(crate) fn pack_conv(l: &ConvWeights, texel: bool) -> (Vec<Vec<f32>>, Vec<f32>) {
     let ob = channel_block(l.out_channels, texel);
     let chunk = pass_channels(l.in_channels, l.out_channels, texel);
     let passes = l.in_channels.div_ceil(chunk);
@@ -169,7 +169,7 @@ pub fn pack_conv(l: &ConvWeights, texel: bool) -> (Vec<Vec<f32>>, Vec<f32>) {
 /// Push constants of `unet_pack.comp` (keep in sync).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
-pub struct PackPush {
+pub(crate) struct PackPush {
     pub(super) normal: DeviceAddress,
     pub(super) albedo: DeviceAddress,
     pub(super) roughness: DeviceAddress,

@@ -140,7 +140,7 @@ impl UNetConfig {
 
     /// Reads the architecture from metadata (missing keys take the defaults,
     /// except that a present key must parse).
-    pub fn from_metadata(meta: &HashMap<String, String>, origin: &str) -> Result<Self> {
+    pub(crate) fn from_metadata(meta: &HashMap<String, String>, origin: &str) -> Result<Self> {
         let bad =
             |key: &str, v: &str| Error::invalid(format!("{origin}: metadata \"{key}\" = \"{v}\""), "cannot be read");
         let mut c = Self::default();
@@ -301,7 +301,7 @@ impl UNetWeights {
 }
 
 /// A float tensor's values as f32 (F32, F16 or BF16, little endian).
-pub fn tensor_f32(t: &safetensors::tensor::TensorView<'_>) -> std::result::Result<Vec<f32>, String> {
+pub(crate) fn tensor_f32(t: &safetensors::tensor::TensorView<'_>) -> std::result::Result<Vec<f32>, String> {
     let d = t.data();
     Ok(match t.dtype() {
         safetensors::Dtype::F32 => d.chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect(),

@@ -130,19 +130,19 @@ impl WinogradTile {
     }
 
     /// U = G·g·Gᵀ of one 3 × 3 kernel `g` (row-major): row-major e × e.
-    pub fn weight_transform(self, g: &[f64; 9]) -> Vec<f64> {
+    pub(crate) fn weight_transform(self, g: &[f64; 9]) -> Vec<f64> {
         let t = self.transforms();
         sandwich(t.g, g, t.g, 3)
     }
 
     /// V = Bᵀ·d·B of one e × e input patch (row-major).
-    pub fn input_transform(self, d: &[f64]) -> Vec<f64> {
+    pub(crate) fn input_transform(self, d: &[f64]) -> Vec<f64> {
         let t = self.transforms();
         sandwich(t.bt, d, t.bt, self.patch())
     }
 
     /// Y = Aᵀ·m·A of one e × e product sum (row-major): the m × m output tile, row-major.
-    pub fn output_transform(self, m: &[f64]) -> Vec<f64> {
+    pub(crate) fn output_transform(self, m: &[f64]) -> Vec<f64> {
         let t = self.transforms();
         sandwich(t.at, m, t.at, self.patch())
     }
@@ -163,7 +163,7 @@ fn sandwich(l: &[f64], x: &[f64], r: &[f64], n: usize) -> Vec<f64> {
 
 /// Texels (RGBA32F) of a layer's packed Winograd weights: output channels
 /// padded to the kernel's channel block (`super::channel_block`).
-pub fn winograd_weight_texels(tile: WinogradTile, in_channels: usize, out_channels: usize) -> usize {
+pub(crate) fn winograd_weight_texels(tile: WinogradTile, in_channels: usize, out_channels: usize) -> usize {
     let block = super::channel_block(out_channels, true);
     out_channels.div_ceil(block) * block / 4 * in_channels * tile.patch() * tile.patch()
 }
@@ -172,7 +172,7 @@ pub fn winograd_weight_texels(tile: WinogradTile, in_channels: usize, out_channe
 /// `[oc/4][ic][e·e][4]` floats (one RGBA32F texel per block of 4 output
 /// channels, input channel and k; keep in sync), output channels past the
 /// layer's, up to a whole kernel channel block, zero.
-pub fn pack_winograd(tile: WinogradTile, l: &ConvWeights) -> Vec<f32> {
+pub(crate) fn pack_winograd(tile: WinogradTile, l: &ConvWeights) -> Vec<f32> {
     let n = 4;
     let ee = tile.patch() * tile.patch();
     let mut w = vec![0.0f32; winograd_weight_texels(tile, l.in_channels, l.out_channels) * 4];

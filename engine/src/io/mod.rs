@@ -9,10 +9,13 @@
 
 mod atomic;
 mod cameras;
+pub mod environment;
 mod image;
+pub mod ktx;
 mod ply;
 
 pub use atomic::write_atomic;
 pub use cameras::{parse_cameras_json, read_cameras_json, write_cameras_json};
+pub use environment::EnvironmentMap;
 pub use image::{display_byte, write_exr_channels, write_png};
 pub use ply::{read_ply, read_ply_bytes, write_ply, PlyFormat};

@@ -1,6 +1,6 @@
 //! Exclusive prefix sum of `u32` on the GPU (reduce-then-scan).
 //!
-//! Every invocation owns [`SCAN_ITEMS`] consecutive values: `scan_reduce.comp`
+//! Every invocation owns `SCAN_ITEMS` consecutive values: `scan_reduce.comp`
 //! sums them, the sums are scanned the same way (recursively, until one
 //! invocation holds everything), and `scan_apply.comp` rewrites each run as
 //! its exclusive prefix from the run's scanned sum. Invocations work alone in
@@ -17,13 +17,13 @@ use crate::error::Result;
 use crate::gpu::{kernels, Buffer, Device, DeviceAddress, Grid, Kernel, KernelDecl, MemoryKind, Recording};
 
 /// Values per invocation (keep in sync with `scan_common.glsl`).
-pub const SCAN_ITEMS: u64 = 32;
+pub(crate) const SCAN_ITEMS: u64 = 32;
 
 /// Push constants of `scan_reduce.comp` and `scan_apply.comp` (`ScanPush` in
 /// `scan_common.glsl`; checked by `check_layout`).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
-pub struct ScanPush {
+pub(crate) struct ScanPush {
     /// The values, scanned in place.
     pub data: DeviceAddress,
     /// The per-invocation sums.
@@ -75,7 +75,7 @@ impl Scan {
     }
 
     /// GPU bytes of scratch memory held.
-    pub fn scratch_bytes(&self) -> u64 {
+    pub(crate) fn scratch_bytes(&self) -> u64 {
         self.levels.iter().map(Buffer::size).sum()
     }
 

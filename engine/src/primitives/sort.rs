@@ -1,7 +1,7 @@
 //! Stable LSD radix sort of (64-bit key, u32 value) pairs on the GPU.
 //!
 //! Each pass sorts one 4-bit digit in three steps: a histogram per invocation
-//! of its [`SORT_ITEMS`] consecutive keys (`sort_histogram.comp`), an
+//! of its `SORT_ITEMS` consecutive keys (`sort_histogram.comp`), an
 //! exclusive scan of that digit-major histogram ([`Scan`]), and a stable
 //! scatter (`sort_scatter.comp`). Counts live in registers, never in shared
 //! memory: on CPU implementations (lavapipe) shared-memory accesses indexed
@@ -27,13 +27,13 @@ use crate::gpu::{
 };
 
 /// Keys per invocation (keep in sync with the sort kernels' `ITEMS`).
-pub const SORT_ITEMS: u64 = 64;
+pub(crate) const SORT_ITEMS: u64 = 64;
 /// Invocations per workgroup (keep in sync with the sort kernels' `WORKGROUP_SIZE_X`).
 const SORT_WORKGROUP: u64 = 64;
 /// Keys per workgroup (keep in sync with the sort kernels' `SORT_BLOCK`).
-pub const SORT_BLOCK: u64 = SORT_ITEMS * SORT_WORKGROUP;
+pub(crate) const SORT_BLOCK: u64 = SORT_ITEMS * SORT_WORKGROUP;
 /// Bits per pass (keep in sync with `RADIX` = 16).
-pub const DIGIT_BITS: u32 = 4;
+pub(crate) const DIGIT_BITS: u32 = 4;
 const RADIX: u64 = 16;
 
 /// Entries of the digit-major histogram for `count` keys: one column of
@@ -46,7 +46,7 @@ fn histogram_len(count: u64) -> u64 {
 /// in `sort_common.glsl`; checked by `check_layout`).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
-pub struct SortPush {
+pub(crate) struct SortPush {
     /// The input keys (`[u32; 2]` each).
     pub keys_in: DeviceAddress,
     /// The input values.
@@ -156,7 +156,7 @@ impl RadixSort {
     }
 
     /// GPU bytes of scratch memory held.
-    pub fn scratch_bytes(&self) -> u64 {
+    pub(crate) fn scratch_bytes(&self) -> u64 {
         [&self.keys_tmp, &self.values_tmp, &self.hist].iter().filter_map(|b| b.as_ref().map(Buffer::size)).sum::<u64>()
             + self.scan.scratch_bytes()
     }

@@ -8,7 +8,7 @@ use crate::gpu::DeviceAddress;
 /// Push constants of `scene_activate.comp` (its `ActivatePush` block; checked by `check_layout`).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
-pub struct ActivatePush {
+pub(crate) struct ActivatePush {
     /// `float[3N]` log scales.
     pub log_scales: DeviceAddress,
     /// `float[4N]` quaternions.

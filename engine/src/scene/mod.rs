@@ -14,8 +14,6 @@ pub mod activate;
 pub mod demo;
 mod layout;
 
-pub use layout::ActivatePush;
-
 use std::fmt;
 
 pub use crate::camera::{Camera, Projection};

@@ -7,7 +7,8 @@ use std::f64::consts::PI;
 
 use glam::DVec3;
 
-use super::env::{level_size, BrdfLut};
+use super::brdf::BrdfLut;
+use super::env::level_size;
 use super::{Background, ShadeSettings, ShadeTerms, ToneMap, VisibilitySource};
 use crate::scene::{Camera, Projection};
 use crate::shadow::Sun;
@@ -15,39 +16,39 @@ use crate::splat::Channel;
 use crate::splat::GBuffer;
 
 /// N·V is clamped from below (keep in sync with `MIN_NOV` in `brdf.glsl`).
-pub const MIN_NOV: f64 = 1e-4;
+pub(crate) const MIN_NOV: f64 = 1e-4;
 
 /// GGX D.
-pub fn d_ggx(noh: f64, alpha: f64) -> f64 {
+pub(crate) fn d_ggx(noh: f64, alpha: f64) -> f64 {
     let a2 = alpha * alpha;
     let d = noh * noh * (a2 - 1.0) + 1.0;
     a2 / (PI * d * d).max(1e-30)
 }
 
 /// Schlick–Smith G1.
-pub fn g1_schlick(x: f64, k: f64) -> f64 {
+pub(crate) fn g1_schlick(x: f64, k: f64) -> f64 {
     x / (x * (1.0 - k) + k)
 }
 
 /// Smith Λ of GGX.
-pub fn lambda_ggx(x: f64, alpha: f64) -> f64 {
+pub(crate) fn lambda_ggx(x: f64, alpha: f64) -> f64 {
     let x2 = (x * x).max(1e-12);
     0.5 * (-1.0 + (1.0 + alpha * alpha * (1.0 - x2) / x2).sqrt())
 }
 
 /// Fresnel–Schlick.
-pub fn fresnel_schlick(voh: f64, f0: DVec3) -> DVec3 {
+pub(crate) fn fresnel_schlick(voh: f64, f0: DVec3) -> DVec3 {
     let f = (1.0 - voh.clamp(0.0, 1.0)).powi(5);
     f0 + (DVec3::ONE - f0) * f
 }
 
 /// Point i of an n-point Hammersley set.
-pub fn hammersley(i: u32, n: u32) -> (f64, f64) {
+pub(crate) fn hammersley(i: u32, n: u32) -> (f64, f64) {
     (f64::from(i) / f64::from(n), f64::from(i.reverse_bits()) * 2.328_306_436_538_696_3e-10)
 }
 
 /// GGX half vector around +z.
-pub fn sample_ggx(xi: (f64, f64), alpha: f64) -> DVec3 {
+pub(crate) fn sample_ggx(xi: (f64, f64), alpha: f64) -> DVec3 {
     let phi = 2.0 * PI * xi.0;
     // tan²θ form, as brdf.glsl (keep in sync): exact at α = 0.
     let tan2 = alpha * alpha * xi.1 / (1.0 - xi.1);
@@ -84,7 +85,7 @@ fn texel(level: &[f64], size: (u32, u32), x: i64, y: i64) -> DVec3 {
 }
 
 /// Bilinear sample (u wraps, v clamps).
-pub fn latlong_sample(level: &[f64], size: (u32, u32), d: DVec3) -> DVec3 {
+pub(crate) fn latlong_sample(level: &[f64], size: (u32, u32), d: DVec3) -> DVec3 {
     let (sx, sy) = latlong_coords(d, size);
     let (sx, sy) = (sx - 0.5, sy - 0.5);
     let (fx, fy) = (sx.floor(), sy.floor());
@@ -96,7 +97,7 @@ pub fn latlong_sample(level: &[f64], size: (u32, u32), d: DVec3) -> DVec3 {
 }
 
 /// Trilinear sample of a chain (`levels[l]` has size `level_size(base, l)`).
-pub fn latlong_sample_lod(levels: &[Vec<f64>], base: (u32, u32), d: DVec3, lod: f64) -> DVec3 {
+pub(crate) fn latlong_sample_lod(levels: &[Vec<f64>], base: (u32, u32), d: DVec3, lod: f64) -> DVec3 {
     let n = levels.len();
     let lod = lod.clamp(0.0, (n - 1) as f64);
     let l0 = lod.floor() as usize;
@@ -110,7 +111,7 @@ pub fn latlong_sample_lod(levels: &[Vec<f64>], base: (u32, u32), d: DVec3, lod: 
 }
 
 /// One 2×2 box step of the pyramid.
-pub fn downsample_cpu(src: &[f64], size: (u32, u32)) -> Vec<f64> {
+pub(crate) fn downsample_cpu(src: &[f64], size: (u32, u32)) -> Vec<f64> {
     let d = ((size.0 >> 1).max(1), (size.1 >> 1).max(1));
     let mut out = Vec::with_capacity(3 * (d.0 * d.1) as usize);
     for y in 0..d.1 {
@@ -247,7 +248,7 @@ pub fn brdf_table_cpu(variant: BrdfLut, size: u32, samples: u32) -> Vec<f64> {
 }
 
 /// Bilinear lookup in a table from [`brdf_table_cpu`] (or the GPU's).
-pub fn brdf_table_lookup(table: &[f64], size: u32, nov: f64, r: f64) -> (f64, f64) {
+pub(crate) fn brdf_table_lookup(table: &[f64], size: u32, nov: f64, r: f64) -> (f64, f64) {
     let ts = f64::from(size - 1);
     let (sx, sy) = (nov * ts, r * ts);
     let (fx, fy) = (sx.min(ts - 1.0).floor(), sy.min(ts - 1.0).floor());

@@ -1,176 +1,21 @@
-//! Environment maps: lat-long RGB radiance on the host ([`EnvironmentMap`]),
-//! read from OpenEXR, Radiance .hdr or KTX2 files or made procedurally
-//! ([`super::sky`]), and prepared once on the GPU for split-sum lighting
-//! ([`EnvironmentPrep`] → [`PreparedEnvironment`]; the BRDF table is
-//! [`BrdfTable`], shared by every environment).
-//!
-//! Convention (keep in sync with `latlong.glsl`): world z up; column
-//! u = 0.5 + φ/2π with φ the azimuth from north (+y) toward east (+x); row
-//! v = 0.5 − θ/π with θ the elevation. The image centre looks north at the
-//! horizon; the top row is the zenith. Cube maps are read in the left-handed
-//! cube-map frame: cube +Y up (world +z), −Z north (world +y), +X west.
-//!
-//! Invariants: every texel is finite and ≥ 0 (lossy EXR compression leaves
-//! small negatives, which are clamped; NaN or infinite values are refused
-//! with the texel named).
+//! Environment maps prepared once on the GPU for split-sum lighting
+//! ([`EnvironmentPrep`] → [`PreparedEnvironment`]: a prefiltered specular
+//! chain and an irradiance map, saved and loaded as KTX2), and the BRDF
+//! table's computation ([`EnvironmentPrep::brdf_table`]; the table is
+//! [`super::brdf::BrdfTable`]). The host map and its readers are
+//! [`crate::io::environment`].
 
 use std::path::Path;
 use std::sync::Arc;
 
 use bytemuck::{Pod, Zeroable};
 
+use super::brdf::{BrdfLut, BrdfTable, LutPush};
 use crate::error::{Error, Result};
 use crate::gpu::{kernels, Buffer, Device, DeviceAddress, Grid, Kernel, KernelDecl, MemoryKind, SpecValue, Timings};
-
-/// Lat-long radiance, RGB floats, rows top (zenith) to bottom (nadir).
-#[derive(Clone, Debug, PartialEq)]
-pub struct EnvironmentMap {
-    /// Width in texels.
-    pub width: u32,
-    /// Height in texels.
-    pub height: u32,
-    /// 3 floats per texel, row-major.
-    pub rgb: Vec<f32>,
-}
-
-fn env_error(origin: &str, message: impl Into<String>) -> Error {
-    Error::Environment { origin: origin.to_string(), message: message.into() }
-}
-
-/// Largest accepted side, texels (a 16k×8k map is 1.5 GiB of f32).
-pub const MAX_SIDE: u32 = 16384;
-
-impl EnvironmentMap {
-    /// A map from raw texels: checks the size, refuses NaN or infinite values
-    /// (naming the texel) and clamps negatives to 0.
-    pub fn from_rgb(width: u32, height: u32, mut rgb: Vec<f32>, origin: &str) -> Result<Self> {
-        if width == 0 || height == 0 || width > MAX_SIDE || height > MAX_SIDE {
-            return Err(env_error(origin, format!("size {width}x{height} is outside 1..={MAX_SIDE}")));
-        }
-        if rgb.len() != 3 * width as usize * height as usize {
-            return Err(env_error(origin, format!("{} values for {width}x{height} RGB texels", rgb.len())));
-        }
-        if let Some(i) = rgb.iter().position(|v| !v.is_finite()) {
-            let t = i / 3;
-            return Err(env_error(
-                origin,
-                format!(
-                    "texel ({}, {}) channel {} is {} (environment radiance must be finite)",
-                    t % width as usize,
-                    t / width as usize,
-                    ["R", "G", "B"][i % 3],
-                    rgb[i]
-                ),
-            ));
-        }
-        for v in &mut rgb {
-            *v = v.max(0.0);
-        }
-        Ok(Self { width, height, rgb })
-    }
-
-    /// A constant environment (the white furnace uses radiance 1).
-    pub fn uniform(radiance: [f32; 3], width: u32, height: u32) -> Result<Self> {
-        let rgb = (0..width as usize * height as usize).flat_map(|_| radiance).collect();
-        Self::from_rgb(width, height, rgb, "uniform environment")
-    }
-
-    /// Reads `.exr` (any compression the exr crate reads, DWAB included), `.hdr`
-    /// (Radiance RGBE) or `.ktx2` (float formats, 2D lat-long or cube, zstd
-    /// supercompression; level 0 is used). Other files get an error naming why.
-    pub fn load(path: impl AsRef<Path>) -> Result<Self> {
-        let path = path.as_ref();
-        let origin = path.display().to_string();
-        let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).unwrap_or_default();
-        match ext.as_str() {
-            "exr" => read_exr(path, &origin),
-            "hdr" => {
-                let bytes = std::fs::read(path).map_err(Error::io(path))?;
-                read_hdr(&bytes, &origin)
-            }
-            "ktx2" => {
-                let bytes = std::fs::read(path).map_err(Error::io(path))?;
-                super::ktx::read_environment(&bytes, &origin)
-            }
-            other => Err(env_error(
-                &origin,
-                format!("unknown extension \".{other}\" (environment maps are .exr, .hdr or .ktx2)"),
-            )),
-        }
-    }
-
-    /// Texel (x, y) as RGB.
-    pub fn texel(&self, x: u32, y: u32) -> [f32; 3] {
-        let i = 3 * (y as usize * self.width as usize + x as usize);
-        [self.rgb[i], self.rgb[i + 1], self.rgb[i + 2]]
-    }
-
-    /// Largest channel value.
-    pub fn max_value(&self) -> f32 {
-        self.rgb.iter().copied().fold(0.0, f32::max)
-    }
-}
-
-fn read_exr(path: &Path, origin: &str) -> Result<EnvironmentMap> {
-    use exr::prelude::read_first_rgba_layer_from_file;
-    let image = read_first_rgba_layer_from_file(
-        path,
-        |resolution, _| (resolution.width(), vec![0.0f32; 3 * resolution.width() * resolution.height()]),
-        |(w, data): &mut (usize, Vec<f32>), pos, (r, g, b, _a): (f32, f32, f32, f32)| {
-            let i = 3 * (pos.y() * *w + pos.x());
-            data[i] = r;
-            data[i + 1] = g;
-            data[i + 2] = b;
-        },
-    )
-    .map_err(|e| match e {
-        exr::error::Error::Io(source) => Error::Io { path: path.to_path_buf(), source },
-        other => env_error(origin, format!("not a readable OpenEXR RGB image: {other}")),
-    })?;
-    let size = image.layer_data.size;
-    let (_, data) = image.layer_data.channel_data.pixels;
-    EnvironmentMap::from_rgb(size.width() as u32, size.height() as u32, data, origin)
-}
-
-/// Reads Radiance RGBE bytes.
-pub fn read_hdr(bytes: &[u8], origin: &str) -> Result<EnvironmentMap> {
-    let decoder = image::codecs::hdr::HdrDecoder::new(std::io::Cursor::new(bytes))
-        .map_err(|e| env_error(origin, format!("not a Radiance .hdr file: {e}")))?;
-    let img = image::DynamicImage::from_decoder(decoder)
-        .map_err(|e| env_error(origin, format!("corrupt Radiance .hdr data: {e}")))?
-        .to_rgb32f();
-    let (w, h) = img.dimensions();
-    EnvironmentMap::from_rgb(w, h, img.into_raw(), origin)
-}
-
-/// Which environment BRDF table.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
-pub enum BrdfLut {
-    /// Schlick–Smith G with k = α/2 (Karis 2013, UE4).
-    #[default]
-    Karis,
-    /// Height-correlated Smith GGX (nvdiffrec and the relighting codes built on it).
-    HeightCorrelated,
-}
-
-impl BrdfLut {
-    /// Parses `karis` or `height-correlated`.
-    pub fn parse(text: &str) -> Result<Self> {
-        match text {
-            "karis" => Ok(Self::Karis),
-            "height-correlated" => Ok(Self::HeightCorrelated),
-            other => Err(Error::invalid(format!("BRDF table \"{other}\""), "is not karis or height-correlated")),
-        }
-    }
-
-    /// The `VARIANT` specialization constant of `brdf_lut.comp`.
-    pub fn code(self) -> u32 {
-        match self {
-            Self::Karis => 0,
-            Self::HeightCorrelated => 1,
-        }
-    }
-}
+use crate::io::environment::env_error;
+pub use crate::io::environment::{EnvironmentMap, MAX_SIDE};
+use crate::io::ktx;
 
 /// Sizes and sample counts of the environment preparation.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -214,7 +59,7 @@ pub fn level_size(base: (u32, u32), l: u32) -> (u32, u32) {
 }
 
 /// Texel offset of level `l`.
-pub fn level_offset(base: (u32, u32), l: u32) -> u64 {
+pub(crate) fn level_offset(base: (u32, u32), l: u32) -> u64 {
     (0..l).map(|i| level_size(base, i)).map(|(w, h)| u64::from(w) * u64::from(h)).sum()
 }
 
@@ -242,25 +87,10 @@ impl PreparedEnvironment {
     }
 }
 
-/// The environment BRDF table on the GPU: (A, B) for N·V = i/(size−1)
-/// (columns, clamped ≥ 1e-4) and roughness j/(size−1) (rows).
-pub struct BrdfTable {
-    /// Which G term.
-    pub variant: BrdfLut,
-    /// Texels per side.
-    pub size: u32,
-    /// Hammersley samples per texel.
-    pub samples: u32,
-    /// `vec2` per texel.
-    pub buffer: Buffer,
-    /// GPU time of the computation.
-    pub timings: Timings,
-}
-
 /// Push constants of `env_downsample.comp` (keep in sync).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
-pub struct DownsamplePush {
+pub(crate) struct DownsamplePush {
     src: DeviceAddress,
     dst: DeviceAddress,
     src_size: [u32; 2],
@@ -271,7 +101,7 @@ crate::gpu::gpu_layout!(DownsamplePush, "DownsamplePush", [src, dst, src_size, d
 /// Push constants of `env_prefilter.comp` (keep in sync).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
-pub struct PrefilterPush {
+pub(crate) struct PrefilterPush {
     pyramid: DeviceAddress,
     dst: DeviceAddress,
     base: [u32; 2],
@@ -288,17 +118,7 @@ crate::gpu::gpu_layout!(
 );
 
 /// Push constants of `env_irradiance.comp` (keep in sync; same layout as downsampling).
-pub type IrradiancePush = DownsamplePush;
-
-/// Push constants of `brdf_lut.comp` (keep in sync).
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Pod, Zeroable)]
-pub struct LutPush {
-    dst: DeviceAddress,
-    size: u32,
-    samples: u32,
-}
-crate::gpu::gpu_layout!(LutPush, "LutPush", [dst, size, samples]);
+pub(crate) type IrradiancePush = DownsamplePush;
 
 /// The environment-preparation kernels.
 pub struct EnvironmentPrep {
@@ -420,14 +240,14 @@ pub const SPECULAR_FILE: &str = "specular.ktx2";
 /// Irradiance file in a prepared environment folder.
 pub const IRRADIANCE_FILE: &str = "irradiance.ktx2";
 
-fn metadata_value<'a>(chain: &'a super::ktx::ReadChain, key: &str) -> Option<&'a str> {
+pub(super) fn metadata_value<'a>(chain: &'a ktx::ReadChain, key: &str) -> Option<&'a str> {
     chain.metadata.iter().find(|(k, _)| k == key).map(|(_, v)| v.as_str())
 }
 
-fn read_chain(path: &Path, kind: &str, channels: usize) -> Result<super::ktx::ReadChain> {
+pub(super) fn read_chain(path: &Path, kind: &str, channels: usize) -> Result<ktx::ReadChain> {
     let origin = path.display().to_string();
     let bytes = std::fs::read(path).map_err(Error::io(path))?;
-    let chain = super::ktx::read_float_chain(&bytes, &origin)?;
+    let chain = ktx::read_float_chain(&bytes, &origin)?;
     if metadata_value(&chain, "srug.kind") != Some(kind) || chain.channels != channels {
         return Err(env_error(&origin, format!("not a srug {kind} file (its srug.kind metadata or channels differ)")));
     }
@@ -438,7 +258,7 @@ impl PreparedEnvironment {
     /// Saves the prefiltered chain and the irradiance map as KTX2 files
     /// ([`SPECULAR_FILE`], [`IRRADIANCE_FILE`]) in `dir`, so a map is prefiltered once.
     pub fn save(&self, device: &Device, dir: &Path, zstd: bool) -> Result<()> {
-        use super::ktx::{write_float_chain, FloatChain};
+        use ktx::{write_float_chain, FloatChain};
         std::fs::create_dir_all(dir).map_err(Error::io(dir))?;
         let levels = self.read_specular(device)?;
         let chain = FloatChain {
@@ -483,51 +303,9 @@ impl PreparedEnvironment {
     }
 }
 
-impl BrdfTable {
-    /// Saves the table as a two-channel float KTX2 file.
-    pub fn save(&self, device: &Device, path: &Path) -> Result<()> {
-        use super::ktx::{write_float_chain, FloatChain};
-        let values: Vec<f32> = device.read_buffer(&self.buffer)?;
-        let chain = FloatChain {
-            width: self.size,
-            height: self.size,
-            channels: 2,
-            levels: vec![&values],
-            metadata: vec![
-                ("srug.kind".into(), "brdf".into()),
-                ("srug.brdf".into(), format!("{:?}", self.variant)),
-                ("srug.samples".into(), self.samples.to_string()),
-            ],
-        };
-        write_float_chain(path, &chain, false)
-    }
-
-    /// Loads a table written by [`BrdfTable::save`].
-    pub fn load(device: &Device, path: &Path) -> Result<Self> {
-        let chain = read_chain(path, "brdf", 2)?;
-        let origin = path.display().to_string();
-        let variant = match metadata_value(&chain, "srug.brdf") {
-            Some("Karis") => BrdfLut::Karis,
-            Some("HeightCorrelated") => BrdfLut::HeightCorrelated,
-            other => return Err(env_error(&origin, format!("unknown BRDF table variant {other:?}"))),
-        };
-        if chain.width != chain.height || chain.width < 2 {
-            return Err(env_error(&origin, format!("a BRDF table is square, ≥ 2: {}x{}", chain.width, chain.height)));
-        }
-        let samples = metadata_value(&chain, "srug.samples").and_then(|s| s.parse().ok()).unwrap_or(0);
-        Ok(Self {
-            variant,
-            size: chain.width,
-            samples,
-            buffer: device.upload("brdf table", &chain.levels[0])?,
-            timings: Timings::default(),
-        })
-    }
-}
-
 #[cfg(test)]
 mod layout_tests {
-    use super::{DownsamplePush, LutPush, PrefilterPush};
+    use super::{DownsamplePush, PrefilterPush};
     use crate::gpu::{check_layout, kernels};
 
     /// The push-constant structs match the GLSL blocks of their kernels.
@@ -535,6 +313,5 @@ mod layout_tests {
     fn push_layouts_match_glsl() {
         assert_eq!(check_layout::<DownsamplePush>(&[&kernels::ENV_DOWNSAMPLE, &kernels::ENV_IRRADIANCE]), Ok(2));
         assert_eq!(check_layout::<PrefilterPush>(&[&kernels::ENV_PREFILTER]), Ok(1));
-        assert_eq!(check_layout::<LutPush>(&[&kernels::BRDF_LUT]), Ok(1));
     }
 }

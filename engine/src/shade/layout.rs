@@ -15,7 +15,7 @@ use crate::splat::Channel;
 /// `ShadeUniform::record` in the recording that dispatches with it.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
-pub struct ShadeUniform {
+pub(crate) struct ShadeUniform {
     pub(super) camera: CameraToWorldBlock,
     pub(super) size: [u32; 4],
     pub(super) env_size: [u32; 4],

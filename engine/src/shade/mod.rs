@@ -11,7 +11,7 @@
 //!   or none.
 //! - **Sky**: split-sum image-based lighting from a [`env::PreparedEnvironment`]
 //!   (GGX-prefiltered chain indexed by roughness, irradiance map) and a
-//!   [`env::BrdfTable`] (Karis or height-correlated); sky diffuse is multiplied
+//!   [`brdf::BrdfTable`] (Karis or height-correlated); sky diffuse is multiplied
 //!   by the blended ambient occlusion.
 //! - **Indirect**: an optional per-pixel L_ind buffer (the U-Net's); without
 //!   one nothing runs for it.
@@ -24,20 +24,24 @@
 //! inputs (roughness 0 and 1, N·V = 0, N·L < 0 and radiance 1e5 are tested).
 //! [`cpu`] is the f64 twin.
 
+pub mod brdf;
 pub mod cpu;
 pub mod env;
 mod forward;
-pub mod ktx;
 mod layout;
 pub mod sky;
 
 pub use forward::*;
-pub use layout::*;
+pub(crate) use layout::*;
 
-pub use self::env::{BrdfLut, BrdfTable, EnvironmentMap, EnvironmentPrep, PrepareSettings, PreparedEnvironment};
+pub use self::brdf::{BrdfLut, BrdfTable};
+pub use self::env::{EnvironmentPrep, PrepareSettings, PreparedEnvironment};
 pub use self::sky::ProceduralSky;
 use crate::error::{Error, Result};
 use crate::gpu::{Buffer, Device, Timings};
+/// The KTX2 reader and writer, now in [`crate::io::ktx`] (kept here for old paths).
+pub use crate::io::ktx;
+pub use crate::io::EnvironmentMap;
 use crate::scene::Camera;
 use crate::shadow::Sun;
 use crate::splat::{Channels, GpuGBuffer};

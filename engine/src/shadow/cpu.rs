@@ -11,10 +11,10 @@ use crate::splat::Channel;
 use crate::splat::{GBuffer, NormalSource};
 
 /// The logit clamp (keep in sync with `LOGIT_LIMIT` in `shadow.glsl`).
-pub const LOGIT_LIMIT: f64 = 30.0;
+pub(crate) const LOGIT_LIMIT: f64 = 30.0;
 
 /// σ(x), stable for any x: e = exp(−|x|) never overflows.
-pub fn stable_sigmoid(x: f64) -> f64 {
+pub(crate) fn stable_sigmoid(x: f64) -> f64 {
     let e = (-x.abs()).exp();
     if x >= 0.0 {
         1.0 / (1.0 + e)
@@ -24,17 +24,17 @@ pub fn stable_sigmoid(x: f64) -> f64 {
 }
 
 /// log σ(x) = −softplus(−x) = −(max(−x, 0) + ln(1 + exp(−|x|))), stable for any x.
-pub fn log_sigmoid(x: f64) -> f64 {
+pub(crate) fn log_sigmoid(x: f64) -> f64 {
     -((-x).max(0.0) + (-x.abs()).exp().ln_1p())
 }
 
 /// The clamped shadow logit k·(z_s − z + bias).
-pub fn shadow_logit(zs: f64, z: f64, k: f64, bias: f64) -> f64 {
+pub(crate) fn shadow_logit(zs: f64, z: f64, k: f64, bias: f64) -> f64 {
     (k * (zs - z + bias)).clamp(-LOGIT_LIMIT, LOGIT_LIMIT)
 }
 
 /// V = σ(clamped logit): the sigmoid shadow test for one receiver.
-pub fn sigmoid_visibility(zs: f64, z: f64, k: f64, bias: f64) -> f64 {
+pub(crate) fn sigmoid_visibility(zs: f64, z: f64, k: f64, bias: f64) -> f64 {
     stable_sigmoid(shadow_logit(zs, z, k, bias))
 }
 
@@ -107,7 +107,7 @@ impl DepthImage {
 }
 
 /// The shadow map's texel depths z_s (empty texels at `empty`).
-pub fn resolve_depths(mode: DepthMode, map: &GBuffer, min_alpha: f32, empty: f32) -> Vec<f32> {
+pub(crate) fn resolve_depths(mode: DepthMode, map: &GBuffer, min_alpha: f32, empty: f32) -> Vec<f32> {
     let img = DepthImage::from_gbuffer(map);
     (0..map.alpha.len())
         .map(|p| img.depth(mode, p, f64::from(min_alpha), f64::from(empty)).map_or(empty, |z| z as f32))
@@ -130,7 +130,7 @@ pub fn unproject(camera: &Camera, p: usize, z: f64) -> DVec3 {
 }
 
 /// Light-space (u, v) texel coordinates (centres at +0.5) and depth of a world point.
-pub fn light_coords(light: &Camera, world: DVec3) -> (DVec2, f64) {
+pub(crate) fn light_coords(light: &Camera, world: DVec3) -> (DVec2, f64) {
     let t = light.rotation.as_dmat3().transpose() * (world - light.position.as_dvec3());
     let Projection::Orthographic { sx, sy, cx, cy } = light.projection else {
         unreachable!("light cameras are orthographic")
@@ -155,7 +155,7 @@ pub fn bilinear(uv: DVec2, w: u32, h: u32) -> ([usize; 4], [f64; 4]) {
 }
 
 /// Where a receiver pixel lands in the map: (uv, z) for a surface inside the map.
-pub fn receiver_in_light(
+pub(crate) fn receiver_in_light(
     light: &Camera,
     camera: &Camera,
     receiver: &DepthImage,
@@ -206,13 +206,13 @@ pub enum VisibilityLoss<'a> {
     /// The paper's visibility loss: the mean over receivers with a surface
     /// inside the map of BCE(V_e, V_f), V_f per pixel (a negative V_f leaves
     /// the pixel out), in stable log-sigmoid form on the logit
-    /// (clamped to ±[`BCE_LOGIT_LIMIT`], so confidently wrong pixels keep their
+    /// (clamped to ±`BCE_LOGIT_LIMIT`, so confidently wrong pixels keep their
     /// gradient σ(x) − V_f).
     Bce(&'a [f64]),
 }
 
 /// The logit clamp of the BCE loss (keep in sync with `shadow_backward.comp`).
-pub const BCE_LOGIT_LIMIT: f64 = 1e4;
+pub(crate) const BCE_LOGIT_LIMIT: f64 = 1e4;
 
 /// Gradients from the sigmoid shadow test.
 #[derive(Clone, Debug, Default)]

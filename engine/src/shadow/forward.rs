@@ -89,7 +89,7 @@ impl ShadowPass {
 
     /// Splats the scene into a shadow map from a given light camera (fixed
     /// across optimisation steps, say); the sun must be above the horizon.
-    pub fn shadow_map_from(
+    pub(crate) fn shadow_map_from(
         &self,
         splatter: &mut Splatter,
         scene: &GpuScene,

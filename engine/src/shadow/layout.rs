@@ -17,7 +17,7 @@ use crate::splat::GpuGBuffer;
 /// `ShadowUniform::record` in the recording that dispatches with it.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
-pub struct ShadowUniform {
+pub(crate) struct ShadowUniform {
     pub(super) camera: CameraToWorldBlock,
     pub(super) light_rot0: [f32; 4],
     pub(super) light_rot1: [f32; 4],

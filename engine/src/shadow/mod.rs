@@ -29,7 +29,7 @@ mod layout;
 pub mod sun;
 
 pub use forward::*;
-pub use layout::*;
+pub(crate) use layout::*;
 
 use glam::Vec3;
 
@@ -71,7 +71,7 @@ impl DepthMode {
 
     /// The depth a texel with nothing in it reads as, for a light camera whose
     /// far plane is `far`: `far` (median, expected), `2·far` (expected over far).
-    pub fn empty_depth(self, far: f32) -> f32 {
+    pub(crate) fn empty_depth(self, far: f32) -> f32 {
         match self {
             Self::ExpectedOverFar => 2.0 * far,
             Self::Median | Self::Expected => far,
@@ -287,7 +287,7 @@ pub struct ShadowMap {
 }
 
 impl ShadowMap {
-    /// The texels' depth z_s on the host (empty texels: [`DepthMode::empty_depth`]).
+    /// The texels' depth z_s on the host (empty texels: `DepthMode::empty_depth`).
     pub fn read_depth(&self, device: &Device, min_alpha: f32) -> Result<Vec<f32>> {
         let g = self.frame.gbuffer.read(device)?;
         Ok(cpu::resolve_depths(self.depth, &g, min_alpha, self.depth.empty_depth(self.camera.far)))

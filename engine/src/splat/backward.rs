@@ -113,7 +113,7 @@ impl GaussianGradients {
 /// (std140; checked against it by `check_layout`), filled in the recording.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
-pub struct BackwardUniform {
+pub(crate) struct BackwardUniform {
     d_rgb: DeviceAddress,
     d_alpha: DeviceAddress,
     d_depth: DeviceAddress,

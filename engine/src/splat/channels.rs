@@ -211,7 +211,7 @@ impl Channels {
     }
 
     /// The `CHANNELS` specialization constant of `splat_blend.comp`, less
-    /// its rgb bit ([`RGB_BIT`], from [`SplatSettings::rgb`]).
+    /// its rgb bit (`RGB_BIT`, from [`SplatSettings::rgb`]).
     pub fn bits(&self) -> u32 {
         self.iter().map(Channel::bit).sum()
     }

@@ -171,7 +171,7 @@ pub fn project(g: &Gaussian64, camera: &Camera, tile: u32) -> Option<Projected> 
 
 /// Pixel position of camera point `t` and the projection's Jacobian (rows 0
 /// and 1; the pinhole's clamped beyond 1.3× the half field of view).
-pub fn mean_and_jacobian(camera: &Camera, t: DVec3) -> (DVec2, DMat3) {
+pub(crate) fn mean_and_jacobian(camera: &Camera, t: DVec3) -> (DVec2, DMat3) {
     match camera.projection {
         Projection::Pinhole { fx, fy, cx, cy } => {
             let (fx, fy, cx, cy) = (f64::from(fx), f64::from(fy), f64::from(cx), f64::from(cy));
@@ -194,7 +194,7 @@ pub fn mean_and_jacobian(camera: &Camera, t: DVec3) -> (DVec2, DMat3) {
 }
 
 /// Limits of x/z and y/z in the pinhole Jacobian.
-pub fn jacobian_limits(camera: &Camera) -> (f64, f64) {
+pub(crate) fn jacobian_limits(camera: &Camera) -> (f64, f64) {
     match camera.projection {
         Projection::Pinhole { fx, fy, .. } => {
             (1.3 * 0.5 * f64::from(camera.width) / f64::from(fx), 1.3 * 0.5 * f64::from(camera.height) / f64::from(fy))
@@ -216,7 +216,7 @@ pub fn preprocess_one(
 
 /// Stage 1 for Gaussian `i` of `scene` with its geometry replaced by `g`
 /// (colour and materials still from `scene`); for finite differences.
-pub fn preprocess_with(
+pub(crate) fn preprocess_with(
     g: &Gaussian64,
     scene: &Scene,
     i: usize,
@@ -343,7 +343,7 @@ pub fn tile_row_span(s: &CpuSplat, ty: u32, tile: u32) -> (u32, u32) {
 }
 
 /// The tiles of row `ty` that list splat `s` under `bounds`.
-pub fn listed_columns(s: &CpuSplat, ty: u32, tile: u32, bounds: TileBounds) -> std::ops::Range<u32> {
+pub(crate) fn listed_columns(s: &CpuSplat, ty: u32, tile: u32, bounds: TileBounds) -> std::ops::Range<u32> {
     let (x0, x1) = match bounds {
         TileBounds::Ellipse => tile_row_span(s, ty, tile),
         TileBounds::Rectangle => (s.rect[0], s.rect[2]),
@@ -415,10 +415,10 @@ pub fn blend_work(scene: &Scene, camera: &Camera, tile: u32, bounds: TileBounds)
 
 /// Values blended per splat: rgb, depth, then the ten features (normal.xyz,
 /// roughness, albedo.rgb, metallic, ao, visibility).
-pub const VALUES: usize = 14;
+pub(crate) const VALUES: usize = 14;
 
 /// The blended values of a splat.
-pub fn splat_values(s: &CpuSplat) -> [f64; VALUES] {
+pub(crate) fn splat_values(s: &CpuSplat) -> [f64; VALUES] {
     let mut v = [0.0; VALUES];
     v[..3].copy_from_slice(&s.color.to_array());
     v[3] = s.depth;
@@ -440,7 +440,7 @@ pub struct Contribution {
 /// One pixel blended front to back in f64.
 #[derive(Clone, Debug)]
 pub struct PixelBlend {
-    /// Σ wᵢ xᵢ for each of the [`VALUES`] (no background).
+    /// Σ wᵢ xᵢ for each of the `VALUES` (no background).
     pub values: [f64; VALUES],
     /// Final transmittance.
     pub t_final: f64,
@@ -453,7 +453,7 @@ pub struct PixelBlend {
 }
 
 /// Blends the splats of `list` (blend order) at pixel centre `centre`.
-pub fn blend_pixel(list: &[(u32, usize)], splats: &[Option<CpuSplat>], centre: DVec2) -> PixelBlend {
+pub(crate) fn blend_pixel(list: &[(u32, usize)], splats: &[Option<CpuSplat>], centre: DVec2) -> PixelBlend {
     let mut out =
         PixelBlend { values: [0.0; VALUES], t_final: 1.0, median: 0.0, median_index: None, contributions: Vec::new() };
     let mut t = 1.0f64;

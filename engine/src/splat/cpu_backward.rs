@@ -17,7 +17,7 @@ use super::cpu::{
 };
 use crate::scene::{Camera, Projection};
 
-/// Loss gradients per pixel: d/d(Σwx) for the [`VALUES`] (rgb composited over
+/// Loss gradients per pixel: d/d(Σwx) for the `VALUES` (rgb composited over
 /// the background counts as its rgb entries), d/dalpha and d/d(median depth).
 #[derive(Clone, Debug, Default)]
 pub struct PixelGrads {

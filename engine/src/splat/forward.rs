@@ -39,7 +39,7 @@ pub struct SplatFrame {
     pub stats: SplatStats,
     /// The camera it was rendered from.
     pub camera: Camera,
-    /// Projected splats, [`SPLAT_BYTES`] each (culled ones have an empty rectangle).
+    /// Projected splats, `SPLAT_BYTES` each (culled ones have an empty rectangle).
     pub splats: Buffer,
     /// Per-Gaussian offsets into the unsorted pair list (exclusive scan of tile counts), n + 1 values.
     pub pair_offsets: Buffer,

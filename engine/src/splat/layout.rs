@@ -16,7 +16,7 @@ use crate::scene::{Camera, Projection};
 /// recording that dispatches with it, which keeps each buffer alive.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
-pub struct FrameUniform {
+pub(crate) struct FrameUniform {
     camera: WorldToCameraBlock,
     clip: [f32; 4],
     eye: [f32; 4],

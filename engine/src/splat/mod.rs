@@ -29,7 +29,7 @@ mod layout;
 
 pub use channels::*;
 pub use forward::*;
-pub use layout::*;
+pub(crate) use layout::*;
 
 use crate::error::{Error, Result};
 use crate::gpu::{Buffer, Device, SpecValue};
@@ -44,7 +44,7 @@ pub const TILE_SIZES: [u32; 3] = [8, 16, 32];
 /// The `constant_id`s that carry the tile edge: the per-tile kernels'
 /// `local_size_x_id` and `local_size_y_id` (`common.glsl`, `TILE_WORKGROUP`);
 /// the preprocess reads the first as `TILE` (keep in sync).
-pub const TILE_SPEC_IDS: [u32; 2] = [15, 16];
+pub(crate) const TILE_SPEC_IDS: [u32; 2] = [15, 16];
 
 /// Checks a tile edge against [`TILE_SIZES`].
 pub fn check_tile(tile: u32) -> Result<()> {
@@ -66,13 +66,13 @@ pub const BLEND_PIXELS: [u32; 3] = [1, 2, 4];
 pub const DEFAULT_BLEND_PIXELS: u32 = 2;
 /// Bit of the blend's `CHANNELS` specialization constant that blends rgb
 /// (keep in sync with `RGB` in `splat_blend_body.glsl`).
-pub const RGB_BIT: u32 = 8;
+pub(crate) const RGB_BIT: u32 = 8;
 /// Why a G-buffer has no rgb to give.
 const NO_RGB: &str = "this G-buffer has no rgb channel (it was splatted with SplatSettings::rgb off)";
 /// Bytes of one projected splat (keep in sync with `Splat` in `splat.glsl`).
-pub const SPLAT_BYTES: u64 = 64;
+pub(crate) const SPLAT_BYTES: u64 = 64;
 /// Bytes of one splat's features (three vec4).
-pub const FEATURE_BYTES: u64 = 48;
+pub(crate) const FEATURE_BYTES: u64 = 48;
 
 /// How the blend kernel reads splats; all give the same image.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]

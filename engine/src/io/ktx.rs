@@ -12,7 +12,7 @@ use std::path::Path;
 
 use ktx2::{Format, SupercompressionScheme};
 
-use super::env::EnvironmentMap;
+use super::environment::EnvironmentMap;
 use crate::error::{Error, Result};
 
 fn ktx_error(origin: &str, message: impl Into<String>) -> Error {
@@ -209,7 +209,7 @@ fn align(v: &mut Vec<u8>, to: usize) {
 
 /// Writes a KTX2 file (optionally zstd-supercompressed), through a temporary
 /// file beside the target so a failure leaves nothing behind.
-pub fn write_float_chain(path: impl AsRef<Path>, chain: &FloatChain<'_>, zstd: bool) -> Result<()> {
+pub(crate) fn write_float_chain(path: impl AsRef<Path>, chain: &FloatChain<'_>, zstd: bool) -> Result<()> {
     let bytes = encode_float_chain(chain, zstd)?;
     crate::io::write_atomic(path.as_ref(), &bytes)
 }
@@ -329,7 +329,7 @@ pub struct ReadChain {
     pub metadata: Vec<(String, String)>,
 }
 
-/// Reads a float chain written by [`write_float_chain`] (any R32 float format, every level).
+/// Reads a float chain written by `write_float_chain` (any R32 float format, every level).
 pub fn read_float_chain(bytes: &[u8], origin: &str) -> Result<ReadChain> {
     let reader = ktx2::Reader::new(bytes).map_err(|e| ktx_error(origin, format!("not a valid KTX2 file: {e}")))?;
     let header = reader.header();

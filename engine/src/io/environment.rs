@@ -1,0 +1,137 @@
+//! Environment maps on the host: lat-long RGB radiance ([`EnvironmentMap`]),
+//! read from OpenEXR, Radiance .hdr or KTX2 files ([`super::ktx`]).
+//!
+//! Convention (keep in sync with `latlong.glsl`; docs/conventions.md): world z up; column
+//! u = 0.5 + φ/2π with φ the azimuth from north (+y) toward east (+x); row
+//! v = 0.5 − θ/π with θ the elevation. The image centre looks north at the
+//! horizon; the top row is the zenith. Cube maps are read in the left-handed
+//! cube-map frame: cube +Y up (world +z), −Z north (world +y), +X west.
+//!
+//! Invariants: every texel is finite and ≥ 0 (lossy EXR compression leaves
+//! small negatives, which are clamped; NaN or infinite values are refused
+//! with the texel named).
+
+use std::path::Path;
+
+use crate::error::{Error, Result};
+
+/// Lat-long radiance, RGB floats, rows top (zenith) to bottom (nadir).
+#[derive(Clone, Debug, PartialEq)]
+pub struct EnvironmentMap {
+    /// Width in texels.
+    pub width: u32,
+    /// Height in texels.
+    pub height: u32,
+    /// 3 floats per texel, row-major.
+    pub rgb: Vec<f32>,
+}
+
+pub(crate) fn env_error(origin: &str, message: impl Into<String>) -> Error {
+    Error::Environment { origin: origin.to_string(), message: message.into() }
+}
+
+/// Largest accepted side, texels (a 16k×8k map is 1.5 GiB of f32).
+pub const MAX_SIDE: u32 = 16384;
+
+impl EnvironmentMap {
+    /// A map from raw texels: checks the size, refuses NaN or infinite values
+    /// (naming the texel) and clamps negatives to 0.
+    pub fn from_rgb(width: u32, height: u32, mut rgb: Vec<f32>, origin: &str) -> Result<Self> {
+        if width == 0 || height == 0 || width > MAX_SIDE || height > MAX_SIDE {
+            return Err(env_error(origin, format!("size {width}x{height} is outside 1..={MAX_SIDE}")));
+        }
+        if rgb.len() != 3 * width as usize * height as usize {
+            return Err(env_error(origin, format!("{} values for {width}x{height} RGB texels", rgb.len())));
+        }
+        if let Some(i) = rgb.iter().position(|v| !v.is_finite()) {
+            let t = i / 3;
+            return Err(env_error(
+                origin,
+                format!(
+                    "texel ({}, {}) channel {} is {} (environment radiance must be finite)",
+                    t % width as usize,
+                    t / width as usize,
+                    ["R", "G", "B"][i % 3],
+                    rgb[i]
+                ),
+            ));
+        }
+        for v in &mut rgb {
+            *v = v.max(0.0);
+        }
+        Ok(Self { width, height, rgb })
+    }
+
+    /// A constant environment (the white furnace uses radiance 1).
+    pub fn uniform(radiance: [f32; 3], width: u32, height: u32) -> Result<Self> {
+        let rgb = (0..width as usize * height as usize).flat_map(|_| radiance).collect();
+        Self::from_rgb(width, height, rgb, "uniform environment")
+    }
+
+    /// Reads `.exr` (any compression the exr crate reads, DWAB included), `.hdr`
+    /// (Radiance RGBE) or `.ktx2` (float formats, 2D lat-long or cube, zstd
+    /// supercompression; level 0 is used). Other files get an error naming why.
+    pub fn load(path: impl AsRef<Path>) -> Result<Self> {
+        let path = path.as_ref();
+        let origin = path.display().to_string();
+        let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).unwrap_or_default();
+        match ext.as_str() {
+            "exr" => read_exr(path, &origin),
+            "hdr" => {
+                let bytes = std::fs::read(path).map_err(Error::io(path))?;
+                read_hdr(&bytes, &origin)
+            }
+            "ktx2" => {
+                let bytes = std::fs::read(path).map_err(Error::io(path))?;
+                super::ktx::read_environment(&bytes, &origin)
+            }
+            other => Err(env_error(
+                &origin,
+                format!("unknown extension \".{other}\" (environment maps are .exr, .hdr or .ktx2)"),
+            )),
+        }
+    }
+
+    /// Texel (x, y) as RGB.
+    pub fn texel(&self, x: u32, y: u32) -> [f32; 3] {
+        let i = 3 * (y as usize * self.width as usize + x as usize);
+        [self.rgb[i], self.rgb[i + 1], self.rgb[i + 2]]
+    }
+
+    /// Largest channel value.
+    pub fn max_value(&self) -> f32 {
+        self.rgb.iter().copied().fold(0.0, f32::max)
+    }
+}
+
+fn read_exr(path: &Path, origin: &str) -> Result<EnvironmentMap> {
+    use exr::prelude::read_first_rgba_layer_from_file;
+    let image = read_first_rgba_layer_from_file(
+        path,
+        |resolution, _| (resolution.width(), vec![0.0f32; 3 * resolution.width() * resolution.height()]),
+        |(w, data): &mut (usize, Vec<f32>), pos, (r, g, b, _a): (f32, f32, f32, f32)| {
+            let i = 3 * (pos.y() * *w + pos.x());
+            data[i] = r;
+            data[i + 1] = g;
+            data[i + 2] = b;
+        },
+    )
+    .map_err(|e| match e {
+        exr::error::Error::Io(source) => Error::Io { path: path.to_path_buf(), source },
+        other => env_error(origin, format!("not a readable OpenEXR RGB image: {other}")),
+    })?;
+    let size = image.layer_data.size;
+    let (_, data) = image.layer_data.channel_data.pixels;
+    EnvironmentMap::from_rgb(size.width() as u32, size.height() as u32, data, origin)
+}
+
+/// Reads Radiance RGBE bytes.
+pub(crate) fn read_hdr(bytes: &[u8], origin: &str) -> Result<EnvironmentMap> {
+    let decoder = image::codecs::hdr::HdrDecoder::new(std::io::Cursor::new(bytes))
+        .map_err(|e| env_error(origin, format!("not a Radiance .hdr file: {e}")))?;
+    let img = image::DynamicImage::from_decoder(decoder)
+        .map_err(|e| env_error(origin, format!("corrupt Radiance .hdr data: {e}")))?
+        .to_rgb32f();
+    let (w, h) = img.dimensions();
+    EnvironmentMap::from_rgb(w, h, img.into_raw(), origin)
+}
