@@ -32,7 +32,7 @@ impl UnetArgs {
     pub(super) fn run(&self, device_args: &DeviceArgs) -> Result<()> {
         let Self { weights, input, out, precision } = self;
         let net = UNetWeights::load(weights)?;
-        let bytes = std::fs::read(input).map_err(Error::io(input))?;
+        let bytes = srug::io::read_file(input)?;
         let (c, h, w, values) = read_tensor(&bytes, "input", &input.display().to_string())?;
         if c != net.config.in_channels {
             return Err(Error::invalid(

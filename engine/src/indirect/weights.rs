@@ -149,7 +149,18 @@ impl UNetConfig {
                 return Err(Error::invalid(format!("{origin}: architecture \"{a}\""), "is not srug-indirect-unet"));
             }
         }
-        let num = |key: &str, v: &str| v.trim().parse::<usize>().ok().filter(|n| *n > 0).ok_or_else(|| bad(key, v));
+        // Widths are bounded as they are read: nothing is sized by one before this check.
+        let max = crate::io::limits().max_channels;
+        let num = |key: &str, v: &str| {
+            let n = v.trim().parse::<usize>().ok().filter(|n| *n > 0).ok_or_else(|| bad(key, v))?;
+            if n > max {
+                return Err(Error::invalid(
+                    format!("{origin}: metadata \"{key}\" = {n}"),
+                    format!("is wider than the {max}-channel limit"),
+                ));
+            }
+            Ok(n)
+        };
         if let Some(v) = meta.get("in_channels") {
             c.in_channels = num("in_channels", v)?;
         }
@@ -180,9 +191,6 @@ impl UNetConfig {
                 format!("{origin}: input_order"),
                 format!("names {} channels, in_channels is {}", c.input_order.len(), c.in_channels),
             ));
-        }
-        if c.widths.iter().chain([&c.in_channels, &c.out_channels]).any(|&n| n > 4096) {
-            return Err(Error::invalid(origin, "has a layer wider than 4096 channels"));
         }
         Ok(c)
     }
@@ -233,7 +241,7 @@ impl UNetWeights {
     /// Reads a safetensors file (float32, float16 or bfloat16 tensors).
     pub fn load(path: impl AsRef<Path>) -> Result<Self> {
         let path = path.as_ref();
-        let bytes = std::fs::read(path).map_err(Error::io(path))?;
+        let bytes = crate::io::read_file(path)?;
         Self::from_bytes(&bytes, &path.display().to_string())
     }
 

@@ -28,7 +28,7 @@ struct JsonCamera {
 /// Reads an INRIA `cameras.json`.
 pub fn read_cameras_json(path: impl AsRef<Path>) -> Result<Vec<Camera>> {
     let path = path.as_ref();
-    let text = std::fs::read_to_string(path).map_err(Error::io(path))?;
+    let text = super::read_text(path)?;
     Ok(parse_cameras_json(&text, &path.display().to_string())?)
 }
 

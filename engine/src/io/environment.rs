@@ -76,13 +76,16 @@ impl EnvironmentMap {
         let origin = path.display().to_string();
         let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).unwrap_or_default();
         match ext.as_str() {
-            "exr" => read_exr(path, &origin),
+            "exr" => {
+                let bytes = super::read_file(path)?;
+                read_exr(&bytes, &origin)
+            }
             "hdr" => {
-                let bytes = std::fs::read(path).map_err(Error::io(path))?;
+                let bytes = super::read_file(path)?;
                 read_hdr(&bytes, &origin)
             }
             "ktx2" => {
-                let bytes = std::fs::read(path).map_err(Error::io(path))?;
+                let bytes = super::read_file(path)?;
                 super::ktx::read_environment(&bytes, &origin)
             }
             other => Err(env_error(
@@ -104,22 +107,35 @@ impl EnvironmentMap {
     }
 }
 
-fn read_exr(path: &Path, origin: &str) -> Result<EnvironmentMap> {
-    use exr::prelude::read_first_rgba_layer_from_file;
-    let image = read_first_rgba_layer_from_file(
-        path,
-        |resolution, _| (resolution.width(), vec![0.0f32; 3 * resolution.width() * resolution.height()]),
-        |(w, data): &mut (usize, Vec<f32>), pos, (r, g, b, _a): (f32, f32, f32, f32)| {
-            let i = 3 * (pos.y() * *w + pos.x());
-            data[i] = r;
-            data[i + 1] = g;
-            data[i + 2] = b;
-        },
-    )
-    .map_err(|e| match e {
-        exr::error::Error::Io(source) => Error::Io { path: path.to_path_buf(), source },
-        other => env_error(origin, format!("not a readable OpenEXR RGB image: {other}")),
-    })?;
+/// Reads OpenEXR bytes: the header's data windows are checked against the
+/// limits before any pixel is decoded.
+pub(crate) fn read_exr(bytes: &[u8], origin: &str) -> Result<EnvironmentMap> {
+    use exr::prelude::*;
+    let not_exr = |e: exr::error::Error| env_error(origin, format!("not a readable OpenEXR RGB image: {e}"));
+    let meta = exr::meta::MetaData::read_from_buffered(std::io::Cursor::new(bytes), false).map_err(not_exr)?;
+    let limits = super::limits();
+    for header in &meta.headers {
+        let size = header.layer_size;
+        limits
+            .image_bytes(size.width() as u64, size.height() as u64, 1, 12)
+            .map_err(|e| env_error(origin, format!("its data window {e}")))?;
+    }
+    let image = read()
+        .no_deep_data()
+        .largest_resolution_level()
+        .rgba_channels(
+            |resolution, _| (resolution.width(), vec![0.0f32; 3 * resolution.width() * resolution.height()]),
+            |(w, data): &mut (usize, Vec<f32>), pos, (r, g, b, _a): (f32, f32, f32, f32)| {
+                let i = 3 * (pos.y() * *w + pos.x());
+                data[i] = r;
+                data[i + 1] = g;
+                data[i + 2] = b;
+            },
+        )
+        .first_valid_layer()
+        .all_attributes()
+        .from_buffered(std::io::Cursor::new(bytes))
+        .map_err(not_exr)?;
     let size = image.layer_data.size;
     let (_, data) = image.layer_data.channel_data.pixels;
     EnvironmentMap::from_rgb(size.width() as u32, size.height() as u32, data, origin)
@@ -127,8 +143,17 @@ fn read_exr(path: &Path, origin: &str) -> Result<EnvironmentMap> {
 
 /// Reads Radiance RGBE bytes.
 pub(crate) fn read_hdr(bytes: &[u8], origin: &str) -> Result<EnvironmentMap> {
-    let decoder = image::codecs::hdr::HdrDecoder::new(std::io::Cursor::new(bytes))
+    use image::ImageDecoder;
+    let mut decoder = image::codecs::hdr::HdrDecoder::new(std::io::Cursor::new(bytes))
         .map_err(|e| env_error(origin, format!("not a Radiance .hdr file: {e}")))?;
+    let l = super::limits();
+    let (w, h) = decoder.dimensions();
+    l.image_bytes(u64::from(w), u64::from(h), 1, 12).map_err(|e| env_error(origin, format!("its header {e}")))?;
+    let mut image_limits = image::Limits::default();
+    image_limits.max_image_width = Some(l.max_image_side);
+    image_limits.max_image_height = Some(l.max_image_side);
+    image_limits.max_alloc = Some(l.max_decoded_bytes);
+    decoder.set_limits(image_limits).map_err(|e| env_error(origin, format!("is over the decode limits: {e}")))?;
     let img = image::DynamicImage::from_decoder(decoder)
         .map_err(|e| env_error(origin, format!("corrupt Radiance .hdr data: {e}")))?
         .to_rgb32f();

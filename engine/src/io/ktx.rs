@@ -60,16 +60,26 @@ fn float_format(format: Format) -> Option<(usize, TexelDecoder)> {
     })
 }
 
-/// Decompresses one level's bytes.
+/// One level's bytes: at least `expected` of them (more are ignored), with
+/// zstd decompression stopped one byte past `expected`, so a small file that
+/// claims or inflates to more than its header declares cannot grow the host's
+/// memory beyond it.
 fn level_bytes(data: &[u8], scheme: Option<SupercompressionScheme>, expected: usize, origin: &str) -> Result<Vec<u8>> {
     let bytes = match scheme {
+        None if data.len() >= expected => data[..expected].to_vec(),
         None => data.to_vec(),
         Some(SupercompressionScheme::Zstandard) => {
-            let mut out = Vec::with_capacity(expected);
-            ruzstd::decoding::StreamingDecoder::new(data)
-                .map_err(|e| ktx_error(origin, format!("corrupt zstd level data: {e}")))?
-                .read_to_end(&mut out)
-                .map_err(|e| ktx_error(origin, format!("corrupt zstd level data: {e}")))?;
+            let corrupt = |e: &dyn std::fmt::Display| ktx_error(origin, format!("corrupt zstd level data: {e}"));
+            let decoder = ruzstd::decoding::StreamingDecoder::new(data).map_err(|e| corrupt(&e))?;
+            // Grow with the data actually decoded, never by the declared size alone.
+            let mut out = Vec::with_capacity(expected.min(data.len().saturating_mul(4)));
+            decoder.take(expected as u64 + 1).read_to_end(&mut out).map_err(|e| corrupt(&e))?;
+            if out.len() > expected {
+                return Err(ktx_error(
+                    origin,
+                    format!("a zstd level inflates past the {expected} bytes its header declares"),
+                ));
+            }
             out
         }
         Some(other) => {
@@ -80,7 +90,7 @@ fn level_bytes(data: &[u8], scheme: Option<SupercompressionScheme>, expected: us
         }
     };
     if bytes.len() < expected {
-        return Err(ktx_error(origin, format!("level 0 holds {} bytes, {expected} expected", bytes.len())));
+        return Err(ktx_error(origin, format!("a level holds {} bytes, {expected} expected", bytes.len())));
     }
     Ok(bytes)
 }
@@ -116,8 +126,17 @@ pub fn read_environment(bytes: &[u8], origin: &str) -> Result<EnvironmentMap> {
     if header.pixel_height == 0 {
         return Err(ktx_error(origin, "a 1D texture is not an environment"));
     }
+    let limits = super::limits();
+    let expected = limits
+        .image_bytes(w as u64, h as u64, faces as u64, texel_bytes as u64)
+        .map_err(|e| ktx_error(origin, format!("level 0 {e}")))?;
+    if faces == 6 {
+        // The cube is resampled to a 4n × 2n lat-long map of RGB f32.
+        limits
+            .image_bytes(4 * w as u64, 2 * w as u64, 1, 12)
+            .map_err(|e| ktx_error(origin, format!("a cube of {w}x{h} faces resampled to lat-long {e}")))?;
+    }
     let level = reader.levels().next().ok_or_else(|| ktx_error(origin, "the file has no mip level"))?;
-    let expected = faces * w * h * texel_bytes;
     let data = level_bytes(level.data, header.supercompression_scheme, expected, origin)?;
     let texels: Vec<[f32; 3]> = data[..expected].chunks_exact(texel_bytes).map(decode).collect();
     if faces == 1 {
@@ -342,10 +361,24 @@ pub fn read_float_chain(bytes: &[u8], origin: &str) -> Result<ReadChain> {
     if header.face_count != 1 || header.layer_count > 1 || header.pixel_depth > 0 || header.pixel_height == 0 {
         return Err(ktx_error(origin, "expected one 2D image with mip levels"));
     }
+    let limits = super::limits();
     let mut levels = Vec::new();
+    let mut total = 0u64;
     for (l, level) in reader.levels().enumerate() {
+        if l >= 32 {
+            return Err(ktx_error(origin, "more than 32 mip levels"));
+        }
         let (w, h) = ((header.pixel_width >> l).max(1) as usize, (header.pixel_height >> l).max(1) as usize);
-        let expected = w * h * channels * 4;
+        let expected = limits
+            .image_bytes(w as u64, h as u64, 1, channels as u64 * 4)
+            .map_err(|e| ktx_error(origin, format!("level {l} {e}")))?;
+        total += expected as u64;
+        if total > limits.max_decoded_bytes {
+            return Err(ktx_error(
+                origin,
+                format!("its levels add up to more than the {} MiB decode limit", limits.max_decoded_bytes >> 20),
+            ));
+        }
         let data = level_bytes(level.data, header.supercompression_scheme, expected, origin)?;
         let floats: Vec<f32> =
             data[..expected].chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect();
@@ -358,5 +391,8 @@ pub fn read_float_chain(bytes: &[u8], origin: &str) -> Result<ReadChain> {
         .key_value_data()
         .map(|(k, v)| (k.to_string(), String::from_utf8_lossy(v).trim_end_matches('\0').to_string()))
         .collect();
+    if levels.is_empty() {
+        return Err(ktx_error(origin, "the file has no mip level"));
+    }
     Ok(ReadChain { width: header.pixel_width, height: header.pixel_height, channels, levels, metadata })
 }

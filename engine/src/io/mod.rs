@@ -12,10 +12,12 @@ mod cameras;
 pub mod environment;
 mod image;
 pub mod ktx;
+pub mod limits;
 mod ply;
 
 pub use atomic::write_atomic;
 pub use cameras::{parse_cameras_json, read_cameras_json, write_cameras_json};
 pub use environment::EnvironmentMap;
 pub use image::{display_byte, write_exr_channels, write_png};
+pub use limits::{limits, read_file, read_text, set_limits, Limits};
 pub use ply::{read_ply, read_ply_bytes, write_ply, PlyFormat};

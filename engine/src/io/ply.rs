@@ -153,7 +153,9 @@ fn parse_header(bytes: &[u8], path: &str) -> Result<Header, SceneError> {
                     return Err(at("the vertex element must come first"));
                 } else {
                     seen_vertex = true;
-                    count = n.parse().map_err(|_| at("bad element count"))?;
+                    let declared: u64 = n.parse().map_err(|_| at("bad element count"))?;
+                    count =
+                        crate::io::limits().gaussians(declared).map_err(|why| at(&format!("vertex count: {why}")))?;
                 }
                 element = Some((*name).to_string());
             }
@@ -193,7 +195,7 @@ fn find(haystack: &[u8], needle: &[u8]) -> Option<usize> {
 /// Reads an INRIA-style 3DGS PLY file.
 pub fn read_ply(path: impl AsRef<Path>) -> Result<Scene> {
     let path = path.as_ref();
-    let bytes = std::fs::read(path).map_err(Error::io(path))?;
+    let bytes = super::read_file(path)?;
     Ok(read_ply_bytes(&bytes, &path.display().to_string())?)
 }
 

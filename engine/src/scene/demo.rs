@@ -189,6 +189,9 @@ pub fn demo_city(options: &DemoOptions) -> Result<DemoCity> {
     if options.sh_degree > 3 {
         return Err(Error::invalid(format!("SH degree {}", options.sh_degree), "is not supported (0 to 3)"));
     }
+    crate::io::limits()
+        .gaussians(options.gaussians as u64)
+        .map_err(|why| Error::invalid(format!("demo of {} Gaussians", options.gaussians), why))?;
     let mut rng = Pcg64Mcg::seed_from_u64(options.seed);
     let mut surfaces: Vec<Surface> = Vec::new();
     let mut occluders: Vec<Aabb> = Vec::new();

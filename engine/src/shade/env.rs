@@ -246,7 +246,7 @@ pub(super) fn metadata_value<'a>(chain: &'a ktx::ReadChain, key: &str) -> Option
 
 pub(super) fn read_chain(path: &Path, kind: &str, channels: usize) -> Result<ktx::ReadChain> {
     let origin = path.display().to_string();
-    let bytes = std::fs::read(path).map_err(Error::io(path))?;
+    let bytes = crate::io::read_file(path)?;
     let chain = ktx::read_float_chain(&bytes, &origin)?;
     if metadata_value(&chain, "srug.kind") != Some(kind) || chain.channels != channels {
         return Err(env_error(&origin, format!("not a srug {kind} file (its srug.kind metadata or channels differ)")));
@@ -288,6 +288,13 @@ impl PreparedEnvironment {
     pub fn load(device: &Device, dir: &Path) -> Result<Self> {
         let spec = read_chain(&dir.join(SPECULAR_FILE), "specular", 3)?;
         let irr = read_chain(&dir.join(IRRADIANCE_FILE), "irradiance", 3)?;
+        let base = (spec.width, spec.height);
+        if spec.levels.len() as u32 > pyramid_levels(base) {
+            return Err(env_error(
+                &dir.display().to_string(),
+                format!("{} specular levels, more than a {}x{} pyramid has", spec.levels.len(), base.0, base.1),
+            ));
+        }
         let flat: Vec<f32> = spec.levels.concat();
         if flat.iter().chain(&irr.levels[0]).any(|v| *v < 0.0) {
             return Err(env_error(&dir.display().to_string(), "negative radiance in a prepared environment"));
