@@ -145,18 +145,21 @@ pub unsafe extern "C" fn srug_context_take_validation_messages(
     guard("srug_context_take_validation_messages", || {
         let (_, c) = context(ctx)?;
         check_out(count, "count")?;
+        if len > 0 && buf.is_null() {
+            // Refused before the messages are taken, so none is lost.
+            check_out(buf, "buf")?;
+        }
         let messages = c.device.take_validation_messages();
         // SAFETY: checked non-null; the caller's contract.
         unsafe { count.write(messages.len()) };
-        if len > 0 || !buf.is_null() {
-            let mut text = messages.join("\n");
-            let mut cut = text.len().min(len.saturating_sub(1));
-            while !text.is_char_boundary(cut) {
-                cut -= 1;
+        if len > 0 {
+            // Cut to fit: the count says how many there were.
+            let text = messages.join("\n");
+            // SAFETY: the caller's contract.
+            match unsafe { copy_text(&text, buf, len, std::ptr::null_mut()) } {
+                Err(f) if f.status == srug_status::SRUG_ERROR_BUFFER_TOO_SMALL => {}
+                other => other?,
             }
-            text.truncate(cut);
-            // SAFETY: the caller's contract; the text fits after the cut.
-            unsafe { copy_text(&text, buf, len, std::ptr::null_mut()) }?;
         }
         Ok(())
     })

@@ -118,20 +118,26 @@ pub(crate) fn finite(v: f32, what: &str) -> FfiResult<f32> {
 /// # Safety
 /// `buf` valid for `len` bytes of writes (or NULL with `len` 0); `written` NULL or valid.
 pub(crate) unsafe fn copy_text(s: &str, buf: *mut c_char, len: usize, written: *mut usize) -> FfiResult {
+    // A NULL buffer with a length is refused before anything is written.
+    // SAFETY: the caller's contract.
+    let out = if len > 0 { Some(unsafe { slice_mut(buf.cast::<u8>(), len, "buf") }?) } else { None };
     if !written.is_null() {
         // SAFETY: the caller's contract.
         unsafe { written.write(s.len()) };
     }
-    if len == 0 {
+    let Some(out) = out else {
         return if s.is_empty() { Ok(()) } else { Err(too_small(s.len() + 1, 0, "bytes")) };
+    };
+    // The longest prefix that fits, cut at a UTF-8 boundary, always NUL-terminated.
+    let mut n = s.len().min(len - 1);
+    while !s.is_char_boundary(n) {
+        n -= 1;
     }
-    // SAFETY: the caller's contract.
-    let out = unsafe { slice_mut(buf.cast::<u8>(), len, "buf") }?;
-    if s.len() + 1 > len {
+    out[..n].copy_from_slice(&s.as_bytes()[..n]);
+    out[n] = 0;
+    if n < s.len() {
         return Err(too_small(s.len() + 1, len, "bytes"));
     }
-    out[..s.len()].copy_from_slice(s.as_bytes());
-    out[s.len()] = 0;
     Ok(())
 }
 

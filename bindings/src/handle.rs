@@ -112,12 +112,31 @@ pub(crate) fn ptr_of<T>(id: u64) -> *mut T {
     id as usize as *mut T
 }
 
-/// Locks a handle's object; a lock poisoned by a caught panic stays an error.
+/// Locks a handle's object. A lock poisoned by a caught panic is recovered:
+/// the panicking call already returned `SRUG_ERROR_PANIC`, and every later
+/// call validates what it uses, so the handle stays usable rather than
+/// failing forever.
 pub(crate) fn lock<T>(m: &Mutex<T>) -> FfiResult<MutexGuard<'_, T>> {
-    m.lock().map_err(|_| {
-        Failure::new(
-            srug_status::SRUG_ERROR_PANIC,
-            "an earlier call panicked while using this handle; destroy it and make a new one",
-        )
-    })
+    Ok(m.lock().unwrap_or_else(|poisoned| {
+        m.clear_poison();
+        poisoned.into_inner()
+    }))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A handle whose lock a panic poisoned is usable by the next call.
+    #[test]
+    fn a_panic_does_not_poison_a_handle_forever() {
+        let m = Mutex::new(5);
+        let caught = std::panic::catch_unwind(|| {
+            let _held = m.lock();
+            panic!("a bug inside a call");
+        });
+        assert!(caught.is_err() && m.is_poisoned());
+        assert!(matches!(lock(&m).map(|g| *g), Ok(5)));
+        assert!(!m.is_poisoned(), "the poison is cleared");
+    }
 }

@@ -76,7 +76,7 @@ pub enum srug_status {
     SRUG_ERROR_UNSUPPORTED = 11,
     /// A Vulkan call failed with a result other than out-of-memory or device loss.
     SRUG_ERROR_GPU = 12,
-    /// An internal error (a caught panic); the handle involved should be destroyed.
+    /// An internal error (a caught panic, a bug in srug); the handle involved stays usable.
     SRUG_ERROR_PANIC = 13,
     /// The Vulkan loader library (libvulkan) could not be opened.
     SRUG_ERROR_NO_VULKAN = 14,

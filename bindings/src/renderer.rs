@@ -247,29 +247,10 @@ pub(crate) fn set_camera(
     near: f32,
     far: f32,
 ) -> FfiResult {
-    if !(near > 0.0 && far > near && far.is_finite()) {
-        return Err(invalid(format!("near {near} and far {far}: need 0 < near < far < ∞")));
-    }
-    let det = rotation.determinant();
-    if !rotation.is_finite()
-        || (det - 1.0).abs() > 1e-3
-        || !(rotation.transpose() * rotation).abs_diff_eq(Mat3::IDENTITY, 1e-3)
-    {
-        return Err(invalid(format!("the camera rotation is not a rotation (determinant {det})")));
-    }
-    if !position.is_finite() {
-        return Err(invalid(format!("the camera position {position} is not finite")));
-    }
-    r.camera = Some(Camera {
-        name: "c-api".into(),
-        width: r.width,
-        height: r.height,
-        rotation,
-        position,
-        projection,
-        near,
-        far,
-    });
+    let camera =
+        Camera { name: "c-api".into(), width: r.width, height: r.height, rotation, position, projection, near, far };
+    camera.validate()?;
+    r.camera = Some(camera);
     Ok(())
 }
 
@@ -545,6 +526,9 @@ pub extern "C" fn srug_renderer_set_exposure(
             other => return Err(invalid(format!("unknown tone map {other}"))),
         };
         finite(exposure_ev, "exposure_ev")?;
+        if !(-64.0..=64.0).contains(&exposure_ev) {
+            return Err(invalid(format!("exposure_ev {exposure_ev} is outside -64..=64 stops")));
+        }
         with_renderer(renderer, |r| {
             r.settings.shade.exposure_ev = exposure_ev;
             r.settings.shade.tone_map = tone_map;
@@ -682,7 +666,10 @@ pub unsafe extern "C" fn srug_renderer_read_image(
             if stride < row {
                 return Err(invalid(format!("row_stride {stride} is below a row's {row} bytes")));
             }
-            let needed = stride * (h - 1) + row;
+            let needed = stride
+                .checked_mul(h - 1)
+                .and_then(|v| v.checked_add(row))
+                .ok_or_else(|| invalid(format!("row_stride {stride} × {h} rows overflows the address space")))?;
             if dst_len < needed {
                 return Err(too_small(needed, dst_len, "bytes"));
             }
@@ -808,12 +795,13 @@ pub unsafe extern "C" fn srug_renderer_stage(
             let s = stages
                 .get(index)
                 .ok_or_else(|| invalid(format!("stage {index} of {} (srug_renderer_stage_count)", stages.len())))?;
-            // SAFETY: checked non-null; the caller's contract.
-            unsafe { seconds.write(s.seconds) };
             if name_len > 0 {
-                // SAFETY: the caller's contract.
+                // SAFETY: the caller's contract. A name that does not fit is
+                // copied cut (like `srug_last_error`) and `seconds` is not written.
                 unsafe { copy_text(&s.name, name, name_len, std::ptr::null_mut()) }?;
             }
+            // SAFETY: checked non-null; the caller's contract.
+            unsafe { seconds.write(s.seconds) };
             Ok(())
         })
     })

@@ -120,6 +120,54 @@ impl Camera {
         PackedCamera { to_world, to_camera }
     }
 
+    /// Checks the camera in the precision the GPU uses (f32), naming the first
+    /// rule that fails: a non-empty size, finite positive focal lengths (or
+    /// scales) and a finite principal point, 0 < near < far < ∞, an
+    /// orthonormal right-handed rotation, a finite position, and a packing
+    /// whose every value is finite.
+    pub fn validate(&self) -> Result<()> {
+        let (f, c) = match self.projection {
+            Projection::Pinhole { fx, fy, cx, cy } | Projection::Orthographic { sx: fx, sy: fy, cx, cy } => {
+                ([fx, fy], [cx, cy])
+            }
+        };
+        let rotation = self.rotation;
+        let orthonormality = (rotation.transpose() * rotation - Mat3::IDENTITY)
+            .to_cols_array()
+            .iter()
+            .fold(0.0f32, |m, v| m.max(v.abs()));
+        let rules: [(bool, String, &str); 6] = [
+            (self.width > 0 && self.height > 0, format!("image size {}x{}", self.width, self.height), "is empty"),
+            (
+                f.iter().all(|v| v.is_finite() && *v > 0.0),
+                format!("focal lengths {} / {}", f[0], f[1]),
+                "must be finite and positive in f32",
+            ),
+            (c.iter().all(|v| v.is_finite()), format!("principal point {} / {}", c[0], c[1]), "must be finite"),
+            (
+                self.near > 0.0 && self.near < self.far && self.far.is_finite(),
+                format!("near {} and far {}", self.near, self.far),
+                "need 0 < near < far < ∞",
+            ),
+            (
+                rotation.is_finite() && orthonormality <= 1e-3 && rotation.determinant() > 0.0,
+                format!("rotation (|RᵀR − I| = {orthonormality:.2e}, det = {:.3})", rotation.determinant()),
+                "is not a rotation",
+            ),
+            (self.position.is_finite(), format!("position {}", self.position), "must be finite in f32"),
+        ];
+        let name = if self.name.is_empty() { "camera".to_string() } else { format!("camera \"{}\"", self.name) };
+        if let Some((_, what, why)) = rules.into_iter().find(|(ok, ..)| !ok) {
+            return Err(Error::invalid(format!("{name}: {what}"), why));
+        }
+        let p = self.packed();
+        let t = p.to_camera.translation;
+        if !t.iter().all(|v| v.is_finite()) {
+            return Err(Error::invalid(format!("{name}: position {}", self.position), "overflows f32 when packed"));
+        }
+        Ok(())
+    }
+
     /// A pinhole camera at `eye` looking at `target`, with `up` roughly up in
     /// the image and `fov_x_degrees` horizontal field of view.
     pub fn look_at(eye: Vec3, target: Vec3, up: Vec3, fov_x_degrees: f32, width: u32, height: u32) -> Result<Self> {
@@ -131,7 +179,7 @@ impl Camera {
             ));
         }
         let fx = width as f32 * 0.5 / (fov_x_degrees.to_radians() * 0.5).tan();
-        Ok(Self {
+        let camera = Self {
             name: String::new(),
             width,
             height,
@@ -140,7 +188,14 @@ impl Camera {
             projection: Projection::Pinhole { fx, fy: fx, cx: width as f32 * 0.5, cy: height as f32 * 0.5 },
             near: DEFAULT_NEAR,
             far: DEFAULT_FAR,
-        })
+        };
+        camera.validate().map_err(|_| {
+            Error::invalid(
+                format!("look-at camera from {eye} with fov {fov_x_degrees}° and size {width}x{height}"),
+                "gives a focal length or position that is not finite in f32",
+            )
+        })?;
+        Ok(camera)
     }
 
     /// An orthographic camera at `eye` looking along `direction`, covering
@@ -231,11 +286,17 @@ impl Camera {
 
 /// Camera-to-world rotation for OpenCV axes looking from `eye` at `target`.
 pub fn look_rotation(eye: Vec3, target: Vec3, up: Vec3) -> Result<Mat3> {
+    let what = || format!("look-at from {eye} to {target} with up {up}");
     let forward = (target - eye).normalize_or_zero();
-    let right = forward.cross(up).normalize_or_zero();
-    if forward == Vec3::ZERO || right == Vec3::ZERO || !forward.is_finite() {
-        return Err(Error::invalid(format!("look-at from {eye} to {target} with up {up}"), "is degenerate"));
+    if forward == Vec3::ZERO || !forward.is_finite() {
+        return Err(Error::invalid(what(), "has no view direction (eye and target coincide or are not finite)"));
     }
+    // Within ~0.06° of the view direction the roll would be arbitrary.
+    let side = forward.cross(up.normalize_or_zero());
+    if !side.is_finite() || side.length() < 1e-3 {
+        return Err(Error::invalid(what(), "has an up vector zero or parallel to the view direction"));
+    }
+    let right = side.normalize();
     let down = forward.cross(right);
     Ok(Mat3::from_cols(right, down, forward))
 }

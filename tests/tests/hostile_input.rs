@@ -172,3 +172,25 @@ fn prepared_environment_with_wrapping_sizes_is_refused() {
     assert!(e.contains("specular.ktx2") && e.contains("side limit"), "{e}");
     assert_no_validation_messages(&d);
 }
+
+/// cameras.json values finite in f64 but not in f32 (a focal length or a
+/// position of 1e39) are refused at load, naming the file and the camera; an
+/// empty list is refused too.
+#[test]
+fn cameras_that_overflow_f32_are_refused_at_load() {
+    let camera = |fx: f64, x: f64| {
+        format!(
+            "{{\"id\": 0, \"img_name\": \"street_07\", \"width\": 64, \"height\": 32, \"position\": [{x}, 0, 1], \
+             \"rotation\": [[1, 0, 0], [0, 1, 0], [0, 0, 1]], \"fx\": {fx}, \"fy\": 40}}"
+        )
+    };
+    for (text, words) in [
+        (format!("[{}]", camera(1e39, 0.0)), ["street_07", "focal lengths"]),
+        (format!("[{}, {}]", camera(40.0, 0.0), camera(40.0, 1e39)), ["street_07", "position"]),
+        ("[]".to_string(), ["cams.json", "no camera"]),
+    ] {
+        let e = srug::io::parse_cameras_json(&text, "cams.json").unwrap_err().to_string();
+        assert!(e.contains("cams.json") && words.iter().all(|w| e.contains(w)), "{e}");
+    }
+    assert!(srug::io::parse_cameras_json(&format!("[{}]", camera(40.0, 3.0)), "ok.json").is_ok());
+}

@@ -36,6 +36,9 @@ pub fn read_cameras_json(path: impl AsRef<Path>) -> Result<Vec<Camera>> {
 pub fn parse_cameras_json(text: &str, origin: &str) -> Result<Vec<Camera>, SceneError> {
     let entries: Vec<JsonCamera> =
         serde_json::from_str(text).map_err(|e| SceneError::file(origin, format!("malformed cameras.json: {e}")))?;
+    if entries.is_empty() {
+        return Err(SceneError::file(origin, "lists no camera"));
+    }
     entries.iter().enumerate().map(|(i, e)| from_json(e, i, origin)).collect()
 }
 
@@ -68,7 +71,7 @@ fn from_json(e: &JsonCamera, i: usize, origin: &str) -> Result<Camera, SceneErro
             format!("is not a rotation (|RᵀR − I| = {orthonormality:.2e}, det = {:.3})", rotation.determinant()),
         ));
     }
-    Ok(Camera {
+    let camera = Camera {
         name: e.img_name.clone(),
         width: e.width,
         height: e.height,
@@ -82,7 +85,13 @@ fn from_json(e: &JsonCamera, i: usize, origin: &str) -> Result<Camera, SceneErro
         },
         near: DEFAULT_NEAR,
         far: DEFAULT_FAR,
-    })
+    };
+    // The same values in f32, as the GPU will use them.
+    match camera.validate() {
+        Ok(()) => Ok(camera),
+        Err(Error::InvalidArgument { what, why }) => Err(bad("f32 values", format!("{what} {why}"))),
+        Err(other) => Err(bad("f32 values", other.to_string())),
+    }
 }
 
 /// Writes pinhole cameras as INRIA `cameras.json` (orthographic ones are refused).

@@ -197,19 +197,33 @@ impl ShadeSettings {
             Background::Environment => true,
             Background::Color(c) => c.iter().all(|v| v.is_finite() && *v >= 0.0),
         };
-        if !(self.exposure_ev.is_finite()
-            && self.exposure_ev.abs() <= 64.0
-            && self.min_alpha.is_finite()
-            && self.min_alpha > 0.0
-            && self.min_alpha <= 1.0
-            && self.env_rotation_degrees.is_finite()
-            && self.env_intensity.is_finite()
-            && self.env_intensity >= 0.0
-            && bg_ok)
-        {
-            return Err(Error::invalid(format!("shading settings {self:?}"), "are out of range"));
+        let rules: [(bool, String, &str); 5] = [
+            (
+                self.exposure_ev.is_finite() && self.exposure_ev.abs() <= 64.0,
+                format!("exposure {} EV", self.exposure_ev),
+                "must be within ±64 stops",
+            ),
+            (
+                self.min_alpha > 0.0 && self.min_alpha <= 1.0,
+                format!("shading minimum alpha {}", self.min_alpha),
+                "must be in (0, 1]",
+            ),
+            (
+                self.env_rotation_degrees.is_finite(),
+                format!("environment rotation {}°", self.env_rotation_degrees),
+                "must be finite",
+            ),
+            (
+                self.env_intensity.is_finite() && self.env_intensity >= 0.0,
+                format!("environment intensity {}", self.env_intensity),
+                "must be finite and ≥ 0",
+            ),
+            (bg_ok, format!("background {:?}", self.background), "must be finite and ≥ 0"),
+        ];
+        match rules.into_iter().find(|(ok, ..)| !ok) {
+            Some((_, what, why)) => Err(Error::invalid(what, why)),
+            None => Ok(()),
         }
-        Ok(())
     }
 
     /// The G-buffer channels shading reads (normal and albedo always; the

@@ -143,25 +143,32 @@ impl ShadowSettings {
     /// Checks the values.
     pub fn validate(&self) -> Result<()> {
         crate::splat::check_tile(self.tile)?;
-        let ok = self.resolution > 0
-            && self.resolution <= 16384
-            && self.k.is_finite()
-            && self.k > 0.0
-            && self.bias.is_finite()
-            && self.min_alpha > 0.0
-            && self.min_alpha <= 1.0
-            && self.receiver_depth != DepthMode::ExpectedOverFar;
-        if ok {
-            Ok(())
-        } else {
-            Err(Error::invalid(
-                format!(
-                    "shadow settings (resolution {}, k {}, bias {}, minimum alpha {}, receiver depth {:?})",
-                    self.resolution, self.k, self.bias, self.min_alpha, self.receiver_depth
-                ),
-                "need a resolution in 1..=16384, k positive and finite, a finite bias, a minimum alpha in (0, 1] \
-                 and a median or expected receiver depth",
-            ))
+        let rules: [(bool, String, &str); 5] = [
+            (
+                (16..=16384).contains(&self.resolution),
+                format!("shadow map resolution {}", self.resolution),
+                "must be 16..=16384 texels",
+            ),
+            (
+                self.k.is_finite() && self.k > 0.0,
+                format!("shadow sharpness k {}", self.k),
+                "must be positive and finite",
+            ),
+            (self.bias.is_finite() && self.bias >= 0.0, format!("shadow bias {}", self.bias), "must be finite and ≥ 0"),
+            (
+                self.min_alpha > 0.0 && self.min_alpha <= 1.0,
+                format!("shadow minimum alpha {}", self.min_alpha),
+                "must be in (0, 1]",
+            ),
+            (
+                self.receiver_depth != DepthMode::ExpectedOverFar,
+                format!("receiver depth {:?}", self.receiver_depth),
+                "must be median or expected",
+            ),
+        ];
+        match rules.into_iter().find(|(ok, ..)| !ok) {
+            Some((_, what, why)) => Err(Error::invalid(what, why)),
+            None => Ok(()),
         }
     }
 
