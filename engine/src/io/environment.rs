@@ -7,9 +7,10 @@
 //! horizon; the top row is the zenith. Cube maps are read in the left-handed
 //! cube-map frame: cube +Y up (world +z), −Z north (world +y), +X west.
 //!
-//! Invariants: every texel is finite and ≥ 0 (lossy EXR compression leaves
-//! small negatives, which are clamped; NaN or infinite values are refused
-//! with the texel named).
+//! Invariants: every texel is finite, ≥ 0 and ≤ [`MAX_RADIANCE`] (lossy EXR
+//! compression leaves small negatives, which are clamped to 0; brighter texels
+//! are clamped with a warning; NaN or infinite values are refused with the
+//! texel named).
 
 use std::path::Path;
 
@@ -29,6 +30,11 @@ pub struct EnvironmentMap {
 pub(crate) fn env_error(origin: &str, message: impl Into<String>) -> Error {
     Error::Environment { origin: origin.to_string(), message: message.into() }
 }
+
+/// Largest radiance kept (brighter texels are clamped to it, with a
+/// warning): far above the sun's, and low enough that prefiltering, shading
+/// and exposure stay finite in f32.
+pub const MAX_RADIANCE: f32 = 1.0e12;
 
 /// Largest accepted side, texels (a 16k×8k map is 1.5 GiB of f32).
 pub const MAX_SIDE: u32 = 16384;
@@ -56,8 +62,17 @@ impl EnvironmentMap {
                 ),
             ));
         }
+        let mut clamped = 0usize;
         for v in &mut rgb {
-            *v = v.max(0.0);
+            if *v > MAX_RADIANCE {
+                clamped += 1;
+            }
+            *v = v.clamp(0.0, MAX_RADIANCE);
+        }
+        if clamped > 0 {
+            log::warn!(
+                "{origin}: {clamped} texel values above {MAX_RADIANCE:e} clamped to it (the sun's radiance is about 1.6e9)"
+            );
         }
         Ok(Self { width, height, rgb })
     }

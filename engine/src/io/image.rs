@@ -49,7 +49,7 @@ fn exr_names(channel: &str, k: usize) -> Vec<String> {
 /// `normal.X/Y/Z`, `<name>.R/G/B` for other three-float channels, `<name>.Y` for one float.
 pub fn write_exr_channels(path: &Path, width: u32, height: u32, channels: &[(&str, &[f32], usize)]) -> Result<()> {
     use exr::prelude::{
-        AnyChannel, AnyChannels, Encoding, FlatSamples, Image, Layer, LayerAttributes, Vec2, WritableImage,
+        AnyChannel, AnyChannels, Encoding, FlatSamples, Image, Layer, LayerAttributes, LineOrder, Vec2, WritableImage,
     };
     let (w, h) = (width as usize, height as usize);
     let mut list: Vec<AnyChannel<FlatSamples>> = Vec::new();
@@ -65,8 +65,9 @@ pub fn write_exr_channels(path: &Path, width: u32, height: u32, channels: &[(&st
             list.push(AnyChannel::new(exr_name.as_str(), FlatSamples::F32(plane)));
         }
     }
-    let layer =
-        Layer::new(Vec2(w, h), LayerAttributes::named("srug"), Encoding::FAST_LOSSLESS, AnyChannels::sort(list.into()));
+    // Blocks in increasing order: the parallel writer then emits the same bytes every run.
+    let encoding = Encoding { line_order: LineOrder::Increasing, ..Encoding::FAST_LOSSLESS };
+    let layer = Layer::new(Vec2(w, h), LayerAttributes::named("srug"), encoding, AnyChannels::sort(list.into()));
     let tmp = temp_beside(path);
     let written = Image::from_layer(layer)
         .write()
