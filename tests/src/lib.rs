@@ -7,6 +7,8 @@
 //! "wrote 0"; [`psnr`] and [`random_scene`] are the comparisons and inputs the
 //! stage tests share.
 
+pub mod fuzz;
+
 use std::path::PathBuf;
 
 use rand::{Rng, SeedableRng};

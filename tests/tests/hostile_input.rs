@@ -231,3 +231,27 @@ fn near_maximal_radiance_stays_finite_through_prefiltering() {
     assert!(irradiance.iter().all(|v| v.is_finite()), "non-finite irradiance");
     assert_no_validation_messages(&d);
 }
+
+/// A KTX2 descriptor with a texel block dimension byte of 255 made the ktx2
+/// crate (0.5.0) panic on an u8 overflow (found by the fuzz smoke run); it is
+/// refused before the crate parses it.
+#[test]
+fn ktx2_descriptor_that_panics_the_parser_is_refused() {
+    let mut bytes = small_chain(false, 4, 2, 1.0);
+    let dfd = u32::from_le_bytes(bytes[48..52].try_into().unwrap()) as usize;
+    bytes[dfd + 4 + 12] = 255;
+    for e in [err_of(read_environment(&bytes, "dfd.ktx2")), err_of(read_float_chain(&bytes, "dfd.ktx2").map(|_| ()))] {
+        assert!(e.contains("dfd.ktx2") && e.contains("256-texel"), "{e}");
+    }
+}
+
+/// A file named as one format but holding another is reported as such.
+#[test]
+fn environment_extension_and_content_must_agree() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("sky.exr");
+    std::fs::write(&path, small_chain(false, 4, 2, 1.0)).unwrap();
+    let e = err_of(EnvironmentMap::load(&path));
+    assert!(e.contains("sky.exr") && e.contains("named .exr but holds KTX2"), "{e}");
+    assert!(EnvironmentMap::from_bytes(&std::fs::read(&path).unwrap(), "mem").is_ok(), "detected from content");
+}

@@ -31,6 +31,42 @@ pub(crate) fn env_error(origin: &str, message: impl Into<String>) -> Error {
     Error::Environment { origin: origin.to_string(), message: message.into() }
 }
 
+/// The file formats an environment map is read from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum EnvironmentFormat {
+    /// OpenEXR (any compression the exr crate reads).
+    Exr,
+    /// Radiance RGBE.
+    Hdr,
+    /// KTX2 with a float format.
+    Ktx2,
+}
+
+impl EnvironmentFormat {
+    /// The format `bytes` start with, by their magic bytes.
+    pub fn detect(bytes: &[u8]) -> Option<Self> {
+        const KTX2: [u8; 12] = [0xAB, 0x4B, 0x54, 0x58, 0x20, 0x32, 0x30, 0xBB, 0x0D, 0x0A, 0x1A, 0x0A];
+        if bytes.starts_with(&[0x76, 0x2f, 0x31, 0x01]) {
+            Some(Self::Exr)
+        } else if bytes.starts_with(&KTX2) {
+            Some(Self::Ktx2)
+        } else if bytes.starts_with(b"#?") {
+            Some(Self::Hdr)
+        } else {
+            None
+        }
+    }
+
+    /// The format's name in messages.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Exr => "OpenEXR",
+            Self::Hdr => "Radiance .hdr",
+            Self::Ktx2 => "KTX2",
+        }
+    }
+}
+
 /// Largest radiance kept (brighter texels are clamped to it, with a
 /// warning): far above the sun's, and low enough that prefiltering, shading
 /// and exposure stay finite in f32.
@@ -90,23 +126,34 @@ impl EnvironmentMap {
         let path = path.as_ref();
         let origin = path.display().to_string();
         let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).unwrap_or_default();
-        match ext.as_str() {
-            "exr" => {
-                let bytes = super::read_file(path)?;
-                read_exr(&bytes, &origin)
+        let named = match ext.as_str() {
+            "exr" => EnvironmentFormat::Exr,
+            "hdr" => EnvironmentFormat::Hdr,
+            "ktx2" => EnvironmentFormat::Ktx2,
+            other => {
+                return Err(env_error(
+                    &origin,
+                    format!("unknown extension \".{other}\" (environment maps are .exr, .hdr or .ktx2)"),
+                ))
             }
-            "hdr" => {
-                let bytes = super::read_file(path)?;
-                read_hdr(&bytes, &origin)
+        };
+        let bytes = super::read_file(path)?;
+        match EnvironmentFormat::detect(&bytes) {
+            Some(held) if held != named => {
+                Err(env_error(&origin, format!("is named .{ext} but holds {} data", held.name())))
             }
-            "ktx2" => {
-                let bytes = super::read_file(path)?;
-                super::ktx::read_environment(&bytes, &origin)
-            }
-            other => Err(env_error(
-                &origin,
-                format!("unknown extension \".{other}\" (environment maps are .exr, .hdr or .ktx2)"),
-            )),
+            _ => Self::from_bytes(&bytes, &origin),
+        }
+    }
+
+    /// Reads an environment map from bytes, its format detected from the
+    /// content (OpenEXR, Radiance .hdr or KTX2 magic); `origin` names it in errors.
+    pub fn from_bytes(bytes: &[u8], origin: &str) -> Result<Self> {
+        match EnvironmentFormat::detect(bytes) {
+            Some(EnvironmentFormat::Exr) => read_exr(bytes, origin),
+            Some(EnvironmentFormat::Hdr) => read_hdr(bytes, origin),
+            Some(EnvironmentFormat::Ktx2) => super::ktx::read_environment(bytes, origin),
+            None => Err(env_error(origin, "is not an OpenEXR, Radiance .hdr or KTX2 file (no known magic bytes)")),
         }
     }
 

@@ -95,9 +95,32 @@ fn level_bytes(data: &[u8], scheme: Option<SupercompressionScheme>, expected: us
     Ok(bytes)
 }
 
+/// Opens a KTX2 file, after refusing what `ktx2::Reader::new` 0.5.0 would
+/// panic on: a basic data format descriptor block with a texel block
+/// dimension byte of 255 (the crate adds 1 to it in u8; found by fuzzing).
+fn open<'a>(bytes: &'a [u8], origin: &str) -> Result<ktx2::Reader<&'a [u8]>> {
+    let word = |at: usize| bytes.get(at..at + 4).map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]) as usize);
+    if let (Some(offset), Some(length)) = (word(48), word(52)) {
+        // The DFD: its total size, then blocks of (vendor/type, version/size, 4 model bytes, 4 dimensions, ...).
+        let mut at = offset.saturating_add(4);
+        let end = offset.saturating_add(length).min(bytes.len());
+        while at.saturating_add(16) <= end {
+            let (head, size) = (word(at).unwrap_or(0), word(at + 4).unwrap_or(0) >> 16);
+            if head == 0 && bytes[at + 12..at + 16].contains(&255) {
+                return Err(ktx_error(origin, "its data format descriptor declares a 256-texel block dimension"));
+            }
+            if size == 0 {
+                break;
+            }
+            at = at.saturating_add(size);
+        }
+    }
+    ktx2::Reader::new(bytes).map_err(|e| ktx_error(origin, format!("not a valid KTX2 file: {e}")))
+}
+
 /// Reads a KTX2 environment: a 2D lat-long texture or a cube map, level 0.
 pub fn read_environment(bytes: &[u8], origin: &str) -> Result<EnvironmentMap> {
-    let reader = ktx2::Reader::new(bytes).map_err(|e| ktx_error(origin, format!("not a valid KTX2 file: {e}")))?;
+    let reader = open(bytes, origin)?;
     let header = reader.header();
     let format = header.format.ok_or_else(|| {
         ktx_error(origin, "format is VK_FORMAT_UNDEFINED (Basis Universal); environments need a float format")
@@ -350,7 +373,7 @@ pub struct ReadChain {
 
 /// Reads a float chain written by `write_float_chain` (any R32 float format, every level).
 pub fn read_float_chain(bytes: &[u8], origin: &str) -> Result<ReadChain> {
-    let reader = ktx2::Reader::new(bytes).map_err(|e| ktx_error(origin, format!("not a valid KTX2 file: {e}")))?;
+    let reader = open(bytes, origin)?;
     let header = reader.header();
     let channels = match header.format {
         Some(Format::R32G32_SFLOAT) => 2,
