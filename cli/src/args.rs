@@ -140,6 +140,16 @@ pub fn progress_bar(len: u64, template: &str) -> indicatif::ProgressBar {
     bar
 }
 
+/// Prints a line of a run's log above `bar`, or to stdout where the bar is
+/// hidden (one item, or no terminal): batch logs keep every line.
+pub fn print_line(bar: &indicatif::ProgressBar, line: &str) {
+    if bar.is_hidden() {
+        println!("{line}");
+    } else {
+        bar.println(line);
+    }
+}
+
 /// A time span `START..END` of two ISO 8601 times.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct TimeSpan {
@@ -162,6 +172,14 @@ fn parse_shadow_test(text: &str) -> Result<VisibilityKind> {
         "sigmoid" => Ok(VisibilityKind::Sigmoid),
         "traced" => Ok(VisibilityKind::Traced),
         other => Err(Error::invalid(format!("--shadow-test \"{other}\""), "is not sigmoid or traced")),
+    }
+}
+
+/// A render scale in (0, 1] (the library's 0, "the preset's", is not a value a user can ask for).
+fn parse_render_scale(text: &str) -> Result<f32> {
+    match text.trim().parse::<f32>() {
+        Ok(v) if v > 0.0 && v <= 1.0 => Ok(v),
+        _ => Err(Error::invalid(format!("--render-scale {text}"), "is not a number in (0, 1]")),
     }
 }
 
@@ -345,7 +363,7 @@ pub struct ShadeArgs {
     pub sh_degree: Option<u32>,
     /// Render at this fraction of the output size, then upsample bilinearly
     /// [preset: fast 0.5, else 1].
-    #[arg(long)]
+    #[arg(long, value_parser = parse_render_scale)]
     pub render_scale: Option<f32>,
     /// Tile edge in pixels for the camera's and the shadow map's splatting: 8, 16 or 32 [preset: 16].
     #[arg(long)]

@@ -58,6 +58,9 @@ fn demo_generates_writes_and_checks_the_gpu() {
         "--validation",
     ]);
     assert!(o.status.success(), "{}", text(&o));
+    // Without a terminal every written file is still logged on stdout.
+    let log = String::from_utf8_lossy(&o.stdout);
+    assert!((0..4).all(|i| log.contains(&format!("frame_{i:03}.exr"))), "{log}");
     for i in 0..4 {
         let path = dir.path().join(format!("frame_{i:03}.exr"));
         let image = exr::prelude::read_all_flat_layers_from_file(&path).unwrap();
@@ -83,7 +86,7 @@ fn demo_generates_writes_and_checks_the_gpu() {
         "--size",
         "176x48",
     ]);
-    assert!(o.status.success(), "{}", text(&o));
+    assert!(o.status.success() && String::from_utf8_lossy(&o.stdout).contains("depth.exr"), "{}", text(&o));
     let image = exr::prelude::read_all_flat_layers_from_file(&depth_out).unwrap();
     let mut names: Vec<String> = image.layer_data[0].channel_data.list.iter().map(|c| c.name.to_string()).collect();
     names.sort();
@@ -656,7 +659,8 @@ fn relight_presets_and_quality_options() {
     // Refused settings: (option, value, what the message says).
     for (option, value, want) in [
         ("--preset", "best", "preset \"best\""),
-        ("--render-scale", "1.5", "render scale 1.5"),
+        ("--render-scale", "1.5", "--render-scale 1.5: is not a number in (0, 1]"),
+        ("--render-scale", "0", "--render-scale 0: is not a number in (0, 1]"),
         ("--tile", "12", "tile size 12: is not one of [8, 16, 32]"),
     ] {
         let args = ["relight", scene.to_str().unwrap(), "--cameras", cams.to_str().unwrap(), option, value];

@@ -15,7 +15,9 @@ use srug::shade::{
 use srug::shadow::Sun;
 use srug::{io, Error, Result};
 
-use crate::args::{numbered, output_is_exr, progress_bar, CameraArgs, DeviceArgs, EnvArgs, ShadeArgs, SunArgs};
+use crate::args::{
+    numbered, output_is_exr, print_line, progress_bar, CameraArgs, DeviceArgs, EnvArgs, ShadeArgs, SunArgs,
+};
 
 /// Lighting resources reused across frames.
 pub(super) struct Lights {
@@ -188,11 +190,7 @@ fn relight(device: &Device, args: &RelightArgs) -> Result<()> {
                     (true, false) => "",
                 }
             );
-            if bar.is_hidden() {
-                println!("{line}");
-            } else {
-                bar.println(line);
-            }
+            print_line(&bar, &line);
             bar.inc(1);
             frame += 1;
         }

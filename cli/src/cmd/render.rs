@@ -9,7 +9,7 @@ use srug::scene::activate;
 use srug::splat::{NormalSource, SplatSettings, Splatter, TileBounds, DEFAULT_TILE};
 use srug::Result;
 
-use crate::args::{numbered, output_is_exr, progress_bar, CameraArgs, ChannelList, DeviceArgs, Vec3Arg};
+use crate::args::{numbered, output_is_exr, print_line, progress_bar, CameraArgs, ChannelList, DeviceArgs, Vec3Arg};
 
 /// Arguments of `srug render`.
 #[derive(clap::Args, Clone, Debug)]
@@ -82,13 +82,14 @@ impl RenderArgs {
                 io::write_png(&target, g.width, g.height, g.rgb_values()?)?;
             }
             bar.inc(1);
-            bar.println(format!(
+            let line = format!(
                 "{} ({}x{}, {:.1} ms GPU)",
                 target.display(),
                 g.width,
                 g.height,
                 stats.timings.total_seconds() * 1e3
-            ));
+            );
+            print_line(&bar, &line);
         }
         bar.finish_and_clear();
         Ok(())

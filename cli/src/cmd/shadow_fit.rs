@@ -10,7 +10,7 @@ use srug::scene::demo;
 use srug::shadow::completion::{complete_demo, shadow_iou, CompletionSettings, DemoCompletion};
 use srug::{Error, Result};
 
-use crate::args::{progress_bar, DeviceArgs, Size};
+use crate::args::{print_line, progress_bar, DeviceArgs, Size};
 
 /// Arguments of `srug shadow-fit`.
 #[derive(clap::Args, Clone, Debug)]
@@ -74,11 +74,7 @@ impl ShadowFitArgs {
                 "step {:3}: loss {:.4}, shadow IoU {:.3}, missing-shadow IoU {:.3}",
                 s.step, s.loss, s.iou, s.missing_iou
             );
-            if bar.is_hidden() {
-                println!("{line}");
-            } else {
-                bar.println(&line);
-            }
+            print_line(&bar, &line);
             bar.set_message(format!("IoU {:.3}", s.iou));
             bar.inc(1);
             lines.push(format!("{},{},{},{}", s.step, s.loss, s.iou, s.missing_iou));

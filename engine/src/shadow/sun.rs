@@ -34,11 +34,11 @@ impl Sun {
     /// A sun at `azimuth` degrees from north toward east and `elevation`
     /// degrees above the horizon (negative: below it).
     pub fn from_azimuth_elevation(azimuth: f32, elevation: f32, intensity: [f32; 3]) -> Result<Self> {
-        if !azimuth.is_finite() || !(-90.0..=90.0).contains(&elevation) {
-            return Err(Error::invalid(
-                format!("sun azimuth {azimuth}° / elevation {elevation}°"),
-                "needs finite angles and an elevation in [-90°, 90°]",
-            ));
+        if !azimuth.is_finite() {
+            return Err(Error::invalid(format!("sun azimuth {azimuth}°"), "must be finite"));
+        }
+        if !(-90.0..=90.0).contains(&elevation) {
+            return Err(Error::invalid(format!("sun elevation {elevation}°"), "must be in [-90°, 90°]"));
         }
         let (az, el) = (f64::from(azimuth).to_radians(), f64::from(elevation).to_radians());
         let d = glam::DVec3::new(az.sin() * el.cos(), az.cos() * el.cos(), el.sin());
@@ -259,6 +259,15 @@ pub fn solar_position(time: &UtcTime, latitude: f64, longitude: f64) -> Result<S
 mod tests {
     #![allow(clippy::unwrap_used, reason = "tests")]
     use super::*;
+
+    /// A bad angle is blamed on itself, not on the other one.
+    #[test]
+    fn bad_angles_are_named() {
+        let e = Sun::from_azimuth_elevation(f32::NAN, 30.0, [1.0; 3]).unwrap_err().to_string();
+        assert!(e.contains("sun azimuth NaN") && !e.contains("elevation"), "{e}");
+        let e = Sun::from_azimuth_elevation(10.0, 95.0, [1.0; 3]).unwrap_err().to_string();
+        assert!(e.contains("sun elevation 95") && !e.contains("azimuth"), "{e}");
+    }
 
     #[test]
     fn nrel_spa_reference_position() {
