@@ -164,6 +164,10 @@ fn bad_input_fails_with_a_clear_message() {
     let o = srug(&["demo", "--gaussians", "5", "--out", dir.path().to_str().unwrap()]);
     assert_eq!(o.status.code(), Some(1));
     assert!(text(&o).contains("at least 1000"), "{}", text(&o));
+    // A device choice that matches nothing is named in the option's words, not as a Rust value.
+    let o = srug(&["demo", "--device", "no-such-gpu", "--gaussians", "1000", "--out", dir.path().to_str().unwrap()]);
+    let t = text(&o);
+    assert!(t.contains("device name \"no-such-gpu\" matches none of") && !t.contains("Name("), "{t}");
     assert!(!dir.path().join("demo_city.ply").exists(), "nothing written on failure");
 
     let o = srug(&["render", not_ply.to_str().unwrap(), "--eye", "1,2,3", "--size", "8x8", "--out", "x.jpg"]);

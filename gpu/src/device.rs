@@ -38,6 +38,19 @@ pub enum DeviceSelection {
     Name(String),
 }
 
+impl std::fmt::Display for DeviceSelection {
+    /// The choice in the words of the `--device` syntax.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::Auto => write!(f, "automatic device choice"),
+            Self::Gpu => write!(f, "device \"gpu\" (a discrete or integrated GPU)"),
+            Self::Cpu => write!(f, "device \"cpu\" (a CPU implementation such as lavapipe)"),
+            Self::Index(n) => write!(f, "device index {n}"),
+            Self::Name(s) => write!(f, "device name \"{s}\""),
+        }
+    }
+}
+
 impl DeviceSelection {
     /// Parses the syntax of [`DEVICE_ENV`].
     pub fn parse(text: &str) -> Self {
@@ -379,7 +392,7 @@ fn pick_physical(instance: &ash::Instance, selection: &DeviceSelection) -> Resul
             (0..devices.len()).find(|&i| name_of(&props[i]).to_lowercase().contains(&s))
         }
     };
-    let i = chosen.ok_or_else(|| Error::NoDevice(format!("{selection:?} matches none of: {}", listing())))?;
+    let i = chosen.ok_or_else(|| Error::NoDevice(format!("{selection} matches none of: {}", listing())))?;
     if !usable(i) {
         return Err(Error::NoDevice(format!(
             "#{i} {} supports only Vulkan {}; srug needs 1.2",

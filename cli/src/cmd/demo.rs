@@ -34,6 +34,14 @@ impl DemoArgs {
     /// Runs `srug demo`.
     pub(super) fn run(&self, device_args: &DeviceArgs) -> Result<()> {
         let &Self { gaussians, seed, sh_degree, ref out } = self;
+        // The device first: a run that cannot have one writes nothing.
+        let device = device_args.open()?;
+        let info = device.info();
+        println!(
+            "device: {} ({:?}), driver {}, Vulkan {}, subgroup {}",
+            info.name, info.device_type, info.driver, info.api_version, info.subgroup_size
+        );
+
         let bar = spinner(&format!("generating the demo city ({gaussians} Gaussians)"));
         let started = Instant::now();
         let city = demo::demo_city(&demo::DemoOptions { seed, gaussians, sh_degree });
@@ -50,13 +58,6 @@ impl DemoArgs {
             .and_then(|()| io::write_cameras_json(&cameras, &city.cameras));
         bar.finish_and_clear();
         written?;
-
-        let device = device_args.open()?;
-        let info = device.info();
-        println!(
-            "device: {} ({:?}), driver {}, Vulkan {}, subgroup {}",
-            info.name, info.device_type, info.driver, info.api_version, info.subgroup_size
-        );
 
         let report = gpu::selftest::run(&device, 1 << 20)?;
         println!(
