@@ -187,7 +187,7 @@ fn parse_render_scale(text: &str) -> Result<f32> {
 #[derive(clap::Args, Clone, Debug)]
 pub struct CameraArgs {
     /// INRIA cameras.json; without it, the look-at options define one camera.
-    #[arg(long)]
+    #[arg(long, conflicts_with_all = ["eye", "target", "up", "fov"])]
     pub cameras: Option<PathBuf>,
     /// Render only this camera (default: every camera, numbered outputs).
     #[arg(long)]
@@ -230,6 +230,13 @@ impl CameraArgs {
         }
         if let (Some((w, h)), Some(_)) = (size, &self.cameras) {
             for c in &mut cams {
+                let (from, to) = (c.width as f64 / c.height as f64, f64::from(w) / f64::from(h));
+                if (from / to - 1.0).abs() > 0.01 {
+                    eprintln!(
+                        "warning: --size {w}x{h} stretches camera \"{}\" ({}x{}): aspect ratio {from:.3} becomes {to:.3}",
+                        c.name, c.width, c.height
+                    );
+                }
                 *c = c.resized(w, h);
             }
         }
@@ -250,10 +257,10 @@ pub struct SunArgs {
     #[arg(long, default_value_t = std::f32::consts::PI)]
     pub sun_intensity: f32,
     /// Sun from a time instead (ISO 8601 with a zone, e.g. 2024-06-21T14:30+02:00); needs --latitude, --longitude.
-    #[arg(long, value_parser = UtcTime::parse)]
+    #[arg(long, value_parser = UtcTime::parse, conflicts_with_all = ["sun_azimuth", "sun_elevation", "sun_path"])]
     pub sun_time: Option<UtcTime>,
     /// Time-lapse: START..END (ISO 8601 times) rendered as --frames frames; needs --latitude, --longitude.
-    #[arg(long)]
+    #[arg(long, conflicts_with_all = ["sun_azimuth", "sun_elevation"])]
     pub sun_path: Option<TimeSpan>,
     /// Frames of the time-lapse.
     #[arg(long, default_value_t = 12)]

@@ -103,6 +103,14 @@ fn demo_generates_writes_and_checks_the_gpu() {
         png_out.to_str().unwrap(),
     ]);
     assert!(o.status.success() && png_out.is_file(), "{}", text(&o));
+    // A size of another aspect ratio stretches the camera, and says so.
+    let (p, c, out) = (ply.to_str().unwrap(), cams.to_str().unwrap(), png_out.to_str().unwrap());
+    let o = srug(&["render", p, "--cameras", c, "--index", "0", "--size", "64x64", "--out", out]);
+    assert!(
+        o.status.success() && String::from_utf8_lossy(&o.stderr).contains("--size 64x64 stretches camera"),
+        "{}",
+        text(&o)
+    );
     let o = srug(&[
         "render",
         ply.to_str().unwrap(),
@@ -170,6 +178,12 @@ fn bad_input_fails_with_a_clear_message() {
     assert!(t.contains("device name \"no-such-gpu\" matches none of") && !t.contains("Name("), "{t}");
     assert!(!dir.path().join("demo_city.ply").exists(), "nothing written on failure");
 
+    let png = dir.path().join("depth.png");
+    let (p, n) = (png.to_str().unwrap(), not_ply.to_str().unwrap());
+    let o = srug(&["render", n, "--eye", "1,2,3", "--size", "8x8", "--channels", "depth", "--out", p]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(text(&o).contains("--channels depth: needs an .exr output"), "{}", text(&o));
+    assert!(!png.exists(), "nothing written");
     let o = srug(&["render", not_ply.to_str().unwrap(), "--eye", "1,2,3", "--size", "8x8", "--out", "x.jpg"]);
     assert_eq!(o.status.code(), Some(1));
     assert!(text(&o).contains(".png or .exr"), "{}", text(&o));
@@ -253,6 +267,26 @@ fn malformed_values_are_usage_errors() {
         ),
         (&["unet", "--weights", "w", "--input", "i", "--out", "o", "--precision", "fp8"], &["--precision", "fp8"]),
         (&["info", "a.ply", "--size", "704"], &["--size", "is not WxH"]),
+        // Options that contradict each other are refused instead of one silently winning.
+        (
+            &["render", "a.ply", "--cameras", "c.json", "--eye", "1,2,3", "--out", "x.png"],
+            &["--cameras", "--eye", "cannot be used with"],
+        ),
+        (
+            &[
+                "relight",
+                "a.ply",
+                "--eye",
+                "1,2,3",
+                "--sun-azimuth",
+                "90",
+                "--sun-time",
+                "2026-06-21T12:00Z",
+                "--out",
+                "x.png",
+            ],
+            &["--sun-time", "--sun-azimuth", "cannot be used with"],
+        ),
     ];
     for (args, wants) in cases {
         let o = srug(args);

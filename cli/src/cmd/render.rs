@@ -6,8 +6,8 @@ use std::path::PathBuf;
 use indicatif::ProgressBar;
 use srug::io;
 use srug::scene::activate;
-use srug::splat::{NormalSource, SplatSettings, Splatter, TileBounds, DEFAULT_TILE};
-use srug::Result;
+use srug::splat::{Channels, NormalSource, SplatSettings, Splatter, TileBounds, DEFAULT_TILE};
+use srug::{Error, Result};
 
 use crate::args::{numbered, output_is_exr, print_line, progress_bar, CameraArgs, ChannelList, DeviceArgs, Vec3Arg};
 
@@ -23,7 +23,7 @@ pub(super) struct RenderArgs {
     out: PathBuf,
     /// Channels: rgb, depth, median_depth, normal, albedo, roughness, metallic, ao,
     /// visibility, materials, all. EXR holds those listed and alpha (rgb only if listed);
-    /// PNG shows rgb.
+    /// PNG holds only rgb (any other channel needs an .exr output).
     #[arg(long, default_value = "rgb")]
     channels: ChannelList,
     /// Background colour r,g,b.
@@ -50,6 +50,13 @@ impl RenderArgs {
         let Self { scene: path, view, out, channels, background, stored_normals, sh_degree, tile, tile_bounds } = self;
         let is_exr = output_is_exr(out)?;
         // A PNG is the colour; an EXR holds what was asked for.
+        if !is_exr && channels.channels != Channels::default() {
+            let names: Vec<&str> = channels.channels.iter().map(|c| c.name()).collect();
+            return Err(Error::invalid(
+                format!("--channels {}", names.join(",")),
+                format!("needs an .exr output; {} can hold only the colour", out.display()),
+            ));
+        }
         let rgb = !is_exr || channels.names_rgb;
         let cams = view.resolve()?;
         let index = view.index;
