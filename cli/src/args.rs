@@ -230,7 +230,7 @@ impl CameraArgs {
         }
         if let (Some((w, h)), Some(_)) = (size, &self.cameras) {
             for c in &mut cams {
-                let (from, to) = (c.width as f64 / c.height as f64, f64::from(w) / f64::from(h));
+                let (from, to) = (f64::from(c.width) / f64::from(c.height), f64::from(w) / f64::from(h));
                 if (from / to - 1.0).abs() > 0.01 {
                     eprintln!(
                         "warning: --size {w}x{h} stretches camera \"{}\" ({}x{}): aspect ratio {from:.3} becomes {to:.3}",
