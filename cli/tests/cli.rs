@@ -532,6 +532,14 @@ fn unet_runs_one_inference_between_safetensors_files() {
     std::fs::write(&ipath, tensor_bytes("x", c, h, w, &input).unwrap()).unwrap();
     let o = srug(&[&args[..], &["--out", opath.to_str().unwrap()]].concat());
     assert!(!o.status.success() && text(&o).contains("\"input\" is missing"), "{}", text(&o));
+    // A non-finite input is refused before anything runs, and no output is written.
+    std::fs::remove_file(&opath).unwrap();
+    let mut nan = input.clone();
+    nan[7] = f32::NAN;
+    std::fs::write(&ipath, tensor_bytes("input", c, h, w, &nan).unwrap()).unwrap();
+    let o = srug(&[&args[..], &["--out", opath.to_str().unwrap()]].concat());
+    assert!(!o.status.success() && text(&o).contains("tensor \"input\" element 7 is NaN"), "{}", text(&o));
+    assert!(!opath.exists(), "nothing written");
 }
 
 #[test]

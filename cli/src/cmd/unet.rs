@@ -45,6 +45,17 @@ impl UnetArgs {
         let buffer = device.upload("u-net input", &values)?;
         let result = unet.infer(&buffer, w as u32, h as u32)?;
         let output: Vec<f32> = device.read_buffer(&result.output)?;
+        // Finite inputs can still overflow f32 through the layers: nothing non-finite is written.
+        if let Some(i) = output.iter().position(|v| !v.is_finite()) {
+            let peak = values.iter().fold(0.0f32, |m, v| m.max(v.abs()));
+            return Err(Error::invalid(
+                format!("{}: the network's output", input.display()),
+                format!(
+                    "is {} at value {i}: inputs up to {peak:e} in magnitude overflow f32 through the layers",
+                    output[i]
+                ),
+            ));
+        }
         let bytes = tensor_bytes("output", net.config.out_channels, h, w, &output)?;
         io::write_atomic(out, &bytes)?;
         println!(
