@@ -140,6 +140,34 @@ pub fn progress_bar(len: u64, template: &str) -> indicatif::ProgressBar {
     bar
 }
 
+/// The files a multi-frame run has written so far: when the run fails they
+/// are removed (dropping the guard without [`RunOutputs::keep`]), so a failure
+/// leaves no output of the run behind.
+#[derive(Debug, Default)]
+pub struct RunOutputs(Vec<PathBuf>);
+
+impl RunOutputs {
+    /// Records a file the run wrote.
+    pub fn add(&mut self, path: PathBuf) {
+        self.0.push(path);
+    }
+
+    /// The run succeeded: its files stay.
+    pub fn keep(mut self) {
+        self.0.clear();
+    }
+}
+
+impl Drop for RunOutputs {
+    fn drop(&mut self) {
+        for path in &self.0 {
+            if std::fs::remove_file(path).is_ok() {
+                eprintln!("removed {} (the run failed)", path.display());
+            }
+        }
+    }
+}
+
 /// Prints a line of a run's log above `bar`, or to stdout where the bar is
 /// hidden (one item, or no terminal): batch logs keep every line.
 pub fn print_line(bar: &indicatif::ProgressBar, line: &str) {

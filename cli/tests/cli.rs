@@ -111,6 +111,12 @@ fn demo_generates_writes_and_checks_the_gpu() {
         "{}",
         text(&o)
     );
+    // A run that fails part-way removes what it had written: no partial result.
+    let batch = dir.path().join("batch.png");
+    std::fs::create_dir(dir.path().join("batch_001.png")).unwrap();
+    let o = srug(&["render", p, "--cameras", c, "--size", "88x24", "--out", batch.to_str().unwrap()]);
+    assert!(!o.status.success() && text(&o).contains("batch_001.png"), "{}", text(&o));
+    assert!(!dir.path().join("batch_000.png").exists(), "the first frame of a failed run is removed");
     let o = srug(&[
         "render",
         ply.to_str().unwrap(),

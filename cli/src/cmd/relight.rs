@@ -16,7 +16,7 @@ use srug::shadow::Sun;
 use srug::{io, Error, Result};
 
 use crate::args::{
-    numbered, output_is_exr, print_line, progress_bar, CameraArgs, DeviceArgs, EnvArgs, ShadeArgs, SunArgs,
+    numbered, output_is_exr, print_line, progress_bar, CameraArgs, DeviceArgs, EnvArgs, RunOutputs, ShadeArgs, SunArgs,
 };
 
 /// Lighting resources reused across frames.
@@ -159,6 +159,7 @@ fn relight(device: &Device, args: &RelightArgs) -> Result<()> {
         ProgressBar::hidden()
     };
     let mut frame = 0;
+    let mut written = RunOutputs::default();
     for (label, s) in &suns {
         let environment = lights.environment(s)?;
         for (ci, cam) in cams.iter().enumerate() {
@@ -179,6 +180,7 @@ fn relight(device: &Device, args: &RelightArgs) -> Result<()> {
                 None => None,
             };
             write_relit(&target, exr, &image, indirect.as_deref())?;
+            written.add(target.clone());
             let line = format!(
                 "{} camera {} {label}: {:.0} ms GPU{}",
                 target.display(),
@@ -196,6 +198,7 @@ fn relight(device: &Device, args: &RelightArgs) -> Result<()> {
         }
     }
     bar.finish_and_clear();
+    written.keep();
     Ok(())
 }
 

@@ -9,7 +9,9 @@ use srug::scene::activate;
 use srug::splat::{Channels, NormalSource, SplatSettings, Splatter, TileBounds, DEFAULT_TILE};
 use srug::{Error, Result};
 
-use crate::args::{numbered, output_is_exr, print_line, progress_bar, CameraArgs, ChannelList, DeviceArgs, Vec3Arg};
+use crate::args::{
+    numbered, output_is_exr, print_line, progress_bar, CameraArgs, ChannelList, DeviceArgs, RunOutputs, Vec3Arg,
+};
 
 /// Arguments of `srug render`.
 #[derive(clap::Args, Clone, Debug)]
@@ -79,6 +81,7 @@ impl RenderArgs {
         } else {
             ProgressBar::hidden()
         };
+        let mut written = RunOutputs::default();
         for (i, cam) in cams.iter().enumerate() {
             let target = if cams.len() > 1 { numbered(out, index.unwrap_or(i)) } else { out.clone() };
             let (gpu, stats) = splatter.render(&gpu_scene, cam, &settings)?;
@@ -88,6 +91,7 @@ impl RenderArgs {
             } else {
                 io::write_png(&target, g.width, g.height, g.rgb_values()?)?;
             }
+            written.add(target.clone());
             bar.inc(1);
             let line = format!(
                 "{} ({}x{}, {:.1} ms GPU)",
@@ -99,6 +103,7 @@ impl RenderArgs {
             print_line(&bar, &line);
         }
         bar.finish_and_clear();
+        written.keep();
         Ok(())
     }
 }
