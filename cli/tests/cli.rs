@@ -455,6 +455,25 @@ fn relight_renders_stills_time_lapses_and_prefiltered_environments() {
     } else {
         println!("skipped the environment-file part: ../shared/data is absent");
     }
+    // An environment map with a sun (a hot texel north-east, 42° up) far from the analytic sun
+    // is reported; the same sun as the map's is not.
+    let (ew, eh) = (64usize, 32usize);
+    let mut rgb = vec![0.2f32; 3 * ew * eh];
+    let (hx, hy) = (ew / 2 + ew / 8, eh / 4); // texel centre: azimuth 47.8°, elevation 42.2°
+    rgb[3 * (hy * ew + hx)..3 * (hy * ew + hx) + 3].copy_from_slice(&[5000.0; 3]);
+    let sunny = dir.path().join("sunny.exr");
+    srug::io::write_exr_channels(&sunny, ew as u32, eh as u32, &[("rgb", &rgb, 3)]).unwrap();
+    let png = dir.path().join("sunny.png");
+    let base = ["relight", ply, "--cameras", cams, "--index", "0", "--size", "88x24", "--env", sunny.to_str().unwrap()];
+    let o =
+        srug(&[&base[..], &["--sun-azimuth", "250", "--sun-elevation", "30", "--out", png.to_str().unwrap()]].concat());
+    let t = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success() && t.contains("environment map's sun") && t.contains("azimuth 47.8°"), "{t}");
+    let o = srug(
+        &[&base[..], &["--sun-azimuth", "47.8", "--sun-elevation", "42.2", "--out", png.to_str().unwrap()]].concat(),
+    );
+    let t = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success() && !t.contains("environment map's sun"), "{t}");
     // Clear refusals.
     let bad = |args: &[&str], want: &str| {
         let o = srug(args);

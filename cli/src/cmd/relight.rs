@@ -23,6 +23,8 @@ use crate::args::{
 pub(super) struct Lights {
     prep: EnvironmentPrep,
     fixed_env: Option<PreparedEnvironment>,
+    /// The given map's brightest direction and its ratio to the mean (a sun in the map).
+    map_sun: Option<([f64; 3], f64)>,
     /// The BRDF table.
     pub brdf: BrdfTable,
     turbidity: f32,
@@ -33,12 +35,37 @@ impl Lights {
     pub(super) fn new(device: &Device, args: &EnvArgs) -> Result<Self> {
         let prep = EnvironmentPrep::new(device)?;
         let brdf = prep.brdf_table(args.brdf, 129, 1024)?;
+        let mut map_sun = None;
         let fixed_env = match &args.env {
             None => None,
             Some(p) if p.is_dir() => Some(PreparedEnvironment::load(device, p)?),
-            Some(p) => Some(prep.prepare(&EnvironmentMap::load(p)?, &PrepareSettings::default())?),
+            Some(p) => {
+                let map = EnvironmentMap::load(p)?;
+                map_sun = Some(map.brightest());
+                Some(prep.prepare(&map, &PrepareSettings::default())?)
+            }
         };
-        Ok(Self { prep, fixed_env, brdf, turbidity: args.turbidity })
+        Ok(Self { prep, fixed_env, map_sun, brdf, turbidity: args.turbidity })
+    }
+
+    /// A warning when the environment map holds a sun (a texel 50× the mean
+    /// or more) more than 5° away from the analytic sun, which would light and
+    /// shadow the scene from elsewhere than the map shows.
+    pub(super) fn sun_mismatch(&self, sun: &Sun) -> Option<String> {
+        let (d, ratio) = self.map_sun?;
+        let s = sun.direction.as_dvec3();
+        let angle = glam::DVec3::from_array(d).angle_between(s).to_degrees();
+        if ratio < 50.0 || angle <= 5.0 {
+            return None;
+        }
+        let azimuth = d[0].atan2(d[1]).to_degrees().rem_euclid(360.0);
+        let elevation = d[2].clamp(-1.0, 1.0).asin().to_degrees();
+        let (sa, se) = sun.azimuth_elevation();
+        Some(format!(
+            "warning: the environment map's sun (brightest point, {ratio:.0}x its mean) is at azimuth {azimuth:.1}°, \
+             elevation {elevation:.1}°, {angle:.0}° from the sun used ({sa:.1}°, {se:.1}°); pass --sun-azimuth {azimuth:.1} \
+             --sun-elevation {elevation:.1} to light the scene as the map shows"
+        ))
     }
 
     /// The environment for a sun: the given one, or a procedural sky made for it.
@@ -158,6 +185,9 @@ fn relight(device: &Device, args: &RelightArgs) -> Result<()> {
     } else {
         ProgressBar::hidden()
     };
+    if let Some(warning) = suns.first().and_then(|(_, s)| lights.sun_mismatch(s)) {
+        eprintln!("{warning}");
+    }
     let mut frame = 0;
     let mut written = RunOutputs::default();
     for (label, s) in &suns {

@@ -163,6 +163,27 @@ impl EnvironmentMap {
         [self.rgb[i], self.rgb[i + 1], self.rgb[i + 2]]
     }
 
+    /// The direction (world, z up) of the map's brightest texel by
+    /// luminance, and how many times the map's mean luminance it is: a
+    /// clear-sky HDRI's sun stands out by orders of magnitude, an overcast
+    /// sky's brightest texel by little.
+    pub fn brightest(&self) -> ([f64; 3], f64) {
+        let lum = |t: &[f32]| 0.2126 * f64::from(t[0]) + 0.7152 * f64::from(t[1]) + 0.0722 * f64::from(t[2]);
+        let (mut best, mut peak, mut sum) = (0usize, -1.0f64, 0.0f64);
+        for (i, t) in self.rgb.chunks_exact(3).enumerate() {
+            let l = lum(t);
+            sum += l;
+            if l > peak {
+                (best, peak) = (i, l);
+            }
+        }
+        let n = (self.width as usize * self.height as usize).max(1);
+        let (w, h) = (self.width as usize, self.height as usize);
+        let direction = super::ktx::latlong_direction(best % w.max(1), best / w.max(1), w, h);
+        let mean = sum / n as f64;
+        (direction, if mean > 0.0 { peak / mean } else { 0.0 })
+    }
+
     /// Largest channel value.
     pub fn max_value(&self) -> f32 {
         self.rgb.iter().copied().fold(0.0, f32::max)
