@@ -169,8 +169,14 @@ impl EnvironmentPrep {
     /// irradiance map, all on the GPU.
     pub fn prepare(&self, env: &EnvironmentMap, settings: &PrepareSettings) -> Result<PreparedEnvironment> {
         let (iw, ih) = settings.irradiance_size;
-        if settings.levels == 0 || settings.samples == 0 || iw == 0 || ih == 0 || iw > 1024 || ih > 1024 {
-            return Err(Error::invalid(format!("environment preparation settings {settings:?}"), "are out of range"));
+        if settings.levels == 0 || settings.samples == 0 {
+            return Err(Error::invalid(
+                format!("environment preparation with {} levels of {} samples", settings.levels, settings.samples),
+                "needs at least one level and one sample",
+            ));
+        }
+        if !(1..=1024).contains(&iw) || !(1..=1024).contains(&ih) {
+            return Err(Error::invalid(format!("irradiance map size {iw}x{ih}"), "must be 1..=1024 on each side"));
         }
         let device = &self.device;
         let base = (env.width, env.height);
