@@ -6,7 +6,8 @@
 //! incidence, so a sky of zenith luminance Y kcd/m² has radiance Y·S_i/100
 //! (about 0.05·S_i at midday). The sun disc itself is not in the map (L_sun
 //! adds it analytically). Below the horizon: a grey ground lit by sun and
-//! sky. With the sun below the horizon the sky fades out over 6° of twilight.
+//! sky. With the sun below the horizon the sky fades out over the 18° of
+//! astronomical twilight.
 
 use glam::Vec3;
 
@@ -41,7 +42,9 @@ impl ProceduralSky {
         let sun = self.sun_direction.as_dvec3().normalize_or_zero();
         let t = f64::from(self.turbidity.clamp(1.7, 20.0));
         let elevation = sun.z.clamp(-1.0, 1.0).asin();
-        let twilight = ((elevation.to_degrees() + 6.0) / 6.0).clamp(0.0, 1.0).powi(2);
+        // Twilight: the horizon sky fades over the 18° of astronomical twilight (cubic: a
+        // quarter of its light at 4.5° below, 3.7% at 12°), so a low sun still lights the scene.
+        let twilight = ((elevation.to_degrees() + 18.0) / 18.0).clamp(0.0, 1.0).powi(3).min(1.0);
         // The model holds for a sun above the horizon; below it, the horizon sky fades.
         let theta_s = (std::f64::consts::FRAC_PI_2 - elevation).clamp(0.0, std::f64::consts::FRAC_PI_2 - 0.02);
         let sun_model = glam::DVec3::new(sun.x, sun.y, theta_s.cos()).normalize_or_zero();
@@ -135,4 +138,27 @@ fn xyy_to_linear_srgb(x: f64, y: f64, lum: f64) -> [f64; 3] {
         -0.9689 * cx + 1.8758 * lum + 0.0415 * cz,
         0.0557 * cx - 0.2040 * lum + 1.0570 * cz,
     ]
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used, reason = "a failed unwrap is a failed test")]
+    use super::*;
+
+    fn mean(elevation_degrees: f32) -> f64 {
+        let e = elevation_degrees.to_radians();
+        let sky = ProceduralSky { size: (64, 32), ..ProceduralSky::new(Vec3::new(0.0, e.cos(), e.sin()), 3.0) };
+        let map = sky.render().unwrap();
+        map.rgb.iter().map(|v| f64::from(*v)).sum::<f64>() / map.rgb.len() as f64
+    }
+
+    /// A sun below the horizon still lights the sky through twilight, fading
+    /// as it sinks, and the sky is dark only past 18° below.
+    #[test]
+    fn twilight_fades_over_eighteen_degrees() {
+        let m: Vec<f64> = [5.0, 0.0, -3.0, -8.0, -14.0, -19.0].into_iter().map(mean).collect();
+        assert!(m.windows(2).all(|p| p[1] < p[0]), "the sky darkens as the sun sinks: {m:?}");
+        assert!(m[3] > 0.0 && m[4] > 0.0, "twilight sky below the horizon: {m:?}");
+        assert_eq!(m[5], 0.0, "night below 18°");
+    }
 }
