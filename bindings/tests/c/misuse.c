@@ -148,6 +148,36 @@ int main(int argc, char **argv) {
   EXPECT(srug_renderer_shadow_backward(r, scene, v, 64 * 48 - 1, &grads), SRUG_ERROR_BUFFER_TOO_SMALL);
   EXPECT(srug_renderer_shadow_backward(r, scene, v, 64 * 48, NULL), SRUG_ERROR_NULL_POINTER);
 
+  printf("careless callers (issue 39):\n");
+  EXPECT(srug_renderer_read_image(r, SRUG_FORMAT_RGBA8_SRGB, pixels, sizeof pixels, SIZE_MAX), SRUG_ERROR_INVALID_ARGUMENT);
+  CHECK(srug_renderer_read_image(r, SRUG_FORMAT_RGBA8_SRGB, pixels, sizeof pixels, 0)); /* not poisoned */
+  EXPECT(srug_renderer_set_shadow(r, 15, 50.0f, 0.5f), SRUG_ERROR_INVALID_ARGUMENT);   /* header: 16..=16384 */
+  EXPECT(srug_renderer_set_shadow(r, 1024, 50.0f, -1.0f), SRUG_ERROR_INVALID_ARGUMENT); /* header: bias >= 0 */
+  EXPECT(srug_renderer_set_camera_look_at(r, eye, target, up, 1e-40f), SRUG_ERROR_INVALID_ARGUMENT);
+  const float along[3] = {0.0f, 30.0f, -15.0f}; /* parallel to target - eye */
+  EXPECT(srug_renderer_set_camera_look_at(r, eye, target, along, 70.0f), SRUG_ERROR_INVALID_ARGUMENT);
+  EXPECT(srug_renderer_set_exposure(r, 1e30f, SRUG_TONE_MAP_ACES), SRUG_ERROR_INVALID_ARGUMENT);
+  CHECK(srug_renderer_set_preset(r, "balanced"));
+  {
+    srug_scene *huge = NULL;
+    EXPECT(srug_scene_create_demo(ctx, (size_t)1 << 40, 1, &huge), SRUG_ERROR_INVALID_ARGUMENT);
+    EXPECT(srug_scene_create_demo(ctx, SIZE_MAX, 1, &huge), SRUG_ERROR_INVALID_ARGUMENT);
+    REQUIRE(huge == NULL);
+    size_t kept = 7;
+    EXPECT(srug_context_take_validation_messages(ctx, &kept, NULL, 64), SRUG_ERROR_NULL_POINTER);
+    REQUIRE(kept == 7); /* nothing written on failure */
+    double untouched = -1.0;
+    EXPECT(srug_renderer_stage(r, 0, NULL, 16, &untouched), SRUG_ERROR_NULL_POINTER);
+    EXPECT(srug_renderer_stage(r, 0, tiny, sizeof tiny, &untouched), SRUG_ERROR_BUFFER_TOO_SMALL);
+    REQUIRE(untouched == -1.0 && tiny[sizeof tiny - 1] == 0); /* a cut, terminated name; no time */
+    char name[5];
+    size_t name_len = 0;
+    EXPECT(srug_context_device_name(ctx, name, sizeof name, &name_len), SRUG_ERROR_BUFFER_TOO_SMALL);
+    REQUIRE(strlen(name) == sizeof name - 1 && name_len > sizeof name); /* the documented cut copy */
+  }
+  CHECK(srug_renderer_set_camera_look_at(r, eye, target, up, 70.0f));
+  CHECK(srug_renderer_render(r, scene));
+
   printf("foreign and destroyed handles:\n");
   EXPECT(srug_renderer_render(r, foreign_scene), SRUG_ERROR_INVALID_ARGUMENT); /* another context */
   EXPECT(srug_renderer_render((srug_renderer *)scene, scene), SRUG_ERROR_INVALID_HANDLE);
