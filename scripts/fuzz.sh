@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Coverage-guided fuzzing of the loaders with cargo-fuzz (nightly Rust):
 #   scripts/fuzz.sh [TARGET...]       FUZZ_SECONDS per target (default 600)
-# Targets: ply cameras environment ktx2_chain safetensors (srug_tests::fuzz).
+# Targets: ply cameras environment ktx2_chain safetensors png (srug_tests::fuzz).
 # Seeds come from srug's own writers; findings land in fuzz/artifacts/<target>/
 # and replay with `cargo run -p srug-tests --example fuzz_replay TARGET FILE`.
 set -euo pipefail
@@ -11,7 +11,7 @@ rustup toolchain list | grep -q '^nightly' || rustup toolchain install nightly -
 command -v cargo-fuzz >/dev/null || cargo install cargo-fuzz --locked
 cargo run -q -p srug-tests --example fuzz_seeds -- fuzz/corpus
 targets=("$@")
-[ ${#targets[@]} -gt 0 ] || targets=(ply cameras environment ktx2_chain safetensors)
+[ ${#targets[@]} -gt 0 ] || targets=(ply cameras environment ktx2_chain safetensors png)
 for t in "${targets[@]}"; do
   cargo +nightly fuzz run --fuzz-dir fuzz "$t" "fuzz/corpus/$t" -- \
     -max_total_time="${FUZZ_SECONDS:-600}" -rss_limit_mb=4096 -print_final_stats=1

@@ -111,18 +111,28 @@ pub fn ssim(a: &RgbImage, b: &RgbImage, peak: f64) -> Result<f64> {
 pub fn read_image(path: &Path) -> Result<RgbImage> {
     let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
     match ext.as_deref() {
-        Some("png") => {
-            let img = image::open(path)
-                .map_err(|e| Error::invalid(path.display().to_string(), format!("cannot read the PNG: {e}")))?
-                .into_rgb32f();
-            Ok(RgbImage { width: img.width(), height: img.height(), rgb: img.into_raw() })
-        }
+        Some("png") => read_png_bytes(&crate::io::read_file(path)?, &path.display().to_string()),
         Some("exr") | Some("hdr") => {
             let map = crate::shade::EnvironmentMap::load(path)?;
             Ok(RgbImage { width: map.width, height: map.height, rgb: map.rgb })
         }
         _ => Err(Error::invalid(path.display().to_string(), "images must be .png, .exr or .hdr")),
     }
+}
+
+/// Decodes PNG bytes for comparison (8 or 16 bit, scaled to [0, 1]; alpha
+/// dropped) within the image limits ([`crate::io::Limits`]); `origin` names it in errors.
+pub fn read_png_bytes(bytes: &[u8], origin: &str) -> Result<RgbImage> {
+    let bad = |e: image::ImageError| Error::invalid(origin, format!("cannot read the PNG: {e}"));
+    let l = crate::io::limits();
+    let mut reader = image::ImageReader::with_format(std::io::Cursor::new(bytes), image::ImageFormat::Png);
+    let mut limits = image::Limits::default();
+    limits.max_image_width = Some(l.max_image_side);
+    limits.max_image_height = Some(l.max_image_side);
+    limits.max_alloc = Some(l.max_decoded_bytes);
+    reader.limits(limits);
+    let img = reader.decode().map_err(bad)?.into_rgb32f();
+    Ok(RgbImage { width: img.width(), height: img.height(), rgb: img.into_raw() })
 }
 
 #[cfg(test)]

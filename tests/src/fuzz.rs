@@ -30,6 +30,7 @@ pub const TARGETS: &[Target] = &[
     Target { name: "environment", run: environment, seeds: environment_seeds },
     Target { name: "ktx2_chain", run: ktx2_chain, seeds: chain_seeds },
     Target { name: "safetensors", run: safetensors, seeds: weight_seeds },
+    Target { name: "png", run: png, seeds: png_seeds },
 ];
 
 /// Fuzzed inputs are held to smaller limits than the defaults, so a loader
@@ -88,6 +89,19 @@ pub fn safetensors(data: &[u8]) {
     if let Ok(w) = UNetWeights::from_bytes(data, "fuzz.safetensors") {
         assert_eq!(w.layers.len(), 10, "a network without its ten layers accepted");
     }
+}
+
+/// PNG images (`srug eval` inputs).
+pub fn png(data: &[u8]) {
+    if let Ok(img) = srug::metrics::read_png_bytes(data, "fuzz.png") {
+        assert_eq!(img.rgb.len(), 3 * img.width as usize * img.height as usize, "size disagrees with pixels");
+        assert!(finite(&img.rgb), "non-finite pixel accepted");
+    }
+}
+
+fn png_seeds() -> Vec<Vec<u8>> {
+    let rgb: Vec<f32> = (0..3 * 8 * 4).map(|i| (i % 7) as f32 / 7.0).collect();
+    vec![temp_file("seed.png", |p| srug::io::write_png(p, 8, 4, &rgb).expect("PNG written"))]
 }
 
 fn temp_file(name: &str, write: impl FnOnce(&std::path::Path)) -> Vec<u8> {

@@ -82,7 +82,11 @@ fn evaluate(reference: &Path, rendered: &Path, peak: f64, csv: Option<&Path>) ->
     println!("| image | PSNR (dB) | SSIM |\n|---|---:|---:|");
     for (name, r, q) in eval_pairs(reference, rendered)? {
         let (a, b) = (srug::metrics::read_image(&r)?, srug::metrics::read_image(&q)?);
-        let context = |e: Error| Error::invalid(format!("{} against {}", q.display(), r.display()), e.to_string());
+        let pair = format!("{} against {}", q.display(), r.display());
+        let context = |e: Error| match e {
+            Error::InvalidArgument { what, why } => Error::invalid(format!("{pair}: {what}"), why),
+            other => Error::invalid(pair.clone(), other.to_string()),
+        };
         let p = srug::metrics::psnr(&a, &b, peak).map_err(context)?;
         let s = srug::metrics::ssim(&a, &b, peak).map_err(context)?;
         println!("| {name} | {p:.3} | {s:.4} |");

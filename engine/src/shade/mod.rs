@@ -214,9 +214,9 @@ impl ShadeSettings {
                 "must be finite",
             ),
             (
-                self.env_intensity.is_finite() && self.env_intensity >= 0.0,
+                self.env_intensity.is_finite() && (0.0..=1.0e6).contains(&self.env_intensity),
                 format!("environment intensity {}", self.env_intensity),
-                "must be finite and ≥ 0",
+                "must be in 0..=1e6",
             ),
             (bg_ok, format!("background {:?}", self.background), "must be finite and ≥ 0"),
         ];
@@ -327,5 +327,21 @@ impl ShadedFrame {
             radiance: device.read_buffer(&self.radiance)?,
             display: device.read_buffer(&self.display)?,
         })
+    }
+}
+
+#[cfg(test)]
+mod validate_tests {
+    #![allow(clippy::unwrap_used, reason = "a failed unwrap is a failed test")]
+    use super::*;
+
+    /// Each rule names the one value at fault.
+    #[test]
+    fn settings_name_the_value_at_fault() {
+        let e = ShadeSettings { env_intensity: 1e7, ..ShadeSettings::default() }.validate().unwrap_err().to_string();
+        assert_eq!(e, "invalid argument: environment intensity 10000000: must be in 0..=1e6");
+        let e = ShadeSettings { exposure_ev: 80.0, ..ShadeSettings::default() }.validate().unwrap_err().to_string();
+        assert_eq!(e, "invalid argument: exposure 80 EV: must be within ±64 stops");
+        assert!(ShadeSettings::default().validate().is_ok());
     }
 }

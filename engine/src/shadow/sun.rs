@@ -58,11 +58,16 @@ impl Sun {
     }
 }
 
+/// Largest sun irradiance per channel accepted (far above any real sun in
+/// srug's units, low enough that shading and exposure stay finite in f32).
+pub const MAX_SUN_INTENSITY: f32 = 1.0e9;
+
 fn check_intensity(intensity: [f32; 3]) -> Result<()> {
-    if intensity.iter().all(|v| v.is_finite() && *v >= 0.0) {
+    if intensity.iter().all(|v| v.is_finite() && *v >= 0.0 && *v <= MAX_SUN_INTENSITY) {
         Ok(())
     } else {
-        Err(Error::invalid(format!("sun intensity {intensity:?}"), "must be finite and non-negative"))
+        let [r, g, b] = intensity;
+        Err(Error::invalid(format!("sun intensity {r}, {g}, {b}"), format!("must be in 0..={MAX_SUN_INTENSITY:e}")))
     }
 }
 
@@ -267,6 +272,10 @@ mod tests {
         assert!(e.contains("sun azimuth NaN") && !e.contains("elevation"), "{e}");
         let e = Sun::from_azimuth_elevation(10.0, 95.0, [1.0; 3]).unwrap_err().to_string();
         assert!(e.contains("sun elevation 95") && !e.contains("azimuth"), "{e}");
+        // An intensity that would overflow shading in f32 is refused.
+        let e = Sun::from_azimuth_elevation(10.0, 30.0, [1.0, 1e10, 1.0]).unwrap_err().to_string();
+        assert!(e.contains("sun intensity 1, 10000000000, 1") && e.contains("0..=1e9"), "{e}");
+        assert!(Sun::from_azimuth_elevation(10.0, 30.0, [MAX_SUN_INTENSITY; 3]).is_ok());
     }
 
     #[test]
