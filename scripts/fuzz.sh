@@ -10,6 +10,16 @@ source scripts/setup.sh
 rustup toolchain list | grep -q '^nightly' || rustup toolchain install nightly --profile minimal
 command -v cargo-fuzz >/dev/null || cargo install cargo-fuzz --locked
 cargo run -q -p srug-tests --example fuzz_seeds -- fuzz/corpus
+# Files other tools wrote, where the shared data is present (small ones only: libFuzzer caps inputs).
+data=../shared/data
+if [ -d "$data" ]; then
+  copy() { find "$data/$1" -maxdepth 1 -name "$2" -size -4096k -exec cp {} "fuzz/corpus/$3/" \; 2>/dev/null || true; }
+  copy hdri '*.hdr' environment
+  copy hdri '*.exr' environment
+  copy ktx2 '*.ktx2' environment
+  copy ktx2 '*.ktx2' ktx2_chain
+  copy scenes '*.ply' ply
+fi
 targets=("$@")
 [ ${#targets[@]} -gt 0 ] || targets=(ply cameras environment ktx2_chain safetensors png)
 for t in "${targets[@]}"; do

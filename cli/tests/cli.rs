@@ -527,7 +527,7 @@ fn unet_runs_one_inference_between_safetensors_files() {
     use srug::indirect::{read_tensor, tensor_bytes, UNetConfig, UNetWeights};
     let dir = tempfile::tempdir().unwrap();
     let config = UNetConfig { widths: [8, 8, 16, 16, 32], ..UNetConfig::default() };
-    let weights = UNetWeights::random(config, 4);
+    let weights = UNetWeights::random(config.clone(), 4);
     let wpath = dir.path().join("unet.safetensors");
     std::fs::write(&wpath, weights.to_bytes().unwrap()).unwrap();
     let (c, h, w) = (14, 23, 37);
@@ -564,6 +564,13 @@ fn unet_runs_one_inference_between_safetensors_files() {
     std::fs::write(&ipath, tensor_bytes("input", c, h, w, &nan).unwrap()).unwrap();
     let o = srug(&[&args[..], &["--out", opath.to_str().unwrap()]].concat());
     assert!(!o.status.success() && text(&o).contains("tensor \"input\" element 7 is NaN"), "{}", text(&o));
+    assert!(!opath.exists(), "nothing written");
+    // A finite input of −3.4e38 overflows to NaN through a leaky-ReLU network: refused, nothing written.
+    let leaky = UNetConfig { activation: srug::indirect::Activation::LeakyRelu, ..config };
+    std::fs::write(&wpath, UNetWeights::random(leaky, 4).to_bytes().unwrap()).unwrap();
+    std::fs::write(&ipath, tensor_bytes("input", c, h, w, &vec![-3.4e38f32; c * h * w]).unwrap()).unwrap();
+    let o = srug(&[&args[..], &["--out", opath.to_str().unwrap()]].concat());
+    assert!(!o.status.success() && text(&o).contains("overflow f32 through the layers"), "{}", text(&o));
     assert!(!opath.exists(), "nothing written");
 }
 
