@@ -281,6 +281,9 @@ pub struct SunArgs {
     /// Sun elevation, degrees (at or below 0: no sun light, no shadow pass).
     #[arg(long, default_value_t = 50.0, allow_negative_numbers = true)]
     pub sun_elevation: f32,
+    /// Place the sun on the environment map's brightest point (its own sun), with --env FILE.
+    #[arg(long, conflicts_with_all = ["sun_azimuth", "sun_elevation", "sun_time", "sun_path"])]
+    pub sun_from_env: bool,
     /// Sun irradiance S_i (π: a white Lambertian surface facing the sun has radiance 1).
     #[arg(long, default_value_t = std::f32::consts::PI)]
     pub sun_intensity: f32,
@@ -309,6 +312,9 @@ fn format_time(t: &UtcTime) -> String {
 impl SunArgs {
     /// The suns of every frame, with a label for each.
     pub fn resolve(&self) -> Result<Vec<(String, Sun)>> {
+        if self.sun_from_env {
+            return Err(Error::invalid("--sun-from-env", "applies to `srug relight --env FILE` only"));
+        }
         let intensity = [self.sun_intensity; 3];
         let place = || match (self.latitude, self.longitude) {
             (Some(a), Some(o)) => Ok((a, o)),

@@ -474,6 +474,15 @@ fn relight_renders_stills_time_lapses_and_prefiltered_environments() {
     );
     let t = String::from_utf8_lossy(&o.stderr);
     assert!(o.status.success() && !t.contains("environment map's sun"), "{t}");
+    // The map turned 90° toward east puts its sun at azimuth 137.8°; --sun-from-env takes it.
+    let turned = [&base[..], &["--env-rotation", "90", "--out", png.to_str().unwrap()]].concat();
+    let o = srug(&[&turned[..], &["--sun-azimuth", "137.8", "--sun-elevation", "42.2"]].concat());
+    assert!(o.status.success() && !String::from_utf8_lossy(&o.stderr).contains("map's sun"), "{}", text(&o));
+    let o = srug(&[&turned[..], &["--sun-from-env"]].concat());
+    let t = text(&o);
+    assert!(o.status.success() && t.contains("sun from the map 137.8°, 42.2°") && !t.contains("map's sun"), "{t}");
+    let o = srug(&["info", ply, "--plan", "--sun-from-env"]);
+    assert!(!o.status.success() && text(&o).contains("applies to `srug relight --env FILE` only"), "{}", text(&o));
     // Clear refusals.
     let bad = |args: &[&str], want: &str| {
         let o = srug(args);

@@ -23,7 +23,8 @@ use crate::args::{
 pub(super) struct Lights {
     prep: EnvironmentPrep,
     fixed_env: Option<PreparedEnvironment>,
-    /// The given map's brightest direction and its ratio to the mean (a sun in the map).
+    /// The given map's brightest direction in the world (the map's rotation
+    /// applied) and its ratio to the mean: a sun in the map.
     map_sun: Option<([f64; 3], f64)>,
     /// The BRDF table.
     pub brdf: BrdfTable,
@@ -41,11 +42,24 @@ impl Lights {
             Some(p) if p.is_dir() => Some(PreparedEnvironment::load(device, p)?),
             Some(p) => {
                 let map = EnvironmentMap::load(p)?;
-                map_sun = Some(map.brightest());
+                // The map's frame turned by --env-rotation toward east (as `env_dir` in shade.glsl undoes).
+                let ([x, y, z], ratio) = map.brightest();
+                let (sin, cos) = f64::from(args.env_rotation).to_radians().sin_cos();
+                map_sun = Some(([x * cos + y * sin, -x * sin + y * cos, z], ratio));
                 Some(prep.prepare(&map, &PrepareSettings::default())?)
             }
         };
         Ok(Self { prep, fixed_env, map_sun, brdf, turbidity: args.turbidity })
+    }
+
+    /// The analytic sun placed on the map's brightest point (`--sun-from-env`).
+    pub(super) fn sun_from_map(&self, intensity: f32) -> Result<(String, Sun)> {
+        let (d, _) = self.map_sun.ok_or_else(|| {
+            Error::invalid("--sun-from-env", "needs --env with a map file (a prepared folder keeps no map)")
+        })?;
+        let sun = Sun::from_direction(glam::DVec3::from_array(d).as_vec3(), [intensity; 3])?;
+        let (a, e) = sun.azimuth_elevation();
+        Ok((format!("sun from the map {a:.1}°, {e:.1}°"), sun))
     }
 
     /// A warning when the environment map holds a sun (a texel 50× the mean
@@ -156,7 +170,8 @@ fn relight(device: &Device, args: &RelightArgs) -> Result<()> {
     let precision = indirect_precision.unwrap_or_else(|| shade.preset.indirect_precision());
     let exr = output_is_exr(out)?;
     let cams = view.resolve()?;
-    let suns = sun.resolve()?;
+    // With --sun-from-env the sun comes from the map, once it is loaded.
+    let suns = if sun.sun_from_env { Vec::new() } else { sun.resolve()? };
     let settings = shade.settings()?;
     let scene = io::read_ply(scene_path)?;
     let attributes = scene.attributes();
@@ -169,6 +184,7 @@ fn relight(device: &Device, args: &RelightArgs) -> Result<()> {
     let bounds = scene.bounds().ok_or_else(|| Error::invalid("scene", "is empty"))?;
     let gpu_scene = activate::GpuScene::upload(device, &scene)?;
     let lights = Lights::new(device, env)?;
+    let suns = if sun.sun_from_env { vec![lights.sun_from_map(sun.sun_intensity)?] } else { suns };
     let mut relighter = Relighter::new(device)?;
     // The scene does not change during the run: a frame under the previous frame's sun reuses its shadow map.
     relighter.set_shadow_map_reuse(true);
