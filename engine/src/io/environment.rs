@@ -217,6 +217,9 @@ pub(crate) fn read_exr(bytes: &[u8], origin: &str) -> Result<EnvironmentMap> {
         )
         .first_valid_layer()
         .all_attributes()
+        // On the calling thread: the parallel reader leaves decompression jobs running on its
+        // thread pool after it returns an error (found by fuzzing), holding their buffers.
+        .non_parallel()
         .from_buffered(std::io::Cursor::new(bytes))
         .map_err(not_exr)?;
     let size = image.layer_data.size;
