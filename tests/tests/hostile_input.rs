@@ -255,3 +255,28 @@ fn environment_extension_and_content_must_agree() {
     assert!(e.contains("sky.exr") && e.contains("named .exr but holds KTX2"), "{e}");
     assert!(EnvironmentMap::from_bytes(&std::fs::read(&path).unwrap(), "mem").is_ok(), "detected from content");
 }
+
+/// A DWAB chunk whose counters declare a 17 TB AC section (a mutation of
+/// the shared sunset map, found by the long fuzz run) made the exr crate abort
+/// allocating; the counters are checked against the chunk's pixels first.
+#[test]
+fn exr_dwa_chunk_with_huge_counters_is_refused() {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("data/dwab_huge_ac_count.exr");
+    let e = err_of(EnvironmentMap::from_bytes(&std::fs::read(&path).unwrap(), "dwab.exr"));
+    assert!(e.contains("dwab.exr") && e.contains("DWA-compressed chunk declares"), "{e}");
+    // The real DWAB maps it came from still read.
+    match shared_hdri() {
+        Some(dir) => {
+            for name in ["city.exr", "sunrise.exr", "sunset.exr"] {
+                let m = EnvironmentMap::load(dir.join(name)).unwrap();
+                assert_eq!((m.width, m.height), (1024, 512), "{name}");
+            }
+        }
+        None => println!("skipped the shared maps: ../shared/data is absent"),
+    }
+}
+
+fn shared_hdri() -> Option<std::path::PathBuf> {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/data/hdri");
+    dir.is_dir().then_some(dir)
+}

@@ -203,6 +203,7 @@ pub(crate) fn read_exr(bytes: &[u8], origin: &str) -> Result<EnvironmentMap> {
             .image_bytes(size.width() as u64, size.height() as u64, 1, 12)
             .map_err(|e| env_error(origin, format!("its data window {e}")))?;
     }
+    check_dwa_chunks(bytes, origin)?;
     let image = read()
         .no_deep_data()
         .largest_resolution_level()
@@ -225,6 +226,76 @@ pub(crate) fn read_exr(bytes: &[u8], origin: &str) -> Result<EnvironmentMap> {
     let size = image.layer_data.size;
     let (_, data) = image.layer_data.channel_data.pixels;
     EnvironmentMap::from_rgb(size.width() as u32, size.height() as u32, data, origin)
+}
+
+/// A DWA-compressed layer: the bound on a chunk's counters, rows per
+/// scan-line chunk, bytes per pixel, data window top, height and width.
+type DwaLayer = (u64, usize, usize, i32, usize, usize);
+
+/// exr 1.74 allocates what a DWAA/DWAB chunk's counters declare before it
+/// decodes the chunk (a crafted one asked for 17 TB and aborted the process;
+/// found by fuzzing). Every DWA chunk's sizes and counts are checked against
+/// the pixels a chunk can hold first: at most 256 rows (DWAB; DWAA 32) of the
+/// data window's width, or one tile, times the channels, 8 bytes a sample.
+fn check_dwa_chunks(bytes: &[u8], origin: &str) -> Result<()> {
+    use exr::block::chunk::CompressedBlock;
+    use exr::compression::Compression;
+    use exr::meta::BlockDescription;
+    let not_exr = |e: exr::error::Error| env_error(origin, format!("not a readable OpenEXR RGB image: {e}"));
+    let reader = exr::block::read(std::io::Cursor::new(bytes), false).map_err(not_exr)?;
+    let layers: Vec<Option<DwaLayer>> = reader
+        .meta_data()
+        .headers
+        .iter()
+        .map(|h| {
+            let rows = match h.compression {
+                Compression::DWAA(_) => 32,
+                Compression::DWAB(_) => 256,
+                _ => return None,
+            };
+            let round8 = |n: usize| n.div_ceil(8) as u64 * 8;
+            let pixels = match h.blocks {
+                BlockDescription::Tiles(t) => round8(t.tile_size.width()) * round8(t.tile_size.height()),
+                BlockDescription::ScanLines => 256 * round8(h.layer_size.width()),
+            };
+            let bound = pixels.saturating_mul(h.channels.list.len() as u64).saturating_mul(8);
+            let (top, size) = (h.own_attributes.layer_position.y(), h.layer_size);
+            Some((bound, rows, h.channels.bytes_per_pixel, top, size.height(), size.width()))
+        })
+        .collect();
+    if layers.iter().all(Option::is_none) {
+        return Ok(());
+    }
+    for chunk in reader.all_chunks(false).map_err(not_exr)? {
+        let chunk = chunk.map_err(not_exr)?;
+        let Some((bound, rows, bpp, top, height, width)) = layers.get(chunk.layer_index).copied().flatten() else {
+            continue;
+        };
+        let data = match &chunk.compressed_block {
+            CompressedBlock::ScanLine(b) => {
+                // A chunk compression would not have shrunk is stored raw: no leader to check.
+                let below = usize::try_from(i64::from(b.y_coordinate) - i64::from(top)).unwrap_or(0);
+                let raw = rows.min(height.saturating_sub(below)) * width * bpp;
+                if b.compressed_pixels_le.len() == raw {
+                    continue;
+                }
+                &b.compressed_pixels_le
+            }
+            CompressedBlock::Tile(b) => &b.compressed_pixels_le,
+            _ => continue,
+        };
+        // The chunk leader: version, then nine sizes and counts, then the AC coder (u64 each).
+        let counter = |i: usize| data.get(8 * i..8 * i + 8).map(|b| u64::from_le_bytes(b.try_into().unwrap_or([0; 8])));
+        if let Some(value) = (1..10).filter_map(counter).find(|v| *v > bound) {
+            return Err(env_error(
+                origin,
+                format!(
+                    "a DWA-compressed chunk declares a section of {value}, more than the {bound} its pixels can hold"
+                ),
+            ));
+        }
+    }
+    Ok(())
 }
 
 /// Reads Radiance RGBE bytes.
