@@ -72,8 +72,8 @@ impl Lights {
         if ratio < 50.0 || angle <= 5.0 {
             return None;
         }
-        let azimuth = d[0].atan2(d[1]).to_degrees().rem_euclid(360.0);
-        let elevation = d[2].clamp(-1.0, 1.0).asin().to_degrees();
+        let (azimuth, elevation) =
+            Sun::from_direction(glam::DVec3::from_array(d).as_vec3(), [1.0; 3]).ok()?.azimuth_elevation();
         let (sa, se) = sun.azimuth_elevation();
         Some(format!(
             "warning: the environment map's sun (brightest point, {ratio:.0}x its mean) is at azimuth {azimuth:.1}°, \
