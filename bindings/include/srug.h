@@ -254,15 +254,17 @@ srug_status srug_context_take_validation_messages(const srug_context *ctx,
 // `count` valid for one write.
 srug_status srug_live_handle_count(size_t *count);
 
-// Loads a 3DGS PLY file (INRIA layout, binary or ASCII, optional material
-// attributes) and uploads it. Malformed files fail with `SRUG_ERROR_BAD_FILE`
-// and a message naming the row and property.
+// Loads a scene file and uploads it: INRIA PLY (binary or ASCII, optional
+// material attributes), compressed PLY, `.splat`, `.spz`, SOG (`.sog` or
+// `meta.json`) or GLB, detected from the content. Malformed files fail with
+// `SRUG_ERROR_BAD_FILE` and a message naming the format and the field.
 //
 // # Safety
 // `path` a NUL-terminated string; `out` valid for one write.
 srug_status srug_scene_from_file(const srug_context *ctx, const char *path, srug_scene **out);
 
-// Parses a PLY file held in memory (`len` bytes; copied, the caller keeps its buffer).
+// Parses a scene file held in memory (any format but an unbundled SOG; `len`
+// bytes, copied, the caller keeps its buffer).
 //
 // # Safety
 // `data` valid for `len` bytes of reads; `out` valid for one write.

@@ -1,4 +1,4 @@
-//! Scenes: from a PLY file, PLY bytes or the demo city; Gaussians replaced in place for training.
+//! Scenes: from a scene file or its bytes (any format srug reads) or the demo city; Gaussians replaced in place for training.
 
 use std::ffi::c_char;
 use std::path::Path;
@@ -59,9 +59,10 @@ pub(crate) fn register_scene(ctx_id: u64, c: &Context, s: Scene, out: *mut *mut 
     unsafe { write_out(out, "out", ptr_of(id)) }
 }
 
-/// Loads a 3DGS PLY file (INRIA layout, binary or ASCII, optional material
-/// attributes) and uploads it. Malformed files fail with `SRUG_ERROR_BAD_FILE`
-/// and a message naming the row and property.
+/// Loads a scene file and uploads it: INRIA PLY (binary or ASCII, optional
+/// material attributes), compressed PLY, `.splat`, `.spz`, SOG (`.sog` or
+/// `meta.json`) or GLB, detected from the content. Malformed files fail with
+/// `SRUG_ERROR_BAD_FILE` and a message naming the format and the field.
 ///
 /// # Safety
 /// `path` a NUL-terminated string; `out` valid for one write.
@@ -76,12 +77,13 @@ pub unsafe extern "C" fn srug_scene_from_file(
         check_out(out, "out")?;
         // SAFETY: the caller's contract.
         let path = unsafe { text(path, "path") }?;
-        let s = srug::io::read_ply(Path::new(path))?;
+        let s = srug::io::read_scene(Path::new(path))?;
         register_scene(ctx_id, &c, s, out)
     })
 }
 
-/// Parses a PLY file held in memory (`len` bytes; copied, the caller keeps its buffer).
+/// Parses a scene file held in memory (any format but an unbundled SOG; `len`
+/// bytes, copied, the caller keeps its buffer).
 ///
 /// # Safety
 /// `data` valid for `len` bytes of reads; `out` valid for one write.
@@ -97,7 +99,7 @@ pub unsafe extern "C" fn srug_scene_from_memory(
         check_out(out, "out")?;
         // SAFETY: the caller's contract.
         let bytes = unsafe { slice(data, len, "data") }?;
-        let s = srug::io::read_ply_bytes(bytes, "memory buffer").map_err(srug::Error::from)?;
+        let s = srug::io::read_scene_bytes(bytes, "memory buffer").map_err(srug::Error::from)?;
         register_scene(ctx_id, &c, s, out)
     })
 }

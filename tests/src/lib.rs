@@ -57,6 +57,20 @@ pub fn random_scene(n: usize, sh_degree: u32, seed: u64, spread: f32) -> Scene {
     s
 }
 
+/// The scene the committed format fixtures (tests/data/formats) are made
+/// from: 400 SH-3 Gaussians of [`random_scene`] with a few extremes (centres
+/// 1500 m out, near-transparent and near-opaque, tiny and large scales).
+pub fn format_source_scene() -> Scene {
+    let mut s = random_scene(400, 3, 33, 40.0);
+    s.means[3] = [1500.0, -1200.5, 7.25];
+    s.means[4] = [-900.0, 1499.0, -1450.0];
+    s.opacity_logits[5] = -9.0;
+    s.opacity_logits[6] = 9.0;
+    s.log_scales[7] = [-9.5, -6.0, 1.5];
+    s.rotations[8] = [0.0, 0.0, 0.0, -2.0];
+    s
+}
+
 /// A device with validation on (device choice from `SRUG_DEVICE`, else automatic).
 pub fn device() -> Device {
     match Device::new(&DeviceOptions { selection: None, validation: Some(true) }) {

@@ -13,7 +13,7 @@ use crate::args::{spinner, ChannelList, DeviceArgs, ShadeArgs, Size, SunArgs};
 /// Arguments of `srug info`.
 #[derive(clap::Args, Clone, Debug)]
 pub(super) struct InfoArgs {
-    /// A 3DGS PLY file.
+    /// A scene: PLY, compressed PLY, .splat, .spz, .sog / meta.json or .glb (detected from the content).
     scene: PathBuf,
     /// Also list the stages, G-buffer channels, shader variants and GPU memory a relit
     /// frame of the scene will take with the options below (nothing is rendered).
@@ -42,7 +42,7 @@ impl InfoArgs {
     pub(super) fn run(&self, device_args: &DeviceArgs) -> Result<()> {
         let Self { scene: path, plan, size, channels, sun, shade, indirect, indirect_precision } = self;
         let bar = spinner(&format!("reading {}", path.display()));
-        let scene = io::read_ply(path);
+        let scene = io::read_scene(path);
         bar.finish_and_clear();
         let scene = scene?;
         println!("{}", path.display());

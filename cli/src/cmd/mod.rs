@@ -1,6 +1,7 @@
 //! The subcommands: one file each, each an argument struct with a `run`.
 
 mod bench;
+mod convert;
 mod demo;
 mod devices;
 mod eval;
@@ -35,6 +36,8 @@ enum Command {
     /// PSNR and SSIM of rendered images against references (the paper's relighting metrics):
     /// two files, or two folders whose images are paired by name.
     Eval(eval::EvalArgs),
+    /// Convert a scene between formats (PLY, compressed PLY, .splat, SPZ, GLB; SOG is read only).
+    Convert(convert::ConvertArgs),
     /// Benchmarks (GPU timestamps; markdown tables on stdout).
     Bench {
         #[command(subcommand)]
@@ -66,6 +69,7 @@ impl Cli {
             Command::Info(a) => a.run(device),
             Command::Devices => devices::run(),
             Command::Eval(a) => a.run(),
+            Command::Convert(a) => a.run(),
             Command::Bench { what } => what.run(device),
             Command::Render(a) => a.run(device),
             Command::Relight(a) => a.run(device),

@@ -137,7 +137,7 @@ pub(super) fn write_relit(
 /// Arguments of `srug relight`.
 #[derive(clap::Args, Clone, Debug)]
 pub(super) struct RelightArgs {
-    /// A 3DGS PLY file with material attributes (albedo at least).
+    /// A scene with material attributes (albedo at least): a PLY, or any format srug reads.
     pub scene: PathBuf,
     #[command(flatten)]
     pub view: CameraArgs,
@@ -173,7 +173,7 @@ fn relight(device: &Device, args: &RelightArgs) -> Result<()> {
     // With --sun-from-env the sun comes from the map, once it is loaded.
     let suns = if sun.sun_from_env { Vec::new() } else { sun.resolve()? };
     let settings = shade.settings()?;
-    let scene = io::read_ply(scene_path)?;
+    let scene = io::read_scene(scene_path)?;
     let attributes = scene.attributes();
     if !attributes.shadeable() {
         return Err(Error::invalid(

@@ -16,7 +16,7 @@ use crate::args::{
 /// Arguments of `srug render`.
 #[derive(clap::Args, Clone, Debug)]
 pub(super) struct RenderArgs {
-    /// A 3DGS PLY file.
+    /// A scene: PLY, compressed PLY, .splat, .spz, .sog / meta.json or .glb (detected from the content).
     scene: PathBuf,
     #[command(flatten)]
     view: CameraArgs,
@@ -62,7 +62,7 @@ impl RenderArgs {
         let rgb = !is_exr || channels.names_rgb;
         let cams = view.resolve()?;
         let index = view.index;
-        let scene = io::read_ply(path)?;
+        let scene = io::read_scene(path)?;
         let device = device_args.open()?;
         let gpu_scene = activate::GpuScene::upload(&device, &scene)?;
         let mut splatter = Splatter::new(&device)?;

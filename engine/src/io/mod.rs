@@ -1,4 +1,5 @@
-//! Files in and out: scenes (INRIA PLY), cameras (`cameras.json`), images
+//! Files in and out: scenes (INRIA PLY and every common splat format, see
+//! [`SceneFormat`]), cameras (`cameras.json`), images
 //! (PNG, EXR), and the atomic write every writer goes through.
 //!
 //! Invariants: readers validate everything they return and report a defect
@@ -10,6 +11,7 @@
 mod atomic;
 mod cameras;
 pub mod environment;
+mod formats;
 mod image;
 pub mod ktx;
 pub mod limits;
@@ -18,6 +20,7 @@ mod ply;
 pub use atomic::write_atomic;
 pub use cameras::{parse_cameras_json, read_cameras_json, write_cameras_json};
 pub use environment::EnvironmentMap;
+pub use formats::{dropped_by, encode_scene, read_scene, read_scene_as, read_scene_bytes, write_scene, SceneFormat};
 pub use image::{display_byte, write_exr_channels, write_png};
 pub use limits::{limits, read_file, read_text, set_limits, Limits};
 pub use ply::{read_ply, read_ply_bytes, write_ply, PlyFormat};

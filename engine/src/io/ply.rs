@@ -462,6 +462,12 @@ pub fn write_ply(path: impl AsRef<Path>, scene: &Scene, format: PlyFormat) -> Re
 fn write_ply_to(path: &Path, scene: &Scene, format: PlyFormat) -> Result<()> {
     let file = std::fs::File::create(path).map_err(Error::io(path))?;
     let mut w = std::io::BufWriter::with_capacity(1 << 20, file);
+    let written = write_ply_into(&mut w, scene, format).and_then(|()| w.flush());
+    written.and_then(|()| w.get_ref().sync_all()).map_err(Error::io(path))
+}
+
+/// Writes `scene` as PLY into any writer (all properties float; not validated here).
+pub(crate) fn write_ply_into(w: &mut impl Write, scene: &Scene, format: PlyFormat) -> std::io::Result<()> {
     let names = property_names(scene);
     let mut header = String::from("ply\n");
     header += match format {
@@ -475,32 +481,27 @@ fn write_ply_to(path: &Path, scene: &Scene, format: PlyFormat) -> Result<()> {
         header += &format!("property float {n}\n");
     }
     header += "end_header\n";
-    let io = Error::io(path);
-    let mut write = || -> std::io::Result<()> {
-        w.write_all(header.as_bytes())?;
-        let mut row = Vec::with_capacity(names.len());
-        let mut line = String::new();
-        for g in 0..scene.len() {
-            row_values(scene, g, &mut row);
-            match format {
-                PlyFormat::BinaryLittleEndian => row.iter().try_for_each(|v| w.write_all(&v.to_le_bytes()))?,
-                PlyFormat::BinaryBigEndian => row.iter().try_for_each(|v| w.write_all(&v.to_be_bytes()))?,
-                PlyFormat::Ascii => {
-                    line.clear();
-                    for (i, v) in row.iter().enumerate() {
-                        if i > 0 {
-                            line.push(' ');
-                        }
-                        // Rust's float Display is the shortest string that parses back exactly.
-                        line += &v.to_string();
+    w.write_all(header.as_bytes())?;
+    let mut row = Vec::with_capacity(names.len());
+    let mut line = String::new();
+    for g in 0..scene.len() {
+        row_values(scene, g, &mut row);
+        match format {
+            PlyFormat::BinaryLittleEndian => row.iter().try_for_each(|v| w.write_all(&v.to_le_bytes()))?,
+            PlyFormat::BinaryBigEndian => row.iter().try_for_each(|v| w.write_all(&v.to_be_bytes()))?,
+            PlyFormat::Ascii => {
+                line.clear();
+                for (i, v) in row.iter().enumerate() {
+                    if i > 0 {
+                        line.push(' ');
                     }
-                    line.push('\n');
-                    w.write_all(line.as_bytes())?;
+                    // Rust's float Display is the shortest string that parses back exactly.
+                    line += &v.to_string();
                 }
+                line.push('\n');
+                w.write_all(line.as_bytes())?;
             }
         }
-        w.flush()?;
-        w.get_ref().sync_all()
-    };
-    write().map_err(io)
+    }
+    Ok(())
 }

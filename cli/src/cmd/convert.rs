@@ -1,0 +1,59 @@
+//! `srug convert`: a scene from any format srug reads into any it writes.
+
+use std::path::PathBuf;
+
+use srug::io::{self, SceneFormat};
+use srug::{Error, Result};
+
+/// Arguments of `srug convert`.
+#[derive(clap::Args, Clone, Debug)]
+pub(super) struct ConvertArgs {
+    /// The scene to read: PLY, compressed PLY, .splat, .spz, .sog / meta.json or .glb
+    /// (detected from the content).
+    input: PathBuf,
+    /// The file to write; its format comes from `--format` or else its extension
+    /// (.ply, .compressed.ply, .splat, .spz, .glb).
+    output: PathBuf,
+    /// Output format: ply, compressed-ply, splat, spz or glb.
+    #[arg(long, value_parser = parse_format)]
+    format: Option<SceneFormat>,
+}
+
+fn parse_format(s: &str) -> std::result::Result<SceneFormat, String> {
+    Ok(match s {
+        "ply" => SceneFormat::Ply,
+        "compressed-ply" => SceneFormat::CompressedPly,
+        "splat" => SceneFormat::Splat,
+        "spz" => SceneFormat::Spz,
+        "glb" => SceneFormat::Glb,
+        "sog" => return Err("srug reads SOG but does not write it yet".into()),
+        _ => return Err(format!("unknown format \"{s}\" (ply, compressed-ply, splat, spz, glb)")),
+    })
+}
+
+impl ConvertArgs {
+    /// Runs `srug convert`.
+    pub(super) fn run(&self) -> Result<()> {
+        let format = match self.format {
+            Some(f) => f,
+            None => SceneFormat::from_extension(&self.output).filter(|f| f.writable()).ok_or_else(|| {
+                Error::invalid(
+                    format!("output {}", self.output.display()),
+                    "its extension names no format srug writes; use .ply, .compressed.ply, .splat, .spz or .glb, or --format",
+                )
+            })?,
+        };
+        if let Some(named) = SceneFormat::from_extension(&self.output) {
+            if named != format {
+                log::warn!("{}: writing {format} under an extension that says {named}", self.output.display());
+            }
+        }
+        let scene = io::read_scene(&self.input)?;
+        for what in io::dropped_by(format, &scene) {
+            log::warn!("{format} does not store {what}; they are not in {}", self.output.display());
+        }
+        io::write_scene(&self.output, &scene, format)?;
+        println!("{} Gaussians (SH degree {}) -> {} ({format})", scene.len(), scene.sh_degree, self.output.display());
+        Ok(())
+    }
+}
