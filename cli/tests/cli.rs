@@ -168,7 +168,7 @@ fn bad_input_fails_with_a_clear_message() {
     let o = srug(&["info", not_ply.to_str().unwrap()]);
     assert_eq!(o.status.code(), Some(1));
     let t = text(&o);
-    assert!(t.contains("error:") && t.contains("notes.ply") && t.contains("not a PLY file"), "{t}");
+    assert!(t.contains("error:") && t.contains("notes.ply") && t.contains("not a scene file"), "{t}");
     assert!(!t.contains("panicked"), "{t}");
 
     let o = srug(&["info", dir.path().join("absent.ply").to_str().unwrap()]);
@@ -753,5 +753,47 @@ fn relight_presets_and_quality_options() {
         let args = ["relight", scene.to_str().unwrap(), "--cameras", cams.to_str().unwrap(), option, value];
         let o = srug(&[&args[..], &["--out", "x.png"]].concat());
         assert!(!o.status.success() && text(&o).contains(want), "{option} {value}: {}", text(&o));
+    }
+}
+
+/// `srug convert` between formats: a file another tool wrote in, every
+/// writable format out and read back by `info`; SOG and unknown extensions
+/// refused with nothing written.
+#[test]
+fn convert_writes_every_format_and_refuses_what_it_cannot() {
+    let fixtures = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../tests/data/formats");
+    let dir = tempfile::tempdir().unwrap();
+    let input = fixtures.join("st.v4.spz");
+    for name in ["a.ply", "a.compressed.ply", "a.splat", "a.spz", "a.glb"] {
+        let out = dir.path().join(name);
+        let o = srug(&["convert", input.to_str().unwrap(), out.to_str().unwrap()]);
+        let t = text(&o);
+        assert!(o.status.success(), "{name}: {t}");
+        assert!(t.contains("400 Gaussians (SH degree 3)"), "{t}");
+        if name == "a.splat" {
+            assert!(t.contains("does not store SH bands 1 to 3"), "{t}");
+        }
+        let o = srug(&["info", out.to_str().unwrap()]);
+        let t = text(&o);
+        assert!(o.status.success() && t.contains("Gaussians: 400"), "{name}: {t}");
+    }
+    // An explicit format under a misleading extension is written, with a warning.
+    let odd = dir.path().join("b.ply");
+    let o = srug(&["convert", input.to_str().unwrap(), odd.to_str().unwrap(), "--format", "glb"]);
+    assert!(o.status.success() && text(&o).contains("under an extension that says PLY"), "{}", text(&o));
+    let o = srug(&["info", odd.to_str().unwrap()]);
+    assert!(text(&o).contains("the extension says PLY but the content is GLB"), "{}", text(&o));
+    for (out, args, words) in [
+        ("c.sog", vec![], "extension names no format srug writes"),
+        ("c.xyz", vec![], "extension names no format srug writes"),
+        ("c.ply", vec!["--format", "sog"], "does not write it yet"),
+    ] {
+        let path = dir.path().join(out);
+        let mut all = vec!["convert", input.to_str().unwrap(), path.to_str().unwrap()];
+        all.extend(args);
+        let o = srug(&all);
+        assert_eq!(o.status.code(), if out == "c.ply" { Some(2) } else { Some(1) }, "{}", text(&o));
+        assert!(text(&o).contains(words), "{}", text(&o));
+        assert!(!path.exists(), "nothing written for {out}");
     }
 }

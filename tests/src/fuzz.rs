@@ -31,6 +31,7 @@ pub const TARGETS: &[Target] = &[
     Target { name: "ktx2_chain", run: ktx2_chain, seeds: chain_seeds },
     Target { name: "safetensors", run: safetensors, seeds: weight_seeds },
     Target { name: "png", run: png, seeds: png_seeds },
+    Target { name: "scenes", run: scenes, seeds: scene_seeds },
 ];
 
 /// Fuzzed inputs are held to smaller limits than the defaults, so a loader
@@ -48,6 +49,13 @@ pub fn ply(data: &[u8]) {
     if let Ok(s) = read_ply_bytes(data, "fuzz.ply") {
         assert!(s.means.len() == s.len() && s.opacity_logits.len() == s.len(), "inconsistent scene");
         assert!(s.means.iter().flatten().all(|v| v.is_finite()), "non-finite mean accepted");
+    }
+}
+
+/// Scenes in every format srug reads, detected from content.
+pub fn scenes(data: &[u8]) {
+    if let Ok(s) = srug::io::read_scene_bytes(data, "fuzz.scene") {
+        assert!(s.validate("fuzz.scene").is_ok(), "a scene that fails validation accepted");
     }
 }
 
@@ -117,6 +125,21 @@ fn ply_seeds() -> Vec<Vec<u8>> {
         .into_iter()
         .map(|f| temp_file("seed.ply", |p| write_ply(p, &scene, f).expect("PLY written")))
         .collect()
+}
+
+fn scene_seeds() -> Vec<Vec<u8>> {
+    let scene = crate::random_scene(5, 1, 3, 2.0);
+    let mut seeds: Vec<Vec<u8>> = srug::io::SceneFormat::ALL
+        .into_iter()
+        .filter(|f| f.writable())
+        .map(|f| srug::io::encode_scene(&scene, f).expect("scene encoded"))
+        .collect();
+    // Formats srug does not write, as other tools wrote them (tests/data/formats).
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("data/formats");
+    for name in ["st.v2.spz", "st.v3.spz", "st.sog"] {
+        seeds.push(std::fs::read(dir.join(name)).expect("format fixture"));
+    }
+    seeds
 }
 
 fn camera_seeds() -> Vec<Vec<u8>> {

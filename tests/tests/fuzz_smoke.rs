@@ -49,6 +49,7 @@ fn every_seed_is_a_valid_input() {
                 "ktx2_chain" => read_float_chain(&seed, "seed").is_ok(),
                 "safetensors" => srug::indirect::UNetWeights::from_bytes(&seed, "seed").is_ok(),
                 "png" => srug::metrics::read_png_bytes(&seed, "seed").is_ok(),
+                "scenes" => srug::io::read_scene_bytes(&seed, "seed").is_ok(),
                 other => panic!("unknown target {other}"),
             };
             assert!(accepted, "a {} seed is refused", target.name);

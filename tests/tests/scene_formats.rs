@@ -341,3 +341,141 @@ fn formats_are_detected_from_content() {
     let e = read_scene_bytes(b"hello, world", "notes.txt").unwrap_err().to_string();
     assert!(e.contains("notes.txt") && e.contains("not a scene file"), "{e}");
 }
+
+fn refuse(bytes: &[u8], format: SceneFormat, origin: &str) -> String {
+    match srug::io::read_scene_as(bytes, format, origin) {
+        Ok(s) => panic!("{origin}: a bad {format} file was accepted ({} Gaussians)", s.len()),
+        Err(e) => e.to_string(),
+    }
+}
+
+fn put_u32(bytes: &mut [u8], at: usize, v: u32) {
+    bytes[at..at + 4].copy_from_slice(&v.to_le_bytes());
+}
+
+fn gunzip(bytes: &[u8]) -> Vec<u8> {
+    use std::io::Read;
+    let mut out = Vec::new();
+    flate2::read::GzDecoder::new(bytes).read_to_end(&mut out).unwrap();
+    out
+}
+
+fn gzip(bytes: &[u8]) -> Vec<u8> {
+    use std::io::Write;
+    let mut w = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::fast());
+    w.write_all(bytes).unwrap();
+    w.finish().unwrap()
+}
+
+/// Every format cut short anywhere is refused with the file and the format
+/// named (a `.splat` has no header: cut at a row boundary it is a valid
+/// smaller scene, so its cuts fall inside rows).
+#[test]
+fn truncated_files_are_refused_naming_the_format() {
+    let cases = [
+        ("st.compressed.ply", SceneFormat::CompressedPly, "compressed PLY"),
+        ("st.v4.spz", SceneFormat::Spz, "SPZ"),
+        ("st.v3.spz", SceneFormat::Spz, "SPZ"),
+        ("st.v2.spz", SceneFormat::Spz, "SPZ"),
+        ("st.sog", SceneFormat::Sog, "SOG"),
+        ("st.glb", SceneFormat::Glb, "GLB"),
+        ("srug.splat", SceneFormat::Splat, ".splat"),
+    ];
+    for (name, format, word) in cases {
+        let bytes = std::fs::read(fixture(name)).unwrap();
+        for cut in [1, 17, 33, bytes.len() / 3 + 3, bytes.len() / 2 + 5, bytes.len() - 1] {
+            let e = refuse(&bytes[..cut], format, name);
+            assert!(e.contains(name) && e.contains(word), "{name} cut at {cut}: {e}");
+        }
+    }
+    let e = refuse(&[], SceneFormat::Splat, "empty.splat");
+    assert!(e.contains("empty"), "{e}");
+}
+
+/// Counts that disagree with the data are refused with the field named.
+#[test]
+fn counts_that_disagree_with_the_data_are_refused() {
+    let source = srug_tests::format_source_scene();
+    // SPZ v4: one point more than the streams hold.
+    let mut spz = encode_scene(&source, SceneFormat::Spz).unwrap();
+    put_u32(&mut spz, 8, 401);
+    let e = refuse(&spz, SceneFormat::Spz, "a.spz");
+    assert!(e.contains("positions") && e.contains("401 points"), "{e}");
+    // SPZ v3 (gzip): one point fewer than the stream holds, and one more.
+    let raw = gunzip(&std::fs::read(fixture("st.v3.spz")).unwrap());
+    for (count, words) in [(399, "more data follows"), (401, "truncated")] {
+        let mut r = raw.clone();
+        put_u32(&mut r, 8, count);
+        let e = refuse(&gzip(&r), SceneFormat::Spz, "b.spz");
+        assert!(e.contains("numPoints") && e.contains(words), "{count}: {e}");
+    }
+    // Compressed PLY: a vertex count the chunks do not cover.
+    let text = std::fs::read(fixture("st.compressed.ply")).unwrap();
+    let at = text.windows(19).position(|w| w == b"element vertex 400\n").unwrap();
+    let mut cply = text.clone();
+    cply[at + 15..at + 18].copy_from_slice(b"700");
+    let e = refuse(&cply, SceneFormat::CompressedPly, "c.compressed.ply");
+    assert!(e.contains("chunk") && e.contains("700 Gaussians"), "{e}");
+    // .splat: a partial row.
+    let mut splat = std::fs::read(fixture("srug.splat")).unwrap();
+    splat.extend_from_slice(&[0; 5]);
+    let e = refuse(&splat, SceneFormat::Splat, "d.splat");
+    assert!(e.contains("32-byte rows"), "{e}");
+    // GLB: an accessor that claims more elements than its buffer view holds.
+    let glb = encode_scene(&source, SceneFormat::Glb).unwrap();
+    let at = glb.windows(11).position(|w| w == b"\"count\":400").unwrap();
+    let mut bad = glb.clone();
+    bad[at..at + 11].copy_from_slice(b"\"count\":900");
+    let e = refuse(&bad, SceneFormat::Glb, "e.glb");
+    assert!(e.contains("900 elements do not fit"), "{e}");
+}
+
+/// Unknown versions and flags are refused, not guessed at.
+#[test]
+fn unknown_versions_and_flags_are_refused() {
+    let source = srug_tests::format_source_scene();
+    let spz = encode_scene(&source, SceneFormat::Spz).unwrap();
+    let mut v5 = spz.clone();
+    put_u32(&mut v5, 4, 5);
+    assert!(refuse(&v5, SceneFormat::Spz, "v5.spz").contains("version 5"));
+    let mut flags = spz.clone();
+    flags[14] = 0x80;
+    let e = refuse(&flags, SceneFormat::Spz, "f.spz");
+    assert!(e.contains("flags") && e.contains("0x80"), "{e}");
+    let mut legacy = gunzip(&std::fs::read(fixture("st.v3.spz")).unwrap());
+    legacy[14] |= 0x2;
+    let e = refuse(&gzip(&legacy), SceneFormat::Spz, "x.spz");
+    assert!(e.contains("extension records"), "{e}");
+    let mut glb = encode_scene(&source, SceneFormat::Glb).unwrap();
+    put_u32(&mut glb, 4, 1);
+    assert!(refuse(&glb, SceneFormat::Glb, "v1.glb").contains("container version 1"));
+    // SOG: a meta.json of version 3, and one without a version (the legacy layout).
+    let dir = tempfile::tempdir().unwrap();
+    for (meta, words) in
+        [(r#"{"version": 3, "count": 1, "means": {}}"#, "version 3"), (r#"{"count": 1, "means": {}}"#, "version 1")]
+    {
+        let path = dir.path().join("meta.json");
+        std::fs::write(&path, meta).unwrap();
+        let e = read_scene(&path).unwrap_err().to_string();
+        assert!(e.contains("SOG") && e.contains(words), "{e}");
+    }
+}
+
+/// Values that decode to NaN or infinity are refused with the row and property named.
+#[test]
+fn non_finite_values_after_decoding_are_refused() {
+    let mut splat = std::fs::read(fixture("srug.splat")).unwrap();
+    splat[32 * 7 + 4..32 * 7 + 8].copy_from_slice(&f32::NAN.to_le_bytes());
+    let e = refuse(&splat, SceneFormat::Splat, "nan.splat");
+    assert!(e.contains("row 7") && e.contains("property y") && e.contains("NaN"), "{e}");
+    let mut scale = std::fs::read(fixture("srug.splat")).unwrap();
+    scale[32 * 2 + 16..32 * 2 + 20].copy_from_slice(&f32::INFINITY.to_le_bytes());
+    let e = refuse(&scale, SceneFormat::Splat, "inf.splat");
+    assert!(e.contains("row 2") && e.contains("scale_y"), "{e}");
+    // A compressed PLY chunk bound of +inf makes every position in the chunk infinite.
+    let mut cply = std::fs::read(fixture("st.compressed.ply")).unwrap();
+    let data = cply.windows(11).position(|w| w == b"end_header\n").unwrap() + 11;
+    cply[data + 12..data + 16].copy_from_slice(&f32::INFINITY.to_le_bytes());
+    let e = refuse(&cply, SceneFormat::CompressedPly, "inf.compressed.ply");
+    assert!(e.contains("row 0") && e.contains("value is"), "{e}");
+}

@@ -128,8 +128,10 @@ fn accessor(
         }),
         other => return Err(bad(format!("accessor {i} has component type {other}, which this attribute cannot use"))),
     };
+    // An accessor without a buffer view is all zeros by the glTF rules: no
+    // Gaussian attribute is meaningful so, and a tiny file could claim billions.
     let Some(view_index) = a["bufferView"].as_u64() else {
-        return Ok(vec![0.0; count * width]);
+        return Err(bad(format!("accessor {i} has no buffer view (all zeros); Gaussian attributes need data")));
     };
     let view = &json["bufferViews"][view_index as usize];
     if view["buffer"].as_u64() != Some(0) || json["buffers"][0].get("uri").is_some() {
