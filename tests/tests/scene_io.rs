@@ -456,3 +456,39 @@ fn pinhole_and_orthographic_projections() {
     assert!(Camera::orthographic(Vec3::ZERO, Vec3::ZERO, Vec3::Z, 1.0, 1.0, 1, 1, 0.0, 1.0).is_err());
     assert!(Camera::look_at(Vec3::ZERO, Vec3::Z, Vec3::Z, 60.0, 10, 10).is_err(), "up parallel to view");
 }
+
+/// A binary PLY read from disk streams into the scene (one copy on the host);
+/// it gives the same scene and the same errors as the in-memory reader,
+/// across block boundaries (rows of a 1 MiB block) and with a trailing element.
+#[test]
+fn streamed_and_in_memory_ply_reads_agree() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = srug_tests::random_scene(20_000, 3, 4, 30.0);
+    for format in [PlyFormat::BinaryLittleEndian, PlyFormat::BinaryBigEndian] {
+        let path = dir.path().join(format!("s_{format:?}.ply"));
+        write_ply(&path, &scene, format).unwrap();
+        let bytes = std::fs::read(&path).unwrap();
+        let streamed = read_ply(&path).unwrap();
+        assert!(bits_equal(&streamed, &read_ply_bytes(&bytes, "memory").unwrap()), "{format:?}");
+        assert!(bits_equal(&streamed, &scene), "{format:?}");
+        // Truncated in the middle of a row of the second block, and with one byte too many.
+        for cut in [bytes.len() - 7_000_000 / 2, bytes.len() - 1] {
+            let p = dir.path().join("cut.ply");
+            std::fs::write(&p, &bytes[..cut]).unwrap();
+            let (a, b) = (read_ply(&p).unwrap_err().to_string(), read_ply_bytes(&bytes[..cut], "x").unwrap_err());
+            assert!(a.ends_with(&b.message) && a.contains("truncated"), "{a} vs {b}");
+        }
+        let p = dir.path().join("long.ply");
+        std::fs::write(&p, [bytes.as_slice(), &[0]].concat()).unwrap();
+        assert!(read_ply(&p).unwrap_err().to_string().contains("does not match the data"));
+    }
+    // Elements after the vertex element are ignored, streamed or not.
+    let mut bytes = Vec::new();
+    srug::io::encode_scene(&scene, srug::io::SceneFormat::Ply).unwrap().clone_into(&mut bytes);
+    let end = bytes.windows(11).position(|w| w == b"end_header\n").unwrap();
+    bytes.splice(end..end, b"element face 1\nproperty list uchar int vertex_indices\n".iter().copied());
+    bytes.extend_from_slice(&[3, 0, 0, 0, 0, 1, 0, 0, 0, 2, 0, 0, 0]);
+    let p = dir.path().join("faces.ply");
+    std::fs::write(&p, &bytes).unwrap();
+    assert!(bits_equal(&read_ply(&p).unwrap(), &scene));
+}

@@ -192,11 +192,284 @@ fn find(haystack: &[u8], needle: &[u8]) -> Option<usize> {
     haystack.windows(needle.len()).position(|w| w == needle)
 }
 
-/// Reads an INRIA-style 3DGS PLY file.
+/// Where one PLY property goes in a [`Scene`].
+#[derive(Clone, Copy, Debug)]
+enum Dest {
+    Mean(usize),
+    Normal(usize),
+    /// SH coefficient `coef` of `channel` (0 is the DC term).
+    Sh {
+        channel: usize,
+        coef: usize,
+    },
+    Opacity,
+    Scale(usize),
+    Rot(usize),
+    Albedo(usize),
+    Roughness,
+    Metallic,
+    Ao,
+    Visibility,
+    Ignore,
+}
+
+/// The destination of every property, decided once from the header (any
+/// property order; the material spellings of public relightable codes).
+struct Plan {
+    dests: Vec<Dest>,
+    sh_degree: u32,
+    normals: bool,
+    albedo: bool,
+    singles: [bool; 4],
+    extra: Vec<String>,
+}
+
+impl Plan {
+    fn new(header: &Header, origin: &str) -> Result<Plan, SceneError> {
+        let index: HashMap<&str, usize> =
+            header.properties.iter().enumerate().map(|(i, p)| (p.name.as_str(), i)).collect();
+        let mut dests = vec![Dest::Ignore; header.properties.len()];
+        let mut used = vec![false; header.properties.len()];
+        let mut place = |name: &str, d: Dest| -> bool {
+            match index.get(name) {
+                Some(&i) => {
+                    dests[i] = d;
+                    used[i] = true;
+                    true
+                }
+                None => false,
+            }
+        };
+        let missing = |name: &str| SceneError {
+            path: origin.into(),
+            row: None,
+            property: Some(name.into()),
+            message: "required property is missing".into(),
+        };
+        for (a, name) in ["x", "y", "z"].into_iter().enumerate() {
+            place(name, Dest::Mean(a)).then_some(()).ok_or_else(|| missing(name))?;
+        }
+        for c in 0..3 {
+            let name = format!("f_dc_{c}");
+            place(&name, Dest::Sh { channel: c, coef: 0 }).then_some(()).ok_or_else(|| missing(&name))?;
+        }
+        place("opacity", Dest::Opacity).then_some(()).ok_or_else(|| missing("opacity"))?;
+        for a in 0..3 {
+            let name = format!("scale_{a}");
+            place(&name, Dest::Scale(a)).then_some(()).ok_or_else(|| missing(&name))?;
+        }
+        for a in 0..4 {
+            let name = format!("rot_{a}");
+            place(&name, Dest::Rot(a)).then_some(()).ok_or_else(|| missing(&name))?;
+        }
+        // f_rest_*: channel-major, 3·((d+1)² − 1) of them.
+        let rest_count = header.properties.iter().filter(|p| p.name.starts_with("f_rest_")).count();
+        let sh_degree = match rest_count {
+            0 => 0,
+            9 => 1,
+            24 => 2,
+            45 => 3,
+            c => {
+                return Err(SceneError::file(
+                    origin,
+                    format!("unsupported SH count: {c} f_rest properties (expected 0, 9, 24 or 45)"),
+                ))
+            }
+        };
+        let k = sh_coefficients(sh_degree);
+        for j in 0..rest_count {
+            let name = format!("f_rest_{j}");
+            if !place(&name, Dest::Sh { channel: j / (k - 1), coef: j % (k - 1) + 1 }) {
+                return Err(SceneError {
+                    path: origin.into(),
+                    row: None,
+                    property: Some(name),
+                    message: format!("missing; f_rest_0..f_rest_{} must all be present", rest_count - 1),
+                });
+            }
+        }
+        let normals = match ["nx", "ny", "nz"].map(|n| index.contains_key(n)) {
+            [true, true, true] => {
+                for (a, n) in ["nx", "ny", "nz"].into_iter().enumerate() {
+                    place(n, Dest::Normal(a));
+                }
+                true
+            }
+            [false, false, false] => false,
+            _ => return Err(SceneError::file(origin, "normals need all of nx, ny, nz")),
+        };
+        let mut albedo = false;
+        for spelling in ["albedo_", "base_color_", "albedo"] {
+            let names: Vec<String> = (0..3).map(|i| format!("{spelling}{i}")).collect();
+            let present = names.iter().filter(|n| index.contains_key(n.as_str())).count();
+            if present == 3 {
+                for (a, n) in names.iter().enumerate() {
+                    place(n, Dest::Albedo(a));
+                }
+                albedo = true;
+                break;
+            } else if present > 0 {
+                return Err(SceneError::file(origin, format!("albedo needs all of {}", names.join(", "))));
+            }
+        }
+        let singles = [
+            place("roughness", Dest::Roughness),
+            place("metallic", Dest::Metallic),
+            place("ao", Dest::Ao),
+            place("visibility", Dest::Visibility),
+        ];
+        let extra = header.properties.iter().zip(&used).filter(|(_, u)| !**u).map(|(p, _)| p.name.clone()).collect();
+        Ok(Plan { dests, sh_degree, normals, albedo, singles, extra })
+    }
+
+    /// A scene of `n` Gaussians, every array at its final size (zeroed).
+    fn empty_scene(&self, n: usize) -> Scene {
+        let k = sh_coefficients(self.sh_degree);
+        let single = |on: bool| on.then(|| vec![0.0f32; n]);
+        Scene {
+            means: vec![[0.0; 3]; n],
+            normals: self.normals.then(|| vec![[0.0; 3]; n]),
+            sh_degree: self.sh_degree,
+            sh: vec![0.0; n * k * 3],
+            opacity_logits: vec![0.0; n],
+            log_scales: vec![[0.0; 3]; n],
+            rotations: vec![[0.0; 4]; n],
+            materials: Materials {
+                albedo: self.albedo.then(|| vec![[0.0; 3]; n]),
+                roughness: single(self.singles[0]),
+                metallic: single(self.singles[1]),
+                ao: single(self.singles[2]),
+                visibility: single(self.singles[3]),
+            },
+            extra_properties: self.extra.clone(),
+        }
+    }
+
+    /// Writes row `g`, whose property `i` has the value `value(i)`.
+    fn set_row(&self, scene: &mut Scene, g: usize, value: impl Fn(usize) -> f32) {
+        let k = sh_coefficients(self.sh_degree);
+        for (i, d) in self.dests.iter().enumerate() {
+            let v = value(i);
+            let m = &mut scene.materials;
+            match *d {
+                Dest::Mean(a) => scene.means[g][a] = v,
+                Dest::Normal(a) => {
+                    if let Some(n) = &mut scene.normals {
+                        n[g][a] = v;
+                    }
+                }
+                Dest::Sh { channel, coef } => scene.sh[(g * k + coef) * 3 + channel] = v,
+                Dest::Opacity => scene.opacity_logits[g] = v,
+                Dest::Scale(a) => scene.log_scales[g][a] = v,
+                Dest::Rot(a) => scene.rotations[g][a] = v,
+                Dest::Albedo(a) => {
+                    if let Some(x) = &mut m.albedo {
+                        x[g][a] = v;
+                    }
+                }
+                Dest::Roughness | Dest::Metallic | Dest::Ao | Dest::Visibility => {
+                    let slot = match *d {
+                        Dest::Roughness => &mut m.roughness,
+                        Dest::Metallic => &mut m.metallic,
+                        Dest::Ao => &mut m.ao,
+                        _ => &mut m.visibility,
+                    };
+                    if let Some(x) = slot {
+                        x[g] = v;
+                    }
+                }
+                Dest::Ignore => {}
+            }
+        }
+    }
+}
+
+/// The error for binary data that ends before the rows the header declares.
+fn truncated(header: &Header, data_len: usize, origin: &str) -> SceneError {
+    let n = header.count;
+    let row = data_len / header.stride.max(1);
+    let within = data_len % header.stride.max(1);
+    let prop = header.properties.iter().rev().find(|p| p.offset <= within).map_or("?", |p| p.name.as_str());
+    SceneError::at(origin, row, prop, format!("file is truncated: data ends in row {row} of {n} declared vertices"))
+}
+
+/// Checks the binary data length against the declared rows.
+fn check_binary_length(header: &Header, data_len: usize, origin: &str) -> Result<(), SceneError> {
+    let n = header.count;
+    let need = n.checked_mul(header.stride).ok_or_else(|| SceneError::file(origin, "vertex count overflows"))?;
+    if data_len < need {
+        return Err(truncated(header, data_len, origin));
+    }
+    if data_len > need && !header.more_elements {
+        let extra = data_len - need;
+        return Err(SceneError::file(
+            origin,
+            format!(
+                "vertex count does not match the data: {n} vertices declared but {extra} bytes ({:.2} rows) follow them",
+                extra as f64 / header.stride.max(1) as f64
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// Reads an INRIA-style 3DGS PLY file. Binary files stream from disk into
+/// the scene's arrays, so the host holds one copy of the scene, not the file
+/// and the scene.
 pub fn read_ply(path: impl AsRef<Path>) -> Result<Scene> {
+    use std::io::{BufRead, Read};
     let path = path.as_ref();
-    let bytes = super::read_file(path)?;
-    Ok(read_ply_bytes(&bytes, &path.display().to_string())?)
+    let origin = path.display().to_string();
+    let file = std::fs::File::open(path).map_err(Error::io(path))?;
+    let meta = file.metadata().map_err(Error::io(path))?;
+    let max = super::limits().max_file_bytes;
+    if !meta.is_file() || meta.len() > max {
+        // The whole-file reader words these refusals.
+        return Ok(read_ply_bytes(&super::read_file(path)?, &origin)?);
+    }
+    let mut reader = std::io::BufReader::with_capacity(1 << 20, file);
+    // The header: bytes up to end_header and its newline (at most 16 MiB).
+    let mut head = Vec::new();
+    loop {
+        let before = head.len();
+        let n = reader.by_ref().take(1 << 16).read_until(b'\n', &mut head).map_err(Error::io(path))?;
+        let line_start = before;
+        if n == 0 || head.len() > 16 << 20 || head[line_start..].starts_with(b"end_header") {
+            break;
+        }
+        if head.len() >= 4 && !head.starts_with(b"ply") {
+            break;
+        }
+    }
+    let header = parse_header(&head, &origin)?;
+    if header.format == PlyFormat::Ascii {
+        return Ok(read_ply_bytes(&super::read_file(path)?, &origin)?);
+    }
+    let data_len = usize::try_from(meta.len()).unwrap_or(usize::MAX).saturating_sub(header.data_start);
+    check_binary_length(&header, data_len, &origin)?;
+    let plan = Plan::new(&header, &origin)?;
+    let big = header.format == PlyFormat::BinaryBigEndian;
+    let mut scene = plan.empty_scene(header.count);
+    let rows_per_block = (1usize << 20) / header.stride.max(1) + 1;
+    let mut block = vec![0u8; rows_per_block * header.stride];
+    let mut g = 0;
+    while g < header.count {
+        let rows = rows_per_block.min(header.count - g);
+        let bytes = &mut block[..rows * header.stride];
+        reader.read_exact(bytes).map_err(|e| match e.kind() {
+            std::io::ErrorKind::UnexpectedEof => Error::from(truncated(&header, g * header.stride, &origin)),
+            _ => Error::io(path)(e),
+        })?;
+        for (r, row) in bytes.chunks_exact(header.stride).enumerate() {
+            plan.set_row(&mut scene, g + r, |i| {
+                let p = &header.properties[i];
+                p.ty.decode(&row[p.offset..p.offset + p.ty.size()], big)
+            });
+        }
+        g += rows;
+    }
+    scene.validate(&origin)?;
+    Ok(scene)
 }
 
 /// Reads a PLY file held in memory; `origin` names it in errors.
@@ -205,49 +478,27 @@ pub fn read_ply_bytes(bytes: &[u8], origin: &str) -> Result<Scene, SceneError> {
     let n = header.count;
     let data = &bytes[header.data_start..];
     let nprops = header.properties.len();
-
-    // Decode into a column per property.
-    let mut columns: Vec<Vec<f32>> = Vec::with_capacity(nprops);
+    let plan;
+    let mut scene;
     match header.format {
         PlyFormat::BinaryLittleEndian | PlyFormat::BinaryBigEndian => {
             let big = header.format == PlyFormat::BinaryBigEndian;
-            let need =
-                n.checked_mul(header.stride).ok_or_else(|| SceneError::file(origin, "vertex count overflows"))?;
-            if data.len() < need {
-                let row = data.len() / header.stride.max(1);
-                let within = data.len() % header.stride.max(1);
-                let prop = header.properties.iter().rev().find(|p| p.offset <= within).map_or("?", |p| p.name.as_str());
-                return Err(SceneError::at(
-                    origin,
-                    row,
-                    prop,
-                    format!("file is truncated: data ends in row {row} of {n} declared vertices"),
-                ));
-            }
-            if data.len() > need && !header.more_elements {
-                let extra = data.len() - need;
-                return Err(SceneError::file(
-                    origin,
-                    format!(
-                        "vertex count does not match the data: {n} vertices declared but {extra} bytes ({:.2} rows) follow them",
-                        extra as f64 / header.stride.max(1) as f64
-                    ),
-                ));
-            }
-            for p in &header.properties {
-                let mut col = Vec::with_capacity(n);
-                let size = p.ty.size();
-                for row in 0..n {
-                    let at = row * header.stride + p.offset;
-                    col.push(p.ty.decode(&data[at..at + size], big));
-                }
-                columns.push(col);
+            check_binary_length(&header, data.len(), origin)?;
+            plan = Plan::new(&header, origin)?;
+            scene = plan.empty_scene(n);
+            for g in 0..n {
+                let row = &data[g * header.stride..(g + 1) * header.stride];
+                plan.set_row(&mut scene, g, |i| {
+                    let p = &header.properties[i];
+                    p.ty.decode(&row[p.offset..p.offset + p.ty.size()], big)
+                });
             }
         }
         PlyFormat::Ascii => {
             let text = std::str::from_utf8(data).map_err(|_| SceneError::file(origin, "ASCII PLY data is not text"))?;
-            columns = (0..nprops).map(|_| Vec::with_capacity(n.min(data.len() / 2 + 1))).collect();
             let mut lines = text.lines().filter(|l| !l.trim().is_empty());
+            // Rows are parsed before the plan is applied so defects are reported in file order.
+            let mut rows: Vec<Vec<f32>> = Vec::with_capacity(n.min(data.len() / 2 + 1));
             for row in 0..n {
                 let line = lines.next().ok_or_else(|| {
                     SceneError::at(
@@ -258,13 +509,14 @@ pub fn read_ply_bytes(bytes: &[u8], origin: &str) -> Result<Scene, SceneError> {
                     )
                 })?;
                 let mut tokens = line.split_whitespace();
-                for (i, p) in header.properties.iter().enumerate() {
+                let mut values = Vec::with_capacity(nprops);
+                for p in &header.properties {
                     let token =
                         tokens.next().ok_or_else(|| SceneError::at(origin, row, &p.name, "row has too few values"))?;
                     let v =
                         p.ty.parse_ascii(token)
                             .ok_or_else(|| SceneError::at(origin, row, &p.name, format!("cannot parse \"{token}\"")))?;
-                    columns[i].push(v);
+                    values.push(v);
                 }
                 if tokens.next().is_some() {
                     return Err(SceneError {
@@ -274,6 +526,7 @@ pub fn read_ply_bytes(bytes: &[u8], origin: &str) -> Result<Scene, SceneError> {
                         message: format!("row has more than {nprops} values"),
                     });
                 }
+                rows.push(values);
             }
             if !header.more_elements && lines.next().is_some() {
                 return Err(SceneError::file(
@@ -281,111 +534,15 @@ pub fn read_ply_bytes(bytes: &[u8], origin: &str) -> Result<Scene, SceneError> {
                     format!("vertex count does not match the data: more than {n} rows follow the header"),
                 ));
             }
-        }
-    }
-    assemble(&header, columns, origin)
-}
-
-fn assemble(header: &Header, columns: Vec<Vec<f32>>, origin: &str) -> Result<Scene, SceneError> {
-    let mut by_name: HashMap<&str, usize> =
-        header.properties.iter().enumerate().map(|(i, p)| (p.name.as_str(), i)).collect();
-    let mut columns: Vec<Option<Vec<f32>>> = columns.into_iter().map(Some).collect();
-    let mut take = |name: &str| -> Option<Vec<f32>> { by_name.remove(name).and_then(|i| columns[i].take()) };
-    let require = |take: &mut dyn FnMut(&str) -> Option<Vec<f32>>, name: &str| {
-        take(name).ok_or_else(|| SceneError {
-            path: origin.into(),
-            row: None,
-            property: Some(name.into()),
-            message: "required property is missing".into(),
-        })
-    };
-    let n = header.count;
-    let zip3 =
-        |a: Vec<f32>, b: Vec<f32>, c: Vec<f32>| -> Vec<[f32; 3]> { (0..n).map(|i| [a[i], b[i], c[i]]).collect() };
-
-    let means = zip3(require(&mut take, "x")?, require(&mut take, "y")?, require(&mut take, "z")?);
-    let dc = [require(&mut take, "f_dc_0")?, require(&mut take, "f_dc_1")?, require(&mut take, "f_dc_2")?];
-    let opacity_logits = require(&mut take, "opacity")?;
-    let log_scales =
-        zip3(require(&mut take, "scale_0")?, require(&mut take, "scale_1")?, require(&mut take, "scale_2")?);
-    let r = [
-        require(&mut take, "rot_0")?,
-        require(&mut take, "rot_1")?,
-        require(&mut take, "rot_2")?,
-        require(&mut take, "rot_3")?,
-    ];
-    let rotations = (0..n).map(|i| [r[0][i], r[1][i], r[2][i], r[3][i]]).collect();
-
-    // f_rest_*: channel-major, 3·((d+1)² − 1) of them.
-    let rest_count = header.properties.iter().filter(|p| p.name.starts_with("f_rest_")).count();
-    let sh_degree = match rest_count {
-        0 => 0,
-        9 => 1,
-        24 => 2,
-        45 => 3,
-        c => {
-            return Err(SceneError::file(
-                origin,
-                format!("unsupported SH count: {c} f_rest properties (expected 0, 9, 24 or 45)"),
-            ))
-        }
-    };
-    let k = sh_coefficients(sh_degree);
-    let mut rest = Vec::with_capacity(rest_count);
-    for j in 0..rest_count {
-        let name = format!("f_rest_{j}");
-        rest.push(take(&name).ok_or_else(|| SceneError {
-            path: origin.into(),
-            row: None,
-            property: Some(name.clone()),
-            message: format!("missing; f_rest_0..f_rest_{} must all be present", rest_count - 1),
-        })?);
-    }
-    let mut sh = vec![0.0f32; n * k * 3];
-    for g in 0..n {
-        for c in 0..3 {
-            sh[g * k * 3 + c] = dc[c][g];
-            for coef in 1..k {
-                sh[(g * k + coef) * 3 + c] = rest[c * (k - 1) + coef - 1][g];
+            plan = Plan::new(&header, origin)?;
+            scene = plan.empty_scene(n);
+            for (g, values) in rows.iter().enumerate() {
+                plan.set_row(&mut scene, g, |i| values[i]);
             }
         }
     }
-
-    let normals = match (take("nx"), take("ny"), take("nz")) {
-        (Some(a), Some(b), Some(c)) => Some(zip3(a, b, c)),
-        (None, None, None) => None,
-        _ => return Err(SceneError::file(origin, "normals need all of nx, ny, nz")),
-    };
-    let mut albedo = None;
-    for spelling in ["albedo_", "base_color_", "albedo"] {
-        let names: Vec<String> = (0..3).map(|i| format!("{spelling}{i}")).collect();
-        let present = names.iter().filter(|n| by_name_has(header, n)).count();
-        if present == 3 {
-            if let (Some(a), Some(b), Some(c)) = (take(&names[0]), take(&names[1]), take(&names[2])) {
-                albedo = Some(zip3(a, b, c));
-                break;
-            }
-        } else if present > 0 {
-            return Err(SceneError::file(origin, format!("albedo needs all of {}", names.join(", "))));
-        }
-    }
-    let materials = Materials {
-        albedo,
-        roughness: take("roughness"),
-        metallic: take("metallic"),
-        ao: take("ao"),
-        visibility: take("visibility"),
-    };
-    let extra_properties =
-        header.properties.iter().filter(|p| by_name.contains_key(p.name.as_str())).map(|p| p.name.clone()).collect();
-    let scene =
-        Scene { means, normals, sh_degree, sh, opacity_logits, log_scales, rotations, materials, extra_properties };
     scene.validate(origin)?;
     Ok(scene)
-}
-
-fn by_name_has(header: &Header, name: &str) -> bool {
-    header.properties.iter().any(|p| p.name == name)
 }
 
 /// Property names in the order the writer emits them.

@@ -1,6 +1,7 @@
 //! `srug bench <area>`: the benchmarks (GPU timestamps; markdown tables on stdout).
 //! The measuring code lives in [`crate::bench`]; these files parse, run and print.
 
+mod formats;
 mod scaling;
 mod shade;
 mod shadow;
@@ -27,6 +28,8 @@ pub(super) enum BenchCommand {
     /// Relit frame time and GPU memory against Gaussian count and against pixel count, with
     /// fitted log-log slopes (balanced preset, demo city).
     Scaling(scaling::ScalingBenchArgs),
+    /// Scene files: load time, size and host memory per format (no GPU).
+    Formats(formats::FormatBenchArgs),
     /// Sigmoid shadow pass against the traced pass; shadow-map accuracy across resolution, k and depth mode.
     Shadow(shadow::ShadowBenchArgs),
 }
@@ -41,6 +44,7 @@ impl BenchCommand {
             Self::Trade(a) => a.run(device),
             Self::Scaling(a) => a.run(device),
             Self::Shadow(a) => a.run(device),
+            Self::Formats(a) => a.run(),
         }
     }
 }

@@ -125,6 +125,13 @@ impl std::fmt::Display for SceneFormat {
 /// extension that names another format is reported as a warning.
 pub fn read_scene(path: impl AsRef<Path>) -> Result<Scene> {
     let path = path.as_ref();
+    if is_plain_ply(path) {
+        // Streams from disk: one copy of the scene on the host, not the file and the scene.
+        if let Some(named) = SceneFormat::from_extension(path).filter(|f| *f != SceneFormat::Ply) {
+            log::warn!("{}: the extension says {named} but the content is PLY; reading it as PLY", path.display());
+        }
+        return super::read_ply(path);
+    }
     let bytes = super::read_file(path)?;
     let origin = path.display().to_string();
     let format = SceneFormat::detect(&bytes).ok_or_else(|| {
@@ -151,6 +158,20 @@ pub fn read_scene(path: impl AsRef<Path>) -> Result<Scene> {
         return Ok(sog::read_with(&bytes, &mut load, &origin)?);
     }
     Ok(read_scene_as(&bytes, format, &origin)?)
+}
+
+/// Whether the file starts like an INRIA PLY (not the compressed layout), from its first 64 KiB.
+fn is_plain_ply(path: &Path) -> bool {
+    use std::io::Read;
+    let Ok(file) = std::fs::File::open(path) else { return false };
+    if !file.metadata().is_ok_and(|m| m.is_file()) {
+        return false;
+    }
+    let mut prefix = Vec::with_capacity(1 << 16);
+    if file.take(1 << 16).read_to_end(&mut prefix).is_err() {
+        return false;
+    }
+    SceneFormat::detect(&prefix) == Some(SceneFormat::Ply)
 }
 
 /// Reads a scene held in memory (any format but an unbundled SOG, whose
