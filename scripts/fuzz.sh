@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Coverage-guided fuzzing of the loaders with cargo-fuzz (nightly Rust):
 #   scripts/fuzz.sh [TARGET...]       FUZZ_SECONDS per target (default 600)
-# Targets: ply cameras environment ktx2_chain safetensors png scenes (srug_tests::fuzz).
+# Targets: ply cameras environment ktx2_chain safetensors png scenes camera_files (srug_tests::fuzz).
 # Seeds come from srug's own writers; findings land in fuzz/artifacts/<target>/
 # and replay with `cargo run -p srug-tests --example fuzz_replay TARGET FILE`.
 set -euo pipefail
@@ -22,7 +22,7 @@ if [ -d "$data" ]; then
   copy scenes "*.ply" scenes
 fi
 targets=("$@")
-[ ${#targets[@]} -gt 0 ] || targets=(ply cameras environment ktx2_chain safetensors png scenes)
+[ ${#targets[@]} -gt 0 ] || targets=(ply cameras environment ktx2_chain safetensors png scenes camera_files)
 for t in "${targets[@]}"; do
   cargo +nightly fuzz run --fuzz-dir fuzz "$t" "fuzz/corpus/$t" -- \
     -max_total_time="${FUZZ_SECONDS:-600}" -rss_limit_mb=4096 -print_final_stats=1

@@ -214,7 +214,9 @@ fn parse_render_scale(text: &str) -> Result<f32> {
 /// Which cameras to render.
 #[derive(clap::Args, Clone, Debug)]
 pub struct CameraArgs {
-    /// INRIA cameras.json; without it, the look-at options define one camera.
+    /// Cameras: INRIA cameras.json, a COLMAP sparse model (its folder or its cameras/images
+    /// file, text or binary) or a nerfstudio/instant-ngp transforms.json, detected from the
+    /// content; without it, the look-at options define one camera.
     #[arg(long, conflicts_with_all = ["eye", "target", "up", "fov"])]
     pub cameras: Option<PathBuf>,
     /// Render only this camera (default: every camera, numbered outputs).
@@ -242,7 +244,7 @@ impl CameraArgs {
     pub fn resolve(&self) -> Result<Vec<Camera>> {
         let size = self.size.map(Size::pair);
         let mut cams = match (&self.cameras, &self.eye) {
-            (Some(c), _) => io::read_cameras_json(c)?,
+            (Some(c), _) => io::read_cameras(c)?,
             (None, Some(eye)) => {
                 let (w, h) = size.ok_or_else(|| Error::invalid("--eye", "needs --size"))?;
                 vec![Camera::look_at(eye.0, self.target.0, self.up.0, self.fov, w, h)?]

@@ -797,3 +797,36 @@ fn convert_writes_every_format_and_refuses_what_it_cannot() {
         assert!(!path.exists(), "nothing written for {out}");
     }
 }
+
+/// `--cameras` takes a COLMAP model or a transforms.json (detected), with any scene format.
+#[test]
+fn render_takes_colmap_and_nerfstudio_cameras() {
+    let data = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../tests/data");
+    let scene = data.join("formats/st.v4.spz");
+    let dir = tempfile::tempdir().unwrap();
+    for (i, cameras) in
+        ["cameras/colmap/bin", "cameras/colmap/text/images.txt", "cameras/transforms.json"].iter().enumerate()
+    {
+        let out = dir.path().join(format!("v{i}.png"));
+        let cams = data.join(cameras);
+        let args = ["render", scene.to_str().unwrap(), "--cameras", cams.to_str().unwrap(), "--index", "3"];
+        let o = srug(&[&args[..], &["--size", "40x30", "--out", out.to_str().unwrap()]].concat());
+        assert!(o.status.success(), "{cameras}: {}", text(&o));
+        assert!(out.is_file(), "{cameras}");
+    }
+    let out = dir.path().join("d.png");
+    let cams = data.join("cameras/colmap_distorted/text");
+    let o = srug(&[
+        "render",
+        scene.to_str().unwrap(),
+        "--cameras",
+        cams.to_str().unwrap(),
+        "--size",
+        "40x30",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(text(&o).contains("pinhole cameras only"), "{}", text(&o));
+    assert!(!out.exists());
+}

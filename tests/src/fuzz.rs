@@ -32,6 +32,7 @@ pub const TARGETS: &[Target] = &[
     Target { name: "safetensors", run: safetensors, seeds: weight_seeds },
     Target { name: "png", run: png, seeds: png_seeds },
     Target { name: "scenes", run: scenes, seeds: scene_seeds },
+    Target { name: "camera_files", run: camera_files, seeds: camera_file_seeds },
 ];
 
 /// Fuzzed inputs are held to smaller limits than the defaults, so a loader
@@ -56,6 +57,31 @@ pub fn ply(data: &[u8]) {
 pub fn scenes(data: &[u8]) {
     if let Ok(s) = srug::io::read_scene_bytes(data, "fuzz.scene") {
         assert!(s.validate("fuzz.scene").is_ok(), "a scene that fails validation accepted");
+    }
+}
+
+/// COLMAP models and transforms.json. Byte 0 picks the form (0: COLMAP
+/// binary, 1: COLMAP text, else transforms.json); for COLMAP, bytes 1-4 give
+/// the length of the cameras file, the images file follows it.
+pub fn camera_files(data: &[u8]) {
+    if let Some(Ok(cams)) = parse_camera_files(data) {
+        assert!(!cams.is_empty(), "an empty camera list accepted");
+        for c in &cams {
+            assert!(c.validate().is_ok(), "a camera that fails validation accepted");
+        }
+    }
+}
+
+/// What [`camera_files`] parses; `None` when the input selects nothing.
+pub fn parse_camera_files(data: &[u8]) -> Option<Result<Vec<Camera>, srug::scene::SceneError>> {
+    let (&form, rest) = data.split_first()?;
+    if form < 2 {
+        let len = rest.get(..4).map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]) as usize)?;
+        let rest = &rest[4..];
+        let (c, i) = rest.split_at(len.min(rest.len()));
+        Some(srug::io::parse_colmap(c, i, form == 0))
+    } else {
+        std::str::from_utf8(rest).ok().map(|text| srug::io::parse_transforms_json(text, "fuzz.json"))
     }
 }
 
@@ -140,6 +166,23 @@ fn scene_seeds() -> Vec<Vec<u8>> {
         seeds.push(std::fs::read(dir.join(name)).expect("format fixture"));
     }
     seeds
+}
+
+fn camera_file_seeds() -> Vec<Vec<u8>> {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("data/cameras");
+    let read = |p: &str| std::fs::read(dir.join(p)).expect("camera fixture");
+    let pair = |form: u8, c: Vec<u8>, i: Vec<u8>| {
+        let mut v = vec![form];
+        v.extend_from_slice(&(c.len() as u32).to_le_bytes());
+        v.extend(c);
+        v.extend(i);
+        v
+    };
+    vec![
+        pair(0, read("colmap/bin/cameras.bin"), read("colmap/bin/images.bin")),
+        pair(1, read("colmap/text/cameras.txt"), read("colmap/text/images.txt")),
+        [vec![2u8], read("transforms.json")].concat(),
+    ]
 }
 
 fn camera_seeds() -> Vec<Vec<u8>> {

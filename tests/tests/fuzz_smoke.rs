@@ -50,6 +50,7 @@ fn every_seed_is_a_valid_input() {
                 "safetensors" => srug::indirect::UNetWeights::from_bytes(&seed, "seed").is_ok(),
                 "png" => srug::metrics::read_png_bytes(&seed, "seed").is_ok(),
                 "scenes" => srug::io::read_scene_bytes(&seed, "seed").is_ok(),
+                "camera_files" => matches!(srug_tests::fuzz::parse_camera_files(&seed), Some(Ok(_))),
                 other => panic!("unknown target {other}"),
             };
             assert!(accepted, "a {} seed is refused", target.name);

@@ -25,6 +25,53 @@ struct JsonCamera {
     fy: f64,
 }
 
+/// The camera file formats srug reads.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum CameraFormat {
+    /// INRIA 3DGS `cameras.json` (a JSON list).
+    InriaJson,
+    /// A COLMAP sparse model (`cameras`/`images`, text or binary).
+    Colmap,
+    /// nerfstudio / instant-ngp `transforms.json` (a JSON object with `frames`).
+    TransformsJson,
+}
+
+impl CameraFormat {
+    /// The format of the cameras at `path` (a COLMAP model may be given as its
+    /// folder or one of its files), from the content.
+    pub fn detect(path: &Path) -> Option<CameraFormat> {
+        if super::colmap::is_model(path) {
+            return Some(Self::Colmap);
+        }
+        let text = super::read_text(path).ok()?;
+        if super::transforms_json::looks_like(&text) {
+            Some(Self::TransformsJson)
+        } else if text.trim_start().starts_with('[') {
+            Some(Self::InriaJson)
+        } else {
+            None
+        }
+    }
+}
+
+/// Reads cameras in any format srug reads (INRIA `cameras.json`, a COLMAP
+/// sparse model, nerfstudio/instant-ngp `transforms.json`), detected from
+/// the content.
+pub fn read_cameras(path: impl AsRef<Path>) -> Result<Vec<Camera>> {
+    let path = path.as_ref();
+    match CameraFormat::detect(path) {
+        Some(CameraFormat::Colmap) => super::read_colmap(path),
+        Some(CameraFormat::TransformsJson) => super::read_transforms_json(path),
+        Some(CameraFormat::InriaJson) => read_cameras_json(path),
+        // Let the INRIA reader word the failure (missing file, not a regular file, malformed JSON).
+        None if !path.is_dir() => read_cameras_json(path),
+        None => Err(Error::invalid(
+            path.display().to_string(),
+            "is a folder without a COLMAP model (cameras and images .txt or .bin)",
+        )),
+    }
+}
+
 /// Reads an INRIA `cameras.json`.
 pub fn read_cameras_json(path: impl AsRef<Path>) -> Result<Vec<Camera>> {
     let path = path.as_ref();

@@ -1,5 +1,6 @@
 //! Files in and out: scenes (INRIA PLY and every common splat format, see
-//! [`SceneFormat`]), cameras (`cameras.json`), images
+//! [`SceneFormat`]), cameras (INRIA `cameras.json`, COLMAP models,
+//! nerfstudio/instant-ngp `transforms.json`; see [`read_cameras`]), images
 //! (PNG, EXR), and the atomic write every writer goes through.
 //!
 //! Invariants: readers validate everything they return and report a defect
@@ -10,17 +11,21 @@
 
 mod atomic;
 mod cameras;
+mod colmap;
 pub mod environment;
 mod formats;
 mod image;
 pub mod ktx;
 pub mod limits;
 mod ply;
+mod transforms_json;
 
 pub use atomic::write_atomic;
-pub use cameras::{parse_cameras_json, read_cameras_json, write_cameras_json};
+pub use cameras::{parse_cameras_json, read_cameras, read_cameras_json, write_cameras_json, CameraFormat};
+pub use colmap::{parse_colmap, read_colmap};
 pub use environment::EnvironmentMap;
 pub use formats::{dropped_by, encode_scene, read_scene, read_scene_as, read_scene_bytes, write_scene, SceneFormat};
 pub use image::{display_byte, write_exr_channels, write_png};
 pub use limits::{limits, read_file, read_text, set_limits, Limits};
 pub use ply::{read_ply, read_ply_bytes, write_ply, PlyFormat};
+pub use transforms_json::{parse_transforms_json, read_transforms_json};

@@ -1,0 +1,221 @@
+//! Camera files other tools wrote: COLMAP sparse models (text and binary,
+//! written by pycolmap 4.2.1), the same cameras as a nerfstudio
+//! transforms.json, and pycolmap's own projections of points
+//! (tests/data/cameras, remade by scripts/camera-fixtures.sh).
+#![allow(clippy::unwrap_used, reason = "a failed unwrap is a failed test")]
+
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+
+use glam::Vec3;
+use srug::io::{read_cameras, read_colmap, write_cameras_json, CameraFormat};
+use srug::scene::{Camera, Projection};
+
+fn fixture(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("data/cameras").join(name)
+}
+
+fn intrinsics(c: &Camera) -> [f32; 4] {
+    match c.projection {
+        Projection::Pinhole { fx, fy, cx, cy } => [fx, fy, cx, cy],
+        Projection::Orthographic { .. } => panic!("{} is orthographic", c.name),
+    }
+}
+
+/// World points and pycolmap's pixels for them, per image name.
+type Projections = HashMap<String, (Vec<[f64; 3]>, Vec<[f64; 2]>)>;
+
+fn projections() -> Projections {
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(fixture("projections.json")).unwrap()).unwrap();
+    let triples = |a: &serde_json::Value| -> Vec<Vec<f64>> {
+        a.as_array()
+            .unwrap()
+            .iter()
+            .map(|p| p.as_array().unwrap().iter().map(|x| x.as_f64().unwrap()).collect())
+            .collect()
+    };
+    v.as_object()
+        .unwrap()
+        .iter()
+        .map(|(name, e)| {
+            let pts = triples(&e["points"]).into_iter().map(|p| [p[0], p[1], p[2]]).collect();
+            let pix = triples(&e["pixels"]).into_iter().map(|p| [p[0], p[1]]).collect();
+            (name.clone(), (pts, pix))
+        })
+        .collect()
+}
+
+/// Largest pixel distance between srug's projection of the fixture points and pycolmap's.
+fn worst_projection_error(cams: &[Camera]) -> f64 {
+    let refs = projections();
+    let mut worst = 0.0f64;
+    for c in cams {
+        let (pts, pix) = &refs[&c.name];
+        for (p, want) in pts.iter().zip(pix) {
+            let got = c.project(c.world_to_camera(Vec3::new(p[0] as f32, p[1] as f32, p[2] as f32)));
+            worst = worst.max(((f64::from(got.x) - want[0]).powi(2) + (f64::from(got.y) - want[1]).powi(2)).sqrt());
+        }
+    }
+    worst
+}
+
+/// Text and binary models give the same cameras, sorted by image name, with
+/// COLMAP's intrinsics, and project points where pycolmap does (within
+/// 2e-3 px: f32 poses and points at up to 60 m).
+#[test]
+fn colmap_models_match_pycolmap() {
+    let text = read_colmap(fixture("colmap/text")).unwrap();
+    let bin = read_colmap(fixture("colmap/bin")).unwrap();
+    assert_eq!(text.len(), 10);
+    assert!(text == bin, "text and binary models differ");
+    let names: Vec<&str> = text.iter().map(|c| c.name.as_str()).collect();
+    let mut sorted = names.clone();
+    sorted.sort();
+    assert_eq!(names, sorted);
+    let by_name = |n: &str| text.iter().find(|c| c.name.starts_with(n)).unwrap();
+    assert_eq!(intrinsics(by_name("cam1_")), [400.0, 410.5, 350.5, 97.25]);
+    assert_eq!((by_name("cam1_").width, by_name("cam1_").height), (704, 192));
+    assert_eq!(intrinsics(by_name("cam2_")), [500.0, 500.0, 322.0, 241.5]);
+    assert_eq!(intrinsics(by_name("cam3_")), [800.0, 800.0, 510.0, 380.0]);
+    assert_eq!(intrinsics(by_name("cam5_")), [250.0, 251.0, 160.5, 119.5]);
+    let worst = worst_projection_error(&text);
+    assert!(worst < 2e-3, "projection differs from pycolmap's by {worst} px");
+    println!("worst projection difference from pycolmap: {worst:.2e} px");
+}
+
+/// The same cameras as a nerfstudio transforms.json (OpenGL axes) read to the
+/// same poses and intrinsics, and project where pycolmap does.
+#[test]
+fn transforms_json_matches_the_colmap_model() {
+    let colmap = read_colmap(fixture("colmap/text")).unwrap();
+    let ns = read_cameras(fixture("transforms.json")).unwrap();
+    assert_eq!(ns.len(), colmap.len());
+    for c in &colmap {
+        let n = ns.iter().find(|n| n.name == format!("images/{}", c.name)).unwrap();
+        assert_eq!(intrinsics(n), intrinsics(c), "{}", c.name);
+        assert_eq!((n.width, n.height), (c.width, c.height));
+        assert!((n.rotation - c.rotation).abs().to_cols_array().iter().all(|d| *d < 1e-6), "{}", c.name);
+        assert!((n.position - c.position).length() < 1e-4, "{}: {} vs {}", c.name, n.position, c.position);
+    }
+    let renamed: Vec<Camera> =
+        ns.iter().map(|c| Camera { name: c.name.trim_start_matches("images/").into(), ..c.clone() }).collect();
+    let worst = worst_projection_error(&renamed);
+    assert!(worst < 2e-3, "{worst} px");
+}
+
+/// `read_cameras` detects each format from the content: a COLMAP folder or
+/// any of its files, transforms.json, INRIA cameras.json.
+#[test]
+fn camera_formats_are_detected() {
+    let dir = tempfile::tempdir().unwrap();
+    let colmap = read_colmap(fixture("colmap/text")).unwrap();
+    let inria = dir.path().join("anything.dat");
+    write_cameras_json(&inria, &colmap).unwrap();
+    for (path, format) in [
+        (fixture("colmap/text"), CameraFormat::Colmap),
+        (fixture("colmap/text/cameras.txt"), CameraFormat::Colmap),
+        (fixture("colmap/bin/images.bin"), CameraFormat::Colmap),
+        (fixture("transforms.json"), CameraFormat::TransformsJson),
+        (inria.clone(), CameraFormat::InriaJson),
+    ] {
+        assert_eq!(CameraFormat::detect(&path), Some(format), "{}", path.display());
+        assert_eq!(read_cameras(&path).unwrap().len(), 10, "{}", path.display());
+    }
+    // INRIA cameras.json keeps no principal point (it is the image centre).
+    let back = read_cameras(&inria).unwrap();
+    assert_eq!(intrinsics(&back[0])[2..], [352.0, 96.0]);
+    let e = read_cameras(dir.path()).unwrap_err().to_string();
+    assert!(e.contains("without a COLMAP model"), "{e}");
+}
+
+/// Resizing a camera scales its intrinsics: a point lands on the same spot of the image.
+#[test]
+fn resizing_scales_intrinsics_consistently() {
+    let c = read_colmap(fixture("colmap/text")).unwrap().remove(0);
+    let half = c.resized(c.width / 2, c.height / 2);
+    let p = c.position + c.rotation * Vec3::new(1.5, -0.7, 9.0);
+    let (a, b) = (c.project(c.world_to_camera(p)), half.project(half.world_to_camera(p)));
+    assert!((a * 0.5 - b).length() < 1e-4, "{a} vs {b}");
+}
+
+/// Lenses srug does not render yet are refused naming the camera, the model
+/// and its coefficients; so are malformed models.
+#[test]
+fn distorted_and_malformed_cameras_are_refused() {
+    let e = read_colmap(fixture("colmap_distorted/text")).unwrap_err().to_string();
+    assert!(
+        e.contains("camera 1") && e.contains("OPENCV") && e.contains("k1=-0.1") && e.contains("pinhole cameras only"),
+        "{e}"
+    );
+
+    let dir = tempfile::tempdir().unwrap();
+    let images = std::fs::read_to_string(fixture("colmap/text/images.txt")).unwrap();
+    let cameras = std::fs::read_to_string(fixture("colmap/text/cameras.txt")).unwrap();
+    let write = |c: &str, i: &str| {
+        std::fs::write(dir.path().join("cameras.txt"), c).unwrap();
+        std::fs::write(dir.path().join("images.txt"), i).unwrap();
+        read_colmap(dir.path()).unwrap_err().to_string()
+    };
+    let fisheye =
+        cameras.replace("2 SIMPLE_PINHOLE 640 480 500 322 241.5", "2 OPENCV_FISHEYE 640 480 500 500 322 241.5 0 0 0 0");
+    let e = write(&fisheye, &images);
+    assert!(e.contains("camera 2") && e.contains("OPENCV_FISHEYE") && e.contains("fisheye"), "{e}");
+    let e = write(&cameras.replace("PINHOLE 704 192", "PINHOLE_X 704 192"), &images);
+    assert!(e.contains("unknown camera model PINHOLE_X"), "{e}");
+    let e = write(&cameras.replace("400 410.5 350.5 97.25", "400 410.5 350.5"), &images);
+    assert!(e.contains("camera 1") && e.contains("takes 4 parameters, 3 given"), "{e}");
+    let e = write(&cameras.replace("2 SIMPLE_PINHOLE 640 480 500", "2 SIMPLE_PINHOLE 640 480 0"), &images);
+    assert!(e.contains("camera 2") && e.contains("must be positive"), "{e}");
+    let first = images.lines().find(|l| l.starts_with("1 ")).unwrap();
+    let w: Vec<&str> = first.split_whitespace().collect();
+    let scaled = format!("1 {} {} {} {} {}", 2.0 * w[1].parse::<f64>().unwrap(), w[2], w[3], w[4], w[5..].join(" "));
+    let e = write(&cameras, &images.replace(first, &scaled));
+    assert!(e.contains("image 1 (cam1_001.png)") && e.contains("not a rotation"), "{e}");
+    let orphan = format!("{} 9 {}", w[..8].join(" "), w[9]);
+    let e = write(&cameras, &images.replace(first, &orphan));
+    assert!(e.contains("camera 9 is not in"), "{e}");
+
+    // Binary: truncated, and a count larger than the file could hold.
+    let bin = std::fs::read(fixture("colmap/bin/cameras.bin")).unwrap();
+    std::fs::write(dir.path().join("cameras.bin"), &bin[..bin.len() - 3]).unwrap();
+    std::fs::copy(fixture("colmap/bin/images.bin"), dir.path().join("images.bin")).unwrap();
+    let e = read_colmap(dir.path().join("cameras.bin")).unwrap_err().to_string();
+    assert!(e.contains("cameras.bin") && e.contains("truncated"), "{e}");
+    let mut huge = bin.clone();
+    huge[..8].copy_from_slice(&(1u64 << 60).to_le_bytes());
+    std::fs::write(dir.path().join("cameras.bin"), &huge).unwrap();
+    let e = read_colmap(dir.path().join("cameras.bin")).unwrap_err().to_string();
+    assert!(e.contains("cannot fit"), "{e}");
+}
+
+/// transforms.json defects are refused naming the frame and the field.
+#[test]
+fn bad_transforms_json_is_refused() {
+    let text = std::fs::read_to_string(fixture("transforms.json")).unwrap();
+    let mut v: serde_json::Value = serde_json::from_str(&text).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let check = |v: &serde_json::Value, words: &[&str]| {
+        let p = dir.path().join("transforms.json");
+        std::fs::write(&p, serde_json::to_string(v).unwrap()).unwrap();
+        let e = read_cameras(&p).unwrap_err().to_string();
+        assert!(words.iter().all(|w| e.contains(w)), "{e} lacks {words:?}");
+    };
+    let mut distorted = v.clone();
+    distorted["k1"] = serde_json::json!(0.05);
+    check(&distorted, &["row 0", "OPENCV with k1=0.05", "pinhole cameras only"]);
+    let mut fisheye = v.clone();
+    fisheye["camera_model"] = serde_json::json!("OPENCV_FISHEYE");
+    check(&fisheye, &["OPENCV_FISHEYE"]);
+    let mut scaled = v.clone();
+    for r in 0..3 {
+        for c in 0..3 {
+            let x = scaled["frames"][2]["transform_matrix"][r][c].as_f64().unwrap();
+            scaled["frames"][2]["transform_matrix"][r][c] = serde_json::json!(x * 2.0);
+        }
+    }
+    check(&scaled, &["row 2", "transform_matrix", "not one"]);
+    v["frames"][1].as_object_mut().unwrap().remove("fl_x");
+    v["frames"][1].as_object_mut().unwrap().remove("fl_y");
+    check(&v, &["row 1", "no focal length"]);
+}
