@@ -28,10 +28,10 @@ fs.writeFileSync(process.argv[3], bytes);
 JS
 (cd "$work" && node v2.mjs "$OLDPWD/$out/st.v3.spz" "$OLDPWD/$out/st.v2.spz")
 # srug's own writers, decoded by splat-transform (it reads .splat but does not write it).
-for f in srug.splat srug.spz srug.compressed.ply; do
+for f in srug.splat srug.spz srug.compressed.ply srug.sog; do
     cargo run -q -p srug-cli -- convert "$out/source.ply" "$out/$f"
 done
-for f in st.compressed.ply st.v4.spz st.v3.spz st.v2.spz st.sog srug.splat srug.spz srug.compressed.ply; do
+for f in st.compressed.ply st.v4.spz st.v3.spz st.v2.spz st.sog srug.splat srug.spz srug.compressed.ply srug.sog; do
     st "$out/$f" "$out/$f.decoded.ply"
 done
 ls -l "$out"

@@ -757,14 +757,14 @@ fn relight_presets_and_quality_options() {
 }
 
 /// `srug convert` between formats: a file another tool wrote in, every
-/// writable format out and read back by `info`; SOG and unknown extensions
-/// refused with nothing written.
+/// format out and read back by `info`; unbundled SOG, unknown extensions and
+/// formats refused with nothing written.
 #[test]
 fn convert_writes_every_format_and_refuses_what_it_cannot() {
     let fixtures = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../tests/data/formats");
     let dir = tempfile::tempdir().unwrap();
     let input = fixtures.join("st.v4.spz");
-    for name in ["a.ply", "a.compressed.ply", "a.splat", "a.spz", "a.glb"] {
+    for name in ["a.ply", "a.compressed.ply", "a.splat", "a.spz", "a.sog", "a.glb"] {
         let out = dir.path().join(name);
         let o = srug(&["convert", input.to_str().unwrap(), out.to_str().unwrap()]);
         let t = text(&o);
@@ -784,9 +784,9 @@ fn convert_writes_every_format_and_refuses_what_it_cannot() {
     let o = srug(&["info", odd.to_str().unwrap()]);
     assert!(text(&o).contains("the extension says PLY but the content is GLB"), "{}", text(&o));
     for (out, args, words) in [
-        ("c.sog", vec![], "extension names no format srug writes"),
+        ("meta.json", vec![], "writes SOG bundled"),
         ("c.xyz", vec![], "extension names no format srug writes"),
-        ("c.ply", vec!["--format", "sog"], "does not write it yet"),
+        ("c.ply", vec!["--format", "webp"], "unknown format \"webp\""),
     ] {
         let path = dir.path().join(out);
         let mut all = vec!["convert", input.to_str().unwrap(), path.to_str().unwrap()];

@@ -245,6 +245,17 @@ fn precisions(source: &Scene) -> Vec<Precision> {
             dc: 0.5 / 255.0 / 0.282 * 1.2 + 1e-6,
             rest: Some(0.5 * 8.0 / 256.0 + 1e-6),
         },
+        // 16 bits of the log range, ≤ 1.5 m at 1500 m (checked per Gaussian in sog_writes_nearest_codebook_entries);
+        // 8-bit rotation components (truncated); codebooks (checked there too) and a palette.
+        Precision {
+            format: SceneFormat::Sog,
+            position: 1501.0 * (2.0 * 1501f64.ln() / 65535.0) * 1.01,
+            rotation_deg: 1.5,
+            log_scale: f64::INFINITY,
+            opacity: 1.0 / 255.0 + 1e-6,
+            dc: f64::INFINITY,
+            rest: Some(f64::INFINITY),
+        },
         // f32 position and scale; colour, opacity and rotation in truncated bytes (1/128 per component: ≤ 2°).
         Precision {
             format: SceneFormat::Splat,
@@ -272,8 +283,8 @@ fn round_trips_keep_each_formats_precision() {
         let name = p.format.name();
         let mut worst = [0.0f64; 6];
         for g in 0..source.len() {
-            // The compressed PLY reorders Gaussians (Morton order); match by nearest centre.
-            let h = if p.format == SceneFormat::CompressedPly {
+            // The compressed PLY and SOG reorder Gaussians (Morton order); match by nearest centre.
+            let h = if matches!(p.format, SceneFormat::CompressedPly | SceneFormat::Sog) {
                 (0..back.len())
                     .min_by(|&a, &b| {
                         let d = |i: usize| (0..3).map(|x| (back.means[i][x] - source.means[g][x]).powi(2)).sum::<f32>();
@@ -478,4 +489,45 @@ fn non_finite_values_after_decoding_are_refused() {
     cply[data + 12..data + 16].copy_from_slice(&f32::INFINITY.to_le_bytes());
     let e = refuse(&cply, SceneFormat::CompressedPly, "inf.compressed.ply");
     assert!(e.contains("row 0") && e.contains("value is"), "{e}");
+}
+
+/// srug's SOG writer: every position within one 16-bit step of the log range
+/// (truncation), and every log scale and DC colour the codebook entry nearest
+/// the source value (the codebooks themselves come from a 1D k-means).
+#[test]
+fn sog_writes_nearest_codebook_entries() {
+    use std::io::Read;
+    let source = srug_tests::format_source_scene();
+    let bytes = encode_scene(&source, SceneFormat::Sog).unwrap();
+    let back = read_scene_bytes(&bytes, "srug.sog").unwrap();
+    let mut zip = zip::ZipArchive::new(std::io::Cursor::new(&bytes)).unwrap();
+    let mut text = String::new();
+    zip.by_name("meta.json").unwrap().read_to_string(&mut text).unwrap();
+    let meta: serde_json::Value = serde_json::from_str(&text).unwrap();
+    let code = |key: &str| -> Vec<f64> {
+        meta[key]["codebook"].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect()
+    };
+    let (scale_code, dc_code) = (code("scales"), code("sh0"));
+    let log = |v: f64| v.signum() * (v.abs() + 1.0).ln();
+    let range: Vec<f64> = (0..3)
+        .map(|a| meta["means"]["maxs"][a].as_f64().unwrap() - meta["means"]["mins"][a].as_f64().unwrap())
+        .collect();
+    let nearest = |codebook: &[f64], v: f64| codebook.iter().map(|c| (c - v).abs()).fold(f64::INFINITY, f64::min);
+    let k = 16;
+    for g in 0..source.len() {
+        let h = (0..back.len())
+            .find(|&h| {
+                (0..3).all(|a| {
+                    (log(f64::from(back.means[h][a])) - log(f64::from(source.means[g][a]))).abs()
+                        <= range[a] / 65535.0 * 1.001
+                })
+            })
+            .unwrap_or_else(|| panic!("Gaussian {g}: no decoded centre within one step"));
+        for a in 0..3 {
+            let (s, d) = (f64::from(source.log_scales[g][a]), f64::from(back.log_scales[h][a]));
+            assert!((s - d).abs() <= nearest(&scale_code, s) + 1e-6, "Gaussian {g} log scale {s} → {d}");
+            let (s, d) = (f64::from(source.sh[g * k * 3 + a]), f64::from(back.sh[h * k * 3 + a]));
+            assert!((s - d).abs() <= nearest(&dc_code, s) + 1e-6, "Gaussian {g} colour {s} → {d}");
+        }
+    }
 }

@@ -87,7 +87,8 @@ pub fn format_bench(
             SceneFormat::CompressedPly => "compressed.ply",
             SceneFormat::Splat => "splat",
             SceneFormat::Spz => "spz",
-            _ => "glb",
+            SceneFormat::Sog => "sog",
+            SceneFormat::Glb => "glb",
         };
         let path = dir.join(format!("scene.{ext}"));
         progress(&format!("writing {format}"));

@@ -12,9 +12,9 @@ pub(super) struct ConvertArgs {
     /// (detected from the content).
     input: PathBuf,
     /// The file to write; its format comes from `--format` or else its extension
-    /// (.ply, .compressed.ply, .splat, .spz, .glb).
+    /// (.ply, .compressed.ply, .splat, .spz, .sog, .glb).
     output: PathBuf,
-    /// Output format: ply, compressed-ply, splat, spz or glb.
+    /// Output format: ply, compressed-ply, splat, spz, sog (bundled) or glb.
     #[arg(long, value_parser = parse_format)]
     format: Option<SceneFormat>,
 }
@@ -26,8 +26,8 @@ fn parse_format(s: &str) -> std::result::Result<SceneFormat, String> {
         "splat" => SceneFormat::Splat,
         "spz" => SceneFormat::Spz,
         "glb" => SceneFormat::Glb,
-        "sog" => return Err("srug reads SOG but does not write it yet".into()),
-        _ => return Err(format!("unknown format \"{s}\" (ply, compressed-ply, splat, spz, glb)")),
+        "sog" => SceneFormat::Sog,
+        _ => return Err(format!("unknown format \"{s}\" (ply, compressed-ply, splat, spz, sog, glb)")),
     })
 }
 
@@ -39,10 +39,16 @@ impl ConvertArgs {
             None => SceneFormat::from_extension(&self.output).filter(|f| f.writable()).ok_or_else(|| {
                 Error::invalid(
                     format!("output {}", self.output.display()),
-                    "its extension names no format srug writes; use .ply, .compressed.ply, .splat, .spz or .glb, or --format",
+                    "its extension names no format srug writes; use .ply, .compressed.ply, .splat, .spz, .sog or .glb, or --format",
                 )
             })?,
         };
+        if format == SceneFormat::Sog && self.output.file_name().is_some_and(|n| n == "meta.json") {
+            return Err(Error::invalid(
+                format!("output {}", self.output.display()),
+                "srug writes SOG bundled (one .sog file), not as meta.json beside its images",
+            ));
+        }
         if let Some(named) = SceneFormat::from_extension(&self.output) {
             if named != format {
                 log::warn!("{}: writing {format} under an extension that says {named}", self.output.display());

@@ -36,7 +36,7 @@ enum Command {
     /// PSNR and SSIM of rendered images against references (the paper's relighting metrics):
     /// two files, or two folders whose images are paired by name.
     Eval(eval::EvalArgs),
-    /// Convert a scene between formats (PLY, compressed PLY, .splat, SPZ, GLB; SOG is read only).
+    /// Convert a scene between formats (PLY, compressed PLY, .splat, SPZ, SOG, GLB).
     Convert(convert::ConvertArgs),
     /// Benchmarks (GPU timestamps; markdown tables on stdout).
     Bench {

@@ -7,7 +7,7 @@
 //! | compressed PLY (SuperSplat) | `ply` + a `chunk` element | per 256 Gaussians: position 11/10/11 bits and log scale 11/10/11 bits of the chunk's range, rotation 3×10 bits, colour and opacity 8 bits, SH 8 bits over −4..4 |
 //! | `.splat` (antimatter15) | no magic: whole 32-byte rows with finite positions and positive scales | f32 position and scale, 8-bit colour, opacity and rotation, no SH beyond degree 0 |
 //! | `.spz` (Niantic, versions 1-4) | gzip magic or `NGSP` | position 24-bit fixed point (2^-12 m by default), log scale 1/16, rotation 3×9 bits (v3+), colour and opacity 8 bits, SH 8 bits (5 and 4 significant bits as written) |
-//! | SOG v2 (PlayCanvas) | ZIP magic, or a `meta.json` | position 16 bits of a log range, rotation 3×8 bits, scale, colour and SH through 256-entry codebooks and a palette |
+//! | SOG v2 (PlayCanvas) | ZIP magic, or a `meta.json` | position 16 bits of a log range, rotation 3×8 bits, scale, colour and SH through 256-entry codebooks and a palette (written: at most 4096 entries) |
 //! | GLB `KHR_gaussian_splatting` | `glTF` magic | f32 everything (normalized integer rotation/scale/opacity read too) |
 //!
 //! Invariants: detection looks at the content only; a file whose extension
@@ -39,7 +39,7 @@ pub enum SceneFormat {
     Splat,
     /// Niantic `.spz` (written as version 4).
     Spz,
-    /// PlayCanvas SOG version 2 (read only).
+    /// PlayCanvas SOG version 2 (written bundled).
     Sog,
     /// Binary glTF with `KHR_gaussian_splatting`.
     Glb,
@@ -61,9 +61,9 @@ impl SceneFormat {
         }
     }
 
-    /// Whether srug can write it.
+    /// Whether srug can write it (every format it reads).
     pub fn writable(self) -> bool {
-        self != Self::Sog
+        true
     }
 
     /// The format a file name's extension names (`.compressed.ply` before
@@ -229,7 +229,7 @@ pub fn encode_scene(scene: &Scene, format: SceneFormat) -> Result<Vec<u8>> {
         SceneFormat::Splat => Ok(splat::encode(scene)),
         SceneFormat::Spz => spz::encode(scene).map_err(refuse),
         SceneFormat::Glb => glb::encode(scene).map_err(refuse),
-        SceneFormat::Sog => Err(refuse("srug reads SOG but does not write it yet".into())),
+        SceneFormat::Sog => sog::encode(scene).map_err(refuse),
     }
 }
 
