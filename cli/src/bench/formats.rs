@@ -1,7 +1,8 @@
 //! Scene-file load times and host memory per format: the same scene written
 //! by srug in every format it writes (plus any files given), each read back
-//! whole several times (wall clock, median), with the host's peak resident
-//! memory during the read measured against the decoded scene's bytes.
+//! several times, each in a fresh child process (wall clock, median), with
+//! the peak resident memory the read added to that process measured against
+//! the decoded scene's bytes.
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -38,7 +39,7 @@ pub fn scene_bytes(s: &Scene) -> u64 {
 }
 
 /// Resident and peak resident bytes of this process (Linux).
-fn rss() -> Option<(u64, u64)> {
+pub fn rss() -> Option<(u64, u64)> {
     let status = std::fs::read_to_string("/proc/self/status").ok()?;
     let field = |name: &str| -> Option<u64> {
         let line = status.lines().find(|l| l.starts_with(name))?;
@@ -47,28 +48,50 @@ fn rss() -> Option<(u64, u64)> {
     Some((field("VmRSS:")?, field("VmHWM:")?))
 }
 
-/// Reads `path` `repeats` times; the median time and the peak memory the read added.
-fn time_read(path: &Path, repeats: usize) -> Result<(f64, Option<u64>, Scene)> {
+/// Reads `path` once in this process and prints `seconds baseline_bytes peak_bytes`: what
+/// `srug bench formats --measure-read` runs in a fresh child, so the peak is the read's own.
+pub fn measure_read(path: &Path) -> Result<()> {
+    let (baseline, _) = rss().unwrap_or((0, 0));
+    let t = Instant::now();
+    let scene = io::read_scene(path)?;
+    let seconds = t.elapsed().as_secs_f64();
+    let (_, peak) = rss().unwrap_or((0, 0));
+    println!("{seconds} {baseline} {peak} {}", scene_bytes(&scene));
+    Ok(())
+}
+
+/// Reads `path` `repeats` times, each in a fresh child process; the median
+/// time, the smallest peak memory a read added, and the decoded scene's bytes.
+fn time_read(path: &Path, repeats: usize) -> Result<(f64, Option<u64>, u64, usize)> {
+    let exe = std::env::current_exe().map_err(|e| srug::Error::Internal(format!("no path to srug: {e}")))?;
     let mut times = Vec::new();
-    let mut peak = None;
-    let mut scene = None;
+    let mut peak: Option<u64> = None;
+    let mut bytes = 0;
     for _ in 0..repeats.max(1) {
-        drop(scene.take());
-        // Writing 5 to clear_refs resets the peak-RSS counter (Linux 4.0+).
-        let reset = std::fs::write("/proc/self/clear_refs", "5").is_ok();
-        let before = rss();
-        let t = Instant::now();
-        let s = io::read_scene(path)?;
-        times.push(t.elapsed().as_secs_f64());
-        if let (true, Some((rss0, _)), Some((_, hwm))) = (reset, before, rss()) {
-            let added = hwm.saturating_sub(rss0);
-            peak = Some(peak.map_or(added, |p: u64| p.min(added)));
+        let out = std::process::Command::new(&exe)
+            .args(["bench", "formats", "--measure-read"])
+            .arg(path)
+            .output()
+            .map_err(|e| srug::Error::Internal(format!("cannot run srug: {e}")))?;
+        let text = String::from_utf8_lossy(&out.stdout);
+        let v: Vec<f64> = text.split_whitespace().filter_map(|w| w.parse().ok()).collect();
+        if !out.status.success() || v.len() != 4 {
+            return Err(srug::Error::Internal(format!(
+                "reading {} in a child failed: {}",
+                path.display(),
+                String::from_utf8_lossy(&out.stderr)
+            )));
         }
-        scene = Some(s);
+        times.push(v[0]);
+        if v[2] > 0.0 {
+            let added = (v[2] - v[1]).max(0.0) as u64;
+            peak = Some(peak.map_or(added, |p| p.min(added)));
+        }
+        bytes = v[3] as u64;
     }
     times.sort_by(f64::total_cmp);
-    let scene = scene.ok_or_else(|| srug::Error::Internal("no read ran".into()))?;
-    Ok((times[times.len() / 2], peak, scene))
+    let back = io::read_scene(path)?.len();
+    Ok((times[times.len() / 2], peak, bytes, back))
 }
 
 /// Writes `scene` in every format srug writes into `dir`, then times reading each and each of `extra`.
@@ -100,17 +123,17 @@ pub fn format_bench(
     for (path, write_seconds) in files {
         progress(&format!("reading {}", path.display()));
         let bytes = io::read_file(&path).map(|b| b.len() as u64)?;
-        let (read_seconds, peak_bytes, back) = time_read(&path, repeats)?;
+        let (read_seconds, peak_bytes, decoded_bytes, gaussians) = time_read(&path, repeats)?;
         let format = SceneFormat::detect(&io::read_file(&path)?).unwrap_or(SceneFormat::Ply);
         rows.push(FormatRow {
             label: path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default(),
             format,
             file_bytes: bytes,
-            gaussians: back.len(),
+            gaussians,
             write_seconds,
             read_seconds,
             peak_bytes,
-            scene_bytes: scene_bytes(&back),
+            scene_bytes: decoded_bytes,
         });
     }
     Ok(rows)

@@ -24,11 +24,17 @@ pub(crate) struct FormatBenchArgs {
     /// More scene files to time (for example a SOG another tool wrote).
     #[arg(long, value_delimiter = ',')]
     files: Vec<PathBuf>,
+    /// Internal: read this one file and print seconds, baseline and peak memory (what each timed read runs).
+    #[arg(long, hide = true)]
+    measure_read: Option<PathBuf>,
 }
 
 impl FormatBenchArgs {
     /// Runs `srug bench formats`.
     pub(crate) fn run(&self) -> Result<()> {
+        if let Some(path) = &self.measure_read {
+            return bench::formats::measure_read(path);
+        }
         let bar = spinner("generating the demo city");
         let mut city = demo_city(&DemoOptions { seed: 7, gaussians: self.gaussians, sh_degree: self.sh_degree })?;
         // Colour-only formats keep none of the relighting attributes; time the plain scene in all.

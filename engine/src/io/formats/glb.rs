@@ -30,36 +30,76 @@ fn u32_at(b: &[u8], i: usize) -> u32 {
     u32::from_le_bytes([b[i], b[i + 1], b[i + 2], b[i + 3]])
 }
 
-/// The JSON and BIN chunks of a GLB file.
-fn chunks<'a>(bytes: &'a [u8], origin: &str) -> Result<(Value, &'a [u8]), SceneError> {
-    if bytes.len() < 20 || &bytes[..4] != MAGIC {
+/// Where the binary chunk's bytes come from: memory, or a file read range by
+/// range (so a large GLB is never held whole beside the scene it decodes to).
+enum Bin<'a> {
+    Memory(&'a [u8]),
+    File { file: std::fs::File, offset: u64, len: u64 },
+}
+
+impl Bin<'_> {
+    fn len(&self) -> u64 {
+        match self {
+            Bin::Memory(b) => b.len() as u64,
+            Bin::File { len, .. } => *len,
+        }
+    }
+
+    /// `len` bytes from `start` (within the chunk, checked by the caller).
+    fn range(&self, start: usize, len: usize) -> std::io::Result<std::borrow::Cow<'_, [u8]>> {
+        use std::io::{Read, Seek, SeekFrom};
+        match self {
+            Bin::Memory(b) => Ok(std::borrow::Cow::Borrowed(&b[start..start + len])),
+            Bin::File { file, offset, .. } => {
+                let mut f = file;
+                f.seek(SeekFrom::Start(offset + start as u64))?;
+                let mut buf = vec![0u8; len];
+                f.read_exact(&mut buf)?;
+                Ok(std::borrow::Cow::Owned(buf))
+            }
+        }
+    }
+}
+
+/// Walks the chunk headers of a GLB whose first `total` bytes `read_at`
+/// returns; the JSON and the binary chunk's (offset, length).
+fn chunks(
+    total: u64,
+    read_at: &mut dyn FnMut(u64, usize) -> std::io::Result<Vec<u8>>,
+    origin: &str,
+) -> Result<(Value, Option<(u64, u64)>), SceneError> {
+    let io = |e: std::io::Error| err(origin, "chunk", format!("cannot be read: {e}"));
+    let header = if total >= 20 { read_at(0, 12).map_err(io)? } else { Vec::new() };
+    if header.len() < 12 || &header[..4] != MAGIC {
         return Err(err(origin, "header", "not a binary glTF file (no glTF magic)"));
     }
-    let version = u32_at(bytes, 4);
+    let version = u32_at(&header, 4);
     if version != 2 {
         return Err(err(origin, "version", format!("container version {version}, only 2 is defined")));
     }
-    let length = u32_at(bytes, 8) as usize;
-    if length != bytes.len() {
-        return Err(err(origin, "length", format!("header declares {length} bytes, the file has {}", bytes.len())));
+    let length = u64::from(u32_at(&header, 8));
+    if length != total {
+        return Err(err(origin, "length", format!("header declares {length} bytes, the file has {total}")));
     }
-    let mut at = 12;
+    let mut at = 12u64;
     let mut json = None;
-    let mut bin: &[u8] = &[];
-    while at + 8 <= bytes.len() {
-        let len = u32_at(bytes, at) as usize;
-        let ty = u32_at(bytes, at + 4);
-        let body = bytes
-            .get(at + 8..at + 8 + len)
-            .ok_or_else(|| err(origin, "chunk", "the file is truncated inside a chunk"))?;
+    let mut bin = None;
+    while at + 8 <= total {
+        let h = read_at(at, 8).map_err(io)?;
+        let len = u64::from(u32_at(&h, 0));
+        let ty = u32_at(&h, 4);
+        if at + 8 + len > total {
+            return Err(err(origin, "chunk", "the file is truncated inside a chunk"));
+        }
         match ty {
             CHUNK_JSON if json.is_none() => {
+                let body = read_at(at + 8, len as usize).map_err(io)?;
                 json = Some(
-                    serde_json::from_slice::<Value>(body)
+                    serde_json::from_slice::<Value>(&body)
                         .map_err(|e| err(origin, "JSON chunk", format!("is not valid JSON: {e}")))?,
                 )
             }
-            CHUNK_BIN if bin.is_empty() => bin = body,
+            CHUNK_BIN if bin.is_none() => bin = Some((at + 8, len)),
             _ => {}
         }
         at += 8 + len;
@@ -71,15 +111,63 @@ fn chunks<'a>(bytes: &'a [u8], origin: &str) -> Result<(Value, &'a [u8]), SceneE
 /// Decodes one component (bytes, normalized) to f32.
 type ComponentDecoder = fn(&[u8], bool) -> f32;
 
-/// One accessor's elements as f32 (normalized integers mapped as glTF defines).
-fn accessor(
+/// The element count of accessor `index`, checked against the limits.
+fn accessor_count(json: &Value, index: &Value, name: &str, origin: &str) -> Result<usize, SceneError> {
+    let bad = |m: String| err(origin, name, m);
+    let i = index.as_u64().ok_or_else(|| bad("attribute is not an accessor index".into()))? as usize;
+    let a = json["accessors"].get(i).ok_or_else(|| bad(format!("accessor {i} does not exist")))?;
+    let count = a["count"].as_u64().ok_or_else(|| bad(format!("accessor {i} has no count")))?;
+    crate::io::limits().gaussians(count).map_err(|why| bad(format!("accessor {i}: {why}")))
+}
+
+/// Where an accessor's elements lie and how they decode, checked against the
+/// binary chunk before anything is allocated for them.
+struct Layout {
+    count: usize,
+    width: usize,
+    size: usize,
+    decode: ComponentDecoder,
+    normalized: bool,
+    view_offset: usize,
+    offset: usize,
+    stride: usize,
+    needed: usize,
+}
+
+impl Layout {
+    /// Decodes the elements (normalized integers mapped as glTF defines),
+    /// handing each one's values to `sink`; reads only the bytes they span.
+    fn read(
+        &self,
+        bin: &Bin<'_>,
+        name: &str,
+        origin: &str,
+        sink: &mut dyn FnMut(usize, &[f32]),
+    ) -> Result<(), SceneError> {
+        let bytes = bin
+            .range(self.view_offset, self.needed)
+            .map_err(|e| err(origin, name, format!("the binary chunk cannot be read: {e}")))?;
+        let mut values = vec![0.0f32; self.width];
+        for e in 0..self.count {
+            let at = self.offset + e * self.stride;
+            for (c, v) in values.iter_mut().enumerate() {
+                *v = (self.decode)(&bytes[at + c * self.size..], self.normalized);
+            }
+            sink(e, &values);
+        }
+        Ok(())
+    }
+}
+
+/// The layout of accessor `index`, every size checked against the binary chunk.
+fn accessor_layout(
     json: &Value,
-    bin: &[u8],
+    bin: &Bin<'_>,
     index: &Value,
     name: &str,
     width: usize,
     origin: &str,
-) -> Result<Vec<f32>, SceneError> {
+) -> Result<Layout, SceneError> {
     let bad = |m: String| err(origin, name, m);
     let i = index.as_u64().ok_or_else(|| bad("attribute is not an accessor index".into()))? as usize;
     let a = json["accessors"].get(i).ok_or_else(|| bad(format!("accessor {i} does not exist")))?;
@@ -95,8 +183,7 @@ fn accessor(
     if ty != want {
         return Err(bad(format!("accessor {i} is {ty}, expected {want}")));
     }
-    let count = a["count"].as_u64().ok_or_else(|| bad(format!("accessor {i} has no count")))? as usize;
-    let count = crate::io::limits().gaussians(count as u64).map_err(|why| bad(format!("accessor {i}: {why}")))?;
+    let count = accessor_count(json, index, name, origin)?;
     let normalized = a["normalized"].as_bool().unwrap_or(false);
     let component = a["componentType"].as_u64().unwrap_or(0);
     let (size, decode): (usize, ComponentDecoder) = match component {
@@ -142,21 +229,18 @@ fn accessor(
     let offset = a["byteOffset"].as_u64().unwrap_or(0) as usize;
     let element = size * width;
     let stride = view["byteStride"].as_u64().map_or(element, |s| s as usize);
-    let view_bytes = bin
-        .get(view_offset..view_offset.saturating_add(view_length))
-        .ok_or_else(|| bad(format!("buffer view {view_index} lies outside the binary chunk")))?;
-    let needed = if count == 0 { 0 } else { offset + stride * (count - 1) + element };
-    if stride < element || needed > view_bytes.len() {
-        return Err(bad(format!("accessor {i}: {count} elements do not fit buffer view {view_index}")));
+    if view_offset.checked_add(view_length).is_none_or(|end| end as u64 > bin.len()) {
+        return Err(bad(format!("buffer view {view_index} lies outside the binary chunk")));
     }
-    let mut out = Vec::with_capacity(count * width);
-    for e in 0..count {
-        let at = offset + e * stride;
-        for c in 0..width {
-            out.push(decode(&view_bytes[at + c * size..], normalized));
-        }
-    }
-    Ok(out)
+    let needed = if count == 0 {
+        Some(0)
+    } else {
+        stride.checked_mul(count - 1).and_then(|s| s.checked_add(offset)).and_then(|s| s.checked_add(element))
+    };
+    let needed = needed
+        .filter(|&n| stride >= element && n <= view_length)
+        .ok_or_else(|| bad(format!("accessor {i}: {count} elements do not fit buffer view {view_index}")))?;
+    Ok(Layout { count, width, size, decode, normalized, view_offset, offset, stride, needed })
 }
 
 /// The translation and uniform scale of each node instantiating mesh `m`, walking the scene graph.
@@ -226,9 +310,44 @@ fn node_transform(node: &Value, n: usize, origin: &str) -> Result<([f32; 3], f32
     Ok(([t[0], t[1], t[2]], s[0]))
 }
 
-/// Decodes a GLB file's Gaussian primitives into one scene.
+/// Decodes a GLB held in memory.
 pub(crate) fn read(bytes: &[u8], origin: &str) -> Result<Scene, SceneError> {
-    let (json, bin) = chunks(bytes, origin)?;
+    let mut read_at = |at: u64, len: usize| -> std::io::Result<Vec<u8>> {
+        let at = at as usize;
+        bytes
+            .get(at..at + len)
+            .map(<[u8]>::to_vec)
+            .ok_or_else(|| std::io::Error::from(std::io::ErrorKind::UnexpectedEof))
+    };
+    let (json, range) = chunks(bytes.len() as u64, &mut read_at, origin)?;
+    let bin = Bin::Memory(range.map_or(&[][..], |(o, l)| &bytes[o as usize..(o + l) as usize]));
+    decode(&json, &bin, origin)
+}
+
+/// Decodes a GLB file, reading each attribute's bytes from disk as it is
+/// decoded into the scene (the host holds the scene and one attribute, not the file).
+pub(crate) fn read_path(path: &std::path::Path) -> crate::error::Result<Scene> {
+    use std::io::{Read, Seek, SeekFrom};
+    let origin = path.display().to_string();
+    let file = std::fs::File::open(path).map_err(crate::error::Error::io(path))?;
+    let total = file.metadata().map_err(crate::error::Error::io(path))?.len();
+    let mut read_at = |at: u64, len: usize| -> std::io::Result<Vec<u8>> {
+        let mut f = &file;
+        f.seek(SeekFrom::Start(at))?;
+        let mut buf = Vec::with_capacity(len.min(1 << 26));
+        f.take(len as u64).read_to_end(&mut buf)?;
+        if buf.len() < len {
+            return Err(std::io::Error::from(std::io::ErrorKind::UnexpectedEof));
+        }
+        Ok(buf)
+    };
+    let (json, range) = chunks(total, &mut read_at, &origin)?;
+    let (offset, len) = range.unwrap_or((0, 0));
+    let bin = Bin::File { file, offset, len };
+    Ok(decode(&json, &bin, &origin)?)
+}
+
+fn decode(json: &Value, bin: &Bin<'_>, origin: &str) -> Result<Scene, SceneError> {
     let used = json["extensionsUsed"].as_array().into_iter().flatten().any(|e| e == "KHR_gaussian_splatting");
     if !used {
         return Err(err(origin, "extensionsUsed", "the file does not use KHR_gaussian_splatting (no Gaussians in it)"));
@@ -239,7 +358,7 @@ pub(crate) fn read(bytes: &[u8], origin: &str) -> Result<Scene, SceneError> {
         }
     }
     let mut parts: Vec<Scene> = Vec::new();
-    for (mesh, t, s) in instances(&json, origin)? {
+    for (mesh, t, s) in instances(json, origin)? {
         let prims = json["meshes"][mesh]["primitives"].as_array().cloned().unwrap_or_default();
         for (p, prim) in prims.iter().enumerate() {
             let Some(ext) = prim["extensions"].get("KHR_gaussian_splatting") else { continue };
@@ -254,9 +373,11 @@ pub(crate) fn read(bytes: &[u8], origin: &str) -> Result<Scene, SceneError> {
             }
             match ext["colorSpace"].as_str() {
                 None | Some("srgb_rec709_display") => {}
-                Some(cs) => log::warn!("{origin}: {where_}: colour space \"{cs}\" is rendered as srgb_rec709_display, like every 3DGS scene"),
+                Some(cs) => log::warn!(
+                    "{origin}: {where_}: colour space \"{cs}\" is rendered as srgb_rec709_display, like every 3DGS scene"
+                ),
             }
-            parts.push(primitive(&json, bin, &prim["attributes"], &where_, t, s, origin)?);
+            parts.push(primitive(json, bin, &prim["attributes"], &where_, t, s, origin)?);
         }
     }
     let mut scene = match parts.len() {
@@ -269,110 +390,108 @@ pub(crate) fn read(bytes: &[u8], origin: &str) -> Result<Scene, SceneError> {
     Ok(scene)
 }
 
+/// One Gaussian primitive, each attribute decoded straight into the scene's arrays.
 fn primitive(
     json: &Value,
-    bin: &[u8],
+    bin: &Bin<'_>,
     attrs: &Value,
     where_: &str,
     t: [f32; 3],
     s: f32,
     origin: &str,
 ) -> Result<Scene, SceneError> {
-    let get = |name: &str, width: usize| -> Result<Option<Vec<f32>>, SceneError> {
-        match attrs.get(name) {
-            None => Ok(None),
-            Some(i) => accessor(json, bin, i, &format!("{where_} {name}"), width, origin).map(Some),
-        }
+    let field = |name: &str| format!("{where_} {name}");
+    let index = |name: &str| -> Result<&Value, SceneError> {
+        attrs.get(name).ok_or_else(|| err(origin, &field(name), "required attribute is missing"))
     };
-    let need = |name: &str, width: usize| -> Result<Vec<f32>, SceneError> {
-        get(name, width)?.ok_or_else(|| err(origin, &format!("{where_} {name}"), "required attribute is missing"))
-    };
-    let pos = need("POSITION", 3)?;
-    let n = pos.len() / 3;
-    let rot = need(&format!("{PREFIX}ROTATION"), 4)?;
-    let scale = need(&format!("{PREFIX}SCALE"), 3)?;
-    let opacity = need(&format!("{PREFIX}OPACITY"), 1)?;
-    let mut bands: Vec<Vec<Vec<f32>>> = Vec::new();
-    for l in 0..=3usize {
-        let coefs: Vec<Option<Vec<f32>>> =
-            (0..2 * l + 1).map(|m| get(&format!("{PREFIX}SH_DEGREE_{l}_COEF_{m}"), 3)).collect::<Result<_, _>>()?;
-        let present = coefs.iter().filter(|c| c.is_some()).count();
+    let n = accessor_count(json, index("POSITION")?, &field("POSITION"), origin)?;
+    // Higher bands present, each whole.
+    let mut degree = 0u32;
+    for l in 1..=3usize {
+        let present = (0..2 * l + 1).filter(|m| attrs.get(format!("{PREFIX}SH_DEGREE_{l}_COEF_{m}")).is_some()).count();
         if present == 0 {
             break;
         }
-        if present != coefs.len() {
+        if present != 2 * l + 1 {
             return Err(err(
                 origin,
                 &format!("{where_} SH_DEGREE_{l}"),
                 format!("band {l} is partly defined ({present} of {} coefficients)", 2 * l + 1),
             ));
         }
-        bands.push(coefs.into_iter().flatten().collect());
+        degree = l as u32;
     }
-    if bands.is_empty() {
-        return Err(err(origin, &format!("{where_} {PREFIX}SH_DEGREE_0_COEF_0"), "required attribute is missing"));
-    }
-    for (name, len, width) in [("ROTATION", rot.len(), 4), ("SCALE", scale.len(), 3), ("OPACITY", opacity.len(), 1)] {
-        if len != n * width {
-            return Err(err(
-                origin,
-                &format!("{where_} {PREFIX}{name}"),
-                format!("{} elements for {n} positions", len / width),
-            ));
-        }
-    }
-    for b in bands.iter().flatten() {
-        if b.len() != n * 3 {
-            return Err(err(origin, where_, format!("an SH accessor has {} elements for {n} positions", b.len() / 3)));
-        }
-    }
-    let degree = (bands.len() - 1) as u32;
     let k = sh_coefficients(degree);
-    let ln_s = s.ln();
+    // Every attribute's layout, checked against the file, before the scene is allocated.
+    let mut names: Vec<(String, usize)> = vec![
+        ("POSITION".into(), 3),
+        (format!("{PREFIX}ROTATION"), 4),
+        (format!("{PREFIX}SCALE"), 3),
+        (format!("{PREFIX}OPACITY"), 1),
+    ];
+    for l in 0..=degree as usize {
+        names.extend((0..2 * l + 1).map(|m| (format!("{PREFIX}SH_DEGREE_{l}_COEF_{m}"), 3)));
+    }
+    let mut layouts = Vec::with_capacity(names.len());
+    for (name, width) in &names {
+        let layout = accessor_layout(json, bin, index(name)?, &field(name), *width, origin)?;
+        if layout.count != n {
+            return Err(err(origin, &field(name), format!("{} elements for {n} positions", layout.count)));
+        }
+        layouts.push(layout);
+    }
     let mut scene = Scene {
-        means: (0..n).map(|i| [0, 1, 2].map(|a| t[a] + s * pos[i * 3 + a])).collect(),
+        means: vec![[0.0; 3]; n],
         normals: None,
         sh_degree: degree,
-        sh: Vec::with_capacity(n * k * 3),
-        opacity_logits: Vec::with_capacity(n),
-        log_scales: Vec::with_capacity(n),
-        rotations: (0..n).map(|i| [rot[i * 4 + 3], rot[i * 4], rot[i * 4 + 1], rot[i * 4 + 2]]).collect(),
+        sh: vec![0.0; n * k * 3],
+        opacity_logits: vec![0.0; n],
+        log_scales: vec![[0.0; 3]; n],
+        rotations: vec![[0.0; 4]; n],
         materials: Materials::default(),
         extra_properties: Vec::new(),
     };
-    for i in 0..n {
-        let mut ls = [0.0; 3];
-        for (a, v) in ls.iter_mut().enumerate() {
-            let lin = scale[i * 3 + a];
-            if !(lin > 0.0 && lin.is_finite()) {
-                return Err(SceneError::at(
+    let mut fault: Option<SceneError> = None;
+    let mut next = layouts.iter().zip(&names);
+    let mut read = |sink: &mut dyn FnMut(usize, &[f32])| -> Result<(), SceneError> {
+        let (layout, (name, _)) = next.next().ok_or_else(|| err(origin, where_, "internal: attribute list ran out"))?;
+        layout.read(bin, &field(name), origin, sink)
+    };
+    read(&mut |i, v| scene.means[i] = [0, 1, 2].map(|a| t[a] + s * v[a]))?;
+    read(&mut |i, v| scene.rotations[i] = [v[3], v[0], v[1], v[2]])?;
+    let ln_s = s.ln();
+    let scale_field = field(&format!("{PREFIX}SCALE"));
+    read(&mut |i, v| {
+        for a in 0..3 {
+            if !(v[a] > 0.0 && v[a].is_finite()) && fault.is_none() {
+                fault = Some(SceneError::at(
                     origin,
                     i,
-                    &format!("{where_} {PREFIX}SCALE"),
-                    format!("GLB: linear scale {lin} is not a finite positive number"),
+                    &scale_field,
+                    format!("GLB: linear scale {} is not a finite positive number", v[a]),
                 ));
             }
-            *v = lin.ln() + ln_s;
+            scene.log_scales[i][a] = v[a].ln() + ln_s;
         }
-        scene.log_scales.push(ls);
-        let o = f64::from(opacity[i]);
-        if !(0.0..=1.0).contains(&o) {
-            return Err(SceneError::at(
-                origin,
-                i,
-                &format!("{where_} {PREFIX}OPACITY"),
-                format!("GLB: opacity {o} is outside 0..1"),
-            ));
+    })?;
+    let opacity_field = field(&format!("{PREFIX}OPACITY"));
+    read(&mut |i, v| {
+        let o = f64::from(v[0]);
+        if !(0.0..=1.0).contains(&o) && fault.is_none() {
+            fault = Some(SceneError::at(origin, i, &opacity_field, format!("GLB: opacity {o} is outside 0..1")));
         }
         let o = o.clamp(1e-7, 1.0 - 1e-7);
-        scene.opacity_logits.push((o / (1.0 - o)).ln() as f32);
-        for band in &bands {
-            for coef in band {
-                scene.sh.extend_from_slice(&coef[i * 3..i * 3 + 3]);
-            }
-        }
+        scene.opacity_logits[i] = (o / (1.0 - o)).ln() as f32;
+    })?;
+    // The SH coefficient accessors follow in band order.
+    for coef in 0..k {
+        let sh = &mut scene.sh;
+        read(&mut |i, v| sh[(i * k + coef) * 3..(i * k + coef) * 3 + 3].copy_from_slice(v))?;
     }
-    Ok(scene)
+    match fault {
+        Some(e) => Err(e),
+        None => Ok(scene),
+    }
 }
 
 fn concatenate(parts: Vec<Scene>, origin: &str) -> Result<Scene, SceneError> {

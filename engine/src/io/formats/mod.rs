@@ -125,12 +125,15 @@ impl std::fmt::Display for SceneFormat {
 /// extension that names another format is reported as a warning.
 pub fn read_scene(path: impl AsRef<Path>) -> Result<Scene> {
     let path = path.as_ref();
-    if is_plain_ply(path) {
-        // Streams from disk: one copy of the scene on the host, not the file and the scene.
-        if let Some(named) = SceneFormat::from_extension(path).filter(|f| *f != SceneFormat::Ply) {
-            log::warn!("{}: the extension says {named} but the content is PLY; reading it as PLY", path.display());
+    if let Some(format @ (SceneFormat::Ply | SceneFormat::Glb)) = prefix_format(path) {
+        // Uncompressed formats stream from disk: one copy of the scene on the host, not the file and the scene.
+        if let Some(named) = SceneFormat::from_extension(path).filter(|f| *f != format) {
+            log::warn!(
+                "{}: the extension says {named} but the content is {format}; reading it as {format}",
+                path.display()
+            );
         }
-        return super::read_ply(path);
+        return if format == SceneFormat::Ply { super::read_ply(path) } else { glb::read_path(path) };
     }
     let bytes = super::read_file(path)?;
     let origin = path.display().to_string();
@@ -160,18 +163,21 @@ pub fn read_scene(path: impl AsRef<Path>) -> Result<Scene> {
     Ok(read_scene_as(&bytes, format, &origin)?)
 }
 
-/// Whether the file starts like an INRIA PLY (not the compressed layout), from its first 64 KiB.
-fn is_plain_ply(path: &Path) -> bool {
+/// The format of a regular file whose first 64 KiB identify it as an INRIA PLY
+/// (not the compressed layout) or a GLB; `None` otherwise.
+fn prefix_format(path: &Path) -> Option<SceneFormat> {
     use std::io::Read;
-    let Ok(file) = std::fs::File::open(path) else { return false };
-    if !file.metadata().is_ok_and(|m| m.is_file()) {
-        return false;
+    let file = std::fs::File::open(path).ok()?;
+    let meta = file.metadata().ok()?;
+    if !meta.is_file() || meta.len() > super::limits().max_file_bytes {
+        return None;
     }
     let mut prefix = Vec::with_capacity(1 << 16);
-    if file.take(1 << 16).read_to_end(&mut prefix).is_err() {
-        return false;
+    file.take(1 << 16).read_to_end(&mut prefix).ok()?;
+    if prefix.starts_with(b"glTF") {
+        return Some(SceneFormat::Glb);
     }
-    SceneFormat::detect(&prefix) == Some(SceneFormat::Ply)
+    SceneFormat::detect(&prefix).filter(|f| *f == SceneFormat::Ply)
 }
 
 /// Reads a scene held in memory (any format but an unbundled SOG, whose

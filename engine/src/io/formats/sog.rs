@@ -269,33 +269,48 @@ fn codebook_1d(values: &[f32]) -> (Vec<f64>, Vec<u8>) {
     (centres, labels)
 }
 
+/// The nearest of `centroids` (rows of `dim`) to each row of `points`, on all cores.
+fn assign(points: &[f32], dim: usize, centroids: &[f32], labels: &mut [u16]) {
+    let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let rows_per = (labels.len().div_ceil(threads)).max(1);
+    std::thread::scope(|scope| {
+        for (chunk, out) in points.chunks(rows_per * dim).zip(labels.chunks_mut(rows_per)) {
+            scope.spawn(move || {
+                for (p, label) in chunk.chunks_exact(dim).zip(out.iter_mut()) {
+                    let mut best = (f32::INFINITY, 0);
+                    for (c, centre) in centroids.chunks_exact(dim).enumerate() {
+                        let mut d = 0.0f32;
+                        for (a, b) in p.iter().zip(centre) {
+                            d += (a - b) * (a - b);
+                        }
+                        if d < best.0 {
+                            best = (d, c);
+                        }
+                    }
+                    *label = best.1 as u16;
+                }
+            });
+        }
+    });
+}
+
 /// k-means of `points` (rows of `dim` floats) into `k` centroids: starts
-/// spread over the rows, a few Lloyd steps; returns the centroids and labels.
+/// spread over the rows, Lloyd steps on at most 32768 rows spread over the
+/// scene, then every row labelled with its nearest centroid.
 fn kmeans(points: &[f32], dim: usize, k: usize, steps: usize) -> (Vec<f32>, Vec<u16>) {
     let n = points.len() / dim;
+    let sample_rows = n.min(32768);
+    let sample: Vec<f32> = (0..sample_rows)
+        .flat_map(|i| points[(i * n / sample_rows) * dim..(i * n / sample_rows + 1) * dim].to_vec())
+        .collect();
     let mut centroids: Vec<f32> =
-        (0..k).flat_map(|i| points[(i * n / k) * dim..(i * n / k + 1) * dim].to_vec()).collect();
-    let mut labels = vec![0u16; n];
+        (0..k).flat_map(|i| sample[(i * sample_rows / k) * dim..(i * sample_rows / k + 1) * dim].to_vec()).collect();
+    let mut labels = vec![0u16; sample_rows];
     for _ in 0..steps {
-        for (p, label) in points.chunks_exact(dim).zip(labels.iter_mut()) {
-            let mut best = (f32::INFINITY, 0);
-            for (c, centre) in centroids.chunks_exact(dim).enumerate() {
-                let mut d = 0.0f32;
-                for (a, b) in p.iter().zip(centre) {
-                    d += (a - b) * (a - b);
-                    if d >= best.0 {
-                        break;
-                    }
-                }
-                if d < best.0 {
-                    best = (d, c);
-                }
-            }
-            *label = best.1 as u16;
-        }
+        assign(&sample, dim, &centroids, &mut labels);
         let mut sum = vec![0.0f64; k * dim];
         let mut count = vec![0usize; k];
-        for (p, &l) in points.chunks_exact(dim).zip(&labels) {
+        for (p, &l) in sample.chunks_exact(dim).zip(&labels) {
             count[l as usize] += 1;
             for (s, v) in sum[l as usize * dim..(l as usize + 1) * dim].iter_mut().zip(p) {
                 *s += f64::from(*v);
@@ -309,7 +324,9 @@ fn kmeans(points: &[f32], dim: usize, k: usize, steps: usize) -> (Vec<f32>, Vec<
             }
         }
     }
-    (centroids, labels)
+    let mut all = vec![0u16; n];
+    assign(points, dim, &centroids, &mut all);
+    (centroids, all)
 }
 
 fn encode_webp(rgba: &[u8], width: usize, height: usize) -> Result<Vec<u8>, String> {
