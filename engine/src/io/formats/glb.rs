@@ -462,16 +462,16 @@ fn primitive(
     let ln_s = s.ln();
     let scale_field = field(&format!("{PREFIX}SCALE"));
     read(&mut |i, v| {
-        for a in 0..3 {
-            if !(v[a] > 0.0 && v[a].is_finite()) && fault.is_none() {
+        for (out, &lin) in scene.log_scales[i].iter_mut().zip(v) {
+            if !(lin > 0.0 && lin.is_finite()) && fault.is_none() {
                 fault = Some(SceneError::at(
                     origin,
                     i,
                     &scale_field,
-                    format!("GLB: linear scale {} is not a finite positive number", v[a]),
+                    format!("GLB: linear scale {lin} is not a finite positive number"),
                 ));
             }
-            scene.log_scales[i][a] = v[a].ln() + ln_s;
+            *out = lin.ln() + ln_s;
         }
     })?;
     let opacity_field = field(&format!("{PREFIX}OPACITY"));
