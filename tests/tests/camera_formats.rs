@@ -161,6 +161,9 @@ fn distorted_and_malformed_cameras_are_refused() {
         cameras.replace("2 SIMPLE_PINHOLE 640 480 500 322 241.5", "2 OPENCV_FISHEYE 640 480 500 500 322 241.5 0 0 0 0");
     let e = write(&fisheye, &images);
     assert!(e.contains("camera 2") && e.contains("OPENCV_FISHEYE") && e.contains("fisheye"), "{e}");
+    let equirect = cameras.replace("2 SIMPLE_PINHOLE 640 480 500 322 241.5", "2 EQUIRECTANGULAR 640 320 640 320");
+    let e = write(&equirect, &images);
+    assert!(e.contains("camera 2") && e.contains("EQUIRECTANGULAR"), "{e}");
     let e = write(&cameras.replace("PINHOLE 704 192", "PINHOLE_X 704 192"), &images);
     assert!(e.contains("unknown camera model PINHOLE_X"), "{e}");
     let e = write(&cameras.replace("400 410.5 350.5 97.25", "400 410.5 350.5"), &images);

@@ -6,7 +6,7 @@
 //! quaternion w, x, y, z and translation) and its camera. COLMAP's camera
 //! axes and pixel convention (x right, y down, z forward; pixel centres at
 //! +0.5) are srug's, so a pose converts exactly: rotation Rᵀ, centre −Rᵀt.
-//! Every COLMAP camera model is parsed; the pinhole ones (and the
+//! Every COLMAP camera model (ids 0-17, as COLMAP 4 writes them) is parsed; the pinhole ones (and the
 //! perspective models whose distortion parameters are all zero) become srug
 //! cameras, and a camera with distortion or a fisheye projection is refused
 //! naming the camera and its model.
@@ -57,6 +57,8 @@ const MODELS: &[Model] = &[
     Model { id: 13, name: "DIVISION", params: &["fx", "fy", "cx", "cy", "k"] },
     Model { id: 14, name: "SIMPLE_FISHEYE", params: &["f", "cx", "cy"] },
     Model { id: 15, name: "FISHEYE", params: &["fx", "fy", "cx", "cy"] },
+    Model { id: 16, name: "EUCM", params: &["fx", "fy", "cx", "cy", "alpha", "beta"] },
+    Model { id: 17, name: "EQUIRECTANGULAR", params: &["w", "h"] },
 ];
 
 /// One camera of `cameras.txt`/`.bin`.
@@ -310,6 +312,13 @@ fn parse_images_bin(b: &[u8], origin: &str) -> Result<Vec<ColmapImage>, SceneErr
 /// otherwise an error naming it and the model.
 fn pinhole(c: &ColmapCamera, origin: &str) -> Result<(f64, f64, f64, f64), SceneError> {
     let p = &c.params;
+    if c.model.name == "EQUIRECTANGULAR" {
+        return Err(err(
+            origin,
+            &format!("camera {}", c.id),
+            "model EQUIRECTANGULAR (a 360° projection) is a lens srug does not render yet (pinhole cameras only)",
+        ));
+    }
     let single = c.model.params[0] == "f";
     let (fx, fy, cx, cy, rest) =
         if single { (p[0], p[0], p[1], p[2], &p[3..]) } else { (p[0], p[1], p[2], p[3], &p[4..]) };
