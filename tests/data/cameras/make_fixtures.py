@@ -14,6 +14,11 @@ import sys
 import numpy as np
 import pycolmap
 
+try:
+    import cv2
+except ImportError:
+    cv2 = None
+
 out = sys.argv[1] if len(sys.argv) > 1 else "."
 rng = np.random.default_rng(33)
 
@@ -89,3 +94,49 @@ with open(os.path.join(out, "projections.json"), "w") as f:
 with open(os.path.join(out, "transforms.json"), "w") as f:
     json.dump({"camera_model": "OPENCV", "k1": 0.0, "k2": 0.0, "p1": 0.0, "p2": 0.0, "frames": frames}, f, indent=1)
 print("pycolmap", pycolmap.__version__, "wrote", out)
+
+# Lens models: pycolmap's projection of camera-space points (and back to rays) for each model srug parses.
+lens_cases = [
+    ("SIMPLE_RADIAL", [800.0, 512.0, 384.0, -0.08], 50),
+    ("RADIAL", [800.0, 512.0, 384.0, -0.1, 0.03], 50),
+    ("OPENCV", [600.0, 590.0, 401.0, 299.0, -0.1, 0.02, 0.001, -0.002], 50),
+    ("FULL_OPENCV", [600.0, 590.0, 401.0, 299.0, -0.2, 0.05, 0.001, -0.002, 0.01, 0.05, 0.01, 0.002], 50),
+    ("OPENCV_FISHEYE", [350.0, 352.0, 700.0, 699.0, 0.01, -0.002, 0.0003, -0.00004], 89),
+    ("SIMPLE_RADIAL_FISHEYE", [350.0, 700.0, 699.0, 0.01], 89),
+    ("RADIAL_FISHEYE", [350.0, 700.0, 699.0, 0.01, -0.002], 89),
+    ("SIMPLE_FISHEYE", [350.0, 700.0, 699.0], 89),
+    ("FISHEYE", [350.0, 352.0, 700.0, 699.0], 89),
+    ("FOV", [500.0, 505.0, 400.0, 300.0, 0.9], 50),
+]
+lenses = []
+for name, params, max_deg in lens_cases:
+    cam = pycolmap.Camera(model=name, width=1400, height=1400, params=params)
+    pts, pix, rays = [], [], []
+    for _ in range(40):
+        theta = np.radians(rng.uniform(0, max_deg))
+        phi = rng.uniform(0, 2 * np.pi)
+        d = np.array([np.sin(theta) * np.cos(phi), np.sin(theta) * np.sin(phi), np.cos(theta)]) * rng.uniform(1, 50)
+        px = cam.img_from_cam(d)
+        ray = cam.cam_from_img(px)
+        pts.append(list(map(float, d)))
+        pix.append(list(map(float, px)))
+        rays.append(list(map(float, ray)))
+    case = {"model": name, "params": params, "points": pts, "pixels": pix, "rays": rays}
+    # OpenCV's own projection of the same points, for the models it defines.
+    if cv2 is not None and name in ("OPENCV", "FULL_OPENCV", "OPENCV_FISHEYE"):
+        fx, fy, cx, cy = params[:4]
+        K = np.array([[fx, 0, cx], [0, fy, cy], [0, 0, 1]], dtype=np.float64)
+        obj = np.array(pts, dtype=np.float64).reshape(-1, 1, 3)
+        zero = np.zeros(3)
+        if name == "OPENCV_FISHEYE":
+            cv, _ = cv2.fisheye.projectPoints(obj, zero, zero, K, np.array(params[4:8], dtype=np.float64))
+        else:
+            k1, k2, p1, p2 = params[4:8]
+            rest = params[8:12] if name == "FULL_OPENCV" else [0.0, 0.0, 0.0, 0.0]
+            dist = np.array([k1, k2, p1, p2, rest[0], rest[1], rest[2], rest[3]], dtype=np.float64)
+            cv, _ = cv2.projectPoints(obj, zero, zero, K, dist)
+        case["opencv_pixels"] = cv.reshape(-1, 2).tolist()
+        case["opencv_version"] = cv2.__version__
+    lenses.append(case)
+with open(os.path.join(out, "lenses.json"), "w") as f:
+    json.dump(lenses, f, indent=1)

@@ -5,6 +5,8 @@
 //! z forward); `rotation` is camera-to-world (its columns are the camera axes in
 //! world space) and `position` the camera centre; pixel centres are at +0.5.
 
+pub mod lens;
+
 use bytemuck::{Pod, Zeroable};
 use glam::{Mat3, Vec2, Vec3};
 
