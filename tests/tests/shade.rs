@@ -197,6 +197,7 @@ fn upload(d: &Device, g: &GBuffer) -> GpuGBuffer {
         rgb: g.rgb.as_ref().map(|v| d.upload("rgb", v).unwrap()),
         alpha: d.upload("alpha", &g.alpha).unwrap(),
         channels: g.channels.iter().map(|(c, v)| (c, d.upload(c.name(), v).unwrap())).collect(),
+        top_gaussian: None,
     }
 }
 
@@ -211,6 +212,7 @@ fn random_gbuffer(w: u32, h: u32, camera: &Camera, seed: u64) -> GBuffer {
         rgb: Some(vec![0.0; 3 * n]),
         alpha: vec![0.0; n],
         channels: Channel::ALL.into_iter().filter(|c| c.is_feature()).map(|c| (c, vec![0.0; c.floats() * n])).collect(),
+        top_gaussian: None,
     };
     for p in 0..n {
         let extreme = p % 4 == 0;

@@ -54,6 +54,16 @@ fn compare(gpu: &GBuffer, cpu: &GBuffer, label: &str) {
             panic!("{label}: {name}: {what} (images: {saved})");
         }
     }
+    // The top Gaussian is an index, exact: it may differ only where two splats' weights nearly
+    // tie (f32 against f64), as rarely as median depth's flips.
+    assert_eq!(gpu.top_gaussian.is_some(), cpu.top_gaussian.is_some(), "{label}: top_gaussian kept by one only");
+    if let (Some(g), Some(c)) = (&gpu.top_gaussian, &cpu.top_gaussian) {
+        assert!(!g.contains(&NAN), "{label}: top_gaussian has unwritten pixels");
+        let bad = g.iter().zip(c).filter(|(a, b)| a != b).count();
+        assert!(bad * 1000 <= g.len(), "{label}: top_gaussian differs from the twin at {bad} of {} pixels", g.len());
+        let none = |v: &[u32]| v.iter().filter(|x| **x == u32::MAX).count();
+        assert!(none(g).abs_diff(none(c)) * 1000 <= g.len(), "{label}: empty pixels {} vs {}", none(g), none(c));
+    }
 }
 
 fn render_both(
@@ -85,7 +95,7 @@ fn blend_variants(d: &Device) -> Vec<BlendVariant> {
 fn all_settings() -> SplatSettings {
     SplatSettings {
         background: [0.2, 0.3, 0.4],
-        channels: Channels::ALL,
+        channels: Channels { top_gaussian: true, ..Channels::ALL },
         normal_source: NormalSource::Stored,
         prefill: Some(NAN),
         rgb: true,
@@ -530,5 +540,45 @@ fn rgb_off_drops_only_colour_in_every_variant() {
         render_both(&d, &mut splatter, &city.scene, &cam, &off, &format!("rgb_off_{variant:?}"));
     }
     assert!(render_cpu(&city.scene, &cam, &off).rgb.is_none(), "the twin skips rgb too");
+    assert_no_validation_messages(&d);
+}
+
+/// The top-Gaussian channel names the splat with the largest blend weight
+/// wᵢ = αᵢ Tᵢ, exactly, in every blend variant: a faint splat in front of an
+/// opaque one loses to it (0.3 against 0.7·α), a strong one in front wins,
+/// and pixels nothing reaches hold u32::MAX.
+#[test]
+fn top_gaussian_is_the_largest_weight_in_every_variant() {
+    let d = device();
+    let mut splatter = Splatter::new(&d).unwrap();
+    let faint = one_gaussian([-0.6, 0.0, 0.0], -1.2, (0.3f32 / 0.7).ln());
+    let strong = one_gaussian([0.6, 0.0, 0.0], -1.2, 4.0);
+    let back = one_gaussian([0.0, 2.0, 0.0], -0.2, 6.0);
+    let mut scene = faint.clone();
+    for s in [&strong, &back] {
+        scene.means.extend(&s.means);
+        scene.log_scales.extend(&s.log_scales);
+        scene.rotations.extend(&s.rotations);
+        scene.opacity_logits.extend(&s.opacity_logits);
+        scene.sh.extend(&s.sh);
+    }
+    let cam = Camera::look_at(Vec3::new(0.0, -5.0, 0.0), Vec3::ZERO, Vec3::Z, 60.0, 96, 64).unwrap();
+    let settings = SplatSettings { channels: Channels { top_gaussian: true, ..Channels::default() }, ..all_settings() };
+    let cpu = render_cpu(&scene, &cam, &settings).top_gaussian.unwrap();
+    let at = |x: f32, y: f32, z: f32| {
+        let p = cam.project(cam.world_to_camera(Vec3::new(x, y, z)));
+        p.y as usize * 96 + p.x as usize
+    };
+    assert_eq!(cpu[at(-0.6, 0.0, 0.0)], 2, "the opaque splat behind outweighs the faint one in front");
+    assert_eq!(cpu[at(0.6, 0.0, 0.0)], 1, "the strong splat in front outweighs the one behind");
+    assert_eq!(cpu[0], u32::MAX, "nothing reaches the corner");
+    for variant in blend_variants(&d) {
+        splatter.set_blend_variant(variant).unwrap();
+        let gpu_scene = GpuScene::upload(&d, &scene).unwrap();
+        let (out, _) = splatter.render(&gpu_scene, &cam, &settings).unwrap();
+        let gpu = out.read(&d).unwrap().top_gaussian.unwrap();
+        let differ = gpu.iter().zip(&cpu).filter(|(a, b)| a != b).count();
+        assert_eq!(differ, 0, "{variant:?}: top Gaussian differs from the twin at {differ} pixels");
+    }
     assert_no_validation_messages(&d);
 }

@@ -161,10 +161,14 @@ pub struct Channels {
     pub ao: bool,
     /// Fixed sun visibility.
     pub visibility: bool,
+    /// The index of the Gaussian with the largest blend weight wᵢ = αᵢ Tᵢ at
+    /// each pixel (`u32::MAX` where none contributes): not blended, exact, for
+    /// ground-truth ids ([`GBuffer::top_gaussian`]).
+    pub top_gaussian: bool,
 }
 
 impl Channels {
-    /// Every channel.
+    /// Every blended channel (not [`Channels::top_gaussian`]).
     pub const ALL: Channels = Channels {
         depth: true,
         median_depth: true,
@@ -174,6 +178,7 @@ impl Channels {
         metallic: true,
         ao: true,
         visibility: true,
+        top_gaussian: false,
     };
 
     /// Whether `channel` is kept.
@@ -216,7 +221,7 @@ impl Channels {
         self.iter().map(Channel::bit).sum()
     }
 
-    /// The inverse of [`Channels::bits`] (bits above 7 are ignored).
+    /// The inverse of [`Channels::bits`] (bits above 7 are ignored; the top-Gaussian flag is off).
     pub fn from_bits(bits: u32) -> Self {
         let mut c = Channels::default();
         for channel in Channel::ALL.into_iter().filter(|ch| bits & ch.bit() != 0) {
@@ -228,7 +233,7 @@ impl Channels {
     /// The whole `CHANNELS` specialization constant: [`Channels::bits`] plus
     /// the rgb bit when colour is blended.
     pub fn blend_bits(&self, rgb: bool) -> u32 {
-        self.bits() | u32::from(rgb) << RGB_BIT
+        self.bits() | u32::from(rgb) << RGB_BIT | u32::from(self.top_gaussian) << TOP_GAUSSIAN_BIT
     }
 
     /// Whether per-splat features (normal or materials) are needed.
@@ -249,6 +254,7 @@ impl Channels {
             match item {
                 "rgb" | "alpha" => {}
                 "median" => c.median_depth = true,
+                "top_gaussian" => c.top_gaussian = true,
                 "materials" => {
                     c = Channels { albedo: true, roughness: true, metallic: true, ao: true, visibility: true, ..c }
                 }
@@ -257,7 +263,7 @@ impl Channels {
                     return Err(Error::invalid(
                         format!("channel \"{other}\""),
                         "is unknown (rgb, alpha, depth, median_depth, normal, albedo, roughness, metallic, ao, \
-                         visibility, materials, all)",
+                         visibility, materials, all, top_gaussian)",
                     ))
                 }
             }
@@ -292,5 +298,8 @@ mod tests {
         assert_eq!(Channels::ALL.iter().map(|c| c.floats()).sum::<usize>(), 2 * 3 + 6);
         let names: Vec<&str> = Channel::ALL.into_iter().map(Channel::name).collect();
         assert_eq!(Channels::parse(&names.join(",")).unwrap(), Channels::ALL);
+        let top = Channels::parse("depth,top_gaussian").unwrap();
+        assert!(top.top_gaussian && top.depth && top.iter().count() == 1);
+        assert_eq!(top.blend_bits(false), 1 | 1 << super::TOP_GAUSSIAN_BIT);
     }
 }

@@ -448,14 +448,25 @@ pub struct PixelBlend {
     pub median: f64,
     /// The splat giving the median depth.
     pub median_index: Option<usize>,
+    /// The contributing splat with the largest weight wᵢ = αᵢ Tᵢ (the first of equal ones).
+    pub top: Option<usize>,
+    /// Its weight.
+    pub top_weight: f64,
     /// Contributing splats in blend order.
     pub contributions: Vec<Contribution>,
 }
 
 /// Blends the splats of `list` (blend order) at pixel centre `centre`.
 pub(crate) fn blend_pixel(list: &[(u32, usize)], splats: &[Option<CpuSplat>], centre: DVec2) -> PixelBlend {
-    let mut out =
-        PixelBlend { values: [0.0; VALUES], t_final: 1.0, median: 0.0, median_index: None, contributions: Vec::new() };
+    let mut out = PixelBlend {
+        values: [0.0; VALUES],
+        t_final: 1.0,
+        median: 0.0,
+        median_index: None,
+        top: None,
+        top_weight: 0.0,
+        contributions: Vec::new(),
+    };
     let mut t = 1.0f64;
     for &(_, i) in list {
         let Some(s) = &splats[i] else { continue };
@@ -471,6 +482,10 @@ pub(crate) fn blend_pixel(list: &[(u32, usize)], splats: &[Option<CpuSplat>], ce
         if t > 0.5 && next <= 0.5 {
             out.median = s.depth;
             out.median_index = Some(i);
+        }
+        if w > out.top_weight {
+            out.top = Some(i);
+            out.top_weight = w;
         }
         out.contributions.push(Contribution { index: i, alpha, t_before: t });
         t = next;
@@ -524,6 +539,7 @@ pub fn render_cpu(scene: &Scene, camera: &Camera, settings: &SplatSettings) -> G
         rgb: opt(settings.rgb, 3),
         alpha: vec![0.0; p],
         channels: ch.iter().map(|c| (c, vec![0.0f32; c.floats() * p])).collect(),
+        top_gaussian: ch.top_gaussian.then(|| vec![u32::MAX; p]),
     };
     let bg = settings.background.map(f64::from);
     for y in 0..h {
@@ -536,6 +552,9 @@ pub fn render_cpu(scene: &Scene, camera: &Camera, settings: &SplatSettings) -> G
                 }
             }
             g.alpha[px] = (1.0 - b.t_final) as f32;
+            if let (Some(top), Some(i)) = (&mut g.top_gaussian, b.top) {
+                top[px] = i as u32;
+            }
             let f = &b.values[4..];
             for (c, vals) in [
                 (Channel::Depth, &b.values[3..4]),

@@ -290,6 +290,7 @@ impl Splatter {
             channels: PerChannel::try_from_fn(|c| {
                 opt(ch.has(c), &format!("gbuffer {}", c.name()), c.floats() as u64 * pixels)
             })?,
+            top_gaussian: opt(ch.top_gaussian, "gbuffer top gaussian", pixels)?,
         };
         let splats = device.create_buffer("splats", n * SPLAT_BYTES, MemoryKind::Storage)?;
         let feature_buf = features
@@ -356,8 +357,12 @@ impl Splatter {
             && pairs <= max_texels;
         let blend = self.blend_kernel(ch.blend_bits(settings.rgb), tile, texel)?;
         let (sort, keys_kernel, ranges_kernel, blend) = (&self.sort, &*keys_kernel, &*self.ranges, &*blend);
-        let outputs: Vec<&Buffer> =
-            [&out.alpha].into_iter().chain(out.rgb.as_ref()).chain(out.channels.iter().map(|(_, b)| b)).collect();
+        let outputs: Vec<&Buffer> = [&out.alpha]
+            .into_iter()
+            .chain(out.rgb.as_ref())
+            .chain(out.channels.iter().map(|(_, b)| b))
+            .chain(&out.top_gaussian)
+            .collect();
         let phase2 = device.run(|rec| -> Result<()> {
             let buffers = FrameBuffers {
                 scene,

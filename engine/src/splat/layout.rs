@@ -53,7 +53,7 @@ pub(crate) struct FrameUniform {
     g_metallic: DeviceAddress,
     g_ao: DeviceAddress,
     g_visibility: DeviceAddress,
-    unused1: DeviceAddress,
+    g_top_gaussian: DeviceAddress,
 }
 crate::gpu::gpu_layout!(
     FrameUniform,
@@ -99,7 +99,7 @@ crate::gpu::gpu_layout!(
         g_metallic,
         g_ao,
         g_visibility,
-        unused1
+        g_top_gaussian
     ]
 );
 
@@ -157,6 +157,7 @@ impl FrameUniform {
         self.g_metallic = rec.addr_or_null(o.get(Channel::Metallic))?;
         self.g_ao = rec.addr_or_null(o.get(Channel::Ao))?;
         self.g_visibility = rec.addr_or_null(o.get(Channel::Visibility))?;
+        self.g_top_gaussian = rec.addr_or_null(o.top_gaussian.as_ref())?;
         Ok(rec.update(uniform, 0, &self)?)
     }
 }

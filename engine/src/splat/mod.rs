@@ -67,6 +67,8 @@ pub const DEFAULT_BLEND_PIXELS: u32 = 2;
 /// Bit of the blend's `CHANNELS` specialization constant that blends rgb
 /// (keep in sync with `RGB` in `splat_blend_body.glsl`).
 pub(crate) const RGB_BIT: u32 = 8;
+/// The blend kernel's `CHANNELS` bit for the top-Gaussian index (`TOP` in `splat_blend_body.glsl`).
+pub(crate) const TOP_GAUSSIAN_BIT: u32 = 9;
 /// Why a G-buffer has no rgb to give.
 const NO_RGB: &str = "this G-buffer has no rgb channel (it was splatted with SplatSettings::rgb off)";
 /// Bytes of one projected splat (keep in sync with `Splat` in `splat.glsl`).
@@ -199,6 +201,10 @@ pub struct GBuffer {
     /// (divide by alpha for the mean); median depth is the depth where T
     /// first falls to 0.5 (0 where it never does).
     pub channels: PerChannel<Vec<f32>>,
+    /// Per pixel, the index of the Gaussian with the largest blend weight
+    /// (`u32::MAX` where none contributes), when [`Channels::top_gaussian`]
+    /// was asked for: maps a pixel to a Gaussian's ids exactly.
+    pub top_gaussian: Option<Vec<u32>>,
 }
 
 impl GBuffer {
@@ -245,6 +251,8 @@ pub struct GpuGBuffer {
     pub alpha: Buffer,
     /// The optional channels kept, laid out as in [`GBuffer::channels`].
     pub channels: PerChannel<Buffer>,
+    /// `uint[P]`, [`GBuffer::top_gaussian`].
+    pub top_gaussian: Option<Buffer>,
 }
 
 impl GpuGBuffer {
@@ -266,12 +274,13 @@ impl GpuGBuffer {
             rgb: self.rgb.as_ref().map(|b| device.read_buffer::<f32>(b)).transpose()?,
             alpha: device.read_buffer(&self.alpha)?,
             channels: PerChannel::try_from_fn(|c| self.get(c).map(|b| device.read_buffer::<f32>(b)).transpose())?,
+            top_gaussian: self.top_gaussian.as_ref().map(|b| device.read_buffer::<u32>(b)).transpose()?,
         })
     }
 
     /// GPU bytes held by the channels.
     pub fn bytes(&self) -> u64 {
-        let opt = self.rgb.iter().chain(self.channels.iter().map(|(_, b)| b));
+        let opt = self.rgb.iter().chain(self.channels.iter().map(|(_, b)| b)).chain(&self.top_gaussian);
         self.alpha.size() + opt.map(Buffer::size).sum::<u64>()
     }
 }

@@ -43,7 +43,7 @@ layout(std140, set = 0, binding = 0) uniform Frame {
     uvec2 g_metallic;
     uvec2 g_ao;
     uvec2 g_visibility;
-    uvec2 unused1;
+    uvec2 g_top_gaussian;   // uint per pixel: the Gaussian with the largest blend weight
 } frame;
 
 // The per-splat part of `tile_row_span`, computed once per splat: r² (≤ 0:

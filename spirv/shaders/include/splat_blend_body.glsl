@@ -6,10 +6,14 @@
 #include "splat.glsl"
 
 // Bits: 1 depth, 2 median depth, 4 normal, 8 albedo, 16 roughness, 32 metallic, 64 ao, 128 visibility,
-// 256 rgb. Keep in sync with engine/src/splat/mod.rs `Channels::bits` and `RGB_BIT`.
+// 256 rgb, 512 top Gaussian. Keep in sync with engine/src/splat/mod.rs `Channels::bits`, `RGB_BIT`
+// and `TOP_GAUSSIAN_BIT`.
 layout(constant_id = 0) const uint CHANNELS = 256u;
 // Without rgb (shadow maps) no colour is read, blended or stored.
 const bool RGB = (CHANNELS & 256u) != 0u;
+// The index of the splat with the largest weight wᵢ = αᵢ Tᵢ (the first of equal ones), per pixel.
+const bool TOP = (CHANNELS & 512u) != 0u;
+const uint NO_GAUSSIAN = 0xffffffffu;
 const bool FEATURES = (CHANNELS & 252u) != 0u;
 
 #ifdef TEXEL_SPLATS
@@ -35,6 +39,8 @@ struct Accumulated {
     float depth, median;
     vec3 normal, albedo;
     float rough, metal, ao, vis;
+    float top_w;
+    uint top_g;
 };
 
 // A contributing splat's colour and features (zero without FEATURES).
@@ -56,8 +62,13 @@ Contribution splat_contribution(uint g) {
 
 // Adds a splat of opacity `alpha` and depth `z` to `acc` where `takes`
 // (weight 0 and T kept otherwise), with no branch.
-void accumulate_select(inout Accumulated acc, bool takes, float alpha, float next_T, float z, Contribution c) {
+void accumulate_select(inout Accumulated acc, bool takes, float alpha, float next_T, float z, Contribution c, uint g) {
     float w = mix(0.0, alpha * acc.T, takes);
+    if (TOP) {
+        bool better = w > acc.top_w;
+        acc.top_w = mix(acc.top_w, w, better);
+        acc.top_g = better ? g : acc.top_g;
+    }
     if (RGB) acc.rgb += w * c.color;
     if ((CHANNELS & 1u) != 0u) acc.depth += w * z;
     if ((CHANNELS & 2u) != 0u) acc.median = mix(acc.median, z, all(bvec3(takes, acc.T > 0.5, next_T <= 0.5)));
@@ -74,8 +85,8 @@ void accumulate_select(inout Accumulated acc, bool takes, float alpha, float nex
 
 // Adds a splat of opacity `alpha` and depth `z` to `acc`; the caller has
 // checked that the pixel is not done (T·(1−α) ≥ 1e-4).
-void accumulate(inout Accumulated acc, float alpha, float z, Contribution c) {
-    accumulate_select(acc, true, alpha, acc.T * (1.0 - alpha), z, c);
+void accumulate(inout Accumulated acc, float alpha, float z, Contribution c, uint g) {
+    accumulate_select(acc, true, alpha, acc.T * (1.0 - alpha), z, c, g);
 }
 
 // Blends splat g into `acc`; false once the pixel is done (T·(1−α) < 1e-4,
@@ -85,7 +96,7 @@ bool blend_one(inout Accumulated acc, uint g, vec4 head, vec4 conic, vec2 centre
     vec2 d;
     if (!splat_alpha(head, conic, centre, alpha, gauss, d)) return true;
     if (acc.T * (1.0 - alpha) < 1e-4) return false;
-    accumulate(acc, alpha, head.z, splat_contribution(g));
+    accumulate(acc, alpha, head.z, splat_contribution(g), g);
     return true;
 }
 
@@ -133,6 +144,7 @@ void store_pixel(uvec2 pix, Accumulated acc) {
     if ((CHANNELS & 32u) != 0u) Floats(frame.g_metallic).v[p] = metal;
     if ((CHANNELS & 64u) != 0u) Floats(frame.g_ao).v[p] = ao;
     if ((CHANNELS & 128u) != 0u) Floats(frame.g_visibility).v[p] = vis;
+    if (TOP) Uints(frame.g_top_gaussian).v[p] = acc.top_g;
 }
 
 #ifdef TEXEL_SPLATS
@@ -152,7 +164,7 @@ void main() {
     bool live[PIXELS];
     bool any_live = false;
     [[unroll]] for (uint k = 0u; k < PIXELS; k++) {
-        acc[k] = Accumulated(1.0, vec3(0.0), 0.0, 0.0, vec3(0.0), vec3(0.0), 0.0, 0.0, 0.0, 0.0);
+        acc[k] = Accumulated(1.0, vec3(0.0), 0.0, 0.0, vec3(0.0), vec3(0.0), 0.0, 0.0, 0.0, 0.0, 0.0, NO_GAUSSIAN);
         uvec2 pix = base + uvec2(k * STEP, 0u);
         live[k] = pix.x < frame.size.x && pix.y < frame.size.y;
         any_live = any_live || live[k];
@@ -178,7 +190,7 @@ void main() {
             bool takes = all(bvec2(hit, !stop));
             live[k] = all(bvec2(live[k], !stop));
             any_live = any(bvec2(any_live, live[k]));
-            accumulate_select(acc[k], takes, alpha, next_T, head.z, c);
+            accumulate_select(acc[k], takes, alpha, next_T, head.z, c, g);
         }
     }
     [[unroll]] for (uint k = 0u; k < PIXELS; k++) {
@@ -197,7 +209,7 @@ void main() {
     uvec2 range = Uvec2s(frame.ranges).v[tile];
     Uints values = Uints(frame.values);
     Splats splats = Splats(frame.splats);
-    Accumulated acc = Accumulated(1.0, vec3(0.0), 0.0, 0.0, vec3(0.0), vec3(0.0), 0.0, 0.0, 0.0, 0.0);
+    Accumulated acc = Accumulated(1.0, vec3(0.0), 0.0, 0.0, vec3(0.0), vec3(0.0), 0.0, 0.0, 0.0, 0.0, 0.0, NO_GAUSSIAN);
 
 #ifdef SHARED_BATCHES
     // Batches of BLEND_BATCH splats staged in shared memory by the whole
