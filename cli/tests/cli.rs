@@ -830,3 +830,60 @@ fn render_takes_colmap_and_nerfstudio_cameras() {
     assert!(text(&o).contains("pinhole cameras only"), "{}", text(&o));
     assert!(!out.exists());
 }
+
+/// `srug render --ids`: integer PLY properties become exact 32-bit integer EXR
+/// channels holding each pixel's top Gaussian's id; −1 and empty pixels read 4294967295.
+#[test]
+fn render_writes_exact_id_channels() {
+    let dir = tempfile::tempdir().unwrap();
+    let ply = dir.path().join("labelled.ply");
+    // Two opaque Gaussians side by side, with semantic ids 70000 and -1 and instance ids 3 and 250.
+    let mut header = String::from("ply\nformat binary_little_endian 1.0\nelement vertex 2\n");
+    for p in [
+        "x", "y", "z", "f_dc_0", "f_dc_1", "f_dc_2", "opacity", "scale_0", "scale_1", "scale_2", "rot_0", "rot_1",
+        "rot_2", "rot_3",
+    ] {
+        header += &format!("property float {p}\n");
+    }
+    header += "property int semantic\nproperty uchar instance\nend_header\n";
+    let mut bytes = header.into_bytes();
+    for (x, semantic, instance) in [(-1.0f32, 70_000i32, 3u8), (1.0, -1, 250)] {
+        for v in [x, 0.0, 0.0, 0.5, 0.5, 0.5, 5.0, -1.2, -1.2, -1.2, 1.0, 0.0, 0.0, 0.0] {
+            bytes.extend_from_slice(&v.to_le_bytes());
+        }
+        bytes.extend_from_slice(&semantic.to_le_bytes());
+        bytes.push(instance);
+    }
+    std::fs::write(&ply, bytes).unwrap();
+    let out = dir.path().join("ids.exr");
+    let args =
+        ["render", ply.to_str().unwrap(), "--eye", "0,-6,0", "--target", "0,0,0", "--size", "64x32", "--fov", "60"];
+    let o = srug(&[&args[..], &["--ids", "semantic,instance", "--out", out.to_str().unwrap()]].concat());
+    assert!(o.status.success(), "{}", text(&o));
+    let image = exr::prelude::read_all_flat_layers_from_file(&out).unwrap();
+    let channel = |name: &str| -> Vec<u32> {
+        let c = image.layer_data[0].channel_data.list.iter().find(|c| c.name.to_string() == name).unwrap();
+        match &c.sample_data {
+            exr::prelude::FlatSamples::U32(v) => v.clone(),
+            other => panic!("{name} is not a 32-bit integer channel: {other:?}"),
+        }
+    };
+    let (semantic, instance, top) = (channel("semantic"), channel("instance"), channel("top_gaussian"));
+    // The left Gaussian (x = −1) lands left of centre, the right one right of it (camera looking +y, x right).
+    let (left, right, corner) = (16 * 64 + 21, 16 * 64 + 42, 0);
+    assert_eq!((top[left], semantic[left], instance[left]), (0, 70_000, 3));
+    assert_eq!((top[right], semantic[right], instance[right]), (1, u32::MAX, 250));
+    assert_eq!((top[corner], semantic[corner], instance[corner]), (u32::MAX, u32::MAX, u32::MAX));
+    // Ids need an EXR, a float property is refused, an unknown one is named.
+    let png = dir.path().join("x.png");
+    let o = srug(&[&args[..], &["--ids", "semantic", "--out", png.to_str().unwrap()]].concat());
+    assert!(text(&o).contains("--ids semantic: needs an .exr output"), "{}", text(&o));
+    let o = srug(&[&args[..], &["--ids", "opacity", "--out", out.to_str().unwrap()]].concat());
+    assert!(text(&o).contains("ids must be integers"), "{}", text(&o));
+    let o = srug(&[&args[..], &["--ids", "class", "--out", out.to_str().unwrap()]].concat());
+    assert!(
+        text(&o).contains("property class") && text(&o).contains("integer properties: semantic, instance"),
+        "{}",
+        text(&o)
+    );
+}

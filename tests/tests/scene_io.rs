@@ -492,3 +492,45 @@ fn streamed_and_in_memory_ply_reads_agree() {
     std::fs::write(&p, &bytes).unwrap();
     assert!(bits_equal(&read_ply(&p).unwrap(), &scene));
 }
+
+/// Integer id properties read exactly in every PLY encoding: ids past 2^24
+/// (which f32 would round), negative ids as their 32-bit two's complement.
+#[test]
+fn ply_ids_read_exactly_in_every_encoding() {
+    let dir = tempfile::tempdir().unwrap();
+    let names = [
+        "x", "y", "z", "f_dc_0", "f_dc_1", "f_dc_2", "opacity", "scale_0", "scale_1", "scale_2", "rot_0", "rot_1",
+        "rot_2", "rot_3",
+    ];
+    let ids: [(i32, u16); 3] = [(16_777_217, 7), (-1, 65_535), (0, 0)];
+    let header = |format: &str| {
+        let mut h = format!("ply\nformat {format} 1.0\nelement vertex 3\n");
+        for n in names {
+            h += &format!("property float {n}\n");
+        }
+        h + "property int semantic\nproperty ushort instance\nend_header\n"
+    };
+    let floats = [0.0f32, 0.0, 0.0, 0.1, 0.1, 0.1, 1.0, -1.0, -1.0, -1.0, 1.0, 0.0, 0.0, 0.0];
+    let mut le = header("binary_little_endian").into_bytes();
+    let mut be = header("binary_big_endian").into_bytes();
+    let mut ascii = header("ascii");
+    for (s, i) in ids {
+        for v in floats {
+            le.extend_from_slice(&v.to_le_bytes());
+            be.extend_from_slice(&v.to_be_bytes());
+        }
+        le.extend_from_slice(&s.to_le_bytes());
+        le.extend_from_slice(&i.to_le_bytes());
+        be.extend_from_slice(&s.to_be_bytes());
+        be.extend_from_slice(&i.to_be_bytes());
+        ascii += &format!("{} {s} {i}\n", floats.map(|v| v.to_string()).join(" "));
+    }
+    let want = vec![vec![16_777_217u32, u32::MAX, 0], vec![7u32, 65_535, 0]];
+    for (name, bytes) in [("le.ply", le), ("be.ply", be), ("ascii.ply", ascii.into_bytes())] {
+        let path = dir.path().join(name);
+        std::fs::write(&path, bytes).unwrap();
+        let got = srug::io::read_ply_ids(&path, &["semantic".into(), "instance".into()]).unwrap();
+        assert_eq!(got, want, "{name}");
+        assert_eq!(read_ply(&path).unwrap().extra_properties, ["semantic", "instance"], "{name}");
+    }
+}

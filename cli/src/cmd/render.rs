@@ -24,10 +24,17 @@ pub(super) struct RenderArgs {
     #[arg(long)]
     out: PathBuf,
     /// Channels: rgb, depth, median_depth, normal, albedo, roughness, metallic, ao,
-    /// visibility, materials, all. EXR holds those listed and alpha (rgb only if listed);
-    /// PNG holds only rgb (any other channel needs an .exr output).
+    /// visibility, materials, all, top_gaussian (the index of each pixel's Gaussian with the
+    /// largest blend weight, a 32-bit integer channel). EXR holds those listed and alpha (rgb
+    /// only if listed); PNG holds only rgb (any other channel needs an .exr output).
     #[arg(long, default_value = "rgb")]
     channels: ChannelList,
+    /// Integer PLY properties to render as exact id channels (e.g. semantic,instance): each
+    /// pixel holds the id of its Gaussian with the largest blend weight, 4294967295 where no
+    /// Gaussian reaches it (signed ids as 32-bit two's complement, so −1 reads the same).
+    /// Needs a PLY scene and an .exr output.
+    #[arg(long, value_delimiter = ',')]
+    ids: Vec<String>,
     /// Background colour r,g,b.
     #[arg(long, default_value = "0,0,0")]
     background: Vec3Arg,
@@ -49,8 +56,15 @@ pub(super) struct RenderArgs {
 impl RenderArgs {
     /// Runs `srug render`.
     pub(super) fn run(&self, device_args: &DeviceArgs) -> Result<()> {
-        let Self { scene: path, view, out, channels, background, stored_normals, sh_degree, tile, tile_bounds } = self;
+        let Self { scene: path, view, out, channels, ids, background, stored_normals, sh_degree, tile, tile_bounds } =
+            self;
         let is_exr = output_is_exr(out)?;
+        if !ids.is_empty() && !is_exr {
+            return Err(Error::invalid(
+                format!("--ids {}", ids.join(",")),
+                format!("needs an .exr output; {} can hold only the colour", out.display()),
+            ));
+        }
         // A PNG is the colour; an EXR holds what was asked for.
         if !is_exr && channels.channels != Channels::default() {
             let names: Vec<&str> = channels.channels.iter().map(|c| c.name()).collect();
@@ -63,12 +77,17 @@ impl RenderArgs {
         let cams = view.resolve()?;
         let index = view.index;
         let scene = io::read_scene(path)?;
+        let id_values = if ids.is_empty() { Vec::new() } else { io::read_ply_ids(path, ids)? };
+        let id_channels: Vec<(&str, &[u32])> =
+            ids.iter().map(String::as_str).zip(id_values.iter().map(Vec::as_slice)).collect();
+        let mut channel_set = channels.channels;
+        channel_set.top_gaussian |= !ids.is_empty();
         let device = device_args.open()?;
         let gpu_scene = activate::GpuScene::upload(&device, &scene)?;
         let mut splatter = Splatter::new(&device)?;
         let settings = SplatSettings {
             background: background.0.to_array(),
-            channels: channels.channels,
+            channels: channel_set,
             normal_source: if *stored_normals { NormalSource::Stored } else { NormalSource::ShortestAxis },
             prefill: None,
             sh_degree: *sh_degree,
@@ -87,7 +106,7 @@ impl RenderArgs {
             let (gpu, stats) = splatter.render(&gpu_scene, cam, &settings)?;
             let g = gpu.read(&device)?;
             if is_exr {
-                g.write_exr(&target)?;
+                g.write_exr_with_ids(&target, &id_channels)?;
             } else {
                 io::write_png(&target, g.width, g.height, g.rgb_values()?)?;
             }

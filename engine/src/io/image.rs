@@ -48,6 +48,18 @@ fn exr_names(channel: &str, k: usize) -> Vec<String> {
 /// channels of one EXR layer, R, G, B for `rgb`, A for `alpha`, Z for `depth`,
 /// `normal.X/Y/Z`, `<name>.R/G/B` for other three-float channels, `<name>.Y` for one float.
 pub fn write_exr_channels(path: &Path, width: u32, height: u32, channels: &[(&str, &[f32], usize)]) -> Result<()> {
+    write_exr_layer(path, width, height, channels, &[])
+}
+
+/// [`write_exr_channels`] plus 32-bit unsigned integer channels (ids: no
+/// blending, no rounding), each named as given.
+pub fn write_exr_layer(
+    path: &Path,
+    width: u32,
+    height: u32,
+    channels: &[(&str, &[f32], usize)],
+    ids: &[(&str, &[u32])],
+) -> Result<()> {
     use exr::prelude::{
         AnyChannel, AnyChannels, Encoding, FlatSamples, Image, Layer, LayerAttributes, LineOrder, Vec2, WritableImage,
     };
@@ -64,6 +76,15 @@ pub fn write_exr_channels(path: &Path, width: u32, height: u32, channels: &[(&st
             let plane: Vec<f32> = (0..w * h).map(|p| values[p * k + c]).collect();
             list.push(AnyChannel::new(exr_name.as_str(), FlatSamples::F32(plane)));
         }
+    }
+    for &(name, values) in ids {
+        if values.len() != w * h {
+            return Err(Error::invalid(
+                format!("id channel {name} of {} values", values.len()),
+                format!("needs {}", w * h),
+            ));
+        }
+        list.push(AnyChannel::new(name, FlatSamples::U32(values.to_vec())));
     }
     // Blocks in increasing order: the parallel writer then emits the same bytes every run.
     let encoding = Encoding { line_order: LineOrder::Increasing, ..Encoding::FAST_LOSSLESS };

@@ -87,6 +87,22 @@ impl ScalarType {
         }
     }
 
+    /// An integer property's value exactly, signed values as their 32-bit two's
+    /// complement (−1 reads as `u32::MAX`); `None` for float types.
+    fn decode_id(self, b: &[u8], big: bool) -> Option<u32> {
+        let two = |b: &[u8]| if big { [b[0], b[1]] } else { [b[1], b[0]] };
+        let four = |b: &[u8]| if big { [b[0], b[1], b[2], b[3]] } else { [b[3], b[2], b[1], b[0]] };
+        Some(match self {
+            Self::I8 => i32::from(b[0] as i8) as u32,
+            Self::U8 => u32::from(b[0]),
+            Self::I16 => i32::from(i16::from_be_bytes(two(b))) as u32,
+            Self::U16 => u32::from(u16::from_be_bytes(two(b))),
+            Self::I32 => i32::from_be_bytes(four(b)) as u32,
+            Self::U32 => u32::from_be_bytes(four(b)),
+            Self::F32 | Self::F64 => return None,
+        })
+    }
+
     fn parse_ascii(self, token: &str) -> Option<f32> {
         match self {
             Self::F32 => token.parse::<f32>().ok(),
@@ -190,6 +206,70 @@ fn parse_header(bytes: &[u8], path: &str) -> Result<Header, SceneError> {
 
 fn find(haystack: &[u8], needle: &[u8]) -> Option<usize> {
     haystack.windows(needle.len()).position(|w| w == needle)
+}
+
+/// Reads integer id properties (`semantic`, `instance`, ...) of a PLY's
+/// vertices exactly, one list per name, for the top-Gaussian id channels.
+/// Signed ids are kept as their 32-bit two's complement, so −1 ("no label")
+/// reads as `u32::MAX`, the value of pixels no Gaussian reaches.
+pub fn read_ply_ids(path: impl AsRef<Path>, names: &[String]) -> Result<Vec<Vec<u32>>> {
+    let path = path.as_ref();
+    let origin = path.display().to_string();
+    let bytes = super::read_file(path)?;
+    let header = parse_header(&bytes, &origin)?;
+    let n = header.count;
+    let data = &bytes[header.data_start..];
+    let mut out = Vec::with_capacity(names.len());
+    for name in names {
+        let prop = header.properties.iter().find(|p| &p.name == name).ok_or_else(|| SceneError {
+            path: origin.clone(),
+            row: None,
+            property: Some(name.clone()),
+            message: format!(
+                "no such property (integer properties: {})",
+                header
+                    .properties
+                    .iter()
+                    .filter(|p| !matches!(p.ty, ScalarType::F32 | ScalarType::F64))
+                    .map(|p| p.name.as_str())
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ),
+        })?;
+        if matches!(prop.ty, ScalarType::F32 | ScalarType::F64) {
+            return Err(SceneError::at(&origin, 0, name, "is a float property; ids must be integers").into());
+        }
+        let values = match header.format {
+            PlyFormat::Ascii => {
+                let text =
+                    std::str::from_utf8(data).map_err(|_| SceneError::file(&origin, "ASCII PLY data is not text"))?;
+                let column = header.properties.iter().position(|p| p.name == *name).unwrap_or(0);
+                let mut v = Vec::with_capacity(n);
+                for (row, line) in text.lines().filter(|l| !l.trim().is_empty()).take(n).enumerate() {
+                    let token = line.split_whitespace().nth(column).unwrap_or("");
+                    let id = token
+                        .parse::<i64>()
+                        .ok()
+                        .filter(|x| (i64::from(i32::MIN)..=i64::from(u32::MAX)).contains(x))
+                        .ok_or_else(|| SceneError::at(&origin, row, name, format!("\"{token}\" is not a 32-bit id")))?;
+                    v.push(id as u32);
+                }
+                v
+            }
+            format => {
+                check_binary_length(&header, data.len(), &origin)?;
+                let big = format == PlyFormat::BinaryBigEndian;
+                (0..n)
+                    .map(|g| prop.ty.decode_id(&data[g * header.stride + prop.offset..], big).unwrap_or(u32::MAX))
+                    .collect()
+            }
+        };
+        if values.len() != n {
+            return Err(SceneError::file(&origin, format!("{name}: {} values for {n} vertices", values.len())).into());
+        }
+        out.push(values);
+    }
+    Ok(out)
 }
 
 /// Where one PLY property goes in a [`Scene`].

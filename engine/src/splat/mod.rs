@@ -211,7 +211,28 @@ impl GBuffer {
     /// Writes every channel as 32-bit float channels of one EXR layer (R, G,
     /// B, A, Z, median_depth.Y, normal.X/Y/Z, albedo.R/G/B, roughness.Y, ...).
     pub fn write_exr(&self, path: impl AsRef<std::path::Path>) -> Result<()> {
-        crate::io::write_exr_channels(path.as_ref(), self.width, self.height, &self.channels())
+        self.write_exr_with_ids(path, &[])
+    }
+
+    /// [`GBuffer::write_exr`] plus, where [`GBuffer::top_gaussian`] was kept, a
+    /// `top_gaussian` channel and one 32-bit integer channel per `(name, ids)`:
+    /// each pixel holds the id of its top Gaussian (`u32::MAX` where none).
+    pub fn write_exr_with_ids(&self, path: impl AsRef<std::path::Path>, ids: &[(&str, &[u32])]) -> Result<()> {
+        let mapped: Vec<(&str, Vec<u32>)> = match &self.top_gaussian {
+            Some(top) => ids
+                .iter()
+                .map(|(name, values)| {
+                    let pick = |g: &u32| values.get(*g as usize).copied().unwrap_or(u32::MAX);
+                    (*name, top.iter().map(pick).collect())
+                })
+                .collect(),
+            None if ids.is_empty() => Vec::new(),
+            None => return Err(Error::invalid("id channels", "need the top_gaussian channel in the G-buffer")),
+        };
+        let mut uints: Vec<(&str, &[u32])> =
+            self.top_gaussian.as_deref().map(|t| ("top_gaussian", t)).into_iter().collect();
+        uints.extend(mapped.iter().map(|(n, v)| (*n, v.as_slice())));
+        crate::io::write_exr_layer(path.as_ref(), self.width, self.height, &self.channels(), &uints)
     }
 
     /// The rgb channel, or an error naming why it is absent.
