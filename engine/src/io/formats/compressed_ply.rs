@@ -11,10 +11,29 @@
 //! rounds once to f32, as its Float32Array columns do.
 
 use super::splat::byte_logit;
-use crate::scene::{sh_coefficients, Materials, Scene, SceneError, SH_C0};
+use crate::scene::{sh_coefficients, Scene, SceneError, SH_C0};
 
 /// Gaussians per chunk.
 const CHUNK: usize = 256;
+/// The chunk element's position and log-scale bounds, in file order.
+const CHUNK_BOUNDS: [&str; 12] = [
+    "min_x",
+    "min_y",
+    "min_z",
+    "max_x",
+    "max_y",
+    "max_z",
+    "min_scale_x",
+    "min_scale_y",
+    "min_scale_z",
+    "max_scale_x",
+    "max_scale_y",
+    "max_scale_z",
+];
+/// The chunk element's optional colour bounds.
+const CHUNK_COLOURS: [&str; 6] = ["min_r", "min_g", "min_b", "max_r", "max_g", "max_b"];
+/// The vertex element's packed words.
+const PACKED: [&str; 4] = ["packed_position", "packed_rotation", "packed_scale", "packed_color"];
 const SH_C0_F64: f64 = 0.282_094_791_773_878_14;
 
 fn err(origin: &str, field: &str, message: impl std::fmt::Display) -> SceneError {
@@ -140,34 +159,14 @@ pub(crate) fn read(bytes: &[u8], origin: &str) -> Result<Scene, SceneError> {
     let u = |name: &str| -> Result<Vec<u32>, SceneError> {
         Ok(column(vertex, vd, name, "uint")?.into_iter().map(u32::from_le_bytes).collect())
     };
-    let bounds: Vec<Vec<f64>> = [
-        "min_x",
-        "min_y",
-        "min_z",
-        "max_x",
-        "max_y",
-        "max_z",
-        "min_scale_x",
-        "min_scale_y",
-        "min_scale_z",
-        "max_scale_x",
-        "max_scale_y",
-        "max_scale_z",
-    ]
-    .iter()
-    .map(|name| f(name))
-    .collect::<Result<_, _>>()?;
+    let bounds: Vec<Vec<f64>> = CHUNK_BOUNDS.iter().map(|name| f(name)).collect::<Result<_, _>>()?;
     let colour: Option<Vec<Vec<f64>>> = if chunk.properties.iter().any(|p| p.0 == "min_r") {
-        Some(
-            ["min_r", "min_g", "min_b", "max_r", "max_g", "max_b"]
-                .iter()
-                .map(|name| f(name))
-                .collect::<Result<_, _>>()?,
-        )
+        Some(CHUNK_COLOURS.iter().map(|name| f(name)).collect::<Result<_, _>>()?)
     } else {
         None
     };
-    let (pp, pr, ps, pc) = (u("packed_position")?, u("packed_rotation")?, u("packed_scale")?, u("packed_color")?);
+    let [pp, pr, ps, pc] = PACKED.map(u);
+    let (pp, pr, ps, pc) = (pp?, pr?, ps?, pc?);
     let sh_element = find("sh");
     let rest = sh_element.map_or(0, |e| e.properties.len());
     let degree = match rest {
@@ -185,17 +184,7 @@ pub(crate) fn read(bytes: &[u8], origin: &str) -> Result<Scene, SceneError> {
     let k = sh_coefficients(degree);
     let unorm = |v: u32, bits: u32| f64::from(v & ((1 << bits) - 1)) / f64::from((1u32 << bits) - 1);
     let lerp = |a: f64, b: f64, t: f64| a * (1.0 - t) + b * t;
-    let mut scene = Scene {
-        means: Vec::with_capacity(n),
-        normals: None,
-        sh_degree: degree,
-        sh: vec![0.0; n * k * 3],
-        opacity_logits: Vec::with_capacity(n),
-        log_scales: Vec::with_capacity(n),
-        rotations: Vec::with_capacity(n),
-        materials: Materials::default(),
-        extra_properties: Vec::new(),
-    };
+    let mut scene = super::decoding_scene(n, degree);
     for i in 0..n {
         let c = i / CHUNK;
         let b = |j: usize| bounds[j][c];
@@ -255,30 +244,11 @@ pub(crate) fn encode(scene: &Scene) -> Vec<u8> {
     let rest = 3 * (k - 1);
     let mut header = String::from("ply\nformat binary_little_endian 1.0\ncomment written by srug\n");
     header += &format!("element chunk {chunks}\n");
-    for name in [
-        "min_x",
-        "min_y",
-        "min_z",
-        "max_x",
-        "max_y",
-        "max_z",
-        "min_scale_x",
-        "min_scale_y",
-        "min_scale_z",
-        "max_scale_x",
-        "max_scale_y",
-        "max_scale_z",
-        "min_r",
-        "min_g",
-        "min_b",
-        "max_r",
-        "max_g",
-        "max_b",
-    ] {
+    for name in CHUNK_BOUNDS.iter().chain(&CHUNK_COLOURS) {
         header += &format!("property float {name}\n");
     }
     header += &format!("element vertex {n}\n");
-    for name in ["packed_position", "packed_rotation", "packed_scale", "packed_color"] {
+    for name in PACKED {
         header += &format!("property uint {name}\n");
     }
     if rest > 0 {

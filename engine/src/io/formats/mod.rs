@@ -28,6 +28,22 @@ use std::path::Path;
 use crate::error::{Error, Result};
 use crate::scene::{Scene, SceneError};
 
+/// A scene of `n` Gaussians with room for them: SH zeroed (decoders write it
+/// by index), the other arrays empty with capacity `n` (decoders push).
+fn decoding_scene(n: usize, sh_degree: u32) -> Scene {
+    Scene {
+        means: Vec::with_capacity(n),
+        normals: None,
+        sh_degree,
+        sh: vec![0.0; n * crate::scene::sh_coefficients(sh_degree) * 3],
+        opacity_logits: Vec::with_capacity(n),
+        log_scales: Vec::with_capacity(n),
+        rotations: Vec::with_capacity(n),
+        materials: crate::scene::Materials::default(),
+        extra_properties: Vec::new(),
+    }
+}
+
 /// The scene file formats srug reads and writes.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum SceneFormat {

@@ -13,7 +13,7 @@
 
 use serde_json::Value;
 
-use crate::scene::{sh_coefficients, Materials, Scene, SceneError};
+use crate::scene::{sh_coefficients, Scene, SceneError};
 
 fn err(origin: &str, field: &str, message: impl std::fmt::Display) -> SceneError {
     SceneError { path: origin.into(), row: None, property: Some(field.into()), message: format!("SOG: {message}") }
@@ -110,17 +110,7 @@ pub(crate) fn read_with(
             e
         }
     };
-    let mut scene = Scene {
-        means: Vec::with_capacity(n),
-        normals: None,
-        sh_degree: degree,
-        sh: vec![0.0; n * k * 3],
-        opacity_logits: Vec::with_capacity(n),
-        log_scales: Vec::with_capacity(n),
-        rotations: Vec::with_capacity(n),
-        materials: Materials::default(),
-        extra_properties: Vec::new(),
-    };
+    let mut scene = super::decoding_scene(n, degree);
     for i in 0..n {
         let o = i * 4;
         scene.means.push([0, 1, 2].map(|a| {
