@@ -247,8 +247,17 @@ pub(crate) fn set_camera(
     near: f32,
     far: f32,
 ) -> FfiResult {
-    let camera =
-        Camera { name: "c-api".into(), width: r.width, height: r.height, rotation, position, projection, near, far };
+    let camera = Camera {
+        name: "c-api".into(),
+        width: r.width,
+        height: r.height,
+        rotation,
+        position,
+        projection,
+        near,
+        far,
+        lens: srug::camera::lens::Lens::Pinhole,
+    };
     camera.validate()?;
     r.camera = Some(camera);
     Ok(())

@@ -814,20 +814,44 @@ fn render_takes_colmap_and_nerfstudio_cameras() {
         assert!(o.status.success(), "{cameras}: {}", text(&o));
         assert!(out.is_file(), "{cameras}");
     }
-    let out = dir.path().join("d.png");
+    // Distorted and fisheye COLMAP cameras render through their lenses; relighting them is refused.
     let cams = data.join("cameras/colmap_distorted/text");
+    for index in ["0", "1"] {
+        let out = dir.path().join(format!("d{index}.png"));
+        let o = srug(&[
+            "render",
+            scene.to_str().unwrap(),
+            "--cameras",
+            cams.to_str().unwrap(),
+            "--index",
+            index,
+            "--size",
+            "40x30",
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        assert!(o.status.success(), "{}", text(&o));
+        assert!(out.is_file());
+    }
+    let demo = dir.path().join("demo");
+    let o = srug(&["demo", "--gaussians", "1000", "--out", demo.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", text(&o));
+    let relightable = demo.join("demo_city.ply");
+    let out = dir.path().join("r.png");
     let o = srug(&[
-        "render",
-        scene.to_str().unwrap(),
+        "relight",
+        relightable.to_str().unwrap(),
         "--cameras",
         cams.to_str().unwrap(),
+        "--index",
+        "0",
         "--size",
         "40x30",
         "--out",
         out.to_str().unwrap(),
     ]);
     assert_eq!(o.status.code(), Some(1));
-    assert!(text(&o).contains("pinhole cameras only"), "{}", text(&o));
+    assert!(text(&o).contains("pinhole cameras only so far"), "{}", text(&o));
     assert!(!out.exists());
 }
 

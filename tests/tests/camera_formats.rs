@@ -139,15 +139,17 @@ fn resizing_scales_intrinsics_consistently() {
     assert!((a * 0.5 - b).length() < 1e-4, "{a} vs {b}");
 }
 
-/// Lenses srug does not render yet are refused naming the camera, the model
-/// and its coefficients; so are malformed models.
+/// Radial-tangential and fisheye COLMAP cameras come with their lens; lenses
+/// srug does not render are refused naming the camera, the model and its
+/// coefficients; so are malformed models.
 #[test]
 fn distorted_and_malformed_cameras_are_refused() {
-    let e = read_colmap(fixture("colmap_distorted/text")).unwrap_err().to_string();
-    assert!(
-        e.contains("camera 1") && e.contains("OPENCV") && e.contains("k1=-0.1") && e.contains("pinhole cameras only"),
-        "{e}"
-    );
+    use srug::camera::lens::Lens;
+    let lensed = read_colmap(fixture("colmap_distorted/text")).unwrap();
+    assert_eq!(lensed.len(), 2);
+    assert_eq!(lensed[0].lens, Lens::RadialTangential { k: [-0.1, 0.02, 0.0, 0.0, 0.0, 0.0], p: [0.001, -0.002] });
+    assert_eq!(lensed[1].lens, Lens::Fisheye { k: [0.01, -0.002, 0.0, 0.0] });
+    assert_eq!(intrinsics(&lensed[1]), [350.0, 350.0, 700.0, 700.0]);
 
     let dir = tempfile::tempdir().unwrap();
     let images = std::fs::read_to_string(fixture("colmap/text/images.txt")).unwrap();
@@ -157,10 +159,15 @@ fn distorted_and_malformed_cameras_are_refused() {
         std::fs::write(dir.path().join("images.txt"), i).unwrap();
         read_colmap(dir.path()).unwrap_err().to_string()
     };
-    let fisheye =
-        cameras.replace("2 SIMPLE_PINHOLE 640 480 500 322 241.5", "2 OPENCV_FISHEYE 640 480 500 500 322 241.5 0 0 0 0");
-    let e = write(&fisheye, &images);
-    assert!(e.contains("camera 2") && e.contains("OPENCV_FISHEYE") && e.contains("fisheye"), "{e}");
+    let prism = cameras.replace(
+        "2 SIMPLE_PINHOLE 640 480 500 322 241.5",
+        "2 THIN_PRISM_FISHEYE 640 480 500 500 322 241.5 0.1 0 0 0 0 0 0 0",
+    );
+    let e = write(&prism, &images);
+    assert!(e.contains("camera 2") && e.contains("THIN_PRISM_FISHEYE") && e.contains("k1=0.1"), "{e}");
+    let fov = cameras.replace("5 FOV 320 240 250 251 160.5 119.5 0", "5 FOV 320 240 250 251 160.5 119.5 0.8");
+    let e = write(&fov, &images);
+    assert!(e.contains("camera 5") && e.contains("FOV") && e.contains("omega=0.8"), "{e}");
     let equirect = cameras.replace("2 SIMPLE_PINHOLE 640 480 500 322 241.5", "2 EQUIRECTANGULAR 640 320 640 320");
     let e = write(&equirect, &images);
     assert!(e.contains("camera 2") && e.contains("EQUIRECTANGULAR"), "{e}");
@@ -192,6 +199,25 @@ fn distorted_and_malformed_cameras_are_refused() {
     assert!(e.contains("cannot fit"), "{e}");
 }
 
+/// transforms.json lenses: OPENCV distortion and OPENCV_FISHEYE come with the lens they name.
+#[test]
+fn transforms_json_lenses() {
+    use srug::camera::lens::Lens;
+    let mut v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(fixture("transforms.json")).unwrap()).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("transforms.json");
+    v["k1"] = serde_json::json!(-0.05);
+    v["p2"] = serde_json::json!(0.001);
+    std::fs::write(&p, serde_json::to_string(&v).unwrap()).unwrap();
+    let cams = read_cameras(&p).unwrap();
+    assert_eq!(cams[0].lens, Lens::RadialTangential { k: [-0.05, 0.0, 0.0, 0.0, 0.0, 0.0], p: [0.0, 0.001] });
+    v["camera_model"] = serde_json::json!("OPENCV_FISHEYE");
+    v["k4"] = serde_json::json!(0.002);
+    std::fs::write(&p, serde_json::to_string(&v).unwrap()).unwrap();
+    assert_eq!(read_cameras(&p).unwrap()[3].lens, Lens::Fisheye { k: [-0.05, 0.0, 0.0, 0.002] });
+}
+
 /// transforms.json defects are refused naming the frame and the field.
 #[test]
 fn bad_transforms_json_is_refused() {
@@ -204,12 +230,12 @@ fn bad_transforms_json_is_refused() {
         let e = read_cameras(&p).unwrap_err().to_string();
         assert!(words.iter().all(|w| e.contains(w)), "{e} lacks {words:?}");
     };
-    let mut distorted = v.clone();
-    distorted["k1"] = serde_json::json!(0.05);
-    check(&distorted, &["row 0", "OPENCV with k1=0.05", "pinhole cameras only"]);
-    let mut fisheye = v.clone();
-    fisheye["camera_model"] = serde_json::json!("OPENCV_FISHEYE");
-    check(&fisheye, &["OPENCV_FISHEYE"]);
+    let mut k4 = v.clone();
+    k4["k4"] = serde_json::json!(0.05);
+    check(&k4, &["row 0", "OPENCV with k4=0.05", "does not render"]);
+    let mut equirect = v.clone();
+    equirect["camera_model"] = serde_json::json!("EQUIRECTANGULAR");
+    check(&equirect, &["EQUIRECTANGULAR"]);
     let mut scaled = v.clone();
     for r in 0..3 {
         for c in 0..3 {

@@ -29,6 +29,14 @@ const ALPHA_TOLERANCE: f64 = 2e-3;
 /// Compares every channel; the tolerance of premultiplied channels scales
 /// with their largest value.
 fn compare(gpu: &GBuffer, cpu: &GBuffer, label: &str) {
+    compare_with(gpu, cpu, label, false);
+}
+
+/// [`compare`]; with `stop_flips`, blended channels other than rgb and alpha may
+/// exceed the tolerance at 1 pixel in 1000: where a pixel's transmittance
+/// lands on the 1e-4 stop threshold, f32 and f64 can stop one splat apart
+/// (seen through the fisheye lens at one pixel of 25,600, T = 1.27e-4).
+fn compare_with(gpu: &GBuffer, cpu: &GBuffer, label: &str, stop_flips: bool) {
     for ((name, g, k), (_, c, _)) in gpu.channels().into_iter().zip(cpu.channels()) {
         assert!(g.iter().all(|v| v.is_finite()), "{label}: {name} has non-finite values (unwritten sentinel?)");
         let (ok, what) = match name {
@@ -41,7 +49,7 @@ fn compare(gpu: &GBuffer, cpu: &GBuffer, label: &str) {
                 let tol = ALPHA_TOLERANCE * scale;
                 let err = g.iter().zip(c).map(|(a, b)| (f64::from(*a) - f64::from(*b)).abs()).fold(0.0, f64::max);
                 // Median depth jumps where a near-tie flips which splat crosses T = 0.5: count outliers instead.
-                if name == "median_depth" {
+                if name == "median_depth" || stop_flips && name != "alpha" {
                     let bad = g.iter().zip(c).filter(|(a, b)| (f64::from(**a) - f64::from(**b)).abs() > tol).count();
                     (bad * 1000 <= g.len(), format!("{bad} of {} pixels differ by more than {tol:.2e}", g.len()))
                 } else {
@@ -579,6 +587,127 @@ fn top_gaussian_is_the_largest_weight_in_every_variant() {
         let gpu = out.read(&d).unwrap().top_gaussian.unwrap();
         let differ = gpu.iter().zip(&cpu).filter(|(a, b)| a != b).count();
         assert_eq!(differ, 0, "{variant:?}: top Gaussian differs from the twin at {differ} pixels");
+    }
+    assert_no_validation_messages(&d);
+}
+
+/// Cameras with lenses: a barrel-distorted OpenCV camera (radial k1..k3,
+/// tangential p1, p2) on a demo street camera, and a 180° fisheye looking down the street.
+fn lens_cameras(city: &srug::scene::demo::DemoCity) -> Vec<(&'static str, Camera)> {
+    use srug::camera::lens::Lens;
+    let street = city.cameras[1].resized(352, 96);
+    let opencv = Camera {
+        lens: Lens::RadialTangential { k: [-0.25, 0.06, -0.005, 0.0, 0.0, 0.0], p: [0.001, -0.002] },
+        ..street.clone()
+    };
+    let fisheye = Camera {
+        width: 160,
+        height: 160,
+        projection: srug::scene::Projection::Pinhole { fx: 50.0, fy: 50.5, cx: 80.0, cy: 79.5 },
+        lens: Lens::Fisheye { k: [0.01, -0.002, 0.0003, -0.00004] },
+        ..street
+    };
+    vec![("opencv", opencv), ("fisheye", fisheye)]
+}
+
+/// Splatting through lenses matches the CPU twin (the twin's lens maths are
+/// checked against pycolmap and OpenCV) in every channel, in each blend variant.
+#[test]
+fn lens_cameras_match_cpu_twin() {
+    let d = device();
+    let mut splatter = Splatter::new(&d).unwrap();
+    let city = demo_city(&DemoOptions { seed: 7, gaussians: 40_000, sh_degree: 1 }).unwrap();
+    let gpu_scene = GpuScene::upload(&d, &city.scene).unwrap();
+    for (name, cam) in lens_cameras(&city) {
+        let cpu = render_cpu(&city.scene, &cam, &all_settings());
+        for variant in blend_variants(&d) {
+            splatter.set_blend_variant(variant).unwrap();
+            let g = splatter.render(&gpu_scene, &cam, &all_settings()).unwrap().0.read(&d).unwrap();
+            compare_with(&g, &cpu, &format!("lens_{name}_{variant:?}"), true);
+            let covered = g.alpha.iter().filter(|a| **a > 0.5).count();
+            assert!(
+                covered * 2 > g.alpha.len(),
+                "{name}: the street should fill the view: {covered} of {}",
+                g.alpha.len()
+            );
+        }
+    }
+    assert_no_validation_messages(&d);
+}
+
+/// Small isolated Gaussians seen through each lens land where the lens model
+/// (== pycolmap and cv2.projectPoints / cv2.fisheye.projectPoints, within
+/// 1e-12 px) sends their centres: alpha-weighted blob centroids within
+/// 0.1 px on average and 0.5 px at worst, across the whole image including
+/// the corners (fisheye: up to 80° off axis).
+#[test]
+fn lens_blob_centroids_match_the_lens_projection() {
+    use srug::camera::lens::{Intrinsics, Lens};
+    let d = device();
+    let mut splatter = Splatter::new(&d).unwrap();
+    let city = demo_city(&DemoOptions { seed: 7, gaussians: 1000, sh_degree: 0 }).unwrap();
+    let settings = SplatSettings { channels: Channels::default(), rgb: false, ..all_settings() };
+    for (name, cam) in lens_cameras(&city) {
+        let srug::scene::Projection::Pinhole { fx, fy, cx, cy } = cam.projection else { unreachable!() };
+        let intr = Intrinsics {
+            focal: [f64::from(fx), f64::from(fy)],
+            centre: [f64::from(cx), f64::from(cy)],
+            lens: cam.lens,
+        };
+        // A grid of directions over the image: unproject pixel-grid points to rays, place blobs 6 m out.
+        let mut scene = Scene { sh_degree: 0, ..Scene::default() };
+        let mut expected = Vec::new();
+        let (w, h) = (f64::from(cam.width), f64::from(cam.height));
+        for gy in 0..7 {
+            for gx in 0..9 {
+                let px = [(f64::from(gx) + 0.5) / 9.0 * w, (f64::from(gy) + 0.5) / 7.0 * h];
+                let ray = match cam.lens {
+                    Lens::Fisheye { .. } => {
+                        // Keep within 80° off axis.
+                        let Some(r) = intr.unproject(px) else { continue };
+                        if (r[0] * r[0] + r[1] * r[1]).sqrt() > 80f64.to_radians().tan() {
+                            continue;
+                        }
+                        r
+                    }
+                    _ => intr.unproject(px).unwrap(),
+                };
+                let dir = Vec3::new(ray[0] as f32, ray[1] as f32, 1.0).normalize();
+                let p_cam = dir * 6.0;
+                let world = cam.position + cam.rotation * p_cam;
+                scene.means.push(world.to_array());
+                scene.log_scales.push([-4.5; 3]);
+                scene.rotations.push([1.0, 0.0, 0.0, 0.0]);
+                scene.opacity_logits.push(4.0);
+                scene.sh.extend([0.5, 0.5, 0.5]);
+                let t = cam.world_to_camera(world);
+                expected.push(intr.project([f64::from(t.x), f64::from(t.y), f64::from(t.z)]).unwrap());
+            }
+        }
+        assert!(expected.len() >= 30, "{name}: {} blobs", expected.len());
+        let gpu_scene = GpuScene::upload(&d, &scene).unwrap();
+        let (out, _) = splatter.render(&gpu_scene, &cam, &settings).unwrap();
+        let alpha = out.read(&d).unwrap().alpha;
+        let (mut sum, mut worst) = (0.0f64, 0.0f64);
+        for e in &expected {
+            let (mut m, mut mx, mut my) = (0.0f64, 0.0f64, 0.0f64);
+            let (x0, y0) = (e[0].floor() as i64, e[1].floor() as i64);
+            for y in (y0 - 6).max(0)..(y0 + 7).min(i64::from(cam.height)) {
+                for x in (x0 - 6).max(0)..(x0 + 7).min(i64::from(cam.width)) {
+                    let a = f64::from(alpha[y as usize * cam.width as usize + x as usize]);
+                    m += a;
+                    mx += a * (x as f64 + 0.5);
+                    my += a * (y as f64 + 0.5);
+                }
+            }
+            assert!(m > 0.5, "{name}: no blob near {e:?}");
+            let err = ((mx / m - e[0]).powi(2) + (my / m - e[1]).powi(2)).sqrt();
+            sum += err;
+            worst = worst.max(err);
+        }
+        let mean = sum / expected.len() as f64;
+        println!("{name}: {} blobs, centroid error mean {mean:.4} px, max {worst:.4} px", expected.len());
+        assert!(mean <= 0.1 && worst <= 0.5, "{name}: centroid error mean {mean} px, max {worst} px");
     }
     assert_no_validation_messages(&d);
 }

@@ -2,14 +2,15 @@
 //! plane (before fx, fy, cx, cy), as COLMAP defines them (`colmap/sensor/models.h`)
 //! and OpenCV's `projectPoints` / `fisheye::projectPoints` compute them.
 //!
-//! Parsed from COLMAP models and transforms.json, checked here against
-//! pycolmap's projection; rendering through a lens is not implemented yet
-//! (the camera readers refuse lens cameras), so this is the CPU reference the
-//! GPU lens path will be tested against. All arithmetic is f64.
+//! Parsed from COLMAP models and transforms.json and checked against
+//! pycolmap's and OpenCV's projections. The splatting stage renders through
+//! the radial-tangential and fisheye models (`camera.glsl`, `lens_project`)
+//! and its CPU twin uses these functions; all arithmetic here is f64.
 
 /// A lens model with its coefficients.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub enum Lens {
+    #[default]
     /// No distortion: (x/z, y/z).
     Pinhole,
     /// OpenCV radial-tangential: radial (1 + k1 r² + k2 r⁴ + k3 r⁶) / (1 + k4 r² + k5 r⁴ + k6 r⁶)
@@ -87,12 +88,154 @@ impl Intrinsics {
 }
 
 impl Lens {
+    /// The kind number the shaders switch on (`lens2.x` in `camera.glsl`):
+    /// 0 pinhole, 2 radial-tangential, 3 fisheye; `None` for the FOV model,
+    /// which the GPU does not render.
+    pub fn gpu_kind(&self) -> Option<u32> {
+        match self {
+            Lens::Pinhole => Some(0),
+            Lens::RadialTangential { .. } => Some(2),
+            Lens::Fisheye { .. } => Some(3),
+            Lens::Fov { .. } => None,
+        }
+    }
+
+    /// The coefficients as the shaders take them: (k1, k2, k3, k4) and (k5, k6, p1, p2).
+    pub fn gpu_coefficients(&self) -> [[f32; 4]; 2] {
+        match *self {
+            Lens::RadialTangential { k, p } => {
+                [[k[0], k[1], k[2], k[3]].map(|v| v as f32), [k[4], k[5], p[0], p[1]].map(|v| v as f32)]
+            }
+            Lens::Fisheye { k } => [k.map(|v| v as f32), [0.0; 4]],
+            Lens::Pinhole | Lens::Fov { .. } => [[0.0; 4]; 2],
+        }
+    }
+
+    /// The largest undistorted normalized radius (radial-tangential) or
+    /// angle off axis in radians (fisheye) that splatting images through this
+    /// lens for an image of `size` pixels with `focal` lengths and `centre`:
+    /// 1.5× (fisheye: 1.25×) what the image's corners and edge midpoints
+    /// reach, and never past the radius where a radial polynomial folds back
+    /// (beyond it, far-off points would land in the image). Pinhole: infinite.
+    pub fn imaging_limit(&self, focal: [f64; 2], centre: [f64; 2], size: [f64; 2]) -> f64 {
+        let intr = Intrinsics { focal, centre, lens: *self };
+        let edge = [
+            [0.0, 0.0],
+            [size[0], 0.0],
+            [0.0, size[1]],
+            [size[0], size[1]],
+            [size[0] * 0.5, 0.0],
+            [size[0] * 0.5, size[1]],
+            [0.0, size[1] * 0.5],
+            [size[0], size[1] * 0.5],
+        ];
+        let reach = edge
+            .iter()
+            .filter_map(|px| intr.unproject(*px))
+            .map(|[u, v]| (u * u + v * v).sqrt())
+            .fold(0.0f64, f64::max);
+        match *self {
+            Lens::Pinhole | Lens::Fov { .. } => f64::INFINITY,
+            Lens::Fisheye { .. } => (reach.atan() * 1.25).min(std::f64::consts::PI),
+            Lens::RadialTangential { .. } => {
+                // Where r·radial(r) stops growing along the x axis, scanning out to 100.
+                let mut fold = 100.0f64;
+                let mut last = 0.0;
+                for i in 1..=10_000 {
+                    let r = f64::from(i) * 0.01;
+                    let d = self.distort_plane([r, 0.0])[0];
+                    if d <= last {
+                        fold = r - 0.01;
+                        break;
+                    }
+                    last = d;
+                }
+                (reach * 1.5).min(fold)
+            }
+        }
+    }
+
+    /// Whether it is the plain pinhole.
+    pub fn is_pinhole(&self) -> bool {
+        *self == Lens::Pinhole
+    }
+
+    /// ∂(distorted normalized coordinates)/∂(camera-space point), 2 rows of 3,
+    /// where [`Lens::distort`] is defined (FOV: `None`).
+    pub fn jacobian(&self, p: [f64; 3]) -> Option<[[f64; 3]; 2]> {
+        let [x, y, z] = p;
+        match *self {
+            Lens::Pinhole | Lens::RadialTangential { .. } => {
+                if z <= 0.0 {
+                    return None;
+                }
+                let (u, v) = (x / z, y / z);
+                let d = self.plane_jacobian([u, v]);
+                // ∂(u, v)/∂p = [[1/z, 0, −u/z], [0, 1/z, −v/z]].
+                let row = |r: [f64; 2]| [r[0] / z, r[1] / z, -(r[0] * u + r[1] * v) / z];
+                Some([row(d[0]), row(d[1])])
+            }
+            Lens::Fisheye { k } => {
+                let r2 = x * x + y * y;
+                let r = r2.sqrt();
+                let rho2 = r2 + z * z;
+                if r <= 1e-9 * z.abs().max(1e-30) {
+                    return (z > 0.0).then_some([[1.0 / z, 0.0, 0.0], [0.0, 1.0 / z, 0.0]]);
+                }
+                let theta = r.atan2(z);
+                let t2 = theta * theta;
+                let thetad = theta * (1.0 + t2 * (k[0] + t2 * (k[1] + t2 * (k[2] + t2 * k[3]))));
+                let dthetad = 1.0 + t2 * (3.0 * k[0] + t2 * (5.0 * k[1] + t2 * (7.0 * k[2] + t2 * 9.0 * k[3])));
+                let s = thetad / r;
+                let dtheta = [z * x / (r * rho2), z * y / (r * rho2), -r / rho2];
+                let ds = [
+                    dthetad * dtheta[0] / r - thetad * x / (r2 * r),
+                    dthetad * dtheta[1] / r - thetad * y / (r2 * r),
+                    dthetad * dtheta[2] / r,
+                ];
+                Some([[s + x * ds[0], x * ds[1], x * ds[2]], [y * ds[0], s + y * ds[1], y * ds[2]]])
+            }
+            Lens::Fov { .. } => None,
+        }
+    }
+
+    /// ∂(distorted)/∂(u, v) of the perspective models, 2 rows of 2.
+    fn plane_jacobian(&self, [u, v]: [f64; 2]) -> [[f64; 2]; 2] {
+        match *self {
+            Lens::RadialTangential { k, p } => {
+                let r2 = u * u + v * v;
+                let num = 1.0 + r2 * (k[0] + r2 * (k[1] + r2 * k[2]));
+                let den = 1.0 + r2 * (k[3] + r2 * (k[4] + r2 * k[5]));
+                let dnum = k[0] + r2 * (2.0 * k[1] + r2 * 3.0 * k[2]);
+                let dden = k[3] + r2 * (2.0 * k[4] + r2 * 3.0 * k[5]);
+                let radial = num / den;
+                let dradial = (dnum * den - num * dden) / (den * den);
+                [
+                    [
+                        radial + 2.0 * u * u * dradial + 2.0 * p[0] * v + 6.0 * p[1] * u,
+                        2.0 * u * v * dradial + 2.0 * p[0] * u + 2.0 * p[1] * v,
+                    ],
+                    [
+                        2.0 * u * v * dradial + 2.0 * p[1] * v + 2.0 * p[0] * u,
+                        radial + 2.0 * v * v * dradial + 2.0 * p[1] * u + 6.0 * p[0] * v,
+                    ],
+                ]
+            }
+            _ => [[1.0, 0.0], [0.0, 1.0]],
+        }
+    }
+
     /// The normalized distorted image coordinates of a camera-space point.
     pub fn distort(&self, p: [f64; 3]) -> Option<[f64; 2]> {
+        self.distort_within(p, f64::INFINITY)
+    }
+
+    /// [`Lens::distort`] for points within `limit` ([`Lens::imaging_limit`]); `None` beyond.
+    pub fn distort_within(&self, p: [f64; 3], limit: f64) -> Option<[f64; 2]> {
         let [x, y, z] = p;
         match *self {
             Lens::Pinhole | Lens::RadialTangential { .. } | Lens::Fov { .. } => {
-                if z <= 0.0 {
+                if z <= 0.0 || (x * x + y * y) > limit * limit * z * z {
                     return None;
                 }
                 Some(self.distort_plane([x / z, y / z]))
@@ -103,6 +246,9 @@ impl Lens {
                     return (z > 0.0).then_some([0.0, 0.0]);
                 }
                 let theta = r.atan2(z);
+                if theta > limit {
+                    return None;
+                }
                 let t2 = theta * theta;
                 let thetad = theta * (1.0 + t2 * (k[0] + t2 * (k[1] + t2 * (k[2] + t2 * k[3]))));
                 Some([x / r * thetad, y / r * thetad])
@@ -193,6 +339,49 @@ impl Lens {
                     }
                 }
                 x.iter().all(|v| v.is_finite()).then_some(x)
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used, reason = "a failed unwrap is a failed test")]
+    use super::*;
+
+    /// The analytic Jacobians agree with central differences of `distort`,
+    /// for both lens families, off axis, near the axis and near 90° (fisheye).
+    #[test]
+    fn jacobians_match_central_differences() {
+        let lenses = [
+            Lens::RadialTangential { k: [-0.2, 0.05, 0.01, 0.05, 0.01, 0.002], p: [0.001, -0.002] },
+            Lens::RadialTangential { k: [0.1, 0.0, 0.0, 0.0, 0.0, 0.0], p: [0.0, 0.0] },
+            Lens::Fisheye { k: [0.01, -0.002, 0.0003, -0.00004] },
+            Lens::Pinhole,
+        ];
+        let points = [[0.3, -0.2, 1.5], [1e-7, 2e-7, 3.0], [-2.0, 1.0, 0.4], [5.0, 0.1, 0.05]];
+        for lens in lenses {
+            for p in points {
+                if matches!(lens, Lens::RadialTangential { .. } | Lens::Pinhole) && p[2] < 0.1 {
+                    continue;
+                }
+                let j = lens.jacobian(p).unwrap();
+                for c in 0..3 {
+                    let h = 1e-6 * p[c].abs().max(1e-3);
+                    let (mut a, mut b) = (p, p);
+                    a[c] += h;
+                    b[c] -= h;
+                    let (da, db) = (lens.distort(a).unwrap(), lens.distort(b).unwrap());
+                    for r in 0..2 {
+                        let fd = (da[r] - db[r]) / (2.0 * h);
+                        let scale = j[r][c].abs().max(1.0);
+                        assert!(
+                            (fd - j[r][c]).abs() <= 1e-6 * scale,
+                            "{lens:?} at {p:?}: ∂{r}/∂{c} {} vs {fd}",
+                            j[r][c]
+                        );
+                    }
+                }
             }
         }
     }

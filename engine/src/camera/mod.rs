@@ -58,6 +58,11 @@ pub struct Camera {
     pub near: f32,
     /// Far plane distance (camera z).
     pub far: f32,
+    /// The lens between the camera-space ray and [`Camera::projection`]'s
+    /// intrinsics (pinhole cameras: [`lens::Lens::Pinhole`]). Splatting renders
+    /// radial-tangential and fisheye lenses; the stages that unproject pixels
+    /// (shadows, shading) refuse any other than the pinhole.
+    pub lens: lens::Lens,
 }
 
 /// Default near plane (gsplat's; INRIA uses 0.2).
@@ -94,6 +99,12 @@ pub(crate) struct WorldToCameraBlock {
     pub(crate) translation: [f32; 4],
     /// fx, fy, cx, cy (orthographic: pixels per unit x, y, cx, cy).
     pub(crate) intrinsics: [f32; 4],
+    /// Lens coefficients k1..k4 (fisheye: its k1..k4).
+    pub(crate) lens0: [f32; 4],
+    /// Lens coefficients k5, k6, p1, p2.
+    pub(crate) lens1: [f32; 4],
+    /// `x`: the lens kind (0 pinhole, 2 radial-tangential, 3 fisheye).
+    pub(crate) lens2: [f32; 4],
 }
 
 /// A camera packed once for the shaders, in both directions.
@@ -104,6 +115,31 @@ pub(crate) struct PackedCamera {
 }
 
 impl Camera {
+    /// How far off axis splatting images through the lens ([`lens::Lens::imaging_limit`]).
+    pub fn lens_limit(&self) -> f64 {
+        match self.projection {
+            Projection::Pinhole { fx, fy, cx, cy } => self.lens.imaging_limit(
+                [f64::from(fx), f64::from(fy)],
+                [f64::from(cx), f64::from(cy)],
+                [f64::from(self.width), f64::from(self.height)],
+            ),
+            Projection::Orthographic { .. } => f64::INFINITY,
+        }
+    }
+
+    /// An error unless the camera is a plain pinhole or orthographic one:
+    /// for the stages that unproject pixels (`what` names the stage).
+    pub(crate) fn require_no_lens(&self, what: &str) -> Result<()> {
+        if self.lens.is_pinhole() {
+            Ok(())
+        } else {
+            Err(Error::invalid(
+                format!("camera \"{}\" with lens {:?}", self.name, self.lens),
+                format!("{what} handles pinhole cameras only so far (splatting renders radial-tangential and fisheye lenses)"),
+            ))
+        }
+    }
+
     /// The camera packed for the shaders.
     pub(crate) fn packed(&self) -> PackedCamera {
         let r = self.rotation;
@@ -118,7 +154,19 @@ impl Camera {
         let [rot0, rot1, rot2] = rows(r);
         let to_world = CameraToWorldBlock { rot0, rot1, rot2, position: [p.x, p.y, p.z, kind], intrinsics };
         let [rot0, rot1, rot2] = rows(w);
-        let to_camera = WorldToCameraBlock { rot0, rot1, rot2, translation: [t.x, t.y, t.z, kind], intrinsics };
+        let [lens0, lens1] = self.lens.gpu_coefficients();
+        let limit = self.lens_limit().min(f64::from(f32::MAX)) as f32;
+        let lens2 = [self.lens.gpu_kind().unwrap_or(0) as f32, limit, 0.0, 0.0];
+        let to_camera = WorldToCameraBlock {
+            rot0,
+            rot1,
+            rot2,
+            translation: [t.x, t.y, t.z, kind],
+            intrinsics,
+            lens0,
+            lens1,
+            lens2,
+        };
         PackedCamera { to_world, to_camera }
     }
 
@@ -138,7 +186,7 @@ impl Camera {
             .to_cols_array()
             .iter()
             .fold(0.0f32, |m, v| m.max(v.abs()));
-        let rules: [(bool, String, &str); 6] = [
+        let rules: [(bool, String, &str); 7] = [
             (self.width > 0 && self.height > 0, format!("image size {}x{}", self.width, self.height), "is empty"),
             (
                 f.iter().all(|v| v.is_finite() && *v > 0.0),
@@ -157,6 +205,11 @@ impl Camera {
                 "is not a rotation",
             ),
             (self.position.is_finite(), format!("position {}", self.position), "must be finite in f32"),
+            (
+                self.lens.gpu_coefficients().iter().flatten().all(|v| v.is_finite()),
+                format!("lens {:?}", self.lens),
+                "must have coefficients finite in f32",
+            ),
         ];
         let name = if self.name.is_empty() { "camera".to_string() } else { format!("camera \"{}\"", self.name) };
         if let Some((_, what, why)) = rules.into_iter().find(|(ok, ..)| !ok) {
@@ -190,6 +243,7 @@ impl Camera {
             projection: Projection::Pinhole { fx, fy: fx, cx: width as f32 * 0.5, cy: height as f32 * 0.5 },
             near: DEFAULT_NEAR,
             far: DEFAULT_FAR,
+            lens: lens::Lens::Pinhole,
         };
         camera.validate().map_err(|_| {
             Error::invalid(
@@ -237,6 +291,7 @@ impl Camera {
             },
             near,
             far,
+            lens: lens::Lens::Pinhole,
         })
     }
 

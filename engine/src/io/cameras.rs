@@ -132,6 +132,7 @@ fn from_json(e: &JsonCamera, i: usize, origin: &str) -> Result<Camera, SceneErro
         },
         near: DEFAULT_NEAR,
         far: DEFAULT_FAR,
+        lens: crate::camera::lens::Lens::Pinhole,
     };
     // The same values in f32, as the GPU will use them.
     match camera.validate() {

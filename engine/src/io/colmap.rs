@@ -6,16 +6,18 @@
 //! quaternion w, x, y, z and translation) and its camera. COLMAP's camera
 //! axes and pixel convention (x right, y down, z forward; pixel centres at
 //! +0.5) are srug's, so a pose converts exactly: rotation Rᵀ, centre −Rᵀt.
-//! Every COLMAP camera model (ids 0-17, as COLMAP 4 writes them) is parsed; the pinhole ones (and the
-//! perspective models whose distortion parameters are all zero) become srug
-//! cameras, and a camera with distortion or a fisheye projection is refused
-//! naming the camera and its model.
+//! Every COLMAP camera model (ids 0-17, as COLMAP 4 writes them) is parsed;
+//! the pinhole, radial-tangential (SIMPLE_RADIAL, RADIAL, OPENCV,
+//! FULL_OPENCV) and fisheye (OPENCV_FISHEYE, SIMPLE_RADIAL_FISHEYE,
+//! RADIAL_FISHEYE, SIMPLE_FISHEYE, FISHEYE) models become srug cameras with
+//! their [`Lens`]; the others are refused naming the camera and its model.
 //! Images come out sorted by name.
 
 use std::path::{Path, PathBuf};
 
 use glam::{DMat3, DQuat, DVec3, Mat3, Vec3};
 
+use crate::camera::lens::{Intrinsics, Lens};
 use crate::camera::{Camera, Projection, DEFAULT_FAR, DEFAULT_NEAR};
 use crate::error::{Error, Result};
 use crate::scene::SceneError;
@@ -308,44 +310,31 @@ fn parse_images_bin(b: &[u8], origin: &str) -> Result<Vec<ColmapImage>, SceneErr
     Ok(out)
 }
 
-/// Focal lengths and principal point of a camera whose distortion is zero;
-/// otherwise an error naming it and the model.
-fn pinhole(c: &ColmapCamera, origin: &str) -> Result<(f64, f64, f64, f64), SceneError> {
-    let p = &c.params;
-    if c.model.name == "EQUIRECTANGULAR" {
-        return Err(err(
-            origin,
-            &format!("camera {}", c.id),
-            "model EQUIRECTANGULAR (a 360° projection) is a lens srug does not render yet (pinhole cameras only)",
-        ));
-    }
-    let single = c.model.params[0] == "f";
-    let (fx, fy, cx, cy, rest) =
-        if single { (p[0], p[0], p[1], p[2], &p[3..]) } else { (p[0], p[1], p[2], p[3], &p[4..]) };
-    // Every fisheye model projects by angle (equidistant), even with zero coefficients.
-    let fisheye_projection = c.model.name.contains("FISHEYE");
-    if fisheye_projection || rest.iter().any(|v| *v != 0.0) {
-        let named: Vec<String> =
-            c.model.params.iter().zip(p).skip(if single { 3 } else { 4 }).map(|(n, v)| format!("{n}={v}")).collect();
-        return Err(err(
-            origin,
-            &format!("camera {}", c.id),
-            format!(
-                "model {} ({}) is a lens srug does not render yet (pinhole cameras only); undistort the images \
-                 first (colmap image_undistorter writes PINHOLE cameras)",
-                c.model.name,
-                match (fisheye_projection, named.is_empty()) {
-                    (true, true) => "a fisheye projection".to_string(),
-                    (true, false) => format!("a fisheye projection; {}", named.join(", ")),
-                    _ => named.join(", "),
-                }
-            ),
-        ));
-    }
+/// Focal lengths, principal point and lens of a camera; an error naming it
+/// and its model where srug does not render the model.
+fn intrinsics(c: &ColmapCamera, origin: &str) -> Result<(f64, f64, f64, f64, Lens), SceneError> {
+    let at = |m: String| err(origin, &format!("camera {}", c.id), m);
+    let named: Vec<String> = c.model.params.iter().zip(&c.params).map(|(n, v)| format!("{n}={v}")).collect();
+    let refuse = || {
+        at(format!(
+            "model {} ({}) is a lens srug does not render (it renders pinhole, radial-tangential and fisheye \
+             models); undistort the images first (colmap image_undistorter writes PINHOLE cameras)",
+            c.model.name,
+            named.join(", ")
+        ))
+    };
+    let i = Intrinsics::from_colmap(c.model.name, &c.params).ok_or_else(refuse)?;
+    let lens = match i.lens {
+        Lens::Fov { omega: 0.0 } => Lens::Pinhole,
+        Lens::Fov { .. } => return Err(refuse()),
+        Lens::RadialTangential { k, p } if k.iter().chain(&p).all(|v| *v == 0.0) => Lens::Pinhole,
+        lens => lens,
+    };
+    let ([fx, fy], [cx, cy]) = (i.focal, i.centre);
     if !(fx > 0.0 && fy > 0.0) {
-        return Err(err(origin, &format!("camera {}", c.id), format!("focal lengths {fx} / {fy} must be positive")));
+        return Err(at(format!("focal lengths {fx} / {fy} must be positive")));
     }
-    Ok((fx, fy, cx, cy))
+    Ok((fx, fy, cx, cy, lens))
 }
 
 fn to_cameras(
@@ -365,7 +354,7 @@ fn to_cameras(
             .iter()
             .find(|c| c.id == im.camera)
             .ok_or_else(|| at(format!("camera {} is not in {c_origin}", im.camera)))?;
-        let (fx, fy, cx, cy) = pinhole(c, c_origin)?;
+        let (fx, fy, cx, cy, lens) = intrinsics(c, c_origin)?;
         let norm = im.q.iter().map(|v| v * v).sum::<f64>().sqrt();
         if !norm.is_finite() || (norm - 1.0).abs() > 1e-3 || im.t.iter().any(|v| !v.is_finite()) {
             return Err(at(format!(
@@ -386,6 +375,7 @@ fn to_cameras(
             projection: Projection::Pinhole { fx: fx as f32, fy: fy as f32, cx: cx as f32, cy: cy as f32 },
             near: DEFAULT_NEAR,
             far: DEFAULT_FAR,
+            lens,
         };
         camera.validate().map_err(|e| at(format!("in f32: {e}")))?;
         out.push(camera);

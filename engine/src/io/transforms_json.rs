@@ -2,7 +2,7 @@
 //!
 //! Intrinsics are shared at the top level (`fl_x`, `fl_y`, `cx`, `cy`, `w`,
 //! `h`, or instant-ngp's `camera_angle_x`/`camera_angle_y`) and may be
-//! overridden per frame; `camera_model` and the distortion fields (`k1`..`k4`,
+//! overridden per frame; `camera_model` (PINHOLE, OPENCV, OPENCV_FISHEYE) and the distortion fields (`k1`..`k4`,
 //! `p1`, `p2`) name the lens. Each frame's `transform_matrix` is
 //! camera-to-world in OpenGL axes (x right, y up, z back), turned here into
 //! srug's OpenCV axes by negating the y and z columns. Poses are taken as the
@@ -15,6 +15,7 @@ use std::path::Path;
 use glam::{Mat3, Vec3};
 use serde_json::Value;
 
+use crate::camera::lens::Lens;
 use crate::camera::{Camera, Projection, DEFAULT_FAR, DEFAULT_NEAR};
 use crate::error::Result;
 use crate::scene::SceneError;
@@ -83,21 +84,29 @@ fn frame(root: &Value, f: &Value, i: usize, origin: &str) -> Result<Camera, Scen
     let cx = get("cx").unwrap_or(w * 0.5);
     let cy = get("cy").unwrap_or(h * 0.5);
     let model = f.get("camera_model").or_else(|| root.get("camera_model")).and_then(Value::as_str).unwrap_or("OPENCV");
-    let distortion: Vec<(&str, f64)> = ["k1", "k2", "k3", "k4", "p1", "p2"]
-        .iter()
-        .filter_map(|k| get(k).map(|v| (*k, v)))
-        .filter(|(_, v)| *v != 0.0)
-        .collect();
-    if model != "OPENCV" && model != "PINHOLE" || !distortion.is_empty() {
-        let named: Vec<String> = distortion.iter().map(|(k, v)| format!("{k}={v}")).collect();
-        return Err(bad(
-            "camera_model",
-            format!(
-                "{model}{} is a lens srug does not render yet (pinhole cameras only)",
-                if named.is_empty() { String::new() } else { format!(" with {}", named.join(", ")) }
-            ),
-        ));
-    }
+    let c = |k: &str| get(k).unwrap_or(0.0);
+    let lens = match model {
+        "PINHOLE" => Lens::Pinhole,
+        // nerfstudio's OPENCV radial polynomial is k1..k3; a k4 there has no OpenCV meaning.
+        "OPENCV" if c("k4") == 0.0 => {
+            Lens::RadialTangential { k: [c("k1"), c("k2"), c("k3"), 0.0, 0.0, 0.0], p: [c("p1"), c("p2")] }
+        }
+        "OPENCV_FISHEYE" => Lens::Fisheye { k: [c("k1"), c("k2"), c("k3"), c("k4")] },
+        other => {
+            return Err(bad(
+                "camera_model",
+                format!(
+                    "{other}{} is a lens srug does not render (it renders PINHOLE, OPENCV with k1-k3, p1, p2, and \
+                     OPENCV_FISHEYE)",
+                    if c("k4") != 0.0 { format!(" with k4={}", c("k4")) } else { String::new() }
+                ),
+            ))
+        }
+    };
+    let lens = match lens {
+        Lens::RadialTangential { k, p } if k.iter().chain(&p).all(|v| *v == 0.0) => Lens::Pinhole,
+        lens => lens,
+    };
     let m = f["transform_matrix"].as_array().ok_or_else(|| bad("transform_matrix", "missing".into()))?;
     let rows: Vec<Vec<f64>> =
         m.iter().map(|r| r.as_array().into_iter().flatten().filter_map(Value::as_f64).collect()).collect();
@@ -127,6 +136,7 @@ fn frame(root: &Value, f: &Value, i: usize, origin: &str) -> Result<Camera, Scen
         projection: Projection::Pinhole { fx: fx as f32, fy: fy as f32, cx: cx as f32, cy: cy as f32 },
         near: DEFAULT_NEAR,
         far: DEFAULT_FAR,
+        lens,
     };
     camera.validate().map_err(|e| bad("f32 values", e.to_string()))?;
     Ok(camera)

@@ -138,6 +138,7 @@ pub(super) fn shadow_uniform<'a>(
     }
     .ok_or_else(|| Error::Internal("the shadow map lacks its depth channel".into()))?;
     let mut u = ShadowUniform::zeroed();
+    camera.require_no_lens("the shadow test")?;
     u.camera = camera.packed().to_world;
     let l = &map.camera;
     let light = l.packed();

@@ -188,6 +188,7 @@ impl Splatter {
                 "the splat backward pass needs subgroup ballot (elect, broadcast) in compute shaders",
             ));
         }
+        frame.camera.require_no_lens("the splat backward pass")?;
         if frame.scene_means != scene.means.id() || frame.gaussians != scene.count as u64 {
             return Err(Error::invalid("splat frame", "was rendered from another scene"));
         }

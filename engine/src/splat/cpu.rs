@@ -144,7 +144,8 @@ pub fn project(g: &Gaussian64, camera: &Camera, tile: u32) -> Option<Projected> 
     let s = DVec3::new(g.log_scale.x.exp(), g.log_scale.y.exp(), g.log_scale.z.exp());
     let m = g.rotation_matrix() * DMat3::from_diagonal(s);
     let cov_cam = w * (m * m.transpose()) * w.transpose();
-    let (mean, j) = mean_and_jacobian(camera, t);
+    let (mean, j) =
+        if camera.lens.is_pinhole() { mean_and_jacobian(camera, t) } else { lens_mean_and_jacobian(camera, t)? };
     let cov2 = j * cov_cam * j.transpose();
     let (a, b, c) = (cov2.x_axis.x + 0.3, cov2.y_axis.x, cov2.y_axis.y + 0.3);
     let det = a * c - b * b;
@@ -191,6 +192,22 @@ pub(crate) fn mean_and_jacobian(camera: &Camera, t: DVec3) -> (DVec2, DMat3) {
             (DVec2::new(sx * t.x + f64::from(cx), sy * t.y + f64::from(cy)), j)
         }
     }
+}
+
+/// Pixel position and Jacobian through the camera's lens (no clamp); `None`
+/// where the lens cannot image the point.
+fn lens_mean_and_jacobian(camera: &Camera, t: DVec3) -> Option<(DVec2, DMat3)> {
+    let Projection::Pinhole { fx, fy, cx, cy } = camera.projection else { return None };
+    let (fx, fy) = (f64::from(fx), f64::from(fy));
+    let p = t.to_array();
+    let d = camera.lens.distort_within(p, camera.lens_limit())?;
+    let jn = camera.lens.jacobian(p)?;
+    let j = DMat3::from_cols(
+        DVec3::new(fx * jn[0][0], fy * jn[1][0], 0.0),
+        DVec3::new(fx * jn[0][1], fy * jn[1][1], 0.0),
+        DVec3::new(fx * jn[0][2], fy * jn[1][2], 0.0),
+    );
+    Some((DVec2::new(fx * d[0] + f64::from(cx), fy * d[1] + f64::from(cy)), j))
 }
 
 /// Limits of x/z and y/z in the pinhole Jacobian.

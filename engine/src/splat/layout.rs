@@ -64,6 +64,9 @@ crate::gpu::gpu_layout!(
         camera.rot2,
         camera.translation,
         camera.intrinsics,
+        camera.lens0,
+        camera.lens1,
+        camera.lens2,
         clip,
         eye,
         view_dir,
@@ -166,6 +169,13 @@ impl FrameUniform {
 pub(super) fn camera_frame(camera: &Camera, frame: &mut FrameUniform) -> Result<()> {
     if camera.width == 0 || camera.height == 0 {
         return Err(Error::invalid(format!("image size {}x{}", camera.width, camera.height), "is empty"));
+    }
+    let lensed = !camera.lens.is_pinhole();
+    if camera.lens.gpu_kind().is_none() || lensed && matches!(camera.projection, Projection::Orthographic { .. }) {
+        return Err(Error::invalid(
+            format!("camera \"{}\" with lens {:?}", camera.name, camera.lens),
+            "is not rendered (splatting renders pinhole, radial-tangential and fisheye cameras)",
+        ));
     }
     let p = camera.packed();
     frame.camera = p.to_camera;

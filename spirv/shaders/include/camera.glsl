@@ -22,7 +22,78 @@ struct WorldToCamera {
     vec4 rot2;
     vec4 translation;  // world-to-camera translation; w: 0 pinhole, 1 orthographic
     vec4 intrinsics;   // fx, fy, cx, cy (orthographic: pixels per unit x, y, cx, cy)
+    vec4 lens0;        // k1..k4 (radial-tangential and fisheye)
+    vec4 lens1;        // k5, k6, p1, p2 (radial-tangential)
+    vec4 lens2;        // x: 0 pinhole, 2 radial-tangential, 3 fisheye; y: imaging limit
+                       // (undistorted radius, or fisheye angle off axis)
 };
+
+// A camera-space point through the lens: its normalized distorted coordinates
+// `d` and their Jacobian ∂d/∂t (2 rows of 3, as mat3 columns J[c][r], row 2
+// unused); false where the lens cannot image it. CPU twin:
+// engine/src/camera/lens.rs `Lens::distort` and `Lens::jacobian`.
+bool lens_project(WorldToCamera c, vec3 t, out vec2 d, out mat3 J) {
+    float kind = c.lens2.x;
+    J = mat3(0.0);
+    if (kind == 3.0) {
+        vec4 k = c.lens0;
+        float r2 = t.x * t.x + t.y * t.y;
+        float r = sqrt(r2);
+        float rho2 = r2 + t.z * t.z;
+        if (r <= 1e-9 * abs(t.z)) {
+            if (!(t.z > 0.0)) return false;
+            d = vec2(0.0);
+            J[0][0] = 1.0 / t.z;
+            J[1][1] = 1.0 / t.z;
+            return true;
+        }
+        float theta = atan(r, t.z);
+        if (theta > c.lens2.y) return false;
+        float t2 = theta * theta;
+        float thetad = theta * (1.0 + t2 * (k.x + t2 * (k.y + t2 * (k.z + t2 * k.w))));
+        float dthetad = 1.0 + t2 * (3.0 * k.x + t2 * (5.0 * k.y + t2 * (7.0 * k.z + t2 * 9.0 * k.w)));
+        float s = thetad / r;
+        vec3 dtheta = vec3(t.z * t.x / (r * rho2), t.z * t.y / (r * rho2), -r / rho2);
+        vec3 ds = vec3(dthetad * dtheta.x / r - thetad * t.x / (r2 * r),
+                       dthetad * dtheta.y / r - thetad * t.y / (r2 * r),
+                       dthetad * dtheta.z / r);
+        d = t.xy * s;
+        J[0][0] = s + t.x * ds.x; J[1][0] = t.x * ds.y; J[2][0] = t.x * ds.z;
+        J[0][1] = t.y * ds.x;     J[1][1] = s + t.y * ds.y; J[2][1] = t.y * ds.z;
+        return true;
+    }
+    if (!(t.z > 0.0)) return false;
+    float u = t.x / t.z, v = t.y / t.z;
+    if (u * u + v * v > c.lens2.y * c.lens2.y) return false;
+    mat2 D = mat2(1.0);  // D[c][r]
+    d = vec2(u, v);
+    if (kind == 2.0) {
+        vec4 k = c.lens0;
+        vec4 q = c.lens1;  // k5, k6, p1, p2
+        float r2 = u * u + v * v;
+        float num = 1.0 + r2 * (k.x + r2 * (k.y + r2 * k.z));
+        float den = 1.0 + r2 * (k.w + r2 * (q.x + r2 * q.y));
+        float dnum = k.x + r2 * (2.0 * k.y + r2 * 3.0 * k.z);
+        float dden = k.w + r2 * (2.0 * q.x + r2 * 3.0 * q.y);
+        float radial = num / den;
+        float dradial = (dnum * den - num * dden) / (den * den);
+        float p1 = q.z, p2 = q.w;
+        d = vec2(u * radial + 2.0 * p1 * u * v + p2 * (r2 + 2.0 * u * u),
+                 v * radial + 2.0 * p2 * u * v + p1 * (r2 + 2.0 * v * v));
+        D[0][0] = radial + 2.0 * u * u * dradial + 2.0 * p1 * v + 6.0 * p2 * u;
+        D[1][0] = 2.0 * u * v * dradial + 2.0 * p1 * u + 2.0 * p2 * v;
+        D[0][1] = 2.0 * u * v * dradial + 2.0 * p2 * v + 2.0 * p1 * u;
+        D[1][1] = radial + 2.0 * v * v * dradial + 2.0 * p2 * u + 6.0 * p1 * v;
+    }
+    // ∂(u, v)/∂t = [[1/z, 0, −u/z], [0, 1/z, −v/z]].
+    for (int row = 0; row < 2; row++) {
+        vec2 dr = vec2(D[0][row], D[1][row]);
+        J[0][row] = dr.x / t.z;
+        J[1][row] = dr.y / t.z;
+        J[2][row] = -(dr.x * u + dr.y * v) / t.z;
+    }
+    return true;
+}
 
 // The world-to-camera rotation as a matrix (its columns built from the rows).
 mat3 world_to_camera_rotation(WorldToCamera c) {

@@ -80,6 +80,17 @@ void main() {
     if (ortho) {
         mean = vec2(k.x * t.x + k.z, k.y * t.y + k.w);
         J = mat3(k.x, 0.0, 0.0, 0.0, k.y, 0.0, 0.0, 0.0, 0.0);
+    } else if (frame.camera.lens2.x != 0.0) {
+        // Through the lens: the mean lands where the lens sends it, the
+        // covariance follows the lens's local Jacobian (no clamp: the lens
+        // bounds the image itself).
+        vec2 dn;
+        mat3 Jn;
+        if (!lens_project(frame.camera, t, dn, Jn)) { cull(i); return; }
+        mean = k.xy * dn + k.zw;
+        J = mat3(k.x * Jn[0][0], k.y * Jn[0][1], 0.0,
+                 k.x * Jn[1][0], k.y * Jn[1][1], 0.0,
+                 k.x * Jn[2][0], k.y * Jn[2][1], 0.0);
     } else {
         mean = vec2(k.x * t.x / t.z + k.z, k.y * t.y / t.z + k.w);
         float tx = clamp(t.x / t.z, -frame.clip.z, frame.clip.z) * t.z;
