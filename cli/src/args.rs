@@ -91,12 +91,18 @@ pub struct ChannelList {
     pub channels: Channels,
     /// Whether colour was named (`rgb` or `all`).
     pub names_rgb: bool,
+    /// Whether the ray-distance channel `range` was named (derived from depth, which it turns on).
+    pub range: bool,
 }
 
 impl FromStr for ChannelList {
     type Err = Error;
     fn from_str(text: &str) -> Result<Self> {
-        Ok(Self { channels: Channels::parse(text)?, names_rgb: Channels::names_rgb(text) })
+        let range = text.split(',').map(str::trim).any(|s| s == "range");
+        let rest: Vec<&str> = text.split(',').map(str::trim).filter(|s| *s != "range").collect();
+        let mut channels = Channels::parse(&rest.join(","))?;
+        channels.depth |= range;
+        Ok(Self { channels, names_rgb: Channels::names_rgb(text), range })
     }
 }
 

@@ -882,9 +882,30 @@ fn render_writes_exact_id_channels() {
     let out = dir.path().join("ids.exr");
     let args =
         ["render", ply.to_str().unwrap(), "--eye", "0,-6,0", "--target", "0,0,0", "--size", "64x32", "--fov", "60"];
-    let o = srug(&[&args[..], &["--ids", "semantic,instance", "--out", out.to_str().unwrap()]].concat());
+    let o = srug(
+        &[&args[..], &["--ids", "semantic,instance", "--channels", "range", "--out", out.to_str().unwrap()]].concat(),
+    );
     assert!(o.status.success(), "{}", text(&o));
     let image = exr::prelude::read_all_flat_layers_from_file(&out).unwrap();
+    // The range channel is depth times each pixel's ray length per unit depth.
+    let floats = |name: &str| -> Vec<f32> {
+        let c = image.layer_data[0].channel_data.list.iter().find(|c| c.name.to_string() == name).unwrap();
+        match &c.sample_data {
+            exr::prelude::FlatSamples::F32(v) => v.clone(),
+            other => panic!("{name} is not a float channel: {other:?}"),
+        }
+    };
+    let (depth, range) = (floats("Z"), floats("range.Y"));
+    let cam =
+        srug::scene::Camera::look_at(glam::Vec3::new(0.0, -6.0, 0.0), glam::Vec3::ZERO, glam::Vec3::Z, 60.0, 64, 32)
+            .unwrap();
+    let mut checked = 0;
+    for p in (0..64 * 32).filter(|p| depth[*p] > 0.1) {
+        let s = cam.ray_length_per_depth([(p % 64) as f64 + 0.5, (p / 64) as f64 + 0.5]).unwrap();
+        assert!((f64::from(range[p]) - f64::from(depth[p]) * s).abs() < 1e-5 * f64::from(range[p]), "pixel {p}");
+        checked += 1;
+    }
+    assert!(checked > 20, "{checked} pixels with depth");
     let channel = |name: &str| -> Vec<u32> {
         let c = image.layer_data[0].channel_data.list.iter().find(|c| c.name.to_string() == name).unwrap();
         match &c.sample_data {

@@ -25,7 +25,8 @@ pub(super) struct RenderArgs {
     out: PathBuf,
     /// Channels: rgb, depth, median_depth, normal, albedo, roughness, metallic, ao,
     /// visibility, materials, all, top_gaussian (the index of each pixel's Gaussian with the
-    /// largest blend weight, a 32-bit integer channel). EXR holds those listed and alpha (rgb
+    /// largest blend weight, a 32-bit integer channel), range (distance along each pixel's ray,
+    /// depth × the ray's length per unit depth, as lidar measures). EXR holds those listed and alpha (rgb
     /// only if listed); PNG holds only rgb (any other channel needs an .exr output).
     #[arg(long, default_value = "rgb")]
     channels: ChannelList,
@@ -106,7 +107,9 @@ impl RenderArgs {
             let (gpu, stats) = splatter.render(&gpu_scene, cam, &settings)?;
             let g = gpu.read(&device)?;
             if is_exr {
-                g.write_exr_with_ids(&target, &id_channels)?;
+                let range = if channels.range { g.ray_distance(cam) } else { None };
+                let extra: Vec<(&str, &[f32], usize)> = range.as_deref().map(|r| ("range", r, 1)).into_iter().collect();
+                g.write_exr_with(&target, &extra, &id_channels)?;
             } else {
                 io::write_png(&target, g.width, g.height, g.rgb_values()?)?;
             }

@@ -115,6 +115,26 @@ pub(crate) struct PackedCamera {
 }
 
 impl Camera {
+    /// The distance along the ray through pixel position `px` per unit of
+    /// camera depth: √(u² + v² + 1) with (u, v) the pixel's undistorted
+    /// normalized coordinates (1 for orthographic cameras); `None` where the
+    /// lens sends no ray through it. Multiplies a depth channel into a
+    /// ray-distance (range) channel, as lidar measures.
+    pub fn ray_length_per_depth(&self, px: [f64; 2]) -> Option<f64> {
+        match self.projection {
+            Projection::Orthographic { .. } => Some(1.0),
+            Projection::Pinhole { fx, fy, cx, cy } => {
+                let intr = lens::Intrinsics {
+                    focal: [f64::from(fx), f64::from(fy)],
+                    centre: [f64::from(cx), f64::from(cy)],
+                    lens: self.lens,
+                };
+                let [u, v] = intr.unproject(px)?;
+                Some((u * u + v * v + 1.0).sqrt())
+            }
+        }
+    }
+
     /// How far off axis splatting images through the lens ([`lens::Lens::imaging_limit`]).
     pub fn lens_limit(&self) -> f64 {
         match self.projection {
@@ -362,6 +382,33 @@ pub fn look_rotation(eye: Vec3, target: Vec3, up: Vec3) -> Result<Mat3> {
 mod tests {
     #![allow(clippy::unwrap_used, reason = "a failed unwrap is a failed test")]
     use super::*;
+
+    /// Depth times the ray length per unit depth is the distance to the point,
+    /// for a pinhole, a barrel lens and a fisheye (the pixel found by projecting the point).
+    #[test]
+    fn ray_length_turns_depth_into_distance() {
+        use lens::Lens;
+        let base = Camera::look_at(Vec3::ZERO, Vec3::Z, -Vec3::Y, 80.0, 320, 200).unwrap();
+        for lens in [
+            Lens::Pinhole,
+            Lens::RadialTangential { k: [-0.2, 0.05, 0.0, 0.0, 0.0, 0.0], p: [0.001, -0.002] },
+            Lens::Fisheye { k: [0.01, -0.002, 0.0, 0.0] },
+        ] {
+            let cam = Camera { lens, ..base.clone() };
+            let Projection::Pinhole { fx, fy, cx, cy } = cam.projection else { unreachable!() };
+            let intr = lens::Intrinsics {
+                focal: [f64::from(fx), f64::from(fy)],
+                centre: [f64::from(cx), f64::from(cy)],
+                lens,
+            };
+            for p in [[0.0, 0.0, 5.0], [1.5, -0.8, 4.0], [-2.5, 1.2, 3.0]] {
+                let px = intr.project(p).unwrap();
+                let distance = cam.ray_length_per_depth(px).unwrap() * p[2];
+                let truth = (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt();
+                assert!((distance - truth).abs() < 1e-9 * truth, "{lens:?} {p:?}: {distance} vs {truth}");
+            }
+        }
+    }
 
     /// The packed rows are the two rotations, and the translation takes the
     /// camera centre to the origin.

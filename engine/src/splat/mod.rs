@@ -214,10 +214,39 @@ impl GBuffer {
         self.write_exr_with_ids(path, &[])
     }
 
+    /// The ray-distance (range) channel of a frame rendered from `camera`:
+    /// the depth channel times each pixel's [`Camera::ray_length_per_depth`]
+    /// (premultiplied by alpha like depth; 0 where the lens sends no ray);
+    /// `None` without a depth channel.
+    pub fn ray_distance(&self, camera: &crate::scene::Camera) -> Option<Vec<f32>> {
+        let depth = self.get(Channel::Depth)?;
+        let w = self.width as usize;
+        Some(
+            depth
+                .iter()
+                .enumerate()
+                .map(|(p, d)| {
+                    let px = [(p % w) as f64 + 0.5, (p / w) as f64 + 0.5];
+                    camera.ray_length_per_depth(px).map_or(0.0, |s| (f64::from(*d) * s) as f32)
+                })
+                .collect(),
+        )
+    }
+
     /// [`GBuffer::write_exr`] plus, where [`GBuffer::top_gaussian`] was kept, a
     /// `top_gaussian` channel and one 32-bit integer channel per `(name, ids)`:
     /// each pixel holds the id of its top Gaussian (`u32::MAX` where none).
     pub fn write_exr_with_ids(&self, path: impl AsRef<std::path::Path>, ids: &[(&str, &[u32])]) -> Result<()> {
+        self.write_exr_with(path, &[], ids)
+    }
+
+    /// [`GBuffer::write_exr_with_ids`] with more float channels (name, values, floats per pixel).
+    pub fn write_exr_with(
+        &self,
+        path: impl AsRef<std::path::Path>,
+        extra: &[(&str, &[f32], usize)],
+        ids: &[(&str, &[u32])],
+    ) -> Result<()> {
         let mapped: Vec<(&str, Vec<u32>)> = match &self.top_gaussian {
             Some(top) => ids
                 .iter()
@@ -232,7 +261,9 @@ impl GBuffer {
         let mut uints: Vec<(&str, &[u32])> =
             self.top_gaussian.as_deref().map(|t| ("top_gaussian", t)).into_iter().collect();
         uints.extend(mapped.iter().map(|(n, v)| (*n, v.as_slice())));
-        crate::io::write_exr_layer(path.as_ref(), self.width, self.height, &self.channels(), &uints)
+        let mut floats = self.channels();
+        floats.extend_from_slice(extra);
+        crate::io::write_exr_layer(path.as_ref(), self.width, self.height, &floats, &uints)
     }
 
     /// The rgb channel, or an error naming why it is absent.
