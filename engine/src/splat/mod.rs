@@ -215,7 +215,7 @@ impl GBuffer {
     }
 
     /// The ray-distance (range) channel of a frame rendered from `camera`:
-    /// the depth channel times each pixel's [`Camera::ray_length_per_depth`]
+    /// the depth channel times each pixel's [`crate::scene::Camera::ray_length_per_depth`]
     /// (premultiplied by alpha like depth; 0 where the lens sends no ray);
     /// `None` without a depth channel.
     pub fn ray_distance(&self, camera: &crate::scene::Camera) -> Option<Vec<f32>> {
