@@ -354,6 +354,27 @@ fn shading_matches_twin_on_random_and_extreme_gbuffers() {
             assert!(out.sun.iter().all(|v| *v == 0.0), "no sun light below the horizon");
         }
     }
+    // Through lenses: each pixel's view direction comes from undistorting it (Newton in f32 on
+    // the GPU, in f64 in the twin), same tolerances.
+    for lens in [
+        srug::camera::lens::Lens::RadialTangential { k: [-0.25, 0.06, -0.005, 0.0, 0.0, 0.0], p: [0.001, -0.002] },
+        srug::camera::lens::Lens::Fisheye { k: [0.01, -0.002, 0.0003, -0.00004] },
+    ] {
+        let cam = Camera { lens, ..camera.clone() };
+        let settings = ShadeSettings { prefill: Some(NAN), ..ShadeSettings::default() };
+        let inputs =
+            ShadeInputs { editable_visibility: Some(&ev), ..inputs(&s.env, &s.brdf, &g, &cam, Some(&suns[0])) };
+        let out = s.shader.shade(&inputs, &settings).unwrap().read(&s.d).unwrap();
+        let cpu = shade_cpu(&host, &cam, &t, Some(&suns[0]), &settings, Some(&editable), None);
+        let label = format!("{lens:?}").chars().take(12).collect::<String>();
+        let e_sun = rel_err(&format!("lens_{label}_sun"), w, h, 3, &out.sun, &cpu.sun, 1e-4);
+        let e_sky = rel_err(&format!("lens_{label}_sky"), w, h, 3, &out.sky, &cpu.sky, 1e-4);
+        println!("lens {label}: relative errors sun {e_sun:.1e}, sky {e_sky:.1e}");
+        // The lens matters: the same G-buffer seen through the pinhole shades differently.
+        let pinhole = shade_cpu(&host, &camera, &t, Some(&suns[0]), &settings, Some(&editable), None);
+        let moved = pinhole.sky.iter().zip(&cpu.sky).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
+        assert!(moved > 1e-3, "{label}: the lens changed no pixel's sky light ({moved:e})");
+    }
     // Misuse: editable visibility without its buffer; a G-buffer without albedo.
     let bad = inputs(&s.env, &s.brdf, &g, &camera, Some(&suns[0]));
     assert!(s.shader.shade(&bad, &ShadeSettings::default()).is_err());

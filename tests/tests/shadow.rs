@@ -108,6 +108,68 @@ fn sigmoid_test_and_traced_reference_match_cpu_twin() {
         }
         eprintln!("{label}: sigmoid max error {err:.2e}; traced: {bad} pixels off by > 1e-3");
     }
+    // Receivers seen through lenses: each pixel is unprojected along its undistorted ray
+    // (Newton in f32 against f64), and the view-frustum fit follows the lens's edges.
+    for lens in [
+        srug::camera::lens::Lens::RadialTangential { k: [-0.25, 0.06, -0.005, 0.0, 0.0, 0.0], p: [0.001, -0.002] },
+        srug::camera::lens::Lens::Fisheye { k: [0.01, -0.002, 0.0003, -0.00004] },
+    ] {
+        let cam = Camera { lens, ..camera.clone() };
+        let st = ShadowSettings { fit: ShadowFit::ViewFrustum, k: 4.0, ..settings(384) };
+        let (g, host) = receiver(&mut s, &cam, Channels::default());
+        let map = shadow_map(&mut s, &sun, &st, Some(&cam));
+        let map_host = DepthImage::from_gbuffer(&map.frame.gbuffer.read(&s.d).unwrap());
+        let host = DepthImage::from_gbuffer(&host);
+        let (v, _) = s.pass.visibility(&map, &g, &cam, &st, VisibilityKind::Sigmoid).unwrap();
+        let gpu: Vec<f32> = s.d.read_buffer(&v).unwrap();
+        let cpu = sigmoid_visibility_cpu(&map.camera, &map_host, &cam, &host, &st);
+        let err = max_diff(&format!("shadow_lens_{lens:?}"), &cam, &gpu, &cpu, 1e-4);
+        eprintln!("lens {lens:?}: sigmoid max error {err:.2e}");
+    }
+    assert_no_validation_messages(&s.d);
+}
+
+/// Through a barrel lens and a fisheye, the shadow test still agrees with the
+/// demo's exact visibility as well as through the pinhole (IoU ≥ 0.8): the
+/// receivers are unprojected along each pixel's true ray.
+#[test]
+fn shadows_through_lenses_agree_with_the_exact_visibility() {
+    let mut s = setup(120_000);
+    let street = s.demo.cameras[0].resized(352, 96);
+    let sun = Sun::from_direction(s.demo.sun_direction, [1.0; 3]).unwrap();
+    let st = settings(1024);
+    let barrel = Camera {
+        lens: srug::camera::lens::Lens::RadialTangential {
+            k: [-0.25, 0.06, -0.005, 0.0, 0.0, 0.0],
+            p: [0.001, -0.002],
+        },
+        ..street.clone()
+    };
+    let fisheye = Camera {
+        width: 192,
+        height: 192,
+        projection: srug::scene::Projection::Pinhole { fx: 60.0, fy: 60.0, cx: 96.0, cy: 96.0 },
+        lens: srug::camera::lens::Lens::Fisheye { k: [0.01, -0.002, 0.0, 0.0] },
+        ..street
+    };
+    let map = shadow_map(&mut s, &sun, &st, None);
+    for (name, camera) in [("barrel", barrel), ("fisheye", fisheye)] {
+        let (g, host) = receiver(&mut s, &camera, Channels { visibility: true, ..Channels::default() });
+        let vf: Vec<f32> =
+            host.get(Channel::Visibility).unwrap().iter().zip(&host.alpha).map(|(v, a)| v / a.max(1e-6)).collect();
+        let (v, _) = s.pass.visibility(&map, &g, &camera, &st, VisibilityKind::Sigmoid).unwrap();
+        let ve: Vec<f32> = s.d.read_buffer(&v).unwrap();
+        let surface: Vec<bool> = host.alpha.iter().map(|a| *a >= 0.5).collect();
+        let iou = shadow_iou(&ve, &vf, &surface);
+        let shadowed = vf.iter().zip(&host.alpha).filter(|(v, a)| **a >= 0.5 && **v < 0.5).count();
+        let covered = host.alpha.iter().filter(|a| **a >= 0.5).count();
+        eprintln!("{name}: IoU(V_e, V_f) {iou:.3}, {shadowed} shadowed pixels, {covered} covered");
+        assert!(shadowed > 200, "{name}: the view should contain shadow ({shadowed} pixels)");
+        if iou < 0.8 {
+            save_comparison(&format!("lens_{name}_ve_vs_vf"), camera.width, camera.height, 1, &ve, &vf);
+            panic!("{name}: shadow IoU against the exact visibility {iou:.3} < 0.8");
+        }
+    }
     assert_no_validation_messages(&s.d);
 }
 

@@ -35,6 +35,23 @@ pub enum Lens {
     },
 }
 
+/// The angle off axis θ with θ (1 + k1 θ² + k2 θ⁴ + k3 θ⁶ + k4 θ⁸) = `rd`
+/// (Newton's method from θ = rd; any angle, past 90° too).
+pub(crate) fn fisheye_theta(k: [f64; 4], rd: f64) -> f64 {
+    let mut theta = rd;
+    for _ in 0..100 {
+        let t2 = theta * theta;
+        let f = theta * (1.0 + t2 * (k[0] + t2 * (k[1] + t2 * (k[2] + t2 * k[3])))) - rd;
+        let df = 1.0 + t2 * (3.0 * k[0] + t2 * (5.0 * k[1] + t2 * (7.0 * k[2] + t2 * 9.0 * k[3])));
+        let step = f / df;
+        theta -= step;
+        if step.abs() < 1e-15 {
+            break;
+        }
+    }
+    theta
+}
+
 /// Focal lengths, principal point and lens of a camera.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Intrinsics {
@@ -136,7 +153,17 @@ impl Lens {
             .fold(0.0f64, f64::max);
         match *self {
             Lens::Pinhole | Lens::Fov { .. } => f64::INFINITY,
-            Lens::Fisheye { .. } => (reach.atan() * 1.25).min(std::f64::consts::PI),
+            Lens::Fisheye { k } => {
+                // Angles off axis of the edge pixels, past 90° too.
+                let theta = edge
+                    .iter()
+                    .map(|px| {
+                        let d = [(px[0] - centre[0]) / focal[0], (px[1] - centre[1]) / focal[1]];
+                        fisheye_theta(k, (d[0] * d[0] + d[1] * d[1]).sqrt())
+                    })
+                    .fold(0.0f64, f64::max);
+                (theta * 1.25).min(std::f64::consts::PI)
+            }
             Lens::RadialTangential { .. } => {
                 // Where r·radial(r) stops growing along the x axis, scanning out to 100.
                 let mut fold = 100.0f64;
@@ -297,17 +324,7 @@ impl Lens {
                 if rd < f64::EPSILON {
                     return Some([0.0, 0.0]);
                 }
-                let mut theta = rd;
-                for _ in 0..100 {
-                    let t2 = theta * theta;
-                    let f = theta * (1.0 + t2 * (k[0] + t2 * (k[1] + t2 * (k[2] + t2 * k[3])))) - rd;
-                    let df = 1.0 + t2 * (3.0 * k[0] + t2 * (5.0 * k[1] + t2 * (7.0 * k[2] + t2 * 9.0 * k[3])));
-                    let step = f / df;
-                    theta -= step;
-                    if step.abs() < 1e-15 {
-                        break;
-                    }
-                }
+                let theta = fisheye_theta(k, rd);
                 if !(0.0..std::f64::consts::FRAC_PI_2).contains(&theta) {
                     return None;
                 }

@@ -84,6 +84,12 @@ pub(crate) struct CameraToWorldBlock {
     pub(crate) position: [f32; 4],
     /// fx, fy, cx, cy (orthographic: pixels per unit x, y, cx, cy).
     pub(crate) intrinsics: [f32; 4],
+    /// Lens coefficients k1..k4, as in [`WorldToCameraBlock::lens0`].
+    pub(crate) lens0: [f32; 4],
+    /// Lens coefficients k5, k6, p1, p2.
+    pub(crate) lens1: [f32; 4],
+    /// `x`: the lens kind, `y`: its imaging limit.
+    pub(crate) lens2: [f32; 4],
 }
 
 /// The camera as a uniform block embeds it to project points:
@@ -115,6 +121,37 @@ pub(crate) struct PackedCamera {
 }
 
 impl Camera {
+    /// The camera-space direction through pixel position `px`: (u, v, 1), the
+    /// pixel's undistorted normalized coordinates, in front of the camera
+    /// (orthographic: (0, 0, 1)); a fisheye pixel past 90° off axis gets its
+    /// true direction (sin θ · radial, cos θ), whose z is ≤ 0. `None` where the
+    /// lens sends no ray through the pixel.
+    pub fn pixel_direction(&self, px: [f64; 2]) -> Option<[f64; 3]> {
+        match self.projection {
+            Projection::Orthographic { .. } => Some([0.0, 0.0, 1.0]),
+            Projection::Pinhole { fx, fy, cx, cy } if matches!(self.lens, lens::Lens::Fisheye { .. }) => {
+                let lens::Lens::Fisheye { k } = self.lens else { return None };
+                let d = [(px[0] - f64::from(cx)) / f64::from(fx), (px[1] - f64::from(cy)) / f64::from(fy)];
+                let rd = (d[0] * d[0] + d[1] * d[1]).sqrt();
+                if rd < 1e-12 {
+                    return Some([0.0, 0.0, 1.0]);
+                }
+                let theta = lens::fisheye_theta(k, rd);
+                let dir = [d[0] / rd * theta.sin(), d[1] / rd * theta.sin(), theta.cos()];
+                Some(if dir[2] > 1e-6 { dir.map(|v| v / dir[2]) } else { dir })
+            }
+            Projection::Pinhole { fx, fy, cx, cy } => {
+                let intr = lens::Intrinsics {
+                    focal: [f64::from(fx), f64::from(fy)],
+                    centre: [f64::from(cx), f64::from(cy)],
+                    lens: self.lens,
+                };
+                let [u, v] = intr.unproject(px)?;
+                Some([u, v, 1.0])
+            }
+        }
+    }
+
     /// The distance along the ray through pixel position `px` per unit of
     /// camera depth: √(u² + v² + 1) with (u, v) the pixel's undistorted
     /// normalized coordinates (1 for orthographic cameras); `None` where the
@@ -123,14 +160,10 @@ impl Camera {
     pub fn ray_length_per_depth(&self, px: [f64; 2]) -> Option<f64> {
         match self.projection {
             Projection::Orthographic { .. } => Some(1.0),
-            Projection::Pinhole { fx, fy, cx, cy } => {
-                let intr = lens::Intrinsics {
-                    focal: [f64::from(fx), f64::from(fy)],
-                    centre: [f64::from(cx), f64::from(cy)],
-                    lens: self.lens,
-                };
-                let [u, v] = intr.unproject(px)?;
-                Some((u * u + v * v + 1.0).sqrt())
+            Projection::Pinhole { .. } => {
+                let [u, v, w] = self.pixel_direction(px)?;
+                // Past 90° off axis no depth reaches the pixel.
+                (w > 0.0).then(|| (u * u + v * v + w * w).sqrt() / w)
             }
         }
     }
@@ -155,7 +188,10 @@ impl Camera {
         } else {
             Err(Error::invalid(
                 format!("camera \"{}\" with lens {:?}", self.name, self.lens),
-                format!("{what} handles pinhole cameras only so far (splatting renders radial-tangential and fisheye lenses)"),
+                format!(
+                    "{what} handles pinhole cameras only so far (splatting, shadows and shading render \
+                     radial-tangential and fisheye lenses)"
+                ),
             ))
         }
     }
@@ -172,11 +208,12 @@ impl Camera {
         let t = -(w * self.position);
         let p = self.position;
         let [rot0, rot1, rot2] = rows(r);
-        let to_world = CameraToWorldBlock { rot0, rot1, rot2, position: [p.x, p.y, p.z, kind], intrinsics };
-        let [rot0, rot1, rot2] = rows(w);
         let [lens0, lens1] = self.lens.gpu_coefficients();
         let limit = self.lens_limit().min(f64::from(f32::MAX)) as f32;
         let lens2 = [self.lens.gpu_kind().unwrap_or(0) as f32, limit, 0.0, 0.0];
+        let to_world =
+            CameraToWorldBlock { rot0, rot1, rot2, position: [p.x, p.y, p.z, kind], intrinsics, lens0, lens1, lens2 };
+        let [rot0, rot1, rot2] = rows(w);
         let to_camera = WorldToCameraBlock {
             rot0,
             rot1,
@@ -407,6 +444,26 @@ mod tests {
                 let truth = (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt();
                 assert!((distance - truth).abs() < 1e-9 * truth, "{lens:?} {p:?}: {distance} vs {truth}");
             }
+        }
+    }
+
+    /// A fisheye pixel past 90° off axis gets its true direction (the sky a
+    /// 200° fisheye shows), and no ray length per depth.
+    #[test]
+    fn fisheye_pixels_past_ninety_degrees_look_backward() {
+        let base = Camera::look_at(Vec3::ZERO, Vec3::Z, -Vec3::Y, 80.0, 400, 400).unwrap();
+        let k = [0.01, -0.002, 0.0, 0.0];
+        let cam = Camera { lens: lens::Lens::Fisheye { k }, ..base };
+        let Projection::Pinhole { fx, cx, cy, .. } = cam.projection else { unreachable!() };
+        for degrees in [30.0f64, 89.0, 120.0] {
+            let theta = degrees.to_radians();
+            let t2 = theta * theta;
+            let rd = theta * (1.0 + t2 * (k[0] + t2 * k[1]));
+            let px = [f64::from(cx) + rd * f64::from(fx), f64::from(cy)];
+            let d = cam.pixel_direction(px).unwrap();
+            let angle = (d[2] / (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt()).acos().to_degrees();
+            assert!((angle - degrees).abs() < 1e-6, "{degrees}°: direction {d:?} is {angle}° off axis");
+            assert_eq!(cam.ray_length_per_depth(px).is_some(), degrees < 90.0);
         }
     }
 

@@ -10,7 +10,7 @@ use glam::DVec3;
 use super::brdf::BrdfLut;
 use super::env::level_size;
 use super::{Background, ShadeSettings, ShadeTerms, ToneMap, VisibilitySource};
-use crate::scene::{Camera, Projection};
+use crate::scene::Camera;
 use crate::shadow::Sun;
 use crate::splat::Channel;
 use crate::splat::GBuffer;
@@ -291,12 +291,7 @@ pub struct ShadedCpu {
 fn pixel_ray(camera: &Camera, p: usize) -> DVec3 {
     let w = camera.width as usize;
     let (px, py) = ((p % w) as f64 + 0.5, (p / w) as f64 + 0.5);
-    let c = match camera.projection {
-        Projection::Pinhole { fx, fy, cx, cy } => {
-            DVec3::new((px - f64::from(cx)) / f64::from(fx), (py - f64::from(cy)) / f64::from(fy), 1.0)
-        }
-        Projection::Orthographic { .. } => DVec3::Z,
-    };
+    let c = camera.pixel_direction([px, py]).map_or(DVec3::Z, DVec3::from);
     (camera.rotation.as_dmat3() * c).normalize()
 }
 

@@ -65,7 +65,6 @@ impl Shader {
         }
         let env = inputs.environment;
         let mut u = ShadeUniform::zeroed();
-        camera.require_no_lens("shading")?;
         u.camera = camera.packed().to_world;
         u.size = [g.width, g.height, env.levels, inputs.brdf.size];
         u.env_size = [env.base.0, env.base.1, env.irradiance_size.0, env.irradiance_size.1];

@@ -119,8 +119,9 @@ pub fn unproject(camera: &Camera, p: usize, z: f64) -> DVec3 {
     let w = camera.width as usize;
     let px = DVec2::new((p % w) as f64 + 0.5, (p / w) as f64 + 0.5);
     let c = match camera.projection {
-        Projection::Pinhole { fx, fy, cx, cy } => {
-            DVec3::new((px.x - f64::from(cx)) / f64::from(fx) * z, (px.y - f64::from(cy)) / f64::from(fy) * z, z)
+        Projection::Pinhole { .. } => {
+            let [u, v, w] = camera.pixel_direction([px.x, px.y]).unwrap_or([0.0, 0.0, 1.0]);
+            DVec3::new(u * z, v * z, w * z)
         }
         Projection::Orthographic { sx, sy, cx, cy } => {
             DVec3::new((px.x - f64::from(cx)) / f64::from(sx), (px.y - f64::from(cy)) / f64::from(sy), z)

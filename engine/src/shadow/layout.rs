@@ -47,6 +47,9 @@ crate::gpu::gpu_layout!(
         camera.rot2,
         camera.position,
         camera.intrinsics,
+        camera.lens0,
+        camera.lens1,
+        camera.lens2,
         light_rot0,
         light_rot1,
         light_rot2,
@@ -138,7 +141,6 @@ pub(super) fn shadow_uniform<'a>(
     }
     .ok_or_else(|| Error::Internal("the shadow map lacks its depth channel".into()))?;
     let mut u = ShadowUniform::zeroed();
-    camera.require_no_lens("the shadow test")?;
     u.camera = camera.packed().to_world;
     let l = &map.camera;
     let light = l.packed();

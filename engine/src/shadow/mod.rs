@@ -266,9 +266,19 @@ fn frustum_box(view: &Camera, lo: Vec3, hi: Vec3) -> Option<(Vec3, Vec3)> {
     let mut bmin = Vec3::splat(f32::MAX);
     let mut bmax = Vec3::splat(f32::MIN);
     for z in [view.near, far] {
-        for (u, v) in [(0.0, 0.0), (w, 0.0), (0.0, h), (w, h)] {
+        // Corners and edge midpoints: through a lens an edge may bulge past its corners.
+        for (u, v) in
+            [(0.0, 0.0), (w, 0.0), (0.0, h), (w, h), (w * 0.5, 0.0), (w * 0.5, h), (0.0, h * 0.5), (w, h * 0.5)]
+        {
             let c = match view.projection {
-                Projection::Pinhole { fx, fy, cx, cy } => Vec3::new((u - cx) / fx * z, (v - cy) / fy * z, z),
+                Projection::Pinhole { .. } => {
+                    let [x, y, w] = view.pixel_direction([f64::from(u), f64::from(v)])?;
+                    if w <= 0.0 {
+                        // A fisheye seeing past 90°: no box of the frustum.
+                        return None;
+                    }
+                    Vec3::new(x as f32 * z, y as f32 * z, z)
+                }
                 Projection::Orthographic { sx, sy, cx, cy } => Vec3::new((u - cx) / sx, (v - cy) / sy, z),
             };
             let p = view.rotation * c + view.position;

@@ -13,6 +13,9 @@ struct CameraToWorld {
     vec4 rot2;
     vec4 position;    // camera centre; w: 0 pinhole, 1 orthographic
     vec4 intrinsics;  // fx, fy, cx, cy (orthographic: pixels per unit x, y, cx, cy)
+    vec4 lens0;       // as WorldToCamera's
+    vec4 lens1;
+    vec4 lens2;
 };
 
 // For projecting points: world-to-camera rotation and translation.
@@ -110,18 +113,85 @@ vec3 camera_vector_to_world(CameraToWorld c, vec3 v) {
     return vec3(dot(c.rot0.xyz, v), dot(c.rot1.xyz, v), dot(c.rot2.xyz, v));
 }
 
-// World direction of the ray through pixel px, scaled to camera depth 1
-// (pinhole) or the optical axis (orthographic); not normalised.
-vec3 camera_ray(CameraToWorld c, vec2 px) {
+// The undistorted normalized coordinates (x/z, y/z) whose lens image is the
+// normalized distorted point d: Newton's method (2D with the analytic
+// Jacobian for radial-tangential, along the radius for fisheye). CPU twin:
+// engine/src/camera/lens.rs `Lens::undistort`.
+vec2 lens_undistort(CameraToWorld c, vec2 d) {
+    float kind = c.lens2.x;
+    vec4 k = c.lens0;
+    if (kind == 3.0) {
+        float rd = length(d);
+        if (rd < 1e-12) return vec2(0.0);
+        float theta = rd;
+        for (int i = 0; i < 20; i++) {
+            float t2 = theta * theta;
+            float f = theta * (1.0 + t2 * (k.x + t2 * (k.y + t2 * (k.z + t2 * k.w)))) - rd;
+            float df = 1.0 + t2 * (3.0 * k.x + t2 * (5.0 * k.y + t2 * (7.0 * k.z + t2 * 9.0 * k.w)));
+            theta -= f / df;
+        }
+        return d * (tan(theta) / rd);
+    }
+    vec4 q = c.lens1;
+    vec2 x = d;
+    for (int i = 0; i < 20; i++) {
+        float u = x.x, v = x.y;
+        float r2 = u * u + v * v;
+        float num = 1.0 + r2 * (k.x + r2 * (k.y + r2 * k.z));
+        float den = 1.0 + r2 * (k.w + r2 * (q.x + r2 * q.y));
+        float dnum = k.x + r2 * (2.0 * k.y + r2 * 3.0 * k.z);
+        float dden = k.w + r2 * (2.0 * q.x + r2 * 3.0 * q.y);
+        float radial = num / den;
+        float dradial = (dnum * den - num * dden) / (den * den);
+        float p1 = q.z, p2 = q.w;
+        vec2 f = vec2(u * radial + 2.0 * p1 * u * v + p2 * (r2 + 2.0 * u * u),
+                      v * radial + 2.0 * p2 * u * v + p1 * (r2 + 2.0 * v * v)) - d;
+        float a = radial + 2.0 * u * u * dradial + 2.0 * p1 * v + 6.0 * p2 * u;
+        float b = 2.0 * u * v * dradial + 2.0 * p1 * u + 2.0 * p2 * v;
+        float e = 2.0 * u * v * dradial + 2.0 * p2 * v + 2.0 * p1 * u;
+        float g = radial + 2.0 * v * v * dradial + 2.0 * p2 * u + 6.0 * p1 * v;
+        float det = a * g - b * e;
+        x -= vec2(g * f.x - b * f.y, -e * f.x + a * f.y) / det;
+    }
+    return x;
+}
+
+// Camera-space direction through pixel px (pinhole and lenses): (u, v, 1)
+// in front of the camera; a fisheye pixel past 90° off axis gets its true
+// direction (sin θ · radial, cos θ), whose z is ≤ 0. CPU twin:
+// engine/src/camera/mod.rs `Camera::pixel_direction`.
+vec3 camera_pixel_direction(CameraToWorld c, vec2 px) {
     vec4 k = c.intrinsics;
-    vec3 v = c.position.w == 0.0 ? vec3((px - k.zw) / k.xy, 1.0) : vec3(0.0, 0.0, 1.0);
+    vec2 d = (px - k.zw) / k.xy;
+    if (c.lens2.x == 3.0) {
+        float rd = length(d);
+        if (rd < 1e-12) return vec3(0.0, 0.0, 1.0);
+        vec4 q = c.lens0;
+        float theta = rd;
+        for (int i = 0; i < 20; i++) {
+            float t2 = theta * theta;
+            float f = theta * (1.0 + t2 * (q.x + t2 * (q.y + t2 * (q.z + t2 * q.w)))) - rd;
+            float df = 1.0 + t2 * (3.0 * q.x + t2 * (5.0 * q.y + t2 * (7.0 * q.z + t2 * 9.0 * q.w)));
+            theta -= f / df;
+        }
+        vec3 dir = vec3(d / rd * sin(theta), cos(theta));
+        return dir.z > 1e-6 ? dir / dir.z : dir;
+    }
+    if (c.lens2.x != 0.0) d = lens_undistort(c, d);
+    return vec3(d, 1.0);
+}
+
+// World direction of the ray through pixel px, scaled to camera depth 1
+// (pinhole, lenses) or the optical axis (orthographic); not normalised.
+vec3 camera_ray(CameraToWorld c, vec2 px) {
+    vec3 v = c.position.w == 0.0 ? camera_pixel_direction(c, px) : vec3(0.0, 0.0, 1.0);
     return camera_vector_to_world(c, v);
 }
 
 // World point seen at pixel px at camera depth z.
 vec3 camera_unproject(CameraToWorld c, vec2 px, float z) {
     vec4 k = c.intrinsics;
-    vec3 v = c.position.w == 0.0 ? vec3((px - k.zw) / k.xy * z, z) : vec3((px - k.zw) / k.xy, z);
+    vec3 v = c.position.w == 0.0 ? camera_pixel_direction(c, px) * z : vec3((px - k.zw) / k.xy, z);
     return camera_vector_to_world(c, v) + c.position.xyz;
 }
 
