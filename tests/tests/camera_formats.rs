@@ -168,6 +168,11 @@ fn distorted_and_malformed_cameras_are_refused() {
     let fov = cameras.replace("5 FOV 320 240 250 251 160.5 119.5 0", "5 FOV 320 240 250 251 160.5 119.5 0.8");
     let e = write(&fov, &images);
     assert!(e.contains("camera 5") && e.contains("FOV") && e.contains("omega=0.8"), "{e}");
+    // k1 = −0.5: r·(1 − 0.5 r²) folds at r = 0.816 (distorted 0.544); the 640x480 image at f = 500 reaches 0.8.
+    let folding =
+        cameras.replace("3 SIMPLE_RADIAL 1024 768 800 510 380 0", "3 SIMPLE_RADIAL 1024 768 500 510 380 -0.5");
+    let e = write(&folding, &images);
+    assert!(e.contains("cam3_") && e.contains("folds the image"), "{e}");
     let equirect = cameras.replace("2 SIMPLE_PINHOLE 640 480 500 322 241.5", "2 EQUIRECTANGULAR 640 320 640 320");
     let e = write(&equirect, &images);
     assert!(e.contains("camera 2") && e.contains("EQUIRECTANGULAR"), "{e}");

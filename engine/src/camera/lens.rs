@@ -164,22 +164,25 @@ impl Lens {
                     .fold(0.0f64, f64::max);
                 (theta * 1.25).min(std::f64::consts::PI)
             }
-            Lens::RadialTangential { .. } => {
-                // Where r·radial(r) stops growing along the x axis, scanning out to 100.
-                let mut fold = 100.0f64;
-                let mut last = 0.0;
-                for i in 1..=10_000 {
-                    let r = f64::from(i) * 0.01;
-                    let d = self.distort_plane([r, 0.0])[0];
-                    if d <= last {
-                        fold = r - 0.01;
-                        break;
-                    }
-                    last = d;
-                }
-                (reach * 1.5).min(fold)
-            }
+            Lens::RadialTangential { .. } => (reach * 1.5).min(self.fold().map_or(100.0, |(r, _)| r)),
         }
+    }
+
+    /// For a radial-tangential lens: the undistorted radius where r·radial(r)
+    /// stops growing along the axes (the polynomial folds back past it) and
+    /// the distorted radius it reaches there; `None` when it grows out to 100.
+    pub fn fold(&self) -> Option<(f64, f64)> {
+        let Lens::RadialTangential { .. } = self else { return None };
+        let mut last = 0.0;
+        for i in 1..=10_000 {
+            let r = f64::from(i) * 0.01;
+            let d = self.distort_plane([r, 0.0])[0].min(self.distort_plane([0.0, r])[1]);
+            if d <= last {
+                return Some((r - 0.01, last));
+            }
+            last = d;
+        }
+        None
     }
 
     /// Whether it is the plain pinhole.

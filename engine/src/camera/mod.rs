@@ -272,6 +272,23 @@ impl Camera {
         if let Some((_, what, why)) = rules.into_iter().find(|(ok, ..)| !ok) {
             return Err(Error::invalid(format!("{name}: {what}"), why));
         }
+        // A radial polynomial that folds back inside the image: some pixels see two places, some none.
+        if let (Some((r, d_max)), Projection::Pinhole { fx, fy, cx, cy }) = (self.lens.fold(), self.projection) {
+            let (w, h) = (self.width as f32, self.height as f32);
+            let corner = [(0.0, 0.0), (w, 0.0), (0.0, h), (w, h)]
+                .iter()
+                .map(|(x, y)| f64::from(((x - cx) / fx).hypot((y - cy) / fy)))
+                .fold(0.0, f64::max);
+            if corner > d_max {
+                return Err(Error::invalid(
+                    format!("{name}: lens {:?}", self.lens),
+                    format!(
+                        "folds the image: its radial distortion stops growing at undistorted radius {r:.3} \
+                         (distorted {d_max:.3}), inside the image, whose corners reach {corner:.3}"
+                    ),
+                ));
+            }
+        }
         let p = self.packed();
         let t = p.to_camera.translation;
         if !t.iter().all(|v| v.is_finite()) {
