@@ -592,7 +592,8 @@ fn top_gaussian_is_the_largest_weight_in_every_variant() {
 }
 
 /// Cameras with lenses: a barrel-distorted OpenCV camera (radial k1..k3,
-/// tangential p1, p2) on a demo street camera, and a 180° fisheye looking down the street.
+/// tangential p1, p2) and a FOV-model camera (ω = 0.9) on a demo street
+/// camera, and a 180° fisheye looking down the street.
 fn lens_cameras(city: &srug::scene::demo::DemoCity) -> Vec<(&'static str, Camera)> {
     use srug::camera::lens::Lens;
     let street = city.cameras[1].resized(352, 96);
@@ -600,6 +601,7 @@ fn lens_cameras(city: &srug::scene::demo::DemoCity) -> Vec<(&'static str, Camera
         lens: Lens::RadialTangential { k: [-0.25, 0.06, -0.005, 0.0, 0.0, 0.0], p: [0.001, -0.002] },
         ..street.clone()
     };
+    let fov = Camera { lens: Lens::Fov { omega: 0.9 }, ..street.clone() };
     let fisheye = Camera {
         width: 160,
         height: 160,
@@ -607,7 +609,7 @@ fn lens_cameras(city: &srug::scene::demo::DemoCity) -> Vec<(&'static str, Camera
         lens: Lens::Fisheye { k: [0.01, -0.002, 0.0003, -0.00004] },
         ..street
     };
-    vec![("opencv", opencv), ("fisheye", fisheye)]
+    vec![("opencv", opencv), ("fov", fov), ("fisheye", fisheye)]
 }
 
 /// Splatting through lenses matches the CPU twin (the twin's lens maths are

@@ -106,14 +106,14 @@ impl Intrinsics {
 
 impl Lens {
     /// The kind number the shaders switch on (`lens2.x` in `camera.glsl`):
-    /// 0 pinhole, 2 radial-tangential, 3 fisheye; `None` for the FOV model,
-    /// which the GPU does not render.
+    /// 0 pinhole, 2 radial-tangential, 3 fisheye, 4 FOV (every model here
+    /// renders; `Option` for models added later that may not).
     pub fn gpu_kind(&self) -> Option<u32> {
         match self {
             Lens::Pinhole => Some(0),
             Lens::RadialTangential { .. } => Some(2),
             Lens::Fisheye { .. } => Some(3),
-            Lens::Fov { .. } => None,
+            Lens::Fov { .. } => Some(4),
         }
     }
 
@@ -124,7 +124,8 @@ impl Lens {
                 [[k[0], k[1], k[2], k[3]].map(|v| v as f32), [k[4], k[5], p[0], p[1]].map(|v| v as f32)]
             }
             Lens::Fisheye { k } => [k.map(|v| v as f32), [0.0; 4]],
-            Lens::Pinhole | Lens::Fov { .. } => [[0.0; 4]; 2],
+            Lens::Fov { omega } => [[omega as f32, 0.0, 0.0, 0.0], [0.0; 4]],
+            Lens::Pinhole => [[0.0; 4]; 2],
         }
     }
 
@@ -152,7 +153,9 @@ impl Lens {
             .map(|[u, v]| (u * u + v * v).sqrt())
             .fold(0.0f64, f64::max);
         match *self {
-            Lens::Pinhole | Lens::Fov { .. } => f64::INFINITY,
+            Lens::Pinhole => f64::INFINITY,
+            // r·g(r) grows without folding: as far as the image reaches, with margin.
+            Lens::Fov { .. } => reach * 1.5,
             Lens::Fisheye { k } => {
                 // Angles off axis of the edge pixels, past 90° too.
                 let theta = edge
@@ -195,7 +198,7 @@ impl Lens {
     pub fn jacobian(&self, p: [f64; 3]) -> Option<[[f64; 3]; 2]> {
         let [x, y, z] = p;
         match *self {
-            Lens::Pinhole | Lens::RadialTangential { .. } => {
+            Lens::Pinhole | Lens::RadialTangential { .. } | Lens::Fov { .. } => {
                 if z <= 0.0 {
                     return None;
                 }
@@ -225,7 +228,23 @@ impl Lens {
                 ];
                 Some([[s + x * ds[0], x * ds[1], x * ds[2]], [y * ds[0], s + y * ds[1], y * ds[2]]])
             }
-            Lens::Fov { .. } => None,
+        }
+    }
+
+    /// The FOV model's radial factor g(r²) (distorted = undistorted · g) and
+    /// dg/d(r²), in COLMAP's three branches (small ω, small r, general).
+    fn fov_factor(omega: f64, r2: f64) -> (f64, f64) {
+        if omega * omega < 1e-4 {
+            ((omega * omega * r2) / 3.0 - omega * omega / 12.0 + 1.0, omega * omega / 3.0)
+        } else if r2 < 1e-4 {
+            let t = (omega / 2.0).tan();
+            ((-2.0 * t * (4.0 * r2 * t * t - 3.0)) / (3.0 * omega), -8.0 * t * t * t / (3.0 * omega))
+        } else {
+            let r = r2.sqrt();
+            let t2 = 2.0 * (omega / 2.0).tan();
+            let g = (r * t2).atan() / (r * omega);
+            let dg_dr = t2 / (1.0 + r * r * t2 * t2) / (r * omega) - (r * t2).atan() / (r * r * omega);
+            (g, dg_dr / (2.0 * r))
         }
     }
 
@@ -250,6 +269,10 @@ impl Lens {
                         radial + 2.0 * v * v * dradial + 2.0 * p[1] * u + 6.0 * p[0] * v,
                     ],
                 ]
+            }
+            Lens::Fov { omega } => {
+                let (g, dg) = Self::fov_factor(omega, u * u + v * v);
+                [[g + 2.0 * u * u * dg, 2.0 * u * v * dg], [2.0 * u * v * dg, g + 2.0 * v * v * dg]]
             }
             _ => [[1.0, 0.0], [0.0, 1.0]],
         }
@@ -301,16 +324,7 @@ impl Lens {
                 ]
             }
             Lens::Fov { omega } => {
-                let r2 = u * u + v * v;
-                let factor = if omega * omega < 1e-4 {
-                    (omega * omega * r2) / 3.0 - omega * omega / 12.0 + 1.0
-                } else if r2 < 1e-4 {
-                    let t = (omega / 2.0).tan();
-                    (-2.0 * t * (4.0 * r2 * t * t - 3.0)) / (3.0 * omega)
-                } else {
-                    let r = r2.sqrt();
-                    (r * 2.0 * (omega / 2.0).tan()).atan() / (r * omega)
-                };
+                let (factor, _) = Self::fov_factor(omega, u * u + v * v);
                 [u * factor, v * factor]
             }
         }
@@ -377,12 +391,14 @@ mod tests {
             Lens::RadialTangential { k: [-0.2, 0.05, 0.01, 0.05, 0.01, 0.002], p: [0.001, -0.002] },
             Lens::RadialTangential { k: [0.1, 0.0, 0.0, 0.0, 0.0, 0.0], p: [0.0, 0.0] },
             Lens::Fisheye { k: [0.01, -0.002, 0.0003, -0.00004] },
+            Lens::Fov { omega: 0.9 },
+            Lens::Fov { omega: 0.005 },
             Lens::Pinhole,
         ];
         let points = [[0.3, -0.2, 1.5], [1e-7, 2e-7, 3.0], [-2.0, 1.0, 0.4], [5.0, 0.1, 0.05]];
         for lens in lenses {
             for p in points {
-                if matches!(lens, Lens::RadialTangential { .. } | Lens::Pinhole) && p[2] < 0.1 {
+                if !matches!(lens, Lens::Fisheye { .. }) && p[2] < 0.1 {
                     continue;
                 }
                 let j = lens.jacobian(p).unwrap();

@@ -326,7 +326,6 @@ fn intrinsics(c: &ColmapCamera, origin: &str) -> Result<(f64, f64, f64, f64, Len
     let i = Intrinsics::from_colmap(c.model.name, &c.params).ok_or_else(refuse)?;
     let lens = match i.lens {
         Lens::Fov { omega: 0.0 } => Lens::Pinhole,
-        Lens::Fov { .. } => return Err(refuse()),
         Lens::RadialTangential { k, p } if k.iter().chain(&p).all(|v| *v == 0.0) => Lens::Pinhole,
         lens => lens,
     };

@@ -27,7 +27,7 @@ struct WorldToCamera {
     vec4 intrinsics;   // fx, fy, cx, cy (orthographic: pixels per unit x, y, cx, cy)
     vec4 lens0;        // k1..k4 (radial-tangential and fisheye)
     vec4 lens1;        // k5, k6, p1, p2 (radial-tangential)
-    vec4 lens2;        // x: 0 pinhole, 2 radial-tangential, 3 fisheye; y: imaging limit
+    vec4 lens2;        // x: 0 pinhole, 2 radial-tangential, 3 fisheye, 4 FOV (lens0.x: ω); y: imaging limit
                        // (undistorted radius, or fisheye angle off axis)
 };
 
@@ -70,6 +70,30 @@ bool lens_project(WorldToCamera c, vec3 t, out vec2 d, out mat3 J) {
     if (u * u + v * v > c.lens2.y * c.lens2.y) return false;
     mat2 D = mat2(1.0);  // D[c][r]
     d = vec2(u, v);
+    if (kind == 4.0) {
+        // FOV: distorted = undistorted · g(r²), COLMAP's three branches.
+        float omega = c.lens0.x;
+        float r2 = u * u + v * v;
+        float g, dg;
+        if (omega * omega < 1e-4) {
+            g = omega * omega * r2 / 3.0 - omega * omega / 12.0 + 1.0;
+            dg = omega * omega / 3.0;
+        } else if (r2 < 1e-4) {
+            float t = tan(0.5 * omega);
+            g = -2.0 * t * (4.0 * r2 * t * t - 3.0) / (3.0 * omega);
+            dg = -8.0 * t * t * t / (3.0 * omega);
+        } else {
+            float r = sqrt(r2);
+            float t2 = 2.0 * tan(0.5 * omega);
+            g = atan(r * t2) / (r * omega);
+            dg = (t2 / (1.0 + r2 * t2 * t2) / (r * omega) - atan(r * t2) / (r2 * omega)) / (2.0 * r);
+        }
+        d = vec2(u, v) * g;
+        D[0][0] = g + 2.0 * u * u * dg;
+        D[1][0] = 2.0 * u * v * dg;
+        D[0][1] = 2.0 * u * v * dg;
+        D[1][1] = g + 2.0 * v * v * dg;
+    }
     if (kind == 2.0) {
         vec4 k = c.lens0;
         vec4 q = c.lens1;  // k5, k6, p1, p2
@@ -131,6 +155,13 @@ vec2 lens_undistort(CameraToWorld c, vec2 d) {
             theta -= f / df;
         }
         return d * (tan(theta) / rd);
+    }
+    if (kind == 4.0) {
+        // FOV inverts in closed form: r_u = tan(r_d ω) / (2 tan(ω/2)).
+        float omega = k.x;
+        float rd = length(d);
+        if (rd < 1e-12 || omega * omega < 1e-4) return d;
+        return d * (tan(rd * omega) / (2.0 * tan(0.5 * omega)) / rd);
     }
     vec4 q = c.lens1;
     vec2 x = d;
