@@ -275,7 +275,7 @@ fn lens_models_match_pycolmap() {
             .collect()
     };
     let cases = v.as_array().unwrap();
-    assert_eq!(cases.len(), 10);
+    assert_eq!(cases.len(), 13);
     for case in cases {
         let model = case["model"].as_str().unwrap();
         let params: Vec<f64> = case["params"].as_array().unwrap().iter().map(|x| x.as_f64().unwrap()).collect();

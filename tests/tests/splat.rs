@@ -592,8 +592,9 @@ fn top_gaussian_is_the_largest_weight_in_every_variant() {
 }
 
 /// Cameras with lenses: a barrel-distorted OpenCV camera (radial k1..k3,
-/// tangential p1, p2) and a FOV-model camera (ω = 0.9) on a demo street
-/// camera, and a 180° fisheye looking down the street.
+/// tangential p1, p2), a FOV-model camera (ω = 0.9), an EUCM camera (α 0.6,
+/// β 1.1) and a division-model camera (k −0.2) on a demo street camera, and a
+/// 180° fisheye looking down the street.
 fn lens_cameras(city: &srug::scene::demo::DemoCity) -> Vec<(&'static str, Camera)> {
     use srug::camera::lens::Lens;
     let street = city.cameras[1].resized(352, 96);
@@ -602,6 +603,8 @@ fn lens_cameras(city: &srug::scene::demo::DemoCity) -> Vec<(&'static str, Camera
         ..street.clone()
     };
     let fov = Camera { lens: Lens::Fov { omega: 0.9 }, ..street.clone() };
+    let eucm = Camera { lens: Lens::Eucm { alpha: 0.6, beta: 1.1 }, ..street.clone() };
+    let division = Camera { lens: Lens::Division { k: -0.2 }, ..street.clone() };
     let fisheye = Camera {
         width: 160,
         height: 160,
@@ -609,7 +612,7 @@ fn lens_cameras(city: &srug::scene::demo::DemoCity) -> Vec<(&'static str, Camera
         lens: Lens::Fisheye { k: [0.01, -0.002, 0.0003, -0.00004] },
         ..street
     };
-    vec![("opencv", opencv), ("fov", fov), ("fisheye", fisheye)]
+    vec![("opencv", opencv), ("fov", fov), ("eucm", eucm), ("division", division), ("fisheye", fisheye)]
 }
 
 /// Splatting through lenses matches the CPU twin (the twin's lens maths are

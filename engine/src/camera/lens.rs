@@ -33,6 +33,18 @@ pub enum Lens {
         /// ω in radians.
         omega: f64,
     },
+    /// The enhanced unified camera model: (x, y) / (α √(β (x² + y²) + z²) + (1 − α) z) (COLMAP EUCM).
+    Eucm {
+        /// α.
+        alpha: f64,
+        /// β.
+        beta: f64,
+    },
+    /// The division model: undistorted = distorted / (1 + k r_d²) (COLMAP SIMPLE_DIVISION, DIVISION).
+    Division {
+        /// k.
+        k: f64,
+    },
 }
 
 /// The angle off axis θ with θ (1 + k1 θ² + k2 θ⁴ + k3 θ⁶ + k4 θ⁸) = `rd`
@@ -86,6 +98,9 @@ impl Intrinsics {
             ("SIMPLE_FISHEYE", 3) => single(Lens::Fisheye { k: [0.0; 4] }),
             ("FISHEYE", 4) => double(Lens::Fisheye { k: [0.0; 4] }),
             ("FOV", 5) => double(Lens::Fov { omega: p[4] }),
+            ("EUCM", 6) => double(Lens::Eucm { alpha: p[4], beta: p[5] }),
+            ("SIMPLE_DIVISION", 4) => single(Lens::Division { k: p[3] }),
+            ("DIVISION", 5) => double(Lens::Division { k: p[4] }),
             _ => return None,
         })
     }
@@ -114,6 +129,8 @@ impl Lens {
             Lens::RadialTangential { .. } => Some(2),
             Lens::Fisheye { .. } => Some(3),
             Lens::Fov { .. } => Some(4),
+            Lens::Eucm { .. } => Some(5),
+            Lens::Division { .. } => Some(6),
         }
     }
 
@@ -125,6 +142,8 @@ impl Lens {
             }
             Lens::Fisheye { k } => [k.map(|v| v as f32), [0.0; 4]],
             Lens::Fov { omega } => [[omega as f32, 0.0, 0.0, 0.0], [0.0; 4]],
+            Lens::Eucm { alpha, beta } => [[alpha as f32, beta as f32, 0.0, 0.0], [0.0; 4]],
+            Lens::Division { k } => [[k as f32, 0.0, 0.0, 0.0], [0.0; 4]],
             Lens::Pinhole => [[0.0; 4]; 2],
         }
     }
@@ -155,7 +174,10 @@ impl Lens {
         match *self {
             Lens::Pinhole => f64::INFINITY,
             // r·g(r) grows without folding: as far as the image reaches, with margin.
-            Lens::Fov { .. } => reach * 1.5,
+            Lens::Fov { .. } | Lens::Eucm { .. } => reach * 1.5,
+            // k > 0: real only while 4 k r² < 1.
+            Lens::Division { k } if k > 0.0 => (reach * 1.5).min(0.999 / (2.0 * k.sqrt())),
+            Lens::Division { .. } => reach * 1.5,
             Lens::Fisheye { k } => {
                 // Angles off axis of the edge pixels, past 90° too.
                 let theta = edge
@@ -198,12 +220,28 @@ impl Lens {
     pub fn jacobian(&self, p: [f64; 3]) -> Option<[[f64; 3]; 2]> {
         let [x, y, z] = p;
         match *self {
-            Lens::Pinhole | Lens::RadialTangential { .. } | Lens::Fov { .. } => {
+            Lens::Eucm { alpha, beta } => {
+                let rho = (beta * (x * x + y * y) + z * z).sqrt();
+                let den = alpha * rho + (1.0 - alpha) * z;
+                if z <= 0.0 || den <= 0.0 {
+                    return None;
+                }
+                let dden = [alpha * beta * x / rho, alpha * beta * y / rho, alpha * z / rho + 1.0 - alpha];
+                let d2 = den * den;
+                Some([
+                    [1.0 / den - x * dden[0] / d2, -x * dden[1] / d2, -x * dden[2] / d2],
+                    [-y * dden[0] / d2, 1.0 / den - y * dden[1] / d2, -y * dden[2] / d2],
+                ])
+            }
+            Lens::Pinhole | Lens::RadialTangential { .. } | Lens::Fov { .. } | Lens::Division { .. } => {
                 if z <= 0.0 {
                     return None;
                 }
                 let (u, v) = (x / z, y / z);
                 let d = self.plane_jacobian([u, v]);
+                if d.iter().flatten().any(|v| !v.is_finite()) {
+                    return None;
+                }
                 // ∂(u, v)/∂p = [[1/z, 0, −u/z], [0, 1/z, −v/z]].
                 let row = |r: [f64; 2]| [r[0] / z, r[1] / z, -(r[0] * u + r[1] * v) / z];
                 Some([row(d[0]), row(d[1])])
@@ -229,6 +267,22 @@ impl Lens {
                 Some([[s + x * ds[0], x * ds[1], x * ds[2]], [y * ds[0], s + y * ds[1], y * ds[2]]])
             }
         }
+    }
+
+    /// The division model's radial factor g(r²) (distorted = undistorted · g,
+    /// the root of g = 1 + k g² r² near 1) and dg/d(r²); `None` where no root is real.
+    fn division_factor(k: f64, r2: f64) -> Option<(f64, f64)> {
+        let x = 4.0 * k * r2;
+        if x.abs() < 1e-8 {
+            return Some((1.0 + k * r2, k));
+        }
+        if x >= 1.0 {
+            return None;
+        }
+        let s = (1.0 - x).sqrt();
+        let g = (1.0 - s) / (2.0 * k * r2);
+        let dg = (4.0 * k * k * r2 / s - 2.0 * k * (1.0 - s)) / (4.0 * k * k * r2 * r2);
+        Some((g, dg))
     }
 
     /// The FOV model's radial factor g(r²) (distorted = undistorted · g) and
@@ -270,8 +324,13 @@ impl Lens {
                     ],
                 ]
             }
-            Lens::Fov { omega } => {
-                let (g, dg) = Self::fov_factor(omega, u * u + v * v);
+            Lens::Fov { .. } | Lens::Division { .. } => {
+                let r2 = u * u + v * v;
+                let (g, dg) = match *self {
+                    Lens::Fov { omega } => Self::fov_factor(omega, r2),
+                    Lens::Division { k } => Self::division_factor(k, r2).unwrap_or((f64::NAN, f64::NAN)),
+                    _ => (1.0, 0.0),
+                };
                 [[g + 2.0 * u * u * dg, 2.0 * u * v * dg], [2.0 * u * v * dg, g + 2.0 * v * v * dg]]
             }
             _ => [[1.0, 0.0], [0.0, 1.0]],
@@ -287,11 +346,19 @@ impl Lens {
     pub fn distort_within(&self, p: [f64; 3], limit: f64) -> Option<[f64; 2]> {
         let [x, y, z] = p;
         match *self {
-            Lens::Pinhole | Lens::RadialTangential { .. } | Lens::Fov { .. } => {
+            Lens::Pinhole | Lens::RadialTangential { .. } | Lens::Fov { .. } | Lens::Division { .. } => {
                 if z <= 0.0 || (x * x + y * y) > limit * limit * z * z {
                     return None;
                 }
-                Some(self.distort_plane([x / z, y / z]))
+                let d = self.distort_plane([x / z, y / z]);
+                d.iter().all(|v| v.is_finite()).then_some(d)
+            }
+            Lens::Eucm { alpha, beta } => {
+                if z <= 0.0 || (x * x + y * y) > limit * limit * z * z {
+                    return None;
+                }
+                let den = alpha * (beta * (x * x + y * y) + z * z).sqrt() + (1.0 - alpha) * z;
+                (den > 0.0).then(|| [x / den, y / den])
             }
             Lens::Fisheye { k } => {
                 let r = (x * x + y * y).sqrt();
@@ -327,6 +394,14 @@ impl Lens {
                 let (factor, _) = Self::fov_factor(omega, u * u + v * v);
                 [u * factor, v * factor]
             }
+            Lens::Division { k } => {
+                let g = Self::division_factor(k, u * u + v * v).map_or(f64::NAN, |(g, _)| g);
+                [u * g, v * g]
+            }
+            Lens::Eucm { alpha, beta } => {
+                let den = alpha * (beta * (u * u + v * v) + 1.0).sqrt() + 1.0 - alpha;
+                [u / den, v / den]
+            }
         }
     }
 
@@ -336,6 +411,19 @@ impl Lens {
     pub fn undistort(&self, d: [f64; 2]) -> Option<[f64; 2]> {
         match *self {
             Lens::Pinhole => Some(d),
+            Lens::Division { k } => {
+                let s = 1.0 + k * (d[0] * d[0] + d[1] * d[1]);
+                (s > 0.0).then(|| [d[0] / s, d[1] / s])
+            }
+            Lens::Eucm { alpha, beta } => {
+                let r2 = d[0] * d[0] + d[1] * d[1];
+                let root = 1.0 - (2.0 * alpha - 1.0) * beta * r2;
+                if root < 0.0 {
+                    return None;
+                }
+                let mz = (1.0 - beta * alpha * alpha * r2) / (alpha * root.sqrt() + 1.0 - alpha);
+                (mz > 0.0).then(|| [d[0] / mz, d[1] / mz])
+            }
             Lens::Fisheye { k } => {
                 let rd = (d[0] * d[0] + d[1] * d[1]).sqrt();
                 if rd < f64::EPSILON {
@@ -393,15 +481,24 @@ mod tests {
             Lens::Fisheye { k: [0.01, -0.002, 0.0003, -0.00004] },
             Lens::Fov { omega: 0.9 },
             Lens::Fov { omega: 0.005 },
+            Lens::Eucm { alpha: 0.6, beta: 1.1 },
+            Lens::Division { k: -0.2 },
+            Lens::Division { k: 0.05 },
             Lens::Pinhole,
         ];
         let points = [[0.3, -0.2, 1.5], [1e-7, 2e-7, 3.0], [-2.0, 1.0, 0.4], [5.0, 0.1, 0.05]];
+        let mut tested = 0;
         for lens in lenses {
             for p in points {
                 if !matches!(lens, Lens::Fisheye { .. }) && p[2] < 0.1 {
                     continue;
                 }
-                let j = lens.jacobian(p).unwrap();
+                // Outside a model's domain both are undefined (the division model past 4 k r² = 1).
+                let Some(j) = lens.jacobian(p) else {
+                    assert!(lens.distort(p).is_none(), "{lens:?} at {p:?}: a projection without a Jacobian");
+                    continue;
+                };
+                tested += 1;
                 for c in 0..3 {
                     let h = 1e-6 * p[c].abs().max(1e-3);
                     let (mut a, mut b) = (p, p);

@@ -109,7 +109,7 @@ pub(crate) struct WorldToCameraBlock {
     pub(crate) lens0: [f32; 4],
     /// Lens coefficients k5, k6, p1, p2.
     pub(crate) lens1: [f32; 4],
-    /// `x`: the lens kind (0 pinhole, 2 radial-tangential, 3 fisheye).
+    /// `x`: the lens kind ([`lens::Lens::gpu_kind`]), `y`: its imaging limit.
     pub(crate) lens2: [f32; 4],
 }
 

@@ -27,7 +27,8 @@ struct WorldToCamera {
     vec4 intrinsics;   // fx, fy, cx, cy (orthographic: pixels per unit x, y, cx, cy)
     vec4 lens0;        // k1..k4 (radial-tangential and fisheye)
     vec4 lens1;        // k5, k6, p1, p2 (radial-tangential)
-    vec4 lens2;        // x: 0 pinhole, 2 radial-tangential, 3 fisheye, 4 FOV (lens0.x: ω); y: imaging limit
+    vec4 lens2;        // x: 0 pinhole, 2 radial-tangential, 3 fisheye, 4 FOV (lens0.x: ω),
+                       // 5 EUCM (lens0.xy: α, β), 6 division (lens0.x: k); y: imaging limit
                        // (undistorted radius, or fisheye angle off axis)
 };
 
@@ -68,6 +69,19 @@ bool lens_project(WorldToCamera c, vec3 t, out vec2 d, out mat3 J) {
     if (!(t.z > 0.0)) return false;
     float u = t.x / t.z, v = t.y / t.z;
     if (u * u + v * v > c.lens2.y * c.lens2.y) return false;
+    if (kind == 5.0) {
+        // EUCM: (x, y) / (α ρ + (1 − α) z), ρ = √(β (x² + y²) + z²).
+        float alpha = c.lens0.x, beta = c.lens0.y;
+        float rho = sqrt(beta * (t.x * t.x + t.y * t.y) + t.z * t.z);
+        float den = alpha * rho + (1.0 - alpha) * t.z;
+        if (!(den > 0.0)) return false;
+        vec3 dden = vec3(alpha * beta * t.x / rho, alpha * beta * t.y / rho, alpha * t.z / rho + 1.0 - alpha);
+        float d2 = den * den;
+        d = t.xy / den;
+        J[0][0] = 1.0 / den - t.x * dden.x / d2; J[1][0] = -t.x * dden.y / d2; J[2][0] = -t.x * dden.z / d2;
+        J[0][1] = -t.y * dden.x / d2; J[1][1] = 1.0 / den - t.y * dden.y / d2; J[2][1] = -t.y * dden.z / d2;
+        return true;
+    }
     mat2 D = mat2(1.0);  // D[c][r]
     d = vec2(u, v);
     if (kind == 4.0) {
@@ -87,6 +101,27 @@ bool lens_project(WorldToCamera c, vec3 t, out vec2 d, out mat3 J) {
             float t2 = 2.0 * tan(0.5 * omega);
             g = atan(r * t2) / (r * omega);
             dg = (t2 / (1.0 + r2 * t2 * t2) / (r * omega) - atan(r * t2) / (r2 * omega)) / (2.0 * r);
+        }
+        d = vec2(u, v) * g;
+        D[0][0] = g + 2.0 * u * u * dg;
+        D[1][0] = 2.0 * u * v * dg;
+        D[0][1] = 2.0 * u * v * dg;
+        D[1][1] = g + 2.0 * v * v * dg;
+    }
+    if (kind == 6.0) {
+        // Division: distorted = undistorted · g, g the root of g = 1 + k g² r² near 1.
+        float k = c.lens0.x;
+        float r2 = u * u + v * v;
+        float x = 4.0 * k * r2;
+        float g, dg;
+        if (abs(x) < 1e-6) {
+            g = 1.0 + k * r2;
+            dg = k;
+        } else {
+            if (x >= 1.0) return false;
+            float s = sqrt(1.0 - x);
+            g = (1.0 - s) / (2.0 * k * r2);
+            dg = (4.0 * k * k * r2 / s - 2.0 * k * (1.0 - s)) / (4.0 * k * k * r2 * r2);
         }
         d = vec2(u, v) * g;
         D[0][0] = g + 2.0 * u * u * dg;
@@ -155,6 +190,14 @@ vec2 lens_undistort(CameraToWorld c, vec2 d) {
             theta -= f / df;
         }
         return d * (tan(theta) / rd);
+    }
+    if (kind == 6.0) return d / (1.0 + k.x * dot(d, d));
+    if (kind == 5.0) {
+        // EUCM inverts in closed form.
+        float alpha = k.x, beta = k.y;
+        float r2 = dot(d, d);
+        float mz = (1.0 - beta * alpha * alpha * r2) / (alpha * sqrt(max(0.0, 1.0 - (2.0 * alpha - 1.0) * beta * r2)) + 1.0 - alpha);
+        return d / mz;
     }
     if (kind == 4.0) {
         // FOV inverts in closed form: r_u = tan(r_d ω) / (2 tan(ω/2)).
