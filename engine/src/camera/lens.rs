@@ -517,5 +517,6 @@ mod tests {
                 }
             }
         }
+        assert!(tested >= 25, "only {tested} lens-point pairs had a Jacobian");
     }
 }
