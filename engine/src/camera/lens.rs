@@ -45,6 +45,16 @@ pub enum Lens {
         /// k.
         k: f64,
     },
+    /// COLMAP's THIN_PRISM_FISHEYE: the equidistant angle (θ/r)·(x/z, y/z), then radial
+    /// k1..k4 in its squared radius, tangential p1, p2 and thin prism sx1, sy1 on it.
+    ThinPrismFisheye {
+        /// k1..k4.
+        k: [f64; 4],
+        /// p1, p2.
+        p: [f64; 2],
+        /// sx1, sy1.
+        s: [f64; 2],
+    },
 }
 
 /// The angle off axis θ with θ (1 + k1 θ² + k2 θ⁴ + k3 θ⁶ + k4 θ⁸) = `rd`
@@ -101,6 +111,9 @@ impl Intrinsics {
             ("EUCM", 6) => double(Lens::Eucm { alpha: p[4], beta: p[5] }),
             ("SIMPLE_DIVISION", 4) => single(Lens::Division { k: p[3] }),
             ("DIVISION", 5) => double(Lens::Division { k: p[4] }),
+            ("THIN_PRISM_FISHEYE", 12) => {
+                double(Lens::ThinPrismFisheye { k: [p[4], p[5], p[8], p[9]], p: [p[6], p[7]], s: [p[10], p[11]] })
+            }
             _ => return None,
         })
     }
@@ -131,6 +144,7 @@ impl Lens {
             Lens::Fov { .. } => Some(4),
             Lens::Eucm { .. } => Some(5),
             Lens::Division { .. } => Some(6),
+            Lens::ThinPrismFisheye { .. } => Some(7),
         }
     }
 
@@ -144,6 +158,7 @@ impl Lens {
             Lens::Fov { omega } => [[omega as f32, 0.0, 0.0, 0.0], [0.0; 4]],
             Lens::Eucm { alpha, beta } => [[alpha as f32, beta as f32, 0.0, 0.0], [0.0; 4]],
             Lens::Division { k } => [[k as f32, 0.0, 0.0, 0.0], [0.0; 4]],
+            Lens::ThinPrismFisheye { k, p, s } => [k.map(|v| v as f32), [p[0], p[1], s[0], s[1]].map(|v| v as f32)],
             Lens::Pinhole => [[0.0; 4]; 2],
         }
     }
@@ -174,7 +189,7 @@ impl Lens {
         match *self {
             Lens::Pinhole => f64::INFINITY,
             // r·g(r) grows without folding: as far as the image reaches, with margin.
-            Lens::Fov { .. } | Lens::Eucm { .. } => reach * 1.5,
+            Lens::Fov { .. } | Lens::Eucm { .. } | Lens::ThinPrismFisheye { .. } => reach * 1.5,
             // k > 0: real only while 4 k r² < 1.
             Lens::Division { k } if k > 0.0 => (reach * 1.5).min(0.999 / (2.0 * k.sqrt())),
             Lens::Division { .. } => reach * 1.5,
@@ -233,7 +248,11 @@ impl Lens {
                     [-y * dden[0] / d2, 1.0 / den - y * dden[1] / d2, -y * dden[2] / d2],
                 ])
             }
-            Lens::Pinhole | Lens::RadialTangential { .. } | Lens::Fov { .. } | Lens::Division { .. } => {
+            Lens::Pinhole
+            | Lens::RadialTangential { .. }
+            | Lens::Fov { .. }
+            | Lens::Division { .. }
+            | Lens::ThinPrismFisheye { .. } => {
                 if z <= 0.0 {
                     return None;
                 }
@@ -285,6 +304,39 @@ impl Lens {
         Some((g, dg))
     }
 
+    /// atan(r)/r and its derivative in r²: the equidistant normalization (θ/r)·(u, v).
+    fn equidistant_factor(r2: f64) -> (f64, f64) {
+        if r2 < 1e-8 {
+            return (1.0 - r2 / 3.0, -1.0 / 3.0);
+        }
+        let r = r2.sqrt();
+        let g = r.atan() / r;
+        (g, (1.0 / (1.0 + r2) - g) / (2.0 * r2))
+    }
+
+    /// THIN_PRISM_FISHEYE's distortion of equidistant coordinates (uu, vv) and its 2×2 Jacobian.
+    fn thin_prism(q: [f64; 2], k: [f64; 4], p: [f64; 2], s: [f64; 2]) -> ([f64; 2], [[f64; 2]; 2]) {
+        let [u, v] = q;
+        let r2 = u * u + v * v;
+        let radial = r2 * (k[0] + r2 * (k[1] + r2 * (k[2] + r2 * k[3])));
+        let dr = k[0] + r2 * (2.0 * k[1] + r2 * (3.0 * k[2] + r2 * 4.0 * k[3]));
+        let d = [
+            u + u * radial + 2.0 * p[0] * u * v + p[1] * (r2 + 2.0 * u * u) + s[0] * r2,
+            v + v * radial + 2.0 * p[1] * u * v + p[0] * (r2 + 2.0 * v * v) + s[1] * r2,
+        ];
+        let j = [
+            [
+                1.0 + radial + 2.0 * u * u * dr + 2.0 * p[0] * v + 6.0 * p[1] * u + 2.0 * s[0] * u,
+                2.0 * u * v * dr + 2.0 * p[0] * u + 2.0 * p[1] * v + 2.0 * s[0] * v,
+            ],
+            [
+                2.0 * u * v * dr + 2.0 * p[1] * v + 2.0 * p[0] * u + 2.0 * s[1] * u,
+                1.0 + radial + 2.0 * v * v * dr + 2.0 * p[1] * u + 6.0 * p[0] * v + 2.0 * s[1] * v,
+            ],
+        ];
+        (d, j)
+    }
+
     /// The FOV model's radial factor g(r²) (distorted = undistorted · g) and
     /// dg/d(r²), in COLMAP's three branches (small ω, small r, general).
     fn fov_factor(omega: f64, r2: f64) -> (f64, f64) {
@@ -324,6 +376,15 @@ impl Lens {
                     ],
                 ]
             }
+            Lens::ThinPrismFisheye { k, p, s } => {
+                let (g, dg) = Self::equidistant_factor(u * u + v * v);
+                let n = [[g + 2.0 * u * u * dg, 2.0 * u * v * dg], [2.0 * u * v * dg, g + 2.0 * v * v * dg]];
+                let (_, t) = Self::thin_prism([u * g, v * g], k, p, s);
+                [
+                    [t[0][0] * n[0][0] + t[0][1] * n[1][0], t[0][0] * n[0][1] + t[0][1] * n[1][1]],
+                    [t[1][0] * n[0][0] + t[1][1] * n[1][0], t[1][0] * n[0][1] + t[1][1] * n[1][1]],
+                ]
+            }
             Lens::Fov { .. } | Lens::Division { .. } => {
                 let r2 = u * u + v * v;
                 let (g, dg) = match *self {
@@ -346,7 +407,11 @@ impl Lens {
     pub fn distort_within(&self, p: [f64; 3], limit: f64) -> Option<[f64; 2]> {
         let [x, y, z] = p;
         match *self {
-            Lens::Pinhole | Lens::RadialTangential { .. } | Lens::Fov { .. } | Lens::Division { .. } => {
+            Lens::Pinhole
+            | Lens::RadialTangential { .. }
+            | Lens::Fov { .. }
+            | Lens::Division { .. }
+            | Lens::ThinPrismFisheye { .. } => {
                 if z <= 0.0 || (x * x + y * y) > limit * limit * z * z {
                     return None;
                 }
@@ -397,6 +462,10 @@ impl Lens {
             Lens::Division { k } => {
                 let g = Self::division_factor(k, u * u + v * v).map_or(f64::NAN, |(g, _)| g);
                 [u * g, v * g]
+            }
+            Lens::ThinPrismFisheye { k, p, s } => {
+                let (g, _) = Self::equidistant_factor(u * u + v * v);
+                Self::thin_prism([u * g, v * g], k, p, s).0
             }
             Lens::Eucm { alpha, beta } => {
                 let den = alpha * (beta * (u * u + v * v) + 1.0).sqrt() + 1.0 - alpha;
@@ -482,6 +551,7 @@ mod tests {
             Lens::Fov { omega: 0.9 },
             Lens::Fov { omega: 0.005 },
             Lens::Eucm { alpha: 0.6, beta: 1.1 },
+            Lens::ThinPrismFisheye { k: [0.01, -0.002, 0.0003, -0.00004], p: [0.001, -0.0005], s: [0.0008, -0.0006] },
             Lens::Division { k: -0.2 },
             Lens::Division { k: 0.05 },
             Lens::Pinhole,

@@ -28,9 +28,26 @@ struct WorldToCamera {
     vec4 lens0;        // k1..k4 (radial-tangential and fisheye)
     vec4 lens1;        // k5, k6, p1, p2 (radial-tangential)
     vec4 lens2;        // x: 0 pinhole, 2 radial-tangential, 3 fisheye, 4 FOV (lens0.x: ω),
-                       // 5 EUCM (lens0.xy: α, β), 6 division (lens0.x: k); y: imaging limit
+                       // 5 EUCM (lens0.xy: α, β), 6 division (lens0.x: k), 7 thin-prism
+                       // fisheye (lens0: k1..k4, lens1: p1, p2, sx1, sy1); y: imaging limit
                        // (undistorted radius, or fisheye angle off axis)
 };
+
+// THIN_PRISM_FISHEYE's distortion of equidistant coordinates q and its
+// Jacobian T (T[c][r] = ∂d_r/∂q_c).
+vec2 thin_prism(vec2 q, vec4 k, vec4 ps, out mat2 T) {
+    float u = q.x, v = q.y;
+    float r2 = u * u + v * v;
+    float radial = r2 * (k.x + r2 * (k.y + r2 * (k.z + r2 * k.w)));
+    float dr = k.x + r2 * (2.0 * k.y + r2 * (3.0 * k.z + r2 * 4.0 * k.w));
+    float p1 = ps.x, p2 = ps.y, s1 = ps.z, s2 = ps.w;
+    T[0][0] = 1.0 + radial + 2.0 * u * u * dr + 2.0 * p1 * v + 6.0 * p2 * u + 2.0 * s1 * u;
+    T[1][0] = 2.0 * u * v * dr + 2.0 * p1 * u + 2.0 * p2 * v + 2.0 * s1 * v;
+    T[0][1] = 2.0 * u * v * dr + 2.0 * p2 * v + 2.0 * p1 * u + 2.0 * s2 * u;
+    T[1][1] = 1.0 + radial + 2.0 * v * v * dr + 2.0 * p2 * u + 6.0 * p1 * v + 2.0 * s2 * v;
+    return vec2(u + u * radial + 2.0 * p1 * u * v + p2 * (r2 + 2.0 * u * u) + s1 * r2,
+                v + v * radial + 2.0 * p2 * u * v + p1 * (r2 + 2.0 * v * v) + s2 * r2);
+}
 
 // A camera-space point through the lens: its normalized distorted coordinates
 // `d` and their Jacobian ∂d/∂t (2 rows of 3, as mat3 columns J[c][r], row 2
@@ -107,6 +124,23 @@ bool lens_project(WorldToCamera c, vec3 t, out vec2 d, out mat3 J) {
         D[1][0] = 2.0 * u * v * dg;
         D[0][1] = 2.0 * u * v * dg;
         D[1][1] = g + 2.0 * v * v * dg;
+    }
+    if (kind == 7.0) {
+        // Thin-prism fisheye: equidistant normalization g = atan(r)/r, then the thin-prism distortion.
+        float r2 = u * u + v * v;
+        float g, dg;
+        if (r2 < 1e-8) {
+            g = 1.0 - r2 / 3.0;
+            dg = -1.0 / 3.0;
+        } else {
+            float r = sqrt(r2);
+            g = atan(r) / r;
+            dg = (1.0 / (1.0 + r2) - g) / (2.0 * r2);
+        }
+        mat2 N = mat2(g + 2.0 * u * u * dg, 2.0 * u * v * dg, 2.0 * u * v * dg, g + 2.0 * v * v * dg);
+        mat2 T;
+        d = thin_prism(vec2(u, v) * g, c.lens0, c.lens1, T);
+        D = T * N;
     }
     if (kind == 6.0) {
         // Division: distorted = undistorted · g, g the root of g = 1 + k g² r² near 1.
@@ -192,6 +226,17 @@ vec2 lens_undistort(CameraToWorld c, vec2 d) {
         return d * (tan(theta) / rd);
     }
     if (kind == 6.0) return d / (1.0 + k.x * dot(d, d));
+    if (kind == 7.0) {
+        // Thin-prism fisheye: Newton on the thin-prism distortion, then θ → tan θ.
+        vec2 q = d;
+        for (int i = 0; i < 20; i++) {
+            mat2 T;
+            vec2 f = thin_prism(q, k, c.lens1, T) - d;
+            q -= inverse(T) * f;
+        }
+        float theta = length(q);
+        return theta < 1e-12 ? q : q * (tan(theta) / theta);
+    }
     if (kind == 5.0) {
         // EUCM inverts in closed form.
         float alpha = k.x, beta = k.y;
