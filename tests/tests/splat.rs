@@ -611,6 +611,14 @@ fn lens_cameras(city: &srug::scene::demo::DemoCity) -> Vec<(&'static str, Camera
         lens: Lens::ThinPrismFisheye { k: [0.01, -0.002, 0.0003, -0.00004], p: [0.001, -0.0005], s: [0.0008, -0.0006] },
         ..street.clone()
     };
+    let aria = Camera {
+        lens: Lens::RadTanThinPrismFisheye {
+            k: [0.01, -0.002, 0.0003, -0.00004, 0.00001, -0.000002],
+            p: [0.001, -0.0005],
+            s: [0.0008, -0.0006, 0.0002, -0.0001],
+        },
+        ..street.clone()
+    };
     let fisheye = Camera {
         width: 160,
         height: 160,
@@ -624,6 +632,7 @@ fn lens_cameras(city: &srug::scene::demo::DemoCity) -> Vec<(&'static str, Camera
         ("eucm", eucm),
         ("division", division),
         ("thin_prism_fisheye", prism),
+        ("rad_tan_thin_prism_fisheye", aria),
         ("fisheye", fisheye),
     ]
 }

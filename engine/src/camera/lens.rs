@@ -45,6 +45,17 @@ pub enum Lens {
         /// k.
         k: f64,
     },
+    /// COLMAP's RAD_TAN_THIN_PRISM_FISHEYE (Project Aria's model): the angle
+    /// θ_d = θ (1 + k0 θ² + … + k5 θ¹²) along the radius, then tangential
+    /// p0, p1 and thin prism s0..s3 (in r² and r⁴) on those coordinates.
+    RadTanThinPrismFisheye {
+        /// k0..k5.
+        k: [f64; 6],
+        /// p0, p1.
+        p: [f64; 2],
+        /// s0..s3.
+        s: [f64; 4],
+    },
     /// COLMAP's THIN_PRISM_FISHEYE: the equidistant angle (θ/r)·(x/z, y/z), then radial
     /// k1..k4 in its squared radius, tangential p1, p2 and thin prism sx1, sy1 on it.
     ThinPrismFisheye {
@@ -111,6 +122,11 @@ impl Intrinsics {
             ("EUCM", 6) => double(Lens::Eucm { alpha: p[4], beta: p[5] }),
             ("SIMPLE_DIVISION", 4) => single(Lens::Division { k: p[3] }),
             ("DIVISION", 5) => double(Lens::Division { k: p[4] }),
+            ("RAD_TAN_THIN_PRISM_FISHEYE", 16) => double(Lens::RadTanThinPrismFisheye {
+                k: [p[4], p[5], p[6], p[7], p[8], p[9]],
+                p: [p[10], p[11]],
+                s: [p[12], p[13], p[14], p[15]],
+            }),
             ("THIN_PRISM_FISHEYE", 12) => {
                 double(Lens::ThinPrismFisheye { k: [p[4], p[5], p[8], p[9]], p: [p[6], p[7]], s: [p[10], p[11]] })
             }
@@ -145,12 +161,34 @@ impl Lens {
             Lens::Eucm { .. } => Some(5),
             Lens::Division { .. } => Some(6),
             Lens::ThinPrismFisheye { .. } => Some(7),
+            Lens::RadTanThinPrismFisheye { .. } => Some(8),
+        }
+    }
+
+    /// The coefficients as the shaders take them: `lens0`, `lens1` (radial-tangential:
+    /// (k1, k2, k3, k4) and (k5, k6, p1, p2)) and `lens3` (the rad-tan thin-prism
+    /// fisheye's s0..s3; its k0..k3 in `lens0`, k4, k5, p0, p1 in `lens1`).
+    pub fn gpu_coefficients3(&self) -> [[f32; 4]; 3] {
+        match *self {
+            Lens::RadTanThinPrismFisheye { k, p, s } => [
+                [k[0], k[1], k[2], k[3]].map(|v| v as f32),
+                [k[4], k[5], p[0], p[1]].map(|v| v as f32),
+                s.map(|v| v as f32),
+            ],
+            _ => {
+                let [a, b] = self.gpu_coefficients();
+                [a, b, [0.0; 4]]
+            }
         }
     }
 
     /// The coefficients as the shaders take them: (k1, k2, k3, k4) and (k5, k6, p1, p2).
     pub fn gpu_coefficients(&self) -> [[f32; 4]; 2] {
         match *self {
+            Lens::RadTanThinPrismFisheye { .. } => {
+                let [a, b, _] = self.gpu_coefficients3();
+                [a, b]
+            }
             Lens::RadialTangential { k, p } => {
                 [[k[0], k[1], k[2], k[3]].map(|v| v as f32), [k[4], k[5], p[0], p[1]].map(|v| v as f32)]
             }
@@ -189,7 +227,10 @@ impl Lens {
         match *self {
             Lens::Pinhole => f64::INFINITY,
             // r·g(r) grows without folding: as far as the image reaches, with margin.
-            Lens::Fov { .. } | Lens::Eucm { .. } | Lens::ThinPrismFisheye { .. } => reach * 1.5,
+            Lens::Fov { .. }
+            | Lens::Eucm { .. }
+            | Lens::ThinPrismFisheye { .. }
+            | Lens::RadTanThinPrismFisheye { .. } => reach * 1.5,
             // k > 0: real only while 4 k r² < 1.
             Lens::Division { k } if k > 0.0 => (reach * 1.5).min(0.999 / (2.0 * k.sqrt())),
             Lens::Division { .. } => reach * 1.5,
@@ -252,7 +293,8 @@ impl Lens {
             | Lens::RadialTangential { .. }
             | Lens::Fov { .. }
             | Lens::Division { .. }
-            | Lens::ThinPrismFisheye { .. } => {
+            | Lens::ThinPrismFisheye { .. }
+            | Lens::RadTanThinPrismFisheye { .. } => {
                 if z <= 0.0 {
                     return None;
                 }
@@ -312,6 +354,44 @@ impl Lens {
         let r = r2.sqrt();
         let g = r.atan() / r;
         (g, (1.0 / (1.0 + r2) - g) / (2.0 * r2))
+    }
+
+    /// θ_d(atan r)/r for the six-coefficient angle polynomial and its derivative in r².
+    fn kb6_factor(k: [f64; 6], r2: f64) -> (f64, f64) {
+        if r2 < 1e-12 {
+            return (1.0 + (k[0] - 1.0 / 3.0) * r2, k[0] - 1.0 / 3.0);
+        }
+        let r = r2.sqrt();
+        let t = r.atan();
+        let t2 = t * t;
+        let poly = 1.0 + t2 * (k[0] + t2 * (k[1] + t2 * (k[2] + t2 * (k[3] + t2 * (k[4] + t2 * k[5])))));
+        let dpoly = 1.0
+            + t2 * (3.0 * k[0]
+                + t2 * (5.0 * k[1] + t2 * (7.0 * k[2] + t2 * (9.0 * k[3] + t2 * (11.0 * k[4] + t2 * 13.0 * k[5])))));
+        let g = t * poly / r;
+        let dg_dr = dpoly / (1.0 + r2) / r - t * poly / r2;
+        (g, dg_dr / (2.0 * r))
+    }
+
+    /// RAD_TAN_THIN_PRISM_FISHEYE's tangential and thin-prism terms on (uu, vv), and their Jacobian.
+    fn rad_tan_thin_prism(q: [f64; 2], p: [f64; 2], s: [f64; 4]) -> ([f64; 2], [[f64; 2]; 2]) {
+        let [u, v] = q;
+        let r2 = u * u + v * v;
+        let d = [
+            u + p[0] * (r2 + 2.0 * u * u) + 2.0 * p[1] * u * v + s[0] * r2 + s[1] * r2 * r2,
+            v + 2.0 * p[0] * u * v + p[1] * (r2 + 2.0 * v * v) + s[2] * r2 + s[3] * r2 * r2,
+        ];
+        let j = [
+            [
+                1.0 + 6.0 * p[0] * u + 2.0 * p[1] * v + 2.0 * s[0] * u + 4.0 * s[1] * r2 * u,
+                2.0 * p[0] * v + 2.0 * p[1] * u + 2.0 * s[0] * v + 4.0 * s[1] * r2 * v,
+            ],
+            [
+                2.0 * p[0] * v + 2.0 * p[1] * u + 2.0 * s[2] * u + 4.0 * s[3] * r2 * u,
+                1.0 + 2.0 * p[0] * u + 6.0 * p[1] * v + 2.0 * s[2] * v + 4.0 * s[3] * r2 * v,
+            ],
+        ];
+        (d, j)
     }
 
     /// THIN_PRISM_FISHEYE's distortion of equidistant coordinates (uu, vv) and its 2×2 Jacobian.
@@ -376,10 +456,18 @@ impl Lens {
                     ],
                 ]
             }
-            Lens::ThinPrismFisheye { k, p, s } => {
-                let (g, dg) = Self::equidistant_factor(u * u + v * v);
+            Lens::ThinPrismFisheye { .. } | Lens::RadTanThinPrismFisheye { .. } => {
+                let r2 = u * u + v * v;
+                let (g, dg) = match *self {
+                    Lens::RadTanThinPrismFisheye { k, .. } => Self::kb6_factor(k, r2),
+                    _ => Self::equidistant_factor(r2),
+                };
                 let n = [[g + 2.0 * u * u * dg, 2.0 * u * v * dg], [2.0 * u * v * dg, g + 2.0 * v * v * dg]];
-                let (_, t) = Self::thin_prism([u * g, v * g], k, p, s);
+                let (_, t) = match *self {
+                    Lens::ThinPrismFisheye { k, p, s } => Self::thin_prism([u * g, v * g], k, p, s),
+                    Lens::RadTanThinPrismFisheye { p, s, .. } => Self::rad_tan_thin_prism([u * g, v * g], p, s),
+                    _ => ([u, v], [[1.0, 0.0], [0.0, 1.0]]),
+                };
                 [
                     [t[0][0] * n[0][0] + t[0][1] * n[1][0], t[0][0] * n[0][1] + t[0][1] * n[1][1]],
                     [t[1][0] * n[0][0] + t[1][1] * n[1][0], t[1][0] * n[0][1] + t[1][1] * n[1][1]],
@@ -411,7 +499,8 @@ impl Lens {
             | Lens::RadialTangential { .. }
             | Lens::Fov { .. }
             | Lens::Division { .. }
-            | Lens::ThinPrismFisheye { .. } => {
+            | Lens::ThinPrismFisheye { .. }
+            | Lens::RadTanThinPrismFisheye { .. } => {
                 if z <= 0.0 || (x * x + y * y) > limit * limit * z * z {
                     return None;
                 }
@@ -466,6 +555,10 @@ impl Lens {
             Lens::ThinPrismFisheye { k, p, s } => {
                 let (g, _) = Self::equidistant_factor(u * u + v * v);
                 Self::thin_prism([u * g, v * g], k, p, s).0
+            }
+            Lens::RadTanThinPrismFisheye { k, p, s } => {
+                let (g, _) = Self::kb6_factor(k, u * u + v * v);
+                Self::rad_tan_thin_prism([u * g, v * g], p, s).0
             }
             Lens::Eucm { alpha, beta } => {
                 let den = alpha * (beta * (u * u + v * v) + 1.0).sqrt() + 1.0 - alpha;
@@ -552,6 +645,11 @@ mod tests {
             Lens::Fov { omega: 0.005 },
             Lens::Eucm { alpha: 0.6, beta: 1.1 },
             Lens::ThinPrismFisheye { k: [0.01, -0.002, 0.0003, -0.00004], p: [0.001, -0.0005], s: [0.0008, -0.0006] },
+            Lens::RadTanThinPrismFisheye {
+                k: [0.01, -0.002, 0.0003, -0.00004, 0.00001, -0.000002],
+                p: [0.001, -0.0005],
+                s: [0.0008, -0.0006, 0.0002, -0.0001],
+            },
             Lens::Division { k: -0.2 },
             Lens::Division { k: 0.05 },
             Lens::Pinhole,

@@ -90,6 +90,8 @@ pub(crate) struct CameraToWorldBlock {
     pub(crate) lens1: [f32; 4],
     /// `x`: the lens kind, `y`: its imaging limit.
     pub(crate) lens2: [f32; 4],
+    /// More lens coefficients (the rad-tan thin-prism fisheye's s0..s3).
+    pub(crate) lens3: [f32; 4],
 }
 
 /// The camera as a uniform block embeds it to project points:
@@ -111,6 +113,8 @@ pub(crate) struct WorldToCameraBlock {
     pub(crate) lens1: [f32; 4],
     /// `x`: the lens kind ([`lens::Lens::gpu_kind`]), `y`: its imaging limit.
     pub(crate) lens2: [f32; 4],
+    /// More lens coefficients (the rad-tan thin-prism fisheye's s0..s3).
+    pub(crate) lens3: [f32; 4],
 }
 
 /// A camera packed once for the shaders, in both directions.
@@ -208,11 +212,20 @@ impl Camera {
         let t = -(w * self.position);
         let p = self.position;
         let [rot0, rot1, rot2] = rows(r);
-        let [lens0, lens1] = self.lens.gpu_coefficients();
+        let [lens0, lens1, lens3] = self.lens.gpu_coefficients3();
         let limit = self.lens_limit().min(f64::from(f32::MAX)) as f32;
         let lens2 = [self.lens.gpu_kind().unwrap_or(0) as f32, limit, 0.0, 0.0];
-        let to_world =
-            CameraToWorldBlock { rot0, rot1, rot2, position: [p.x, p.y, p.z, kind], intrinsics, lens0, lens1, lens2 };
+        let to_world = CameraToWorldBlock {
+            rot0,
+            rot1,
+            rot2,
+            position: [p.x, p.y, p.z, kind],
+            intrinsics,
+            lens0,
+            lens1,
+            lens2,
+            lens3,
+        };
         let [rot0, rot1, rot2] = rows(w);
         let to_camera = WorldToCameraBlock {
             rot0,
@@ -223,6 +236,7 @@ impl Camera {
             lens0,
             lens1,
             lens2,
+            lens3,
         };
         PackedCamera { to_world, to_camera }
     }
@@ -263,7 +277,7 @@ impl Camera {
             ),
             (self.position.is_finite(), format!("position {}", self.position), "must be finite in f32"),
             (
-                self.lens.gpu_coefficients().iter().flatten().all(|v| v.is_finite()),
+                self.lens.gpu_coefficients3().iter().flatten().all(|v| v.is_finite()),
                 format!("lens {:?}", self.lens),
                 "must have coefficients finite in f32",
             ),

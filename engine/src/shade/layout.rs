@@ -54,6 +54,7 @@ crate::gpu::gpu_layout!(
         camera.lens0,
         camera.lens1,
         camera.lens2,
+        camera.lens3,
         size,
         env_size,
         sun_dir,

@@ -50,6 +50,7 @@ crate::gpu::gpu_layout!(
         camera.lens0,
         camera.lens1,
         camera.lens2,
+        camera.lens3,
         light_rot0,
         light_rot1,
         light_rot2,

@@ -67,6 +67,7 @@ crate::gpu::gpu_layout!(
         camera.lens0,
         camera.lens1,
         camera.lens2,
+        camera.lens3,
         clip,
         eye,
         view_dir,

@@ -16,6 +16,7 @@ struct CameraToWorld {
     vec4 lens0;       // as WorldToCamera's
     vec4 lens1;
     vec4 lens2;
+    vec4 lens3;
 };
 
 // For projecting points: world-to-camera rotation and translation.
@@ -29,8 +30,10 @@ struct WorldToCamera {
     vec4 lens1;        // k5, k6, p1, p2 (radial-tangential)
     vec4 lens2;        // x: 0 pinhole, 2 radial-tangential, 3 fisheye, 4 FOV (lens0.x: ω),
                        // 5 EUCM (lens0.xy: α, β), 6 division (lens0.x: k), 7 thin-prism
-                       // fisheye (lens0: k1..k4, lens1: p1, p2, sx1, sy1); y: imaging limit
-                       // (undistorted radius, or fisheye angle off axis)
+                       // fisheye (lens0: k1..k4, lens1: p1, p2, sx1, sy1), 8 rad-tan thin-prism
+                       // fisheye (lens0: k0..k3, lens1: k4, k5, p0, p1, lens3: s0..s3);
+                       // y: imaging limit (undistorted radius, or fisheye angle off axis)
+    vec4 lens3;
 };
 
 // THIN_PRISM_FISHEYE's distortion of equidistant coordinates q and its
@@ -47,6 +50,18 @@ vec2 thin_prism(vec2 q, vec4 k, vec4 ps, out mat2 T) {
     T[1][1] = 1.0 + radial + 2.0 * v * v * dr + 2.0 * p2 * u + 6.0 * p1 * v + 2.0 * s2 * v;
     return vec2(u + u * radial + 2.0 * p1 * u * v + p2 * (r2 + 2.0 * u * u) + s1 * r2,
                 v + v * radial + 2.0 * p2 * u * v + p1 * (r2 + 2.0 * v * v) + s2 * r2);
+}
+
+// RAD_TAN_THIN_PRISM_FISHEYE's tangential and thin-prism terms on q and their Jacobian.
+vec2 rad_tan_thin_prism(vec2 q, vec2 p, vec4 s, out mat2 T) {
+    float u = q.x, v = q.y;
+    float r2 = u * u + v * v;
+    T[0][0] = 1.0 + 6.0 * p.x * u + 2.0 * p.y * v + 2.0 * s.x * u + 4.0 * s.y * r2 * u;
+    T[1][0] = 2.0 * p.x * v + 2.0 * p.y * u + 2.0 * s.x * v + 4.0 * s.y * r2 * v;
+    T[0][1] = 2.0 * p.x * v + 2.0 * p.y * u + 2.0 * s.z * u + 4.0 * s.w * r2 * u;
+    T[1][1] = 1.0 + 2.0 * p.x * u + 6.0 * p.y * v + 2.0 * s.z * v + 4.0 * s.w * r2 * v;
+    return vec2(u + p.x * (r2 + 2.0 * u * u) + 2.0 * p.y * u * v + s.x * r2 + s.y * r2 * r2,
+                v + 2.0 * p.x * u * v + p.y * (r2 + 2.0 * v * v) + s.z * r2 + s.w * r2 * r2);
 }
 
 // A camera-space point through the lens: its normalized distorted coordinates
@@ -124,6 +139,30 @@ bool lens_project(WorldToCamera c, vec3 t, out vec2 d, out mat3 J) {
         D[1][0] = 2.0 * u * v * dg;
         D[0][1] = 2.0 * u * v * dg;
         D[1][1] = g + 2.0 * v * v * dg;
+    }
+    if (kind == 8.0) {
+        // Rad-tan thin-prism fisheye: g = θ_d(atan r)/r with six angle coefficients, then the terms.
+        vec4 k = c.lens0;
+        vec2 k45 = c.lens1.xy;
+        float r2 = u * u + v * v;
+        float g, dg;
+        if (r2 < 1e-10) {
+            g = 1.0 + (k.x - 1.0 / 3.0) * r2;
+            dg = k.x - 1.0 / 3.0;
+        } else {
+            float r = sqrt(r2);
+            float t = atan(r);
+            float t2 = t * t;
+            float poly = 1.0 + t2 * (k.x + t2 * (k.y + t2 * (k.z + t2 * (k.w + t2 * (k45.x + t2 * k45.y)))));
+            float dpoly = 1.0 + t2 * (3.0 * k.x + t2 * (5.0 * k.y + t2 * (7.0 * k.z + t2 * (9.0 * k.w
+                          + t2 * (11.0 * k45.x + t2 * 13.0 * k45.y)))));
+            g = t * poly / r;
+            dg = (dpoly / (1.0 + r2) / r - t * poly / r2) / (2.0 * r);
+        }
+        mat2 N = mat2(g + 2.0 * u * u * dg, 2.0 * u * v * dg, 2.0 * u * v * dg, g + 2.0 * v * v * dg);
+        mat2 T;
+        d = rad_tan_thin_prism(vec2(u, v) * g, c.lens1.zw, c.lens3, T);
+        D = T * N;
     }
     if (kind == 7.0) {
         // Thin-prism fisheye: equidistant normalization g = atan(r)/r, then the thin-prism distortion.
@@ -226,6 +265,27 @@ vec2 lens_undistort(CameraToWorld c, vec2 d) {
         return d * (tan(theta) / rd);
     }
     if (kind == 6.0) return d / (1.0 + k.x * dot(d, d));
+    if (kind == 8.0) {
+        // Rad-tan thin-prism fisheye: Newton on the terms, then θ_d → θ → tan θ.
+        vec2 q = d;
+        for (int i = 0; i < 20; i++) {
+            mat2 T;
+            vec2 f = rad_tan_thin_prism(q, c.lens1.zw, c.lens3, T) - d;
+            q -= inverse(T) * f;
+        }
+        float rd = length(q);
+        if (rd < 1e-12) return q;
+        vec2 k45 = c.lens1.xy;
+        float theta = rd;
+        for (int i = 0; i < 20; i++) {
+            float t2 = theta * theta;
+            float f = theta * (1.0 + t2 * (k.x + t2 * (k.y + t2 * (k.z + t2 * (k.w + t2 * (k45.x + t2 * k45.y)))))) - rd;
+            float df = 1.0 + t2 * (3.0 * k.x + t2 * (5.0 * k.y + t2 * (7.0 * k.z + t2 * (9.0 * k.w
+                       + t2 * (11.0 * k45.x + t2 * 13.0 * k45.y)))));
+            theta -= f / df;
+        }
+        return q * (tan(theta) / rd);
+    }
     if (kind == 7.0) {
         // Thin-prism fisheye: Newton on the thin-prism distortion, then θ → tan θ.
         vec2 q = d;
