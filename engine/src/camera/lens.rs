@@ -68,6 +68,11 @@ pub enum Lens {
     },
 }
 
+/// The Jacobian (rows) of (u, v) ↦ (u, v)·g(u² + v²), given g and dg/d(r²).
+fn radial_jacobian(u: f64, v: f64, g: f64, dg: f64) -> [[f64; 2]; 2] {
+    [[g + 2.0 * u * u * dg, 2.0 * u * v * dg], [2.0 * u * v * dg, g + 2.0 * v * v * dg]]
+}
+
 /// The angle off axis θ with θ (1 + k1 θ² + k2 θ⁴ + k3 θ⁶ + k4 θ⁸) = `rd`
 /// (Newton's method from θ = rd; any angle, past 90° too).
 pub(crate) fn fisheye_theta(k: [f64; 4], rd: f64) -> f64 {
@@ -462,7 +467,7 @@ impl Lens {
                     Lens::RadTanThinPrismFisheye { k, .. } => Self::kb6_factor(k, r2),
                     _ => Self::equidistant_factor(r2),
                 };
-                let n = [[g + 2.0 * u * u * dg, 2.0 * u * v * dg], [2.0 * u * v * dg, g + 2.0 * v * v * dg]];
+                let n = radial_jacobian(u, v, g, dg);
                 let (_, t) = match *self {
                     Lens::ThinPrismFisheye { k, p, s } => Self::thin_prism([u * g, v * g], k, p, s),
                     Lens::RadTanThinPrismFisheye { p, s, .. } => Self::rad_tan_thin_prism([u * g, v * g], p, s),
@@ -480,7 +485,7 @@ impl Lens {
                     Lens::Division { k } => Self::division_factor(k, r2).unwrap_or((f64::NAN, f64::NAN)),
                     _ => (1.0, 0.0),
                 };
-                [[g + 2.0 * u * u * dg, 2.0 * u * v * dg], [2.0 * u * v * dg, g + 2.0 * v * v * dg]]
+                radial_jacobian(u, v, g, dg)
             }
             _ => [[1.0, 0.0], [0.0, 1.0]],
         }

@@ -52,6 +52,11 @@ vec2 thin_prism(vec2 q, vec4 k, vec4 ps, out mat2 T) {
                 v + v * radial + 2.0 * p2 * u * v + p1 * (r2 + 2.0 * v * v) + s2 * r2);
 }
 
+// The Jacobian (M[c][r]) of (u, v) ↦ (u, v)·g(u² + v²), given g and dg/d(r²).
+mat2 radial_jacobian(float u, float v, float g, float dg) {
+    return mat2(g + 2.0 * u * u * dg, 2.0 * u * v * dg, 2.0 * u * v * dg, g + 2.0 * v * v * dg);
+}
+
 // RAD_TAN_THIN_PRISM_FISHEYE's tangential and thin-prism terms on q and their Jacobian.
 vec2 rad_tan_thin_prism(vec2 q, vec2 p, vec4 s, out mat2 T) {
     float u = q.x, v = q.y;
@@ -135,10 +140,7 @@ bool lens_project(WorldToCamera c, vec3 t, out vec2 d, out mat3 J) {
             dg = (t2 / (1.0 + r2 * t2 * t2) / (r * omega) - atan(r * t2) / (r2 * omega)) / (2.0 * r);
         }
         d = vec2(u, v) * g;
-        D[0][0] = g + 2.0 * u * u * dg;
-        D[1][0] = 2.0 * u * v * dg;
-        D[0][1] = 2.0 * u * v * dg;
-        D[1][1] = g + 2.0 * v * v * dg;
+        D = radial_jacobian(u, v, g, dg);
     }
     if (kind == 8.0) {
         // Rad-tan thin-prism fisheye: g = θ_d(atan r)/r with six angle coefficients, then the terms.
@@ -159,7 +161,7 @@ bool lens_project(WorldToCamera c, vec3 t, out vec2 d, out mat3 J) {
             g = t * poly / r;
             dg = (dpoly / (1.0 + r2) / r - t * poly / r2) / (2.0 * r);
         }
-        mat2 N = mat2(g + 2.0 * u * u * dg, 2.0 * u * v * dg, 2.0 * u * v * dg, g + 2.0 * v * v * dg);
+        mat2 N = radial_jacobian(u, v, g, dg);
         mat2 T;
         d = rad_tan_thin_prism(vec2(u, v) * g, c.lens1.zw, c.lens3, T);
         D = T * N;
@@ -176,7 +178,7 @@ bool lens_project(WorldToCamera c, vec3 t, out vec2 d, out mat3 J) {
             g = atan(r) / r;
             dg = (1.0 / (1.0 + r2) - g) / (2.0 * r2);
         }
-        mat2 N = mat2(g + 2.0 * u * u * dg, 2.0 * u * v * dg, 2.0 * u * v * dg, g + 2.0 * v * v * dg);
+        mat2 N = radial_jacobian(u, v, g, dg);
         mat2 T;
         d = thin_prism(vec2(u, v) * g, c.lens0, c.lens1, T);
         D = T * N;
@@ -197,10 +199,7 @@ bool lens_project(WorldToCamera c, vec3 t, out vec2 d, out mat3 J) {
             dg = (4.0 * k * k * r2 / s - 2.0 * k * (1.0 - s)) / (4.0 * k * k * r2 * r2);
         }
         d = vec2(u, v) * g;
-        D[0][0] = g + 2.0 * u * u * dg;
-        D[1][0] = 2.0 * u * v * dg;
-        D[0][1] = 2.0 * u * v * dg;
-        D[1][1] = g + 2.0 * v * v * dg;
+        D = radial_jacobian(u, v, g, dg);
     }
     if (kind == 2.0) {
         vec4 k = c.lens0;
