@@ -4,7 +4,8 @@
 // (positive floats order like unsigned ints); value = Gaussian index. The tile
 // ids are also kept in emission order (pair tiles) for the backward pass.
 // With ELLIPSE_TILES only the tiles of `tile_row_span` get pairs, as the
-// preprocess counted them. Should this compilation of it find fewer (f32
+// preprocess counted them. Columns x ≥ tiles_x (a full equirectangular
+// panorama) are column x − tiles_x. Should this compilation of it find fewer (f32
 // rounding at the widened bound), the rest get the key (tiles, ~0): they sort
 // last and belong to no tile; it never writes past the count.
 #define WORKGROUP_SIZE_X 64
@@ -26,10 +27,12 @@ void main() {
     Uints values = Uints(frame.values);
     Uints pair_tiles = Uints(frame.pair_tiles);
     TileEllipse e = tile_ellipse(s.head, s.conic.xyz);
+    // A rectangle past the right edge (a wrapping panorama) continues at the left, whole rows.
+    bool wraps = s.rect.z > frame.size.z;
     for (uint y = s.rect.y; y < s.rect.w; y++) {
-        uvec2 span = ELLIPSE_TILES ? tile_row_span(e, s.head.xy, s.rect, y, TILE) : s.rect.xz;
+        uvec2 span = ELLIPSE_TILES && !wraps ? tile_row_span(e, s.head.xy, s.rect, y, TILE) : s.rect.xz;
         for (uint x = span.x; x < span.y && offset < end; x++) {
-            uint tile = y * frame.size.z + x;
+            uint tile = y * frame.size.z + (x < frame.size.z ? x : x - frame.size.z);
             keys.v[offset] = uvec2(depth_bits, tile);
             values.v[offset] = i;
             pair_tiles.v[offset] = tile;

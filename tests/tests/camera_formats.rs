@@ -170,9 +170,6 @@ fn distorted_and_malformed_cameras_are_refused() {
         cameras.replace("3 SIMPLE_RADIAL 1024 768 800 510 380 0", "3 SIMPLE_RADIAL 1024 768 500 510 380 -0.5");
     let e = write(&folding, &images);
     assert!(e.contains("cam3_") && e.contains("folds the image"), "{e}");
-    let equirect = cameras.replace("2 SIMPLE_PINHOLE 640 480 500 322 241.5", "2 EQUIRECTANGULAR 640 320 640 320");
-    let e = write(&equirect, &images);
-    assert!(e.contains("camera 2") && e.contains("EQUIRECTANGULAR"), "{e}");
     let e = write(&cameras.replace("PINHOLE 704 192", "PINHOLE_X 704 192"), &images);
     assert!(e.contains("unknown camera model PINHOLE_X"), "{e}");
     let e = write(&cameras.replace("400 410.5 350.5 97.25", "400 410.5 350.5"), &images);
@@ -220,6 +217,63 @@ fn transforms_json_lenses() {
     assert_eq!(read_cameras(&p).unwrap()[3].lens, Lens::Fisheye { k: [-0.05, 0.0, 0.0, 0.002] });
 }
 
+/// Equirectangular panoramas from COLMAP (EQUIRECTANGULAR w h) and nerfstudio
+/// (camera_model EQUIRECTANGULAR, fl_x = w / 2, fl_y = h in its half-turn
+/// units): both read as srug's equirectangular lens, wrap at the width, and
+/// send each pixel along the ray their own tool's formula gives (COLMAP's
+/// ImgFromCam inverted; nerfstudio's `Cameras._generate_rays_from_coords`,
+/// written out here in OpenGL axes and turned into OpenCV's).
+#[test]
+fn equirectangular_cameras_are_read() {
+    use srug::camera::lens::Lens;
+    let dir = tempfile::tempdir().unwrap();
+    let images = std::fs::read_to_string(fixture("colmap/text/images.txt")).unwrap();
+    let cameras = std::fs::read_to_string(fixture("colmap/text/cameras.txt")).unwrap();
+    let cameras = cameras.replace("2 SIMPLE_PINHOLE 640 480 500 322 241.5", "2 EQUIRECTANGULAR 640 320 640 320");
+    std::fs::write(dir.path().join("cameras.txt"), cameras).unwrap();
+    std::fs::write(dir.path().join("images.txt"), images).unwrap();
+    let cams = read_colmap(dir.path()).unwrap();
+    let pano: Vec<&Camera> = cams.iter().filter(|c| c.lens == Lens::Equirectangular).collect();
+    assert!(!pano.is_empty(), "no equirectangular camera read");
+    let colmap = pano[0];
+    assert_eq!((colmap.width, colmap.height, colmap.wrap_period()), (640, 320, Some(640.0)));
+    // COLMAP: x = (θ / 2π + 0.5)·w, y = (0.5 − φ_up / π)·h, θ = atan2(x, z), φ_up = atan2(−y, √(x² + z²)).
+    for (px, py) in [(320.0, 160.0), (480.0, 160.0), (10.5, 40.25), (600.0, 300.0)] {
+        let d = colmap.pixel_direction([px, py]).unwrap();
+        let theta = d[0].atan2(d[2]);
+        let phi_up = (-d[1]).atan2(d[0].hypot(d[2]));
+        let back = [(theta / std::f64::consts::TAU + 0.5) * 640.0, (0.5 - phi_up / std::f64::consts::PI) * 320.0];
+        assert!((back[0] - px).abs() < 1e-3 && (back[1] - py).abs() < 1e-3, "({px}, {py}) -> {d:?} -> {back:?}");
+    }
+    let right = colmap.pixel_direction([480.0, 160.0]).unwrap();
+    assert!(right[0] > 0.999, "three quarters across looks right: {right:?}");
+
+    // nerfstudio: coord = ((x − cx)/fx, −(y − cy)/fy), θ = −π·coord.x, φ = π·(0.5 − coord.y),
+    // direction (OpenGL) = (−sin θ sin φ, cos φ, −cos θ sin φ).
+    let mut v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(fixture("transforms.json")).unwrap()).unwrap();
+    v["camera_model"] = serde_json::json!("EQUIRECTANGULAR");
+    for f in v["frames"].as_array_mut().unwrap() {
+        for (k, x) in [("w", 640.0), ("h", 320.0), ("fl_x", 320.0), ("fl_y", 320.0), ("cx", 320.0), ("cy", 160.0)] {
+            f[k] = serde_json::json!(x);
+        }
+    }
+    let p = dir.path().join("transforms.json");
+    std::fs::write(&p, serde_json::to_string(&v).unwrap()).unwrap();
+    let ns = read_cameras(&p).unwrap();
+    assert!(ns.iter().all(|c| c.lens == Lens::Equirectangular && c.wrap_period() == Some(640.0)));
+    let pi = std::f64::consts::PI;
+    for (px, py) in [(320.0, 160.0), (480.0, 160.0), (10.5, 40.25), (600.0, 300.0)] {
+        let coord = [(px - 320.0) / 320.0, -(py - 160.0) / 320.0];
+        let (theta, phi) = (-pi * coord[0], pi * (0.5 - coord[1]));
+        let gl = [-theta.sin() * phi.sin(), phi.cos(), -theta.cos() * phi.sin()];
+        let want = [gl[0], -gl[1], -gl[2]];
+        let got = ns[0].pixel_direction([px, py]).unwrap();
+        let err = (0..3).map(|i| (got[i] - want[i]).abs()).fold(0.0, f64::max);
+        assert!(err < 1e-6, "nerfstudio pixel ({px}, {py}): {got:?} vs {want:?}");
+    }
+}
+
 /// transforms.json defects are refused naming the frame and the field.
 #[test]
 fn bad_transforms_json_is_refused() {
@@ -235,9 +289,9 @@ fn bad_transforms_json_is_refused() {
     let mut k4 = v.clone();
     k4["k4"] = serde_json::json!(0.05);
     check(&k4, &["row 0", "OPENCV with k4=0.05", "does not render"]);
-    let mut equirect = v.clone();
-    equirect["camera_model"] = serde_json::json!("EQUIRECTANGULAR");
-    check(&equirect, &["EQUIRECTANGULAR"]);
+    let mut unknown = v.clone();
+    unknown["camera_model"] = serde_json::json!("ORTHOPHOTO");
+    check(&unknown, &["ORTHOPHOTO", "does not render"]);
     let mut scaled = v.clone();
     for r in 0..3 {
         for c in 0..3 {
@@ -269,19 +323,45 @@ fn lens_models_match_pycolmap() {
             .collect()
     };
     let cases = v.as_array().unwrap();
-    assert_eq!(cases.len(), 15);
+    assert_eq!(cases.len(), 16);
     for case in cases {
         let model = case["model"].as_str().unwrap();
         let params: Vec<f64> = case["params"].as_array().unwrap().iter().map(|x| x.as_f64().unwrap()).collect();
         let lens = Intrinsics::from_colmap(model, &params).unwrap_or_else(|| panic!("{model} not implemented"));
         let (mut worst_px, mut worst_ray) = (0.0f64, 0.0f64);
-        for ((p, want), ray) in nums(&case["points"]).iter().zip(nums(&case["pixels"])).zip(nums(&case["rays"])) {
-            let got = lens.project([p[0], p[1], p[2]]).unwrap_or_else(|| panic!("{model}: {p:?} not imaged"));
-            worst_px = worst_px.max((got[0] - want[0]).abs().max((got[1] - want[1]).abs()));
-            let back =
-                lens.unproject([want[0], want[1]]).unwrap_or_else(|| panic!("{model}: {want:?} not unprojected"));
-            for i in 0..2 {
-                worst_ray = worst_ray.max((back[i] - ray[i]).abs() / ray[i].abs().max(1.0));
+        if let Some(directions) = case.get("directions") {
+            // Equirectangular: pycolmap's unit rays all around (cam_ray_from_img), against the camera's pixel direction.
+            let cam = Camera {
+                width: 1400,
+                height: 700,
+                projection: Projection::Pinhole {
+                    fx: lens.focal[0] as f32,
+                    fy: lens.focal[1] as f32,
+                    cx: lens.centre[0] as f32,
+                    cy: lens.centre[1] as f32,
+                },
+                lens: lens.lens,
+                ..Camera::look_at(Vec3::ZERO, Vec3::Z, -Vec3::Y, 60.0, 1400, 700).unwrap()
+            };
+            let behind = nums(&case["points"]).iter().filter(|p| p[2] < 0.0).count();
+            assert!(behind >= 10, "{model}: only {behind} points behind the camera");
+            for ((p, want), ray) in nums(&case["points"]).iter().zip(nums(&case["pixels"])).zip(nums(directions)) {
+                let got = lens.project([p[0], p[1], p[2]]).unwrap_or_else(|| panic!("{model}: {p:?} not imaged"));
+                worst_px = worst_px.max((got[0] - want[0]).abs().max((got[1] - want[1]).abs()));
+                let back = cam.pixel_direction([want[0], want[1]]).unwrap();
+                for i in 0..3 {
+                    worst_ray = worst_ray.max((back[i] - ray[i]).abs());
+                }
+            }
+        } else {
+            for ((p, want), ray) in nums(&case["points"]).iter().zip(nums(&case["pixels"])).zip(nums(&case["rays"])) {
+                let got = lens.project([p[0], p[1], p[2]]).unwrap_or_else(|| panic!("{model}: {p:?} not imaged"));
+                worst_px = worst_px.max((got[0] - want[0]).abs().max((got[1] - want[1]).abs()));
+                let back =
+                    lens.unproject([want[0], want[1]]).unwrap_or_else(|| panic!("{model}: {want:?} not unprojected"));
+                for i in 0..2 {
+                    worst_ray = worst_ray.max((back[i] - ray[i]).abs() / ray[i].abs().max(1.0));
+                }
             }
         }
         assert!(worst_px < 1e-6, "{model}: projection differs from pycolmap's by {worst_px} px");

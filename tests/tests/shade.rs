@@ -359,8 +359,19 @@ fn shading_matches_twin_on_random_and_extreme_gbuffers() {
     for lens in [
         srug::camera::lens::Lens::RadialTangential { k: [-0.25, 0.06, -0.005, 0.0, 0.0, 0.0], p: [0.001, -0.002] },
         srug::camera::lens::Lens::Fisheye { k: [0.01, -0.002, 0.0003, -0.00004] },
+        srug::camera::lens::Lens::Equirectangular,
     ] {
-        let cam = Camera { lens, ..camera.clone() };
+        let mut cam = Camera { lens, ..camera.clone() };
+        if lens == srug::camera::lens::Lens::Equirectangular {
+            // A full panorama: every pixel a direction all around, behind the camera too.
+            let (wf, hf) = (w as f32, h as f32);
+            cam.projection = srug::scene::Projection::Pinhole {
+                fx: wf / std::f32::consts::TAU,
+                fy: hf / std::f32::consts::PI,
+                cx: wf * 0.5,
+                cy: hf * 0.5,
+            };
+        }
         let settings = ShadeSettings { prefill: Some(NAN), ..ShadeSettings::default() };
         let inputs =
             ShadeInputs { editable_visibility: Some(&ev), ..inputs(&s.env, &s.brdf, &g, &cam, Some(&suns[0])) };

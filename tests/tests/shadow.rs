@@ -113,8 +113,15 @@ fn sigmoid_test_and_traced_reference_match_cpu_twin() {
     for lens in [
         srug::camera::lens::Lens::RadialTangential { k: [-0.25, 0.06, -0.005, 0.0, 0.0, 0.0], p: [0.001, -0.002] },
         srug::camera::lens::Lens::Fisheye { k: [0.01, -0.002, 0.0003, -0.00004] },
+        srug::camera::lens::Lens::Equirectangular,
     ] {
-        let cam = Camera { lens, ..camera.clone() };
+        let cam = match lens {
+            // A panorama's frustum is the whole sphere: the fit falls back to the scene.
+            srug::camera::lens::Lens::Equirectangular => {
+                Camera::panorama(camera.position, camera.rotation, camera.width).unwrap()
+            }
+            _ => Camera { lens, ..camera.clone() },
+        };
         let st = ShadowSettings { fit: ShadowFit::ViewFrustum, k: 4.0, ..settings(384) };
         let (g, host) = receiver(&mut s, &cam, Channels::default());
         let map = shadow_map(&mut s, &sun, &st, Some(&cam));
@@ -129,7 +136,7 @@ fn sigmoid_test_and_traced_reference_match_cpu_twin() {
     assert_no_validation_messages(&s.d);
 }
 
-/// Through a barrel lens and a fisheye, the shadow test still agrees with the
+/// Through a barrel lens, a fisheye and a 360° panorama, the shadow test still agrees with the
 /// demo's exact visibility as well as through the pinhole (IoU ≥ 0.8): the
 /// receivers are unprojected along each pixel's true ray.
 #[test]
@@ -150,10 +157,11 @@ fn shadows_through_lenses_agree_with_the_exact_visibility() {
         height: 192,
         projection: srug::scene::Projection::Pinhole { fx: 60.0, fy: 60.0, cx: 96.0, cy: 96.0 },
         lens: srug::camera::lens::Lens::Fisheye { k: [0.01, -0.002, 0.0, 0.0] },
-        ..street
+        ..street.clone()
     };
+    let panorama = Camera::panorama(street.position, street.rotation, 384).unwrap();
     let map = shadow_map(&mut s, &sun, &st, None);
-    for (name, camera) in [("barrel", barrel), ("fisheye", fisheye)] {
+    for (name, camera) in [("barrel", barrel), ("fisheye", fisheye), ("panorama", panorama)] {
         let (g, host) = receiver(&mut s, &camera, Channels { visibility: true, ..Channels::default() });
         let vf: Vec<f32> =
             host.get(Channel::Visibility).unwrap().iter().zip(&host.alpha).map(|(v, a)| v / a.max(1e-6)).collect();

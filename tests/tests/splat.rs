@@ -160,6 +160,7 @@ fn ellipse_tile_bounds_keep_every_tile_a_splat_reaches_and_little_else() {
                 color: glam::DVec3::ZERO,
                 rect: [lo.x as u32, lo.y as u32, hi.x as u32, hi.y as u32],
                 features: [0.0; 10],
+                wrap_period: 0.0,
             };
             splats_checked += 1;
             for ty in s.rect[1]..s.rect[3] {
@@ -596,7 +597,8 @@ fn top_gaussian_is_the_largest_weight_in_every_variant() {
 /// Cameras with lenses: a barrel-distorted OpenCV camera (radial k1..k3,
 /// tangential p1, p2), a FOV-model camera (ω = 0.9), an EUCM camera (α 0.6,
 /// β 1.1), a division-model camera (k −0.2) and a thin-prism fisheye on a demo
-/// street camera, and a 180° fisheye looking down the street.
+/// street camera, a 180° fisheye looking down the street, and a 360°
+/// equirectangular panorama from the same place (wrapping at its edges).
 fn lens_cameras(city: &srug::scene::demo::DemoCity) -> Vec<(&'static str, Camera)> {
     use srug::camera::lens::Lens;
     let street = city.cameras[1].resized(352, 96);
@@ -624,8 +626,9 @@ fn lens_cameras(city: &srug::scene::demo::DemoCity) -> Vec<(&'static str, Camera
         height: 160,
         projection: srug::scene::Projection::Pinhole { fx: 50.0, fy: 50.5, cx: 80.0, cy: 79.5 },
         lens: Lens::Fisheye { k: [0.01, -0.002, 0.0003, -0.00004] },
-        ..street
+        ..street.clone()
     };
+    let panorama = Camera::panorama(street.position, street.rotation, 384).unwrap();
     vec![
         ("opencv", opencv),
         ("fov", fov),
@@ -634,6 +637,7 @@ fn lens_cameras(city: &srug::scene::demo::DemoCity) -> Vec<(&'static str, Camera
         ("thin_prism_fisheye", prism),
         ("rad_tan_thin_prism_fisheye", aria),
         ("fisheye", fisheye),
+        ("equirectangular", panorama),
     ]
 }
 
@@ -652,11 +656,70 @@ fn lens_cameras_match_cpu_twin() {
             let g = splatter.render(&gpu_scene, &cam, &all_settings()).unwrap().0.read(&d).unwrap();
             compare_with(&g, &cpu, &format!("lens_{name}_{variant:?}"), true);
             let covered = g.alpha.iter().filter(|a| **a > 0.5).count();
+            // The panorama sees the sky above the street too.
+            let share = if name == "equirectangular" { 3 } else { 2 };
             assert!(
-                covered * 2 > g.alpha.len(),
+                covered * share > g.alpha.len(),
                 "{name}: the street should fill the view: {covered} of {}",
                 g.alpha.len()
             );
+        }
+    }
+    assert_no_validation_messages(&d);
+}
+
+/// A full panorama wraps: a Gaussian straight behind the camera straddles the
+/// left and right edges and renders exactly as the same Gaussian straight
+/// ahead, shifted by half the width (on the GPU in every blend variant and in
+/// the twin), with a tile-multiple width and one whose last tile is partial;
+/// its depth is the distance from the camera. Both tile bounds.
+#[test]
+fn panorama_wraps_at_the_seam() {
+    let d = device();
+    let mut splatter = Splatter::new(&d).unwrap();
+    for (width, tile_bounds) in
+        [(256u32, TileBounds::Ellipse), (200, TileBounds::Ellipse), (200, TileBounds::Rectangle)]
+    {
+        let settings = SplatSettings {
+            channels: Channels { depth: true, ..Channels::default() },
+            rgb: false,
+            tile_bounds,
+            ..all_settings()
+        };
+        let cam = Camera::panorama(Vec3::ZERO, glam::Mat3::IDENTITY, width).unwrap();
+        assert_eq!(cam.wrap_period(), Some(width as f32));
+        let render = |scene: &Scene, splatter: &mut Splatter| {
+            let cpu = render_cpu(scene, &cam, &settings);
+            let mut outs = Vec::new();
+            for variant in blend_variants(&d) {
+                splatter.set_blend_variant(variant).unwrap();
+                let gpu_scene = GpuScene::upload(&d, scene).unwrap();
+                let g = splatter.render(&gpu_scene, &cam, &settings).unwrap().0.read(&d).unwrap();
+                compare_with(&g, &cpu, &format!("panorama_{width}_{variant:?}"), false);
+                outs.push(g);
+            }
+            (cpu, outs)
+        };
+        let (behind, behind_gpu) = render(&one_gaussian([0.0, 0.0, -4.0], -1.5, 3.0), &mut splatter);
+        let (ahead, _) = render(&one_gaussian([0.0, 0.0, 4.0], -1.5, 3.0), &mut splatter);
+        let (w, h) = (width as usize, (width / 2) as usize);
+        let at = |x: usize, y: usize| y * w + x;
+        let (mut worst, mut mass) = (0.0f32, 0.0f32);
+        for y in 0..h {
+            for x in 0..w {
+                let a = behind.alpha[at(x, y)];
+                let b = ahead.alpha[at((x + w / 2) % w, y)];
+                worst = worst.max((a - b).abs());
+                mass += a;
+            }
+        }
+        assert!(worst < 1e-5, "width {width}: behind vs ahead shifted by half differ by {worst}");
+        assert!(mass > 20.0, "width {width}: the blob covers only {mass} pixels of alpha");
+        for g in &behind_gpu {
+            let (left, right) = (g.alpha[at(0, h / 2)], g.alpha[at(w - 1, h / 2)]);
+            assert!(left > 0.5 && right > 0.5, "width {width}: both edges show the blob: {left} / {right}");
+            let z = g.get(Channel::Depth).unwrap()[at(0, h / 2)] / left;
+            assert!((z - 4.0).abs() < 1e-3, "width {width}: depth at the seam {z}, not the distance 4");
         }
     }
     assert_no_validation_messages(&d);
@@ -695,11 +758,16 @@ fn lens_blob_centroids_match_the_lens_projection() {
                         if (r[0] * r[0] + r[1] * r[1]).sqrt() > 80f64.to_radians().tan() {
                             continue;
                         }
-                        r
+                        [r[0], r[1], 1.0]
                     }
-                    _ => intr.unproject(px).unwrap(),
+                    // All around, behind the camera too.
+                    Lens::Equirectangular => cam.pixel_direction(px).unwrap(),
+                    _ => {
+                        let r = intr.unproject(px).unwrap();
+                        [r[0], r[1], 1.0]
+                    }
                 };
-                let dir = Vec3::new(ray[0] as f32, ray[1] as f32, 1.0).normalize();
+                let dir = Vec3::new(ray[0] as f32, ray[1] as f32, ray[2] as f32).normalize();
                 let p_cam = dir * 6.0;
                 let world = cam.position + cam.rotation * p_cam;
                 scene.means.push(world.to_array());

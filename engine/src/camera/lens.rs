@@ -66,6 +66,12 @@ pub enum Lens {
         /// sx1, sy1.
         s: [f64; 2],
     },
+    /// Equirectangular (COLMAP EQUIRECTANGULAR): longitude θ = atan2(x, z) and
+    /// latitude φ = atan2(y, √(x² + z²)) (y down) as the normalized
+    /// coordinates, so that u = fx·θ + cx, v = fy·φ + cy; every direction but
+    /// the camera centre is imaged, behind the camera too. With fx = width / 2π
+    /// the image is a full 360° panorama and wraps at its left and right edges.
+    Equirectangular,
 }
 
 /// The Jacobian (rows) of (u, v) ↦ (u, v)·g(u² + v²), given g and dg/d(r²).
@@ -103,8 +109,8 @@ pub struct Intrinsics {
 
 impl Intrinsics {
     /// The intrinsics of a COLMAP camera model with its parameters in COLMAP's
-    /// order; `None` for models not implemented here (thin-prism fisheye,
-    /// division, EUCM, equirectangular) or a wrong parameter count.
+    /// order (EQUIRECTANGULAR's w, h give fx = w / 2π, fy = h / π, cx = w / 2,
+    /// cy = h / 2); `None` for unknown models or a wrong parameter count.
     pub fn from_colmap(model: &str, p: &[f64]) -> Option<Intrinsics> {
         let single = |lens: Lens| Intrinsics { focal: [p[0], p[0]], centre: [p[1], p[2]], lens };
         let double = |lens: Lens| Intrinsics { focal: [p[0], p[1]], centre: [p[2], p[3]], lens };
@@ -135,6 +141,11 @@ impl Intrinsics {
             ("THIN_PRISM_FISHEYE", 12) => {
                 double(Lens::ThinPrismFisheye { k: [p[4], p[5], p[8], p[9]], p: [p[6], p[7]], s: [p[10], p[11]] })
             }
+            ("EQUIRECTANGULAR", 2) => Intrinsics {
+                focal: [p[0] / std::f64::consts::TAU, p[1] / std::f64::consts::PI],
+                centre: [p[0] * 0.5, p[1] * 0.5],
+                lens: Lens::Equirectangular,
+            },
             _ => return None,
         })
     }
@@ -167,6 +178,7 @@ impl Lens {
             Lens::Division { .. } => Some(6),
             Lens::ThinPrismFisheye { .. } => Some(7),
             Lens::RadTanThinPrismFisheye { .. } => Some(8),
+            Lens::Equirectangular => Some(9),
         }
     }
 
@@ -202,7 +214,7 @@ impl Lens {
             Lens::Eucm { alpha, beta } => [[alpha as f32, beta as f32, 0.0, 0.0], [0.0; 4]],
             Lens::Division { k } => [[k as f32, 0.0, 0.0, 0.0], [0.0; 4]],
             Lens::ThinPrismFisheye { k, p, s } => [k.map(|v| v as f32), [p[0], p[1], s[0], s[1]].map(|v| v as f32)],
-            Lens::Pinhole => [[0.0; 4]; 2],
+            Lens::Pinhole | Lens::Equirectangular => [[0.0; 4]; 2],
         }
     }
 
@@ -230,7 +242,7 @@ impl Lens {
             .map(|[u, v]| (u * u + v * v).sqrt())
             .fold(0.0f64, f64::max);
         match *self {
-            Lens::Pinhole => f64::INFINITY,
+            Lens::Pinhole | Lens::Equirectangular => f64::INFINITY,
             // r·g(r) grows without folding: as far as the image reaches, with margin.
             Lens::Fov { .. }
             | Lens::Eucm { .. }
@@ -271,6 +283,13 @@ impl Lens {
         None
     }
 
+    /// The unit camera-space direction of equirectangular coordinates (θ, φ).
+    pub fn equirectangular_direction([theta, phi]: [f64; 2]) -> [f64; 3] {
+        let (st, ct) = theta.sin_cos();
+        let (sp, cp) = phi.sin_cos();
+        [cp * st, sp, cp * ct]
+    }
+
     /// Whether it is the plain pinhole.
     pub fn is_pinhole(&self) -> bool {
         *self == Lens::Pinhole
@@ -281,6 +300,16 @@ impl Lens {
     pub fn jacobian(&self, p: [f64; 3]) -> Option<[[f64; 3]; 2]> {
         let [x, y, z] = p;
         match *self {
+            Lens::Equirectangular => {
+                let h2 = x * x + z * z;
+                let rho2 = h2 + y * y;
+                let h = h2.sqrt();
+                if h <= 1e-12 * rho2.sqrt() || rho2 == 0.0 {
+                    return None;
+                }
+                // θ = atan2(x, z), φ = atan2(y, h), h = √(x² + z²).
+                Some([[z / h2, 0.0, -x / h2], [-x * y / (rho2 * h), h / rho2, -z * y / (rho2 * h)]])
+            }
             Lens::Eucm { alpha, beta } => {
                 let rho = (beta * (x * x + y * y) + z * z).sqrt();
                 let den = alpha * rho + (1.0 - alpha) * z;
@@ -500,6 +529,10 @@ impl Lens {
     pub fn distort_within(&self, p: [f64; 3], limit: f64) -> Option<[f64; 2]> {
         let [x, y, z] = p;
         match *self {
+            Lens::Equirectangular => {
+                let h = x.hypot(z);
+                (h + y.abs() > 0.0).then(|| [x.atan2(z), y.atan2(h)])
+            }
             Lens::Pinhole
             | Lens::RadialTangential { .. }
             | Lens::Fov { .. }
@@ -539,6 +572,7 @@ impl Lens {
     fn distort_plane(&self, [u, v]: [f64; 2]) -> [f64; 2] {
         match *self {
             Lens::Pinhole | Lens::Fisheye { .. } => [u, v],
+            Lens::Equirectangular => [u.atan(), v.atan2(u.hypot(1.0))],
             Lens::RadialTangential { k, p } => {
                 let (u2, v2, uv) = (u * u, v * v, u * v);
                 let r2 = u2 + v2;
@@ -578,6 +612,11 @@ impl Lens {
     pub fn undistort(&self, d: [f64; 2]) -> Option<[f64; 2]> {
         match *self {
             Lens::Pinhole => Some(d),
+            Lens::Equirectangular => {
+                // In front of the camera only ([`Lens::equirectangular_direction`] gives every ray).
+                let [x, y, z] = Self::equirectangular_direction(d);
+                (z > 1e-12).then(|| [x / z, y / z])
+            }
             Lens::Division { k } => {
                 let s = 1.0 + k * (d[0] * d[0] + d[1] * d[1]);
                 (s > 0.0).then(|| [d[0] / s, d[1] / s])
@@ -658,12 +697,13 @@ mod tests {
             Lens::Division { k: -0.2 },
             Lens::Division { k: 0.05 },
             Lens::Pinhole,
+            Lens::Equirectangular,
         ];
-        let points = [[0.3, -0.2, 1.5], [1e-7, 2e-7, 3.0], [-2.0, 1.0, 0.4], [5.0, 0.1, 0.05]];
+        let points = [[0.3, -0.2, 1.5], [1e-7, 2e-7, 3.0], [-2.0, 1.0, 0.4], [5.0, 0.1, 0.05], [-1.0, 3.0, -2.0]];
         let mut tested = 0;
         for lens in lenses {
             for p in points {
-                if !matches!(lens, Lens::Fisheye { .. }) && p[2] < 0.1 {
+                if !matches!(lens, Lens::Fisheye { .. } | Lens::Equirectangular) && p[2] < 0.1 {
                     continue;
                 }
                 // Outside a model's domain both are undefined (the division model past 4 k r² = 1).
@@ -690,6 +730,6 @@ mod tests {
                 }
             }
         }
-        assert!(tested >= 25, "only {tested} lens-point pairs had a Jacobian");
+        assert!(tested >= 28, "only {tested} lens-point pairs had a Jacobian");
     }
 }

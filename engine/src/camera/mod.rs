@@ -54,9 +54,9 @@ pub struct Camera {
     pub position: Vec3,
     /// Projection.
     pub projection: Projection,
-    /// Near plane distance (camera z).
+    /// Near plane distance (camera z; equirectangular: distance from the centre).
     pub near: f32,
-    /// Far plane distance (camera z).
+    /// Far plane distance (camera z; equirectangular: distance from the centre).
     pub far: f32,
     /// The lens between the camera-space ray and [`Camera::projection`]'s
     /// intrinsics (pinhole cameras: [`lens::Lens::Pinhole`]). Splatting renders
@@ -128,11 +128,16 @@ impl Camera {
     /// The camera-space direction through pixel position `px`: (u, v, 1), the
     /// pixel's undistorted normalized coordinates, in front of the camera
     /// (orthographic: (0, 0, 1)); a fisheye pixel past 90° off axis gets its
-    /// true direction (sin θ · radial, cos θ), whose z is ≤ 0. `None` where the
-    /// lens sends no ray through the pixel.
+    /// true direction (sin θ · radial, cos θ), whose z is ≤ 0; an
+    /// equirectangular pixel its unit direction (its depth is the ray
+    /// distance). `None` where the lens sends no ray through the pixel.
     pub fn pixel_direction(&self, px: [f64; 2]) -> Option<[f64; 3]> {
         match self.projection {
             Projection::Orthographic { .. } => Some([0.0, 0.0, 1.0]),
+            Projection::Pinhole { fx, fy, cx, cy } if self.lens == lens::Lens::Equirectangular => {
+                let d = [(px[0] - f64::from(cx)) / f64::from(fx), (px[1] - f64::from(cy)) / f64::from(fy)];
+                Some(lens::Lens::equirectangular_direction(d))
+            }
             Projection::Pinhole { fx, fy, cx, cy } if matches!(self.lens, lens::Lens::Fisheye { .. }) => {
                 let lens::Lens::Fisheye { k } = self.lens else { return None };
                 let d = [(px[0] - f64::from(cx)) / f64::from(fx), (px[1] - f64::from(cy)) / f64::from(fy)];
@@ -158,18 +163,38 @@ impl Camera {
 
     /// The distance along the ray through pixel position `px` per unit of
     /// camera depth: √(u² + v² + 1) with (u, v) the pixel's undistorted
-    /// normalized coordinates (1 for orthographic cameras); `None` where the
-    /// lens sends no ray through it. Multiplies a depth channel into a
-    /// ray-distance (range) channel, as lidar measures.
+    /// normalized coordinates (1 for orthographic and equirectangular cameras,
+    /// whose depth is the ray distance); `None` where the lens sends no ray
+    /// through it. Multiplies a depth channel into a ray-distance (range)
+    /// channel, as lidar measures.
     pub fn ray_length_per_depth(&self, px: [f64; 2]) -> Option<f64> {
         match self.projection {
             Projection::Orthographic { .. } => Some(1.0),
+            Projection::Pinhole { .. } if self.lens == lens::Lens::Equirectangular => Some(1.0),
             Projection::Pinhole { .. } => {
                 let [u, v, w] = self.pixel_direction(px)?;
                 // Past 90° off axis no depth reaches the pixel.
                 (w > 0.0).then(|| (u * u + v * v + w * w).sqrt() / w)
             }
         }
+    }
+
+    /// For a full 360° equirectangular camera (2π·fx within half a pixel of
+    /// the width): the width, the period at which its image wraps; `None` otherwise.
+    pub fn wrap_period(&self) -> Option<f32> {
+        match self.projection {
+            Projection::Pinhole { fx, .. } if self.lens == lens::Lens::Equirectangular => {
+                let period = std::f32::consts::TAU * fx;
+                ((period - self.width as f32).abs() <= 0.5).then_some(self.width as f32)
+            }
+            _ => None,
+        }
+    }
+
+    /// Whether depth is the distance from the camera centre rather than camera
+    /// z (equirectangular cameras, which see behind themselves).
+    pub fn depth_is_distance(&self) -> bool {
+        self.lens == lens::Lens::Equirectangular && matches!(self.projection, Projection::Pinhole { .. })
     }
 
     /// How far off axis splatting images through the lens ([`lens::Lens::imaging_limit`]).
@@ -194,7 +219,7 @@ impl Camera {
                 format!("camera \"{}\" with lens {:?}", self.name, self.lens),
                 format!(
                     "{what} handles pinhole cameras only so far (splatting, shadows and shading render \
-                     radial-tangential and fisheye lenses)"
+                     every lens model)"
                 ),
             ))
         }
@@ -342,6 +367,35 @@ impl Camera {
         Ok(camera)
     }
 
+    /// A full 360° × 180° equirectangular panorama `width` × `width / 2`
+    /// pixels at `eye`, its centre column looking along `rotation`'s z axis
+    /// (camera-to-world, OpenCV axes: y down), as COLMAP's EQUIRECTANGULAR
+    /// with w = width, h = height.
+    pub fn panorama(eye: Vec3, rotation: Mat3, width: u32) -> Result<Self> {
+        let height = width / 2;
+        let (w, h) = (width as f32, height as f32);
+        let camera = Self {
+            name: String::new(),
+            width,
+            height,
+            rotation,
+            position: eye,
+            projection: Projection::Pinhole {
+                fx: w / std::f32::consts::TAU,
+                fy: h / std::f32::consts::PI,
+                cx: w * 0.5,
+                cy: h * 0.5,
+            },
+            near: DEFAULT_NEAR,
+            far: DEFAULT_FAR,
+            lens: lens::Lens::Equirectangular,
+        };
+        camera
+            .validate()
+            .map_err(|e| Error::invalid(format!("panorama {width} pixels wide at {eye}"), e.to_string()))?;
+        Ok(camera)
+    }
+
     /// An orthographic camera at `eye` looking along `direction`, covering
     /// `extent_x` × `extent_y` world units with a `width` × `height` image
     /// (the sun's shadow-map camera). Depth runs from `near` to `far` along `direction`.
@@ -402,9 +456,18 @@ impl Camera {
         self.rotation.transpose() * (p - self.position)
     }
 
-    /// Camera coordinates to pixel coordinates (no clipping).
+    /// Camera coordinates to pixel coordinates (no clipping), through the lens
+    /// (NaN where the lens images nothing).
     pub fn project(&self, p: Vec3) -> Vec2 {
         match self.projection {
+            Projection::Pinhole { fx, fy, cx, cy } if !self.lens.is_pinhole() => {
+                let intr = lens::Intrinsics {
+                    focal: [f64::from(fx), f64::from(fy)],
+                    centre: [f64::from(cx), f64::from(cy)],
+                    lens: self.lens,
+                };
+                intr.project(p.as_dvec3().to_array()).map_or(Vec2::NAN, |[u, v]| Vec2::new(u as f32, v as f32))
+            }
             Projection::Pinhole { fx, fy, cx, cy } => Vec2::new(fx * p.x / p.z + cx, fy * p.y / p.z + cy),
             Projection::Orthographic { sx, sy, cx, cy } => Vec2::new(sx * p.x + cx, sy * p.y + cy),
         }
@@ -418,10 +481,12 @@ impl Camera {
         }
     }
 
-    /// Whether a world point projects inside the image and in front of the camera.
+    /// Whether a world point projects inside the image and in front of the
+    /// camera (between the near and far planes).
     pub fn sees(&self, p: Vec3) -> bool {
         let c = self.world_to_camera(p);
-        if c.z <= self.near || c.z >= self.far {
+        let depth = if self.depth_is_distance() { c.length() } else { c.z };
+        if depth <= self.near || depth >= self.far {
             return false;
         }
         let px = self.project(c);

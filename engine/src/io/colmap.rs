@@ -6,11 +6,10 @@
 //! quaternion w, x, y, z and translation) and its camera. COLMAP's camera
 //! axes and pixel convention (x right, y down, z forward; pixel centres at
 //! +0.5) are srug's, so a pose converts exactly: rotation Rᵀ, centre −Rᵀt.
-//! Every COLMAP camera model (ids 0-17, as COLMAP 4 writes them) is parsed;
-//! the pinhole, radial-tangential (SIMPLE_RADIAL, RADIAL, OPENCV,
-//! FULL_OPENCV) and fisheye (OPENCV_FISHEYE, SIMPLE_RADIAL_FISHEYE,
-//! RADIAL_FISHEYE, SIMPLE_FISHEYE, FISHEYE) models become srug cameras with
-//! their [`Lens`]; the others are refused naming the camera and its model.
+//! Every COLMAP camera model (ids 0-17, as COLMAP 4 writes them) is parsed
+//! and becomes a srug camera with its [`Lens`] (EQUIRECTANGULAR's w, h become
+//! fx = w / 2π, fy = h / π, cx = w / 2, cy = h / 2); an unknown model or a
+//! wrong parameter count is refused naming the camera and its model.
 //! Images come out sorted by name.
 
 use std::path::{Path, PathBuf};
@@ -317,8 +316,8 @@ fn intrinsics(c: &ColmapCamera, origin: &str) -> Result<(f64, f64, f64, f64, Len
     let named: Vec<String> = c.model.params.iter().zip(&c.params).map(|(n, v)| format!("{n}={v}")).collect();
     let refuse = || {
         at(format!(
-            "model {} ({}) is a lens srug does not render (it renders pinhole, radial-tangential and fisheye \
-             models); undistort the images first (colmap image_undistorter writes PINHOLE cameras)",
+            "model {} ({}) is a lens srug does not render; undistort the images first (colmap \
+             image_undistorter writes PINHOLE cameras)",
             c.model.name,
             named.join(", ")
         ))

@@ -2,8 +2,11 @@
 //!
 //! Intrinsics are shared at the top level (`fl_x`, `fl_y`, `cx`, `cy`, `w`,
 //! `h`, or instant-ngp's `camera_angle_x`/`camera_angle_y`) and may be
-//! overridden per frame; `camera_model` (PINHOLE, OPENCV, OPENCV_FISHEYE) and the distortion fields (`k1`..`k4`,
-//! `p1`, `p2`) name the lens. Each frame's `transform_matrix` is
+//! overridden per frame; `camera_model` (PINHOLE, OPENCV, OPENCV_FISHEYE,
+//! EQUIRECTANGULAR) and the distortion fields (`k1`..`k4`, `p1`, `p2`) name
+//! the lens. nerfstudio's equirectangular focal lengths are in half-turns
+//! (longitude π·(x − cx)/fl_x, latitude π·(y − cy)/fl_y, so fl_x = w / 2 for a
+//! full panorama): srug's are those divided by π. Each frame's `transform_matrix` is
 //! camera-to-world in OpenGL axes (x right, y up, z back), turned here into
 //! srug's OpenCV axes by negating the y and z columns. Poses are taken as the
 //! file gives them; nerfstudio's `applied_transform` (the change it made from
@@ -92,12 +95,13 @@ fn frame(root: &Value, f: &Value, i: usize, origin: &str) -> Result<Camera, Scen
             Lens::RadialTangential { k: [c("k1"), c("k2"), c("k3"), 0.0, 0.0, 0.0], p: [c("p1"), c("p2")] }
         }
         "OPENCV_FISHEYE" => Lens::Fisheye { k: [c("k1"), c("k2"), c("k3"), c("k4")] },
+        "EQUIRECTANGULAR" => Lens::Equirectangular,
         other => {
             return Err(bad(
                 "camera_model",
                 format!(
-                    "{other}{} is a lens srug does not render (it renders PINHOLE, OPENCV with k1-k3, p1, p2, and \
-                     OPENCV_FISHEYE)",
+                    "{other}{} is a lens srug does not render (it renders PINHOLE, OPENCV with k1-k3, p1, p2, \
+                     OPENCV_FISHEYE and EQUIRECTANGULAR)",
                     if c("k4") != 0.0 { format!(" with k4={}", c("k4")) } else { String::new() }
                 ),
             ))
@@ -127,6 +131,8 @@ fn frame(root: &Value, f: &Value, i: usize, origin: &str) -> Result<Camera, Scen
             ),
         ));
     }
+    let (fx, fy) =
+        if lens == Lens::Equirectangular { (fx / std::f64::consts::PI, fy / std::f64::consts::PI) } else { (fx, fy) };
     let camera = Camera {
         name: f["file_path"].as_str().unwrap_or("").to_string(),
         width: w as u32,

@@ -14,7 +14,7 @@ use crate::scene::{sh_coefficients, Camera, Projection, Scene};
 pub struct CpuSplat {
     /// Pixel coordinates of the centre.
     pub mean: DVec2,
-    /// Camera z.
+    /// Camera z (equirectangular cameras: the distance).
     pub depth: f64,
     /// Activated opacity.
     pub opacity: f64,
@@ -24,8 +24,12 @@ pub struct CpuSplat {
     pub radius: f64,
     /// SH colour.
     pub color: DVec3,
-    /// Tile rectangle [x0, y0, x1, y1).
+    /// Tile rectangle [x0, y0, x1, y1) (x1 past the tile columns: a full
+    /// panorama's columns continuing at the left edge).
     pub rect: [u32; 4],
+    /// The period along x at which the image wraps (a full equirectangular
+    /// panorama's width), 0 where it does not.
+    pub wrap_period: f64,
     /// normal.xyz, roughness, albedo.rgb, metallic, ao, visibility.
     pub features: [f64; 10],
 }
@@ -119,7 +123,7 @@ impl Gaussian64 {
 pub struct Projected {
     /// Pixel coordinates of the centre.
     pub mean: DVec2,
-    /// Camera z.
+    /// Camera z (equirectangular cameras: the distance).
     pub depth: f64,
     /// Activated opacity.
     pub opacity: f64,
@@ -127,7 +131,7 @@ pub struct Projected {
     pub conic: [f64; 3],
     /// Radius in pixels.
     pub radius: f64,
-    /// Tile rectangle [x0, y0, x1, y1).
+    /// Tile rectangle [x0, y0, x1, y1) (x1 may pass the tile columns, see [`CpuSplat::rect`]).
     pub rect: [u32; 4],
 }
 
@@ -138,13 +142,14 @@ pub fn project(g: &Gaussian64, camera: &Camera, tile: u32) -> Option<Projected> 
     let w = r_c2w.transpose();
     let t = w * (g.mean - camera.position.as_dvec3());
     let (near, far) = (f64::from(camera.near), f64::from(camera.far));
-    if !(t.z > near && t.z < far) {
+    let depth = if camera.depth_is_distance() { t.length() } else { t.z };
+    if !(depth > near && depth < far) {
         return None;
     }
     let s = DVec3::new(g.log_scale.x.exp(), g.log_scale.y.exp(), g.log_scale.z.exp());
     let m = g.rotation_matrix() * DMat3::from_diagonal(s);
     let cov_cam = w * (m * m.transpose()) * w.transpose();
-    let (mean, j) =
+    let (mut mean, j) =
         if camera.lens.is_pinhole() { mean_and_jacobian(camera, t) } else { lens_mean_and_jacobian(camera, t)? };
     let cov2 = j * cov_cam * j.transpose();
     let (a, b, c) = (cov2.x_axis.x + 0.3, cov2.y_axis.x, cov2.y_axis.y + 0.3);
@@ -161,13 +166,33 @@ pub fn project(g: &Gaussian64, camera: &Camera, tile: u32) -> Option<Projected> 
     }
     let tiles = DVec2::new(f64::from(camera.width.div_ceil(tile)), f64::from(camera.height.div_ceil(tile)));
     let tile = f64::from(tile);
-    let lo = ((mean - radius) / tile).floor().clamp(DVec2::ZERO, tiles);
-    let hi = (((mean + radius) / tile).floor() + 1.0).clamp(DVec2::ZERO, tiles);
+    let mut lo = ((mean - radius) / tile).floor().clamp(DVec2::ZERO, tiles);
+    let mut hi = (((mean + radius) / tile).floor() + 1.0).clamp(DVec2::ZERO, tiles);
+    if let Some(period) = camera.wrap_period() {
+        // As the kernel: the mean wrapped into [0, period), columns past the
+        // right edge continuing at the left.
+        let period = f64::from(period);
+        mean.x -= period * (mean.x / period).floor();
+        let (mut a, mut b) = (mean.x - radius, mean.x + radius);
+        if a < 0.0 {
+            (a, b) = (a + period, b + period);
+        }
+        lo.x = (a / tile).floor();
+        hi.x = if b <= period {
+            ((b / tile).floor() + 1.0).min(tiles.x)
+        } else {
+            tiles.x + ((b - period) / tile).floor() + 1.0
+        };
+        if 2.0 * radius >= period {
+            (lo.x, hi.x) = (0.0, tiles.x);
+        }
+        hi.x = hi.x.min(lo.x + tiles.x);
+    }
     let rect = [lo.x as u32, lo.y as u32, hi.x as u32, hi.y as u32];
     if rect[2] <= rect[0] || rect[3] <= rect[1] {
         return None;
     }
-    Some(Projected { mean, depth: t.z, opacity: sigmoid(g.opacity_logit), conic, radius, rect })
+    Some(Projected { mean, depth, opacity: sigmoid(g.opacity_logit), conic, radius, rect })
 }
 
 /// Pixel position of camera point `t` and the projection's Jacobian (rows 0
@@ -303,13 +328,18 @@ pub(crate) fn preprocess_with(
         color,
         rect: pr.rect,
         features,
+        wrap_period: camera.wrap_period().map_or(0.0, f64::from),
     })
 }
 
 /// α of splat `s` at pixel centre `centre`: min(0.99, o·exp(−σ)); `None` where
 /// the blend skips it (σ < 0 or α < 1/255).
 pub(crate) fn splat_alpha(s: &CpuSplat, centre: DVec2) -> Option<f64> {
-    let d = s.mean - centre;
+    let mut d = s.mean - centre;
+    if s.wrap_period > 0.0 {
+        // The copy of the splat nearest the pixel.
+        d.x -= s.wrap_period * (d.x / s.wrap_period + 0.5).floor();
+    }
     let power = -0.5 * (s.conic[0] * d.x * d.x + s.conic[2] * d.y * d.y) - s.conic[1] * d.x * d.y;
     if power > 0.0 {
         return None;
@@ -362,8 +392,13 @@ pub fn tile_row_span(s: &CpuSplat, ty: u32, tile: u32) -> (u32, u32) {
 /// The tiles of row `ty` that list splat `s` under `bounds`.
 pub(crate) fn listed_columns(s: &CpuSplat, ty: u32, tile: u32, bounds: TileBounds) -> std::ops::Range<u32> {
     let (x0, x1) = match bounds {
-        TileBounds::Ellipse => tile_row_span(s, ty, tile),
-        TileBounds::Rectangle => (s.rect[0], s.rect[2]),
+        // A rectangle that wraps (past the last column) keeps whole rows.
+        TileBounds::Ellipse
+            if s.wrap_period == 0.0 || f64::from(s.rect[2]) <= (s.wrap_period / f64::from(tile)).ceil() =>
+        {
+            tile_row_span(s, ty, tile)
+        }
+        _ => (s.rect[0], s.rect[2]),
     };
     x0..x1
 }
@@ -378,7 +413,8 @@ pub(crate) fn tile_lists(splats: &[Option<CpuSplat>], camera: &Camera, tile: u32
         if let Some(s) = s {
             for ty in s.rect[1]..s.rect[3] {
                 for tx in listed_columns(s, ty, tile, bounds) {
-                    lists[ty as usize * tiles_x + tx as usize].push(((s.depth as f32).to_bits(), i));
+                    let tx = tx as usize % tiles_x;
+                    lists[ty as usize * tiles_x + tx].push(((s.depth as f32).to_bits(), i));
                 }
             }
         }

@@ -181,7 +181,7 @@ impl Splatter {
 
     /// The blend kernel for channel bits `bits`, `tile` and the texel path,
     /// from the device's kernel cache.
-    fn blend_kernel(&self, bits: u32, tile: u32, texel: bool) -> Result<Arc<Kernel>> {
+    fn blend_kernel(&self, bits: u32, tile: u32, texel: bool, wrap_x: bool) -> Result<Arc<Kernel>> {
         let pixels = if texel { self.blend_pixels } else { 1 };
         let info = match (self.blend_variant, texel) {
             (BlendVariant::PerPixel, _) => &kernels::SPLAT_BLEND_PORTABLE,
@@ -194,6 +194,9 @@ impl Splatter {
         if self.blend_variant == BlendVariant::SharedBatches {
             // 36 bytes of shared memory per staged splat: at most 256 (9 KiB).
             spec.push((1, SpecValue::U32((tile * tile).min(256))));
+        }
+        if wrap_x {
+            spec.push((3, SpecValue::Bool(true)));
         }
         if texel {
             // PIXELS per invocation along x: TILE / PIXELS invocations across.
@@ -355,7 +358,7 @@ impl Splatter {
             && n > 0
             && 4 * n <= max_texels
             && pairs <= max_texels;
-        let blend = self.blend_kernel(ch.blend_bits(settings.rgb), tile, texel)?;
+        let blend = self.blend_kernel(ch.blend_bits(settings.rgb), tile, texel, camera.wrap_period().is_some())?;
         let (sort, keys_kernel, ranges_kernel, blend) = (&self.sort, &*keys_kernel, &*self.ranges, &*blend);
         let outputs: Vec<&Buffer> = [&out.alpha]
             .into_iter()

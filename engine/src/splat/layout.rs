@@ -175,7 +175,7 @@ pub(super) fn camera_frame(camera: &Camera, frame: &mut FrameUniform) -> Result<
     if camera.lens.gpu_kind().is_none() || lensed && matches!(camera.projection, Projection::Orthographic { .. }) {
         return Err(Error::invalid(
             format!("camera \"{}\" with lens {:?}", camera.name, camera.lens),
-            "is not rendered (splatting renders pinhole, radial-tangential and fisheye cameras)",
+            "is not rendered (splatting renders pinhole cameras with every lens, and orthographic ones without)",
         ));
     }
     let p = camera.packed();
@@ -188,6 +188,10 @@ pub(super) fn camera_frame(camera: &Camera, frame: &mut FrameUniform) -> Result<
         Projection::Orthographic { .. } => [0.0, 0.0],
     };
     frame.clip = [camera.near, camera.far, limits[0], limits[1]];
+    if camera.depth_is_distance() {
+        // Equirectangular: no Jacobian clamp; z: the wrap period of a full panorama (0: none).
+        frame.clip = [camera.near, camera.far, camera.wrap_period().unwrap_or(0.0), 0.0];
+    }
     let eye = p.to_world.position;
     frame.eye = [eye[0], eye[1], eye[2], 0.0];
     let view = camera.rotation.z_axis;

@@ -31,7 +31,8 @@ struct WorldToCamera {
     vec4 lens2;        // x: 0 pinhole, 2 radial-tangential, 3 fisheye, 4 FOV (lens0.x: ω),
                        // 5 EUCM (lens0.xy: α, β), 6 division (lens0.x: k), 7 thin-prism
                        // fisheye (lens0: k1..k4, lens1: p1, p2, sx1, sy1), 8 rad-tan thin-prism
-                       // fisheye (lens0: k0..k3, lens1: k4, k5, p0, p1, lens3: s0..s3);
+                       // fisheye (lens0: k0..k3, lens1: k4, k5, p0, p1, lens3: s0..s3),
+                       // 9 equirectangular (no coefficients; depth is the distance);
                        // y: imaging limit (undistorted radius, or fisheye angle off axis)
     vec4 lens3;
 };
@@ -76,6 +77,17 @@ vec2 rad_tan_thin_prism(vec2 q, vec2 p, vec4 s, out mat2 T) {
 bool lens_project(WorldToCamera c, vec3 t, out vec2 d, out mat3 J) {
     float kind = c.lens2.x;
     J = mat3(0.0);
+    if (kind == 9.0) {
+        // Equirectangular: θ = atan2(x, z), φ = atan2(y, h), h = √(x² + z²).
+        float h2 = t.x * t.x + t.z * t.z;
+        float rho2 = h2 + t.y * t.y;
+        float h = sqrt(h2);
+        if (!(h > 1e-12 * sqrt(rho2))) return false;
+        d = vec2(atan(t.x, t.z), atan(t.y, h));
+        J[0][0] = t.z / h2; J[2][0] = -t.x / h2;
+        J[0][1] = -t.x * t.y / (rho2 * h); J[1][1] = h / rho2; J[2][1] = -t.z * t.y / (rho2 * h);
+        return true;
+    }
     if (kind == 3.0) {
         vec4 k = c.lens0;
         float r2 = t.x * t.x + t.y * t.y;
@@ -336,11 +348,13 @@ vec2 lens_undistort(CameraToWorld c, vec2 d) {
 
 // Camera-space direction through pixel px (pinhole and lenses): (u, v, 1)
 // in front of the camera; a fisheye pixel past 90° off axis gets its true
-// direction (sin θ · radial, cos θ), whose z is ≤ 0. CPU twin:
+// direction (sin θ · radial, cos θ), whose z is ≤ 0; an equirectangular
+// pixel its unit direction (depth is the distance there). CPU twin:
 // engine/src/camera/mod.rs `Camera::pixel_direction`.
 vec3 camera_pixel_direction(CameraToWorld c, vec2 px) {
     vec4 k = c.intrinsics;
     vec2 d = (px - k.zw) / k.xy;
+    if (c.lens2.x == 9.0) return vec3(cos(d.y) * sin(d.x), sin(d.y), cos(d.y) * cos(d.x));
     if (c.lens2.x == 3.0) {
         float rd = length(d);
         if (rd < 1e-12) return vec3(0.0, 0.0, 1.0);

@@ -8,7 +8,8 @@
 // Host mirror: engine/src/splat/mod.rs `FrameUniform` (its layout is checked against this block).
 layout(std140, set = 0, binding = 0) uniform Frame {
     WorldToCamera camera;
-    vec4 clip;         // near, far, Jacobian limit x, y (tan of the half fov × 1.3)
+    vec4 clip;         // near, far, Jacobian limit x, y (tan of the half fov × 1.3);
+                       // equirectangular: near, far (distances), wrap period (0: none), 0
     vec4 eye;          // camera centre
     vec4 view_dir;     // viewing direction (orthographic SH direction)
     vec4 background;   // rgb

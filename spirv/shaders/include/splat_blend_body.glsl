@@ -9,6 +9,8 @@
 // 256 rgb, 512 top Gaussian. Keep in sync with engine/src/splat/mod.rs `Channels::bits`, `RGB_BIT`
 // and `TOP_GAUSSIAN_BIT`.
 layout(constant_id = 0) const uint CHANNELS = 256u;
+// A full equirectangular panorama: offsets along x wrap at frame.clip.z (the width).
+layout(constant_id = 3) const bool WRAP_X = false;
 // Without rgb (shadow maps) no colour is read, blended or stored.
 const bool RGB = (CHANNELS & 256u) != 0u;
 // The index of the splat with the largest weight wᵢ = αᵢ Tᵢ (the first of equal ones), per pixel.
@@ -89,11 +91,21 @@ void accumulate(inout Accumulated acc, float alpha, float z, Contribution c, uin
     accumulate_select(acc, true, alpha, acc.T * (1.0 - alpha), z, c, g);
 }
 
+// The splat's head with its mean moved by whole periods to the copy nearest `centre` (WRAP_X).
+vec4 nearest_copy(vec4 head, vec2 centre) {
+    if (WRAP_X) {
+        float period = frame.clip.z;
+        head.x -= period * floor((head.x - centre.x) / period + 0.5);
+    }
+    return head;
+}
+
 // Blends splat g into `acc`; false once the pixel is done (T·(1−α) < 1e-4,
 // that splat excluded). Colour and features are loaded only when it contributes.
 bool blend_one(inout Accumulated acc, uint g, vec4 head, vec4 conic, vec2 centre) {
     float alpha, gauss;
     vec2 d;
+    head = nearest_copy(head, centre);
     if (!splat_alpha(head, conic, centre, alpha, gauss, d)) return true;
     if (acc.T * (1.0 - alpha) < 1e-4) return false;
     accumulate(acc, alpha, head.z, splat_contribution(g), g);
@@ -183,7 +195,7 @@ void main() {
             float alpha, gauss;
             vec2 d;
             vec2 centre = vec2(base + uvec2(k * STEP, 0u)) + 0.5;
-            bool hit = all(bvec2(live[k], splat_alpha(head, conic, centre, alpha, gauss, d)));
+            bool hit = all(bvec2(live[k], splat_alpha(nearest_copy(head, centre), conic, centre, alpha, gauss, d)));
             float next_T = acc[k].T * (1.0 - alpha);
             // Done once T·(1−α) < 1e-4, this splat excluded (as blend_one).
             bool stop = all(bvec2(hit, next_T < 1e-4));

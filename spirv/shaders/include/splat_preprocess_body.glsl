@@ -56,8 +56,12 @@ void main() {
     mat3 W = world_to_camera_rotation(frame.camera);
     vec3 t = W * p + frame.camera.translation.xyz;
     bool ortho = frame.camera.translation.w != 0.0;
+    // Equirectangular cameras see all around: depth is the distance, and a
+    // full panorama (clip.z: its width) wraps at its left and right edges.
+    bool equirect = frame.camera.lens2.x == 9.0;
     float near = frame.clip.x, far = frame.clip.y;
-    if (!(t.z > near && t.z < far)) { cull(i); return; }
+    float depth = equirect ? length(t) : t.z;
+    if (!(depth > near && depth < far)) { cull(i); return; }
 
     // 3D covariance.
     vec3 s = exp(vec3(LOG_SCALE(3 * i), LOG_SCALE(3 * i + 1), LOG_SCALE(3 * i + 2)));
@@ -114,10 +118,23 @@ void main() {
     vec2 tiles = vec2(frame.size.zw);
     vec2 lo = clamp(floor((mean - radius) / float(TILE)), vec2(0.0), tiles);
     vec2 hi = clamp(floor((mean + radius) / float(TILE)) + 1.0, vec2(0.0), tiles);
+    if (equirect && frame.clip.z > 0.0) {
+        // Columns past the right edge continue at the left: x1 may exceed
+        // tiles_x (the keys take x mod tiles_x); x0 < tiles_x, x1 − x0 ≤ tiles_x.
+        float period = frame.clip.z;
+        mean.x -= period * floor(mean.x / period);
+        float a = mean.x - radius, b = mean.x + radius;
+        if (a < 0.0) { a += period; b += period; }
+        lo.x = floor(a / float(TILE));
+        hi.x = b <= period ? min(floor(b / float(TILE)) + 1.0, tiles.x)
+                           : tiles.x + floor((b - period) / float(TILE)) + 1.0;
+        if (2.0 * radius >= period) { lo.x = 0.0; hi.x = tiles.x; }
+        hi.x = min(hi.x, lo.x + tiles.x);
+    }
     uvec4 rect = uvec4(uvec2(lo), uvec2(hi));
     uint count = (rect.z - rect.x) * (rect.w - rect.y);
-    vec4 head = vec4(mean, t.z, sigmoid(OPACITY_LOGIT(i)));
-    if (ELLIPSE_TILES && count != 0u) {
+    vec4 head = vec4(mean, depth, sigmoid(OPACITY_LOGIT(i)));
+    if (ELLIPSE_TILES && count != 0u && rect.z <= frame.size.z) {
         count = 0u;
         TileEllipse e = tile_ellipse(head, conic);
         for (uint ty = rect.y; ty < rect.w; ty++) {

@@ -113,21 +113,24 @@ lens_cases = [
     ("THIN_PRISM_FISHEYE", [350.0, 352.0, 700.0, 699.0, 0.01, -0.002, 0.001, -0.0005, 0.0003, -0.00004, 0.0008, -0.0006], 80),
     ("RAD_TAN_THIN_PRISM_FISHEYE", [350.0, 352.0, 700.0, 699.0, 0.01, -0.002, 0.0003, -0.00004, 0.00001, -0.000002,
                                     0.001, -0.0005, 0.0008, -0.0006, 0.0002, -0.0001], 80),
+    ("EQUIRECTANGULAR", [1400.0, 700.0], 180),
 ]
 lenses = []
 for name, params, max_deg in lens_cases:
-    cam = pycolmap.Camera(model=name, width=1400, height=1400, params=params)
+    cam = pycolmap.Camera(model=name, width=1400, height=700 if name == "EQUIRECTANGULAR" else 1400, params=params)
     pts, pix, rays = [], [], []
     for _ in range(40):
         theta = np.radians(rng.uniform(0, max_deg))
         phi = rng.uniform(0, 2 * np.pi)
         d = np.array([np.sin(theta) * np.cos(phi), np.sin(theta) * np.sin(phi), np.cos(theta)]) * rng.uniform(1, 50)
         px = cam.img_from_cam(d)
-        ray = cam.cam_from_img(px)
+        # Equirectangular pixels see behind the camera: the unit ray, not (x/z, y/z).
+        ray = cam.cam_ray_from_img(px) if name == "EQUIRECTANGULAR" else cam.cam_from_img(px)
         pts.append(list(map(float, d)))
         pix.append(list(map(float, px)))
         rays.append(list(map(float, ray)))
-    case = {"model": name, "params": params, "points": pts, "pixels": pix, "rays": rays}
+    case = {"model": name, "params": params, "points": pts, "pixels": pix,
+            "directions" if name == "EQUIRECTANGULAR" else "rays": rays}
     # OpenCV's own projection of the same points, for the models it defines.
     if cv2 is not None and name in ("OPENCV", "FULL_OPENCV", "OPENCV_FISHEYE"):
         fx, fy, cx, cy = params[:4]
