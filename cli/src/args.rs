@@ -243,6 +243,10 @@ pub struct CameraArgs {
     /// Look-at camera: horizontal field of view in degrees.
     #[arg(long, default_value_t = 60.0)]
     pub fov: f32,
+    /// Render each camera as a 360° × 180° equirectangular panorama WIDTH × WIDTH/2 from its
+    /// position, its view direction at the centre column (depth: distance from the camera).
+    #[arg(long, conflicts_with_all = ["size", "fov"])]
+    pub panorama: Option<u32>,
 }
 
 impl CameraArgs {
@@ -251,6 +255,10 @@ impl CameraArgs {
         let size = self.size.map(Size::pair);
         let mut cams = match (&self.cameras, &self.eye) {
             (Some(c), _) => io::read_cameras(c)?,
+            (None, Some(eye)) if self.panorama.is_some() => {
+                // Made a panorama below, like every camera.
+                vec![Camera::look_at(eye.0, self.target.0, self.up.0, 60.0, 2, 1)?]
+            }
             (None, Some(eye)) => {
                 let (w, h) = size.ok_or_else(|| Error::invalid("--eye", "needs --size"))?;
                 vec![Camera::look_at(eye.0, self.target.0, self.up.0, self.fov, w, h)?]
@@ -263,6 +271,13 @@ impl CameraArgs {
                 .into_iter()
                 .nth(i)
                 .ok_or_else(|| Error::invalid(format!("--index {i}"), format!("there are {n} cameras")))?];
+        }
+        if let Some(width) = self.panorama {
+            for c in &mut cams {
+                let pano = Camera::panorama(c.position, c.rotation, width)
+                    .map_err(|e| Error::invalid(format!("--panorama {width}"), e.to_string()))?;
+                *c = Camera { name: std::mem::take(&mut c.name), near: c.near, far: c.far, ..pano };
+            }
         }
         if let (Some((w, h)), Some(_)) = (size, &self.cameras) {
             for c in &mut cams {

@@ -854,6 +854,48 @@ fn render_takes_colmap_and_nerfstudio_cameras() {
     assert!(out.is_file());
 }
 
+/// `--panorama W`: each camera becomes a 360° × 180° equirectangular panorama
+/// W × W/2 whose depth is the distance (so range equals depth); a Gaussian
+/// ahead lands at the centre column, one behind at the left and right edges.
+#[test]
+fn render_writes_panoramas() {
+    let dir = tempfile::tempdir().unwrap();
+    let ply = dir.path().join("two.ply");
+    let mut text_ply = String::from("ply\nformat ascii 1.0\nelement vertex 2\n");
+    for p in ["x", "y", "z", "f_dc_0", "f_dc_1", "f_dc_2", "opacity", "scale_0", "scale_1", "scale_2"] {
+        text_ply += &format!("property float {p}\n");
+    }
+    text_ply += "property float rot_0\nproperty float rot_1\nproperty float rot_2\nproperty float rot_3\nend_header\n";
+    // Ahead (+y) at 3 m, behind at 5 m; opaque, 0.3 m across.
+    text_ply += "0 3 0 0.5 0.5 0.5 8 -1.2 -1.2 -1.2 1 0 0 0\n0 -5 0 0.5 0.5 0.5 8 -1.2 -1.2 -1.2 1 0 0 0\n";
+    std::fs::write(&ply, text_ply).unwrap();
+    let out = dir.path().join("pano.exr");
+    let args = ["render", ply.to_str().unwrap(), "--eye", "0,0,0", "--target", "0,1,0", "--panorama", "64"];
+    let o = srug(&[&args[..], &["--channels", "depth,range", "--out", out.to_str().unwrap()]].concat());
+    assert!(o.status.success(), "{}", text(&o));
+    let image = exr::prelude::read_all_flat_layers_from_file(&out).unwrap();
+    assert_eq!(image.attributes.display_window.size.0, 64);
+    assert_eq!(image.attributes.display_window.size.1, 32);
+    let floats = |name: &str| -> Vec<f32> {
+        let c = image.layer_data[0].channel_data.list.iter().find(|c| c.name.to_string() == name).unwrap();
+        match &c.sample_data {
+            exr::prelude::FlatSamples::F32(v) => v.clone(),
+            other => panic!("{name} is not a float channel: {other:?}"),
+        }
+    };
+    let (depth, range, alpha) = (floats("Z"), floats("range.Y"), floats("A"));
+    assert_eq!(depth, range, "a panorama's depth is already the distance");
+    for (x, distance) in [(32usize, 3.0f32), (31, 3.0), (0, 5.0), (63, 5.0)] {
+        let p = 16 * 64 + x;
+        assert!(alpha[p] > 0.5, "column {x}: alpha {}", alpha[p]);
+        let z = depth[p] / alpha[p];
+        assert!((z - distance).abs() < 0.01 * distance, "column {x}: depth {z}, want {distance}");
+    }
+    assert!(alpha[16 * 64 + 16] < 1e-3 && alpha[16 * 64 + 48] < 1e-3, "nothing to the sides");
+    let o = srug(&[&args[..6], &["--panorama", "1", "--out", out.to_str().unwrap()]].concat());
+    assert!(!o.status.success() && text(&o).contains("--panorama 1"), "{}", text(&o));
+}
+
 /// `srug render --ids`: integer PLY properties become exact 32-bit integer EXR
 /// channels holding each pixel's top Gaussian's id; −1 and empty pixels read 4294967295.
 #[test]

@@ -373,7 +373,9 @@ fn lens_models_match_pycolmap() {
                 assert!(d < 1e-6, "{model}: differs from OpenCV by {d} px at {p:?}");
             }
         }
-        assert!(worst_ray < 1e-7, "{model}: unprojection differs from pycolmap's by {worst_ray}");
+        // The panorama's directions come through a camera's f32 focal lengths: θ·2⁻²⁴ at θ up to π.
+        let ray_tolerance = if case.get("directions").is_some() { 1e-6 } else { 1e-7 };
+        assert!(worst_ray < ray_tolerance, "{model}: unprojection differs from pycolmap's by {worst_ray}");
         println!("{model:22} worst pixel {worst_px:.1e}, worst ray {worst_ray:.1e}");
     }
 }
