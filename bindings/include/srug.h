@@ -383,6 +383,39 @@ srug_status srug_renderer_set_camera_matrices(srug_renderer *renderer,
                                               const float *view,
                                               const float *projection);
 
+// Sets a camera of any COLMAP camera model: `model` names it as COLMAP does
+// (PINHOLE, SIMPLE_RADIAL, OPENCV, FULL_OPENCV, OPENCV_FISHEYE, FOV, EUCM,
+// DIVISION, THIN_PRISM_FISHEYE, RAD_TAN_THIN_PRISM_FISHEYE, EQUIRECTANGULAR,
+// ...) and `params` holds its `param_count` parameters in COLMAP's order, in
+// pixels of the renderer's image; `camera_to_world`, `near` and `far` as for
+// `srug_renderer_set_camera` (an equirectangular camera's near and far are
+// distances). A lens whose distortion folds back inside the image is refused.
+//
+// # Safety
+// `model` a NUL-terminated string; `params` valid for `param_count` double
+// reads; `camera_to_world` valid for 16 float reads.
+srug_status srug_renderer_set_camera_model(srug_renderer *renderer,
+                                           const char *model,
+                                           const double *params,
+                                           size_t param_count,
+                                           const float *camera_to_world,
+                                           float near,
+                                           float far);
+
+// Sets the camera to camera `index` of a cameras file: INRIA cameras.json, a
+// COLMAP sparse model (its folder or its cameras/images file, text or binary)
+// or a nerfstudio/instant-ngp transforms.json, detected from the content;
+// the camera's lens comes with it and its intrinsics are scaled to the
+// renderer's size. Writes the number of cameras the file holds to `count`
+// (NULL: not asked) on success.
+//
+// # Safety
+// `path` a NUL-terminated string; `count` NULL or valid for one write.
+srug_status srug_renderer_set_camera_from_file(srug_renderer *renderer,
+                                               const char *path,
+                                               size_t index,
+                                               size_t *count);
+
 // Sets a pinhole camera at `eye` looking at `target` with `up` roughly up in
 // the image, `fov_x_degrees` wide; near 0.01, far 10⁴.
 //

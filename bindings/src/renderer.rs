@@ -239,15 +239,16 @@ pub unsafe extern "C" fn srug_renderer_destroy(renderer: *mut srug_renderer) -> 
     })
 }
 
-pub(crate) fn set_camera(
-    r: &mut RendererObject,
+/// A pinhole camera of the renderer's size (not yet validated).
+fn renderer_camera(
+    r: &RendererObject,
     rotation: Mat3,
     position: Vec3,
     projection: Projection,
     near: f32,
     far: f32,
-) -> FfiResult {
-    let camera = Camera {
+) -> Camera {
+    Camera {
         name: "c-api".into(),
         width: r.width,
         height: r.height,
@@ -257,7 +258,18 @@ pub(crate) fn set_camera(
         near,
         far,
         lens: srug::camera::lens::Lens::Pinhole,
-    };
+    }
+}
+
+pub(crate) fn set_camera(
+    r: &mut RendererObject,
+    rotation: Mat3,
+    position: Vec3,
+    projection: Projection,
+    near: f32,
+    far: f32,
+) -> FfiResult {
+    let camera = renderer_camera(r, rotation, position, projection, near, far);
     camera.validate()?;
     r.camera = Some(camera);
     Ok(())
@@ -337,6 +349,103 @@ pub unsafe extern "C" fn srug_renderer_set_camera_matrices(
             let position = -(rotation * (flip * view.w_axis.truncate()));
             set_camera(r, rotation, position, Projection::Pinhole { fx, fy, cx, cy }, near, far)
         })
+    })
+}
+
+/// Sets a camera of any COLMAP camera model: `model` names it as COLMAP does
+/// (PINHOLE, SIMPLE_RADIAL, OPENCV, FULL_OPENCV, OPENCV_FISHEYE, FOV, EUCM,
+/// DIVISION, THIN_PRISM_FISHEYE, RAD_TAN_THIN_PRISM_FISHEYE, EQUIRECTANGULAR,
+/// ...) and `params` holds its `param_count` parameters in COLMAP's order, in
+/// pixels of the renderer's image; `camera_to_world`, `near` and `far` as for
+/// `srug_renderer_set_camera` (an equirectangular camera's near and far are
+/// distances). A lens whose distortion folds back inside the image is refused.
+///
+/// # Safety
+/// `model` a NUL-terminated string; `params` valid for `param_count` double
+/// reads; `camera_to_world` valid for 16 float reads.
+#[no_mangle]
+pub unsafe extern "C" fn srug_renderer_set_camera_model(
+    renderer: *mut srug_renderer,
+    model: *const c_char,
+    params: *const f64,
+    param_count: usize,
+    camera_to_world: *const f32,
+    near: f32,
+    far: f32,
+) -> srug_status {
+    guard("srug_renderer_set_camera_model", || {
+        // SAFETY: the caller's contract.
+        let (model, params, m) = unsafe {
+            (
+                text(model, "model")?,
+                slice(params, param_count, "params")?,
+                floats::<16>(camera_to_world, "camera_to_world")?,
+            )
+        };
+        if let Some(i) = params.iter().position(|v| !v.is_finite()) {
+            return Err(invalid(format!("params[{i}] is {} (values must be finite)", params[i])));
+        }
+        let intr = srug::camera::lens::Intrinsics::from_colmap(model, params).ok_or_else(|| {
+            invalid(format!(
+                "camera model {model} with {param_count} parameters is not a COLMAP model srug knows (names as \
+                 COLMAP writes them, parameters in its order)"
+            ))
+        })?;
+        let c2w = glam::Mat4::from_cols_array(&m);
+        let projection = Projection::Pinhole {
+            fx: intr.focal[0] as f32,
+            fy: intr.focal[1] as f32,
+            cx: intr.centre[0] as f32,
+            cy: intr.centre[1] as f32,
+        };
+        with_renderer(renderer, |r| {
+            let camera = Camera {
+                lens: intr.lens,
+                ..renderer_camera(r, Mat3::from_mat4(c2w), c2w.w_axis.truncate(), projection, near, far)
+            };
+            camera.validate()?;
+            r.camera = Some(camera);
+            Ok(())
+        })
+    })
+}
+
+/// Sets the camera to camera `index` of a cameras file: INRIA cameras.json, a
+/// COLMAP sparse model (its folder or its cameras/images file, text or binary)
+/// or a nerfstudio/instant-ngp transforms.json, detected from the content;
+/// the camera's lens comes with it and its intrinsics are scaled to the
+/// renderer's size. Writes the number of cameras the file holds to `count`
+/// (NULL: not asked) on success.
+///
+/// # Safety
+/// `path` a NUL-terminated string; `count` NULL or valid for one write.
+#[no_mangle]
+pub unsafe extern "C" fn srug_renderer_set_camera_from_file(
+    renderer: *mut srug_renderer,
+    path: *const c_char,
+    index: usize,
+    count: *mut usize,
+) -> srug_status {
+    guard("srug_renderer_set_camera_from_file", || {
+        // SAFETY: the caller's contract.
+        let path = unsafe { text(path, "path") }?;
+        let cameras = srug::io::read_cameras(std::path::Path::new(path))?;
+        let n = cameras.len();
+        let chosen = cameras
+            .into_iter()
+            .nth(index)
+            .ok_or_else(|| invalid(format!("camera index {index}: {path} holds {n} cameras")))?;
+        with_renderer(renderer, |r| {
+            let camera = chosen.resized(r.width, r.height);
+            camera.validate()?;
+            r.camera = Some(camera);
+            Ok(())
+        })?;
+        if !count.is_null() {
+            // SAFETY: non-null and valid for one write by the caller's contract.
+            unsafe { count.write_unaligned(n) };
+        }
+        Ok(())
     })
 }
 

@@ -93,6 +93,7 @@ fn demo_files(dir: &Path) -> (PathBuf, PathBuf) {
     text += &format!("\n{:e} {:e} 260 50\n", cam.near, cam.far);
     let camera = dir.join("camera.txt");
     std::fs::write(&camera, text).unwrap();
+    srug::io::write_cameras_json(dir.join("cameras.json"), &city.cameras).unwrap();
     (ply, camera)
 }
 
@@ -131,7 +132,7 @@ fn c_program_renders_the_demo_like_the_rust_api() {
     let (ply, camera) = demo_files(dir.path());
     let exe = build("render", dir.path());
     let out = dir.path().join("frame.rgba");
-    run(&exe, &[&ply, &camera, &out]);
+    run(&exe, &[&ply, &camera, &out, &dir.path().join("cameras.json")]);
     let c_frame = std::fs::read(&out).unwrap();
     let rust = rust_frame(&ply);
     assert_eq!(c_frame.len(), rust.len(), "frame sizes");

@@ -103,6 +103,14 @@ int main(int argc, char **argv) {
   c2w[0] = 1.0f;
   EXPECT(srug_renderer_set_camera(r, 50, 50, 32, 24, c2w, 1.0f, 0.5f), SRUG_ERROR_INVALID_ARGUMENT);
   EXPECT(srug_renderer_set_camera(r, -5, 50, 32, 24, c2w, 0.01f, 100.0f), SRUG_ERROR_INVALID_ARGUMENT);
+  const double folding[8] = {50, 50, 32, 24, -0.9, 0.0, 0.0, 0.0}; /* k1 = −0.9 folds inside the image */
+  EXPECT(srug_renderer_set_camera_model(r, "OPENCV", folding, 8, c2w, 0.01f, 100.0f), SRUG_ERROR_INVALID_ARGUMENT);
+  const double nan_params[4] = {50, NAN, 32, 24};
+  EXPECT(srug_renderer_set_camera_model(r, "PINHOLE", nan_params, 4, c2w, 0.01f, 100.0f), SRUG_ERROR_INVALID_ARGUMENT);
+  EXPECT(srug_renderer_set_camera_model(r, "PINHOLE", NULL, 4, c2w, 0.01f, 100.0f), SRUG_ERROR_NULL_POINTER);
+  EXPECT(srug_renderer_set_camera_model(r, NULL, folding, 4, c2w, 0.01f, 100.0f), SRUG_ERROR_NULL_POINTER);
+  EXPECT(srug_renderer_set_camera_from_file(r, NULL, 0, NULL), SRUG_ERROR_NULL_POINTER);
+  EXPECT(srug_renderer_set_camera_from_file(r, "/nonexistent/cameras.json", 0, NULL), SRUG_ERROR_IO);
   float ortho[16] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
   EXPECT(srug_renderer_set_camera_matrices(r, c2w, ortho), SRUG_ERROR_INVALID_ARGUMENT);
   EXPECT(srug_renderer_set_sun(r, 0.0f, 100.0f, white), SRUG_ERROR_INVALID_ARGUMENT);

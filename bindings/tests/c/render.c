@@ -69,8 +69,8 @@ static int max_difference(const unsigned char *a, const unsigned char *b, size_t
 }
 
 int main(int argc, char **argv) {
-  if (argc != 4) {
-    fprintf(stderr, "usage: %s SCENE.ply CAMERA.txt OUT.rgba\n", argv[0]);
+  if (argc != 5) {
+    fprintf(stderr, "usage: %s SCENE.ply CAMERA.txt OUT.rgba CAMERAS.json\n", argv[0]);
     return 2;
   }
   REQUIRE(srug_abi_version() == SRUG_ABI_VERSION);
@@ -266,6 +266,52 @@ int main(int argc, char **argv) {
   printf("camera from OpenGL matrices: max difference %d/255\n", diff);
   REQUIRE(diff <= 2); /* the matrices go through float rounding */
   free(from_matrices);
+  CHECK(srug_renderer_set_camera(r, fx, fy, cx, cy, c2w, near_plane, far_plane));
+
+  /* Any COLMAP camera model: PINHOLE is the same camera; OPENCV distorts it;
+     EQUIRECTANGULAR sees all around. */
+  const double pinhole[4] = {fx, fy, cx, cy};
+  CHECK(srug_renderer_set_camera_model(r, "PINHOLE", pinhole, 4, c2w, near_plane, far_plane));
+  CHECK(srug_renderer_render(r, scene));
+  unsigned char *from_model = read_rgba8(r, w, h);
+  REQUIRE(memcmp(from_model, image, pixels * 4) == 0);
+  free(from_model);
+  const double opencv[8] = {fx, fy, cx, cy, -0.2, 0.05, 0.001, -0.002};
+  CHECK(srug_renderer_set_camera_model(r, "OPENCV", opencv, 8, c2w, near_plane, far_plane));
+  CHECK(srug_renderer_render(r, scene));
+  unsigned char *distorted = read_rgba8(r, w, h);
+  diff = max_difference(image, distorted, pixels * 4);
+  printf("OPENCV lens: max difference from the pinhole %d/255\n", diff);
+  REQUIRE(diff > 32);
+  free(distorted);
+  const double panorama[2] = {(double)w, (double)h};
+  CHECK(srug_renderer_set_camera_model(r, "EQUIRECTANGULAR", panorama, 2, c2w, near_plane, far_plane));
+  CHECK(srug_renderer_render(r, scene));
+  float *pano_alpha = malloc(pixels * sizeof(float));
+  REQUIRE(pano_alpha != NULL);
+  CHECK(srug_renderer_read_channel(r, SRUG_CHANNEL_ALPHA, pano_alpha, pixels));
+  size_t pano_covered = 0;
+  for (size_t i = 0; i < pixels; i++) pano_covered += pano_alpha[i] > 0.5f;
+  printf("EQUIRECTANGULAR: %zu of %zu pixels covered\n", pano_covered, pixels);
+  REQUIRE(pano_covered > pixels / 3);
+  free(pano_alpha);
+  EXPECT(srug_renderer_set_camera_model(r, "NO_SUCH_MODEL", opencv, 8, c2w, near_plane, far_plane),
+         SRUG_ERROR_INVALID_ARGUMENT);
+  EXPECT(srug_renderer_set_camera_model(r, "OPENCV", opencv, 7, c2w, near_plane, far_plane),
+         SRUG_ERROR_INVALID_ARGUMENT);
+  /* A cameras file (here the demo's cameras.json): camera 0 is the camera above. */
+  size_t camera_count = 0;
+  CHECK(srug_renderer_set_camera_from_file(r, argv[4], 0, &camera_count));
+  printf("cameras file: %zu cameras\n", camera_count);
+  REQUIRE(camera_count >= 2);
+  CHECK(srug_renderer_render(r, scene));
+  unsigned char *from_file = read_rgba8(r, w, h);
+  diff = max_difference(image, from_file, pixels * 4);
+  printf("camera 0 from the file: max difference %d/255\n", diff);
+  REQUIRE(diff <= 2); /* the file holds decimal floats */
+  free(from_file);
+  EXPECT(srug_renderer_set_camera_from_file(r, argv[4], camera_count, NULL), SRUG_ERROR_INVALID_ARGUMENT);
+  EXPECT(srug_renderer_set_camera_from_file(r, argv[1], 0, NULL), SRUG_ERROR_INVALID_ARGUMENT); /* not cameras */
   CHECK(srug_renderer_set_camera(r, fx, fy, cx, cy, c2w, near_plane, far_plane));
 
   /* Two threads, two renderers, one context, rendering at once. */
