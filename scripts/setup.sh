@@ -2,7 +2,9 @@
 # Installs what srug needs on Debian 12 and is missing: the Vulkan loader,
 # lavapipe (mesa-vulkan-drivers), the Khronos validation layer, and Debian's
 # static shaderc/glslang/SPIRV-Tools libraries; gcc and python3 for the C API's
-# tests (C programs under AddressSanitizer) and its ctypes example; a TrueType
+# tests (C programs under AddressSanitizer) and its ctypes example, python3-venv
+# for the Python package's virtual environment (pip fetches maturin, numpy and
+# pytest from PyPI); a TrueType
 # font (fonts-dejavu-core) for the text of `srug bench trade`'s plot. Idempotent;
 # needs root (or sudo) only when something is missing. Rust (cargo) must already be installed.
 set -euo pipefail
@@ -10,7 +12,7 @@ set -euo pipefail
 packages=(
   libvulkan1 libvulkan-dev mesa-vulkan-drivers vulkan-validationlayers vulkan-tools
   libshaderc-dev glslang-dev spirv-tools pkg-config ca-certificates
-  gcc libc6-dev python3 fonts-dejavu-core
+  gcc libc6-dev python3 python3-venv fonts-dejavu-core
 )
 missing=()
 for p in "${packages[@]}"; do

@@ -226,8 +226,13 @@ pub struct CameraArgs {
     #[arg(long, conflicts_with_all = ["eye", "target", "up", "fov"])]
     pub cameras: Option<PathBuf>,
     /// Render only this camera (default: every camera, numbered outputs).
-    #[arg(long)]
+    #[arg(long, conflicts_with = "shard")]
     pub index: Option<usize>,
+    /// Render only shard I of N (0-based): the I-th of N contiguous, near-equal runs of the
+    /// cameras, for array jobs (Slurm, Kubernetes). Outputs keep each camera's number in the
+    /// whole list, so shards never overwrite each other.
+    #[arg(long)]
+    pub shard: Option<Shard>,
     /// Output size WxH (intrinsics scaled to match); required with look-at cameras.
     #[arg(long)]
     pub size: Option<Size>,
@@ -249,9 +254,51 @@ pub struct CameraArgs {
     pub panorama: Option<u32>,
 }
 
+/// `--shard I/N`: part I (0-based) of N.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Shard {
+    /// Which part, 0 ≤ index < count.
+    pub index: usize,
+    /// How many parts.
+    pub count: usize,
+}
+
+impl Shard {
+    /// The range of `n` items shard `index` of `count` takes: contiguous, sizes differing by at most one.
+    pub fn range(self, n: usize) -> std::ops::Range<usize> {
+        (self.index * n / self.count)..((self.index + 1) * n / self.count)
+    }
+}
+
+impl FromStr for Shard {
+    type Err = Error;
+    fn from_str(text: &str) -> Result<Self> {
+        let bad = || Error::invalid(format!("shard \"{text}\""), "is not I/N with 0 ≤ I < N");
+        let (i, n) = text.split_once('/').ok_or_else(bad)?;
+        let (index, count): (usize, usize) =
+            (i.trim().parse().map_err(|_| bad())?, n.trim().parse().map_err(|_| bad())?);
+        if index >= count {
+            return Err(bad());
+        }
+        Ok(Self { index, count })
+    }
+}
+
 impl CameraArgs {
     /// The cameras selected, resized to `--size` when given.
     pub fn resolve(&self) -> Result<Vec<Camera>> {
+        Ok(self.resolve_numbered()?.0.into_iter().map(|(_, c)| c).collect())
+    }
+
+    /// Whether outputs carry camera numbers: several cameras, or a shard of them.
+    pub fn numbers_outputs(&self, selected: usize) -> bool {
+        self.shard.is_some() || selected > 1
+    }
+
+    /// The cameras selected, each with its number in the whole list (what a
+    /// numbered output carries), resized to `--size` when given, and the
+    /// whole list's length.
+    pub fn resolve_numbered(&self) -> Result<(Vec<(usize, Camera)>, usize)> {
         let size = self.size.map(Size::pair);
         let mut cams = match (&self.cameras, &self.eye) {
             (Some(c), _) => io::read_cameras(c)?,
@@ -265,12 +312,25 @@ impl CameraArgs {
             }
             (None, None) => return Err(Error::invalid("camera", "give --cameras or --eye")),
         };
+        let n = cams.len();
+        let mut numbers: Vec<usize> = (0..n).collect();
         if let Some(i) = self.index {
-            let n = cams.len();
             cams = vec![cams
                 .into_iter()
                 .nth(i)
                 .ok_or_else(|| Error::invalid(format!("--index {i}"), format!("there are {n} cameras")))?];
+            numbers = vec![i];
+        }
+        if let Some(shard) = self.shard {
+            let range = shard.range(n);
+            if range.is_empty() {
+                return Err(Error::invalid(
+                    format!("--shard {}/{}", shard.index, shard.count),
+                    format!("is empty: there are only {n} cameras"),
+                ));
+            }
+            cams = cams.drain(range.clone()).collect();
+            numbers = range.collect();
         }
         if let Some(width) = self.panorama {
             for c in &mut cams {
@@ -291,7 +351,7 @@ impl CameraArgs {
                 *c = c.resized(w, h);
             }
         }
-        Ok(cams)
+        Ok((numbers.into_iter().zip(cams).collect(), n))
     }
 }
 

@@ -245,9 +245,23 @@ impl Device {
             ));
         }
         let mut out: Vec<T> = vec![T::zeroed(); (buffer.size / elem) as usize];
-        let dst: &mut [u8] = bytemuck::cast_slice_mut(&mut out);
+        self.read_buffer_into(buffer, &mut out)?;
+        Ok(out)
+    }
+
+    /// Reads a whole buffer back into `out`, which must hold exactly its bytes
+    /// (the staging copy is the only one: for callers that own the destination,
+    /// such as a numpy array).
+    pub fn read_buffer_into<T: Pod>(&self, buffer: &Buffer, out: &mut [T]) -> Result<()> {
+        let dst: &mut [u8] = bytemuck::cast_slice_mut(out);
+        if dst.len() as u64 != buffer.size {
+            return Err(Error::invalid(
+                format!("buffer {} ({} bytes)", buffer.name, buffer.size),
+                format!("cannot be read into {} bytes", dst.len()),
+            ));
+        }
         if dst.is_empty() {
-            return Ok(out);
+            return Ok(());
         }
         let chunk = STAGING_CHUNK.min(buffer.size);
         let mut staging =
@@ -257,7 +271,7 @@ impl Device {
             self.run(|rec| rec.copy(buffer, src, &staging, 0, part.len() as u64))?;
             part.copy_from_slice(&staging.mapped()?[..part.len()]);
         }
-        Ok(out)
+        Ok(())
     }
 }
 

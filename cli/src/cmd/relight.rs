@@ -169,7 +169,7 @@ fn relight(device: &Device, args: &RelightArgs) -> Result<()> {
     let RelightArgs { scene: scene_path, view, sun, env, shade, indirect, indirect_precision, out } = args;
     let precision = indirect_precision.unwrap_or_else(|| shade.preset.indirect_precision());
     let exr = output_is_exr(out)?;
-    let cams = view.resolve()?;
+    let (cams, all_cameras) = view.resolve_numbered()?;
     // With --sun-from-env the sun comes from the map, once it is loaded.
     let suns = if sun.sun_from_env { Vec::new() } else { sun.resolve()? };
     let settings = shade.settings()?;
@@ -208,8 +208,13 @@ fn relight(device: &Device, args: &RelightArgs) -> Result<()> {
     let mut written = RunOutputs::default();
     for (label, s) in &suns {
         let environment = lights.environment(s)?;
-        for (ci, cam) in cams.iter().enumerate() {
-            let target = if total > 1 { numbered(out, frame) } else { out.to_path_buf() };
+        for (number, cam) in &cams {
+            // A shard's frames keep their number in the whole run (sun-major), so shards never collide.
+            let target = match view.shard {
+                Some(_) => numbered(out, frame / cams.len() * all_cameras + number),
+                None if total > 1 => numbered(out, frame),
+                None => out.to_path_buf(),
+            };
             let relit = relighter.render(
                 &gpu_scene,
                 &attributes,
@@ -230,7 +235,7 @@ fn relight(device: &Device, args: &RelightArgs) -> Result<()> {
             let line = format!(
                 "{} camera {} {label}: {:.0} ms GPU{}",
                 target.display(),
-                view.index.unwrap_or(ci),
+                number,
                 relit.timings.total_seconds() * 1e3,
                 match (relit.shadow_pass_ran, relit.shadow_map_reused) {
                     (false, _) => " (no shadow pass)",

@@ -75,8 +75,8 @@ impl RenderArgs {
             ));
         }
         let rgb = !is_exr || channels.names_rgb;
-        let cams = view.resolve()?;
-        let index = view.index;
+        let (cams, _) = view.resolve_numbered()?;
+        let numbered_outputs = view.numbers_outputs(cams.len());
         let scene = io::read_scene(path)?;
         let id_values = if ids.is_empty() { Vec::new() } else { io::read_ply_ids(path, ids)? };
         let id_channels: Vec<(&str, &[u32])> =
@@ -102,8 +102,8 @@ impl RenderArgs {
             ProgressBar::hidden()
         };
         let mut written = RunOutputs::default();
-        for (i, cam) in cams.iter().enumerate() {
-            let target = if cams.len() > 1 { numbered(out, index.unwrap_or(i)) } else { out.clone() };
+        for (number, cam) in &cams {
+            let target = if numbered_outputs { numbered(out, *number) } else { out.clone() };
             let (gpu, stats) = splatter.render(&gpu_scene, cam, &settings)?;
             let g = gpu.read(&device)?;
             if is_exr {

@@ -1,0 +1,847 @@
+//! `srug._srug`: the native half of the `srug` Python package, PyO3 over the
+//! Rust library (not over the C ABI). The pure-Python half
+//! (`python/srug/__init__.py`) normalizes inputs (dtype, contiguity, shapes)
+//! and names the API; this module does the work.
+//!
+//! Invariants: arrays cross as C-contiguous numpy float32 (uint32 for ids);
+//! every output array is allocated once, filled straight from the GPU
+//! readback's staging copy and handed to numpy without another copy; the GIL
+//! is released while the GPU works (a progress callback re-acquires it); every
+//! srug error becomes `srug.Error` with its message and a `kind`; no panic
+//! crosses into Python (PyO3 turns one into `PanicException`, and nothing
+//! here unwraps user input).
+
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{Arc, Mutex, MutexGuard};
+
+use glam::{Mat3, Vec3};
+use numpy::{PyArray1, PyArrayMethods, PyReadonlyArrayDyn, PyUntypedArrayMethods};
+use pyo3::create_exception;
+use pyo3::exceptions::PyException;
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+
+use srug::camera::{Camera, Projection, DEFAULT_FAR, DEFAULT_NEAR};
+use srug::frame::{Preset, RelightSettings, Relighter};
+use srug::gpu::{Buffer, Device as GpuDevice, DeviceOptions, DeviceSelection};
+use srug::scene::activate::GpuScene;
+use srug::scene::Scene as HostScene;
+use srug::shade::{
+    BrdfLut, BrdfTable, EnvironmentMap, EnvironmentPrep, PrepareSettings, PreparedEnvironment, ProceduralSky,
+};
+use srug::shadow::Sun;
+use srug::splat::{Channel, Channels, SplatSettings, Splatter};
+
+create_exception!(
+    srug,
+    Error,
+    PyException,
+    "A srug error: the message says what and where; `kind` is one of invalid_argument, io, bad_file, \
+     environment, gpu, internal."
+);
+
+/// The `kind` of a srug error.
+fn kind(e: &srug::Error) -> &'static str {
+    match e {
+        srug::Error::Gpu(_) => "gpu",
+        srug::Error::InvalidArgument { .. } => "invalid_argument",
+        srug::Error::Internal(_) => "internal",
+        srug::Error::Scene(_) => "bad_file",
+        srug::Error::Environment { .. } => "environment",
+        srug::Error::Io { .. } => "io",
+    }
+}
+
+/// A srug error as `srug.Error` with its `kind`.
+fn py_err(e: srug::Error) -> PyErr {
+    let err = Error::new_err(e.to_string());
+    Python::attach(|py| {
+        // Setting an attribute on a fresh exception object cannot fail in practice; the message stays either way.
+        let _ = err.value(py).setattr("kind", kind(&e));
+    });
+    err
+}
+
+/// `srug.Error` of kind invalid_argument.
+fn invalid(what: impl Into<String>, why: impl Into<String>) -> PyErr {
+    py_err(srug::Error::invalid(what, why))
+}
+
+fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
+    // A panic while holding the lock leaves plain data behind: keep using it.
+    m.lock().unwrap_or_else(std::sync::PoisonError::into_inner)
+}
+
+/// A float32 array's shape and values, checked to be finite; `what` names it in errors.
+fn floats(a: &PyReadonlyArrayDyn<'_, f32>, what: &str) -> PyResult<(Vec<usize>, Vec<f32>)> {
+    let values = a
+        .as_slice()
+        .map_err(|_| invalid(what.to_string(), "is not a C-contiguous array (np.ascontiguousarray makes one)"))?
+        .to_vec();
+    if let Some(i) = values.iter().position(|v| !v.is_finite()) {
+        return Err(invalid(format!("{what} element {i}"), format!("is {} (values must be finite)", values[i])));
+    }
+    Ok((a.shape().to_vec(), values))
+}
+
+fn expect_shape(shape: &[usize], want: &[Option<usize>], what: &str) -> PyResult<()> {
+    let ok = shape.len() == want.len() && shape.iter().zip(want).all(|(s, w)| w.is_none_or(|w| *s == w));
+    if ok {
+        return Ok(());
+    }
+    let text: Vec<String> = want.iter().map(|w| w.map_or("N".to_string(), |w| w.to_string())).collect();
+    Err(invalid(format!("{what} of shape {shape:?}"), format!("must have shape ({})", text.join(", "))))
+}
+
+/// A point as Python receives it.
+type Point = (f32, f32, f32);
+
+static NEXT_DEVICE: AtomicU64 = AtomicU64::new(1);
+
+/// What relighting keeps between calls: the relighter's kernels, the
+/// environment preparation, the BRDF table and the last environments.
+struct RelightKit {
+    relighter: Relighter,
+    prep: EnvironmentPrep,
+    brdf: BrdfTable,
+    /// The procedural sky for (sun direction, intensity) as bits.
+    sky: Option<([u32; 4], PreparedEnvironment)>,
+    /// The last environment file and its preparation.
+    file: Option<(PathBuf, PreparedEnvironment)>,
+}
+
+impl RelightKit {
+    fn new(device: &GpuDevice) -> srug::Result<Self> {
+        let prep = EnvironmentPrep::new(device)?;
+        let brdf = prep.brdf_table(BrdfLut::default(), 129, 1024)?;
+        Ok(Self { relighter: Relighter::new(device)?, prep, brdf, sky: None, file: None })
+    }
+
+    /// The environment: a map file or prepared folder, else the procedural sky of the sun.
+    fn environment(&mut self, device: &GpuDevice, file: Option<&PathBuf>, sun: Option<&Sun>) -> srug::Result<()> {
+        match file {
+            Some(path) => {
+                if self.file.as_ref().is_none_or(|(p, _)| p != path) {
+                    let prepared = if path.is_dir() {
+                        PreparedEnvironment::load(device, path)?
+                    } else {
+                        self.prep.prepare(&EnvironmentMap::load(path)?, &PrepareSettings::default())?
+                    };
+                    self.file = Some((path.clone(), prepared));
+                }
+            }
+            None => {
+                // Without a sun the sky is made for one 10° below the horizon (dusk), as the C ABI does.
+                let (dir, power) = sun.map_or((Vec3::new(0.0, 0.985, -0.174), 1.0), |s| (s.direction, s.intensity[0]));
+                let key = [dir.x, dir.y, dir.z, power].map(f32::to_bits);
+                if self.sky.as_ref().is_none_or(|(k, _)| *k != key) {
+                    let sky = ProceduralSky::new(dir, power).render()?;
+                    self.sky = Some((key, self.prep.prepare(&sky, &PrepareSettings::default())?));
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+/// A Vulkan device with srug's kernels: renders and relights batches of cameras.
+///
+/// `Device(device=None, validation=None)`: `device` as the CLI's `--device`
+/// (an index from `srug devices`, "gpu", "cpu", or part of a name; None:
+/// `SRUG_DEVICE`, else automatic); `validation` runs the Khronos validation
+/// layer (None: `SRUG_VALIDATION`). Calls from several threads run at once,
+/// each with its own kernels' state.
+#[pyclass(frozen, module = "srug._srug")]
+struct Device {
+    id: u64,
+    device: GpuDevice,
+    splatters: Mutex<Vec<Splatter>>,
+    relighters: Mutex<Vec<RelightKit>>,
+    /// Per-camera stage timings (name, milliseconds) of the last render or relight.
+    timings: Mutex<Vec<Vec<(String, f64)>>>,
+}
+
+/// Where outputs go: one float32 array per channel, allocated once for the batch.
+struct Outputs {
+    arrays: Vec<(String, Vec<usize>, Output)>,
+}
+
+enum Output {
+    F32(Vec<f32>),
+    U32(Vec<u32>),
+}
+
+impl Outputs {
+    fn slot_f32(&mut self, name: &str, index: usize) -> Option<&mut [f32]> {
+        let (_, shape, out) = self.arrays.iter_mut().find(|(n, ..)| n == name)?;
+        let len = shape[1..].iter().product::<usize>();
+        match out {
+            Output::F32(v) => v.get_mut(index * len..(index + 1) * len),
+            Output::U32(_) => None,
+        }
+    }
+
+    fn slot_u32(&mut self, name: &str, index: usize) -> Option<&mut [u32]> {
+        let (_, shape, out) = self.arrays.iter_mut().find(|(n, ..)| n == name)?;
+        let len = shape[1..].iter().product::<usize>();
+        match out {
+            Output::U32(v) => v.get_mut(index * len..(index + 1) * len),
+            Output::F32(_) => None,
+        }
+    }
+
+    /// Hands the arrays to numpy (no copy) as a dict name → array.
+    fn into_dict(self, py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
+        let dict = PyDict::new(py);
+        for (name, shape, out) in self.arrays {
+            let array = match out {
+                Output::F32(v) => PyArray1::from_vec(py, v).reshape(shape)?.into_any(),
+                Output::U32(v) => PyArray1::from_vec(py, v).reshape(shape)?.into_any(),
+            };
+            dict.set_item(name, array)?;
+        }
+        Ok(dict)
+    }
+}
+
+/// One size for the whole batch (stacked outputs), or an error naming the first camera that differs.
+fn batch_size(cameras: &[Camera]) -> PyResult<(u32, u32)> {
+    let first = cameras.first().ok_or_else(|| invalid("cameras", "is empty"))?;
+    if let Some((i, c)) = cameras.iter().enumerate().find(|(_, c)| (c.width, c.height) != (first.width, first.height)) {
+        return Err(invalid(
+            format!("camera {i} (\"{}\", {}x{})", c.name, c.width, c.height),
+            format!(
+                "differs in size from camera 0 ({}x{}); a batch is stacked into one array: resize the cameras \
+                 (Cameras.resized) or render them in separate calls",
+                first.width, first.height
+            ),
+        ));
+    }
+    Ok((first.width, first.height))
+}
+
+/// Calls the progress callback with (done, total) under the GIL.
+fn report(progress: Option<&Py<PyAny>>, done: usize, total: usize) -> PyResult<()> {
+    match progress {
+        Some(cb) => Python::attach(|py| cb.call1(py, (done, total)).map(|_| ())),
+        None => Ok(()),
+    }
+}
+
+fn read_into(device: &GpuDevice, buffer: &Buffer, out: Option<&mut [f32]>) -> PyResult<()> {
+    match out {
+        Some(dst) => device.read_buffer_into(buffer, dst).map_err(|e| py_err(e.into())),
+        None => Ok(()),
+    }
+}
+
+impl Device {
+    fn take_splatter(&self) -> srug::Result<Splatter> {
+        match lock(&self.splatters).pop() {
+            Some(s) => Ok(s),
+            None => Splatter::new(&self.device),
+        }
+    }
+
+    fn take_relighter(&self) -> srug::Result<RelightKit> {
+        match lock(&self.relighters).pop() {
+            Some(k) => Ok(k),
+            None => RelightKit::new(&self.device),
+        }
+    }
+}
+
+#[pymethods]
+impl Device {
+    #[new]
+    #[pyo3(signature = (device = None, validation = None))]
+    fn new(py: Python<'_>, device: Option<String>, validation: Option<bool>) -> PyResult<Self> {
+        let options = DeviceOptions { selection: device.as_deref().map(DeviceSelection::parse), validation };
+        let device = py.detach(|| GpuDevice::new(&options)).map_err(|e| py_err(e.into()))?;
+        Ok(Self {
+            id: NEXT_DEVICE.fetch_add(1, Ordering::Relaxed),
+            device,
+            splatters: Mutex::new(Vec::new()),
+            relighters: Mutex::new(Vec::new()),
+            timings: Mutex::new(Vec::new()),
+        })
+    }
+
+    /// The device's name as its driver reports it.
+    #[getter]
+    fn name(&self) -> String {
+        self.device.info().name.clone()
+    }
+
+    /// Whether the Khronos validation layer runs.
+    #[getter]
+    fn validation(&self) -> bool {
+        self.device.validation_enabled()
+    }
+
+    /// Takes the validation layer's messages so far (empty when it is quiet or off).
+    fn take_validation_messages(&self) -> Vec<String> {
+        self.device.take_validation_messages()
+    }
+
+    /// GPU memory srug holds on this device: {"current_bytes": …, "peak_bytes": …}.
+    fn memory<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let m = self.device.memory_usage();
+        let d = PyDict::new(py);
+        d.set_item("current_bytes", m.current_bytes)?;
+        d.set_item("peak_bytes", m.peak_bytes)?;
+        Ok(d)
+    }
+
+    /// Per-camera GPU stage times of the last render or relight: a list (one per
+    /// camera) of lists of (stage name, milliseconds).
+    fn last_timings(&self) -> Vec<Vec<(String, f64)>> {
+        lock(&self.timings).clone()
+    }
+
+    /// Reads a scene file (any format srug reads, detected from the content) and uploads it.
+    fn load_scene(&self, py: Python<'_>, path: PathBuf) -> PyResult<Scene> {
+        let host = py.detach(|| srug::io::read_scene(&path)).map_err(py_err)?;
+        let scene = Scene { host: Arc::new(host), uploads: Mutex::new(Vec::new()) };
+        py.detach(|| scene.gpu(self)).map_err(py_err)?;
+        Ok(scene)
+    }
+
+    /// Renders every camera of `cameras` into G-buffer channels, stacked:
+    /// a dict name → array, (N, H, W, C) float32 for colour-like channels,
+    /// (N, H, W) for one-float ones, uint32 for "top_gaussian".
+    #[pyo3(signature = (scene, cameras, channels, background = (0.0, 0.0, 0.0), sh_degree = None, tile = 16, progress = None))]
+    #[allow(clippy::too_many_arguments, reason = "the Python keyword arguments of one call")]
+    fn render<'py>(
+        &self,
+        py: Python<'py>,
+        scene: &Scene,
+        cameras: &Cameras,
+        channels: Vec<String>,
+        background: (f32, f32, f32),
+        sh_degree: Option<u32>,
+        tile: u32,
+        progress: Option<Py<PyAny>>,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let cams = &cameras.cameras;
+        let (w, h) = batch_size(cams)?;
+        let blended: Vec<&str> = channels.iter().map(String::as_str).filter(|c| *c != "range").collect();
+        let mut set = Channels::parse(&blended.join(",")).map_err(py_err)?;
+        let rgb = channels.iter().any(|c| c == "rgb" || c == "all");
+        let range = channels.iter().any(|c| c == "range");
+        if let Some(c) = channels.iter().find(|c| c.contains(',')) {
+            return Err(invalid(format!("channel \"{c}\""), "is a list: give one name per item"));
+        }
+        // "range" is depth times each pixel's ray length per unit depth: it needs the depth channel.
+        let wants_depth = set.depth;
+        set.depth |= range;
+        let settings = SplatSettings {
+            background: [background.0, background.1, background.2],
+            channels: set,
+            rgb,
+            sh_degree,
+            tile,
+            ..SplatSettings::default()
+        };
+        let (n, p) = (cams.len(), (w as usize) * (h as usize));
+        let mut arrays = Vec::new();
+        let mut add = |name: &str, k: usize, ids: bool| {
+            let mut shape = vec![n, h as usize, w as usize];
+            if k > 1 {
+                shape.push(k);
+            }
+            let out = if ids { Output::U32(vec![u32::MAX; n * p]) } else { Output::F32(vec![0.0; n * p * k]) };
+            arrays.push((name.to_string(), shape, out));
+        };
+        if rgb {
+            add("rgb", 3, false);
+        }
+        add("alpha", 1, false);
+        for c in set.iter().filter(|c| *c != Channel::Depth || wants_depth) {
+            add(c.name(), c.floats(), false);
+        }
+        if set.top_gaussian {
+            add("top_gaussian", 1, true);
+        }
+        if range {
+            add("range", 1, false);
+        }
+        let mut outputs = Outputs { arrays };
+        let gpu_scene = py.detach(|| scene.gpu(self)).map_err(py_err)?;
+        let progress = progress.as_ref();
+        let timings = py.detach(|| -> PyResult<Vec<Vec<(String, f64)>>> {
+            let mut splatter = self.take_splatter().map_err(py_err)?;
+            let mut timings = Vec::with_capacity(n);
+            let mut depth_scratch = if range && !wants_depth { vec![0.0f32; p] } else { Vec::new() };
+            let result = (|| -> PyResult<()> {
+                for (i, cam) in cams.iter().enumerate() {
+                    let (g, stats) = splatter.render(&gpu_scene, cam, &settings).map_err(py_err)?;
+                    let d = &self.device;
+                    read_into(d, &g.alpha, outputs.slot_f32("alpha", i))?;
+                    if let Some(b) = &g.rgb {
+                        read_into(d, b, outputs.slot_f32("rgb", i))?;
+                    }
+                    for c in set.iter() {
+                        let Some(b) = g.get(c) else { continue };
+                        if c == Channel::Depth && !wants_depth {
+                            read_into(d, b, Some(&mut depth_scratch))?;
+                        } else {
+                            read_into(d, b, outputs.slot_f32(c.name(), i))?;
+                        }
+                    }
+                    if let (Some(b), Some(dst)) = (&g.top_gaussian, outputs.slot_u32("top_gaussian", i)) {
+                        d.read_buffer_into(b, dst).map_err(|e| py_err(e.into()))?;
+                    }
+                    if range {
+                        let depth: Vec<f32> = match outputs.slot_f32("depth", i) {
+                            Some(v) => v.to_vec(),
+                            None => depth_scratch.clone(),
+                        };
+                        if let Some(dst) = outputs.slot_f32("range", i) {
+                            for (px, (r, z)) in dst.iter_mut().zip(&depth).enumerate() {
+                                let centre = [(px % w as usize) as f64 + 0.5, (px / w as usize) as f64 + 0.5];
+                                *r = cam.ray_length_per_depth(centre).map_or(0.0, |s| (f64::from(*z) * s) as f32);
+                            }
+                        }
+                    }
+                    timings.push(stats.timings.stages.iter().map(|s| (s.name.clone(), s.seconds * 1e3)).collect());
+                    report(progress, i + 1, n)?;
+                }
+                Ok(())
+            })();
+            lock(&self.splatters).push(splatter);
+            result.map(|()| timings)
+        })?;
+        *lock(&self.timings) = timings;
+        outputs.into_dict(py)
+    }
+
+    /// Relights every camera of `cameras` (the scene needs an albedo
+    /// attribute) and returns (N, H, W, 3) float32: linear radiance over the
+    /// background (`output="radiance"`) or display values in [0, 1] after
+    /// exposure, tone map and sRGB (`output="display"`).
+    #[pyo3(signature = (scene, cameras, sun = None, sun_intensity = std::f32::consts::PI, preset = "balanced",
+                        environment = None, env_rotation = 0.0, env_intensity = 1.0, exposure = 0.0,
+                        output = "radiance", progress = None))]
+    #[allow(clippy::too_many_arguments, reason = "the Python keyword arguments of one call")]
+    fn relight<'py>(
+        &self,
+        py: Python<'py>,
+        scene: &Scene,
+        cameras: &Cameras,
+        sun: Option<(f32, f32)>,
+        sun_intensity: f32,
+        preset: &str,
+        environment: Option<PathBuf>,
+        env_rotation: f32,
+        env_intensity: f32,
+        exposure: f32,
+        output: &str,
+        progress: Option<Py<PyAny>>,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let cams = &cameras.cameras;
+        let (w, h) = batch_size(cams)?;
+        let display = match output {
+            "radiance" => false,
+            "display" => true,
+            other => return Err(invalid(format!("output \"{other}\""), "is not \"radiance\" or \"display\"")),
+        };
+        let sun = sun
+            .map(|(azimuth, elevation)| Sun::from_azimuth_elevation(azimuth, elevation, [sun_intensity; 3]))
+            .transpose()
+            .map_err(py_err)?;
+        let mut settings = RelightSettings::preset(Preset::parse(preset).map_err(py_err)?);
+        settings.shade.exposure_ev = exposure;
+        settings.shade.env_rotation_degrees = env_rotation;
+        settings.shade.env_intensity = env_intensity;
+        settings.validate().map_err(py_err)?;
+        let attributes = scene.host.attributes();
+        if !attributes.shadeable() {
+            return Err(invalid("scene", "has no albedo attribute, so it cannot be relit; render its colour instead"));
+        }
+        let bounds = scene.host.bounds().ok_or_else(|| invalid("scene", "is empty"))?;
+        let (n, p) = (cams.len(), (w as usize) * (h as usize));
+        let name = if display { "display" } else { "radiance" };
+        let mut outputs = Outputs {
+            arrays: vec![(name.to_string(), vec![n, h as usize, w as usize, 3], Output::F32(vec![0.0; n * p * 3]))],
+        };
+        let gpu_scene = py.detach(|| scene.gpu(self)).map_err(py_err)?;
+        let progress = progress.as_ref();
+        let timings = py.detach(|| -> PyResult<Vec<Vec<(String, f64)>>> {
+            let mut kit = self.take_relighter().map_err(py_err)?;
+            let mut timings = Vec::with_capacity(n);
+            let result = (|| -> PyResult<()> {
+                kit.environment(&self.device, environment.as_ref(), sun.as_ref()).map_err(py_err)?;
+                let RelightKit { relighter, brdf, sky, file, .. } = &mut kit;
+                let env = match (&environment, file.as_ref(), sky.as_ref()) {
+                    (Some(_), Some((_, e)), _) | (None, _, Some((_, e))) => e,
+                    _ => return Err(py_err(srug::Error::Internal("no environment was prepared".into()))),
+                };
+                for (i, cam) in cams.iter().enumerate() {
+                    let relit = relighter
+                        .render(&gpu_scene, &attributes, &bounds, cam, sun.as_ref(), env, brdf, &settings)
+                        .map_err(py_err)?;
+                    let dst = outputs.slot_f32(name, i);
+                    if (relit.shaded.width, relit.shaded.height) == (w, h) {
+                        let buffer = if display { &relit.shaded.display } else { &relit.shaded.radiance };
+                        read_into(&self.device, buffer, dst)?;
+                    } else {
+                        // A reduced render scale: brought back to the camera's size.
+                        let image = relit.shaded.read(&self.device).and_then(|s| s.resampled(w, h)).map_err(py_err)?;
+                        if let Some(dst) = dst {
+                            dst.copy_from_slice(if display { &image.display } else { &image.radiance });
+                        }
+                    }
+                    timings.push(relit.timings.stages.iter().map(|s| (s.name.clone(), s.seconds * 1e3)).collect());
+                    report(progress, i + 1, n)?;
+                }
+                Ok(())
+            })();
+            lock(&self.relighters).push(kit);
+            result.map(|()| timings)
+        })?;
+        *lock(&self.timings) = timings;
+        outputs.into_dict(py)
+    }
+
+    fn __repr__(&self) -> String {
+        format!("srug.Device(\"{}\")", self.device.info().name)
+    }
+}
+
+/// A scene of 3D Gaussians on the host, uploaded to each device on first use.
+#[pyclass(frozen, module = "srug._srug")]
+struct Scene {
+    host: Arc<HostScene>,
+    /// (device id, upload) for each device that rendered it.
+    uploads: Mutex<Vec<(u64, Arc<GpuScene>)>>,
+}
+
+impl Scene {
+    /// The scene on `device`, uploaded on first use.
+    fn gpu(&self, device: &Device) -> srug::Result<Arc<GpuScene>> {
+        let mut uploads = lock(&self.uploads);
+        if let Some((_, g)) = uploads.iter().find(|(id, _)| *id == device.id) {
+            return Ok(g.clone());
+        }
+        let g = Arc::new(GpuScene::upload(&device.device, &self.host)?);
+        uploads.push((device.id, g.clone()));
+        Ok(g)
+    }
+}
+
+#[pymethods]
+impl Scene {
+    /// Reads a scene file: INRIA PLY, compressed PLY, .splat, .spz, SOG or GLB (detected from the content).
+    #[staticmethod]
+    fn from_file(py: Python<'_>, path: PathBuf) -> PyResult<Self> {
+        let host = py.detach(|| srug::io::read_scene(&path)).map_err(py_err)?;
+        Ok(Self { host: Arc::new(host), uploads: Mutex::new(Vec::new()) })
+    }
+
+    /// A scene from arrays, gsplat's names and meanings: `means` (N, 3),
+    /// `quats` (N, 4) as w, x, y, z (normalized here), `scales` (N, 3) and
+    /// `opacities` (N,) activated (positive; in [0, 1], clamped to
+    /// [1e-6, 1 − 1e-6]) unless `activated=False` (then log-scales and
+    /// opacity logits, as INRIA PLY stores them), `sh` (N, K, 3) spherical
+    /// harmonics with K = 1, 4, 9 or 16.
+    #[staticmethod]
+    #[pyo3(signature = (means, quats, scales, opacities, sh, activated = true))]
+    fn from_arrays(
+        means: PyReadonlyArrayDyn<'_, f32>,
+        quats: PyReadonlyArrayDyn<'_, f32>,
+        scales: PyReadonlyArrayDyn<'_, f32>,
+        opacities: PyReadonlyArrayDyn<'_, f32>,
+        sh: PyReadonlyArrayDyn<'_, f32>,
+        activated: bool,
+    ) -> PyResult<Self> {
+        let (ms, m) = floats(&means, "means")?;
+        let n = ms.first().copied().unwrap_or(0);
+        expect_shape(&ms, &[Some(n), Some(3)], "means")?;
+        let (qs, q) = floats(&quats, "quats")?;
+        expect_shape(&qs, &[Some(n), Some(4)], "quats")?;
+        let (ss, s) = floats(&scales, "scales")?;
+        expect_shape(&ss, &[Some(n), Some(3)], "scales")?;
+        let (os, o) = floats(&opacities, "opacities")?;
+        expect_shape(&os, &[Some(n)], "opacities")?;
+        let (hs, sh) = floats(&sh, "sh")?;
+        expect_shape(&hs, &[Some(n), None, Some(3)], "sh")?;
+        let degree = match hs[1] {
+            1 => 0,
+            4 => 1,
+            9 => 2,
+            16 => 3,
+            k => return Err(invalid(format!("sh with {k} coefficients"), "must have 1, 4, 9 or 16 (degree 0 to 3)")),
+        };
+        if let Some(i) = q.chunks_exact(4).position(|r| r.iter().all(|v| *v == 0.0)) {
+            return Err(invalid(format!("quats row {i}"), "is zero (not a rotation)"));
+        }
+        let log_scales = if activated {
+            if let Some(i) = s.iter().position(|v| *v <= 0.0) {
+                return Err(invalid(format!("scales element {i}"), format!("is {} (activated scales are > 0)", s[i])));
+            }
+            s.iter().map(|v| v.ln()).collect::<Vec<f32>>()
+        } else {
+            s
+        };
+        let opacity_logits = if activated {
+            if let Some(i) = o.iter().position(|v| !(0.0..=1.0).contains(v)) {
+                return Err(invalid(format!("opacities element {i}"), format!("is {} (activated: 0 to 1)", o[i])));
+            }
+            o.iter().map(|v| v.clamp(1e-6, 1.0 - 1e-6)).map(|v| (v / (1.0 - v)).ln()).collect()
+        } else {
+            o
+        };
+        let host = HostScene {
+            means: m.chunks_exact(3).map(|r| [r[0], r[1], r[2]]).collect(),
+            log_scales: log_scales.chunks_exact(3).map(|r| [r[0], r[1], r[2]]).collect(),
+            rotations: q.chunks_exact(4).map(|r| [r[0], r[1], r[2], r[3]]).collect(),
+            opacity_logits,
+            sh_degree: degree,
+            sh,
+            ..HostScene::default()
+        };
+        host.validate("arrays").map_err(|e| py_err(e.into()))?;
+        Ok(Self { host: Arc::new(host), uploads: Mutex::new(Vec::new()) })
+    }
+
+    /// The number of Gaussians.
+    #[getter]
+    fn count(&self) -> usize {
+        self.host.len()
+    }
+
+    fn __len__(&self) -> usize {
+        self.host.len()
+    }
+
+    /// The spherical-harmonic degree stored.
+    #[getter]
+    fn sh_degree(&self) -> u32 {
+        self.host.sh_degree
+    }
+
+    /// Whether the scene can be relit (it has an albedo attribute).
+    #[getter]
+    fn relightable(&self) -> bool {
+        self.host.attributes().shadeable()
+    }
+
+    /// ((min x, y, z), (max x, y, z)) of the Gaussian centres; None when empty.
+    #[getter]
+    fn bounds(&self) -> Option<(Point, Point)> {
+        self.host.bounds().map(|b| ((b.min[0], b.min[1], b.min[2]), (b.max[0], b.max[1], b.max[2])))
+    }
+
+    fn __repr__(&self) -> String {
+        format!("srug.Scene({} Gaussians, SH degree {})", self.host.len(), self.host.sh_degree)
+    }
+}
+
+/// A list of cameras (pose, intrinsics, lens, image size).
+#[pyclass(frozen, module = "srug._srug")]
+struct Cameras {
+    cameras: Vec<Camera>,
+}
+
+#[pymethods]
+impl Cameras {
+    /// Cameras as gsplat takes them: `viewmats` (N, 4, 4) world-to-camera with
+    /// OpenCV axes (x right, y down, z forward), `ks` (N, 3, 3) pinhole
+    /// intrinsics in pixels (pixel centres at +0.5), one `width` × `height`.
+    #[new]
+    #[pyo3(signature = (viewmats, ks, width, height, near = DEFAULT_NEAR, far = DEFAULT_FAR, names = None))]
+    #[allow(clippy::too_many_arguments, reason = "the Python keyword arguments of one call")]
+    fn new(
+        viewmats: PyReadonlyArrayDyn<'_, f32>,
+        ks: PyReadonlyArrayDyn<'_, f32>,
+        width: u32,
+        height: u32,
+        near: f32,
+        far: f32,
+        names: Option<Vec<String>>,
+    ) -> PyResult<Self> {
+        let (vs, v) = floats(&viewmats, "viewmats")?;
+        let n = vs.first().copied().unwrap_or(0);
+        expect_shape(&vs, &[Some(n), Some(4), Some(4)], "viewmats")?;
+        let (kshape, k) = floats(&ks, "Ks")?;
+        expect_shape(&kshape, &[Some(n), Some(3), Some(3)], "Ks")?;
+        if n == 0 {
+            return Err(invalid("viewmats", "holds no camera"));
+        }
+        if let Some(names) = &names {
+            if names.len() != n {
+                return Err(invalid(format!("names ({} of them)", names.len()), format!("must name all {n} cameras")));
+            }
+        }
+        let mut cameras = Vec::with_capacity(n);
+        for i in 0..n {
+            let m = &v[16 * i..16 * i + 16];
+            let kk = &k[9 * i..9 * i + 9];
+            if m[12..16] != [0.0, 0.0, 0.0, 1.0] {
+                return Err(invalid(format!("viewmats[{i}]"), "has a last row other than (0, 0, 0, 1)"));
+            }
+            if kk[1] != 0.0 || kk[3] != 0.0 || kk[6..9] != [0.0, 0.0, 1.0] {
+                return Err(invalid(
+                    format!("Ks[{i}]"),
+                    "is not [[fx, 0, cx], [0, fy, cy], [0, 0, 1]] (skew is not supported)",
+                ));
+            }
+            // Row-major world-to-camera [R | t]: the camera-to-world rotation is Rᵀ, the centre −Rᵀt.
+            let r = Mat3::from_cols_array(&[m[0], m[1], m[2], m[4], m[5], m[6], m[8], m[9], m[10]]);
+            let t = Vec3::new(m[3], m[7], m[11]);
+            let camera = Camera {
+                name: names.as_ref().map_or_else(|| format!("camera_{i}"), |n| n[i].clone()),
+                width,
+                height,
+                rotation: r,
+                position: -(r * t),
+                projection: Projection::Pinhole { fx: kk[0], fy: kk[4], cx: kk[2], cy: kk[5] },
+                near,
+                far,
+                lens: srug::camera::lens::Lens::Pinhole,
+            };
+            camera.validate().map_err(|e| invalid(format!("camera {i}"), e.to_string()))?;
+            cameras.push(camera);
+        }
+        Ok(Self { cameras })
+    }
+
+    /// Reads a cameras file: INRIA cameras.json, a COLMAP sparse model (its
+    /// folder or its cameras/images file, text or binary) or a
+    /// nerfstudio/instant-ngp transforms.json (detected), lenses included.
+    #[staticmethod]
+    fn from_file(py: Python<'_>, path: PathBuf) -> PyResult<Self> {
+        let cameras = py.detach(|| srug::io::read_cameras(&path)).map_err(py_err)?;
+        Ok(Self { cameras })
+    }
+
+    /// The same cameras with images `width` × `height` (intrinsics scaled).
+    fn resized(&self, width: u32, height: u32) -> PyResult<Self> {
+        if width == 0 || height == 0 {
+            return Err(invalid(format!("size {width}x{height}"), "is empty"));
+        }
+        Ok(Self { cameras: self.cameras.iter().map(|c| c.resized(width, height)).collect() })
+    }
+
+    /// Each camera as a 360° × 180° equirectangular panorama `width` × `width / 2`
+    /// from its position (depth: the distance from the camera).
+    fn panoramas(&self, width: u32) -> PyResult<Self> {
+        let mut out = Vec::with_capacity(self.cameras.len());
+        for c in &self.cameras {
+            let p = Camera::panorama(c.position, c.rotation, width).map_err(py_err)?;
+            out.push(Camera { name: c.name.clone(), near: c.near, far: c.far, ..p });
+        }
+        Ok(Self { cameras: out })
+    }
+
+    /// The cameras at `indices`, in that order.
+    fn select(&self, indices: Vec<usize>) -> PyResult<Self> {
+        let n = self.cameras.len();
+        let mut out = Vec::with_capacity(indices.len());
+        for i in indices {
+            out.push(
+                self.cameras
+                    .get(i)
+                    .cloned()
+                    .ok_or_else(|| invalid(format!("camera index {i}"), format!("there are {n} cameras")))?,
+            );
+        }
+        Ok(Self { cameras: out })
+    }
+
+    fn __len__(&self) -> usize {
+        self.cameras.len()
+    }
+
+    /// The cameras' names (image names where the file has them).
+    #[getter]
+    fn names(&self) -> Vec<String> {
+        self.cameras.iter().map(|c| c.name.clone()).collect()
+    }
+
+    /// Each camera's (width, height).
+    #[getter]
+    fn sizes(&self) -> Vec<(u32, u32)> {
+        self.cameras.iter().map(|c| (c.width, c.height)).collect()
+    }
+
+    /// Each camera's lens, as `repr` text ("Pinhole", "RadialTangential { … }", "Equirectangular", …).
+    #[getter]
+    fn lenses(&self) -> Vec<String> {
+        self.cameras.iter().map(|c| format!("{:?}", c.lens)).collect()
+    }
+
+    /// (N, 4, 4) float32 world-to-camera matrices, OpenCV axes.
+    #[getter]
+    fn viewmats<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        let mut v = Vec::with_capacity(16 * self.cameras.len());
+        for c in &self.cameras {
+            let r = c.rotation.transpose();
+            let t = -(r * c.position);
+            for row in 0..3 {
+                v.extend([r.x_axis[row], r.y_axis[row], r.z_axis[row], t[row]]);
+            }
+            v.extend([0.0, 0.0, 0.0, 1.0]);
+        }
+        Ok(PyArray1::from_vec(py, v).reshape([self.cameras.len(), 4, 4])?.into_any())
+    }
+
+    /// (N, 3, 3) float32 intrinsics (fx, fy, cx, cy; lenses are not in it).
+    #[getter]
+    fn ks<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        let mut v = Vec::with_capacity(9 * self.cameras.len());
+        for c in &self.cameras {
+            let (fx, fy, cx, cy) = match c.projection {
+                Projection::Pinhole { fx, fy, cx, cy } | Projection::Orthographic { sx: fx, sy: fy, cx, cy } => {
+                    (fx, fy, cx, cy)
+                }
+            };
+            v.extend([fx, 0.0, cx, 0.0, fy, cy, 0.0, 0.0, 1.0]);
+        }
+        Ok(PyArray1::from_vec(py, v).reshape([self.cameras.len(), 3, 3])?.into_any())
+    }
+
+    fn __repr__(&self) -> String {
+        format!("srug.Cameras({} cameras)", self.cameras.len())
+    }
+}
+
+/// The built-in demo city (`srug demo`): a relightable scene of `gaussians`
+/// Gaussians and its street cameras (704x192), made deterministically from `seed`.
+#[pyfunction]
+#[pyo3(signature = (gaussians = 200_000, seed = 7, sh_degree = 1))]
+fn demo_city(py: Python<'_>, gaussians: usize, seed: u64, sh_degree: u32) -> PyResult<(Scene, Cameras)> {
+    let options = srug::scene::demo::DemoOptions { gaussians, seed, sh_degree };
+    let city = py.detach(|| srug::scene::demo::demo_city(&options)).map_err(py_err)?;
+    Ok((Scene { host: Arc::new(city.scene), uploads: Mutex::new(Vec::new()) }, Cameras { cameras: city.cameras }))
+}
+
+/// The sun's (azimuth, elevation) in degrees at `time` (ISO 8601 with a zone,
+/// e.g. "2024-06-21T14:30+02:00") seen from `latitude`, `longitude` (degrees,
+/// east positive), by NOAA's formulas (as `srug relight --sun-time`).
+#[pyfunction]
+fn sun_position(time: &str, latitude: f64, longitude: f64) -> PyResult<(f64, f64)> {
+    let t = srug::shadow::UtcTime::parse(time).map_err(py_err)?;
+    let p = srug::shadow::solar_position(&t, latitude, longitude).map_err(py_err)?;
+    Ok((p.azimuth, p.elevation))
+}
+
+/// The srug version.
+#[pyfunction]
+fn version() -> &'static str {
+    env!("CARGO_PKG_VERSION")
+}
+
+#[pymodule]
+fn _srug(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add("Error", m.py().get_type::<Error>())?;
+    m.add_class::<Device>()?;
+    m.add_class::<Scene>()?;
+    m.add_class::<Cameras>()?;
+    m.add_function(wrap_pyfunction!(version, m)?)?;
+    m.add_function(wrap_pyfunction!(demo_city, m)?)?;
+    m.add_function(wrap_pyfunction!(sun_position, m)?)?;
+    Ok(())
+}

@@ -1,0 +1,99 @@
+"""The native half of the srug package (PyO3). Use the `srug` package's classes instead."""
+
+from typing import Any, Callable, Dict, List, Optional, Tuple
+
+import numpy as np
+
+class Error(Exception):
+    """A srug error; `kind` is one of invalid_argument, io, bad_file, environment, gpu, internal."""
+
+    kind: str
+
+class Device:
+    def __init__(self, device: Optional[str] = None, validation: Optional[bool] = None) -> None: ...
+    @property
+    def name(self) -> str: ...
+    @property
+    def validation(self) -> bool: ...
+    def take_validation_messages(self) -> List[str]: ...
+    def memory(self) -> Dict[str, int]: ...
+    def last_timings(self) -> List[List[Tuple[str, float]]]: ...
+    def load_scene(self, path: str) -> Scene: ...
+    def render(
+        self,
+        scene: Scene,
+        cameras: Cameras,
+        channels: List[str],
+        background: Tuple[float, float, float] = ...,
+        sh_degree: Optional[int] = ...,
+        tile: int = ...,
+        progress: Optional[Callable[[int, int], Any]] = ...,
+    ) -> Dict[str, np.ndarray]: ...
+    def relight(
+        self,
+        scene: Scene,
+        cameras: Cameras,
+        sun: Optional[Tuple[float, float]] = ...,
+        sun_intensity: float = ...,
+        preset: str = ...,
+        environment: Optional[str] = ...,
+        env_rotation: float = ...,
+        env_intensity: float = ...,
+        exposure: float = ...,
+        output: str = ...,
+        progress: Optional[Callable[[int, int], Any]] = ...,
+    ) -> Dict[str, np.ndarray]: ...
+
+class Scene:
+    @staticmethod
+    def from_file(path: str) -> Scene: ...
+    @staticmethod
+    def from_arrays(
+        means: np.ndarray,
+        quats: np.ndarray,
+        scales: np.ndarray,
+        opacities: np.ndarray,
+        sh: np.ndarray,
+        activated: bool = ...,
+    ) -> Scene: ...
+    @property
+    def count(self) -> int: ...
+    def __len__(self) -> int: ...
+    @property
+    def sh_degree(self) -> int: ...
+    @property
+    def relightable(self) -> bool: ...
+    @property
+    def bounds(self) -> Optional[Tuple[Tuple[float, float, float], Tuple[float, float, float]]]: ...
+
+class Cameras:
+    def __init__(
+        self,
+        viewmats: np.ndarray,
+        ks: np.ndarray,
+        width: int,
+        height: int,
+        near: float = ...,
+        far: float = ...,
+        names: Optional[List[str]] = ...,
+    ) -> None: ...
+    @staticmethod
+    def from_file(path: str) -> Cameras: ...
+    def resized(self, width: int, height: int) -> Cameras: ...
+    def panoramas(self, width: int) -> Cameras: ...
+    def select(self, indices: List[int]) -> Cameras: ...
+    def __len__(self) -> int: ...
+    @property
+    def names(self) -> List[str]: ...
+    @property
+    def sizes(self) -> List[Tuple[int, int]]: ...
+    @property
+    def lenses(self) -> List[str]: ...
+    @property
+    def viewmats(self) -> np.ndarray: ...
+    @property
+    def ks(self) -> np.ndarray: ...
+
+def version() -> str: ...
+def demo_city(gaussians: int = ..., seed: int = ..., sh_degree: int = ...) -> Tuple[Scene, Cameras]: ...
+def sun_position(time: str, latitude: float, longitude: float) -> Tuple[float, float]: ...

@@ -1,0 +1,317 @@
+"""The srug Python package against independent references (a numpy EWA splat of
+one Gaussian, files another path reads), determinism, threads and bad input.
+
+Every test runs with the Khronos validation layer on (SRUG_VALIDATION=1 in the
+test command, `validation=True` here) and fails on any message.
+"""
+
+import json
+import os
+import threading
+import time
+
+import numpy as np
+import pytest
+
+import srug
+
+W, H, F = 64, 48, 60.0
+
+
+@pytest.fixture(scope="module")
+def dev():
+    d = srug.Device(validation=True)
+    assert d.validation
+    yield d
+    assert d.take_validation_messages() == []
+
+
+@pytest.fixture(scope="module")
+def city():
+    return srug.demo_city(20_000, seed=7, sh_degree=1)
+
+
+def identity_camera(width=W, height=H):
+    K = np.array([[F, 0.0, width / 2], [0.0, F, height / 2], [0.0, 0.0, 1.0]])
+    return srug.Cameras(np.eye(4), K, width, height)
+
+
+def quat_matrix(q):
+    w, x, y, z = q / np.linalg.norm(q)
+    return np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
+        ]
+    )
+
+
+def test_one_gaussian_matches_a_numpy_ewa_splat(dev):
+    """alpha, rgb and depth of one Gaussian equal the EWA splat computed here in
+    float64 (docs/conventions.md: 0.3 px² dilation, α = min(0.99, o·e^−σ), α < 1/255 skipped),
+    within 2e-5, inside the splat's 3σ box."""
+    mean = np.array([0.3, -0.2, 4.0])
+    quat = np.array([0.9, 0.1, 0.3, -0.2])
+    scales = np.array([0.15, 0.1, 0.12])
+    opacity, color, bg = 0.8, np.array([0.7, 0.4, 0.2]), np.array([0.1, 0.2, 0.3])
+    scene = srug.Scene.from_arrays(mean[None], quat[None], scales[None], [opacity], colors=color[None])
+    out = dev.render(scene, identity_camera(), channels=["rgb", "depth"], background=bg)
+    R = quat_matrix(quat)
+    cov = R @ np.diag(scales**2) @ R.T
+    x, y, z = mean
+    J = np.array([[F / z, 0, -F * x / z**2], [0, F / z, -F * y / z**2]])
+    cov2 = J @ cov @ J.T + 0.3 * np.eye(2)
+    centre = np.array([F * x / z + W / 2, F * y / z + H / 2])
+    conic = np.linalg.inv(cov2)
+    radius = np.ceil(3 * np.sqrt(np.linalg.eigvalsh(cov2).max()))
+    px = np.stack(np.meshgrid(np.arange(W) + 0.5, np.arange(H) + 0.5), -1)
+    d = px - centre
+    power = -0.5 * np.einsum("hwi,ij,hwj->hw", d, conic, d)
+    alpha = np.minimum(0.99, opacity * np.exp(power))
+    alpha[alpha < 1 / 255] = 0.0
+    inside = np.all(np.abs(d) <= radius, axis=-1)
+    got = out["alpha"][0]
+    assert np.abs(got - alpha)[inside].max() < 2e-5
+    assert np.all(got[~inside] <= alpha[~inside] + 2e-5)
+    rgb = alpha[..., None] * color + (1 - alpha[..., None]) * bg
+    assert np.abs(out["rgb"][0] - rgb)[inside].max() < 2e-5
+    assert np.abs(out["depth"][0] - alpha * z)[inside].max() < 1e-4
+    assert got.max() > 0.5 and (got > 0).sum() > 50
+
+
+def test_output_shapes_dtypes_and_every_channel(dev, city):
+    scene, cams = city
+    out = dev.render(scene, cams[:2], channels=["all", "rgb", "top_gaussian", "range"])
+    n, (w, h) = 2, cams.sizes[0]
+    for name, k in [("rgb", 3), ("normal", 3), ("albedo", 3)]:
+        assert out[name].shape == (n, h, w, k) and out[name].dtype == np.float32
+    for name in ["alpha", "depth", "median_depth", "roughness", "metallic", "ao", "visibility", "range"]:
+        assert out[name].shape == (n, h, w) and out[name].dtype == np.float32
+    ids = out["top_gaussian"]
+    assert ids.dtype == np.uint32 and ids.shape == (n, h, w)
+    covered = out["alpha"] > 0.5
+    assert np.all(ids[covered] < scene.count)
+    assert np.all(out["range"][covered] >= out["depth"][covered] - 1e-3)
+    assert all(np.isfinite(v).all() for k, v in out.items() if k != "top_gaussian")
+
+
+def test_cameras_from_arrays_equal_the_same_cameras_from_a_file(dev, city, tmp_path):
+    """INRIA cameras.json written here from viewmats and Ks reads back as the same cameras:
+    both render bit-identical images."""
+    scene, cams = city
+    view, K = cams.viewmats, cams.Ks
+    entries = []
+    for i, (m, k) in enumerate(zip(view, K)):
+        r = m[:3, :3].astype(np.float64)
+        t = m[:3, 3].astype(np.float64)
+        entries.append(
+            {
+                "id": i,
+                "img_name": f"cam{i}",
+                "width": 704,
+                "height": 192,
+                "position": (-(r.T @ t)).tolist(),
+                "rotation": r.T.tolist(),
+                "fx": float(k[0, 0]),
+                "fy": float(k[1, 1]),
+            }
+        )
+    path = tmp_path / "cameras.json"
+    path.write_text(json.dumps(entries))
+    from_file = srug.Cameras.from_file(path)
+    assert from_file.names == [f"cam{i}" for i in range(len(cams))]
+    from_arrays = srug.Cameras(view, K, 704, 192)
+    a = dev.render(scene, from_file, channels=["rgb", "depth"])
+    b = dev.render(scene, from_arrays, channels=["rgb", "depth"])
+    assert np.abs(a["rgb"] - b["rgb"]).max() <= 1e-5
+    assert np.abs(a["alpha"] - b["alpha"]).max() <= 1e-5
+
+
+def test_batches_are_bit_identical_to_single_cameras_in_any_order(dev, city):
+    scene, cams = city
+    batch = dev.render(scene, cams, channels=["rgb", "depth", "top_gaussian"])
+    again = dev.render(scene, cams, channels=["rgb", "depth", "top_gaussian"])
+    backward = dev.render(scene, cams[::-1], channels=["rgb", "depth", "top_gaussian"])
+    for name in batch:
+        assert np.array_equal(batch[name], again[name]), name
+        assert np.array_equal(batch[name], backward[name][::-1]), name
+    for i in range(len(cams)):
+        one = dev.render(scene, cams[i], channels=["rgb", "depth", "top_gaussian"])
+        for name in batch:
+            assert np.array_equal(batch[name][i], one[name][0]), (name, i)
+
+
+def test_relight_by_angles_time_and_outputs(dev, city):
+    scene, cams = city
+    two = cams[:2]
+    radiance = dev.relight(scene, two, sun=(260.0, 50.0))
+    display = dev.relight(scene, two, sun=(260.0, 50.0), output="display", exposure=0.5)
+    assert radiance.shape == (2, 192, 704, 3) and radiance.dtype == np.float32
+    assert np.isfinite(radiance).all() and radiance.max() > 0.1
+    assert display.min() >= 0.0 and display.max() <= 1.0
+    low = dev.relight(scene, two, sun=(100.0, 15.0))
+    assert np.abs(low - radiance).mean() > 1e-3, "another sun lights the street differently"
+    when = "2024-06-21T17:30+02:00"
+    az, el = srug.sun_position(when, 48.85, 2.35)
+    assert 250 < az < 270 and 35 < el < 45, (az, el)  # late afternoon in Paris, midsummer
+    by_time = dev.relight(scene, two, time=when, latitude=48.85, longitude=2.35)
+    by_angles = dev.relight(scene, two, sun=(az, el))
+    assert np.array_equal(by_time, by_angles)
+    fast = dev.relight(scene, two, preset="fast")
+    assert fast.shape == radiance.shape, "a reduced render scale comes back at the camera's size"
+    night = dev.relight(scene, two, sun=None)
+    assert night.mean() < radiance.mean()
+
+
+def test_panoramas_see_all_around(dev, city):
+    scene, cams = city
+    pano = cams[1].panoramas(256)
+    assert pano.sizes == [(256, 128)] and pano.lenses == ["Equirectangular"]
+    out = dev.render(scene, pano, channels=["depth", "range"])
+    assert np.array_equal(out["depth"], out["range"]), "a panorama's depth is the distance"
+    assert (out["alpha"] > 0.5).mean() > 0.4
+
+
+def test_progress_timings_and_memory(dev, city):
+    scene, cams = city
+    calls = []
+    dev.render(scene, cams, progress=lambda done, total: calls.append((done, total)))
+    n = len(cams)
+    assert calls == [(i + 1, n) for i in range(n)]
+    timings = dev.last_timings()
+    assert len(timings) == n and all(any(name == "blend" for name, _ in t) for t in timings)
+    assert all(ms >= 0 for t in timings for _, ms in t)
+    memory = dev.memory()
+    assert memory["peak_bytes"] >= memory["current_bytes"] > 0
+
+    def stop(done, total):
+        raise KeyboardInterrupt("stop")
+
+    with pytest.raises(KeyboardInterrupt):
+        dev.render(scene, cams, progress=stop)
+
+
+def test_threads_render_at_once_with_the_gil_released(dev, city):
+    """Two threads render on one device while a third runs Python: the third
+    keeps running inside the renders (the GIL is released while the GPU works),
+    and the images equal a sequential run."""
+    scene, cams = city
+    expected = dev.render(scene, cams)["rgb"]
+    results, errors, spans = {}, [], []
+    stamps = []
+    done = threading.Event()
+
+    def spin():
+        k = 0
+        while not done.is_set():
+            k += 1
+            if k % 1000 == 0:
+                stamps.append(time.perf_counter())
+
+    def work(k):
+        try:
+            t0 = time.perf_counter()
+            results[k] = dev.render(scene, cams)["rgb"]
+            spans.append((t0, time.perf_counter()))
+        except Exception as e:  # noqa: BLE001 - reported below
+            errors.append(e)
+
+    spinner = threading.Thread(target=spin)
+    workers = [threading.Thread(target=work, args=(k,)) for k in range(2)]
+    spinner.start()
+    for t in workers:
+        t.start()
+    for t in workers:
+        t.join()
+    done.set()
+    spinner.join()
+    assert not errors, errors
+    for k in range(2):
+        assert np.array_equal(results[k], expected)
+    # Python ran inside each render call, away from its edges (where the call holds the GIL briefly).
+    for t0, t1 in spans:
+        inside = sum(1 for s in stamps if t0 + 0.02 < s < t1 - 0.02)
+        assert inside > 10, f"only {inside} thousand Python loop turns ran during a {t1 - t0:.2f} s render"
+
+
+def test_bad_input_raises_clear_errors(dev, city):
+    scene, cams = city
+
+    def kind_of(call):
+        with pytest.raises(srug.Error) as e:
+            call()
+        return e.value.kind, str(e.value)
+
+    kind, text = kind_of(lambda: srug.Cameras(np.array([["a"] * 4] * 4), np.eye(3), 64, 48))
+    assert kind == "invalid_argument" and "viewmats" in text and "dtype" in text
+    kind, text = kind_of(lambda: srug.Cameras(np.eye(3), np.eye(3), 64, 48))
+    assert "viewmats" in text and "shape" in text
+    bad = np.eye(4)
+    bad[0, 3] = np.nan
+    kind, text = kind_of(lambda: srug.Cameras(bad, np.eye(3), 64, 48))
+    assert "viewmats" in text and "nan" in text.lower()
+    kind, text = kind_of(lambda: srug.Cameras(np.eye(4), np.array([[F, 1.0, 32], [0, F, 24], [0, 0, 1]]), 64, 48))
+    assert "Ks[0]" in text and "skew" in text
+    scaled = np.eye(4)
+    scaled[:3, :3] *= 2.0
+    kind, text = kind_of(lambda: srug.Cameras(scaled, np.diag([F, F, 1.0]), 64, 48))
+    assert "camera 0" in text and "rotation" in text
+    kind, text = kind_of(lambda: srug.Cameras(np.eye(4), np.eye(3), 0, 48))
+    assert "width" in text
+    kind, text = kind_of(lambda: dev.render(scene, cams, channels=["rgb", "sparkle"]))
+    assert kind == "invalid_argument" and "sparkle" in text
+    kind, text = kind_of(lambda: dev.render(scene, cams, tile=12))
+    assert "tile" in text
+    # A COLMAP model whose cameras have different sizes cannot be stacked into one array.
+    colmap = os.path.join(os.path.dirname(__file__), "..", "..", "tests", "data", "cameras", "colmap", "text")
+    mixed = srug.Cameras.from_file(colmap)
+    assert len(set(mixed.sizes)) > 1
+    kind, text = kind_of(lambda: dev.render(scene, mixed))
+    assert "differs in size" in text
+    assert dev.render(scene, mixed.resized(32, 24))["alpha"].shape == (len(mixed), 24, 32)
+    kind, text = kind_of(lambda: srug.Scene.from_arrays(np.zeros((2, 3)), np.zeros((2, 4)), np.ones((2, 3)), [0.5, 0.5], colors=np.zeros((2, 3))))
+    assert "quats row 0" in text
+    kind, text = kind_of(lambda: srug.Scene.from_arrays(np.zeros((1, 3)), [[1, 0, 0, 0]], [[1, 1, 1]], [1.5], colors=[[0, 0, 0]]))
+    assert "opacities" in text
+    kind, text = kind_of(lambda: srug.Scene.from_file("/nonexistent/city.ply"))
+    assert kind == "io" and "/nonexistent/city.ply" in text
+    kind, text = kind_of(lambda: srug.Cameras.from_file(os.devnull))
+    assert kind in ("invalid_argument", "bad_file")
+    plain = srug.Scene.from_arrays(np.zeros((1, 3)) + [0, 0, 5], [[1, 0, 0, 0]], [[0.1] * 3], [0.5], colors=[[1, 0, 0]])
+    kind, text = kind_of(lambda: dev.relight(plain, identity_camera()))
+    assert "albedo" in text
+    kind, text = kind_of(lambda: dev.relight(scene, cams[:1], environment="/nonexistent/sky.exr"))
+    assert "/nonexistent/sky.exr" in text
+    kind, text = kind_of(lambda: dev.relight(scene, cams[:1], preset="best"))
+    assert "best" in text
+    kind, text = kind_of(lambda: dev.relight(scene, cams[:1], time="2024-06-21T12:00+00:00"))
+    assert "latitude" in text
+
+
+def test_non_contiguous_and_float64_inputs_equal_float32(dev):
+    rng = np.random.default_rng(3)
+    n = 200
+    means = rng.uniform([-1, -1, 3], [1, 1, 6], (n, 3))
+    quats = rng.normal(size=(n, 4))
+    scales = rng.uniform(0.02, 0.1, (n, 3))
+    opac = rng.uniform(0.2, 0.9, n)
+    cols = rng.uniform(0, 1, (n, 3))
+    a = srug.Scene.from_arrays(means.astype(np.float32), quats.astype(np.float32), scales.astype(np.float32),
+                               opac.astype(np.float32), colors=cols.astype(np.float32))
+    # Fortran order and strided views of float64 arrays.
+    wide = np.zeros((n, 8))
+    wide[:, ::2] = quats
+    strided = wide[:, ::2]
+    assert not strided.flags["C_CONTIGUOUS"]
+    b = srug.Scene.from_arrays(np.asfortranarray(means), strided, scales, opac, colors=np.asfortranarray(cols))
+    cam = identity_camera()
+    ra, rb = dev.render(a, cam), dev.render(b, cam)
+    assert np.array_equal(ra["rgb"], rb["rgb"])
+    assert ra["alpha"].max() > 0.5
+
+
+def test_type_stubs_ship_with_the_package():
+    folder = os.path.dirname(srug.__file__)
+    assert os.path.isfile(os.path.join(folder, "py.typed"))
+    assert os.path.isfile(os.path.join(folder, "_srug.pyi"))
