@@ -30,8 +30,9 @@ use srug::scene::Scene as HostScene;
 use srug::shade::{
     BrdfLut, BrdfTable, EnvironmentMap, EnvironmentPrep, PrepareSettings, PreparedEnvironment, ProceduralSky,
 };
-use srug::shadow::Sun;
-use srug::splat::{Channel, Channels, SplatSettings, Splatter};
+use srug::shadow::backward::GpuVisibilityLoss;
+use srug::shadow::{ShadowMap, ShadowPass, ShadowSettings, Sun, VisibilityKind};
+use srug::splat::{Channel, Channels, SplatFrame, SplatSettings, Splatter};
 
 create_exception!(
     srug,
@@ -505,8 +506,181 @@ impl Device {
         outputs.into_dict(py)
     }
 
+    /// The differentiable sun shadow test for one camera (the paper's editable
+    /// visibility V_e): renders the receivers, splats the shadow map from the
+    /// sun and tests every pixel, V = sigmoid(k·(z_s − z + bias)), 1 where no
+    /// receiver. The returned object holds V and runs the backward pass.
+    #[pyo3(signature = (scene, camera, sun, resolution = 2048, k = 50.0, bias = 0.5, map_depth = None,
+                        receiver_depth = None, sun_intensity = std::f32::consts::PI))]
+    #[allow(clippy::too_many_arguments, reason = "the Python keyword arguments of one call")]
+    fn shadow(
+        &self,
+        py: Python<'_>,
+        scene: &Scene,
+        camera: &Cameras,
+        sun: (f32, f32),
+        resolution: u32,
+        k: f32,
+        bias: f32,
+        map_depth: Option<&str>,
+        receiver_depth: Option<&str>,
+        sun_intensity: f32,
+    ) -> PyResult<ShadowTest> {
+        let [camera] = camera.cameras.as_slice() else {
+            return Err(invalid(format!("{} cameras", camera.cameras.len()), "the shadow test takes one camera"));
+        };
+        let sun = Sun::from_azimuth_elevation(sun.0, sun.1, [sun_intensity; 3]).map_err(py_err)?;
+        if !sun.above_horizon() {
+            return Err(invalid(
+                format!("sun elevation {}°", sun.azimuth_elevation().1),
+                "casts no shadow (at or below the horizon)",
+            ));
+        }
+        let mut settings = RelightSettings::preset(Preset::Balanced).shadow;
+        settings.resolution = resolution;
+        settings.k = k;
+        settings.bias = bias;
+        if let Some(m) = map_depth {
+            settings.map_depth = srug::shadow::DepthMode::parse(m).map_err(py_err)?;
+        }
+        if let Some(m) = receiver_depth {
+            settings.receiver_depth = srug::shadow::DepthMode::parse(m).map_err(py_err)?;
+        }
+        settings.validate().map_err(py_err)?;
+        let bounds = scene.host.bounds().ok_or_else(|| invalid("scene", "is empty"))?;
+        let gpu_scene = py.detach(|| scene.gpu(self)).map_err(py_err)?;
+        let state = py
+            .detach(|| -> srug::Result<ShadowState> {
+                let mut splatter = Splatter::new(&self.device)?;
+                let pass = ShadowPass::new(&self.device)?;
+                let receivers = splatter.render_frame(
+                    &gpu_scene,
+                    camera,
+                    &SplatSettings { channels: settings.receiver_channels(), ..SplatSettings::default() },
+                )?;
+                let map = pass
+                    .shadow_map(&mut splatter, &gpu_scene, &bounds, &sun, &settings, Some(camera))?
+                    .ok_or_else(|| srug::Error::invalid("sun", "is below the horizon"))?;
+                let (v, _) = pass.visibility(&map, &receivers.gbuffer, camera, &settings, VisibilityKind::Sigmoid)?;
+                let mut visibility = vec![0.0f32; camera.width as usize * camera.height as usize];
+                self.device.read_buffer_into(&v, &mut visibility)?;
+                Ok(ShadowState {
+                    device: self.device.clone(),
+                    scene: gpu_scene,
+                    count: scene.host.len(),
+                    camera: camera.clone(),
+                    settings,
+                    pass,
+                    splatter,
+                    map,
+                    receivers,
+                    visibility: Some(visibility),
+                })
+            })
+            .map_err(py_err)?;
+        Ok(ShadowTest { state: Mutex::new(state) })
+    }
+
     fn __repr__(&self) -> String {
         format!("srug.Device(\"{}\")", self.device.info().name)
+    }
+}
+
+/// What a shadow test keeps for its backward pass.
+struct ShadowState {
+    device: GpuDevice,
+    scene: Arc<GpuScene>,
+    count: usize,
+    camera: Camera,
+    settings: ShadowSettings,
+    pass: ShadowPass,
+    splatter: Splatter,
+    map: ShadowMap,
+    receivers: SplatFrame,
+    /// V, until Python takes it.
+    visibility: Option<Vec<f32>>,
+}
+
+/// One camera's differentiable shadow test (`Device.shadow`): `visibility`
+/// (H, W) float32 and `backward(dl_dv)`.
+#[pyclass(frozen, module = "srug._srug")]
+struct ShadowTest {
+    state: Mutex<ShadowState>,
+}
+
+#[pymethods]
+impl ShadowTest {
+    /// (H, W) of the camera.
+    #[getter]
+    fn shape(&self) -> (usize, usize) {
+        let st = lock(&self.state);
+        (st.camera.height as usize, st.camera.width as usize)
+    }
+
+    /// V per pixel, (H, W) float32 (a new array on each access).
+    #[getter]
+    fn visibility<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        let mut st = lock(&self.state);
+        let (w, h) = (st.camera.width as usize, st.camera.height as usize);
+        let v = match st.visibility.take() {
+            Some(v) => v,
+            None => {
+                let v = st.pass.visibility(
+                    &st.map,
+                    &st.receivers.gbuffer,
+                    &st.camera,
+                    &st.settings,
+                    VisibilityKind::Sigmoid,
+                );
+                let (buffer, _) = v.map_err(py_err)?;
+                st.device.read_buffer(&buffer).map_err(|e| py_err(e.into()))?
+            }
+        };
+        Ok(PyArray1::from_vec(py, v).reshape([h, w])?.into_any())
+    }
+
+    /// Gradients of a loss L through V: takes dL/dV (H, W) and returns
+    /// dL/d(each Gaussian's mean (G, 3), log-scale (G, 3), rotation (G, 4) as
+    /// w, x, y, z, opacity logit (G,)), through both the shadow map's
+    /// occluders and the receivers' depths.
+    fn backward<'py>(&self, py: Python<'py>, dl_dv: PyReadonlyArrayDyn<'_, f32>) -> PyResult<Bound<'py, PyDict>> {
+        let (shape, upstream) = floats(&dl_dv, "dl_dv")?;
+        let mut guard = lock(&self.state);
+        let st = &mut *guard;
+        expect_shape(&shape, &[Some(st.camera.height as usize), Some(st.camera.width as usize)], "dl_dv")?;
+        let n = st.count;
+        let (mut gm, mut gl, mut gr, mut go) =
+            (vec![0.0f32; 3 * n], vec![0.0f32; 3 * n], vec![0.0f32; 4 * n], vec![0.0f32; n]);
+        py.detach(|| -> srug::Result<()> {
+            let up = st.device.upload("dL/dV", &upstream)?;
+            let b = st.pass.backward(
+                &st.map,
+                &st.receivers.gbuffer,
+                &st.camera,
+                &st.settings,
+                GpuVisibilityLoss::Upstream(&up),
+            )?;
+            let a = st.splatter.backward(&st.map.frame, &st.scene, &b.map, false)?.read(&st.device)?;
+            let c = st.splatter.backward(&st.receivers, &st.scene, &b.receiver, false)?.read(&st.device)?;
+            for i in 0..n {
+                for j in 0..3 {
+                    gm[3 * i + j] = a.means[i][j] + c.means[i][j];
+                    gl[3 * i + j] = a.log_scales[i][j] + c.log_scales[i][j];
+                }
+                for j in 0..4 {
+                    gr[4 * i + j] = a.rotations[i][j] + c.rotations[i][j];
+                }
+                go[i] = a.opacity_logits[i] + c.opacity_logits[i];
+            }
+            Ok(())
+        })
+        .map_err(py_err)?;
+        let d = PyDict::new(py);
+        d.set_item("means", PyArray1::from_vec(py, gm).reshape([n, 3])?)?;
+        d.set_item("log_scales", PyArray1::from_vec(py, gl).reshape([n, 3])?)?;
+        d.set_item("rotations", PyArray1::from_vec(py, gr).reshape([n, 4])?)?;
+        d.set_item("opacity_logits", PyArray1::from_vec(py, go).reshape([n])?)?;
+        Ok(d)
     }
 }
 
@@ -538,6 +712,23 @@ impl Scene {
     fn from_file(py: Python<'_>, path: PathBuf) -> PyResult<Self> {
         let host = py.detach(|| srug::io::read_scene(&path)).map_err(py_err)?;
         Ok(Self { host: Arc::new(host), uploads: Mutex::new(Vec::new()) })
+    }
+
+    /// The scene's arrays as srug stores them: means (N, 3), quats (N, 4) w, x,
+    /// y, z (as stored, not normalized), log_scales (N, 3), opacity_logits (N,),
+    /// sh (N, K, 3) (copies; materials are not included).
+    fn arrays<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let h = &self.host;
+        let n = h.len();
+        let k = h.sh.len() / (3 * n.max(1));
+        let d = PyDict::new(py);
+        let flat = |v: Vec<f32>| PyArray1::from_vec(py, v);
+        d.set_item("means", flat(h.means.iter().flatten().copied().collect()).reshape([n, 3])?)?;
+        d.set_item("quats", flat(h.rotations.iter().flatten().copied().collect()).reshape([n, 4])?)?;
+        d.set_item("log_scales", flat(h.log_scales.iter().flatten().copied().collect()).reshape([n, 3])?)?;
+        d.set_item("opacity_logits", flat(h.opacity_logits.clone()).reshape([n])?)?;
+        d.set_item("sh", flat(h.sh.clone()).reshape([n, k, 3])?)?;
+        Ok(d)
     }
 
     /// A scene from arrays, gsplat's names and meanings: `means` (N, 3),
@@ -840,6 +1031,7 @@ fn _srug(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<Device>()?;
     m.add_class::<Scene>()?;
     m.add_class::<Cameras>()?;
+    m.add_class::<ShadowTest>()?;
     m.add_function(wrap_pyfunction!(version, m)?)?;
     m.add_function(wrap_pyfunction!(demo_city, m)?)?;
     m.add_function(wrap_pyfunction!(sun_position, m)?)?;

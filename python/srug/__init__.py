@@ -30,6 +30,7 @@ __all__ = [
     "Device",
     "Error",
     "Scene",
+    "ShadowTest",
     "demo_city",
     "sun_position",
     "version",
@@ -131,6 +132,11 @@ class Scene:
         else:
             h = _float32(sh, "sh", (n, None, 3))
         return Scene(_srug.Scene.from_arrays(m, q, s, o, np.ascontiguousarray(h), activated))
+
+    def arrays(self) -> Dict[str, np.ndarray]:
+        """Copies of the arrays as srug stores them: means, quats (w, x, y, z), log_scales,
+        opacity_logits, sh (N, K, 3); ``Scene.from_arrays(..., activated=False)`` takes them back."""
+        return self._native.arrays()
 
     @property
     def count(self) -> int:
@@ -379,8 +385,53 @@ class Device:
         )
         return out[output]
 
+    def shadow(
+        self,
+        scene: Scene,
+        camera: Cameras,
+        sun: Tuple[float, float],
+        *,
+        resolution: int = 2048,
+        k: float = 50.0,
+        bias: float = 0.5,
+        map_depth: Optional[str] = None,
+        receiver_depth: Optional[str] = None,
+    ) -> "ShadowTest":
+        """The differentiable sun shadow test for one camera (the paper's editable visibility):
+        ``.visibility`` is V = sigmoid(k·(z_s − z + bias)) per pixel, (H, W) float32 (1 where no
+        receiver); ``.backward(dl_dv)`` gives dL/d(every Gaussian's mean, log-scale, rotation,
+        opacity logit) through the shadow map's occluders and the receivers. ``map_depth`` and
+        ``receiver_depth``: "median" (the default, robust at silhouettes; its gradient reaches
+        the means only), "expected" (smooth; reaches opacities and shapes too) or, for the map,
+        "expected-over-far" (docs/stages.md)."""
+        if len(camera) != 1:
+            raise _invalid(f"the shadow test takes one camera, not {len(camera)} (index the Cameras)")
+        az, el = (float(v) for v in sun)
+        return ShadowTest(
+            self._native.shadow(
+                scene._native, camera._native, (az, el), int(resolution), float(k), float(bias), map_depth, receiver_depth
+            )
+        )
+
     def __repr__(self) -> str:
         return repr(self._native)
+
+
+class ShadowTest:
+    """One camera's shadow test from :meth:`Device.shadow`."""
+
+    def __init__(self, native: "_srug.ShadowTest") -> None:
+        self._native = native
+
+    @property
+    def visibility(self) -> np.ndarray:
+        """V per pixel, (H, W) float32."""
+        return self._native.visibility
+
+    def backward(self, dl_dv: Any) -> Dict[str, np.ndarray]:
+        """dL/d(means (G, 3), log_scales (G, 3), rotations (G, 4) w, x, y, z, opacity_logits (G,))
+        from dL/dV (H, W)."""
+        return self._native.backward(_float32(dl_dv, "dl_dv", self._native.shape))
 
 
 def demo_city(gaussians: int = 200_000, seed: int = 7, sh_degree: int = 1) -> Tuple[Scene, Cameras]:

@@ -44,6 +44,26 @@ class Device:
         progress: Optional[Callable[[int, int], Any]] = ...,
     ) -> Dict[str, np.ndarray]: ...
 
+    def shadow(
+        self,
+        scene: Scene,
+        camera: Cameras,
+        sun: Tuple[float, float],
+        resolution: int = ...,
+        k: float = ...,
+        bias: float = ...,
+        map_depth: Optional[str] = ...,
+        receiver_depth: Optional[str] = ...,
+        sun_intensity: float = ...,
+    ) -> ShadowTest: ...
+
+class ShadowTest:
+    @property
+    def shape(self) -> Tuple[int, int]: ...
+    @property
+    def visibility(self) -> np.ndarray: ...
+    def backward(self, dl_dv: np.ndarray) -> Dict[str, np.ndarray]: ...
+
 class Scene:
     @staticmethod
     def from_file(path: str) -> Scene: ...
@@ -56,6 +76,7 @@ class Scene:
         sh: np.ndarray,
         activated: bool = ...,
     ) -> Scene: ...
+    def arrays(self) -> Dict[str, np.ndarray]: ...
     @property
     def count(self) -> int: ...
     def __len__(self) -> int: ...
