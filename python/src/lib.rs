@@ -714,6 +714,19 @@ impl Scene {
         Ok(Self { host: Arc::new(host), uploads: Mutex::new(Vec::new()) })
     }
 
+    /// Writes the scene in the format its extension names (.ply, .spz, .splat,
+    /// .sog, .glb; a compressed PLY by `format="compressed-ply"`), atomically.
+    #[pyo3(signature = (path, format = None))]
+    fn save(&self, py: Python<'_>, path: PathBuf, format: Option<&str>) -> PyResult<()> {
+        let format = match format {
+            Some(name) => srug::io::SceneFormat::parse(name).map_err(py_err)?,
+            None => srug::io::SceneFormat::from_extension(&path).ok_or_else(|| {
+                invalid(format!("{}", path.display()), "has no extension naming a scene format (give format=)")
+            })?,
+        };
+        py.detach(|| srug::io::write_scene(&path, &self.host, format)).map_err(py_err)
+    }
+
     /// The scene's arrays as srug stores them: means (N, 3), quats (N, 4) w, x,
     /// y, z (as stored, not normalized), log_scales (N, 3), opacity_logits (N,),
     /// sh (N, K, 3) (copies; materials are not included).

@@ -133,6 +133,11 @@ class Scene:
             h = _float32(sh, "sh", (n, None, 3))
         return Scene(_srug.Scene.from_arrays(m, q, s, o, np.ascontiguousarray(h), activated))
 
+    def save(self, path: PathLike, format: Optional[str] = None) -> None:
+        """Writes the scene in the format its extension names (.ply, .spz, .splat, .sog, .glb),
+        or ``format`` (e.g. "compressed-ply"; docs/formats.md says what each keeps)."""
+        self._native.save(os.fspath(path), format)
+
     def arrays(self) -> Dict[str, np.ndarray]:
         """Copies of the arrays as srug stores them: means, quats (w, x, y, z), log_scales,
         opacity_logits, sh (N, K, 3); ``Scene.from_arrays(..., activated=False)`` takes them back."""

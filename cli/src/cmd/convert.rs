@@ -20,15 +20,7 @@ pub(super) struct ConvertArgs {
 }
 
 fn parse_format(s: &str) -> std::result::Result<SceneFormat, String> {
-    Ok(match s {
-        "ply" => SceneFormat::Ply,
-        "compressed-ply" => SceneFormat::CompressedPly,
-        "splat" => SceneFormat::Splat,
-        "spz" => SceneFormat::Spz,
-        "glb" => SceneFormat::Glb,
-        "sog" => SceneFormat::Sog,
-        _ => return Err(format!("unknown format \"{s}\" (ply, compressed-ply, splat, spz, sog, glb)")),
-    })
+    SceneFormat::parse(s).map_err(|e| e.to_string())
 }
 
 impl ConvertArgs {

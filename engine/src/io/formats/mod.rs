@@ -77,6 +77,25 @@ impl SceneFormat {
         }
     }
 
+    /// The format named as `srug convert --format` spells it: ply, compressed-ply,
+    /// splat, spz, sog or glb.
+    pub fn parse(name: &str) -> Result<SceneFormat> {
+        Ok(match name {
+            "ply" => Self::Ply,
+            "compressed-ply" => Self::CompressedPly,
+            "splat" => Self::Splat,
+            "spz" => Self::Spz,
+            "glb" => Self::Glb,
+            "sog" => Self::Sog,
+            _ => {
+                return Err(Error::invalid(
+                    format!("format \"{name}\""),
+                    "is unknown (ply, compressed-ply, splat, spz, sog, glb)",
+                ))
+            }
+        })
+    }
+
     /// Whether srug can write it (every format it reads).
     pub fn writable(self) -> bool {
         true
