@@ -526,3 +526,84 @@ impl ShadeArgs {
         Ok(s)
     }
 }
+
+/// Runs `produce` on each item on this thread (the GPU work and its readback)
+/// while `consume` encodes and writes earlier results on a second thread: at
+/// most `depth` results wait between the two, so camera i + 1 renders while
+/// camera i is being written. Stops at the first error of either side and
+/// returns it (the producer's first).
+pub fn overlapped<I, T, P, C>(items: I, depth: usize, mut produce: P, mut consume: C) -> Result<()>
+where
+    I: IntoIterator,
+    T: Send,
+    P: FnMut(I::Item) -> Result<T>,
+    C: FnMut(T) -> Result<()> + Send,
+{
+    let (send, receive) = std::sync::mpsc::sync_channel::<T>(depth.max(1));
+    std::thread::scope(|scope| {
+        let writer = scope.spawn(move || -> Result<()> {
+            for item in receive {
+                consume(item)?;
+            }
+            Ok(())
+        });
+        let mut produced = Ok(());
+        for item in items {
+            match produce(item) {
+                // A closed channel: the writer stopped on an error, which join reports.
+                Ok(t) => {
+                    if send.send(t).is_err() {
+                        break;
+                    }
+                }
+                Err(e) => {
+                    produced = Err(e);
+                    break;
+                }
+            }
+        }
+        drop(send);
+        let written = writer.join().unwrap_or_else(|_| Err(Error::Internal("the output writer panicked".into())));
+        produced.and(written)
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used, reason = "a failed unwrap is a failed test")]
+    use super::*;
+
+    /// Results reach the writer in order; a producer error stops the run after
+    /// the writer has taken what came before; a writer error stops the producer.
+    #[test]
+    fn overlapped_keeps_order_and_stops_at_the_first_error() {
+        let mut seen = Vec::new();
+        overlapped(0..50, 2, |i| Ok(i * 10), |v| {
+            seen.push(v);
+            Ok(())
+        })
+        .unwrap();
+        assert_eq!(seen, (0..50).map(|i| i * 10).collect::<Vec<_>>());
+
+        let mut seen = Vec::new();
+        let e = overlapped(0..50, 2, |i| if i == 7 { Err(Error::invalid("item 7", "fails")) } else { Ok(i) }, |v| {
+            seen.push(v);
+            Ok(())
+        });
+        assert!(e.unwrap_err().to_string().contains("item 7"));
+        assert_eq!(seen, (0..7).collect::<Vec<_>>());
+
+        let mut produced = 0;
+        let e = overlapped(
+            0..1000,
+            2,
+            |i| {
+                produced += 1;
+                Ok(i)
+            },
+            |v| if v == 3 { Err(Error::invalid("write 3", "fails")) } else { Ok(()) },
+        );
+        assert!(e.unwrap_err().to_string().contains("write 3"));
+        assert!(produced < 10, "the producer went on for {produced} items after the writer failed");
+    }
+}

@@ -786,7 +786,7 @@ fn convert_writes_every_format_and_refuses_what_it_cannot() {
     for (out, args, words) in [
         ("meta.json", vec![], "writes SOG bundled"),
         ("c.xyz", vec![], "extension names no format srug writes"),
-        ("c.ply", vec!["--format", "webp"], "unknown format \"webp\""),
+        ("c.ply", vec!["--format", "webp"], "format \"webp\": is unknown"),
     ] {
         let path = dir.path().join(out);
         let mut all = vec!["convert", input.to_str().unwrap(), path.to_str().unwrap()];

@@ -16,7 +16,8 @@ use srug::shadow::Sun;
 use srug::{io, Error, Result};
 
 use crate::args::{
-    numbered, output_is_exr, print_line, progress_bar, CameraArgs, DeviceArgs, EnvArgs, RunOutputs, ShadeArgs, SunArgs,
+    numbered, output_is_exr, overlapped, print_line, progress_bar, CameraArgs, DeviceArgs, EnvArgs, RunOutputs,
+    ShadeArgs, SunArgs,
 };
 
 /// Lighting resources reused across frames.
@@ -204,34 +205,34 @@ fn relight(device: &Device, args: &RelightArgs) -> Result<()> {
     if let Some(warning) = suns.first().and_then(|(_, s)| lights.sun_mismatch(s)) {
         eprintln!("{warning}");
     }
-    let mut frame = 0;
     let mut written = RunOutputs::default();
-    for (label, s) in &suns {
-        let environment = lights.environment(s)?;
-        for (number, cam) in &cams {
+    // Frames in sun-major order; frame f + 1 renders while frame f is encoded and written.
+    let frames = suns.iter().enumerate().flat_map(|(si, sun)| cams.iter().map(move |c| (si, sun, c)));
+    let mut environment: Option<(usize, EnvRef<'_>)> = None;
+    let mut frame = 0;
+    overlapped(
+        frames,
+        2,
+        |(si, (label, s), (number, cam))| -> Result<_> {
             // A shard's frames keep their number in the whole run (sun-major), so shards never collide.
             let target = match view.shard {
-                Some(_) => numbered(out, frame / cams.len() * all_cameras + number),
+                Some(_) => numbered(out, si * all_cameras + number),
                 None if total > 1 => numbered(out, frame),
                 None => out.to_path_buf(),
             };
-            let relit = relighter.render(
-                &gpu_scene,
-                &attributes,
-                &bounds,
-                cam,
-                Some(s),
-                &environment,
-                &lights.brdf,
-                &settings,
-            )?;
+            frame += 1;
+            if environment.as_ref().is_none_or(|(i, _)| *i != si) {
+                environment = Some((si, lights.environment(s)?));
+            }
+            let env =
+                environment.as_ref().map(|(_, e)| &**e).ok_or_else(|| Error::Internal("no environment".into()))?;
+            let relit =
+                relighter.render(&gpu_scene, &attributes, &bounds, cam, Some(s), env, &lights.brdf, &settings)?;
             let image = relit.shaded.read(device)?.resampled(cam.width, cam.height)?;
             let indirect = match &relit.shaded.indirect {
                 Some(b) => Some(resample_planar(&device.read_buffer::<f32>(b)?, &relit.shaded, cam)?),
                 None => None,
             };
-            write_relit(&target, exr, &image, indirect.as_deref())?;
-            written.add(target.clone());
             let line = format!(
                 "{} camera {} {label}: {:.0} ms GPU{}",
                 target.display(),
@@ -243,11 +244,16 @@ fn relight(device: &Device, args: &RelightArgs) -> Result<()> {
                     (true, false) => "",
                 }
             );
+            Ok((target, image, indirect, line))
+        },
+        |(target, image, indirect, line)| -> Result<()> {
+            write_relit(&target, exr, &image, indirect.as_deref())?;
+            written.add(target);
             print_line(&bar, &line);
             bar.inc(1);
-            frame += 1;
-        }
-    }
+            Ok(())
+        },
+    )?;
     bar.finish_and_clear();
     written.keep();
     Ok(())

@@ -10,7 +10,8 @@ use srug::splat::{Channels, NormalSource, SplatSettings, Splatter, TileBounds, D
 use srug::{Error, Result};
 
 use crate::args::{
-    numbered, output_is_exr, print_line, progress_bar, CameraArgs, ChannelList, DeviceArgs, RunOutputs, Vec3Arg,
+    numbered, output_is_exr, overlapped, print_line, progress_bar, CameraArgs, ChannelList, DeviceArgs, RunOutputs,
+    Vec3Arg,
 };
 
 /// Arguments of `srug render`.
@@ -102,28 +103,37 @@ impl RenderArgs {
             ProgressBar::hidden()
         };
         let mut written = RunOutputs::default();
-        for (number, cam) in &cams {
-            let target = if numbered_outputs { numbered(out, *number) } else { out.clone() };
-            let (gpu, stats) = splatter.render(&gpu_scene, cam, &settings)?;
-            let g = gpu.read(&device)?;
-            if is_exr {
-                let range = if channels.range { g.ray_distance(cam) } else { None };
-                let extra: Vec<(&str, &[f32], usize)> = range.as_deref().map(|r| ("range", r, 1)).into_iter().collect();
-                g.write_exr_with(&target, &extra, &id_channels)?;
-            } else {
-                io::write_png(&target, g.width, g.height, g.rgb_values()?)?;
-            }
-            written.add(target.clone());
-            bar.inc(1);
-            let line = format!(
-                "{} ({}x{}, {:.1} ms GPU)",
-                target.display(),
-                g.width,
-                g.height,
-                stats.timings.total_seconds() * 1e3
-            );
-            print_line(&bar, &line);
-        }
+        // Camera i + 1 splats while camera i is encoded and written.
+        overlapped(
+            &cams,
+            2,
+            |(number, cam)| -> Result<_> {
+                let target = if numbered_outputs { numbered(out, *number) } else { out.clone() };
+                let (gpu, stats) = splatter.render(&gpu_scene, cam, &settings)?;
+                Ok((target, gpu.read(&device)?, stats, cam))
+            },
+            |(target, g, stats, cam)| -> Result<()> {
+                if is_exr {
+                    let range = if channels.range { g.ray_distance(cam) } else { None };
+                    let extra: Vec<(&str, &[f32], usize)> =
+                        range.as_deref().map(|r| ("range", r, 1)).into_iter().collect();
+                    g.write_exr_with(&target, &extra, &id_channels)?;
+                } else {
+                    io::write_png(&target, g.width, g.height, g.rgb_values()?)?;
+                }
+                written.add(target.clone());
+                bar.inc(1);
+                let line = format!(
+                    "{} ({}x{}, {:.1} ms GPU)",
+                    target.display(),
+                    g.width,
+                    g.height,
+                    stats.timings.total_seconds() * 1e3
+                );
+                print_line(&bar, &line);
+                Ok(())
+            },
+        )?;
         bar.finish_and_clear();
         written.keep();
         Ok(())
