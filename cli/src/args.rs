@@ -578,18 +578,28 @@ mod tests {
     #[test]
     fn overlapped_keeps_order_and_stops_at_the_first_error() {
         let mut seen = Vec::new();
-        overlapped(0..50, 2, |i| Ok(i * 10), |v| {
-            seen.push(v);
-            Ok(())
-        })
+        overlapped(
+            0..50,
+            2,
+            |i| Ok(i * 10),
+            |v| {
+                seen.push(v);
+                Ok(())
+            },
+        )
         .unwrap();
         assert_eq!(seen, (0..50).map(|i| i * 10).collect::<Vec<_>>());
 
         let mut seen = Vec::new();
-        let e = overlapped(0..50, 2, |i| if i == 7 { Err(Error::invalid("item 7", "fails")) } else { Ok(i) }, |v| {
-            seen.push(v);
-            Ok(())
-        });
+        let e = overlapped(
+            0..50,
+            2,
+            |i| if i == 7 { Err(Error::invalid("item 7", "fails")) } else { Ok(i) },
+            |v| {
+                seen.push(v);
+                Ok(())
+            },
+        );
         assert!(e.unwrap_err().to_string().contains("item 7"));
         assert_eq!(seen, (0..7).collect::<Vec<_>>());
 

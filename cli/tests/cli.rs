@@ -245,6 +245,27 @@ fn bench_splat_prints_its_tables() {
 
 /// Malformed values are refused by the argument parser before anything runs:
 /// exit status 2, the flag and the reason named, no panic.
+/// `srug bench batch` runs srug render and relight to PNG and EXR and the in-process
+/// renders for each count, and prints a row of positive rates per count.
+#[test]
+fn bench_batch_prints_its_table() {
+    let o = srug(&["bench", "batch", "--gaussians", "2000", "--sh-degree", "1", "--counts", "1,3", "--size", "88x24"]);
+    let t = text(&o);
+    assert!(o.status.success(), "{t}");
+    assert!(t.contains("render PNG fps") && t.contains("relight to memory fps"), "{t}");
+    for count in ["1", "3"] {
+        let row = t
+            .lines()
+            .find(|l| l.starts_with(&format!("| {count} |")))
+            .unwrap_or_else(|| panic!("no row {count}:\n{t}"));
+        let values: Vec<f64> = row.split('|').filter_map(|c| c.trim().parse().ok()).collect();
+        assert_eq!(values.len(), 9, "{row}");
+        assert!(values[1..].iter().all(|v| *v > 0.0), "{row}");
+    }
+    let o = srug(&["bench", "batch", "--counts", "0"]);
+    assert!(!o.status.success() && text(&o).contains("--counts"), "{}", text(&o));
+}
+
 #[test]
 fn malformed_values_are_usage_errors() {
     let cases: &[(&[&str], &[&str])] = &[
@@ -899,6 +920,35 @@ fn shards_split_a_camera_list_without_collisions() {
     assert!(!o.status.success() && text(&o).contains("--shard 4/8") && text(&o).contains("4 cameras"), "{}", text(&o));
     let o = srug(&[&args[..], &[out.to_str().unwrap(), "--shard", "2/2"]].concat());
     assert!(!o.status.success() && text(&o).contains("I/N"), "{}", text(&o));
+}
+
+/// The same inputs give the same bytes whatever lavapipe's thread count: PNG
+/// and EXR from `srug render`, and relit PNG from `srug relight`, with 1 and 3
+/// rasterizer threads.
+#[test]
+fn outputs_are_byte_identical_whatever_the_thread_count() {
+    let dir = tempfile::tempdir().unwrap();
+    let demo = dir.path().join("demo");
+    let o = srug(&["demo", "--gaussians", "3000", "--out", demo.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", text(&o));
+    let (ply, cams) = (demo.join("demo_city.ply"), demo.join("cameras.json"));
+    let run = |threads: &str, command: &str, name: &str, extra: &[&str]| -> Vec<u8> {
+        let out = dir.path().join(format!("{threads}_{name}"));
+        let mut args = vec![command, ply.to_str().unwrap(), "--cameras", cams.to_str().unwrap(), "--index", "1"];
+        args.extend(extra);
+        args.extend(["--size", "176x48", "--out", out.to_str().unwrap()]);
+        let o = Command::new(env!("CARGO_BIN_EXE_srug")).args(&args).env("LP_NUM_THREADS", threads).output().unwrap();
+        assert!(o.status.success(), "{}", text(&o));
+        std::fs::read(&out).unwrap()
+    };
+    for (command, name, extra) in [
+        ("render", "a.png", &[][..]),
+        ("render", "a.exr", &["--channels", "rgb,depth,normal"][..]),
+        ("relight", "r.png", &[][..]),
+    ] {
+        let (one, three) = (run("1", command, name, extra), run("3", command, name, extra));
+        assert!(one == three, "{command} {name}: bytes differ between 1 and 3 threads");
+    }
 }
 
 /// `--panorama W`: each camera becomes a 360° × 180° equirectangular panorama

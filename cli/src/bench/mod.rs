@@ -2,6 +2,7 @@
 //! timed tests. Each run measures the device's FMA peak itself, so kernel
 //! efficiency is reported against a ceiling taken on the same machine, now.
 
+pub mod batch;
 pub mod formats;
 pub mod limits;
 pub mod plot;

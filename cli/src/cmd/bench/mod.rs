@@ -1,6 +1,7 @@
 //! `srug bench <area>`: the benchmarks (GPU timestamps; markdown tables on stdout).
 //! The measuring code lives in [`crate::bench`]; these files parse, run and print.
 
+mod batch;
 mod formats;
 mod scaling;
 mod shade;
@@ -30,6 +31,9 @@ pub(super) enum BenchCommand {
     Scaling(scaling::ScalingBenchArgs),
     /// Scene files: load time, size and host memory per format (no GPU).
     Formats(formats::FormatBenchArgs),
+    /// Frames per second against the number of cameras: `srug render`/`relight` to PNG and EXR,
+    /// and in-process renders into memory, with the GPU time per frame.
+    Batch(batch::BatchBenchArgs),
     /// Sigmoid shadow pass against the traced pass; shadow-map accuracy across resolution, k and depth mode.
     Shadow(shadow::ShadowBenchArgs),
 }
@@ -45,6 +49,7 @@ impl BenchCommand {
             Self::Scaling(a) => a.run(device),
             Self::Shadow(a) => a.run(device),
             Self::Formats(a) => a.run(),
+            Self::Batch(a) => a.run(device),
         }
     }
 }
