@@ -95,6 +95,17 @@ fn expect_shape(shape: &[usize], want: &[Option<usize>], what: &str) -> PyResult
     Err(invalid(format!("{what} of shape {shape:?}"), format!("must have shape ({})", text.join(", "))))
 }
 
+/// Values in [0, 1] as logits (clamped to [1e-6, 1 − 1e-6]) when `activated`, else as given.
+fn logits(v: Vec<f32>, activated: bool, what: &str) -> PyResult<Vec<f32>> {
+    if !activated {
+        return Ok(v);
+    }
+    if let Some(i) = v.iter().position(|x| !(0.0..=1.0).contains(x)) {
+        return Err(invalid(format!("{what} element {i}"), format!("is {} (activated values are 0 to 1)", v[i])));
+    }
+    Ok(v.iter().map(|x| x.clamp(1e-6, 1.0 - 1e-6)).map(|x| (x / (1.0 - x)).ln()).collect())
+}
+
 /// A point as Python receives it.
 type Point = (f32, f32, f32);
 
@@ -156,7 +167,8 @@ impl RelightKit {
 #[pyclass(frozen, module = "srug._srug")]
 struct Device {
     id: u64,
-    device: GpuDevice,
+    /// None once closed.
+    device: Mutex<Option<GpuDevice>>,
     splatters: Mutex<Vec<Splatter>>,
     relighters: Mutex<Vec<RelightKit>>,
     /// Per-camera stage timings (name, milliseconds) of the last render or relight.
@@ -238,17 +250,22 @@ fn read_into(device: &GpuDevice, buffer: &Buffer, out: Option<&mut [f32]>) -> Py
 }
 
 impl Device {
-    fn take_splatter(&self) -> srug::Result<Splatter> {
+    /// The Vulkan device, or an error once closed.
+    fn gpu(&self) -> PyResult<GpuDevice> {
+        lock(&self.device).clone().ok_or_else(|| invalid("device", "is closed"))
+    }
+
+    fn take_splatter(&self, device: &GpuDevice) -> srug::Result<Splatter> {
         match lock(&self.splatters).pop() {
             Some(s) => Ok(s),
-            None => Splatter::new(&self.device),
+            None => Splatter::new(device),
         }
     }
 
-    fn take_relighter(&self) -> srug::Result<RelightKit> {
+    fn take_relighter(&self, device: &GpuDevice) -> srug::Result<RelightKit> {
         match lock(&self.relighters).pop() {
             Some(k) => Ok(k),
-            None => RelightKit::new(&self.device),
+            None => RelightKit::new(device),
         }
     }
 }
@@ -262,7 +279,7 @@ impl Device {
         let device = py.detach(|| GpuDevice::new(&options)).map_err(|e| py_err(e.into()))?;
         Ok(Self {
             id: NEXT_DEVICE.fetch_add(1, Ordering::Relaxed),
-            device,
+            device: Mutex::new(Some(device)),
             splatters: Mutex::new(Vec::new()),
             relighters: Mutex::new(Vec::new()),
             timings: Mutex::new(Vec::new()),
@@ -271,24 +288,39 @@ impl Device {
 
     /// The device's name as its driver reports it.
     #[getter]
-    fn name(&self) -> String {
-        self.device.info().name.clone()
+    fn name(&self) -> PyResult<String> {
+        Ok(self.gpu()?.info().name.clone())
     }
 
     /// Whether the Khronos validation layer runs.
     #[getter]
-    fn validation(&self) -> bool {
-        self.device.validation_enabled()
+    fn validation(&self) -> PyResult<bool> {
+        Ok(self.gpu()?.validation_enabled())
     }
 
     /// Takes the validation layer's messages so far (empty when it is quiet or off).
-    fn take_validation_messages(&self) -> Vec<String> {
-        self.device.take_validation_messages()
+    fn take_validation_messages(&self) -> PyResult<Vec<String>> {
+        Ok(self.gpu()?.take_validation_messages())
+    }
+
+    /// Releases the device: its kernels and working memory now, the Vulkan
+    /// device once the scenes uploaded to it are gone too. Later calls raise
+    /// `srug.Error`; closing twice is harmless.
+    fn close(&self) {
+        lock(&self.splatters).clear();
+        lock(&self.relighters).clear();
+        *lock(&self.device) = None;
+    }
+
+    /// Whether `close` was called.
+    #[getter]
+    fn closed(&self) -> bool {
+        lock(&self.device).is_none()
     }
 
     /// GPU memory srug holds on this device: {"current_bytes": …, "peak_bytes": …}.
     fn memory<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        let m = self.device.memory_usage();
+        let m = self.gpu()?.memory_usage();
         let d = PyDict::new(py);
         d.set_item("current_bytes", m.current_bytes)?;
         d.set_item("peak_bytes", m.peak_bytes)?;
@@ -303,9 +335,10 @@ impl Device {
 
     /// Reads a scene file (any format srug reads, detected from the content) and uploads it.
     fn load_scene(&self, py: Python<'_>, path: PathBuf) -> PyResult<Scene> {
+        let device = self.gpu()?;
         let host = py.detach(|| srug::io::read_scene(&path)).map_err(py_err)?;
         let scene = Scene { host: Arc::new(host), uploads: Mutex::new(Vec::new()) };
-        py.detach(|| scene.gpu(self)).map_err(py_err)?;
+        py.detach(|| scene.gpu(self.id, &device)).map_err(py_err)?;
         Ok(scene)
     }
 
@@ -325,6 +358,7 @@ impl Device {
         tile: u32,
         progress: Option<Py<PyAny>>,
     ) -> PyResult<Bound<'py, PyDict>> {
+        let device = self.gpu()?;
         let cams = &cameras.cameras;
         let (w, h) = batch_size(cams)?;
         let blended: Vec<&str> = channels.iter().map(String::as_str).filter(|c| *c != "range").collect();
@@ -369,16 +403,16 @@ impl Device {
             add("range", 1, false);
         }
         let mut outputs = Outputs { arrays };
-        let gpu_scene = py.detach(|| scene.gpu(self)).map_err(py_err)?;
+        let gpu_scene = py.detach(|| scene.gpu(self.id, &device)).map_err(py_err)?;
         let progress = progress.as_ref();
         let timings = py.detach(|| -> PyResult<Vec<Vec<(String, f64)>>> {
-            let mut splatter = self.take_splatter().map_err(py_err)?;
+            let mut splatter = self.take_splatter(&device).map_err(py_err)?;
             let mut timings = Vec::with_capacity(n);
             let mut depth_scratch = if range && !wants_depth { vec![0.0f32; p] } else { Vec::new() };
             let result = (|| -> PyResult<()> {
                 for (i, cam) in cams.iter().enumerate() {
                     let (g, stats) = splatter.render(&gpu_scene, cam, &settings).map_err(py_err)?;
-                    let d = &self.device;
+                    let d = &device;
                     read_into(d, &g.alpha, outputs.slot_f32("alpha", i))?;
                     if let Some(b) = &g.rgb {
                         read_into(d, b, outputs.slot_f32("rgb", i))?;
@@ -441,6 +475,7 @@ impl Device {
         output: &str,
         progress: Option<Py<PyAny>>,
     ) -> PyResult<Bound<'py, PyDict>> {
+        let device = self.gpu()?;
         let cams = &cameras.cameras;
         let (w, h) = batch_size(cams)?;
         let display = match output {
@@ -467,13 +502,13 @@ impl Device {
         let mut outputs = Outputs {
             arrays: vec![(name.to_string(), vec![n, h as usize, w as usize, 3], Output::F32(vec![0.0; n * p * 3]))],
         };
-        let gpu_scene = py.detach(|| scene.gpu(self)).map_err(py_err)?;
+        let gpu_scene = py.detach(|| scene.gpu(self.id, &device)).map_err(py_err)?;
         let progress = progress.as_ref();
         let timings = py.detach(|| -> PyResult<Vec<Vec<(String, f64)>>> {
-            let mut kit = self.take_relighter().map_err(py_err)?;
+            let mut kit = self.take_relighter(&device).map_err(py_err)?;
             let mut timings = Vec::with_capacity(n);
             let result = (|| -> PyResult<()> {
-                kit.environment(&self.device, environment.as_ref(), sun.as_ref()).map_err(py_err)?;
+                kit.environment(&device, environment.as_ref(), sun.as_ref()).map_err(py_err)?;
                 let RelightKit { relighter, brdf, sky, file, .. } = &mut kit;
                 let env = match (&environment, file.as_ref(), sky.as_ref()) {
                     (Some(_), Some((_, e)), _) | (None, _, Some((_, e))) => e,
@@ -486,10 +521,10 @@ impl Device {
                     let dst = outputs.slot_f32(name, i);
                     if (relit.shaded.width, relit.shaded.height) == (w, h) {
                         let buffer = if display { &relit.shaded.display } else { &relit.shaded.radiance };
-                        read_into(&self.device, buffer, dst)?;
+                        read_into(&device, buffer, dst)?;
                     } else {
                         // A reduced render scale: brought back to the camera's size.
-                        let image = relit.shaded.read(&self.device).and_then(|s| s.resampled(w, h)).map_err(py_err)?;
+                        let image = relit.shaded.read(&device).and_then(|s| s.resampled(w, h)).map_err(py_err)?;
                         if let Some(dst) = dst {
                             dst.copy_from_slice(if display { &image.display } else { &image.radiance });
                         }
@@ -548,11 +583,12 @@ impl Device {
         }
         settings.validate().map_err(py_err)?;
         let bounds = scene.host.bounds().ok_or_else(|| invalid("scene", "is empty"))?;
-        let gpu_scene = py.detach(|| scene.gpu(self)).map_err(py_err)?;
+        let device = self.gpu()?;
+        let gpu_scene = py.detach(|| scene.gpu(self.id, &device)).map_err(py_err)?;
         let state = py
             .detach(|| -> srug::Result<ShadowState> {
-                let mut splatter = Splatter::new(&self.device)?;
-                let pass = ShadowPass::new(&self.device)?;
+                let mut splatter = Splatter::new(&device)?;
+                let pass = ShadowPass::new(&device)?;
                 let receivers = splatter.render_frame(
                     &gpu_scene,
                     camera,
@@ -563,9 +599,9 @@ impl Device {
                     .ok_or_else(|| srug::Error::invalid("sun", "is below the horizon"))?;
                 let (v, _) = pass.visibility(&map, &receivers.gbuffer, camera, &settings, VisibilityKind::Sigmoid)?;
                 let mut visibility = vec![0.0f32; camera.width as usize * camera.height as usize];
-                self.device.read_buffer_into(&v, &mut visibility)?;
+                device.read_buffer_into(&v, &mut visibility)?;
                 Ok(ShadowState {
-                    device: self.device.clone(),
+                    device: device.clone(),
                     scene: gpu_scene,
                     count: scene.host.len(),
                     camera: camera.clone(),
@@ -582,7 +618,10 @@ impl Device {
     }
 
     fn __repr__(&self) -> String {
-        format!("srug.Device(\"{}\")", self.device.info().name)
+        match lock(&self.device).as_ref() {
+            Some(d) => format!("srug.Device(\"{}\")", d.info().name),
+            None => "srug.Device(closed)".to_string(),
+        }
     }
 }
 
@@ -693,14 +732,14 @@ struct Scene {
 }
 
 impl Scene {
-    /// The scene on `device`, uploaded on first use.
-    fn gpu(&self, device: &Device) -> srug::Result<Arc<GpuScene>> {
+    /// The scene on device `id`, uploaded on first use.
+    fn gpu(&self, id: u64, device: &GpuDevice) -> srug::Result<Arc<GpuScene>> {
         let mut uploads = lock(&self.uploads);
-        if let Some((_, g)) = uploads.iter().find(|(id, _)| *id == device.id) {
+        if let Some((_, g)) = uploads.iter().find(|(i, _)| *i == id) {
             return Ok(g.clone());
         }
-        let g = Arc::new(GpuScene::upload(&device.device, &self.host)?);
-        uploads.push((device.id, g.clone()));
+        let g = Arc::new(GpuScene::upload(device, &self.host)?);
+        uploads.push((id, g.clone()));
         Ok(g)
     }
 }
@@ -729,7 +768,8 @@ impl Scene {
 
     /// The scene's arrays as srug stores them: means (N, 3), quats (N, 4) w, x,
     /// y, z (as stored, not normalized), log_scales (N, 3), opacity_logits (N,),
-    /// sh (N, K, 3) (copies; materials are not included).
+    /// sh (N, K, 3), and where present normals (N, 3) and the relighting
+    /// attributes as logits: albedo (N, 3), roughness, metallic, ao, visibility (N,).
     fn arrays<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let h = &self.host;
         let n = h.len();
@@ -741,6 +781,19 @@ impl Scene {
         d.set_item("log_scales", flat(h.log_scales.iter().flatten().copied().collect()).reshape([n, 3])?)?;
         d.set_item("opacity_logits", flat(h.opacity_logits.clone()).reshape([n])?)?;
         d.set_item("sh", flat(h.sh.clone()).reshape([n, k, 3])?)?;
+        let m = &h.materials;
+        for (name, triples) in [("normals", &h.normals), ("albedo", &m.albedo)] {
+            if let Some(v) = triples {
+                d.set_item(name, flat(v.iter().flatten().copied().collect()).reshape([n, 3])?)?;
+            }
+        }
+        for (name, values) in
+            [("roughness", &m.roughness), ("metallic", &m.metallic), ("ao", &m.ao), ("visibility", &m.visibility)]
+        {
+            if let Some(v) = values {
+                d.set_item(name, flat(v.clone()).reshape([n])?)?;
+            }
+        }
         Ok(d)
     }
 
@@ -749,9 +802,14 @@ impl Scene {
     /// `opacities` (N,) activated (positive; in [0, 1], clamped to
     /// [1e-6, 1 − 1e-6]) unless `activated=False` (then log-scales and
     /// opacity logits, as INRIA PLY stores them), `sh` (N, K, 3) spherical
-    /// harmonics with K = 1, 4, 9 or 16.
+    /// harmonics with K = 1, 4, 9 or 16. Relighting attributes, optional:
+    /// `normals` (N, 3), `albedo` (N, 3), `roughness`, `metallic`, `ao`,
+    /// `visibility` (N,), activated (in [0, 1], clamped like opacities) unless
+    /// `activated=False` (logits, as srug's PLY stores them).
     #[staticmethod]
-    #[pyo3(signature = (means, quats, scales, opacities, sh, activated = true))]
+    #[pyo3(signature = (means, quats, scales, opacities, sh, activated = true, normals = None, albedo = None,
+                        roughness = None, metallic = None, ao = None, visibility = None))]
+    #[allow(clippy::too_many_arguments, reason = "the Python keyword arguments of one call")]
     fn from_arrays(
         means: PyReadonlyArrayDyn<'_, f32>,
         quats: PyReadonlyArrayDyn<'_, f32>,
@@ -759,6 +817,12 @@ impl Scene {
         opacities: PyReadonlyArrayDyn<'_, f32>,
         sh: PyReadonlyArrayDyn<'_, f32>,
         activated: bool,
+        normals: Option<PyReadonlyArrayDyn<'_, f32>>,
+        albedo: Option<PyReadonlyArrayDyn<'_, f32>>,
+        roughness: Option<PyReadonlyArrayDyn<'_, f32>>,
+        metallic: Option<PyReadonlyArrayDyn<'_, f32>>,
+        ao: Option<PyReadonlyArrayDyn<'_, f32>>,
+        visibility: Option<PyReadonlyArrayDyn<'_, f32>>,
     ) -> PyResult<Self> {
         let (ms, m) = floats(&means, "means")?;
         let n = ms.first().copied().unwrap_or(0);
@@ -789,13 +853,30 @@ impl Scene {
         } else {
             s
         };
-        let opacity_logits = if activated {
-            if let Some(i) = o.iter().position(|v| !(0.0..=1.0).contains(v)) {
-                return Err(invalid(format!("opacities element {i}"), format!("is {} (activated: 0 to 1)", o[i])));
+        let opacity_logits = logits(o, activated, "opacities")?;
+        // A relighting attribute of `k` floats per Gaussian, as logits.
+        let attribute = |a: Option<PyReadonlyArrayDyn<'_, f32>>, k: usize, what: &str| -> PyResult<Option<Vec<f32>>> {
+            let Some(a) = a else { return Ok(None) };
+            let (shape, v) = floats(&a, what)?;
+            let want: Vec<Option<usize>> = if k == 1 { vec![Some(n)] } else { vec![Some(n), Some(k)] };
+            expect_shape(&shape, &want, what)?;
+            logits(v, activated, what).map(Some)
+        };
+        let triples = |v: Vec<f32>| v.chunks_exact(3).map(|r| [r[0], r[1], r[2]]).collect::<Vec<_>>();
+        let normals = match normals {
+            Some(a) => {
+                let (shape, v) = floats(&a, "normals")?;
+                expect_shape(&shape, &[Some(n), Some(3)], "normals")?;
+                Some(triples(v))
             }
-            o.iter().map(|v| v.clamp(1e-6, 1.0 - 1e-6)).map(|v| (v / (1.0 - v)).ln()).collect()
-        } else {
-            o
+            None => None,
+        };
+        let materials = srug::scene::Materials {
+            albedo: attribute(albedo, 3, "albedo")?.map(triples),
+            roughness: attribute(roughness, 1, "roughness")?,
+            metallic: attribute(metallic, 1, "metallic")?,
+            ao: attribute(ao, 1, "ao")?,
+            visibility: attribute(visibility, 1, "visibility")?,
         };
         let host = HostScene {
             means: m.chunks_exact(3).map(|r| [r[0], r[1], r[2]]).collect(),
@@ -804,6 +885,8 @@ impl Scene {
             opacity_logits,
             sh_degree: degree,
             sh,
+            normals,
+            materials,
             ..HostScene::default()
         };
         host.validate("arrays").map_err(|e| py_err(e.into()))?;

@@ -110,6 +110,13 @@ class Scene:
         sh: Any = None,
         colors: Any = None,
         activated: bool = True,
+        *,
+        normals: Any = None,
+        albedo: Any = None,
+        roughness: Any = None,
+        metallic: Any = None,
+        ao: Any = None,
+        visibility: Any = None,
     ) -> "Scene":
         """A scene from arrays with gsplat's names and meanings.
 
@@ -117,7 +124,9 @@ class Scene:
         ``opacities`` (N,) activated (scales > 0, opacities in [0, 1]) unless
         ``activated=False`` (log-scales and logits, as INRIA PLY stores them);
         colour as ``sh`` (N, K, 3) with K = 1, 4, 9 or 16, or as ``colors``
-        (N, 3) RGB in [0, 1] (stored as the SH band 0).
+        (N, 3) RGB in [0, 1] (stored as the SH band 0). Relighting needs ``albedo`` (N, 3); with it
+        ``roughness``, ``metallic``, ``ao``, ``visibility`` (N,) and ``normals`` (N, 3) are optional,
+        activated (in [0, 1]) unless ``activated=False`` (logits, as srug's PLY stores them).
         """
         m = _float32(means, "means", (None, 3))
         n = m.shape[0]
@@ -131,7 +140,25 @@ class Scene:
             h = ((c - 0.5) / SH_C0).reshape(n, 1, 3).astype(np.float32)
         else:
             h = _float32(sh, "sh", (n, None, 3))
-        return Scene(_srug.Scene.from_arrays(m, q, s, o, np.ascontiguousarray(h), activated))
+        def opt(value: Any, name: str, k: int) -> Optional[np.ndarray]:
+            return None if value is None else _float32(value, name, (n, k) if k > 1 else (n,))
+
+        return Scene(
+            _srug.Scene.from_arrays(
+                m,
+                q,
+                s,
+                o,
+                np.ascontiguousarray(h),
+                activated,
+                opt(normals, "normals", 3),
+                opt(albedo, "albedo", 3),
+                opt(roughness, "roughness", 1),
+                opt(metallic, "metallic", 1),
+                opt(ao, "ao", 1),
+                opt(visibility, "visibility", 1),
+            )
+        )
 
     def save(self, path: PathLike, format: Optional[str] = None) -> None:
         """Writes the scene in the format its extension names (.ply, .spz, .splat, .sog, .glb),
@@ -279,6 +306,22 @@ class Device:
 
     def __init__(self, device: Union[None, str, int] = None, validation: Optional[bool] = None) -> None:
         self._native = _srug.Device(None if device is None else str(device), validation)
+
+    def close(self) -> None:
+        """Releases the device's kernels and working memory (the Vulkan device goes once the
+        scenes uploaded to it are gone too); later calls raise :class:`srug.Error`."""
+        self._native.close()
+
+    @property
+    def closed(self) -> bool:
+        """Whether :meth:`close` was called."""
+        return self._native.closed
+
+    def __enter__(self) -> "Device":
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        self.close()
 
     @property
     def name(self) -> str:

@@ -380,3 +380,46 @@ def test_shadow_gradients_match_finite_differences(dev):
         st.backward(np.ones((10, 10)))
     with pytest.raises(srug.Error):
         dev.shadow(scene_of(means, logits), cam, sun=(200.0, -5.0))
+
+
+def test_materials_from_arrays_relight_like_the_scene(dev, city):
+    """A relightable scene rebuilt from its own arrays (logits, activated=False, materials
+    included) relights bit-identically; without albedo it cannot be relit; activated
+    materials give a brighter frame for a brighter albedo and are refused outside [0, 1]."""
+    scene, cams = city
+    a = scene.arrays()
+    assert {"albedo", "roughness", "metallic", "ao", "visibility"} <= set(a)
+    raw = {k: a[k] for k in ("albedo", "roughness", "metallic", "ao", "visibility", "normals") if k in a}
+    rebuilt = srug.Scene.from_arrays(a["means"], a["quats"], a["log_scales"], a["opacity_logits"], sh=a["sh"],
+                                     activated=False, **raw)
+    assert np.array_equal(dev.relight(rebuilt, cams[:2]), dev.relight(scene, cams[:2]))
+    plain = srug.Scene.from_arrays(a["means"], a["quats"], a["log_scales"], a["opacity_logits"], sh=a["sh"],
+                                   activated=False)
+    assert not plain.relightable
+    with pytest.raises(srug.Error) as e:
+        dev.relight(plain, cams[:1])
+    assert "albedo" in str(e.value)
+    n = scene.count
+    scales, opacities = np.exp(a["log_scales"]), 1 / (1 + np.exp(-a["opacity_logits"]))
+
+    def lit(albedo):
+        return srug.Scene.from_arrays(a["means"], a["quats"], scales, opacities, sh=a["sh"], albedo=albedo,
+                                      roughness=np.full(n, 0.6), metallic=np.zeros(n))
+
+    dim, bright = dev.relight(lit(np.full((n, 3), 0.3)), cams[:1]), dev.relight(lit(np.full((n, 3), 0.9)), cams[:1])
+    assert np.isfinite(dim).all() and bright.mean() > 1.5 * dim.mean()
+    with pytest.raises(srug.Error) as e:
+        lit(np.full((n, 3), 1.5))
+    assert "albedo" in str(e.value)
+
+
+def test_a_closed_device_refuses_work_and_a_with_block_closes_it(city):
+    scene, cams = city
+    with srug.Device() as d:
+        assert d.render(scene, cams[:1])["rgb"].shape == (1, 192, 704, 3)
+    assert d.closed
+    with pytest.raises(srug.Error) as e:
+        d.render(scene, cams[:1])
+    assert "closed" in str(e.value) and e.value.kind == "invalid_argument"
+    d.close()  # twice is harmless
+    assert "closed" in repr(d)
