@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Installs what srug needs on Debian 12 and is missing: the Vulkan loader,
-# lavapipe (mesa-vulkan-drivers), the Khronos validation layer, and Debian's
+# lavapipe (mesa-vulkan-drivers, Mesa 25 from bookworm-backports unless SRUG_MESA=debian), the Khronos validation layer, and Debian's
 # static shaderc/glslang/SPIRV-Tools libraries; gcc and python3 for the C API's
 # tests (C programs under AddressSanitizer) and its ctypes example, python3-venv
 # for the Python package's virtual environment (pip fetches maturin, numpy and
@@ -25,6 +25,34 @@ if ((${#missing[@]})); then
   export DEBIAN_FRONTEND=noninteractive
   $SUDO apt-get update -qq
   $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
+fi
+
+# lavapipe: Debian 12 ships Mesa 22.3; bookworm-backports' Mesa 25 renders 1.2-1.4x faster
+# (docs/bench/mesa.md), so it is the default there. SRUG_MESA=debian keeps Debian's own;
+# scripts/mesa.sh runs either one without installing it. Other releases keep theirs.
+srug_mesa="${SRUG_MESA:-backports}"
+case "$srug_mesa" in
+  backports | debian) ;;
+  *) echo "srug setup: SRUG_MESA=$srug_mesa: is not backports or debian" >&2; exit 1 ;;
+esac
+if [ "$srug_mesa" = backports ] && grep -qs '^VERSION_CODENAME=bookworm' /etc/os-release; then
+  have="$(dpkg-query -W -f='${Version}' mesa-vulkan-drivers 2>/dev/null || true)"
+  if ! dpkg --compare-versions "${have:-0}" ge 25; then
+    keep="${have:-the Debian 12 one}"
+    echo "srug setup: installing Mesa 25 (lavapipe) from bookworm-backports (SRUG_MESA=debian keeps $keep)" >&2
+    SUDO=""
+    if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
+    export DEBIAN_FRONTEND=noninteractive
+    if ! grep -rqs 'bookworm-backports' /etc/apt/sources.list /etc/apt/sources.list.d/; then
+      printf '%s\n' 'Types: deb' 'URIs: http://deb.debian.org/debian' 'Suites: bookworm-backports' \
+        'Components: main' 'Signed-By: /usr/share/keyrings/debian-archive-keyring.gpg' |
+        $SUDO tee /etc/apt/sources.list.d/srug-bookworm-backports.sources >/dev/null
+    fi
+    if ! { $SUDO apt-get update -qq &&
+      $SUDO apt-get install -y -qq --no-install-recommends -t bookworm-backports mesa-vulkan-drivers >/dev/null; }; then
+      echo "srug setup: warning: Mesa 25 from bookworm-backports could not be installed; keeping $keep" >&2
+    fi
+  fi
 fi
 
 if ! command -v cargo >/dev/null 2>&1; then

@@ -442,6 +442,7 @@ fn make_device(
             driver.driver_name_as_c_str().map(|c| c.to_string_lossy().into_owned()).unwrap_or_default(),
             driver.driver_info_as_c_str().map(|c| c.to_string_lossy().into_owned()).unwrap_or_default()
         ),
+        driver_id: driver.driver_id,
         device_type: props.device_type,
         api_version: version_string(props.api_version),
         max_storage_buffer_range: u64::from(limits.max_storage_buffer_range),

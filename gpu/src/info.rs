@@ -14,6 +14,8 @@ pub struct DeviceInfo {
     pub name: String,
     /// Driver name and info, e.g. "llvmpipe" / "Mesa 22.3.6".
     pub driver: String,
+    /// `driverID` (`MESA_LLVMPIPE` for lavapipe).
+    pub driver_id: vk::DriverId,
     /// Discrete, integrated, virtual, CPU or other.
     pub device_type: vk::PhysicalDeviceType,
     /// Vulkan API version as "major.minor.patch".
@@ -48,6 +50,28 @@ pub struct DeviceInfo {
     pub texel_formats: Vec<TexelFormat>,
 }
 
+impl DeviceInfo {
+    /// Whether the device is Mesa's lavapipe (llvmpipe), the CPU driver.
+    pub fn is_lavapipe(&self) -> bool {
+        self.driver_id == vk::DriverId::MESA_LLVMPIPE
+    }
+
+    /// The Mesa release (major, minor) of a Mesa driver, read from its driver
+    /// info ("Mesa 25.0.7-2~bpo12+1"); `None` for other drivers.
+    pub fn mesa_version(&self) -> Option<(u32, u32)> {
+        mesa_version_of(&self.driver)
+    }
+}
+
+/// The (major, minor) after "Mesa " in a driver string.
+pub(crate) fn mesa_version_of(driver: &str) -> Option<(u32, u32)> {
+    let (_, rest) = driver.split_once("Mesa ")?;
+    let mut numbers = rest.split(|c: char| !c.is_ascii_digit());
+    let major = numbers.next()?.parse().ok()?;
+    let minor = numbers.next()?.parse().ok()?;
+    Some((major, minor))
+}
+
 /// GPU memory in use, as counted by srug's allocations.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct MemoryUsage {
@@ -68,4 +92,17 @@ pub struct AdapterSummary {
     pub device_type: vk::PhysicalDeviceType,
     /// Vulkan API version.
     pub api_version: String,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::mesa_version_of;
+
+    #[test]
+    fn mesa_versions_parse_from_driver_strings() {
+        assert_eq!(mesa_version_of("llvmpipe Mesa 22.3.6 (LLVM 15.0.6)"), Some((22, 3)));
+        assert_eq!(mesa_version_of("llvmpipe Mesa 25.0.7-2~bpo12+1 (LLVM 15.0.6)"), Some((25, 0)));
+        assert_eq!(mesa_version_of("NVIDIA 550.54.14"), None);
+        assert_eq!(mesa_version_of("radv Mesa x.y"), None);
+    }
 }

@@ -15,8 +15,8 @@ use srug::scene::{Camera, Scene};
 use srug::splat::cpu::{preprocess_one, render_cpu, tile_row_span, CpuSplat};
 use srug::splat::Channel;
 use srug::splat::{
-    BlendVariant, Channels, GBuffer, NormalSource, SplatSettings, Splatter, TileBounds, BLEND_PIXELS,
-    DEFAULT_BLEND_PIXELS, DEFAULT_TILE, TILE_SIZES,
+    default_blend_pixels, BlendVariant, Channels, GBuffer, NormalSource, SplatSettings, Splatter, TileBounds,
+    BLEND_PIXELS, DEFAULT_TILE, TILE_SIZES,
 };
 use srug_tests::{assert_no_validation_messages, device, psnr, random_scene, save_comparison, NAN_SENTINEL};
 
@@ -302,6 +302,8 @@ fn every_tile_size_matches_cpu_twin_in_every_variant() {
         if d.info().subgroup_ballot {
             assert!(splatter.texel_blend(), "lavapipe has RGBA32F texel buffers, so they are the default");
             assert!(splatter.texel_preprocess(), "lavapipe has R32F texel buffers, so they are the default");
+            let expected = if d.info().mesa_version().is_some_and(|(major, _)| major >= 25) { 4 } else { 2 };
+            assert_eq!(splatter.blend_pixels(), expected, "default pixels per invocation on {}", d.info().driver);
             splatter.set_blend_variant(BlendVariant::SubgroupLoads).unwrap();
             splatter.set_texel_blend(false).unwrap();
             splatter.set_texel_preprocess(false).unwrap();
@@ -314,7 +316,7 @@ fn every_tile_size_matches_cpu_twin_in_every_variant() {
                 splatter.set_blend_pixels(pixels).unwrap();
                 render_both(&d, &mut splatter, &city.scene, &cam, &settings, &format!("tile_{tile}_pixels_{pixels}"));
             }
-            splatter.set_blend_pixels(DEFAULT_BLEND_PIXELS).unwrap();
+            splatter.set_blend_pixels(default_blend_pixels(d.info())).unwrap();
         }
         let (out, stats) = splatter.render(&gpu_scene, &cam, &settings).unwrap();
         by_tile.push((tile, out.read(&d).unwrap(), stats.pairs));
@@ -370,7 +372,7 @@ fn demo_city_matches_cpu_twin_in_every_channel() {
         let texel = if v == BlendVariant::SubgroupLoads {
             BLEND_PIXELS.iter().map(|&p| (true, p)).chain([(false, 1)]).collect()
         } else {
-            vec![(true, DEFAULT_BLEND_PIXELS)]
+            vec![(true, default_blend_pixels(d.info()))]
         };
         texel.into_iter().map(move |(t, p)| (v, t, p))
     });

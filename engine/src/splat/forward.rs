@@ -102,7 +102,7 @@ impl Splatter {
                 .iter()
                 .all(|f| device.info().texel_formats.contains(f)),
             texel_preprocess: device.info().texel_formats.contains(&TexelFormat::R32Float),
-            blend_pixels: DEFAULT_BLEND_PIXELS,
+            blend_pixels: default_blend_pixels(device.info()),
             scan: Scan::new(device)?,
             sort: RadixSort::new(device)?,
         })

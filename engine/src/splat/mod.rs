@@ -32,7 +32,7 @@ pub use forward::*;
 pub(crate) use layout::*;
 
 use crate::error::{Error, Result};
-use crate::gpu::{Buffer, Device, SpecValue};
+use crate::gpu::{Buffer, Device, DeviceInfo, SpecValue};
 
 /// The default tile edge in pixels ([`SplatSettings::tile`]).
 pub const DEFAULT_TILE: u32 = 16;
@@ -62,8 +62,19 @@ pub(crate) fn tile_spec(tile: u32) -> [(u32, SpecValue); 2] {
 /// Pixels per invocation the texel-buffer blend accepts ([`Splatter::set_blend_pixels`]):
 /// each divides every tile edge of [`TILE_SIZES`].
 pub const BLEND_PIXELS: [u32; 3] = [1, 2, 4];
-/// The default pixels per invocation of the texel-buffer blend.
+/// The pixels per invocation of the texel-buffer blend on drivers not measured otherwise.
 pub const DEFAULT_BLEND_PIXELS: u32 = 2;
+
+/// The pixels per invocation a new [`Splatter`] uses on `info`'s device:
+/// 4 on lavapipe from Mesa 25 on, where sharing each fetch over four pixels
+/// is fastest, else [`DEFAULT_BLEND_PIXELS`] (chosen by `srug bench splat
+/// --blend-pixels`; docs/bench/mesa.md).
+pub fn default_blend_pixels(info: &DeviceInfo) -> u32 {
+    match info.mesa_version() {
+        Some((major, _)) if info.is_lavapipe() && major >= 25 => 4,
+        _ => DEFAULT_BLEND_PIXELS,
+    }
+}
 /// Bit of the blend's `CHANNELS` specialization constant that blends rgb
 /// (keep in sync with `RGB` in `splat_blend_body.glsl`).
 pub(crate) const RGB_BIT: u32 = 8;
