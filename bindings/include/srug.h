@@ -455,6 +455,14 @@ srug_status srug_renderer_set_shadow(srug_renderer *renderer,
                                      float k,
                                      float bias);
 
+// The geometric shadow bias: `slope_bias` shadow-map texels times tan θ
+// (θ between a receiver's normal and the sun) added to the depth bias, and
+// each receiver moved `normal_offset` texels times sin θ along its normal;
+// each 0 to 100 (the presets: 3 and 0).
+srug_status srug_renderer_set_shadow_geometry_bias(srug_renderer *renderer,
+                                                   float slope_bias,
+                                                   float normal_offset);
+
 // Applies a quality preset by name: `"fast"`, `"balanced"` (the default) or
 // `"reference"` (docs/bench/trade.md measures them). It sets the shadow map
 // (resolution, k, bias, depth modes, sigmoid or traced test), the SH degree

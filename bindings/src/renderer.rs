@@ -197,9 +197,8 @@ pub unsafe extern "C" fn srug_renderer_create(
                 "channel mask {channels:#x} has bits beyond SRUG_CHANNEL_VISIBILITY (shading outputs come with relit frames)"
             )));
         }
-        let mut settings = RelightSettings::default();
-        settings.shadow.bias = 0.5;
-        settings.shadow.receiver_depth = srug::shadow::DepthMode::Median;
+        // The balanced preset, the header's default.
+        let mut settings = RelightSettings::preset(Preset::Balanced);
         settings.shade.tone_map = ToneMap::Aces;
         settings.extra_channels = Channels::from_bits(channels >> 2);
         let obj = RendererObject {
@@ -561,6 +560,28 @@ pub extern "C" fn srug_renderer_set_shadow(
             s.resolution = resolution;
             s.k = k;
             s.bias = bias;
+            s.validate()?;
+            r.settings.shadow = s;
+            Ok(())
+        })
+    })
+}
+
+/// The geometric shadow bias: `slope_bias` shadow-map texels times tan θ
+/// (θ between a receiver's normal and the sun) added to the depth bias, and
+/// each receiver moved `normal_offset` texels times sin θ along its normal;
+/// each 0 to 100 (the presets: 3 and 0).
+#[no_mangle]
+pub extern "C" fn srug_renderer_set_shadow_geometry_bias(
+    renderer: *mut srug_renderer,
+    slope_bias: f32,
+    normal_offset: f32,
+) -> srug_status {
+    guard("srug_renderer_set_shadow_geometry_bias", || {
+        with_renderer(renderer, |r| {
+            let mut s = r.settings.shadow;
+            s.slope_bias = slope_bias;
+            s.normal_offset = normal_offset;
             s.validate()?;
             r.settings.shadow = s;
             Ok(())

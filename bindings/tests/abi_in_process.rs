@@ -12,11 +12,12 @@ use std::ptr::null_mut;
 use glam::Vec3;
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64Mcg;
+use srug::frame::{Preset, RelightSettings};
 use srug::scene::activate::GpuScene;
 use srug::scene::demo::{demo_city, DemoOptions};
 use srug::scene::Camera;
 use srug::shadow::backward::GpuVisibilityLoss;
-use srug::shadow::{DepthMode, ShadowPass, ShadowSettings, Sun, VisibilityKind};
+use srug::shadow::{ShadowPass, ShadowSettings, Sun, VisibilityKind};
 use srug::splat::{SplatSettings, Splatter};
 use srug_c::*;
 use srug_tests::{assert_no_validation_messages, device};
@@ -83,8 +84,8 @@ fn abi_shadow_pass_matches_the_rust_api() {
     let gpu = GpuScene::upload(&d, &city.scene).unwrap();
     let camera = Camera::look_at(Vec3::from(eye), Vec3::from(target), Vec3::from(up), 80.0, w, h).unwrap();
     let sun = Sun::from_azimuth_elevation(250.0, 35.0, [1.0; 3]).unwrap();
-    let st =
-        ShadowSettings { resolution: res, k, bias, receiver_depth: DepthMode::Median, ..ShadowSettings::default() };
+    // The renderer's default is the balanced preset: its slope bias stays.
+    let st = ShadowSettings { resolution: res, k, bias, ..RelightSettings::preset(Preset::Balanced).shadow };
     let mut splatter = Splatter::new(&d).unwrap();
     let mut pass = ShadowPass::new(&d).unwrap();
     let receivers = splatter

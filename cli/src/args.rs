@@ -472,9 +472,16 @@ pub struct ShadeArgs {
     #[arg(long)]
     pub shadow_k: Option<f32>,
     /// Shadow depth bias, metres; at least the splats' extent along the light, or lit
-    /// surfaces shadow themselves [preset: 0.5, which suits the demo city].
+    /// surfaces shadow themselves [preset: 0.3].
     #[arg(long, allow_negative_numbers = true)]
     pub shadow_bias: Option<f32>,
+    /// Slope-scaled shadow bias in shadow-map texels, times tan θ of the
+    /// receiver's angle to the sun [preset: 3].
+    #[arg(long, allow_negative_numbers = true)]
+    pub shadow_slope_bias: Option<f32>,
+    /// Normal offset of the shadow receivers in shadow-map texels, times sin θ [preset: 0].
+    #[arg(long, allow_negative_numbers = true)]
+    pub shadow_normal_offset: Option<f32>,
     /// Receiver depth for the shadow test: median or expected [preset: median].
     #[arg(long, value_parser = DepthMode::parse)]
     pub receiver_depth: Option<DepthMode>,
@@ -512,6 +519,8 @@ impl ShadeArgs {
         sh.resolution = self.shadow_resolution.unwrap_or(sh.resolution);
         sh.k = self.shadow_k.unwrap_or(sh.k);
         sh.bias = self.shadow_bias.unwrap_or(sh.bias);
+        sh.slope_bias = self.shadow_slope_bias.unwrap_or(sh.slope_bias);
+        sh.normal_offset = self.shadow_normal_offset.unwrap_or(sh.normal_offset);
         sh.receiver_depth = self.receiver_depth.unwrap_or(sh.receiver_depth);
         s.visibility_kind = self.shadow_test.unwrap_or(s.visibility_kind);
         if self.sh_degree.is_some() {

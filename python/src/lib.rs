@@ -546,7 +546,8 @@ impl Device {
     /// sun and tests every pixel, V = sigmoid(k·(z_s − z + bias)), 1 where no
     /// receiver. The returned object holds V and runs the backward pass.
     #[pyo3(signature = (scene, camera, sun, resolution = 2048, k = 50.0, bias = 0.5, map_depth = None,
-                        receiver_depth = None, sun_intensity = std::f32::consts::PI))]
+                        receiver_depth = None, sun_intensity = std::f32::consts::PI, slope_bias = 0.0,
+                        normal_offset = 0.0))]
     #[allow(clippy::too_many_arguments, reason = "the Python keyword arguments of one call")]
     fn shadow(
         &self,
@@ -560,6 +561,8 @@ impl Device {
         map_depth: Option<&str>,
         receiver_depth: Option<&str>,
         sun_intensity: f32,
+        slope_bias: f32,
+        normal_offset: f32,
     ) -> PyResult<ShadowTest> {
         let [camera] = camera.cameras.as_slice() else {
             return Err(invalid(format!("{} cameras", camera.cameras.len()), "the shadow test takes one camera"));
@@ -575,6 +578,8 @@ impl Device {
         settings.resolution = resolution;
         settings.k = k;
         settings.bias = bias;
+        settings.slope_bias = slope_bias;
+        settings.normal_offset = normal_offset;
         if let Some(m) = map_depth {
             settings.map_depth = srug::shadow::DepthMode::parse(m).map_err(py_err)?;
         }

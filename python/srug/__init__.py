@@ -444,6 +444,8 @@ class Device:
         bias: float = 0.5,
         map_depth: Optional[str] = None,
         receiver_depth: Optional[str] = None,
+        slope_bias: float = 0.0,
+        normal_offset: float = 0.0,
     ) -> "ShadowTest":
         """The differentiable sun shadow test for one camera (the paper's editable visibility):
         ``.visibility`` is V = sigmoid(k·(z_s − z + bias)) per pixel, (H, W) float32 (1 where no
@@ -451,13 +453,25 @@ class Device:
         opacity logit) through the shadow map's occluders and the receivers. ``map_depth`` and
         ``receiver_depth``: "median" (the default, robust at silhouettes; its gradient reaches
         the means only), "expected" (smooth; reaches opacities and shapes too) or, for the map,
-        "expected-over-far" (docs/stages.md)."""
+        "expected-over-far" (docs/stages.md). ``slope_bias`` adds that many shadow-map texels
+        times tan θ (θ: receiver normal to sun) to ``bias``; ``normal_offset`` moves each
+        receiver that many texels times sin θ along its normal (the relight presets use 3 and
+        0); the backward holds the normals they read fixed."""
         if len(camera) != 1:
             raise _invalid(f"the shadow test takes one camera, not {len(camera)} (index the Cameras)")
         az, el = (float(v) for v in sun)
         return ShadowTest(
             self._native.shadow(
-                scene._native, camera._native, (az, el), int(resolution), float(k), float(bias), map_depth, receiver_depth
+                scene._native,
+                camera._native,
+                (az, el),
+                int(resolution),
+                float(k),
+                float(bias),
+                map_depth,
+                receiver_depth,
+                slope_bias=float(slope_bias),
+                normal_offset=float(normal_offset),
             )
         )
 

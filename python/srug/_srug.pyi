@@ -58,6 +58,8 @@ class Device:
         map_depth: Optional[str] = ...,
         receiver_depth: Optional[str] = ...,
         sun_intensity: float = ...,
+        slope_bias: float = ...,
+        normal_offset: float = ...,
     ) -> ShadowTest: ...
 
 class ShadowTest:

@@ -8,6 +8,9 @@
 // bilinear texels by the gather kernel), dL/dz = −k·dL/dx, dL/dk = (z_s − z +
 // bias)·dL/dx, and the receiver's camera depth gets dL/dz·∂z/∂depth plus
 // dL/dz_s·∂z_s/∂uv·∂uv/∂depth (its world point slides along the pixel ray).
+// A slope bias and normal offset depend only on the receiver's normal, which
+// is held fixed (no gradient flows to the normals): the world point's
+// derivative along the pixel ray is unchanged.
 // PASS 0 only counts the receivers (N); PASS 1 does the rest.
 // CPU twin: engine/src/shadow/cpu.rs `sigmoid_backward_cpu`.
 #define WORKGROUP_SIZE_X 64
@@ -31,7 +34,8 @@ void main() {
     uint p = linear_index();
     if (p >= sbw.counts.x) return;
     vec3 world;
-    bool valid = receiver_point(p, world);
+    float bias;
+    bool valid = receiver_point(p, world, bias);
     vec3 l = valid ? light_coords(world) : vec3(0.0);
     valid = valid && inside_map(l.xy);
     // A negative BCE target marks a pixel the loss ignores.
@@ -48,7 +52,7 @@ void main() {
         bilinear(l.xy, t, w);
         vec4 zt = vec4(texel_depth(t[0]), texel_depth(t[1]), texel_depth(t[2]), texel_depth(t[3]));
         float zs = dot(w, zt);
-        float delta = zs - l.z + shadow.params.y;
+        float delta = zs - l.z + bias;
         float raw = shadow.params.x * delta;
         float d_logit = 0.0;
         if (LOSS == 0u) {

@@ -13,7 +13,8 @@ void main() {
     if (p >= shadow.size.x * shadow.size.y) return;
     float v = 1.0;
     vec3 world;
-    if (receiver_point(p, world)) {
+    float bias;
+    if (receiver_point(p, world, bias)) {
         vec3 l = light_coords(world);
         if (inside_map(l.xy)) {
             ivec2 t[4];
@@ -21,7 +22,7 @@ void main() {
             bilinear(l.xy, t, w);
             float zs = w.x * texel_depth(t[0]) + w.y * texel_depth(t[1]) + w.z * texel_depth(t[2])
                      + w.w * texel_depth(t[3]);
-            v = stable_sigmoid(shadow_logit(zs, l.z));
+            v = stable_sigmoid(shadow_logit(zs, l.z, bias));
         }
     }
     FloatsOut(shadow.visibility).v[p] = v;

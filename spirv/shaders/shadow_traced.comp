@@ -17,7 +17,8 @@ void main() {
     if (p >= shadow.size.x * shadow.size.y) return;
     float T = 1.0;
     vec3 world;
-    if (receiver_point(p, world)) {
+    float bias;
+    if (receiver_point(p, world, bias)) {
         vec3 l = light_coords(world);
         if (inside_map(l.xy)) {
             uvec2 tile = uvec2(l.xy) / shadow.modes.w;  // the map's tile edge
@@ -25,7 +26,7 @@ void main() {
             Splats splats = Splats(shadow.splats);
             Uints order = Uints(shadow.sorted_gaussians);
             vec2 centre = l.xy;  // the ray itself, not its texel centre
-            float limit = l.z - shadow.params.y;
+            float limit = l.z - bias;
             for (uint j = range.x; j < range.y; j++) {
                 uint g = order.v[j];
                 vec4 head = splats.v[g].head;

@@ -70,29 +70,36 @@ fn max_diff(label: &str, camera: &Camera, gpu: &[f32], cpu: &[f64], tol: f64) ->
 fn sigmoid_test_and_traced_reference_match_cpu_twin() {
     let mut s = setup(30_000);
     let camera = s.demo.cameras[0].resized(176, 48);
-    let sun = Sun::from_direction(s.demo.sun_direction, [1.0; 3]).unwrap();
+    // A sun from the south-east: the demo's default sun puts nearly all of this
+    // view in the off-screen tower's shadow, far beyond the sigmoid's transition.
+    let sun = Sun::from_azimuth_elevation(150.0, 40.0, [1.0; 3]).unwrap();
     // The traced pass walks the map's tile lists: every tile edge.
-    for (map_depth, fit, tile) in [
-        (DepthMode::Median, ShadowFit::SceneBounds, 16),
-        (DepthMode::Expected, ShadowFit::ViewFrustum, 16),
-        (DepthMode::Median, ShadowFit::SceneBounds, 8),
-        (DepthMode::Median, ShadowFit::ViewFrustum, 32),
+    // Slope bias and normal offset (texels) too: they read the receivers' normals.
+    for (map_depth, fit, tile, slope_bias, normal_offset) in [
+        (DepthMode::Median, ShadowFit::SceneBounds, 16, 0.0, 0.0),
+        (DepthMode::Expected, ShadowFit::ViewFrustum, 16, 0.0, 0.0),
+        (DepthMode::Median, ShadowFit::SceneBounds, 8, 0.0, 0.0),
+        (DepthMode::Median, ShadowFit::ViewFrustum, 32, 0.0, 0.0),
+        (DepthMode::Median, ShadowFit::SceneBounds, 16, 2.0, 1.5),
+        (DepthMode::Expected, ShadowFit::ViewFrustum, 16, 0.5, 3.0),
     ] {
         // k = 4 per metre keeps most receivers inside the sigmoid's transition, where
         // a GPU/CPU difference would show.
-        let st = ShadowSettings { map_depth, fit, k: 4.0, tile, ..settings(384) };
-        let (g, host) = receiver(&mut s, &camera, Channels::default());
+        let st = ShadowSettings { map_depth, fit, k: 4.0, tile, slope_bias, normal_offset, ..settings(384) };
+        let (g, host) = receiver(&mut s, &camera, Channels { normal: st.geometric_bias(), ..Channels::default() });
         let map = shadow_map(&mut s, &sun, &st, Some(&camera));
         let map_host = DepthImage::from_gbuffer(&map.frame.gbuffer.read(&s.d).unwrap());
         let host = DepthImage::from_gbuffer(&host);
-        let label = format!("shadow_{map_depth:?}_{fit:?}_tile{tile}");
+        let label = format!("shadow_{map_depth:?}_{fit:?}_tile{tile}_slope{slope_bias}_offset{normal_offset}");
 
         let (v, _) = s.pass.visibility(&map, &g, &camera, &st, VisibilityKind::Sigmoid).unwrap();
         let gpu: Vec<f32> = s.d.read_buffer(&v).unwrap();
         let cpu = sigmoid_visibility_cpu(&map.camera, &map_host, &camera, &host, &st);
         // f32 reconstruction of the receiver point is good to ~1e-6 relative (~1e-4 m
-        // here); with k = 4 per metre that moves V by at most k/4 · 1e-4 = 1e-4.
-        let err = max_diff(&format!("{label}_sigmoid"), &camera, &gpu, &cpu, 1e-4);
+        // here), and its map position to ~3e-5 texel, which bilinear sampling across a
+        // depth edge (metres between neighbouring texels) turns into ~1e-4 m of z_s;
+        // with k = 4 per metre V moves by k/4 per metre: 5e-4 allows both.
+        let err = max_diff(&format!("{label}_sigmoid"), &camera, &gpu, &cpu, 5e-4);
 
         let (t, _) = s.pass.visibility(&map, &g, &camera, &st, VisibilityKind::Traced).unwrap();
         let traced: Vec<f32> = s.d.read_buffer(&t).unwrap();
@@ -106,7 +113,10 @@ fn sigmoid_test_and_traced_reference_match_cpu_twin() {
             let saved = save_comparison(&format!("{label}_traced"), camera.width, camera.height, 1, &traced, &c32);
             panic!("{label}: traced visibility: {bad} of {} pixels differ by > 1e-3 (images: {saved})", traced.len());
         }
-        eprintln!("{label}: sigmoid max error {err:.2e}; traced: {bad} pixels off by > 1e-3");
+        let partial = gpu.iter().filter(|v| (0.01..0.99).contains(*v)).count();
+        let shadowed = gpu.iter().filter(|v| **v < 0.5).count();
+        eprintln!("{label}: sigmoid max error {err:.2e} ({partial} pixels in transition, {shadowed} shadowed); traced: {bad} pixels off by > 1e-3");
+        assert!(partial > 50 && shadowed > 50, "{label}: too few pixels test the sigmoid's transition");
     }
     // Receivers seen through lenses: each pixel is unprojected along its undistorted ray
     // (Newton in f32 against f64), and the view-frustum fit follows the lens's edges.
@@ -130,8 +140,11 @@ fn sigmoid_test_and_traced_reference_match_cpu_twin() {
         let (v, _) = s.pass.visibility(&map, &g, &cam, &st, VisibilityKind::Sigmoid).unwrap();
         let gpu: Vec<f32> = s.d.read_buffer(&v).unwrap();
         let cpu = sigmoid_visibility_cpu(&map.camera, &map_host, &cam, &host, &st);
-        let err = max_diff(&format!("shadow_lens_{lens:?}"), &cam, &gpu, &cpu, 1e-4);
-        eprintln!("lens {lens:?}: sigmoid max error {err:.2e}");
+        // As above, plus the lens's f32 Newton inversion.
+        let err = max_diff(&format!("shadow_lens_{lens:?}"), &cam, &gpu, &cpu, 5e-4);
+        let partial = gpu.iter().filter(|v| (0.01..0.99).contains(*v)).count();
+        eprintln!("lens {lens:?}: sigmoid max error {err:.2e} ({partial} pixels in transition)");
+        assert!(partial > 50, "lens {lens:?}: too few pixels test the sigmoid's transition");
     }
     assert_no_validation_messages(&s.d);
 }

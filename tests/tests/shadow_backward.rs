@@ -57,7 +57,7 @@ fn shadow_backward_matches_cpu_twin() {
     // off-screen tower's shadow, far beyond the sigmoid's transition.
     let sun = Sun::from_azimuth_elevation(150.0, 40.0, [1.0; 3]).unwrap();
     let bounds = demo.scene.bounds().unwrap();
-    let ch = Channels { depth: true, median_depth: true, visibility: true, ..Channels::default() };
+    let ch = Channels { depth: true, median_depth: true, visibility: true, normal: true, ..Channels::default() };
     let receivers =
         splatter.render_frame(&gpu_scene, &camera, &SplatSettings { channels: ch, ..Default::default() }).unwrap();
     let host_rec = receivers.gbuffer.read(&d).unwrap();
@@ -76,13 +76,24 @@ fn shadow_backward_matches_cpu_twin() {
         .collect();
     let upstream_buf = d.upload("dL/dV", &upstream).unwrap();
     let vf_buf = d.upload("V_f", &vf).unwrap();
-    for (map_depth, receiver_depth, bce) in [
-        (DepthMode::Median, DepthMode::Expected, false),
-        (DepthMode::Expected, DepthMode::Median, false),
-        (DepthMode::Median, DepthMode::Expected, true),
-        (DepthMode::ExpectedOverFar, DepthMode::Expected, true),
+    // The last two with a slope bias and normal offset (texels), which hold the normals fixed.
+    for (map_depth, receiver_depth, bce, slope_bias, normal_offset) in [
+        (DepthMode::Median, DepthMode::Expected, false, 0.0, 0.0),
+        (DepthMode::Expected, DepthMode::Median, false, 0.0, 0.0),
+        (DepthMode::Median, DepthMode::Expected, true, 0.0, 0.0),
+        (DepthMode::ExpectedOverFar, DepthMode::Expected, true, 0.0, 0.0),
+        (DepthMode::Median, DepthMode::Expected, false, 1.5, 1.0),
+        (DepthMode::Median, DepthMode::Median, true, 2.0, 2.0),
     ] {
-        let st = ShadowSettings { resolution: 384, k: 4.0, map_depth, receiver_depth, ..ShadowSettings::default() };
+        let st = ShadowSettings {
+            resolution: 384,
+            k: 4.0,
+            map_depth,
+            receiver_depth,
+            slope_bias,
+            normal_offset,
+            ..ShadowSettings::default()
+        };
         let map = pass.shadow_map(&mut splatter, &gpu_scene, &bounds, &sun, &st, None).unwrap().unwrap();
         let map_img = DepthImage::from_gbuffer(&map.frame.gbuffer.read(&d).unwrap());
         let loss = if bce { GpuVisibilityLoss::Bce(&vf_buf) } else { GpuVisibilityLoss::Upstream(&upstream_buf) };
@@ -91,7 +102,7 @@ fn shadow_backward_matches_cpu_twin() {
         let vf64: Vec<f64> = vf.iter().map(|v| f64::from(*v)).collect();
         let cpu_loss = if bce { VisibilityLoss::Bce(&vf64) } else { VisibilityLoss::Upstream(&up64) };
         let cpu = sigmoid_backward_cpu(&map.camera, &map_img, &camera, &rec_img, &st, cpu_loss);
-        let label = format!("{map_depth:?}_{receiver_depth:?}_bce{bce}");
+        let label = format!("{map_depth:?}_{receiver_depth:?}_bce{bce}_slope{slope_bias}_offset{normal_offset}");
         let msize = (map.camera.width, map.camera.height);
         let csize = (camera.width, camera.height);
         // fp32 against f64 on the same inputs: 1e-2 relative, floor 1% of the largest value.

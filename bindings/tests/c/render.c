@@ -112,7 +112,8 @@ int main(int argc, char **argv) {
   const float sun[3] = {3.14159265f, 3.14159265f, 3.14159265f};
   CHECK(srug_renderer_set_sun(r, azimuth, elevation, sun));
   CHECK(srug_renderer_set_environment(r, NULL, 0.0f, 1.0f));
-  CHECK(srug_renderer_set_shadow(r, 2048, 50.0f, 0.5f));
+  CHECK(srug_renderer_set_shadow(r, 2048, 50.0f, 0.3f)); /* the balanced preset's */
+  CHECK(srug_renderer_set_shadow_geometry_bias(r, 3.0f, 0.0f));
   CHECK(srug_renderer_set_exposure(r, 0.0f, SRUG_TONE_MAP_ACES));
   CHECK(srug_renderer_render(r, scene));
   unsigned char *image = read_rgba8(r, w, h);

@@ -294,6 +294,8 @@ pub(crate) fn relight_demo(
         shadow_resolution: None,
         shadow_k: None,
         shadow_bias: None,
+        shadow_slope_bias: None,
+        shadow_normal_offset: None,
         receiver_depth: None,
         shadow_test: None,
         sh_degree: None,

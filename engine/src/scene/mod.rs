@@ -11,6 +11,7 @@
 //! lengths, finite values and non-zero quaternions; every loader validates.
 
 pub mod activate;
+pub mod blocks;
 pub mod demo;
 mod layout;
 

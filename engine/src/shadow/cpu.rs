@@ -52,6 +52,8 @@ pub struct DepthImage {
     pub alpha: Vec<f64>,
     /// Median depth (0 where T never reaches 0.5, or not rendered).
     pub median: Vec<f64>,
+    /// Blended normal per pixel (unnormalised; empty where not rendered).
+    pub normal: Vec<DVec3>,
 }
 
 impl DepthImage {
@@ -65,6 +67,9 @@ impl DepthImage {
             depth_sum: wide(g.get(Channel::Depth)),
             alpha: g.alpha.iter().map(|x| f64::from(*x)).collect(),
             median: wide(g.get(Channel::MedianDepth)),
+            normal: g.get(Channel::Normal).map_or(Vec::new(), |v| {
+                v.chunks_exact(3).map(|n| DVec3::new(f64::from(n[0]), f64::from(n[1]), f64::from(n[2]))).collect()
+            }),
         }
     }
 
@@ -76,6 +81,7 @@ impl DepthImage {
             depth_sum: blends.iter().map(|b| b.values[3]).collect(),
             alpha: blends.iter().map(|b| 1.0 - b.t_final).collect(),
             median: blends.iter().map(|b| b.median).collect(),
+            normal: Vec::new(),
         }
     }
 
@@ -155,18 +161,36 @@ pub fn bilinear(uv: DVec2, w: u32, h: u32) -> ([usize; 4], [f64; 4]) {
     )
 }
 
-/// Where a receiver pixel lands in the map: (uv, z) for a surface inside the map.
+/// Where a receiver pixel lands in the map and its depth bias: (uv, z, bias)
+/// for a surface inside the map. With a slope bias or normal offset, the
+/// receiver's normal n (faced toward the camera) at angle θ to the sun moves
+/// the point by n·offset·sin θ and adds slope bias·min(tan θ, `MAX_SLOPE`).
 pub(crate) fn receiver_in_light(
     light: &Camera,
     camera: &Camera,
     receiver: &DepthImage,
     settings: &ShadowSettings,
     p: usize,
-) -> Option<(DVec2, f64)> {
+) -> Option<(DVec2, f64, f64)> {
     let z = receiver.depth(settings.receiver_depth, p, f64::from(settings.min_alpha), 0.0)?;
-    let (uv, lz) = light_coords(light, unproject(camera, p, z));
+    let mut world = unproject(camera, p, z);
+    let mut bias = f64::from(settings.bias);
+    let n = receiver.normal.get(p).copied().unwrap_or(DVec3::ZERO);
+    if settings.geometric_bias() && n.length() > 1e-12 {
+        let mut n = n.normalize();
+        if n.dot(world - camera.position.as_dvec3()) > 0.0 {
+            n = -n;
+        }
+        let texel = f64::from(super::texel_size(light));
+        let toward_sun = -(light.rotation.as_dmat3() * DVec3::Z);
+        let c = n.dot(toward_sun).clamp(0.0, 1.0);
+        let sin = (1.0 - c * c).max(0.0).sqrt();
+        world += n * (f64::from(settings.normal_offset) * texel * sin);
+        bias += f64::from(settings.slope_bias) * texel * (sin / c.max(1e-6)).min(f64::from(super::MAX_SLOPE));
+    }
+    let (uv, lz) = light_coords(light, world);
     let inside = uv.x >= 0.0 && uv.y >= 0.0 && uv.x < f64::from(light.width) && uv.y < f64::from(light.height);
-    inside.then_some((uv, lz))
+    inside.then_some((uv, lz, bias))
 }
 
 /// Texel depths z_s of a shadow map (empty texels at [`DepthMode::empty_depth`]).
@@ -190,10 +214,10 @@ pub fn sigmoid_visibility_cpu(
     let zs_texels = texel_depths(light, map, settings);
     (0..receiver.alpha.len())
         .map(|p| {
-            let Some((uv, z)) = receiver_in_light(light, camera, receiver, settings, p) else { return 1.0 };
+            let Some((uv, z, bias)) = receiver_in_light(light, camera, receiver, settings, p) else { return 1.0 };
             let (t, w) = bilinear(uv, light.width, light.height);
             let zs: f64 = t.iter().zip(w).map(|(i, w)| w * zs_texels[*i]).sum();
-            sigmoid_visibility(zs, z, f64::from(settings.k), f64::from(settings.bias))
+            sigmoid_visibility(zs, z, f64::from(settings.k), bias)
         })
         .collect()
 }
@@ -247,7 +271,7 @@ pub fn sigmoid_backward_cpu(
     loss: VisibilityLoss<'_>,
 ) -> ShadowGradients {
     let zs_texels = texel_depths(light, map, settings);
-    let (k, bias) = (f64::from(settings.k), f64::from(settings.bias));
+    let k = f64::from(settings.k);
     let n = receiver.alpha.len();
     let mut out = ShadowGradients {
         texel_depth: vec![0.0; zs_texels.len()],
@@ -271,7 +295,7 @@ pub fn sigmoid_backward_cpu(
         if !counted(p) {
             continue;
         }
-        let Some((uv, z)) = receiver_in_light(light, camera, receiver, settings, p) else { continue };
+        let Some((uv, z, bias)) = receiver_in_light(light, camera, receiver, settings, p) else { continue };
         let (t, w) = bilinear(uv, light.width, light.height);
         let zs: f64 = t.iter().zip(w).map(|(i, w)| w * zs_texels[*i]).sum();
         let raw = k * (zs - z + bias);
@@ -337,8 +361,8 @@ pub fn traced_visibility_cpu(
     let lists = tile_lists(&splats, light, settings.tile, crate::splat::TileBounds::default());
     (0..receiver.alpha.len())
         .map(|p| {
-            let Some((uv, z)) = receiver_in_light(light, camera, receiver, settings, p) else { return 1.0 };
-            let limit = z - f64::from(settings.bias);
+            let Some((uv, z, bias)) = receiver_in_light(light, camera, receiver, settings, p) else { return 1.0 };
+            let limit = z - bias;
             let mut t = 1.0;
             for &(_, i) in lists.at(uv.x as usize, uv.y as usize) {
                 let Some(s) = &splats[i] else { continue };

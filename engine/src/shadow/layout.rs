@@ -27,12 +27,13 @@ pub(crate) struct ShadowUniform {
     pub(super) size: [u32; 4],
     pub(super) params: [f32; 4],
     pub(super) modes: [u32; 4],
+    pub(super) geometry: [f32; 4],
     pub(super) receiver_depth: DeviceAddress,
     pub(super) receiver_alpha: DeviceAddress,
     pub(super) map_depth: DeviceAddress,
     pub(super) map_alpha: DeviceAddress,
     pub(super) visibility: DeviceAddress,
-    pub(super) unused0: DeviceAddress,
+    pub(super) receiver_normal: DeviceAddress,
     pub(super) splats: DeviceAddress,
     pub(super) sorted_gaussians: DeviceAddress,
     pub(super) ranges: DeviceAddress,
@@ -59,12 +60,13 @@ crate::gpu::gpu_layout!(
         size,
         params,
         modes,
+        geometry,
         receiver_depth,
         receiver_alpha,
         map_depth,
         map_alpha,
         visibility,
-        unused0,
+        receiver_normal,
         splats,
         sorted_gaussians,
         ranges,
@@ -85,6 +87,7 @@ impl ShadowUniform {
     ) -> Result<()> {
         self.receiver_depth = rec.addr(inputs.receiver_depth)?;
         self.receiver_alpha = rec.addr(inputs.receiver_alpha)?;
+        self.receiver_normal = rec.addr_or_null(inputs.receiver_normal)?;
         self.map_depth = rec.addr(inputs.map_depth)?;
         self.map_alpha = rec.addr(&inputs.map.frame.gbuffer.alpha)?;
         self.visibility = rec.addr_or_null(visibility)?;
@@ -100,6 +103,8 @@ impl ShadowUniform {
 pub(crate) struct ShadowInputs<'a> {
     pub(crate) receiver_depth: &'a Buffer,
     pub(crate) receiver_alpha: &'a Buffer,
+    /// The receivers' normals, where the settings ask for a geometric bias.
+    pub(crate) receiver_normal: Option<&'a Buffer>,
     pub(crate) map_depth: &'a Buffer,
     pub(crate) map: &'a ShadowMap,
 }
@@ -135,6 +140,13 @@ pub(super) fn shadow_uniform<'a>(
             format!("lacks the {:?} depth channel the shadow settings ask for", settings.receiver_depth),
         )
     })?;
+    let receiver_normal = if settings.geometric_bias() {
+        Some(gbuffer.get(Channel::Normal).ok_or_else(|| {
+            Error::invalid("receiver G-buffer", "lacks the normal channel a slope bias or normal offset needs")
+        })?)
+    } else {
+        None
+    };
     let g = &map.frame.gbuffer;
     let map_depth = match map.depth {
         DepthMode::Median => g.get(Channel::MedianDepth),
@@ -152,7 +164,9 @@ pub(super) fn shadow_uniform<'a>(
     u.size = [camera.width, camera.height, l.width, l.height];
     u.params = [settings.k, settings.bias, settings.min_alpha, map.depth.empty_depth(l.far)];
     u.modes = [map.depth.code(), settings.receiver_depth.code(), map.frame.tiles().0, map.frame.tile];
-    Ok((u, ShadowInputs { receiver_depth, receiver_alpha: &gbuffer.alpha, map_depth, map }))
+    let texel = map.texel_size();
+    u.geometry = [settings.slope_bias * texel, settings.normal_offset * texel, MAX_SLOPE, 0.0];
+    Ok((u, ShadowInputs { receiver_depth, receiver_alpha: &gbuffer.alpha, receiver_normal, map_depth, map }))
 }
 
 #[cfg(test)]

@@ -21,6 +21,7 @@
 //!
 //! [`cpu`] is the f64 twin.
 
+pub mod accuracy;
 pub mod backward;
 pub mod completion;
 pub mod cpu;
@@ -99,6 +100,19 @@ pub enum ShadowFit {
     ViewFrustum,
 }
 
+/// The world width of one texel of a light camera (orthographic, square texels).
+pub(crate) fn texel_size(light: &Camera) -> f32 {
+    match light.projection {
+        Projection::Orthographic { sx, .. } => 1.0 / sx,
+        Projection::Pinhole { .. } => 0.0,
+    }
+}
+
+/// The largest tan θ the slope-scaled bias uses (θ ≈ 84°): beyond it a
+/// receiver is nearly edge-on to the sun, receives almost no sun light, and an
+/// unbounded bias would let its shadows leak.
+pub const MAX_SLOPE: f32 = 10.0;
+
 /// Shadow quality knobs.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ShadowSettings {
@@ -108,6 +122,14 @@ pub struct ShadowSettings {
     pub k: f32,
     /// Depth bias against self-shadowing, world units (added to z_s − z).
     pub bias: f32,
+    /// Slope-scaled bias, in shadow-map texels: adds this many texel widths
+    /// times tan θ (θ between the receiver's normal and the sun, tan θ at most
+    /// [`MAX_SLOPE`]) to `bias`, so steep receivers, whose depth changes most
+    /// across a texel, get the bias they need and facing ones keep contact shadows.
+    pub slope_bias: f32,
+    /// Normal offset, in shadow-map texels: the receiver point moves along its
+    /// normal by this many texel widths times sin θ before the test.
+    pub normal_offset: f32,
     /// Depth of the shadow map.
     pub map_depth: DepthMode,
     /// Depth of the receivers (the camera G-buffer).
@@ -129,6 +151,8 @@ impl Default for ShadowSettings {
             resolution: 2048,
             k: 50.0,
             bias: 0.15,
+            slope_bias: 0.0,
+            normal_offset: 0.0,
             map_depth: DepthMode::Median,
             receiver_depth: DepthMode::Expected,
             fit: ShadowFit::SceneBounds,
@@ -143,7 +167,7 @@ impl ShadowSettings {
     /// Checks the values.
     pub fn validate(&self) -> Result<()> {
         crate::splat::check_tile(self.tile)?;
-        let rules: [(bool, String, &str); 5] = [
+        let rules: [(bool, String, &str); 7] = [
             (
                 (16..=16384).contains(&self.resolution),
                 format!("shadow map resolution {}", self.resolution),
@@ -155,6 +179,16 @@ impl ShadowSettings {
                 "must be positive and finite",
             ),
             (self.bias.is_finite() && self.bias >= 0.0, format!("shadow bias {}", self.bias), "must be finite and ≥ 0"),
+            (
+                (0.0..=100.0).contains(&self.slope_bias),
+                format!("shadow slope bias {} texels", self.slope_bias),
+                "must be 0 to 100",
+            ),
+            (
+                (0.0..=100.0).contains(&self.normal_offset),
+                format!("shadow normal offset {} texels", self.normal_offset),
+                "must be 0 to 100",
+            ),
             (
                 self.min_alpha > 0.0 && self.min_alpha <= 1.0,
                 format!("shadow minimum alpha {}", self.min_alpha),
@@ -174,7 +208,12 @@ impl ShadowSettings {
 
     /// The G-buffer channels a receiver (camera) render needs for these settings.
     pub fn receiver_channels(&self) -> Channels {
-        depth_channels(self.receiver_depth)
+        Channels { normal: self.geometric_bias(), ..depth_channels(self.receiver_depth) }
+    }
+
+    /// Whether the test reads the receivers' normals (a slope bias or normal offset).
+    pub fn geometric_bias(&self) -> bool {
+        self.slope_bias > 0.0 || self.normal_offset > 0.0
     }
 }
 
@@ -304,6 +343,11 @@ pub struct ShadowMap {
 }
 
 impl ShadowMap {
+    /// The world width of one texel (texels are square).
+    pub fn texel_size(&self) -> f32 {
+        texel_size(&self.camera)
+    }
+
     /// The texels' depth z_s on the host (empty texels: `DepthMode::empty_depth`).
     pub fn read_depth(&self, device: &Device, min_alpha: f32) -> Result<Vec<f32>> {
         let g = self.frame.gbuffer.read(device)?;

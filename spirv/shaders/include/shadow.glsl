@@ -16,12 +16,13 @@ layout(std140, set = 0, binding = 0) uniform Shadow {
     uvec4 size;        // camera width, height, map width, height
     vec4 params;       // k, bias, minimum alpha of a surface, depth of an empty texel
     uvec4 modes;       // map depth (0 expected, 1 median, 2 expected over far), receiver depth (0, 1), map tiles across, map tile edge
+    vec4 geometry;     // slope bias and normal offset in world units (per texel), the largest tan θ, 0
     uvec2 receiver_depth;     // by device address (low, high)
     uvec2 receiver_alpha;
     uvec2 map_depth;
     uvec2 map_alpha;
     uvec2 visibility;         // out; 0 in the backward pass
-    uvec2 unused0;
+    uvec2 receiver_normal;    // the receivers' normal channel (3 floats a pixel) where geometry.xy ≠ 0
     uvec2 splats;             // the map's splats and sorted pairs (traced test)
     uvec2 sorted_gaussians;
     uvec2 ranges;
@@ -40,12 +41,29 @@ bool resolve_depth(uint mode, uvec2 depth_addr, uvec2 alpha_addr, uint p, out fl
     return a >= shadow.params.z;
 }
 
-// World point seen at receiver pixel p; false where there is no surface.
-bool receiver_point(uint p, out vec3 world) {
+// World point seen at receiver pixel p and its depth bias; false where there
+// is no surface. With a geometric bias (geometry.xy ≠ 0) and a normal n (faced
+// toward the camera) at angle θ to the sun, the point moves n·normal offset·sin θ
+// and the bias grows by slope bias·min(tan θ, largest tan θ).
+bool receiver_point(uint p, out vec3 world, out float bias) {
     float z;
     world = vec3(0.0);
+    bias = shadow.params.y;
     if (!resolve_depth(shadow.modes.y, shadow.receiver_depth, shadow.receiver_alpha, p, z)) return false;
     world = camera_unproject(shadow.camera, pixel_centre(p, shadow.size.x), z);
+    if (shadow.geometry.x != 0.0 || shadow.geometry.y != 0.0) {
+        FloatsIn normals = FloatsIn(shadow.receiver_normal);
+        vec3 n = vec3(normals.v[3u * p], normals.v[3u * p + 1u], normals.v[3u * p + 2u]);
+        float len = length(n);
+        if (len > 1e-12) {
+            n /= len;
+            if (dot(n, world - shadow.camera.position.xyz) > 0.0) n = -n;
+            float c = clamp(-dot(n, shadow.light_rot2.xyz), 0.0, 1.0);
+            float s = sqrt(max(1.0 - c * c, 0.0));
+            world += n * (shadow.geometry.y * s);
+            bias += shadow.geometry.x * min(s / max(c, 1e-6), shadow.geometry.z);
+        }
+    }
     return true;
 }
 
@@ -89,8 +107,8 @@ bool inside_map(vec2 uv) {
 // The shadow logit k·(z_s − z + bias), clamped to ±30 (σ is 1 − 9e-14 there;
 // the clamp keeps exp finite for any k); NaN-free for finite inputs.
 const float LOGIT_LIMIT = 30.0;
-float shadow_logit(float zs, float z) {
-    float x = shadow.params.x * (zs - z + shadow.params.y);
+float shadow_logit(float zs, float z, float bias) {
+    float x = shadow.params.x * (zs - z + bias);
     return clamp(x, -LOGIT_LIMIT, LOGIT_LIMIT);
 }
 

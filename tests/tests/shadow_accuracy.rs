@@ -1,0 +1,131 @@
+//! Shadow accuracy against the truth on the analytic block: a ground and box
+//! buildings sampled with flat Gaussians (ideal discs and rough, trained-like
+//! splats), three street cameras at 704×192, suns at 15°, 35° and 60°; the
+//! true visibility of every pixel by ray casting the boxes, never from srug.
+//! Reports shadow IoU, false shadow on truly lit pixels, light leaking onto
+//! truly shadowed pixels and the edge error, per preset; asserts the floors
+//! the presets reach today so a change that loses accuracy fails
+//! (`SRUG_SHADOW_ACCURACY_REPORT=1` prints every preset without the floors;
+//! `SRUG_SAVE_SHADOW_ACCURACY=1` saves V against the truth as images).
+
+#![allow(clippy::unwrap_used, clippy::expect_used, reason = "a failed unwrap is a failed test")]
+
+use srug::frame::{Preset, RelightSettings};
+use srug::gpu::Device;
+use srug::scene::activate::GpuScene;
+use srug::scene::blocks::{block_city, BlockCity, BlockOptions, BlockSplats};
+use srug::shadow::accuracy::{shadow_accuracy, ShadowAccuracy};
+use srug::shadow::{ShadowPass, Sun};
+use srug::splat::{SplatSettings, Splatter};
+use srug_tests::{assert_no_validation_messages, device, save_comparison, NAN_SENTINEL};
+
+/// The accuracy of one preset over every sun and camera of the block.
+fn measure(
+    d: &Device,
+    splatter: &mut Splatter,
+    pass: &ShadowPass,
+    city: &BlockCity,
+    scene: &GpuScene,
+    settings: &RelightSettings,
+    label: &str,
+) -> ShadowAccuracy {
+    let mut st = settings.shadow;
+    st.prefill = Some(NAN_SENTINEL);
+    let bounds = city.scene.bounds().unwrap();
+    let mut total = ShadowAccuracy::default();
+    for sun in &city.suns {
+        let light = Sun::from_direction(sun.direction, [1.0; 3]).unwrap();
+        let map = pass.shadow_map(splatter, scene, &bounds, &light, &st, None).unwrap().expect("the sun is up");
+        let mut per_sun = ShadowAccuracy::default();
+        for camera in &city.cameras {
+            let camera = settings.render_camera(camera);
+            let splat = SplatSettings {
+                channels: st.receiver_channels(),
+                prefill: Some(NAN_SENTINEL),
+                tile: settings.tile,
+                ..SplatSettings::default()
+            };
+            let (g, _) = splatter.render(scene, &camera, &splat).unwrap();
+            let (v, _) = pass.visibility(&map, &g, &camera, &st, settings.visibility_kind).unwrap();
+            let v: Vec<f32> = d.read_buffer(&v).unwrap();
+            assert!(v.iter().all(|x| x.is_finite() && (0.0..=1.0).contains(x)), "{label}: V unwritten or out of range");
+            let truth = city.true_visibility(&camera, sun.direction);
+            let known = truth.iter().flatten().count();
+            let shadowed = truth.iter().flatten().filter(|lit| !**lit).count();
+            assert!(
+                shadowed * 50 > known && shadowed * 50 < known * 49,
+                "{}: {shadowed} of {known} truly shadowed",
+                camera.name
+            );
+            let mut acc = shadow_accuracy(&v, &truth, camera.width as usize, camera.height as usize);
+            // Edge error in pixels of the full-size image.
+            acc.edge_distance_sum *= f64::from(city.cameras[0].width) / f64::from(camera.width);
+            if std::env::var_os("SRUG_SAVE_SHADOW_ACCURACY").is_some() {
+                let t: Vec<f32> = truth.iter().map(|t| t.map_or(0.5, |lit| if lit { 1.0 } else { 0.0 })).collect();
+                let name = format!("accuracy_{label}_{}_{}", sun.name, camera.name);
+                save_comparison(&name, camera.width, camera.height, 1, &v, &t);
+            }
+            per_sun.add(&acc);
+        }
+        eprintln!(
+            "{label:>22} sun {:>9}: IoU {:.3}, false shadow {:.2}%, light leak {:.2}%, edge error {:.2} px",
+            sun.name,
+            per_sun.iou(),
+            100.0 * per_sun.false_shadow_rate(),
+            100.0 * per_sun.light_leak_rate(),
+            per_sun.edge_error()
+        );
+        total.add(&per_sun);
+    }
+    eprintln!(
+        "{label:>22}      all: IoU {:.3}, false shadow {:.2}%, light leak {:.2}%, edge error {:.2} px",
+        total.iou(),
+        100.0 * total.false_shadow_rate(),
+        100.0 * total.light_leak_rate(),
+        total.edge_error()
+    );
+    total
+}
+
+#[test]
+fn presets_shadow_the_analytic_block_as_the_truth_does() {
+    let d = device();
+    let mut splatter = Splatter::new(&d).unwrap();
+    let pass = ShadowPass::new(&d).unwrap();
+    // (sampling, preset, lowest IoU accepted, highest false-shadow and leak rates, edge error px)
+    let floors = [
+        (BlockSplats::Ideal, Preset::Fast, 0.94, 0.03, 0.012, 8.5),
+        (BlockSplats::Ideal, Preset::Balanced, 0.97, 0.015, 0.006, 3.8),
+        (BlockSplats::Ideal, Preset::Reference, 0.97, 0.015, 0.006, 3.8),
+        (BlockSplats::Rough, Preset::Fast, 0.94, 0.03, 0.012, 9.5),
+        (BlockSplats::Rough, Preset::Balanced, 0.965, 0.015, 0.008, 7.0),
+        (BlockSplats::Rough, Preset::Reference, 0.965, 0.015, 0.008, 7.5),
+    ];
+    let mut last: Option<(BlockSplats, BlockCity, GpuScene)> = None;
+    for (splats, preset, iou, false_shadow, leak, edge) in floors {
+        if last.as_ref().is_none_or(|(s, _, _)| *s != splats) {
+            let city = block_city(&BlockOptions { splats, ..BlockOptions::default() }).unwrap();
+            let scene = GpuScene::upload(&d, &city.scene).unwrap();
+            eprintln!("{splats:?} block: {} Gaussians", city.scene.means.len());
+            last = Some((splats, city, scene));
+        }
+        let (_, city, scene) = last.as_ref().unwrap();
+        let label = format!("{splats:?} {}", preset.name());
+        let acc = measure(&d, &mut splatter, &pass, city, scene, &RelightSettings::preset(preset), &label);
+        let failed = acc.iou() < iou
+            || acc.false_shadow_rate() > false_shadow
+            || acc.light_leak_rate() > leak
+            || acc.edge_error() > edge;
+        if std::env::var_os("SRUG_SHADOW_ACCURACY_REPORT").is_none() {
+            assert!(!failed, "{label}: below its floor (IoU ≥ {iou}, false shadow ≤ {false_shadow}, leak ≤ {leak}, edge ≤ {edge} px): {acc:?}");
+        }
+    }
+    // The measure can fail: a visibility of 1 everywhere leaks every shadow.
+    let (_, city, _) = last.as_ref().unwrap();
+    let camera = &city.cameras[0];
+    let truth = city.true_visibility(camera, city.suns[0].direction);
+    let lit = vec![1.0f32; truth.len()];
+    let none = shadow_accuracy(&lit, &truth, camera.width as usize, camera.height as usize);
+    assert_eq!((none.iou(), none.light_leak_rate()), (0.0, 1.0));
+    assert_no_validation_messages(&d);
+}
