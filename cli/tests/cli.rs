@@ -395,9 +395,19 @@ fn relight_renders_stills_time_lapses_and_prefiltered_environments() {
     assert!(o.status.success(), "{}", text(&o));
     let image = exr::prelude::read_all_flat_layers_from_file(&exr_out).unwrap();
     let names: Vec<String> = image.layer_data[0].channel_data.list.iter().map(|c| c.name.to_string()).collect();
-    for want in ["R", "G", "B", "sun.R", "sky.B"] {
+    for want in ["R", "G", "B", "sun.R", "sky.B", "visibility.Y"] {
         assert!(names.iter().any(|n| n == want), "{names:?} lacks {want}");
     }
+    // V is the shadow test's: in [0, 1], partly shadowed, and 0 where L_sun is 0 on a surface.
+    let channel = |name: &str| -> Vec<f32> {
+        let c = image.layer_data[0].channel_data.list.iter().find(|c| c.name.to_string() == name).unwrap();
+        c.sample_data.values_as_f32().collect()
+    };
+    let (v, sun_r) = (channel("visibility.Y"), channel("sun.R"));
+    assert!(v.iter().all(|x| (0.0..=1.0).contains(x)), "V out of [0, 1]");
+    let shadowed = v.iter().filter(|x| **x < 0.5).count();
+    assert!(shadowed > 0 && shadowed < v.len(), "{shadowed} of {} pixels shadowed", v.len());
+    assert!(v.iter().zip(&sun_r).all(|(v, s)| *v > 1e-4 || *s < 1e-3), "sun light where V = 0");
     assert!(!names.iter().any(|n| n.starts_with("indirect")), "no weights: no indirect light");
     // With network weights the indirect light is computed and written.
     let config = srug::indirect::UNetConfig { widths: [8, 8, 16, 16, 32], ..Default::default() };

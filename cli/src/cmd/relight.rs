@@ -114,12 +114,14 @@ impl std::ops::Deref for EnvRef<'_> {
 }
 
 /// Writes a relit frame: PNG of the display image, or EXR with the linear
-/// radiance (R, G, B) plus L_sun, L_sky and (planar) L_ind when it was computed.
+/// radiance (R, G, B) plus L_sun, L_sky, (planar) L_ind when it was computed
+/// and the sun visibility V (`visibility.Y`) when the shadow pass ran.
 pub(super) fn write_relit(
     path: &Path,
     exr: bool,
     image: &srug::shade::ShadedImage,
     indirect: Option<&[f32]>,
+    visibility: Option<&[f32]>,
 ) -> Result<()> {
     if exr {
         let n = image.width as usize * image.height as usize;
@@ -128,6 +130,9 @@ pub(super) fn write_relit(
             vec![("rgb", &image.radiance, 3), ("sun", &image.sun, 3), ("sky", &image.sky, 3)];
         if let Some(ind) = &interleaved {
             channels.push(("indirect", ind, 3));
+        }
+        if let Some(v) = visibility {
+            channels.push(("visibility", v, 1));
         }
         io::write_exr_channels(path, image.width, image.height, &channels)
     } else {
@@ -154,7 +159,7 @@ pub(super) struct RelightArgs {
     /// Activation storage of the indirect network: fp32 or fp16 [preset: fast fp16, else fp32].
     #[arg(long, value_parser = StoragePrecision::parse)]
     pub indirect_precision: Option<StoragePrecision>,
-    /// Output file: .png (display image) or .exr (linear radiance, L_sun, L_sky, L_ind); numbered when several frames.
+    /// Output file: .png (display image) or .exr (linear radiance, L_sun, L_sky, L_ind, sun visibility V); numbered when several frames.
     #[arg(long)]
     pub out: PathBuf,
 }
@@ -233,6 +238,14 @@ fn relight(device: &Device, args: &RelightArgs) -> Result<()> {
                 Some(b) => Some(resample_planar(&device.read_buffer::<f32>(b)?, &relit.shaded, cam)?),
                 None => None,
             };
+            let visibility = match (&relit.visibility, exr) {
+                (Some(b), true) => {
+                    let v = device.read_buffer::<f32>(b)?;
+                    let size = (relit.shaded.width, relit.shaded.height);
+                    Some(srug::image::resample_bilinear(&v, size, 1, (cam.width, cam.height))?)
+                }
+                _ => None,
+            };
             let line = format!(
                 "{} camera {} {label}: {:.0} ms GPU{}",
                 target.display(),
@@ -244,10 +257,10 @@ fn relight(device: &Device, args: &RelightArgs) -> Result<()> {
                     (true, false) => "",
                 }
             );
-            Ok((target, image, indirect, line))
+            Ok((target, image, indirect, visibility, line))
         },
-        |(target, image, indirect, line)| -> Result<()> {
-            write_relit(&target, exr, &image, indirect.as_deref())?;
+        |(target, image, indirect, visibility, line)| -> Result<()> {
+            write_relit(&target, exr, &image, indirect.as_deref(), visibility.as_deref())?;
             written.add(target);
             print_line(&bar, &line);
             bar.inc(1);
@@ -311,7 +324,7 @@ pub(crate) fn relight_demo(
         relighter.render(gpu_scene, &attributes, &bounds, camera, Some(&sun), &environment, &lights.brdf, &settings)?;
     let image = relit.shaded.read(device)?;
     let path = out.join("demo_relit.png");
-    write_relit(&path, false, &image, None)?;
+    write_relit(&path, false, &image, None, None)?;
     let stages = relit
         .timings
         .stages
