@@ -463,6 +463,12 @@ srug_status srug_renderer_set_shadow_geometry_bias(srug_renderer *renderer,
                                                    float slope_bias,
                                                    float normal_offset);
 
+// Surface depths on or off: each splat's depth at a pixel where the pixel's
+// ray meets the splat's plane (its shortest axis) rather than its centre's,
+// for the depth channels, the shadow map and its receivers (off by default;
+// not differentiated: `srug_renderer_shadow_backward` then fails).
+srug_status srug_renderer_set_surface_depth(srug_renderer *renderer, bool on);
+
 // Applies a quality preset by name: `"fast"`, `"balanced"` (the default) or
 // `"reference"` (docs/bench/trade.md measures them). It sets the shadow map
 // (resolution, k, bias, depth modes, sigmoid or traced test), the SH degree

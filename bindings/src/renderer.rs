@@ -589,6 +589,20 @@ pub extern "C" fn srug_renderer_set_shadow_geometry_bias(
     })
 }
 
+/// Surface depths on or off: each splat's depth at a pixel where the pixel's
+/// ray meets the splat's plane (its shortest axis) rather than its centre's,
+/// for the depth channels, the shadow map and its receivers (off by default;
+/// not differentiated: `srug_renderer_shadow_backward` then fails).
+#[no_mangle]
+pub extern "C" fn srug_renderer_set_surface_depth(renderer: *mut srug_renderer, on: bool) -> srug_status {
+    guard("srug_renderer_set_surface_depth", || {
+        with_renderer(renderer, |r| {
+            r.settings.shadow.surface_depth = on;
+            Ok(())
+        })
+    })
+}
+
 /// Applies a quality preset by name: `"fast"`, `"balanced"` (the default) or
 /// `"reference"` (docs/bench/trade.md measures them). It sets the shadow map
 /// (resolution, k, bias, depth modes, sigmoid or traced test), the SH degree
@@ -698,6 +712,7 @@ impl RendererObject {
                     channels: d.channels,
                     sh_degree: self.settings.sh_degree,
                     tile: self.settings.tile,
+                    surface_depth: self.settings.shadow.surface_depth,
                     ..SplatSettings::default()
                 };
                 let camera = self.settings.render_camera(&camera);
@@ -979,11 +994,7 @@ pub unsafe extern "C" fn srug_renderer_shadow_forward(
             let settings = r.settings.shadow;
             let pass = r.shadows.as_ref().ok_or_else(|| Failure::new(srug_status::SRUG_ERROR_PANIC, "no pass"))?;
             let splatter = r.relighter.splatter();
-            let receivers = splatter.render_frame(
-                &s.gpu,
-                &camera,
-                &SplatSettings { channels: settings.receiver_channels(), ..SplatSettings::default() },
-            )?;
+            let receivers = splatter.render_frame(&s.gpu, &camera, &settings.receiver_splat())?;
             let map = pass
                 .shadow_map(splatter, &s.gpu, &bounds, &sun, &settings, Some(&camera))?
                 .ok_or_else(|| wrong_order("the sun is below the horizon"))?;

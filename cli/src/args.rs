@@ -482,6 +482,10 @@ pub struct ShadeArgs {
     /// Normal offset of the shadow receivers in shadow-map texels, times sin θ [preset: 0].
     #[arg(long, allow_negative_numbers = true)]
     pub shadow_normal_offset: Option<f32>,
+    /// Surface depths for the shadow map and its receivers (and the depth
+    /// channels written): where each ray meets the splat's plane [preset: off].
+    #[arg(long)]
+    pub shadow_surface_depth: bool,
     /// Receiver depth for the shadow test: median or expected [preset: median].
     #[arg(long, value_parser = DepthMode::parse)]
     pub receiver_depth: Option<DepthMode>,
@@ -521,6 +525,7 @@ impl ShadeArgs {
         sh.bias = self.shadow_bias.unwrap_or(sh.bias);
         sh.slope_bias = self.shadow_slope_bias.unwrap_or(sh.slope_bias);
         sh.normal_offset = self.shadow_normal_offset.unwrap_or(sh.normal_offset);
+        sh.surface_depth |= self.shadow_surface_depth;
         sh.receiver_depth = self.receiver_depth.unwrap_or(sh.receiver_depth);
         s.visibility_kind = self.shadow_test.unwrap_or(s.visibility_kind);
         if self.sh_degree.is_some() {

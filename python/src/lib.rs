@@ -345,7 +345,8 @@ impl Device {
     /// Renders every camera of `cameras` into G-buffer channels, stacked:
     /// a dict name → array, (N, H, W, C) float32 for colour-like channels,
     /// (N, H, W) for one-float ones, uint32 for "top_gaussian".
-    #[pyo3(signature = (scene, cameras, channels, background = (0.0, 0.0, 0.0), sh_degree = None, tile = 16, progress = None))]
+    #[pyo3(signature = (scene, cameras, channels, background = (0.0, 0.0, 0.0), sh_degree = None, tile = 16, progress = None,
+                        surface_depth = false))]
     #[allow(clippy::too_many_arguments, reason = "the Python keyword arguments of one call")]
     fn render<'py>(
         &self,
@@ -357,6 +358,7 @@ impl Device {
         sh_degree: Option<u32>,
         tile: u32,
         progress: Option<Py<PyAny>>,
+        surface_depth: bool,
     ) -> PyResult<Bound<'py, PyDict>> {
         let device = self.gpu()?;
         let cams = &cameras.cameras;
@@ -377,6 +379,7 @@ impl Device {
             rgb,
             sh_degree,
             tile,
+            surface_depth,
             ..SplatSettings::default()
         };
         let (n, p) = (cams.len(), (w as usize) * (h as usize));
@@ -458,7 +461,7 @@ impl Device {
     /// exposure, tone map and sRGB (`output="display"`).
     #[pyo3(signature = (scene, cameras, sun = None, sun_intensity = std::f32::consts::PI, preset = "balanced",
                         environment = None, env_rotation = 0.0, env_intensity = 1.0, exposure = 0.0,
-                        output = "radiance", progress = None))]
+                        output = "radiance", progress = None, surface_depth = false))]
     #[allow(clippy::too_many_arguments, reason = "the Python keyword arguments of one call")]
     fn relight<'py>(
         &self,
@@ -474,6 +477,7 @@ impl Device {
         exposure: f32,
         output: &str,
         progress: Option<Py<PyAny>>,
+        surface_depth: bool,
     ) -> PyResult<Bound<'py, PyDict>> {
         let device = self.gpu()?;
         let cams = &cameras.cameras;
@@ -491,6 +495,7 @@ impl Device {
         settings.shade.exposure_ev = exposure;
         settings.shade.env_rotation_degrees = env_rotation;
         settings.shade.env_intensity = env_intensity;
+        settings.shadow.surface_depth |= surface_depth;
         settings.validate().map_err(py_err)?;
         let attributes = scene.host.attributes();
         if !attributes.shadeable() {
@@ -594,11 +599,7 @@ impl Device {
             .detach(|| -> srug::Result<ShadowState> {
                 let mut splatter = Splatter::new(&device)?;
                 let pass = ShadowPass::new(&device)?;
-                let receivers = splatter.render_frame(
-                    &gpu_scene,
-                    camera,
-                    &SplatSettings { channels: settings.receiver_channels(), ..SplatSettings::default() },
-                )?;
+                let receivers = splatter.render_frame(&gpu_scene, camera, &settings.receiver_splat())?;
                 let map = pass
                     .shadow_map(&mut splatter, &gpu_scene, &bounds, &sun, &settings, Some(camera))?
                     .ok_or_else(|| srug::Error::invalid("sun", "is below the horizon"))?;

@@ -358,6 +358,7 @@ class Device:
         sh_degree: Optional[int] = None,
         tile: int = 16,
         progress: Progress = None,
+        surface_depth: bool = False,
     ) -> Dict[str, np.ndarray]:
         """Splats every camera into G-buffer channels, stacked over the cameras.
 
@@ -369,6 +370,8 @@ class Device:
         reaches). Blended channels other than rgb are premultiplied by alpha
         (divide depth by alpha for the expected depth). ``progress``: a
         callable (done, total), or True for a bar (tqdm) or progress lines.
+        ``surface_depth``: depths where each pixel's ray meets the splat's plane
+        (its shortest axis) instead of at its centre (pinhole cameras).
         """
         if isinstance(channels, str):
             channels = [channels]
@@ -378,7 +381,7 @@ class Device:
             raise _invalid(f"background {background!r} is not r, g, b")
         cb = _progress(progress, len(cameras), "cameras")
         return self._native.render(
-            scene._native, cameras._native, names, bg, sh_degree, int(tile), cb
+            scene._native, cameras._native, names, bg, sh_degree, int(tile), cb, surface_depth=bool(surface_depth)
         )
 
     def relight(
@@ -398,6 +401,7 @@ class Device:
         exposure: float = 0.0,
         output: str = "radiance",
         progress: Progress = None,
+        surface_depth: bool = False,
     ) -> np.ndarray:
         """Relights every camera: (N, H, W, 3) float32.
 
@@ -408,6 +412,8 @@ class Device:
         ``srug prefilter`` (None: the procedural sky of the sun). ``output``:
         "radiance" (linear, before tone mapping) or "display" (exposure, tone
         map and sRGB, in [0, 1]). The scene needs an albedo attribute.
+        ``surface_depth``: surface depths for the shadow map and its receivers
+        (docs/stages.md).
         """
         if time is not None:
             if latitude is None or longitude is None:
@@ -430,6 +436,7 @@ class Device:
             float(exposure),
             str(output),
             cb,
+            surface_depth=bool(surface_depth),
         )
         return out[output]
 

@@ -31,6 +31,7 @@ class Device:
         sh_degree: Optional[int] = ...,
         tile: int = ...,
         progress: Optional[Callable[[int, int], Any]] = ...,
+        surface_depth: bool = ...,
     ) -> Dict[str, np.ndarray]: ...
     def relight(
         self,
@@ -45,6 +46,7 @@ class Device:
         exposure: float = ...,
         output: str = ...,
         progress: Optional[Callable[[int, int], Any]] = ...,
+        surface_depth: bool = ...,
     ) -> Dict[str, np.ndarray]: ...
 
     def shadow(

@@ -432,3 +432,18 @@ def test_a_closed_device_refuses_work_and_a_with_block_closes_it(city):
     assert "closed" in str(e.value) and e.value.kind == "invalid_argument"
     d.close()  # twice is harmless
     assert "closed" in repr(d)
+
+
+def test_surface_depth_moves_depths_only(dev, city):
+    """Surface depths (each pixel's ray against the splat's plane) change the
+    depth channels and nothing else; relighting takes the option too."""
+    scene, cams = city
+    cam = cams[:1].resized(176, 48)
+    names = ["rgb", "depth", "median_depth"]
+    centre = dev.render(scene, cam, channels=names)
+    surface = dev.render(scene, cam, channels=names, surface_depth=True)
+    assert np.array_equal(centre["rgb"], surface["rgb"]) and np.array_equal(centre["alpha"], surface["alpha"])
+    moved = np.abs(centre["median_depth"] - surface["median_depth"]) > 1e-3
+    assert 0.01 < moved.mean(), moved.mean()
+    lit = dev.relight(scene, cam, sun=(260.0, 50.0), surface_depth=True)
+    assert lit.shape == (1, 48, 176, 3) and np.isfinite(lit).all()

@@ -39,12 +39,7 @@ fn measure(
         let mut per_sun = ShadowAccuracy::default();
         for camera in &city.cameras {
             let camera = settings.render_camera(camera);
-            let splat = SplatSettings {
-                channels: st.receiver_channels(),
-                prefill: Some(NAN_SENTINEL),
-                tile: settings.tile,
-                ..SplatSettings::default()
-            };
+            let splat = SplatSettings { prefill: Some(NAN_SENTINEL), tile: settings.tile, ..st.receiver_splat() };
             let (g, _) = splatter.render(scene, &camera, &splat).unwrap();
             let (v, _) = pass.visibility(&map, &g, &camera, &st, settings.visibility_kind).unwrap();
             let v: Vec<f32> = d.read_buffer(&v).unwrap();
@@ -92,17 +87,19 @@ fn presets_shadow_the_analytic_block_as_the_truth_does() {
     let d = device();
     let mut splatter = Splatter::new(&d).unwrap();
     let pass = ShadowPass::new(&d).unwrap();
-    // (sampling, preset, lowest IoU accepted, highest false-shadow and leak rates, edge error px)
+    // (sampling, preset, surface depths, lowest IoU accepted, highest false-shadow and leak rates, edge error px)
     let floors = [
-        (BlockSplats::Ideal, Preset::Fast, 0.94, 0.03, 0.012, 8.5),
-        (BlockSplats::Ideal, Preset::Balanced, 0.97, 0.015, 0.006, 3.8),
-        (BlockSplats::Ideal, Preset::Reference, 0.97, 0.015, 0.006, 3.8),
-        (BlockSplats::Rough, Preset::Fast, 0.94, 0.03, 0.012, 9.5),
-        (BlockSplats::Rough, Preset::Balanced, 0.965, 0.015, 0.008, 7.0),
-        (BlockSplats::Rough, Preset::Reference, 0.965, 0.015, 0.008, 7.5),
+        (BlockSplats::Ideal, Preset::Fast, false, 0.94, 0.03, 0.012, 8.5),
+        (BlockSplats::Ideal, Preset::Balanced, false, 0.97, 0.015, 0.006, 3.8),
+        (BlockSplats::Ideal, Preset::Balanced, true, 0.975, 0.014, 0.002, 8.5),
+        (BlockSplats::Ideal, Preset::Reference, false, 0.97, 0.015, 0.006, 3.8),
+        (BlockSplats::Rough, Preset::Fast, false, 0.94, 0.03, 0.012, 9.5),
+        (BlockSplats::Rough, Preset::Balanced, false, 0.965, 0.015, 0.008, 7.0),
+        (BlockSplats::Rough, Preset::Balanced, true, 0.97, 0.015, 0.004, 9.5),
+        (BlockSplats::Rough, Preset::Reference, false, 0.965, 0.015, 0.008, 7.5),
     ];
     let mut last: Option<(BlockSplats, BlockCity, GpuScene)> = None;
-    for (splats, preset, iou, false_shadow, leak, edge) in floors {
+    for (splats, preset, surface, iou, false_shadow, leak, edge) in floors {
         if last.as_ref().is_none_or(|(s, _, _)| *s != splats) {
             let city = block_city(&BlockOptions { splats, ..BlockOptions::default() }).unwrap();
             let scene = GpuScene::upload(&d, &city.scene).unwrap();
@@ -110,14 +107,19 @@ fn presets_shadow_the_analytic_block_as_the_truth_does() {
             last = Some((splats, city, scene));
         }
         let (_, city, scene) = last.as_ref().unwrap();
-        let label = format!("{splats:?} {}", preset.name());
-        let acc = measure(&d, &mut splatter, &pass, city, scene, &RelightSettings::preset(preset), &label);
+        let label = format!("{splats:?} {}{}", preset.name(), if surface { " surface" } else { "" });
+        let mut settings = RelightSettings::preset(preset);
+        settings.shadow.surface_depth = surface;
+        let acc = measure(&d, &mut splatter, &pass, city, scene, &settings, &label);
         let failed = acc.iou() < iou
             || acc.false_shadow_rate() > false_shadow
             || acc.light_leak_rate() > leak
             || acc.edge_error() > edge;
         if std::env::var_os("SRUG_SHADOW_ACCURACY_REPORT").is_none() {
-            assert!(!failed, "{label}: below its floor (IoU ≥ {iou}, false shadow ≤ {false_shadow}, leak ≤ {leak}, edge ≤ {edge} px): {acc:?}");
+            assert!(
+                !failed,
+                "{label}: below its floor (IoU ≥ {iou}, false shadow ≤ {false_shadow}, leak ≤ {leak}, edge ≤ {edge} px): {acc:?}"
+            );
         }
     }
     // The measure can fail: a visibility of 1 everywhere leaks every shadow.

@@ -112,6 +112,7 @@ fn all_settings() -> SplatSettings {
         sh_degree: None,
         tile: DEFAULT_TILE,
         tile_bounds: TileBounds::default(),
+        surface_depth: false,
     }
 }
 
@@ -161,6 +162,8 @@ fn ellipse_tile_bounds_keep_every_tile_a_splat_reaches_and_little_else() {
                 rect: [lo.x as u32, lo.y as u32, hi.x as u32, hi.y as u32],
                 features: [0.0; 10],
                 wrap_period: 0.0,
+                depth_slope: [0.0; 2],
+                orthographic: false,
             };
             splats_checked += 1;
             for ty in s.rect[1]..s.rect[3] {
@@ -806,5 +809,85 @@ fn lens_blob_centroids_match_the_lens_projection() {
         println!("{name}: {} blobs, centroid error mean {mean:.4} px, max {worst:.4} px", expected.len());
         assert!(mean <= 0.1 && worst <= 0.5, "{name}: centroid error mean {mean} px, max {worst} px");
     }
+    assert_no_validation_messages(&d);
+}
+
+#[test]
+fn surface_depth_matches_cpu_twin_and_lies_on_the_surfaces() {
+    let d = device();
+    let mut splatter = Splatter::new(&d).unwrap();
+    let settings = SplatSettings {
+        channels: Channels { depth: true, median_depth: true, ..Channels::default() },
+        prefill: Some(NAN),
+        surface_depth: true,
+        ..SplatSettings::default()
+    };
+    // Against the twin, on the demo city, through a pinhole camera and the
+    // sun's orthographic light camera, with every blend variant.
+    let city = demo_city(&DemoOptions { seed: 7, gaussians: 40_000, sh_degree: 1 }).unwrap();
+    let sun = srug::shadow::Sun::from_azimuth_elevation(150.0, 40.0, [1.0; 3]).unwrap();
+    let light = srug::shadow::light_camera(
+        &city.scene.bounds().unwrap(),
+        &sun,
+        256,
+        srug::shadow::ShadowFit::SceneBounds,
+        None,
+    )
+    .unwrap();
+    let cameras = [("pinhole", city.cameras[1].resized(352, 96)), ("orthographic", light)];
+    let off = SplatSettings { surface_depth: false, ..settings };
+    for (name, camera) in &cameras {
+        for variant in blend_variants(&d) {
+            splatter.set_blend_variant(variant).unwrap();
+            let gpu =
+                render_both(&d, &mut splatter, &city.scene, camera, &settings, &format!("surface_{name}_{variant:?}"));
+            // The surface depth differs from the centre depth (the test is not vacuous).
+            let (centre, _) = splatter.render(&GpuScene::upload(&d, &city.scene).unwrap(), camera, &off).unwrap();
+            let centre = centre.read(&d).unwrap();
+            let (a, b) = (gpu.get(Channel::Depth).unwrap(), centre.get(Channel::Depth).unwrap());
+            let changed = a.iter().zip(b).filter(|(x, y)| (*x - *y).abs() > 1e-3).count();
+            assert!(changed * 10 > a.len() / 10, "{name}: only {changed} of {} depths moved", a.len());
+        }
+    }
+    // On the analytic block, the median depth of surface depths lies on the true
+    // surfaces (ray cast against the exact geometry) far closer than centre depths.
+    let block = srug::scene::blocks::block_city(&srug::scene::blocks::BlockOptions::default()).unwrap();
+    let gpu_block = GpuScene::upload(&d, &block.scene).unwrap();
+    let camera = &block.cameras[0];
+    let (w, h) = (camera.width as usize, camera.height as usize);
+    let truth: Vec<Option<f32>> = (0..w * h)
+        .map(|p| {
+            let dir = camera.pixel_direction([(p % w) as f64 + 0.5, (p / w) as f64 + 0.5])?;
+            let world = camera.rotation * Vec3::new(dir[0] as f32, dir[1] as f32, dir[2] as f32);
+            // Camera-space z of the hit: the direction has z = 1.
+            block.hit(camera.position, world).map(|(t, _)| t)
+        })
+        .collect();
+    let mut errors = Vec::new();
+    for surface in [false, true] {
+        let st = SplatSettings { surface_depth: surface, ..settings };
+        let (g, _) = splatter.render(&gpu_block, camera, &st).unwrap();
+        let median = g.read(&d).unwrap().get(Channel::MedianDepth).unwrap().to_vec();
+        let pairs: Vec<f64> = median
+            .iter()
+            .zip(&truth)
+            .filter_map(|(m, t)| t.filter(|_| *m > 0.0).map(|t| f64::from((m - t).abs() / t)))
+            .collect();
+        let mut sorted = pairs.clone();
+        sorted.sort_by(f64::total_cmp);
+        let mean = pairs.iter().sum::<f64>() / pairs.len() as f64;
+        let (p50, p90) = (sorted[sorted.len() / 2], sorted[sorted.len() * 9 / 10]);
+        eprintln!(
+            "block median depth, surface depth {surface}: relative error median {p50:.2e}, 90% {p90:.2e}, mean {mean:.2e} over {} pixels",
+            pairs.len()
+        );
+        errors.push(p50);
+    }
+    assert!(
+        errors[1] < 0.25 * errors[0],
+        "surface depth {:.2e} is not well below centre depth {:.2e}",
+        errors[1],
+        errors[0]
+    );
     assert_no_validation_messages(&d);
 }

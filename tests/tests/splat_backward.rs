@@ -343,6 +343,11 @@ fn backward_refuses_mismatched_inputs() {
         BlendGrads { channels: PerChannel::default().with(Channel::Normal, normal), ..BlendGrads::default() };
     let e = splatter.backward(&frame, &gpu_scene, &features, false).err().unwrap().to_string();
     assert!(e.contains("feature"), "{e}");
+    // Surface depths are not differentiated: refused, not silently wrong.
+    let surface = SplatSettings { surface_depth: true, ..SplatSettings::default() };
+    let surface_frame = splatter.render_frame(&gpu_scene, &camera, &surface).unwrap();
+    let e = splatter.backward(&surface_frame, &gpu_scene, &ok, false).err().unwrap().to_string();
+    assert!(e.contains("surface depths"), "{e}");
     // Zero upstream gradient gives exactly zero gradients.
     let zero = BlendGrads { alpha: Some(d.create_filled::<f32>("zero", 32 * 32, 0).unwrap()), ..BlendGrads::default() };
     let g = splatter.backward(&frame, &gpu_scene, &zero, false).unwrap().read(&d).unwrap();

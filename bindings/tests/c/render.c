@@ -240,6 +240,25 @@ int main(int argc, char **argv) {
   for (size_t i = 0; i < pixels; i++) REQUIRE(isfinite(values[i]) && values[i] >= 0.0f);
   CHECK(srug_renderer_set_preset(r, "balanced"));
 
+  /* Surface depths move the depth channel (each pixel's ray against the splat's plane). */
+  CHECK(srug_renderer_render(r, scene));
+  float *centre_depth = malloc(pixels * sizeof(float)), *plane_depth = malloc(pixels * sizeof(float));
+  REQUIRE(centre_depth != NULL && plane_depth != NULL);
+  CHECK(srug_renderer_read_channel(r, SRUG_CHANNEL_DEPTH, centre_depth, pixels));
+  CHECK(srug_renderer_set_surface_depth(r, true));
+  CHECK(srug_renderer_render(r, scene));
+  CHECK(srug_renderer_read_channel(r, SRUG_CHANNEL_DEPTH, plane_depth, pixels));
+  size_t moved = 0;
+  for (size_t i = 0; i < pixels; i++) {
+    REQUIRE(isfinite(plane_depth[i]) && plane_depth[i] >= 0.0f);
+    moved += fabsf(plane_depth[i] - centre_depth[i]) > 1e-3f;
+  }
+  printf("surface depth: %zu of %zu depths moved\n", moved, pixels);
+  REQUIRE(moved * 100 > pixels);
+  CHECK(srug_renderer_set_surface_depth(r, false));
+  free(centre_depth);
+  free(plane_depth);
+
   /* The same camera as OpenGL view and projection matrices. */
   float view[16] = {0}, proj[16] = {0};
   /* world-to-camera (GL) = diag(1, -1, -1) * inverse(c2w). */

@@ -309,6 +309,7 @@ pub(crate) fn relight_demo(
         shadow_bias: None,
         shadow_slope_bias: None,
         shadow_normal_offset: None,
+        shadow_surface_depth: false,
         receiver_depth: None,
         shadow_test: None,
         sh_degree: None,

@@ -53,13 +53,28 @@ pub(super) struct RenderArgs {
     /// (its 3σ square, as INRIA's rasterizer); the image is the same, ellipse sorts and blends less.
     #[arg(long, default_value = "ellipse")]
     tile_bounds: TileBounds,
+    /// Depths where each pixel's ray meets the splat's plane (its shortest axis)
+    /// rather than at the splat's centre (pinhole cameras; docs/stages.md).
+    #[arg(long)]
+    surface_depth: bool,
 }
 
 impl RenderArgs {
     /// Runs `srug render`.
     pub(super) fn run(&self, device_args: &DeviceArgs) -> Result<()> {
-        let Self { scene: path, view, out, channels, ids, background, stored_normals, sh_degree, tile, tile_bounds } =
-            self;
+        let Self {
+            scene: path,
+            view,
+            out,
+            channels,
+            ids,
+            background,
+            stored_normals,
+            sh_degree,
+            tile,
+            tile_bounds,
+            surface_depth,
+        } = self;
         let is_exr = output_is_exr(out)?;
         if !ids.is_empty() && !is_exr {
             return Err(Error::invalid(
@@ -96,6 +111,7 @@ impl RenderArgs {
             tile: *tile,
             tile_bounds: *tile_bounds,
             rgb,
+            surface_depth: *surface_depth,
         };
         let bar = if cams.len() > 1 {
             progress_bar(cams.len() as u64, "{bar:40} {pos}/{len} cameras [{elapsed} < {eta}]")

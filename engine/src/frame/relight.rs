@@ -61,6 +61,7 @@ struct ShadowMapKey {
     direction: Vec3,
     depth: DepthMode,
     tile: u32,
+    surface_depth: bool,
 }
 
 impl Relighter {
@@ -148,6 +149,8 @@ impl Relighter {
             prefill: shade.prefill,
             sh_degree: settings.sh_degree,
             tile: settings.tile,
+            // The shadow test's receivers are these pixels: their depths follow its definition.
+            surface_depth: settings.shadow.surface_depth,
             ..SplatSettings::default()
         };
         let (gbuffer, stats) = self.splatter.render(scene, camera, &splat)?;
@@ -209,6 +212,7 @@ impl Relighter {
             direction: sun.direction,
             depth: shadow.map_depth,
             tile: shadow.tile,
+            surface_depth: shadow.surface_depth,
         };
         let reused = self.reuse_shadow_map && self.shadow_map.as_ref().is_some_and(|(k, _)| *k == key);
         if !reused {

@@ -106,6 +106,7 @@ impl ShadowPass {
             tile: settings.tile,
             // The map is depth and alpha only: no colour to evaluate or read.
             rgb: false,
+            surface_depth: settings.surface_depth,
             ..SplatSettings::default()
         };
         let mut frame = splatter.render_frame(scene, &camera, &splat)?;

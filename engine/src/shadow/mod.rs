@@ -38,7 +38,7 @@ pub use self::sun::{solar_position, sun_path, SolarPosition, Sun, UtcTime};
 use crate::error::{Error, Result};
 use crate::gpu::Device;
 use crate::scene::{Bounds, Camera, Projection};
-use crate::splat::{Channels, SplatFrame};
+use crate::splat::{Channels, SplatFrame, SplatSettings};
 
 /// Which depth a G-buffer gives for shadows.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
@@ -130,6 +130,12 @@ pub struct ShadowSettings {
     /// Normal offset, in shadow-map texels: the receiver point moves along its
     /// normal by this many texel widths times sin θ before the test.
     pub normal_offset: f32,
+    /// Surface depths ([`crate::splat::SplatSettings::surface_depth`]) for the
+    /// shadow map's occluders and the receivers: each splat's depth where the
+    /// pixel's (or texel's) ray meets its plane, not its centre's. Receivers
+    /// follow it when rendered with [`ShadowSettings::receiver_splat`]. Not
+    /// differentiated: the shadow backward refuses it.
+    pub surface_depth: bool,
     /// Depth of the shadow map.
     pub map_depth: DepthMode,
     /// Depth of the receivers (the camera G-buffer).
@@ -153,6 +159,7 @@ impl Default for ShadowSettings {
             bias: 0.15,
             slope_bias: 0.0,
             normal_offset: 0.0,
+            surface_depth: false,
             map_depth: DepthMode::Median,
             receiver_depth: DepthMode::Expected,
             fit: ShadowFit::SceneBounds,
@@ -209,6 +216,16 @@ impl ShadowSettings {
     /// The G-buffer channels a receiver (camera) render needs for these settings.
     pub fn receiver_channels(&self) -> Channels {
         Channels { normal: self.geometric_bias(), ..depth_channels(self.receiver_depth) }
+    }
+
+    /// The splat settings of a receiver (camera) render for these settings:
+    /// [`ShadowSettings::receiver_channels`] and the surface depth.
+    pub fn receiver_splat(&self) -> SplatSettings {
+        SplatSettings {
+            channels: self.receiver_channels(),
+            surface_depth: self.surface_depth,
+            ..SplatSettings::default()
+        }
     }
 
     /// Whether the test reads the receivers' normals (a slope bias or normal offset).

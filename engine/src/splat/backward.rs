@@ -189,6 +189,11 @@ impl Splatter {
             ));
         }
         frame.camera.require_no_lens("the splat backward pass")?;
+        if frame.surface_depth {
+            return Err(Error::unsupported(
+                "the splat backward pass of surface depths (render the frame with surface_depth off)",
+            ));
+        }
         if frame.scene_means != scene.means.id() || frame.gaussians != scene.count as u64 {
             return Err(Error::invalid("splat frame", "was rendered from another scene"));
         }

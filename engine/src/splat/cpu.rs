@@ -32,6 +32,87 @@ pub struct CpuSplat {
     pub wrap_period: f64,
     /// normal.xyz, roughness, albedo.rgb, metallic, ao, visibility.
     pub features: [f64; 10],
+    /// Surface-depth slope ([`surface_slope`], rounded to half precision as
+    /// the kernel stores it); zero for centre depths.
+    pub depth_slope: [f64; 2],
+    /// Whether the camera is orthographic (the slope is then in depth per
+    /// pixel, else in relative inverse depth per pixel).
+    pub orthographic: bool,
+}
+
+impl CpuSplat {
+    /// The splat's depth at pixel centre `centre`: its centre's, or where the
+    /// pixel's ray meets its plane when it has a surface-depth slope. Twin of
+    /// `splat_depth` in `splat_blend_body.glsl`.
+    pub fn depth_at(&self, centre: DVec2) -> f64 {
+        if self.depth_slope == [0.0; 2] {
+            return self.depth;
+        }
+        let delta = centre - self.mean;
+        let s = self.depth_slope[0] * delta.x + self.depth_slope[1] * delta.y;
+        if self.orthographic {
+            self.depth + s
+        } else {
+            self.depth / (1.0 + s)
+        }
+    }
+}
+
+/// How the depth where each pixel's ray meets Gaussian `g`'s plane (through
+/// its mean, normal its shortest axis) changes across `camera`'s image:
+/// pinhole, the relative inverse depth per pixel s (1/z = (1/z₀)(1 + s·Δ));
+/// orthographic, the depth per pixel (z = z₀ + s·Δ). Limited so that over the
+/// splat's own 3σ footprint (JΣJᵀ before the dilation) the depth moves at most
+/// 1.5× its 3σ extent along the view and, pinhole, over the dilated footprint at
+/// most half of z₀; rounded to half precision as the kernel stores it. Zero for
+/// lenses other than the pinhole and for equirectangular cameras. Twin of `surface_slope` in `splat_preprocess_body.glsl`.
+pub fn surface_slope(g: &Gaussian64, camera: &Camera) -> [f64; 2] {
+    if !camera.lens.is_pinhole() || camera.depth_is_distance() {
+        return [0.0; 2];
+    }
+    let w = camera.rotation.as_dmat3().transpose();
+    let t = w * (g.mean - camera.position.as_dvec3());
+    let s = DVec3::new(g.log_scale.x.exp(), g.log_scale.y.exp(), g.log_scale.z.exp());
+    let rot = g.rotation_matrix();
+    let axis = if s.x <= s.y && s.x <= s.z {
+        rot.x_axis
+    } else if s.y <= s.z {
+        rot.y_axis
+    } else {
+        rot.z_axis
+    };
+    let n = w * axis;
+    let m = rot * DMat3::from_diagonal(s);
+    let cov_cam = w * (m * m.transpose()) * w.transpose();
+    let extent = 3.0 * cov_cam.z_axis.z.max(0.0).sqrt();
+    let (_, j) = mean_and_jacobian(camera, t);
+    let cov2 = j * cov_cam * j.transpose();
+    let (ca, cb, cc) = (cov2.x_axis.x, cov2.y_axis.x, cov2.y_axis.y);
+    let (k, ortho) = match camera.projection {
+        Projection::Pinhole { fx, fy, .. } => (DVec2::new(f64::from(fx), f64::from(fy)), false),
+        Projection::Orthographic { sx, sy, .. } => (DVec2::new(f64::from(sx), f64::from(sy)), true),
+    };
+    let mut slope = if ortho {
+        let nz = if n.z.abs() < 1e-6 { 1e-6f64.copysign(n.z) } else { n.z };
+        -DVec2::new(n.x, n.y) / (nz * k)
+    } else {
+        let nt = n.dot(t);
+        let nt = if nt.abs() < 1e-6 * t.z { (1e-6 * t.z).copysign(nt) } else { nt };
+        DVec2::new(n.x, n.y) * (t.z / nt) / k
+    };
+    let spread = |da: f64| {
+        3.0 * (slope.x * slope.x * (ca + da) + 2.0 * slope.x * slope.y * cb + slope.y * slope.y * (cc + da))
+            .max(0.0)
+            .sqrt()
+    };
+    let (own, dilated) = (spread(0.0), spread(0.3));
+    let scale =
+        if ortho { (1.5 * extent / own).min(1.0) } else { (1.5 * extent / (t.z * own)).min(1.0).min(0.5 / dilated) };
+    slope *= scale;
+    if !slope.is_finite() {
+        return [0.0; 2];
+    }
+    slope.to_array().map(|v| half::f16::from_f64(v).to_f64())
 }
 
 const C0: f64 = 0.282_094_791_773_878_14;
@@ -329,6 +410,8 @@ pub(crate) fn preprocess_with(
         rect: pr.rect,
         features,
         wrap_period: camera.wrap_period().map_or(0.0, f64::from),
+        depth_slope: [0.0; 2],
+        orthographic: matches!(camera.projection, Projection::Orthographic { .. }),
     })
 }
 
@@ -529,11 +612,14 @@ pub(crate) fn blend_pixel(list: &[(u32, usize)], splats: &[Option<CpuSplat>], ce
             break;
         }
         let w = alpha * t;
-        for (acc, x) in out.values.iter_mut().zip(splat_values(s)) {
+        let depth = s.depth_at(centre);
+        let mut values = splat_values(s);
+        values[3] = depth;
+        for (acc, x) in out.values.iter_mut().zip(values) {
             *acc += w * x;
         }
         if t > 0.5 && next <= 0.5 {
-            out.median = s.depth;
+            out.median = depth;
             out.median_index = Some(i);
         }
         if w > out.top_weight {
@@ -580,8 +666,15 @@ pub fn render_cpu(scene: &Scene, camera: &Camera, settings: &SplatSettings) -> G
         _ => scene,
     };
     let (w, h) = (camera.width as usize, camera.height as usize);
-    let splats: Vec<Option<CpuSplat>> =
+    let mut splats: Vec<Option<CpuSplat>> =
         (0..scene.len()).map(|i| preprocess_one(scene, i, camera, settings.normal_source, settings.tile)).collect();
+    if settings.surface_depth {
+        for (i, s) in splats.iter_mut().enumerate() {
+            if let Some(s) = s {
+                s.depth_slope = surface_slope(&Gaussian64::from_scene(scene, i), camera);
+            }
+        }
+    }
     let lists = tile_lists(&splats, camera, settings.tile, settings.tile_bounds);
     let ch = settings.channels;
     let p = w * h;

@@ -65,6 +65,8 @@ pub struct SplatFrame {
     pub(crate) gaussians: u64,
     /// Tile edge in pixels it was rendered with.
     pub tile: u32,
+    /// Whether its depths are surface depths ([`SplatSettings::surface_depth`]).
+    pub surface_depth: bool,
 }
 
 impl SplatFrame {
@@ -181,7 +183,7 @@ impl Splatter {
 
     /// The blend kernel for channel bits `bits`, `tile` and the texel path,
     /// from the device's kernel cache.
-    fn blend_kernel(&self, bits: u32, tile: u32, texel: bool, wrap_x: bool) -> Result<Arc<Kernel>> {
+    fn blend_kernel(&self, bits: u32, tile: u32, texel: bool, wrap_x: bool, surface: bool) -> Result<Arc<Kernel>> {
         let pixels = if texel { self.blend_pixels } else { 1 };
         let info = match (self.blend_variant, texel) {
             (BlendVariant::PerPixel, _) => &kernels::SPLAT_BLEND_PORTABLE,
@@ -197,6 +199,9 @@ impl Splatter {
         }
         if wrap_x {
             spec.push((3, SpecValue::Bool(true)));
+        }
+        if surface {
+            spec.push((4, SpecValue::Bool(true)));
         }
         if texel {
             // PIXELS per invocation along x: TILE / PIXELS invocations across.
@@ -255,7 +260,8 @@ impl Splatter {
             self.texel_preprocess && n > 0 && scene_inputs.iter().all(|b| b.size() / 4 <= max_texels);
         let bounds = settings.tile_bounds;
         let ellipse = SpecValue::Bool(bounds == TileBounds::Ellipse);
-        let preprocess_spec = [(0, SpecValue::Bool(features)), (1, ellipse), tile_spec(tile)[0]];
+        let surface = SpecValue::Bool(settings.surface_depth);
+        let preprocess_spec = [(0, SpecValue::Bool(features)), (1, ellipse), (2, surface), tile_spec(tile)[0]];
         let preprocess = if texel_preprocess {
             let mut bindings = vec![BindingKind::UniformBuffer];
             bindings.extend([BindingKind::UniformTexelBuffer; 5]);
@@ -358,7 +364,13 @@ impl Splatter {
             && n > 0
             && 4 * n <= max_texels
             && pairs <= max_texels;
-        let blend = self.blend_kernel(ch.blend_bits(settings.rgb), tile, texel, camera.wrap_period().is_some())?;
+        let blend = self.blend_kernel(
+            ch.blend_bits(settings.rgb),
+            tile,
+            texel,
+            camera.wrap_period().is_some(),
+            settings.surface_depth,
+        )?;
         let (sort, keys_kernel, ranges_kernel, blend) = (&self.sort, &*keys_kernel, &*self.ranges, &*blend);
         let outputs: Vec<&Buffer> = [&out.alpha]
             .into_iter()
@@ -449,6 +461,7 @@ impl Splatter {
             scene_means: scene.means.id(),
             gaussians: n,
             tile,
+            surface_depth: settings.surface_depth,
         })
     }
 }

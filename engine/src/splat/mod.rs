@@ -178,6 +178,13 @@ pub struct SplatSettings {
     /// colour: for depth-only renders such as shadow maps, where colour is
     /// a quarter of the blend's reads. Alpha and the other channels are the same.
     pub rgb: bool,
+    /// Surface depth: each splat's depth at a pixel is where the pixel's ray
+    /// meets the splat's plane (through its mean, normal its shortest axis),
+    /// limited to its 3σ extent along the view, instead of its centre's depth;
+    /// both depth channels follow. Pinhole and orthographic cameras (other
+    /// lenses keep centre depths). Off: the centre depth, as 3DGS. The splat
+    /// backward pass refuses frames rendered with it (not differentiated yet).
+    pub surface_depth: bool,
 }
 
 impl Default for SplatSettings {
@@ -191,6 +198,7 @@ impl Default for SplatSettings {
             tile: DEFAULT_TILE,
             tile_bounds: TileBounds::default(),
             rgb: true,
+            surface_depth: false,
         }
     }
 }

@@ -11,6 +11,9 @@
 layout(constant_id = 0) const uint CHANNELS = 256u;
 // A full equirectangular panorama: offsets along x wrap at frame.clip.z (the width).
 layout(constant_id = 3) const bool WRAP_X = false;
+// Surface depth: each splat's depth at a pixel is where the pixel's ray meets
+// its plane (the preprocess's slope), not its centre's.
+layout(constant_id = 4) const bool SURFACE_DEPTH = false;
 // Without rgb (shadow maps) no colour is read, blended or stored.
 const bool RGB = (CHANNELS & 256u) != 0u;
 // The index of the splat with the largest weight wᵢ = αᵢ Tᵢ (the first of equal ones), per pixel.
@@ -28,11 +31,27 @@ layout(set = 0, binding = 2) uniform samplerBuffer feature_texels;
 // The sorted splat indices (R32UI), the tile's list.
 layout(set = 0, binding = 3) uniform usamplerBuffer value_texels;
 #define SPLAT_COLOR(g) texelFetch(splat_texels, int(4u * (g) + 2u)).rgb
+#define SPLAT_SLOPE_BITS(g) texelFetch(splat_texels, int(4u * (g) + 2u)).w
 #define FEATURE(i) texelFetch(feature_texels, int(i))
 #else
 #define SPLAT_COLOR(g) Splats(frame.splats).v[g].color.rgb
+#define SPLAT_SLOPE_BITS(g) Splats(frame.splats).v[g].color.w
 #define FEATURE(i) Features(frame.features).v[i]
 #endif
+
+// The splat's surface-depth slope (zero without SURFACE_DEPTH).
+vec2 splat_slope(uint g) {
+    return SURFACE_DEPTH ? unpackHalf2x16(floatBitsToUint(SPLAT_SLOPE_BITS(g))) : vec2(0.0);
+}
+
+// The splat's depth at a pixel d = mean − centre away: its centre's, or with
+// SURFACE_DEPTH where the pixel's ray meets its plane. CPU twin:
+// engine/src/splat/cpu.rs `CpuSplat::depth_at`.
+float splat_depth(vec4 head, vec2 slope, vec2 d) {
+    if (!SURFACE_DEPTH) return head.z;
+    float s = -dot(slope, d);
+    return frame.camera.translation.w != 0.0 ? head.z + s : head.z / (1.0 + s);
+}
 
 // What one pixel has accumulated so far.
 struct Accumulated {
@@ -108,7 +127,7 @@ bool blend_one(inout Accumulated acc, uint g, vec4 head, vec4 conic, vec2 centre
     head = nearest_copy(head, centre);
     if (!splat_alpha(head, conic, centre, alpha, gauss, d)) return true;
     if (acc.T * (1.0 - alpha) < 1e-4) return false;
-    accumulate(acc, alpha, head.z, splat_contribution(g), g);
+    accumulate(acc, alpha, splat_depth(head, splat_slope(g), d), splat_contribution(g), g);
     return true;
 }
 
@@ -190,6 +209,7 @@ void main() {
         vec4 head = texelFetch(splat_texels, int(4u * g));
         vec4 conic = texelFetch(splat_texels, int(4u * g + 1u));
         Contribution c = splat_contribution(g);
+        vec2 slope = splat_slope(g);
         any_live = false;
         [[unroll]] for (uint k = 0u; k < PIXELS; k++) {
             float alpha, gauss;
@@ -202,7 +222,7 @@ void main() {
             bool takes = all(bvec2(hit, !stop));
             live[k] = all(bvec2(live[k], !stop));
             any_live = any(bvec2(any_live, live[k]));
-            accumulate_select(acc[k], takes, alpha, next_T, head.z, c, g);
+            accumulate_select(acc[k], takes, alpha, next_T, splat_depth(head, slope, d), c, g);
         }
     }
     [[unroll]] for (uint k = 0u; k < PIXELS; k++) {
