@@ -101,6 +101,9 @@ typedef struct srug_scene srug_scene;
 // and, as `1u << channel`, a bit of `srug_renderer_create`'s channel mask.
 typedef uint32_t srug_channel;
 
+// What the shadow map covers (`srug_renderer_set_shadow_fit`).
+typedef uint32_t srug_shadow_fit;
+
 // Tone maps of `srug_renderer_set_exposure`.
 typedef uint32_t srug_tone_map;
 
@@ -175,6 +178,13 @@ typedef struct {
 
 // ACES filmic (Narkowicz fit).
 #define SRUG_TONE_MAP_ACES 2
+
+// The whole scene's bounds (the default).
+#define SRUG_SHADOW_FIT_SCENE 0
+
+// The camera's view frustum within the scene's bounds: finer texels for the
+// same resolution; casters anywhere in the bounds still cast.
+#define SRUG_SHADOW_FIT_VIEW 1
 
 #ifdef __cplusplus
 extern "C" {
@@ -462,6 +472,9 @@ srug_status srug_renderer_set_shadow(srug_renderer *renderer,
 srug_status srug_renderer_set_shadow_geometry_bias(srug_renderer *renderer,
                                                    float slope_bias,
                                                    float normal_offset);
+
+// What the shadow map covers (`SRUG_SHADOW_FIT_*`); `srug_renderer_set_preset` resets it.
+srug_status srug_renderer_set_shadow_fit(srug_renderer *renderer, srug_shadow_fit fit);
 
 // Surface depths on or off: each splat's depth at a pixel where the pixel's
 // ray meets the splat's plane (its shortest axis) rather than its centre's,

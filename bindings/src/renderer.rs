@@ -12,7 +12,7 @@ use srug::shade::{
     BrdfLut, BrdfTable, EnvironmentPrep, PrepareSettings, PreparedEnvironment, ProceduralSky, ShadedFrame, ToneMap,
 };
 use srug::shadow::backward::GpuVisibilityLoss;
-use srug::shadow::{ShadowMap, ShadowPass, Sun, VisibilityKind};
+use srug::shadow::{ShadowFit, ShadowMap, ShadowPass, Sun, VisibilityKind};
 use srug::splat::{Channels, GpuGBuffer, SplatFrame, SplatSettings};
 
 use crate::context::*;
@@ -85,6 +85,14 @@ pub const SRUG_TONE_MAP_CLAMP: srug_tone_map = 0;
 pub const SRUG_TONE_MAP_REINHARD: srug_tone_map = 1;
 /// ACES filmic (Narkowicz fit).
 pub const SRUG_TONE_MAP_ACES: srug_tone_map = 2;
+
+/// What the shadow map covers (`srug_renderer_set_shadow_fit`).
+pub type srug_shadow_fit = u32;
+/// The whole scene's bounds (the default).
+pub const SRUG_SHADOW_FIT_SCENE: srug_shadow_fit = 0;
+/// The camera's view frustum within the scene's bounds: finer texels for the
+/// same resolution; casters anywhere in the bounds still cast.
+pub const SRUG_SHADOW_FIT_VIEW: srug_shadow_fit = 1;
 
 /// Per-Gaussian gradients written by `srug_renderer_shadow_backward`: caller-owned
 /// arrays of `count` × 3, 3, 4 and 1 floats, laid out like `srug_scene_set_gaussians`'s.
@@ -584,6 +592,22 @@ pub extern "C" fn srug_renderer_set_shadow_geometry_bias(
             s.normal_offset = normal_offset;
             s.validate()?;
             r.settings.shadow = s;
+            Ok(())
+        })
+    })
+}
+
+/// What the shadow map covers (`SRUG_SHADOW_FIT_*`); `srug_renderer_set_preset` resets it.
+#[no_mangle]
+pub extern "C" fn srug_renderer_set_shadow_fit(renderer: *mut srug_renderer, fit: srug_shadow_fit) -> srug_status {
+    guard("srug_renderer_set_shadow_fit", || {
+        let fit = match fit {
+            SRUG_SHADOW_FIT_SCENE => ShadowFit::SceneBounds,
+            SRUG_SHADOW_FIT_VIEW => ShadowFit::ViewFrustum,
+            other => return Err(invalid(format!("unknown shadow fit {other}"))),
+        };
+        with_renderer(renderer, |r| {
+            r.settings.shadow.fit = fit;
             Ok(())
         })
     })

@@ -10,7 +10,7 @@ use srug::gpu::{Device, DeviceOptions, DeviceSelection};
 use srug::io;
 use srug::scene::Camera;
 use srug::shade::{Background, BrdfLut, ShadeSettings, ToneMap, VisibilitySource};
-use srug::shadow::{sun_path, DepthMode, Sun, UtcTime, VisibilityKind};
+use srug::shadow::{sun_path, DepthMode, ShadowFit, Sun, UtcTime, VisibilityKind};
 use srug::splat::Channels;
 use srug::{Error, Result};
 
@@ -468,6 +468,10 @@ pub struct ShadeArgs {
     /// Shadow-map resolution [preset: fast 512, balanced 2048, reference 4096].
     #[arg(long)]
     pub shadow_resolution: Option<u32>,
+    /// What the shadow map covers: scene (the whole scene's bounds) or view (the
+    /// camera's view frustum within them: finer texels; casters anywhere still cast) [preset: scene].
+    #[arg(long, value_parser = ShadowFit::parse)]
+    pub shadow_fit: Option<ShadowFit>,
     /// Sigmoid sharpness k per metre [preset: 50].
     #[arg(long)]
     pub shadow_k: Option<f32>,
@@ -521,6 +525,7 @@ impl ShadeArgs {
         };
         let sh = &mut s.shadow;
         sh.resolution = self.shadow_resolution.unwrap_or(sh.resolution);
+        sh.fit = self.shadow_fit.unwrap_or(sh.fit);
         sh.k = self.shadow_k.unwrap_or(sh.k);
         sh.bias = self.shadow_bias.unwrap_or(sh.bias);
         sh.slope_bias = self.shadow_slope_bias.unwrap_or(sh.slope_bias);

@@ -389,7 +389,9 @@ fn relight_renders_stills_time_lapses_and_prefiltered_environments() {
     // A still as EXR: linear radiance plus L_sun and L_sky.
     let exr_out = dir.path().join("still.exr");
     let common = ["--cameras", cams, "--index", "1", "--size", "176x48", "--shadow-resolution", "512", "--validation"];
+    // The map fitted to the view, and surface depths for the shadow test.
     let mut args = vec!["relight", ply, "--out", exr_out.to_str().unwrap(), "--sun-elevation", "35"];
+    args.extend(["--shadow-fit", "view", "--shadow-surface-depth"]);
     args.extend(common);
     let o = srug(&args);
     assert!(o.status.success(), "{}", text(&o));
@@ -523,6 +525,7 @@ fn relight_renders_stills_time_lapses_and_prefiltered_environments() {
     let png = dir.path().join("x.png");
     let png = png.to_str().unwrap();
     bad(&["relight", ply, "--cameras", cams, "--out", png, "--sun-time", "2026-06-21T12:00Z"], "--latitude");
+    bad(&["relight", ply, "--cameras", cams, "--out", png, "--shadow-fit", "tight"], "is not scene or view");
     bad(&["relight", ply, "--cameras", cams, "--out", png, "--env", "/nonexistent/sky.exr"], "sky.exr");
     bad(&["relight", ply, "--cameras", cams, "--out", png, "--visibility", "sometimes"], "visibility");
     bad(&["relight", ply, "--cameras", cams, "--out", png, "--tone-map", "filmic"], "tone map");

@@ -461,7 +461,7 @@ impl Device {
     /// exposure, tone map and sRGB (`output="display"`).
     #[pyo3(signature = (scene, cameras, sun = None, sun_intensity = std::f32::consts::PI, preset = "balanced",
                         environment = None, env_rotation = 0.0, env_intensity = 1.0, exposure = 0.0,
-                        output = "radiance", progress = None, surface_depth = false))]
+                        output = "radiance", progress = None, surface_depth = false, shadow_fit = "scene"))]
     #[allow(clippy::too_many_arguments, reason = "the Python keyword arguments of one call")]
     fn relight<'py>(
         &self,
@@ -478,6 +478,7 @@ impl Device {
         output: &str,
         progress: Option<Py<PyAny>>,
         surface_depth: bool,
+        shadow_fit: &str,
     ) -> PyResult<Bound<'py, PyDict>> {
         let device = self.gpu()?;
         let cams = &cameras.cameras;
@@ -496,6 +497,7 @@ impl Device {
         settings.shade.env_rotation_degrees = env_rotation;
         settings.shade.env_intensity = env_intensity;
         settings.shadow.surface_depth |= surface_depth;
+        settings.shadow.fit = srug::shadow::ShadowFit::parse(shadow_fit).map_err(py_err)?;
         settings.validate().map_err(py_err)?;
         let attributes = scene.host.attributes();
         if !attributes.shadeable() {
@@ -552,7 +554,7 @@ impl Device {
     /// receiver. The returned object holds V and runs the backward pass.
     #[pyo3(signature = (scene, camera, sun, resolution = 2048, k = 50.0, bias = 0.5, map_depth = None,
                         receiver_depth = None, sun_intensity = std::f32::consts::PI, slope_bias = 0.0,
-                        normal_offset = 0.0))]
+                        normal_offset = 0.0, fit = "scene"))]
     #[allow(clippy::too_many_arguments, reason = "the Python keyword arguments of one call")]
     fn shadow(
         &self,
@@ -568,6 +570,7 @@ impl Device {
         sun_intensity: f32,
         slope_bias: f32,
         normal_offset: f32,
+        fit: &str,
     ) -> PyResult<ShadowTest> {
         let [camera] = camera.cameras.as_slice() else {
             return Err(invalid(format!("{} cameras", camera.cameras.len()), "the shadow test takes one camera"));
@@ -585,6 +588,7 @@ impl Device {
         settings.bias = bias;
         settings.slope_bias = slope_bias;
         settings.normal_offset = normal_offset;
+        settings.fit = srug::shadow::ShadowFit::parse(fit).map_err(py_err)?;
         if let Some(m) = map_depth {
             settings.map_depth = srug::shadow::DepthMode::parse(m).map_err(py_err)?;
         }

@@ -402,6 +402,7 @@ class Device:
         output: str = "radiance",
         progress: Progress = None,
         surface_depth: bool = False,
+        shadow_fit: str = "scene",
     ) -> np.ndarray:
         """Relights every camera: (N, H, W, 3) float32.
 
@@ -413,7 +414,8 @@ class Device:
         "radiance" (linear, before tone mapping) or "display" (exposure, tone
         map and sRGB, in [0, 1]). The scene needs an albedo attribute.
         ``surface_depth``: surface depths for the shadow map and its receivers
-        (docs/stages.md).
+        (docs/stages.md). ``shadow_fit``: "scene" (the map covers the scene's
+        bounds) or "view" (each camera's view within them: finer texels).
         """
         if time is not None:
             if latitude is None or longitude is None:
@@ -437,6 +439,7 @@ class Device:
             str(output),
             cb,
             surface_depth=bool(surface_depth),
+            shadow_fit=str(shadow_fit),
         )
         return out[output]
 
@@ -453,6 +456,7 @@ class Device:
         receiver_depth: Optional[str] = None,
         slope_bias: float = 0.0,
         normal_offset: float = 0.0,
+        fit: str = "scene",
     ) -> "ShadowTest":
         """The differentiable sun shadow test for one camera (the paper's editable visibility):
         ``.visibility`` is V = sigmoid(k·(z_s − z + bias)) per pixel, (H, W) float32 (1 where no
@@ -463,7 +467,8 @@ class Device:
         "expected-over-far" (docs/stages.md). ``slope_bias`` adds that many shadow-map texels
         times tan θ (θ: receiver normal to sun) to ``bias``; ``normal_offset`` moves each
         receiver that many texels times sin θ along its normal (the relight presets use 3 and
-        0); the backward holds the normals they read fixed."""
+        0); the backward holds the normals they read fixed. ``fit``: "scene" or "view" (the map
+        covers the camera's view within the scene's bounds)."""
         if len(camera) != 1:
             raise _invalid(f"the shadow test takes one camera, not {len(camera)} (index the Cameras)")
         az, el = (float(v) for v in sun)
@@ -479,6 +484,7 @@ class Device:
                 receiver_depth,
                 slope_bias=float(slope_bias),
                 normal_offset=float(normal_offset),
+                fit=str(fit),
             )
         )
 

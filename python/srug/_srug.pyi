@@ -47,6 +47,7 @@ class Device:
         output: str = ...,
         progress: Optional[Callable[[int, int], Any]] = ...,
         surface_depth: bool = ...,
+        shadow_fit: str = ...,
     ) -> Dict[str, np.ndarray]: ...
 
     def shadow(
@@ -62,6 +63,7 @@ class Device:
         sun_intensity: float = ...,
         slope_bias: float = ...,
         normal_offset: float = ...,
+        fit: str = ...,
     ) -> ShadowTest: ...
 
 class ShadowTest:

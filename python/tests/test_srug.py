@@ -447,3 +447,8 @@ def test_surface_depth_moves_depths_only(dev, city):
     assert 0.01 < moved.mean(), moved.mean()
     lit = dev.relight(scene, cam, sun=(260.0, 50.0), surface_depth=True)
     assert lit.shape == (1, 48, 176, 3) and np.isfinite(lit).all()
+    fitted = dev.relight(scene, cam, sun=(260.0, 50.0), shadow_fit="view")
+    assert fitted.shape == (1, 48, 176, 3) and np.isfinite(fitted).all()
+    with pytest.raises(srug.Error) as e:
+        dev.relight(scene, cam, sun=(260.0, 50.0), shadow_fit="tight")
+    assert "scene or view" in str(e.value)

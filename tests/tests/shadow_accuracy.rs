@@ -15,7 +15,7 @@ use srug::gpu::Device;
 use srug::scene::activate::GpuScene;
 use srug::scene::blocks::{block_city, BlockCity, BlockOptions, BlockSplats};
 use srug::shadow::accuracy::{shadow_accuracy, ShadowAccuracy};
-use srug::shadow::{ShadowPass, Sun};
+use srug::shadow::{ShadowFit, ShadowPass, Sun};
 use srug::splat::{SplatSettings, Splatter};
 use srug_tests::{assert_no_validation_messages, device, save_comparison, NAN_SENTINEL};
 
@@ -35,13 +35,23 @@ fn measure(
     let mut total = ShadowAccuracy::default();
     for sun in &city.suns {
         let light = Sun::from_direction(sun.direction, [1.0; 3]).unwrap();
-        let map = pass.shadow_map(splatter, scene, &bounds, &light, &st, None).unwrap().expect("the sun is up");
+        // One map per sun, or per camera where it is fitted to the view.
+        let scene_map = (st.fit == ShadowFit::SceneBounds)
+            .then(|| pass.shadow_map(splatter, scene, &bounds, &light, &st, None).unwrap().expect("the sun is up"));
         let mut per_sun = ShadowAccuracy::default();
         for camera in &city.cameras {
             let camera = settings.render_camera(camera);
+            let view_map;
+            let map = match &scene_map {
+                Some(m) => m,
+                None => {
+                    view_map = pass.shadow_map(splatter, scene, &bounds, &light, &st, Some(&camera)).unwrap().unwrap();
+                    &view_map
+                }
+            };
             let splat = SplatSettings { prefill: Some(NAN_SENTINEL), tile: settings.tile, ..st.receiver_splat() };
             let (g, _) = splatter.render(scene, &camera, &splat).unwrap();
-            let (v, _) = pass.visibility(&map, &g, &camera, &st, settings.visibility_kind).unwrap();
+            let (v, _) = pass.visibility(map, &g, &camera, &st, settings.visibility_kind).unwrap();
             let v: Vec<f32> = d.read_buffer(&v).unwrap();
             assert!(v.iter().all(|x| x.is_finite() && (0.0..=1.0).contains(x)), "{label}: V unwritten or out of range");
             let truth = city.true_visibility(&camera, sun.direction);
@@ -87,19 +97,23 @@ fn presets_shadow_the_analytic_block_as_the_truth_does() {
     let d = device();
     let mut splatter = Splatter::new(&d).unwrap();
     let pass = ShadowPass::new(&d).unwrap();
-    // (sampling, preset, surface depths, lowest IoU accepted, highest false-shadow and leak rates, edge error px)
+    // (sampling, preset, surface depths, map fit, lowest IoU accepted, highest false-shadow and
+    // leak rates, edge error px)
+    let (scene_fit, view_fit) = (ShadowFit::SceneBounds, ShadowFit::ViewFrustum);
     let floors = [
-        (BlockSplats::Ideal, Preset::Fast, false, 0.94, 0.03, 0.012, 8.5),
-        (BlockSplats::Ideal, Preset::Balanced, false, 0.97, 0.015, 0.006, 3.8),
-        (BlockSplats::Ideal, Preset::Balanced, true, 0.975, 0.014, 0.002, 8.5),
-        (BlockSplats::Ideal, Preset::Reference, false, 0.97, 0.015, 0.006, 3.8),
-        (BlockSplats::Rough, Preset::Fast, false, 0.94, 0.03, 0.012, 9.5),
-        (BlockSplats::Rough, Preset::Balanced, false, 0.965, 0.015, 0.008, 7.0),
-        (BlockSplats::Rough, Preset::Balanced, true, 0.97, 0.015, 0.004, 9.5),
-        (BlockSplats::Rough, Preset::Reference, false, 0.965, 0.015, 0.008, 7.5),
+        (BlockSplats::Ideal, Preset::Fast, false, scene_fit, 0.94, 0.03, 0.012, 8.5),
+        (BlockSplats::Ideal, Preset::Balanced, false, scene_fit, 0.97, 0.015, 0.006, 3.8),
+        (BlockSplats::Ideal, Preset::Balanced, true, scene_fit, 0.975, 0.014, 0.002, 8.5),
+        (BlockSplats::Ideal, Preset::Balanced, false, view_fit, 0.97, 0.015, 0.006, 3.8),
+        (BlockSplats::Ideal, Preset::Reference, false, scene_fit, 0.97, 0.015, 0.006, 3.8),
+        (BlockSplats::Rough, Preset::Fast, false, scene_fit, 0.94, 0.03, 0.012, 9.5),
+        (BlockSplats::Rough, Preset::Balanced, false, scene_fit, 0.965, 0.015, 0.008, 7.0),
+        (BlockSplats::Rough, Preset::Balanced, true, scene_fit, 0.97, 0.015, 0.004, 9.5),
+        (BlockSplats::Rough, Preset::Balanced, false, view_fit, 0.965, 0.015, 0.008, 7.0),
+        (BlockSplats::Rough, Preset::Reference, false, scene_fit, 0.965, 0.015, 0.008, 7.5),
     ];
     let mut last: Option<(BlockSplats, BlockCity, GpuScene)> = None;
-    for (splats, preset, surface, iou, false_shadow, leak, edge) in floors {
+    for (splats, preset, surface, fit, iou, false_shadow, leak, edge) in floors {
         if last.as_ref().is_none_or(|(s, _, _)| *s != splats) {
             let city = block_city(&BlockOptions { splats, ..BlockOptions::default() }).unwrap();
             let scene = GpuScene::upload(&d, &city.scene).unwrap();
@@ -107,9 +121,15 @@ fn presets_shadow_the_analytic_block_as_the_truth_does() {
             last = Some((splats, city, scene));
         }
         let (_, city, scene) = last.as_ref().unwrap();
-        let label = format!("{splats:?} {}{}", preset.name(), if surface { " surface" } else { "" });
+        let label = format!(
+            "{splats:?} {}{}{}",
+            preset.name(),
+            if surface { " surface" } else { "" },
+            if fit == view_fit { " view" } else { "" }
+        );
         let mut settings = RelightSettings::preset(preset);
         settings.shadow.surface_depth = surface;
+        settings.shadow.fit = fit;
         let acc = measure(&d, &mut splatter, &pass, city, scene, &settings, &label);
         let failed = acc.iou() < iou
             || acc.false_shadow_rate() > false_shadow

@@ -256,6 +256,17 @@ int main(int argc, char **argv) {
   printf("surface depth: %zu of %zu depths moved\n", moved, pixels);
   REQUIRE(moved * 100 > pixels);
   CHECK(srug_renderer_set_surface_depth(r, false));
+  /* A shadow map fitted to the view: the same scene, finer texels, close to the default. */
+  CHECK(srug_renderer_set_shadow_fit(r, SRUG_SHADOW_FIT_VIEW));
+  CHECK(srug_renderer_render(r, scene));
+  unsigned char *fitted = read_rgba8(r, w, h);
+  double fit_diff = 0.0;
+  for (size_t i = 0; i < pixels * 4; i++) fit_diff += fabs((double)fitted[i] - (double)image[i]);
+  fit_diff /= (double)(pixels * 4);
+  printf("view-fitted shadow map: mean |view - scene| = %.3f of 255\n", fit_diff);
+  REQUIRE(fit_diff > 0.0 && fit_diff < 5.0);
+  free(fitted);
+  CHECK(srug_renderer_set_shadow_fit(r, SRUG_SHADOW_FIT_SCENE));
   free(centre_depth);
   free(plane_depth);
 

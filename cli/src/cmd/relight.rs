@@ -310,6 +310,7 @@ pub(crate) fn relight_demo(
         shadow_slope_bias: None,
         shadow_normal_offset: None,
         shadow_surface_depth: false,
+        shadow_fit: None,
         receiver_depth: None,
         shadow_test: None,
         sh_degree: None,

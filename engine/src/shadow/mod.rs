@@ -100,6 +100,17 @@ pub enum ShadowFit {
     ViewFrustum,
 }
 
+impl ShadowFit {
+    /// Parses `scene` or `view`.
+    pub fn parse(text: &str) -> Result<Self> {
+        match text {
+            "scene" => Ok(Self::SceneBounds),
+            "view" => Ok(Self::ViewFrustum),
+            other => Err(Error::invalid(format!("shadow fit \"{other}\""), "is not scene or view")),
+        }
+    }
+}
+
 /// The world width of one texel of a light camera (orthographic, square texels).
 pub(crate) fn texel_size(light: &Camera) -> f32 {
     match light.projection {
