@@ -1,14 +1,16 @@
 //! The benchmark's device-limit probes (`srug_cli::bench::limits`) against their
 //! CPU twins, with validation on: the blend ceiling must compute the blend's
 //! arithmetic with every evaluation contributing (else its flop count would
-//! be wrong), and the pair-move probe must read and write every pair.
+//! be wrong), and the pair-move and bandwidth probes must read and write every
+//! pair and texel.
 
 #![allow(clippy::unwrap_used, clippy::expect_used, reason = "a failed unwrap is a failed test")]
 
 use srug::gpu::MemoryKind;
 use srug_cli::bench::limits::{
-    blend_ceiling_cpu, blend_ceiling_run, pair_move_cpu, pair_move_run, radix_pass_permutation, random_permutation,
-    stable_digit_permutation, BlendCeiling, PairMoveFloor, PairWrites, BLEND_CEILING_MAX_SPLATS, BLEND_CEILING_PIXELS,
+    bandwidth_cpu, bandwidth_run, blend_ceiling_cpu, blend_ceiling_run, pair_move_cpu, pair_move_run,
+    radix_pass_permutation, random_permutation, stable_digit_permutation, BlendCeiling, PairMoveFloor, PairWrites,
+    BLEND_CEILING_MAX_SPLATS, BLEND_CEILING_PIXELS,
 };
 use srug_cli::bench::{BLEND_FLOPS_PER_CONTRIBUTION, BLEND_FLOPS_PER_EVALUATION};
 use srug_tests::{assert_no_validation_messages, device, save_comparison};
@@ -182,4 +184,27 @@ fn lsd_bound_takes_the_cheapest_digit_width() {
     let (width, seconds) = noisy.lsd_bound(4).unwrap();
     assert_eq!(width, 4);
     assert!((seconds - (0.020 + 0.025 * 16.0 / 1000.0)).abs() < 1e-12, "{seconds}");
+}
+
+#[test]
+fn bandwidth_probe_reads_and_copies_every_texel() {
+    let d = device();
+    // A count that leaves the last invocation a partial run of texels.
+    let count: usize = 64 * 64 * 3 + 37;
+    let texels: Vec<[f32; 4]> = (0..count).map(|i| [i as f32, -(i as f32) * 0.5, 1e-3 * i as f32, 7.0]).collect();
+    let source = d.upload("bandwidth source", &texels).unwrap();
+    let sums = d.create_filled::<u32>("sums", count.div_ceil(64), 0xdead_beef).unwrap();
+    let seconds = bandwidth_run(&d, false, &source, count as u64, &sums).unwrap();
+    assert!(seconds.is_finite() && seconds > 0.0, "{seconds}");
+    let gpu: Vec<u32> = d.read_buffer(&sums).unwrap();
+    assert_eq!(gpu, bandwidth_cpu(&texels), "read-only checksums");
+    let copy = d.create_filled::<u32>("copy", 4 * count, f32::NAN.to_bits()).unwrap();
+    bandwidth_run(&d, true, &source, count as u64, &copy).unwrap();
+    let copied: Vec<[f32; 4]> = d.read_buffer(&copy).unwrap();
+    assert!(copied.iter().zip(&texels).all(|(a, b)| a.map(f32::to_bits) == b.map(f32::to_bits)), "copy");
+    // Clear refusals.
+    assert!(bandwidth_run(&d, false, &source, 0, &sums).is_err(), "no texels");
+    assert!(bandwidth_run(&d, true, &source, count as u64, &sums).is_err(), "copy into too small a buffer");
+    assert!(bandwidth_run(&d, false, &source, count as u64 + 1, &sums).is_err(), "more texels than the source");
+    assert_no_validation_messages(&d);
 }

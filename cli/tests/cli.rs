@@ -238,6 +238,8 @@ fn bench_splat_prints_its_tables() {
         "ceiling % |",
         "blend ceiling",
         "pair-move floor, 5000 pairs",
+        "memory bandwidth (64 MiB",
+        "preprocess % of floor | sort % of floor | blend % of ceiling |",
     ] {
         assert!(t.contains(want), "missing {want:?} in:\n{t}");
     }

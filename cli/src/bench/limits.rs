@@ -15,8 +15,13 @@
 //!   least this much, so it bounds a pass from below, and
 //!   [`PairMoveFloor::lsd_bound`] bounds a whole LSD radix sort.
 //!
-//! Both kernels have CPU twins here ([`blend_ceiling_cpu`], [`pair_move_cpu`])
-//! that the tests check them against.
+//! - **Memory bandwidth** (`bench_bandwidth.comp`): a large buffer read once
+//!   front to back through a texel view, and copied once: the bytes a
+//!   memory-bound stage must move over this rate bound it from below
+//!   ([`MemoryBandwidth`]).
+//!
+//! The kernels have CPU twins here ([`blend_ceiling_cpu`], [`pair_move_cpu`],
+//! [`bandwidth_cpu`]) that the tests check them against.
 
 use bytemuck::{Pod, Zeroable};
 
@@ -436,9 +441,102 @@ pub fn random_permutation(n: u32, seed: u64) -> Vec<u32> {
     p
 }
 
+/// Push constants of `bench_bandwidth.comp` (keep in sync with its `BandwidthPush` block).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+pub struct BandwidthPush {
+    /// The copy (16 bytes a texel), or one checksum per invocation.
+    pub out_addr: DeviceAddress,
+    /// Texels.
+    pub count: u32,
+    /// Workgroups.
+    pub blocks: u32,
+}
+srug::gpu::gpu_layout!(BandwidthPush, "BandwidthPush", [out_addr, count, blocks]);
+
+/// Texels each invocation of `bench_bandwidth.comp` reads (keep in sync with its `ITEMS`).
+pub const BANDWIDTH_ITEMS: u64 = 64;
+const BANDWIDTH_BLOCK: u64 = BANDWIDTH_ITEMS * 64;
+
+/// Runs the bandwidth probe once over the first `count` RGBA32F texels of
+/// `source` (finite values): read only (writing one checksum per invocation
+/// into `out`), or with `copy` each texel copied to the same index of `out`.
+/// Returns the GPU seconds.
+pub fn bandwidth_run(device: &Device, copy: bool, source: &Buffer, count: u64, out: &Buffer) -> Result<f64> {
+    let info = device.info();
+    if !info.texel_formats.contains(&TexelFormat::Rgba32Float) {
+        return Err(Error::unsupported("this device cannot view buffers as RGBA32F texels"));
+    }
+    let limit = info.max_texel_buffer_elements.min(u64::from(u32::MAX));
+    if count == 0 || count > limit {
+        return Err(Error::invalid(format!("bandwidth probe over {count} texels"), format!("needs 1 to {limit}")));
+    }
+    let sums = count.div_ceil(BANDWIDTH_ITEMS) * 4;
+    if source.size() < count * 16 || out.size() < if copy { count * 16 } else { sums } {
+        return Err(Error::invalid(format!("bandwidth probe over {count} texels"), "a buffer is too small"));
+    }
+    let kernel = device.kernel(
+        &kernels::BENCH_BANDWIDTH,
+        &KernelDecl {
+            bindings: &[BindingKind::UniformTexelBuffer],
+            push_constant_size: std::mem::size_of::<BandwidthPush>(),
+            specialization: &[(0, SpecValue::Bool(copy))],
+        },
+    )?;
+    let blocks = count.div_ceil(BANDWIDTH_BLOCK);
+    let view =
+        [Binding::Texels(Texels { buffer: source, offset: 0, elements: count, format: TexelFormat::Rgba32Float })];
+    let t = device.run(|rec| {
+        let push = BandwidthPush { out_addr: rec.addr(out)?, count: count as u32, blocks: blocks as u32 };
+        rec.begin_stage("bandwidth");
+        rec.dispatch(&kernel, Grid::Groups(blocks), &view, &push)
+    })?;
+    Ok(t.get("bandwidth").unwrap_or(f64::NAN))
+}
+
+/// CPU twin of `bench_bandwidth.comp` read only: the xor of each invocation's texels' bits.
+pub fn bandwidth_cpu(texels: &[[f32; 4]]) -> Vec<u32> {
+    texels.chunks(BANDWIDTH_ITEMS as usize).map(|c| c.iter().flatten().fold(0, |s, v| s ^ v.to_bits())).collect()
+}
+
+/// The device's streaming bandwidth (the best of the repeats).
+#[derive(Clone, Copy, Debug)]
+pub struct MemoryBandwidth {
+    /// Bytes of the buffer read.
+    pub bytes: u64,
+    /// Bytes read per second, reading once through a texel view.
+    pub read: f64,
+    /// Bytes moved (read and written) per second, copying once.
+    pub copy: f64,
+}
+
+impl MemoryBandwidth {
+    /// Least seconds to read `read` bytes and write `written` bytes at these
+    /// rates: a written byte costs what copying it costs beyond reading it.
+    pub fn floor_seconds(&self, read: u64, written: u64) -> f64 {
+        let per_write = (2.0 / self.copy - 1.0 / self.read).max(0.0);
+        read as f64 / self.read + written as f64 * per_write
+    }
+}
+
+/// Measures the streaming bandwidth over a buffer of `bytes` (rounded to whole texels).
+pub fn memory_bandwidth(device: &Device, bytes: u64, repeats: usize) -> Result<MemoryBandwidth> {
+    let count = (bytes / 16).max(1);
+    let texels: Vec<[f32; 4]> = (0..count).map(|i| [i as f32, 1.0, 2.0, 3.0]).collect();
+    let source = device.upload("bandwidth source", &texels)?;
+    let out = device.create_buffer("bandwidth out", count * 16, MemoryKind::Storage)?;
+    let best = |copy| -> Result<f64> {
+        let runs: Result<Vec<f64>> =
+            (0..repeats.max(1)).map(|_| bandwidth_run(device, copy, &source, count, &out)).collect();
+        Ok(runs?.into_iter().fold(f64::INFINITY, f64::min))
+    };
+    let (read, copy) = (best(false)?, best(true)?);
+    Ok(MemoryBandwidth { bytes: count * 16, read: (count * 16) as f64 / read, copy: (count * 32) as f64 / copy })
+}
+
 #[cfg(test)]
 mod layout_tests {
-    use super::{BlendCeilingPush, PairMovePush};
+    use super::{BandwidthPush, BlendCeilingPush, PairMovePush};
     use crate::bench::FmaPush;
     use srug::gpu::{check_layout, kernels};
 
@@ -448,5 +546,6 @@ mod layout_tests {
         assert_eq!(check_layout::<BlendCeilingPush>(&[&kernels::BENCH_BLEND_CEILING]), Ok(1));
         assert_eq!(check_layout::<PairMovePush>(&[&kernels::BENCH_PAIR_MOVE]), Ok(1));
         assert_eq!(check_layout::<FmaPush>(&[&kernels::BENCH_FMA]), Ok(1));
+        assert_eq!(check_layout::<BandwidthPush>(&[&kernels::BENCH_BANDWIDTH]), Ok(1));
     }
 }

@@ -21,7 +21,7 @@ use srug::gpu::{kernels, Device, DeviceAddress, Grid, KernelDecl, MemoryKind};
 use srug::primitives::sort::RadixSort;
 use srug::scene::activate::GpuScene;
 use srug::scene::demo::{demo_city, DemoOptions};
-use srug::splat::{BlendVariant, SplatSettings, Splatter, TileBounds};
+use srug::splat::{BlendVariant, NormalSource, SplatSettings, Splatter, TileBounds};
 
 /// Push constants of `bench_fma.comp` (keep in sync with its `Push` block).
 #[repr(C)]
@@ -88,6 +88,16 @@ pub struct SplatBenchRow {
     pub blend_evaluations: u64,
     /// Pairs that contributed to a pixel.
     pub blend_contributions: u64,
+    /// Gaussians the preprocess keeps (counted by the CPU twin).
+    pub visible: u64,
+    /// Key bits the sort sorted.
+    pub key_bits: u32,
+    /// Bytes the preprocess must read at least: every Gaussian's position,
+    /// and the rest of its attributes (SH at the degree used) for the visible ones.
+    pub preprocess_read_bytes: u64,
+    /// Bytes the preprocess must write at least: a splat record and a tile
+    /// count per visible Gaussian, a zero tile count per culled one.
+    pub preprocess_write_bytes: u64,
 }
 
 impl SplatBenchRow {
@@ -166,6 +176,15 @@ pub fn splat_bench(
             progress(&format!("{n} Gaussians at {w}x{h}: counting blend work on the CPU"));
             let (blend_evaluations, blend_contributions) =
                 srug::splat::cpu::blend_work(&city.scene, &cam, tile, tile_bounds);
+            let visible = (0..city.scene.len())
+                .filter(|&i| {
+                    srug::splat::cpu::preprocess_one(&city.scene, i, &cam, NormalSource::default(), tile).is_some()
+                })
+                .count() as u64;
+            // Means, then log-scales, rotation, opacity and SH at the degree used (1 here).
+            let (position, rest) = (12u64, 12 + 16 + 4 + 4 * 3 * 4);
+            // The 64-byte splat record and a 32-bit tile count.
+            let (record, count) = (64u64, 4u64);
             rows.push(SplatBenchRow {
                 gaussians: n,
                 width: w,
@@ -177,6 +196,10 @@ pub fn splat_bench(
                 gbuffer_bytes,
                 blend_evaluations,
                 blend_contributions,
+                visible,
+                key_bits: stats.key_bits,
+                preprocess_read_bytes: n as u64 * position + visible * rest,
+                preprocess_write_bytes: visible * (record + count) + (n as u64 - visible) * count,
             });
         }
     }

@@ -1,6 +1,7 @@
 //! `srug bench splat`: per-stage splatting times on the demo city, the GPU sort
 //! against `sort_unstable`, and the device limits beside them (FMA peak, the
-//! blend's arithmetic ceiling, the pair-move floor of a sort pass).
+//! blend's arithmetic ceiling, the pair-move floor of a sort pass, the memory
+//! bandwidth), with each stage's share of its own floor.
 
 use srug::splat::{check_tile, BlendVariant, TileBounds, DEFAULT_TILE};
 use srug::Result;
@@ -53,25 +54,35 @@ impl SplatBenchArgs {
         let rows = bench::splat_bench(&device, counts, &sizes, &options, |m| bar.set_message(m.to_string()))?;
         bar.set_message("sorting");
         let sort = bench::sort_bench(&device, sort_keys, 32 + 11, repeats)?;
-        bar.set_message("measuring the blend ceiling and the pair-move floor");
+        bar.set_message("measuring the blend ceiling, the pair-move floor and the memory bandwidth");
         let ceiling = bench::limits::blend_ceiling(&device, repeats)?;
         let floor = bench::limits::pair_move_floor(&device, sort_keys as u64, repeats)?;
+        let bandwidth = bench::limits::memory_bandwidth(&device, 64 << 20, repeats)?;
         bar.finish_and_clear();
         let stage_names: Vec<String> =
             rows.first().map(|r| r.stages.iter().map(|s| s.0.clone()).collect()).unwrap_or_default();
         println!(
-            "| Gaussians | size | {} | total ms | pairs | working MiB | scene MiB | G-buffer MiB | blend evals (M) | blend GFLOP/s | % of FMA peak | ceiling % |",
+            "| Gaussians | size | {} | total ms | pairs | working MiB | scene MiB | G-buffer MiB | blend evals (M) | blend GFLOP/s | % of FMA peak | ceiling % | preprocess % of floor | sort % of floor | blend % of ceiling |",
             stage_names.join(" ms | ") + " ms"
         );
-        println!("|---:|---|{}---:|---:|---:|---:|---:|---:|---:|---:|---:|", "---:|".repeat(stage_names.len()));
+        println!(
+            "|---:|---|{}---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
+            "---:|".repeat(stage_names.len())
+        );
         for r in &rows {
             let stages: Vec<String> = stage_names
                 .iter()
                 .map(|n| r.stages.iter().find(|s| &s.0 == n).map_or("-".to_string(), |s| format!("{:.1}", s.1 * 1e3)))
                 .collect();
             let mib = |b: u64| b as f64 / (1u64 << 20) as f64;
+            let stage = |name: &str| r.stages.iter().find(|s| s.0 == name).map_or(f64::NAN, |s| s.1);
+            let preprocess_floor = bandwidth.floor_seconds(r.preprocess_read_bytes, r.preprocess_write_bytes);
+            // The LSD bound for this row's key width, scaled from the floor's pairs to the row's.
+            let sort_floor =
+                floor.lsd_bound(r.key_bits).map_or(f64::NAN, |(_, s)| s * r.pairs as f64 / floor.keys.max(1) as f64);
+            let blend_ceiling = ceiling.for_work(r.blend_evaluations, r.blend_contributions);
             println!(
-                "| {} | {}x{} | {} | {:.1} | {} | {:.1} | {:.1} | {:.1} | {:.1} | {:.2} | {:.1} | {:.1} |",
+                "| {} | {}x{} | {} | {:.1} | {} | {:.1} | {:.1} | {:.1} | {:.1} | {:.2} | {:.1} | {:.1} | {:.0} | {:.0} | {:.0} |",
                 r.gaussians,
                 r.width,
                 r.height,
@@ -84,9 +95,18 @@ impl SplatBenchArgs {
                 r.blend_evaluations as f64 * 1e-6,
                 r.blend_gflops(),
                 r.blend_gflops() / peak * 100.0,
-                ceiling.for_work(r.blend_evaluations, r.blend_contributions) / peak * 100.0
+                blend_ceiling / peak * 100.0,
+                preprocess_floor / stage("preprocess") * 100.0,
+                sort_floor / stage("sort") * 100.0,
+                r.blend_gflops() / blend_ceiling * 100.0,
             );
         }
+        println!(
+            "\nmemory bandwidth ({} MiB read once through an RGBA32F texel view, and copied once): read {:.1} GB/s, copy {:.1} GB/s moved; \"preprocess % of floor\" is the least time to read every Gaussian's position and the visible ones' other attributes and write their splat records and every tile count at those rates, over the measured preprocess; \"sort % of floor\" the LSD bound below for the row's key bits and pairs over the measured sort; \"blend % of ceiling\" the blend's GFLOP/s over its ceiling for the row's mix",
+            bandwidth.bytes >> 20,
+            bandwidth.read * 1e-9,
+            bandwidth.copy * 1e-9
+        );
         println!(
             "\nblend flops: {} per evaluated pair + {} per contributing pair (exp not counted); pairs counted by replaying the blend on the CPU twin",
             bench::BLEND_FLOPS_PER_EVALUATION,

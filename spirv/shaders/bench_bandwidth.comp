@@ -1,0 +1,39 @@
+#version 460
+// Floor probe for memory-bound stages: a buffer read once, front to back,
+// through an RGBA32F texel-buffer view (16 bytes a fetch, as the texel
+// kernels read), each invocation owning ITEMS consecutive texels; with COPY
+// each texel is also written by device address to the same index of a
+// second buffer. Without COPY each invocation writes the xor of what it read,
+// so the reads cannot be skipped. The bytes moved over the time is the
+// device's streaming bandwidth.
+// CPU twin: cli/src/bench/limits.rs `bandwidth_cpu`.
+#define WORKGROUP_SIZE_X 64
+#include "common.glsl"
+#include "address.glsl"
+
+// Keep in sync with cli/src/bench/limits.rs `BANDWIDTH_ITEMS`.
+#define ITEMS 64
+layout(constant_id = 0) const bool COPY = false;
+
+// Keep in sync with cli/src/bench/limits.rs `BandwidthPush`.
+layout(push_constant) uniform BandwidthPush {
+    uvec2 out_addr;  // uvec4[count] with COPY, else uint[invocations]
+    uint count;      // texels
+    uint blocks;
+} pc;
+
+layout(buffer_reference, std430, buffer_reference_align = 16) writeonly buffer Uvec4sOut { uvec4 v[]; };
+
+layout(set = 0, binding = 0) uniform samplerBuffer source;  // RGBA32F, finite values
+
+void main() {
+    uint me = block_index() * WORKGROUP_SIZE_X + gl_LocalInvocationID.x;
+    uint sum = 0u;
+    uint end = min(me * ITEMS + ITEMS, pc.count);
+    for (uint i = me * ITEMS; i < end; i++) {
+        uvec4 t = floatBitsToUint(texelFetch(source, int(i)));
+        if (COPY) Uvec4sOut(pc.out_addr).v[i] = t;
+        sum ^= t.x ^ t.y ^ t.z ^ t.w;
+    }
+    if (!COPY && me * ITEMS < pc.count) UintsOut(pc.out_addr).v[me] = sum;
+}
