@@ -72,6 +72,51 @@ pub struct DeviceOptions {
     /// Khronos validation with synchronization validation; `None` reads [`VALIDATION_ENV`].
     pub validation: Option<bool>,
 }
+/// The device features srug uses, as enabled on a device (Vulkan cannot
+/// report what a device was created with, so a host passing its own device
+/// says). srug needs `buffer_device_address` and `shader_int64`; the others
+/// enable fp16 paths of the U-Net where present.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct EnabledFeatures {
+    /// `VkPhysicalDeviceVulkan12Features::bufferDeviceAddress` (required).
+    pub buffer_device_address: bool,
+    /// `VkPhysicalDeviceFeatures::shaderInt64` (required).
+    pub shader_int64: bool,
+    /// `VkPhysicalDeviceFeatures::shaderInt16`.
+    pub shader_int16: bool,
+    /// `VkPhysicalDeviceVulkan12Features::shaderFloat16`.
+    pub shader_float16: bool,
+    /// `VkPhysicalDeviceVulkan11Features::storageBuffer16BitAccess`.
+    pub storage_buffer_16bit_access: bool,
+}
+
+/// A host application's Vulkan objects for [`Device::from_raw`]. The host
+/// keeps owning them: srug never destroys them, and the host must keep them
+/// alive until the last [`Device`] handle (and everything made from it) is dropped.
+#[derive(Clone)]
+pub struct RawVulkan {
+    /// The loader entry the instance was created with.
+    pub entry: ash::Entry,
+    /// The host's instance (Vulkan 1.2 or newer).
+    pub instance: ash::Instance,
+    /// The physical device `device` was created on.
+    pub physical_device: vk::PhysicalDevice,
+    /// The host's device.
+    pub device: ash::Device,
+    /// A queue family of `device` with compute.
+    pub queue_family: u32,
+    /// The queue of that family srug submits to. srug locks it around its own
+    /// submissions; the host must not submit to it concurrently (Vulkan's
+    /// external synchronization of a queue), or should give srug a queue of its own.
+    pub queue_index: u32,
+    /// The features `device` was created with.
+    pub enabled: EnabledFeatures,
+    /// Collect validation messages ([`Device::take_validation_messages`])
+    /// through a debug messenger srug adds to the host's instance; the host
+    /// must have enabled `VK_EXT_debug_utils` on it.
+    pub validation_messages: bool,
+}
+
 /// A Vulkan device with one compute queue. Cheap to clone (shared handle).
 #[derive(Clone)]
 pub struct Device {
@@ -125,6 +170,147 @@ fn env_flag(name: &str) -> Option<bool> {
 }
 
 impl Device {
+    /// Uses a host application's Vulkan device instead of creating one: srug
+    /// allocates its own memory on it (gpu-allocator), submits to the given
+    /// queue, and destroys only what it created. Checks the API version (1.2),
+    /// the queue (a compute family, an index it has) and the required features
+    /// (`bufferDeviceAddress`, `shaderInt64`), naming what is missing.
+    ///
+    /// # Safety
+    /// The handles must be valid and belong together (`device` created on
+    /// `physical_device` from `instance`, with the queue and the `enabled`
+    /// features as stated), and stay valid while any handle of the returned
+    /// device or anything made from it lives.
+    pub unsafe fn from_raw(raw: RawVulkan) -> Result<Self> {
+        let RawVulkan {
+            entry,
+            instance,
+            physical_device,
+            device,
+            queue_family,
+            queue_index,
+            enabled,
+            validation_messages,
+        } = raw;
+        // SAFETY: the caller vouches for the handles.
+        let props = unsafe { instance.get_physical_device_properties(physical_device) };
+        if props.api_version < vk::API_VERSION_1_2 {
+            return Err(Error::NoDevice(format!(
+                "the host's device {} supports Vulkan {}; srug needs 1.2",
+                name_of(&props),
+                version_string(props.api_version)
+            )));
+        }
+        // SAFETY: as above.
+        let families = unsafe { instance.get_physical_device_queue_family_properties(physical_device) };
+        let family = families.get(queue_family as usize).ok_or_else(|| {
+            Error::NoDevice(format!("queue family {queue_family}: the device has {} families", families.len()))
+        })?;
+        if !family.queue_flags.contains(vk::QueueFlags::COMPUTE) {
+            return Err(Error::NoDevice(format!("queue family {queue_family} has no compute")));
+        }
+        if queue_index >= family.queue_count {
+            return Err(Error::NoDevice(format!(
+                "queue {queue_index} of family {queue_family}: the family has {} queues",
+                family.queue_count
+            )));
+        }
+        let supported = supported_features(&instance, physical_device);
+        let required = [
+            (enabled.buffer_device_address, supported.buffer_device_address, "bufferDeviceAddress (Vulkan 1.2)"),
+            (enabled.shader_int64, supported.shader_int64, "shaderInt64"),
+        ];
+        if let Some((_, _, name)) = required.iter().find(|(on, ..)| !on) {
+            return Err(Error::NoDevice(format!("the host's device was created without {name}, which srug needs")));
+        }
+        let claimed = [
+            (enabled.shader_int16, supported.shader_int16, "shaderInt16"),
+            (enabled.shader_float16, supported.shader_float16, "shaderFloat16"),
+            (enabled.storage_buffer_16bit_access, supported.storage_buffer_16bit_access, "storageBuffer16BitAccess"),
+        ];
+        if let Some((_, _, name)) = required.iter().chain(&claimed).find(|(on, can, _)| *on && !can) {
+            return Err(Error::NoDevice(format!("the host says it enabled {name}, which the device does not support")));
+        }
+        // SAFETY: as above.
+        let index = unsafe { instance.enumerate_physical_devices() }
+            .map_err(vk_error("vkEnumeratePhysicalDevices"))?
+            .iter()
+            .position(|p| *p == physical_device)
+            .unwrap_or(0);
+        let info = describe(&instance, physical_device, index, queue_family, &enabled);
+        let log_box: Option<Box<ValidationLog>> = validation_messages.then(Box::default);
+        let debug = match &log_box {
+            Some(log) => {
+                let user = std::ptr::from_ref::<ValidationLog>(log).cast_mut().cast::<c_void>();
+                let info = vk::DebugUtilsMessengerCreateInfoEXT::default()
+                    .message_severity(
+                        vk::DebugUtilsMessageSeverityFlagsEXT::WARNING
+                            | vk::DebugUtilsMessageSeverityFlagsEXT::ERROR
+                            | vk::DebugUtilsMessageSeverityFlagsEXT::INFO,
+                    )
+                    .message_type(
+                        vk::DebugUtilsMessageTypeFlagsEXT::GENERAL
+                            | vk::DebugUtilsMessageTypeFlagsEXT::VALIDATION
+                            | vk::DebugUtilsMessageTypeFlagsEXT::PERFORMANCE,
+                    )
+                    .pfn_user_callback(Some(on_validation_message))
+                    .user_data(user);
+                let loader = ash::ext::debug_utils::Instance::new(&entry, &instance);
+                // SAFETY: valid create info; the log outlives the messenger (both live in Shared).
+                let messenger = unsafe { loader.create_debug_utils_messenger(&info, None) }.map_err(|e| {
+                    Error::MissingComponent(format!(
+                        "a debug messenger on the host's instance (is VK_EXT_debug_utils enabled?): {e}"
+                    ))
+                })?;
+                Some((loader, messenger))
+            }
+            None => None,
+        };
+        let allocator = Allocator::new(&AllocatorCreateDesc {
+            instance: instance.clone(),
+            device: device.clone(),
+            physical_device,
+            debug_settings: Default::default(),
+            buffer_device_address: true,
+            allocation_sizes: Default::default(),
+        });
+        let allocator = match allocator {
+            Ok(a) => a,
+            Err(e) => {
+                if let Some((loader, messenger)) = &debug {
+                    // SAFETY: created above, not used elsewhere.
+                    unsafe { loader.destroy_debug_utils_messenger(*messenger, None) };
+                }
+                return Err(Error::OutOfMemory(format!("creating the allocator: {e}")));
+            }
+        };
+        // SAFETY: the caller vouches that the family has this queue.
+        let queue = unsafe { device.get_device_queue(queue_family, queue_index) };
+        log::info!("srug on the host's device: {} ({:?}), driver {}", info.name, info.device_type, info.driver);
+        let shared = Arc::new(Shared {
+            _entry: entry,
+            instance,
+            debug,
+            validation_log: log_box,
+            device,
+            owns_device: false,
+            queue: Mutex::new(queue),
+            queue_family,
+            allocator: Mutex::new(ManuallyDrop::new(allocator)),
+            tracker: Mutex::new(Tracker::default()),
+            info,
+            current_bytes: AtomicU64::new(0),
+            peak_bytes: AtomicU64::new(0),
+            kernel_cache: Mutex::new(HashMap::new()),
+        });
+        Ok(Self { _cache_owner: Arc::new(CacheOwner(shared.clone())), shared })
+    }
+
+    /// Whether srug created this device (false for [`Device::from_raw`]).
+    pub fn owns_vulkan_device(&self) -> bool {
+        self.shared.owns_device
+    }
+
     /// Lists the Vulkan devices without creating one.
     pub fn list() -> Result<Vec<AdapterSummary>> {
         let entry = load_entry()?;
@@ -286,6 +472,7 @@ impl Device {
             debug,
             validation_log: log_box,
             device,
+            owns_device: true,
             queue: Mutex::new(queue),
             queue_family,
             allocator: Mutex::new(ManuallyDrop::new(allocator)),
@@ -403,30 +590,47 @@ fn pick_physical(instance: &ash::Instance, selection: &DeviceSelection) -> Resul
     Ok((devices[i], i))
 }
 
-fn make_device(
-    instance: &ash::Instance,
-    physical: vk::PhysicalDevice,
-    index: usize,
-) -> Result<(ash::Device, vk::Queue, u32, DeviceInfo)> {
+/// The compute queue family srug picks on `physical`: one with timestamps where there is one.
+fn compute_family(instance: &ash::Instance, physical: vk::PhysicalDevice) -> Result<u32> {
     // SAFETY: `physical` comes from this instance.
     let families = unsafe { instance.get_physical_device_queue_family_properties(physical) };
-    let family = families
+    families
         .iter()
         .position(|f| f.queue_flags.contains(vk::QueueFlags::COMPUTE) && f.timestamp_valid_bits > 0)
         .or_else(|| families.iter().position(|f| f.queue_flags.contains(vk::QueueFlags::COMPUTE)))
-        .ok_or_else(|| Error::NoDevice("the device has no compute queue".into()))?;
+        .map(|f| f as u32)
+        .ok_or_else(|| Error::NoDevice("the device has no compute queue".into()))
+}
 
+/// What `physical` supports of the features srug uses.
+fn supported_features(instance: &ash::Instance, physical: vk::PhysicalDevice) -> EnabledFeatures {
     let mut f11 = vk::PhysicalDeviceVulkan11Features::default();
     let mut f12 = vk::PhysicalDeviceVulkan12Features::default();
     let mut features = vk::PhysicalDeviceFeatures2::default().push_next(&mut f11).push_next(&mut f12);
     // SAFETY: valid physical device and feature chain.
     unsafe { instance.get_physical_device_features2(physical, &mut features) };
     let base = features.features;
-    let (has_bda, has_f16, has_s16) = (f12.buffer_device_address, f12.shader_float16, f11.storage_buffer16_bit_access);
-    if has_bda == vk::FALSE {
-        return Err(Error::NoDevice("the device lacks bufferDeviceAddress, which srug needs for large scenes".into()));
+    EnabledFeatures {
+        buffer_device_address: f12.buffer_device_address == vk::TRUE,
+        shader_int64: base.shader_int64 == vk::TRUE,
+        shader_int16: base.shader_int16 == vk::TRUE,
+        shader_float16: f12.shader_float16 == vk::TRUE,
+        storage_buffer_16bit_access: f11.storage_buffer16_bit_access == vk::TRUE,
     }
+}
 
+/// The [`DeviceInfo`] of `physical` (enumeration index `index`) used through
+/// queue family `family` with `enabled` features.
+fn describe(
+    instance: &ash::Instance,
+    physical: vk::PhysicalDevice,
+    index: usize,
+    family: u32,
+    enabled: &EnabledFeatures,
+) -> DeviceInfo {
+    // SAFETY: `physical` comes from this instance.
+    let families = unsafe { instance.get_physical_device_queue_family_properties(physical) };
+    let family_timestamps = families.get(family as usize).map_or(0, |f| f.timestamp_valid_bits);
     let mut driver = vk::PhysicalDeviceDriverProperties::default();
     let mut subgroup = vk::PhysicalDeviceSubgroupProperties::default();
     let mut props2 = vk::PhysicalDeviceProperties2::default().push_next(&mut driver).push_next(&mut subgroup);
@@ -434,7 +638,7 @@ fn make_device(
     unsafe { instance.get_physical_device_properties2(physical, &mut props2) };
     let props = props2.properties;
     let limits = props.limits;
-    let info = DeviceInfo {
+    DeviceInfo {
         index,
         name: name_of(&props),
         driver: format!(
@@ -456,13 +660,9 @@ fn make_device(
                 .supported_operations
                 .contains(vk::SubgroupFeatureFlags::BASIC | vk::SubgroupFeatureFlags::BALLOT),
         timestamp_period_ns: f64::from(limits.timestamp_period),
-        timestamp_valid_bits: if limits.timestamp_compute_and_graphics == vk::TRUE {
-            families[family].timestamp_valid_bits
-        } else {
-            0
-        },
-        shader_float16: has_f16 == vk::TRUE,
-        storage_16bit: has_s16 == vk::TRUE,
+        timestamp_valid_bits: if limits.timestamp_compute_and_graphics == vk::TRUE { family_timestamps } else { 0 },
+        shader_float16: enabled.shader_float16,
+        storage_16bit: enabled.storage_buffer_16bit_access && enabled.shader_int16,
         max_texel_buffer_elements: u64::from(limits.max_texel_buffer_elements),
         min_texel_buffer_offset_alignment: limits.min_texel_buffer_offset_alignment.max(1),
         texel_formats: TexelFormat::ALL
@@ -473,17 +673,29 @@ fn make_device(
                 props.buffer_features.contains(vk::FormatFeatureFlags::UNIFORM_TEXEL_BUFFER)
             })
             .collect(),
-    };
+    }
+}
 
+fn make_device(
+    instance: &ash::Instance,
+    physical: vk::PhysicalDevice,
+    index: usize,
+) -> Result<(ash::Device, vk::Queue, u32, DeviceInfo)> {
+    let family = compute_family(instance, physical)?;
+    let supported = supported_features(instance, physical);
+    if !supported.buffer_device_address {
+        return Err(Error::NoDevice("the device lacks bufferDeviceAddress, which srug needs for large scenes".into()));
+    }
+    let info = describe(instance, physical, index, family, &supported);
     let priorities = [1.0f32];
-    let queue_info =
-        [vk::DeviceQueueCreateInfo::default().queue_family_index(family as u32).queue_priorities(&priorities)];
-    let mut en11 = vk::PhysicalDeviceVulkan11Features::default().storage_buffer16_bit_access(has_s16 == vk::TRUE);
-    let mut en12 =
-        vk::PhysicalDeviceVulkan12Features::default().buffer_device_address(true).shader_float16(has_f16 == vk::TRUE);
-    let en_base = vk::PhysicalDeviceFeatures::default()
-        .shader_int64(base.shader_int64 == vk::TRUE)
-        .shader_int16(base.shader_int16 == vk::TRUE);
+    let queue_info = [vk::DeviceQueueCreateInfo::default().queue_family_index(family).queue_priorities(&priorities)];
+    let mut en11 = vk::PhysicalDeviceVulkan11Features::default()
+        .storage_buffer16_bit_access(supported.storage_buffer_16bit_access);
+    let mut en12 = vk::PhysicalDeviceVulkan12Features::default()
+        .buffer_device_address(true)
+        .shader_float16(supported.shader_float16);
+    let en_base =
+        vk::PhysicalDeviceFeatures::default().shader_int64(supported.shader_int64).shader_int16(supported.shader_int16);
     let create = vk::DeviceCreateInfo::default()
         .queue_create_infos(&queue_info)
         .enabled_features(&en_base)
@@ -492,6 +704,6 @@ fn make_device(
     // SAFETY: features were checked as supported; pointers refer to locals.
     let device = unsafe { instance.create_device(physical, &create, None) }.map_err(vk_error("vkCreateDevice"))?;
     // SAFETY: queue 0 of the family requested above.
-    let queue = unsafe { device.get_device_queue(family as u32, 0) };
-    Ok((device, queue, family as u32, info))
+    let queue = unsafe { device.get_device_queue(family, 0) };
+    Ok((device, queue, family, info))
 }

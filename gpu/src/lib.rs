@@ -47,9 +47,11 @@ pub mod selftest;
 mod shared;
 
 /// The Vulkan result a failed call returned (in [`GpuError::Vulkan`]).
+/// The `ash` srug is built with: a host passing its own device ([`Device::from_raw`]) uses these types.
+pub use ash;
 pub use ash::vk::Result as VkResult;
 pub use buffer::{Buffer, MemoryKind, Texels};
-pub use device::{Device, DeviceOptions, DeviceSelection, DEVICE_ENV, VALIDATION_ENV};
+pub use device::{Device, DeviceOptions, DeviceSelection, EnabledFeatures, RawVulkan, DEVICE_ENV, VALIDATION_ENV};
 pub use error::{GpuError, Result};
 pub use format::TexelFormat;
 pub use info::{AdapterSummary, DeviceInfo, MemoryUsage};

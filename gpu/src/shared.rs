@@ -76,6 +76,9 @@ pub(crate) struct Shared {
     pub(crate) debug: Option<(ash::ext::debug_utils::Instance, vk::DebugUtilsMessengerEXT)>,
     pub(crate) validation_log: Option<Box<ValidationLog>>,
     pub(crate) device: ash::Device,
+    /// Whether srug created the device and instance (and so destroys them);
+    /// false for a host's ([`crate::Device::from_raw`]).
+    pub(crate) owns_device: bool,
     pub(crate) queue: Mutex<vk::Queue>,
     pub(crate) queue_family: u32,
     pub(crate) allocator: Mutex<ManuallyDrop<Allocator>>,
@@ -189,10 +192,21 @@ impl Shared {
 impl Drop for Shared {
     fn drop(&mut self) {
         // SAFETY: every object made from this device holds an Arc of it, so
-        // none is left; waiting for idle makes destroying what remains safe.
+        // none is left; once srug's own submissions have finished (a host's
+        // device: its fences; srug's own: the whole device idle) destroying
+        // what remains is safe.
         unsafe {
-            if let Err(e) = self.device.device_wait_idle() {
-                log::error!("vkDeviceWaitIdle failed while dropping the device: {e}");
+            if self.owns_device {
+                if let Err(e) = self.device.device_wait_idle() {
+                    log::error!("vkDeviceWaitIdle failed while dropping the device: {e}");
+                }
+            } else {
+                let fences: Vec<vk::Fence> = lock(&self.tracker).in_flight.iter().map(|f| f.1).collect();
+                if !fences.is_empty() {
+                    if let Err(e) = self.device.wait_for_fences(&fences, true, u64::MAX) {
+                        log::error!("vkWaitForFences failed while dropping the device: {e}");
+                    }
+                }
             }
         }
         let tracker = std::mem::take(&mut *lock(&self.tracker));
@@ -205,13 +219,18 @@ impl Drop for Shared {
         }
         // SAFETY: the allocator is dropped exactly once, before the device it uses.
         unsafe { ManuallyDrop::drop(&mut *lock(&self.allocator)) };
-        // SAFETY: all child objects are gone; destruction order is device, messenger, instance.
+        // SAFETY: all child objects are gone; destruction order is device, messenger,
+        // instance, and a host's device and instance are left to the host.
         unsafe {
-            self.device.destroy_device(None);
+            if self.owns_device {
+                self.device.destroy_device(None);
+            }
             if let Some((loader, messenger)) = self.debug.take() {
                 loader.destroy_debug_utils_messenger(messenger, None);
             }
-            self.instance.destroy_instance(None);
+            if self.owns_device {
+                self.instance.destroy_instance(None);
+            }
         }
         if let Some(log) = &self.validation_log {
             let left = lock(&log.messages);
