@@ -348,19 +348,22 @@ fn reflect(module: &Module) -> Result<Reflected, String> {
                 bindings.push(Binding { set, binding, kind, name, block });
             }
             StorageClass::UniformConstant => {
-                // `samplerBuffer`: a sampled image of dimension Buffer (a uniform texel buffer).
-                let image = defs
-                    .get(&pointee)
-                    .filter(|t| t.class.opcode == Op::TypeSampledImage)
-                    .and_then(|t| t.operands.first().and_then(id))
-                    .and_then(|i| defs.get(&i));
-                let is_buffer = image.is_some_and(|i| {
-                    i.class.opcode == Op::TypeImage && matches!(i.operands.get(1), Some(Operand::Dim(Dim::DimBuffer)))
+                // `textureBuffer`: an image of dimension Buffer read with a sampler's
+                // operations (Sampled = 1), a uniform texel buffer (also through a
+                // `samplerBuffer`'s sampled image, which the validator warns about).
+                let image = defs.get(&pointee).and_then(|t| match t.class.opcode {
+                    Op::TypeSampledImage => t.operands.first().and_then(id).and_then(|i| defs.get(&i)),
+                    _ => Some(t),
                 });
-                if !is_buffer {
-                    return Err("only samplerBuffer is supported among opaque bindings".into());
+                let is_texel_buffer = image.is_some_and(|i| {
+                    i.class.opcode == Op::TypeImage
+                        && matches!(i.operands.get(1), Some(Operand::Dim(Dim::DimBuffer)))
+                        && matches!(i.operands.get(5), Some(Operand::LiteralBit32(1)))
+                });
+                if !is_texel_buffer {
+                    return Err("only textureBuffer (uniform texel buffers) is supported among opaque bindings".into());
                 }
-                let (set, binding) = set_and_binding(&decorations, var).ok_or("samplerBuffer without a binding")?;
+                let (set, binding) = set_and_binding(&decorations, var).ok_or("textureBuffer without a binding")?;
                 let name = names.get(&var).cloned().unwrap_or_default();
                 bindings.push(Binding { set, binding, kind: "BindingKind::UniformTexelBuffer", name, block: None });
             }

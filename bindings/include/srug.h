@@ -29,6 +29,21 @@
 // `srug_context_take_validation_messages`.
 #define SRUG_CONTEXT_VALIDATION 1
 
+// `srug_vulkan_device::enabled_features` bit: `bufferDeviceAddress` (required).
+#define SRUG_VULKAN_FEATURE_BUFFER_DEVICE_ADDRESS 1
+
+// `srug_vulkan_device::enabled_features` bit: `shaderInt64` (required).
+#define SRUG_VULKAN_FEATURE_SHADER_INT64 2
+
+// `srug_vulkan_device::enabled_features` bit: `shaderInt16`.
+#define SRUG_VULKAN_FEATURE_SHADER_INT16 4
+
+// `srug_vulkan_device::enabled_features` bit: `shaderFloat16`.
+#define SRUG_VULKAN_FEATURE_SHADER_FLOAT16 8
+
+// `srug_vulkan_device::enabled_features` bit: `storageBuffer16BitAccess`.
+#define SRUG_VULKAN_FEATURE_STORAGE_BUFFER_16BIT_ACCESS 16
+
 // What a call did. Zero is success; every other value comes with a message
 // from [`srug_last_error`].
 enum srug_status
@@ -96,6 +111,25 @@ typedef struct srug_renderer srug_renderer;
 
 // 3D Gaussians on the GPU. Thread-safe; calls on one scene are serialized.
 typedef struct srug_scene srug_scene;
+
+// A host application's Vulkan device for `srug_context_create_from_vulkan`
+// (handles as `void *`, so this header needs no `vulkan.h`).
+typedef struct {
+  // `VkInstance` (Vulkan 1.2 or newer).
+  void *instance;
+  // `VkPhysicalDevice` the device was created on.
+  void *physical_device;
+  // `VkDevice`.
+  void *device;
+  // A queue family of the device with compute.
+  uint32_t queue_family;
+  // The queue of that family srug submits to (see `srug_context_create_from_vulkan`).
+  uint32_t queue_index;
+  // `PFN_vkGetInstanceProcAddr` the host loaded Vulkan with; NULL: the system loader's.
+  void *get_instance_proc_addr;
+  // `SRUG_VULKAN_FEATURE_*` bits: the features the host enabled on the device.
+  uint32_t enabled_features;
+} srug_vulkan_device;
 
 // A G-buffer or shading channel: an index for `srug_renderer_read_channel`
 // and, as `1u << channel`, a bit of `srug_renderer_create`'s channel mask.
@@ -221,6 +255,26 @@ uint32_t srug_abi_version(void);
 // # Safety
 // `device` NULL or a NUL-terminated string; `out` valid for one write.
 srug_status srug_context_create(const char *device, uint32_t flags, srug_context **out);
+
+// Makes a context on a host application's Vulkan device instead of opening
+// one: srug allocates its own memory there, submits to the given queue,
+// and destroys only what it created (the host keeps owning the instance,
+// device and queue, and must keep them alive until the context is
+// destroyed). Needs Vulkan 1.2 and `bufferDeviceAddress` and `shaderInt64`
+// enabled (`SRUG_ERROR_NO_DEVICE` naming what is missing). srug locks the
+// queue around its own submissions; the host must not submit to the same
+// queue concurrently, and every srug call has finished its GPU work when it
+// returns. `flags`: 0 or `SRUG_CONTEXT_VALIDATION`, which adds a debug
+// messenger to the host's instance (needs `VK_EXT_debug_utils` enabled on it)
+// for `srug_context_take_validation_messages`. Destroying the context leaves
+// the host's device working.
+//
+// # Safety
+// `vulkan` NULL or valid for reads, its handles valid and belonging together
+// as described; `out` valid for one write.
+srug_status srug_context_create_from_vulkan(const srug_vulkan_device *vulkan,
+                                            uint32_t flags,
+                                            srug_context **out);
 
 // Destroys a context. Fails with `SRUG_ERROR_WRONG_ORDER` while scenes,
 // environments or renderers made on it are alive. NULL is accepted and ignored.

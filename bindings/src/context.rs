@@ -1,9 +1,10 @@
 //! Contexts: a device (choice, validation), its memory and validation messages.
 
-use std::ffi::c_char;
+use std::ffi::{c_char, c_void};
 use std::sync::Arc;
 
-use srug::gpu::{Device, DeviceOptions, DeviceSelection};
+use srug::gpu::ash::{self, vk, vk::Handle};
+use srug::gpu::{Device, DeviceOptions, DeviceSelection, EnabledFeatures, RawVulkan};
 
 use crate::ffi::*;
 use crate::handle::{self, id_of, ptr_of, Object};
@@ -60,6 +61,117 @@ pub unsafe extern "C" fn srug_context_create(
         };
         let validation = (flags & SRUG_CONTEXT_VALIDATION != 0).then_some(true);
         let device = Device::new(&DeviceOptions { selection, validation })?;
+        let id = handle::insert(Object::Context(Arc::new(Context { device })), 0);
+        // SAFETY: checked non-null above; the caller's contract.
+        unsafe { write_out(out, "out", ptr_of(id)) }
+    })
+}
+
+/// `srug_vulkan_device::enabled_features` bit: `bufferDeviceAddress` (required).
+pub const SRUG_VULKAN_FEATURE_BUFFER_DEVICE_ADDRESS: u32 = 1;
+/// `srug_vulkan_device::enabled_features` bit: `shaderInt64` (required).
+pub const SRUG_VULKAN_FEATURE_SHADER_INT64: u32 = 2;
+/// `srug_vulkan_device::enabled_features` bit: `shaderInt16`.
+pub const SRUG_VULKAN_FEATURE_SHADER_INT16: u32 = 4;
+/// `srug_vulkan_device::enabled_features` bit: `shaderFloat16`.
+pub const SRUG_VULKAN_FEATURE_SHADER_FLOAT16: u32 = 8;
+/// `srug_vulkan_device::enabled_features` bit: `storageBuffer16BitAccess`.
+pub const SRUG_VULKAN_FEATURE_STORAGE_BUFFER_16BIT_ACCESS: u32 = 16;
+
+/// A host application's Vulkan device for `srug_context_create_from_vulkan`
+/// (handles as `void *`, so this header needs no `vulkan.h`).
+#[repr(C)]
+pub struct srug_vulkan_device {
+    /// `VkInstance` (Vulkan 1.2 or newer).
+    pub instance: *mut c_void,
+    /// `VkPhysicalDevice` the device was created on.
+    pub physical_device: *mut c_void,
+    /// `VkDevice`.
+    pub device: *mut c_void,
+    /// A queue family of the device with compute.
+    pub queue_family: u32,
+    /// The queue of that family srug submits to (see `srug_context_create_from_vulkan`).
+    pub queue_index: u32,
+    /// `PFN_vkGetInstanceProcAddr` the host loaded Vulkan with; NULL: the system loader's.
+    pub get_instance_proc_addr: *mut c_void,
+    /// `SRUG_VULKAN_FEATURE_*` bits: the features the host enabled on the device.
+    pub enabled_features: u32,
+}
+
+/// Makes a context on a host application's Vulkan device instead of opening
+/// one: srug allocates its own memory there, submits to the given queue,
+/// and destroys only what it created (the host keeps owning the instance,
+/// device and queue, and must keep them alive until the context is
+/// destroyed). Needs Vulkan 1.2 and `bufferDeviceAddress` and `shaderInt64`
+/// enabled (`SRUG_ERROR_NO_DEVICE` naming what is missing). srug locks the
+/// queue around its own submissions; the host must not submit to the same
+/// queue concurrently, and every srug call has finished its GPU work when it
+/// returns. `flags`: 0 or `SRUG_CONTEXT_VALIDATION`, which adds a debug
+/// messenger to the host's instance (needs `VK_EXT_debug_utils` enabled on it)
+/// for `srug_context_take_validation_messages`. Destroying the context leaves
+/// the host's device working.
+///
+/// # Safety
+/// `vulkan` NULL or valid for reads, its handles valid and belonging together
+/// as described; `out` valid for one write.
+#[no_mangle]
+pub unsafe extern "C" fn srug_context_create_from_vulkan(
+    vulkan: *const srug_vulkan_device,
+    flags: u32,
+    out: *mut *mut srug_context,
+) -> srug_status {
+    guard("srug_context_create_from_vulkan", || {
+        check_out(out, "out")?;
+        if vulkan.is_null() {
+            return Err(Failure::new(srug_status::SRUG_ERROR_NULL_POINTER, "vulkan is NULL"));
+        }
+        if flags & !SRUG_CONTEXT_VALIDATION != 0 {
+            return Err(invalid(format!("unknown flags {flags:#x}")));
+        }
+        // SAFETY: non-null, and the caller's contract.
+        let v = unsafe { &*vulkan };
+        for (p, name) in [(v.instance, "instance"), (v.physical_device, "physical_device"), (v.device, "device")] {
+            if p.is_null() {
+                return Err(Failure::new(srug_status::SRUG_ERROR_NULL_POINTER, format!("vulkan->{name} is NULL")));
+            }
+        }
+        let known = 31;
+        if v.enabled_features & !known != 0 {
+            return Err(invalid(format!("unknown feature bits {:#x}", v.enabled_features & !known)));
+        }
+        let entry = if v.get_instance_proc_addr.is_null() {
+            // SAFETY: loading the system Vulkan loader.
+            unsafe { ash::Entry::load() }.map_err(|e| srug::Error::from(srug::gpu::GpuError::Loader(e.to_string())))?
+        } else {
+            // SAFETY: the caller passes its PFN_vkGetInstanceProcAddr, a function of this signature.
+            let gipa: vk::PFN_vkGetInstanceProcAddr = unsafe { std::mem::transmute(v.get_instance_proc_addr) };
+            // SAFETY: the static function table of a working loader entry point.
+            unsafe { ash::Entry::from_static_fn(ash::StaticFn { get_instance_proc_addr: gipa }) }
+        };
+        let instance_handle = vk::Instance::from_raw(v.instance as u64);
+        // SAFETY: the caller's valid instance, loaded through its entry point.
+        let instance = unsafe { ash::Instance::load(entry.static_fn(), instance_handle) };
+        // SAFETY: the caller's valid device of that instance.
+        let device = unsafe { ash::Device::load(instance.fp_v1_0(), vk::Device::from_raw(v.device as u64)) };
+        let bit = |b: u32| v.enabled_features & b != 0;
+        let raw = RawVulkan {
+            entry,
+            instance,
+            physical_device: vk::PhysicalDevice::from_raw(v.physical_device as u64),
+            device,
+            queue_family: v.queue_family,
+            queue_index: v.queue_index,
+            enabled: EnabledFeatures {
+                buffer_device_address: bit(SRUG_VULKAN_FEATURE_BUFFER_DEVICE_ADDRESS),
+                shader_int64: bit(SRUG_VULKAN_FEATURE_SHADER_INT64),
+                shader_int16: bit(SRUG_VULKAN_FEATURE_SHADER_INT16),
+                shader_float16: bit(SRUG_VULKAN_FEATURE_SHADER_FLOAT16),
+                storage_buffer_16bit_access: bit(SRUG_VULKAN_FEATURE_STORAGE_BUFFER_16BIT_ACCESS),
+            },
+            validation_messages: flags & SRUG_CONTEXT_VALIDATION != 0,
+        };
+        // SAFETY: the caller's contract covers the handles.
+        let device = unsafe { Device::from_raw(raw) }?;
         let id = handle::insert(Object::Context(Arc::new(Context { device })), 0);
         // SAFETY: checked non-null above; the caller's contract.
         unsafe { write_out(out, "out", ptr_of(id)) }

@@ -29,6 +29,11 @@ fn library_dir() -> PathBuf {
 
 /// Builds `tests/c/<name>.c` with warnings as errors and sanitizers.
 fn build(name: &str, out_dir: &Path) -> PathBuf {
+    build_with(name, out_dir, &[])
+}
+
+/// [`build`], linking `libs` too.
+fn build_with(name: &str, out_dir: &Path, libs: &[&str]) -> PathBuf {
     let here = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
     let lib = library_dir();
     let exe = out_dir.join(name);
@@ -45,6 +50,7 @@ fn build(name: &str, out_dir: &Path) -> PathBuf {
         // name target/<profile>, where a stale libsrug_c.so may lie.
         .arg(format!("-Wl,--disable-new-dtags,-rpath,{}", lib.display()))
         .args(["-lsrug_c", "-lpthread", "-lm", "-ldl"])
+        .args(libs)
         .output()
         .expect("cannot run cc (Debian: apt-get install gcc)");
     assert!(
@@ -147,6 +153,15 @@ fn c_program_renders_the_demo_like_the_rust_api() {
     assert_eq!(differing, 0, "{differing} of {} bytes differ from the Rust API's frame", rust.len());
     let lit = rust.chunks_exact(4).filter(|p| p[0] > 0 || p[1] > 0 || p[2] > 0).count();
     assert!(lit > rust.len() / 8, "the frame is mostly black ({lit} lit pixels)");
+}
+
+#[test]
+fn c_host_program_lends_srug_its_vulkan_device() {
+    let dir = tempfile::tempdir().unwrap();
+    let exe = build_with("host", dir.path(), &["-lvulkan"]);
+    let out = run(&exe, &[]);
+    assert!(out.contains("srug's frame equals its own device's; host messenger heard 0 message(s)"), "{out}");
+    assert!(out.contains("SRUG_ERROR_NO_DEVICE") && out.contains("bufferDeviceAddress"), "{out}");
 }
 
 #[test]

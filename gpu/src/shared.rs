@@ -243,7 +243,7 @@ impl Drop for Shared {
 
 pub(crate) unsafe extern "system" fn on_validation_message(
     severity: vk::DebugUtilsMessageSeverityFlagsEXT,
-    types: vk::DebugUtilsMessageTypeFlagsEXT,
+    _types: vk::DebugUtilsMessageTypeFlagsEXT,
     data: *const vk::DebugUtilsMessengerCallbackDataEXT<'_>,
     user: *mut c_void,
 ) -> vk::Bool32 {
@@ -254,10 +254,10 @@ pub(crate) unsafe extern "system" fn on_validation_message(
             .map(|d| CStr::from_ptr(d.p_message).to_string_lossy().into_owned())
             .unwrap_or_default()
     };
+    // Warnings and errors of every type: the layer's SPIR-V validator reports
+    // shader problems as general messages.
     let counts = severity
-        .intersects(vk::DebugUtilsMessageSeverityFlagsEXT::WARNING | vk::DebugUtilsMessageSeverityFlagsEXT::ERROR)
-        && types
-            .intersects(vk::DebugUtilsMessageTypeFlagsEXT::VALIDATION | vk::DebugUtilsMessageTypeFlagsEXT::PERFORMANCE);
+        .intersects(vk::DebugUtilsMessageSeverityFlagsEXT::WARNING | vk::DebugUtilsMessageSeverityFlagsEXT::ERROR);
     if counts {
         log::error!("Vulkan validation: {text}");
         // SAFETY: `user` is the ValidationLog boxed in Shared, which outlives the messenger.

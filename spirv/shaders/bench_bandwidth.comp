@@ -24,7 +24,7 @@ layout(push_constant) uniform BandwidthPush {
 
 layout(buffer_reference, std430, buffer_reference_align = 16) writeonly buffer Uvec4sOut { uvec4 v[]; };
 
-layout(set = 0, binding = 0) uniform samplerBuffer source;  // RGBA32F, finite values
+layout(set = 0, binding = 0) uniform textureBuffer source;  // RGBA32F, finite values
 
 void main() {
     uint me = block_index() * WORKGROUP_SIZE_X + gl_LocalInvocationID.x;

@@ -28,9 +28,9 @@ layout(push_constant) uniform PairMovePush {
     uint blocks;
 } pc;
 
-layout(set = 0, binding = 0) uniform usamplerBuffer keys_view;    // RG32UI
-layout(set = 0, binding = 1) uniform usamplerBuffer values_view;  // R32UI
-layout(set = 0, binding = 2) uniform usamplerBuffer dest_view;    // R32UI, a permutation (SCATTER)
+layout(set = 0, binding = 0) uniform utextureBuffer keys_view;    // RG32UI
+layout(set = 0, binding = 1) uniform utextureBuffer values_view;  // R32UI
+layout(set = 0, binding = 2) uniform utextureBuffer dest_view;    // R32UI, a permutation (SCATTER)
 
 void main() {
     uint me = block_index() * WORKGROUP_SIZE_X + gl_LocalInvocationID.x;

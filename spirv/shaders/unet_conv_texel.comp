@@ -1,6 +1,6 @@
 #version 460
 // unet_conv.comp reading its two inputs through texel-buffer views
-// (samplerBuffer, bindings 2 and 3) instead of device addresses: on lavapipe
+// (textureBuffer, bindings 2 and 3) instead of device addresses: on lavapipe
 // a texelFetch with per-lane indices is one vector gather, while a
 // device-address load runs lane by lane. The views' format (R32F or R16F)
 // decides the input precision; the output is fp32. The weights come through

@@ -18,7 +18,7 @@ pub enum BindingKind {
     },
     /// A `uniform` block.
     UniformBuffer,
-    /// A `samplerBuffer` (uniform texel buffer), read with `texelFetch`.
+    /// A `textureBuffer` (uniform texel buffer), read with `texelFetch`.
     UniformTexelBuffer,
 }
 

@@ -9,6 +9,10 @@
 // which once silently broke 2D grids; a macro cannot be read too early.)
 #ifndef SRUG_COMMON_GLSL
 #define SRUG_COMMON_GLSL
+// Texel buffers are declared `textureBuffer` and read with texelFetch without
+// a sampler: a `samplerBuffer` would be an OpTypeSampledImage of Dim Buffer,
+// which the SPIR-V validator (in the validation layer) warns about.
+#extension GL_EXT_samplerless_texture_functions : require
 
 #if defined(TILE_WORKGROUP)
 layout(local_size_x = 16, local_size_y = 16, local_size_x_id = 15, local_size_y_id = 16) in;

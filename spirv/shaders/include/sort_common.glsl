@@ -39,10 +39,10 @@ layout(push_constant) uniform SortPush {
 // Keys (RG32UI, binding 0) and values (R32UI, binding 1) as texel-buffer views:
 // one vector gather per fetch on lavapipe. Clamped: lanes past the end fetch
 // the last element (and discard it), never outside the view.
-layout(set = 0, binding = 0) uniform usamplerBuffer keys_view;
+layout(set = 0, binding = 0) uniform utextureBuffer keys_view;
 #define KEY(i) texelFetch(keys_view, int(min(i, pc.count - 1u))).xy
 #ifdef SORT_VALUES
-layout(set = 0, binding = 1) uniform usamplerBuffer values_view;
+layout(set = 0, binding = 1) uniform utextureBuffer values_view;
 #define VALUE(i) texelFetch(values_view, int(min(i, pc.count - 1u))).x
 #endif
 #else

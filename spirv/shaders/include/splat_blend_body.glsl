@@ -26,10 +26,10 @@ const bool FEATURES = (CHANNELS & 252u) != 0u;
 // each) as texel-buffer views: a contribution's colour and features are read
 // by the contributing lanes only, and on lavapipe a texelFetch is one vector
 // gather where a device-address load is a loop over the lanes.
-layout(set = 0, binding = 1) uniform samplerBuffer splat_texels;
-layout(set = 0, binding = 2) uniform samplerBuffer feature_texels;
+layout(set = 0, binding = 1) uniform textureBuffer splat_texels;
+layout(set = 0, binding = 2) uniform textureBuffer feature_texels;
 // The sorted splat indices (R32UI), the tile's list.
-layout(set = 0, binding = 3) uniform usamplerBuffer value_texels;
+layout(set = 0, binding = 3) uniform utextureBuffer value_texels;
 #define SPLAT_COLOR(g) texelFetch(splat_texels, int(4u * (g) + 2u)).rgb
 #define SPLAT_SLOPE_BITS(g) texelFetch(splat_texels, int(4u * (g) + 2u)).w
 #define FEATURE(i) texelFetch(feature_texels, int(i))

@@ -12,11 +12,11 @@
 // The scene's Gaussian arrays as R32F texel-buffer views (bindings 1-5): on
 // lavapipe a texelFetch is one vector gather, a device-address load a loop
 // over the lanes.
-layout(set = 0, binding = 1) uniform samplerBuffer mean_texels;
-layout(set = 0, binding = 2) uniform samplerBuffer log_scale_texels;
-layout(set = 0, binding = 3) uniform samplerBuffer rotation_texels;
-layout(set = 0, binding = 4) uniform samplerBuffer opacity_texels;
-layout(set = 0, binding = 5) uniform samplerBuffer sh_texels;
+layout(set = 0, binding = 1) uniform textureBuffer mean_texels;
+layout(set = 0, binding = 2) uniform textureBuffer log_scale_texels;
+layout(set = 0, binding = 3) uniform textureBuffer rotation_texels;
+layout(set = 0, binding = 4) uniform textureBuffer opacity_texels;
+layout(set = 0, binding = 5) uniform textureBuffer sh_texels;
 #define MEAN(k) texelFetch(mean_texels, int(k)).x
 #define LOG_SCALE(k) texelFetch(log_scale_texels, int(k)).x
 #define ROTATION(k) texelFetch(rotation_texels, int(k)).x

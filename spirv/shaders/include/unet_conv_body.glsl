@@ -20,7 +20,7 @@ layout(constant_id = 3) const uint PX = 1;
 // The layer's weights, [oc/OCB][ic][9][OCB] as RGBA32F texels (every input
 // channel: one pass): a vec4 texelFetch costs lavapipe a quarter of a vec4
 // uniform-buffer load at an index it cannot prove uniform (32 scalar loads).
-layout(set = 0, binding = 0) uniform samplerBuffer weight_texels;
+layout(set = 0, binding = 0) uniform textureBuffer weight_texels;
 #define WEIGHTS(i) texelFetch(weight_texels, int(i))
 #else
 // Keep in sync with engine/src/indirect/mod.rs `CONV_UBO_FLOATS`.
@@ -31,8 +31,8 @@ layout(std430, set = 0, binding = 1) readonly buffer Bias { vec4 bias[]; };
 #ifdef TEXEL_INPUT
 // The two inputs as texel-buffer views (fp32 or fp16 elements; the view's
 // format widens): lavapipe gathers texelFetch as one vector operation.
-layout(set = 0, binding = 2) uniform samplerBuffer input_a;
-layout(set = 0, binding = 3) uniform samplerBuffer input_b;
+layout(set = 0, binding = 2) uniform textureBuffer input_a;
+layout(set = 0, binding = 3) uniform textureBuffer input_b;
 // The input views hold four pixels per texel (RGBA32F/RGBA16F) and each row
 // segment takes NT fetches instead of SPAN. Needs the input width and
 // PX·STRIDE to be multiples of 4, so every segment starts one pixel before a

@@ -18,7 +18,7 @@ layout(push_constant) uniform UpsamplePush {
 
 #ifdef TEXEL_INPUT
 // The source as a texel-buffer view (R32F or R16F), gathered as one vector op on lavapipe.
-layout(set = 0, binding = 0) uniform samplerBuffer src;
+layout(set = 0, binding = 0) uniform textureBuffer src;
 #define LOAD(i) texelFetch(src, int(i)).r
 #else
 #define LOAD(i) load_input(pc.src, i)

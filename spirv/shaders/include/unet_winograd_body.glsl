@@ -32,10 +32,10 @@ layout(constant_id = 5) const bool VEC4 = false;
 // U = G·g·Gᵀ per (output block of 4, input channel, k = E·row + column) as
 // one RGBA32F texel (4 output channels), output blocks padded to a multiple
 // of OCB: engine/src/indirect/winograd.rs `pack_winograd` (keep in sync).
-layout(set = 0, binding = 0) uniform samplerBuffer weight_texels;
+layout(set = 0, binding = 0) uniform textureBuffer weight_texels;
 layout(std430, set = 0, binding = 1) readonly buffer Bias { vec4 bias[]; };
-layout(set = 0, binding = 2) uniform samplerBuffer input_a;
-layout(set = 0, binding = 3) uniform samplerBuffer input_b;
+layout(set = 0, binding = 2) uniform textureBuffer input_a;
+layout(set = 0, binding = 3) uniform textureBuffer input_b;
 
 // Keep in sync with engine/src/indirect/mod.rs `ConvPush` (the fields this
 // kernel reads: o, ca, cb, oc, in_size, out_size).
