@@ -891,3 +891,80 @@ fn surface_depth_matches_cpu_twin_and_lies_on_the_surfaces() {
     );
     assert_no_validation_messages(&d);
 }
+
+#[test]
+fn a_host_depth_hides_the_splats_behind_it_as_the_twin_does() {
+    use srug::splat::cpu::render_cpu_occluded;
+    use srug::splat::HostDepth;
+    let d = device();
+    let mut splatter = Splatter::new(&d).unwrap();
+    let city = demo_city(&DemoOptions { seed: 7, gaussians: 20_000, sh_degree: 1 }).unwrap();
+    let scene = GpuScene::upload(&d, &city.scene).unwrap();
+    let camera = city.cameras[1].resized(176, 48);
+    let (w, h) = (camera.width as usize, camera.height as usize);
+    // The host's meshes: a slanted wall from 8 m on the left to 38 m on the right,
+    // and nothing at all in the top rows.
+    let wall = |p: usize| if p / w < 6 { None } else { Some(8.0 + 30.0 * (p % w) as f64 / w as f64) };
+    let (near, far) = (0.1f32, 200.0f32);
+    let (n, f) = (f64::from(near), f64::from(far));
+    // Each convention with how a host would store camera z in it (None: nothing there).
+    type Encode = Box<dyn Fn(Option<f64>) -> f32>;
+    let conventions: [(HostDepth, Encode); 4] = [
+        (HostDepth::CameraZ, Box::new(|z: Option<f64>| z.map_or(0.0, |z| z as f32))),
+        (
+            HostDepth::Vulkan { near, far },
+            Box::new(move |z: Option<f64>| z.map_or(1.0, |z| (f / (f - n) * (1.0 - n / z)) as f32)),
+        ),
+        (
+            HostDepth::ReversedZ { near, far },
+            Box::new(move |z: Option<f64>| z.map_or(0.0, |z| (n / (f - n) * (f / z - 1.0)) as f32)),
+        ),
+        (
+            HostDepth::ReversedZ { near, far: f32::INFINITY },
+            Box::new(move |z: Option<f64>| z.map_or(0.0, |z| (n / z) as f32)),
+        ),
+    ];
+    let settings = SplatSettings {
+        channels: Channels { depth: true, median_depth: true, ..Channels::default() },
+        prefill: Some(NAN),
+        ..SplatSettings::default()
+    };
+    let (open, _) = splatter.render(&scene, &camera, &settings).unwrap();
+    let open = open.read(&d).unwrap();
+    for (convention, encode) in &conventions {
+        let values: Vec<f32> = (0..w * h).map(|p| encode(wall(p))).collect();
+        for (p, v) in values.iter().enumerate() {
+            let back = convention.camera_z(f64::from(*v));
+            match wall(p) {
+                Some(z) => assert!((back - z).abs() < 1e-3 * z, "{convention:?}: {z} → {v} → {back}"),
+                None => assert!(back.is_infinite(), "{convention:?}: nothing → {v} → {back}"),
+            }
+        }
+        let depth = d.upload("host depth", &values).unwrap();
+        for variant in blend_variants(&d) {
+            splatter.set_blend_variant(variant).unwrap();
+            let frame = splatter.render_frame_occluded(&scene, &camera, &settings, &depth, *convention).unwrap();
+            let gpu = frame.gbuffer.read(&d).unwrap();
+            let cpu = render_cpu_occluded(&city.scene, &camera, &settings, &values, *convention);
+            compare_with(&gpu, &cpu, &format!("occluded_{convention:?}_{variant:?}"), true);
+            // Not vacuous: the wall hides much of the street; where nothing is, nothing changes.
+            let hidden = gpu.alpha.iter().zip(&open.alpha).filter(|(a, b)| **a + 0.05 < **b).count();
+            assert!(hidden * 10 > w * h, "{convention:?}: only {hidden} pixels lost coverage");
+            assert_eq!(&gpu.alpha[..6 * w], &open.alpha[..6 * w], "{convention:?}: rows without a host depth");
+            if variant == BlendVariant::PerPixel {
+                let e = splatter.backward(&frame, &scene, &srug::splat::backward::BlendGrads::default(), false);
+                assert!(e.err().map(|e| e.to_string()).unwrap_or_default().contains("host's depth"));
+            }
+        }
+    }
+    // Clear refusals: a buffer too small, impossible planes.
+    let small = d.upload("small", &[1.0f32; 16]).unwrap();
+    let e = splatter.render_frame_occluded(&scene, &camera, &settings, &small, HostDepth::CameraZ).err().unwrap();
+    assert!(e.to_string().contains("host depth buffer of 64 bytes"), "{e}");
+    let depth = d.upload("host depth", &vec![1.0f32; w * h]).unwrap();
+    for bad in [HostDepth::Vulkan { near: 0.0, far: 1.0 }, HostDepth::Vulkan { near: 1.0, far: f32::INFINITY }] {
+        let e = splatter.render_frame_occluded(&scene, &camera, &settings, &depth, bad).err().unwrap();
+        assert!(e.to_string().contains("need 0 < near < far"), "{e}");
+    }
+    assert_no_validation_messages(&d);
+}

@@ -189,6 +189,9 @@ impl Splatter {
             ));
         }
         frame.camera.require_no_lens("the splat backward pass")?;
+        if frame.occluded {
+            return Err(Error::unsupported("the splat backward pass of frames hidden behind a host's depth"));
+        }
         if frame.surface_depth {
             return Err(Error::unsupported(
                 "the splat backward pass of surface depths (render the frame with surface_depth off)",
@@ -283,6 +286,7 @@ impl Splatter {
                 pair_tiles: Some(&frame.pair_tiles),
                 ranges: &frame.ranges,
                 out: &frame.gbuffer,
+                occluder: None,
             };
             frame.params.record(rec, &frame.uniform, &buffers)?;
             let g = grads;

@@ -592,8 +592,9 @@ pub struct PixelBlend {
     pub contributions: Vec<Contribution>,
 }
 
-/// Blends the splats of `list` (blend order) at pixel centre `centre`.
-pub(crate) fn blend_pixel(list: &[(u32, usize)], splats: &[Option<CpuSplat>], centre: DVec2) -> PixelBlend {
+/// Blends the splats of `list` (blend order) at pixel centre `centre`,
+/// skipping those whose depth there is not in front of `limit` (a host's depth).
+pub(crate) fn blend_pixel(list: &[(u32, usize)], splats: &[Option<CpuSplat>], centre: DVec2, limit: f64) -> PixelBlend {
     let mut out = PixelBlend {
         values: [0.0; VALUES],
         t_final: 1.0,
@@ -607,12 +608,16 @@ pub(crate) fn blend_pixel(list: &[(u32, usize)], splats: &[Option<CpuSplat>], ce
     for &(_, i) in list {
         let Some(s) = &splats[i] else { continue };
         let Some(alpha) = splat_alpha(s, centre) else { continue };
+        let depth = s.depth_at(centre);
+        // Behind (or at) the host's depth, or NaN: hidden, as `z < limit` fails in the kernel.
+        if depth.partial_cmp(&limit) != Some(std::cmp::Ordering::Less) {
+            continue;
+        }
         let next = t * (1.0 - alpha);
         if next < 1e-4 {
             break;
         }
         let w = alpha * t;
-        let depth = s.depth_at(centre);
         let mut values = splat_values(s);
         values[3] = depth;
         for (acc, x) in out.values.iter_mut().zip(values) {
@@ -649,7 +654,7 @@ pub fn render_blends(
     let blends = (0..w * camera.height as usize)
         .map(|p| {
             let (x, y) = (p % w, p / w);
-            blend_pixel(lists.at(x, y), &splats, DVec2::new(x as f64 + 0.5, y as f64 + 0.5))
+            blend_pixel(lists.at(x, y), &splats, DVec2::new(x as f64 + 0.5, y as f64 + 0.5), f64::INFINITY)
         })
         .collect();
     (splats, blends)
@@ -657,6 +662,27 @@ pub fn render_blends(
 
 /// Stages 1–5 on the CPU.
 pub fn render_cpu(scene: &Scene, camera: &Camera, settings: &SplatSettings) -> GBuffer {
+    render_cpu_with(scene, camera, settings, None)
+}
+
+/// [`render_cpu`] in front of a host's depth (one value per pixel in
+/// `convention`), as [`crate::splat::Splatter::render_frame_occluded`].
+pub fn render_cpu_occluded(
+    scene: &Scene,
+    camera: &Camera,
+    settings: &SplatSettings,
+    depth: &[f32],
+    convention: crate::splat::HostDepth,
+) -> GBuffer {
+    render_cpu_with(scene, camera, settings, Some((depth, convention)))
+}
+
+fn render_cpu_with(
+    scene: &Scene,
+    camera: &Camera,
+    settings: &SplatSettings,
+    occluder: Option<(&[f32], crate::splat::HostDepth)>,
+) -> GBuffer {
     let truncated;
     let scene = match settings.sh_degree {
         Some(d) if d < scene.sh_degree => {
@@ -690,8 +716,10 @@ pub fn render_cpu(scene: &Scene, camera: &Camera, settings: &SplatSettings) -> G
     let bg = settings.background.map(f64::from);
     for y in 0..h {
         for x in 0..w {
-            let b = blend_pixel(lists.at(x, y), &splats, DVec2::new(x as f64 + 0.5, y as f64 + 0.5));
             let px = y * w + x;
+            let limit =
+                occluder.and_then(|(d, c)| d.get(px).map(|v| c.camera_z(f64::from(*v)))).unwrap_or(f64::INFINITY);
+            let b = blend_pixel(lists.at(x, y), &splats, DVec2::new(x as f64 + 0.5, y as f64 + 0.5), limit);
             if let Some(rgb) = &mut g.rgb {
                 for (c, out) in rgb[3 * px..3 * px + 3].iter_mut().enumerate() {
                     *out = (b.values[c] + b.t_final * bg[c]) as f32;

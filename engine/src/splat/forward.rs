@@ -67,6 +67,8 @@ pub struct SplatFrame {
     pub tile: u32,
     /// Whether its depths are surface depths ([`SplatSettings::surface_depth`]).
     pub surface_depth: bool,
+    /// Whether a host's depth hid splats ([`Splatter::render_frame_occluded`]).
+    pub occluded: bool,
 }
 
 impl SplatFrame {
@@ -183,7 +185,15 @@ impl Splatter {
 
     /// The blend kernel for channel bits `bits`, `tile` and the texel path,
     /// from the device's kernel cache.
-    fn blend_kernel(&self, bits: u32, tile: u32, texel: bool, wrap_x: bool, surface: bool) -> Result<Arc<Kernel>> {
+    fn blend_kernel(
+        &self,
+        bits: u32,
+        tile: u32,
+        texel: bool,
+        wrap_x: bool,
+        surface: bool,
+        occluded: bool,
+    ) -> Result<Arc<Kernel>> {
         let pixels = if texel { self.blend_pixels } else { 1 };
         let info = match (self.blend_variant, texel) {
             (BlendVariant::PerPixel, _) => &kernels::SPLAT_BLEND_PORTABLE,
@@ -202,6 +212,9 @@ impl Splatter {
         }
         if surface {
             spec.push((4, SpecValue::Bool(true)));
+        }
+        if occluded {
+            spec.push((5, SpecValue::Bool(true)));
         }
         if texel {
             // PIXELS per invocation along x: TILE / PIXELS invocations across.
@@ -231,6 +244,46 @@ impl Splatter {
 
     /// Renders like [`Splatter::render`] and keeps the per-frame buffers.
     pub fn render_frame(&mut self, scene: &GpuScene, camera: &Camera, settings: &SplatSettings) -> Result<SplatFrame> {
+        self.render_frame_with(scene, camera, settings, None)
+    }
+
+    /// Renders like [`Splatter::render_frame`] in front of a host's depth:
+    /// `depth` holds one f32 per pixel (row-major, the camera's size) in the
+    /// `convention` given; a splat whose depth at a pixel is not in front of
+    /// the host's there is hidden (it neither contributes nor occludes), so
+    /// compositing the premultiplied result over the host's colour,
+    /// `rgb + (1 − alpha)·host`, puts the splats in front of the host's meshes
+    /// and behind them where the meshes are nearer. Pinhole cameras; the
+    /// splat backward pass refuses such frames.
+    pub fn render_frame_occluded(
+        &mut self,
+        scene: &GpuScene,
+        camera: &Camera,
+        settings: &SplatSettings,
+        depth: &Buffer,
+        convention: HostDepth,
+    ) -> Result<SplatFrame> {
+        convention.validate()?;
+        let need = u64::from(camera.width) * u64::from(camera.height) * 4;
+        if depth.size() < need {
+            return Err(Error::invalid(
+                format!("host depth buffer of {} bytes", depth.size()),
+                format!("is smaller than {need} bytes (one f32 per pixel of {}x{})", camera.width, camera.height),
+            ));
+        }
+        if camera.depth_is_distance() {
+            return Err(Error::invalid("host depth", "needs a camera whose depth is camera z (not a panorama)"));
+        }
+        self.render_frame_with(scene, camera, settings, Some((depth, convention)))
+    }
+
+    fn render_frame_with(
+        &mut self,
+        scene: &GpuScene,
+        camera: &Camera,
+        settings: &SplatSettings,
+        occluder: Option<(&Buffer, HostDepth)>,
+    ) -> Result<SplatFrame> {
         let device = self.device.clone();
         let ch = settings.channels;
         let missing = [
@@ -282,6 +335,8 @@ impl Splatter {
         let mut frame = FrameUniform::zeroed();
         camera_frame(camera, &mut frame)?;
         frame.background = [settings.background[0], settings.background[1], settings.background[2], 0.0];
+        frame.occluder = occluder.map_or([0.0; 4], |(_, c)| c.packed());
+        let occluder_buffer = occluder.map(|(b, _)| b);
         frame.size = [w, h, tiles_x, tiles_y];
         // Without rgb the colour is never read: degree 0 spares the SH reads.
         let sh_used =
@@ -325,6 +380,7 @@ impl Splatter {
                 pair_tiles: None,
                 ranges: &ranges,
                 out: &out,
+                occluder: occluder_buffer,
             };
             frame.record(rec, &uniform, &buffers)?;
             rec.begin_stage("preprocess");
@@ -370,6 +426,7 @@ impl Splatter {
             texel,
             camera.wrap_period().is_some(),
             settings.surface_depth,
+            occluder.is_some(),
         )?;
         let (sort, keys_kernel, ranges_kernel, blend) = (&self.sort, &*keys_kernel, &*self.ranges, &*blend);
         let outputs: Vec<&Buffer> = [&out.alpha]
@@ -389,6 +446,7 @@ impl Splatter {
                 pair_tiles: Some(&pair_tiles),
                 ranges: &ranges,
                 out: &out,
+                occluder: occluder_buffer,
             };
             frame.record(rec, &uniform, &buffers)?;
             if let Some(word) = settings.prefill {
@@ -462,6 +520,7 @@ impl Splatter {
             gaussians: n,
             tile,
             surface_depth: settings.surface_depth,
+            occluded: occluder.is_some(),
         })
     }
 }

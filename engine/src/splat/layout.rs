@@ -24,6 +24,7 @@ pub(crate) struct FrameUniform {
     pub(super) background: [f32; 4],
     pub(super) size: [u32; 4],
     pub(super) counts: [u32; 4],
+    pub(super) occluder: [f32; 4],
     means: DeviceAddress,
     log_scales: DeviceAddress,
     rotations: DeviceAddress,
@@ -43,7 +44,7 @@ pub(crate) struct FrameUniform {
     ranges: DeviceAddress,
     g_rgb: DeviceAddress,
     pair_tiles: DeviceAddress,
-    unused0: DeviceAddress,
+    occluder_depth: DeviceAddress,
     g_alpha: DeviceAddress,
     g_depth: DeviceAddress,
     g_median_depth: DeviceAddress,
@@ -74,6 +75,7 @@ crate::gpu::gpu_layout!(
         background,
         size,
         counts,
+        occluder,
         means,
         log_scales,
         rotations,
@@ -93,7 +95,7 @@ crate::gpu::gpu_layout!(
         ranges,
         g_rgb,
         pair_tiles,
-        unused0,
+        occluder_depth,
         g_alpha,
         g_depth,
         g_median_depth,
@@ -119,6 +121,8 @@ pub(crate) struct FrameBuffers<'b> {
     pub(crate) pair_tiles: Option<&'b Buffer>,
     pub(crate) ranges: &'b Buffer,
     pub(crate) out: &'b GpuGBuffer,
+    /// The host's depth per pixel, where splats behind it are hidden.
+    pub(crate) occluder: Option<&'b Buffer>,
 }
 
 impl FrameUniform {
@@ -150,6 +154,7 @@ impl FrameUniform {
         self.values = rec.addr_or_null(b.values)?;
         self.ranges = rec.addr(b.ranges)?;
         self.pair_tiles = rec.addr_or_null(b.pair_tiles)?;
+        self.occluder_depth = rec.addr_or_null(b.occluder)?;
         let o = b.out;
         self.g_rgb = rec.addr_or_null(o.rgb.as_ref())?;
         self.g_alpha = rec.addr(&o.alpha)?;

@@ -203,6 +203,87 @@ impl Default for SplatSettings {
     }
 }
 
+/// How a host's depth buffer encodes depth ([`Splatter::render_frame_occluded`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum HostDepth {
+    /// Camera z in world units (0, negative or infinite: nothing there).
+    CameraZ,
+    /// Vulkan's [0, 1] perspective depth, 0 at `near`, 1 at `far` (1: nothing there).
+    Vulkan {
+        /// Near plane (camera z).
+        near: f32,
+        /// Far plane (camera z).
+        far: f32,
+    },
+    /// Reversed-Z: 1 at `near`, 0 at `far` (which may be infinite; 0: nothing there).
+    ReversedZ {
+        /// Near plane (camera z).
+        near: f32,
+        /// Far plane (camera z; `f32::INFINITY` for an infinite far plane).
+        far: f32,
+    },
+}
+
+impl HostDepth {
+    /// Checks the planes: 0 < near < far (far finite, except reversed-Z).
+    pub fn validate(&self) -> Result<()> {
+        let (near, far, infinite_ok) = match *self {
+            Self::CameraZ => return Ok(()),
+            Self::Vulkan { near, far } => (near, far, false),
+            Self::ReversedZ { near, far } => (near, far, true),
+        };
+        let far_ok = far.is_finite() || (infinite_ok && far == f32::INFINITY);
+        if !(near > 0.0 && near.is_finite() && far_ok && far > near) {
+            return Err(Error::invalid(
+                format!("host depth planes near {near}, far {far}"),
+                "need 0 < near < far (an infinite far only with reversed-Z)",
+            ));
+        }
+        Ok(())
+    }
+
+    /// The camera z of a stored value `d` (infinity where nothing is there);
+    /// twin of `occluder_z` in `splat_blend_body.glsl`.
+    pub fn camera_z(&self, d: f64) -> f64 {
+        match *self {
+            Self::CameraZ => {
+                if d > 0.0 {
+                    d
+                } else {
+                    f64::INFINITY
+                }
+            }
+            Self::Vulkan { near, far } => {
+                let (n, f) = (f64::from(near), f64::from(far));
+                if d >= 1.0 {
+                    f64::INFINITY
+                } else {
+                    n * f / (f - d * (f - n))
+                }
+            }
+            Self::ReversedZ { near, far } => {
+                let (n, f) = (f64::from(near), f64::from(far));
+                if d <= 0.0 {
+                    f64::INFINITY
+                } else if f.is_infinite() {
+                    n / d
+                } else {
+                    n * f / (n + d * (f - n))
+                }
+            }
+        }
+    }
+
+    /// The frame uniform's `occluder` vector.
+    pub(crate) fn packed(&self) -> [f32; 4] {
+        match *self {
+            Self::CameraZ => [0.0; 4],
+            Self::Vulkan { near, far } => [1.0, near, far, 0.0],
+            Self::ReversedZ { near, far } => [2.0, near, far, 0.0],
+        }
+    }
+}
+
 /// G-buffers on the host; planar per channel, row-major, rgb/normal/albedo interleaved by 3.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct GBuffer {

@@ -15,6 +15,7 @@ layout(std140, set = 0, binding = 0) uniform Frame {
     vec4 background;   // rgb
     uvec4 size;        // width, height, tiles_x, tiles_y
     uvec4 counts;      // gaussians, SH degree stored | used << 8, normal_source (0 shortest axis, 1 stored), pairs
+    vec4 occluder;     // the host's depth (OCCLUDED): convention (0 camera z, 1 Vulkan [0, 1], 2 reversed-Z), near, far, 0
     uvec2 means;            // scene inputs, by device address (low, high)
     uvec2 log_scales;
     uvec2 rotations;
@@ -34,7 +35,7 @@ layout(std140, set = 0, binding = 0) uniform Frame {
     uvec2 ranges;
     uvec2 g_rgb;            // G-buffer outputs; 0 where a channel is not kept
     uvec2 pair_tiles;       // tile id of each unsorted pair
-    uvec2 unused0;
+    uvec2 occluder_depth;   // the host's depth per pixel (OCCLUDED)
     uvec2 g_alpha;
     uvec2 g_depth;
     uvec2 g_median_depth;

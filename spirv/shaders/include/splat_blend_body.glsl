@@ -14,6 +14,9 @@ layout(constant_id = 3) const bool WRAP_X = false;
 // Surface depth: each splat's depth at a pixel is where the pixel's ray meets
 // its plane (the preprocess's slope), not its centre's.
 layout(constant_id = 4) const bool SURFACE_DEPTH = false;
+// The host's depth per pixel hides the splats behind it (compositing with a
+// host's meshes; frame.occluder gives its convention).
+layout(constant_id = 5) const bool OCCLUDED = false;
 // Without rgb (shadow maps) no colour is read, blended or stored.
 const bool RGB = (CHANNELS & 256u) != 0u;
 // The index of the splat with the largest weight wᵢ = αᵢ Tᵢ (the first of equal ones), per pixel.
@@ -51,6 +54,20 @@ float splat_depth(vec4 head, vec2 slope, vec2 d) {
     if (!SURFACE_DEPTH) return head.z;
     float s = -dot(slope, d);
     return frame.camera.translation.w != 0.0 ? head.z + s : head.z / (1.0 + s);
+}
+
+// The host's camera depth at pixel `pix` (infinity where it has nothing, or
+// without OCCLUDED): its stored value as camera z, or linearized from a
+// Vulkan [0, 1] depth (1: nothing) or a reversed-Z one (0: nothing; far may be
+// infinite). CPU twin: engine/src/splat/cpu.rs `HostDepth::camera_z`.
+float occluder_z(uvec2 pix) {
+    if (!OCCLUDED) return 1.0 / 0.0;
+    float d = FloatsIn(frame.occluder_depth).v[pix.y * frame.size.x + pix.x];
+    float near = frame.occluder.y, far = frame.occluder.z;
+    uint mode = uint(frame.occluder.x);
+    if (mode == 1u) return d >= 1.0 ? 1.0 / 0.0 : near * far / (far - d * (far - near));
+    if (mode == 2u) return d <= 0.0 ? 1.0 / 0.0 : (isinf(far) ? near / d : near * far / (near + d * (far - near)));
+    return d > 0.0 ? d : 1.0 / 0.0;
 }
 
 // What one pixel has accumulated so far.
@@ -121,13 +138,15 @@ vec4 nearest_copy(vec4 head, vec2 centre) {
 
 // Blends splat g into `acc`; false once the pixel is done (T·(1−α) < 1e-4,
 // that splat excluded). Colour and features are loaded only when it contributes.
-bool blend_one(inout Accumulated acc, uint g, vec4 head, vec4 conic, vec2 centre) {
+bool blend_one(inout Accumulated acc, uint g, vec4 head, vec4 conic, vec2 centre, float limit) {
     float alpha, gauss;
     vec2 d;
     head = nearest_copy(head, centre);
     if (!splat_alpha(head, conic, centre, alpha, gauss, d)) return true;
+    float z = splat_depth(head, splat_slope(g), d);
+    if (OCCLUDED && !(z < limit)) return true;
     if (acc.T * (1.0 - alpha) < 1e-4) return false;
-    accumulate(acc, alpha, splat_depth(head, splat_slope(g), d), splat_contribution(g), g);
+    accumulate(acc, alpha, z, splat_contribution(g), g);
     return true;
 }
 
@@ -193,11 +212,13 @@ void main() {
     uvec2 range = Uvec2s(frame.ranges).v[tile];
     Accumulated acc[PIXELS];
     bool live[PIXELS];
+    float limit[PIXELS];
     bool any_live = false;
     [[unroll]] for (uint k = 0u; k < PIXELS; k++) {
         acc[k] = Accumulated(1.0, vec3(0.0), 0.0, 0.0, vec3(0.0), vec3(0.0), 0.0, 0.0, 0.0, 0.0, 0.0, NO_GAUSSIAN);
         uvec2 pix = base + uvec2(k * STEP, 0u);
         live[k] = pix.x < frame.size.x && pix.y < frame.size.y;
+        limit[k] = live[k] ? occluder_z(pix) : 0.0;
         any_live = any_live || live[k];
     }
     // Straight-line body: lavapipe predicates every branch (both sides of an
@@ -216,13 +237,15 @@ void main() {
             vec2 d;
             vec2 centre = vec2(base + uvec2(k * STEP, 0u)) + 0.5;
             bool hit = all(bvec2(live[k], splat_alpha(nearest_copy(head, centre), conic, centre, alpha, gauss, d)));
+            float z = splat_depth(head, slope, d);
+            if (OCCLUDED) hit = all(bvec2(hit, z < limit[k]));
             float next_T = acc[k].T * (1.0 - alpha);
             // Done once T·(1−α) < 1e-4, this splat excluded (as blend_one).
             bool stop = all(bvec2(hit, next_T < 1e-4));
             bool takes = all(bvec2(hit, !stop));
             live[k] = all(bvec2(live[k], !stop));
             any_live = any(bvec2(any_live, live[k]));
-            accumulate_select(acc[k], takes, alpha, next_T, splat_depth(head, slope, d), c, g);
+            accumulate_select(acc[k], takes, alpha, next_T, z, c, g);
         }
     }
     [[unroll]] for (uint k = 0u; k < PIXELS; k++) {
@@ -242,6 +265,7 @@ void main() {
     Uints values = Uints(frame.values);
     Splats splats = Splats(frame.splats);
     Accumulated acc = Accumulated(1.0, vec3(0.0), 0.0, 0.0, vec3(0.0), vec3(0.0), 0.0, 0.0, 0.0, 0.0, 0.0, NO_GAUSSIAN);
+    float limit = inside ? occluder_z(pix) : 0.0;
 
 #ifdef SHARED_BATCHES
     // Batches of BLEND_BATCH splats staged in shared memory by the whole
@@ -266,7 +290,7 @@ void main() {
         if (!done) {
             uint n = min(BLEND_BATCH, range.y - start);
             for (uint k = 0u; k < n; k++) {
-                if (!blend_one(acc, batch_g[k], batch_head[k], batch_conic[k], centre)) {
+                if (!blend_one(acc, batch_g[k], batch_head[k], batch_conic[k], centre, limit)) {
                     done = true;
                     break;
                 }
@@ -296,7 +320,7 @@ void main() {
         vec4 head = splats.v[g].head;  // mean, depth, opacity
         vec4 conic = splats.v[g].conic;
 #endif
-        if (!blend_one(acc, g, head, conic, centre)) break;
+        if (!blend_one(acc, g, head, conic, centre, limit)) break;
     }
 #endif
     store_pixel(pix, acc);
