@@ -135,6 +135,9 @@ typedef struct {
 // and, as `1u << channel`, a bit of `srug_renderer_create`'s channel mask.
 typedef uint32_t srug_channel;
 
+// How `srug_renderer_set_host_depth`'s values encode depth.
+typedef uint32_t srug_depth_convention;
+
 // What the shadow map covers (`srug_renderer_set_shadow_fit`).
 typedef uint32_t srug_shadow_fit;
 
@@ -219,6 +222,15 @@ typedef struct {
 // The camera's view frustum within the scene's bounds: finer texels for the
 // same resolution; casters anywhere in the bounds still cast.
 #define SRUG_SHADOW_FIT_VIEW 1
+
+// Camera z in world units (0, negative or infinite: nothing there).
+#define SRUG_DEPTH_CAMERA_Z 0
+
+// Vulkan's [0, 1] perspective depth, 0 at `near`, 1 at `far` (1: nothing there).
+#define SRUG_DEPTH_VULKAN 1
+
+// Reversed-Z: 1 at `near`, 0 at `far`, which may be `INFINITY` (0: nothing there).
+#define SRUG_DEPTH_REVERSED_Z 2
 
 #ifdef __cplusplus
 extern "C" {
@@ -526,6 +538,27 @@ srug_status srug_renderer_set_shadow(srug_renderer *renderer,
 srug_status srug_renderer_set_shadow_geometry_bias(srug_renderer *renderer,
                                                    float slope_bias,
                                                    float normal_offset);
+
+// Hides the splats behind the host's depth in the renders that follow, for
+// compositing over the host's meshes: `depth` holds one value per pixel of
+// the renderer's size (row-major, `count` = width × height) in `convention`
+// (`SRUG_DEPTH_*`; `near` and `far` are the planes of the Vulkan and
+// reversed-Z conventions); a splat whose depth at a pixel is not in front of
+// the host's is hidden there: it neither colours nor covers the pixel, so the
+// alpha channel is the coverage by the splats in front of the host's meshes.
+// (Compositing the colour over the host's needs srug's colour without its sky
+// behind it; a background setting on the C ABI is still to come.) Shadows are
+// unchanged. NULL `depth` stops hiding. The values are copied. A preset
+// rendering below full size (fast) then fails at render with a size mismatch.
+//
+// # Safety
+// `depth` NULL or valid for `count` floats.
+srug_status srug_renderer_set_host_depth(srug_renderer *renderer,
+                                         const float *depth,
+                                         size_t count,
+                                         srug_depth_convention convention,
+                                         float near,
+                                         float far);
 
 // What the shadow map covers (`SRUG_SHADOW_FIT_*`); `srug_renderer_set_preset` resets it.
 srug_status srug_renderer_set_shadow_fit(srug_renderer *renderer, srug_shadow_fit fit);

@@ -5,7 +5,7 @@ use std::ffi::{c_char, c_void};
 use std::sync::{Arc, Mutex};
 
 use glam::{Mat3, Vec3};
-use srug::frame::{Preset, RelightDecisions, RelightSettings, Relighter};
+use srug::frame::{HostDepthImage, Preset, RelightDecisions, RelightSettings, Relighter};
 use srug::gpu::{Device, Timings};
 use srug::scene::{Camera, Projection};
 use srug::shade::{
@@ -13,7 +13,7 @@ use srug::shade::{
 };
 use srug::shadow::backward::GpuVisibilityLoss;
 use srug::shadow::{ShadowFit, ShadowMap, ShadowPass, Sun, VisibilityKind};
-use srug::splat::{Channels, GpuGBuffer, SplatFrame, SplatSettings};
+use srug::splat::{Channels, GpuGBuffer, HostDepth, SplatFrame, SplatSettings};
 
 use crate::context::*;
 use crate::environment::*;
@@ -93,6 +93,15 @@ pub const SRUG_SHADOW_FIT_SCENE: srug_shadow_fit = 0;
 /// The camera's view frustum within the scene's bounds: finer texels for the
 /// same resolution; casters anywhere in the bounds still cast.
 pub const SRUG_SHADOW_FIT_VIEW: srug_shadow_fit = 1;
+
+/// How `srug_renderer_set_host_depth`'s values encode depth.
+pub type srug_depth_convention = u32;
+/// Camera z in world units (0, negative or infinite: nothing there).
+pub const SRUG_DEPTH_CAMERA_Z: srug_depth_convention = 0;
+/// Vulkan's [0, 1] perspective depth, 0 at `near`, 1 at `far` (1: nothing there).
+pub const SRUG_DEPTH_VULKAN: srug_depth_convention = 1;
+/// Reversed-Z: 1 at `near`, 0 at `far`, which may be `INFINITY` (0: nothing there).
+pub const SRUG_DEPTH_REVERSED_Z: srug_depth_convention = 2;
 
 /// Per-Gaussian gradients written by `srug_renderer_shadow_backward`: caller-owned
 /// arrays of `count` × 3, 3, 4 and 1 floats, laid out like `srug_scene_set_gaussians`'s.
@@ -597,6 +606,66 @@ pub extern "C" fn srug_renderer_set_shadow_geometry_bias(
     })
 }
 
+/// Hides the splats behind the host's depth in the renders that follow, for
+/// compositing over the host's meshes: `depth` holds one value per pixel of
+/// the renderer's size (row-major, `count` = width × height) in `convention`
+/// (`SRUG_DEPTH_*`; `near` and `far` are the planes of the Vulkan and
+/// reversed-Z conventions); a splat whose depth at a pixel is not in front of
+/// the host's is hidden there: it neither colours nor covers the pixel, so the
+/// alpha channel is the coverage by the splats in front of the host's meshes.
+/// (Compositing the colour over the host's needs srug's colour without its sky
+/// behind it; a background setting on the C ABI is still to come.) Shadows are
+/// unchanged. NULL `depth` stops hiding. The values are copied. A preset
+/// rendering below full size (fast) then fails at render with a size mismatch.
+///
+/// # Safety
+/// `depth` NULL or valid for `count` floats.
+#[no_mangle]
+pub unsafe extern "C" fn srug_renderer_set_host_depth(
+    renderer: *mut srug_renderer,
+    depth: *const f32,
+    count: usize,
+    convention: srug_depth_convention,
+    near: f32,
+    far: f32,
+) -> srug_status {
+    guard("srug_renderer_set_host_depth", || {
+        let convention = match convention {
+            SRUG_DEPTH_CAMERA_Z => HostDepth::CameraZ,
+            SRUG_DEPTH_VULKAN => HostDepth::Vulkan { near, far },
+            SRUG_DEPTH_REVERSED_Z => HostDepth::ReversedZ { near, far },
+            other => return Err(invalid(format!("unknown depth convention {other}"))),
+        };
+        with_renderer(renderer, |r| {
+            if depth.is_null() {
+                r.relighter.set_host_depth(None)?;
+                return Ok(());
+            }
+            convention.validate()?;
+            let pixels = r.width as usize * r.height as usize;
+            if count != pixels {
+                return Err(invalid(format!(
+                    "host depth of {count} values for a {}x{} renderer ({pixels} pixels)",
+                    r.width, r.height
+                )));
+            }
+            // SAFETY: the caller's contract: `count` floats at `depth`.
+            let values = unsafe { std::slice::from_raw_parts(depth, count) };
+            if let Some(i) = values.iter().position(|v| v.is_nan()) {
+                return Err(invalid(format!("host depth value {i} is NaN")));
+            }
+            let buffer = r.device.upload("host depth", values)?;
+            r.relighter.set_host_depth(Some(HostDepthImage {
+                buffer,
+                width: r.width,
+                height: r.height,
+                convention,
+            }))?;
+            Ok(())
+        })
+    })
+}
+
 /// What the shadow map covers (`SRUG_SHADOW_FIT_*`); `srug_renderer_set_preset` resets it.
 #[no_mangle]
 pub extern "C" fn srug_renderer_set_shadow_fit(renderer: *mut srug_renderer, fit: srug_shadow_fit) -> srug_status {
@@ -740,7 +809,7 @@ impl RendererObject {
                     ..SplatSettings::default()
                 };
                 let camera = self.settings.render_camera(&camera);
-                let (gbuffer, stats) = self.relighter.splatter().render(&scene.gpu, &camera, &settings)?;
+                let (gbuffer, stats) = self.relighter.splat_camera(&scene.gpu, &camera, &settings)?;
                 self.frame = Some(Frame { gbuffer, shaded: None });
                 self.timings = Some(stats.timings);
                 return Ok(());

@@ -267,6 +267,44 @@ int main(int argc, char **argv) {
   REQUIRE(fit_diff > 0.0 && fit_diff < 5.0);
   free(fitted);
   CHECK(srug_renderer_set_shadow_fit(r, SRUG_SHADOW_FIT_SCENE));
+  /* A host's mesh 5 m in front of the camera over the left half hides the splats there;
+     the right half, where the host has nothing (camera z 0), keeps them. */
+  CHECK(srug_renderer_render(r, scene));
+  float *open_alpha = malloc(pixels * sizeof(float)), *hidden_alpha = malloc(pixels * sizeof(float));
+  float *host = malloc(pixels * sizeof(float));
+  REQUIRE(open_alpha != NULL && hidden_alpha != NULL && host != NULL);
+  CHECK(srug_renderer_read_channel(r, SRUG_CHANNEL_ALPHA, open_alpha, pixels));
+  for (size_t i = 0; i < pixels; i++) host[i] = (i % w) < w / 2 ? 5.0f : 0.0f;
+  CHECK(srug_renderer_set_host_depth(r, host, pixels, SRUG_DEPTH_CAMERA_Z, 0.0f, 0.0f));
+  CHECK(srug_renderer_render(r, scene));
+  CHECK(srug_renderer_read_channel(r, SRUG_CHANNEL_ALPHA, hidden_alpha, pixels));
+  size_t lost = 0, kept = 0, right = 0;
+  for (size_t i = 0; i < pixels; i++) {
+    if ((i % w) < w / 2) {
+      lost += hidden_alpha[i] + 0.05f < open_alpha[i];
+    } else {
+      right++;
+      kept += hidden_alpha[i] == open_alpha[i];
+    }
+  }
+  printf("host depth: %zu left-half pixels lost coverage; %zu of %zu right-half pixels unchanged\n", lost, kept,
+         right);
+  REQUIRE(lost * 4 > pixels / 2 && kept == right);
+  EXPECT(srug_renderer_set_host_depth(r, host, pixels - 1, SRUG_DEPTH_CAMERA_Z, 0.0f, 0.0f),
+         SRUG_ERROR_INVALID_ARGUMENT);
+  EXPECT(srug_renderer_set_host_depth(r, host, pixels, 9, 0.0f, 0.0f), SRUG_ERROR_INVALID_ARGUMENT);
+  EXPECT(srug_renderer_set_host_depth(r, host, pixels, SRUG_DEPTH_VULKAN, 0.0f, 100.0f),
+         SRUG_ERROR_INVALID_ARGUMENT); /* near must be > 0 */
+  host[7] = NAN;
+  EXPECT(srug_renderer_set_host_depth(r, host, pixels, SRUG_DEPTH_CAMERA_Z, 0.0f, 0.0f),
+         SRUG_ERROR_INVALID_ARGUMENT);
+  CHECK(srug_renderer_set_host_depth(r, NULL, 0, SRUG_DEPTH_CAMERA_Z, 0.0f, 0.0f));
+  CHECK(srug_renderer_render(r, scene));
+  CHECK(srug_renderer_read_channel(r, SRUG_CHANNEL_ALPHA, hidden_alpha, pixels));
+  REQUIRE(memcmp(hidden_alpha, open_alpha, pixels * sizeof(float)) == 0);
+  free(open_alpha);
+  free(hidden_alpha);
+  free(host);
   free(centre_depth);
   free(plane_depth);
 

@@ -13,5 +13,5 @@ mod relight;
 mod settings;
 
 pub use decisions::RelightDecisions;
-pub use relight::{Relighter, RelitFrame};
+pub use relight::{HostDepthImage, Relighter, RelitFrame};
 pub use settings::{Preset, RelightSettings};

@@ -49,6 +49,22 @@ pub struct Relighter {
     reuse_shadow_map: bool,
     /// The last shadow map and what it was made from (only while reuse is on).
     shadow_map: Option<(ShadowMapKey, ShadowMap)>,
+    /// A host's depth the camera's splats are hidden behind.
+    host_depth: Option<HostDepthImage>,
+}
+
+/// A host's depth per pixel for [`Relighter::set_host_depth`]: one f32 per
+/// pixel of a `width`×`height` frame, row-major, in `convention`.
+#[derive(Debug)]
+pub struct HostDepthImage {
+    /// The values.
+    pub buffer: crate::gpu::Buffer,
+    /// Frame width in pixels.
+    pub width: u32,
+    /// Frame height in pixels.
+    pub height: u32,
+    /// How the values encode depth.
+    pub convention: crate::splat::HostDepth,
 }
 
 /// Everything a shadow map's contents depend on: equal keys, equal maps.
@@ -74,7 +90,45 @@ impl Relighter {
             network: None,
             reuse_shadow_map: false,
             shadow_map: None,
+            host_depth: None,
         })
+    }
+
+    /// Splats `camera`'s G-buffers with `settings`, behind the host's depth
+    /// when one is set ([`Relighter::set_host_depth`]); what [`Relighter::render`]
+    /// does first, and all a frame without shading needs.
+    pub fn splat_camera(
+        &mut self,
+        scene: &GpuScene,
+        camera: &Camera,
+        settings: &SplatSettings,
+    ) -> Result<(GpuGBuffer, crate::splat::SplatStats)> {
+        match &self.host_depth {
+            None => self.splatter.render(scene, camera, settings),
+            Some(h) => {
+                if (h.width, h.height) != (camera.width, camera.height) {
+                    return Err(Error::invalid(
+                        format!("host depth of {}x{}", h.width, h.height),
+                        format!("does not match the rendered frame's {}x{}", camera.width, camera.height),
+                    ));
+                }
+                let frame = self.splatter.render_frame_occluded(scene, camera, settings, &h.buffer, h.convention)?;
+                Ok((frame.gbuffer, frame.stats))
+            }
+        }
+    }
+
+    /// Hides the camera's splats behind a host's depth in the frames that
+    /// follow ([`Splatter::render_frame_occluded`]; its size must be the
+    /// rendered frame's, so at a render scale below 1 the scaled size), or
+    /// stops doing so with `None`. Shadows are unchanged: hidden splats still
+    /// cast them. The premultiplied result composites over the host's colour.
+    pub fn set_host_depth(&mut self, depth: Option<HostDepthImage>) -> Result<()> {
+        if let Some(d) = &depth {
+            d.convention.validate()?;
+        }
+        self.host_depth = depth;
+        Ok(())
     }
 
     /// Keeps the shadow map between frames and splats a new one only when
@@ -153,7 +207,7 @@ impl Relighter {
             surface_depth: settings.shadow.surface_depth,
             ..SplatSettings::default()
         };
-        let (gbuffer, stats) = self.splatter.render(scene, camera, &splat)?;
+        let (gbuffer, stats) = self.splat_camera(scene, camera, &splat)?;
         let (mut timings, pairs) = (stats.timings, stats.pairs);
 
         // 2. and 3. The sun's shadow map (splatted, or the last frame's) and its
