@@ -546,9 +546,9 @@ srug_status srug_renderer_set_shadow_geometry_bias(srug_renderer *renderer,
 // reversed-Z conventions); a splat whose depth at a pixel is not in front of
 // the host's is hidden there: it neither colours nor covers the pixel, so the
 // alpha channel is the coverage by the splats in front of the host's meshes.
-// (Compositing the colour over the host's needs srug's colour without its sky
-// behind it; a background setting on the C ABI is still to come.) Shadows are
-// unchanged. NULL `depth` stops hiding. The values are copied. A preset
+// With a black background (`srug_renderer_set_background`) the linear
+// radiance (`SRUG_FORMAT_RGBA32F_LINEAR`) is premultiplied: composite it as
+// `rgb + (1 − alpha)·host` in linear light. Shadows are unchanged. NULL `depth` stops hiding. The values are copied. A preset
 // rendering below full size (fast) then fails at render with a size mismatch.
 //
 // # Safety
@@ -559,6 +559,14 @@ srug_status srug_renderer_set_host_depth(srug_renderer *renderer,
                                          srug_depth_convention convention,
                                          float near,
                                          float far);
+
+// What relit frames show behind the splats: `rgb` a constant linear radiance
+// (3 finite floats ≥ 0; black gives premultiplied radiance for compositing),
+// or NULL for the sky light's environment (the default).
+//
+// # Safety
+// `rgb` NULL or valid for 3 floats.
+srug_status srug_renderer_set_background(srug_renderer *renderer, const float *rgb);
 
 // What the shadow map covers (`SRUG_SHADOW_FIT_*`); `srug_renderer_set_preset` resets it.
 srug_status srug_renderer_set_shadow_fit(srug_renderer *renderer, srug_shadow_fit fit);

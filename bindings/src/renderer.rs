@@ -9,7 +9,8 @@ use srug::frame::{HostDepthImage, Preset, RelightDecisions, RelightSettings, Rel
 use srug::gpu::{Device, Timings};
 use srug::scene::{Camera, Projection};
 use srug::shade::{
-    BrdfLut, BrdfTable, EnvironmentPrep, PrepareSettings, PreparedEnvironment, ProceduralSky, ShadedFrame, ToneMap,
+    Background, BrdfLut, BrdfTable, EnvironmentPrep, PrepareSettings, PreparedEnvironment, ProceduralSky, ShadedFrame,
+    ToneMap,
 };
 use srug::shadow::backward::GpuVisibilityLoss;
 use srug::shadow::{ShadowFit, ShadowMap, ShadowPass, Sun, VisibilityKind};
@@ -613,9 +614,9 @@ pub extern "C" fn srug_renderer_set_shadow_geometry_bias(
 /// reversed-Z conventions); a splat whose depth at a pixel is not in front of
 /// the host's is hidden there: it neither colours nor covers the pixel, so the
 /// alpha channel is the coverage by the splats in front of the host's meshes.
-/// (Compositing the colour over the host's needs srug's colour without its sky
-/// behind it; a background setting on the C ABI is still to come.) Shadows are
-/// unchanged. NULL `depth` stops hiding. The values are copied. A preset
+/// With a black background (`srug_renderer_set_background`) the linear
+/// radiance (`SRUG_FORMAT_RGBA32F_LINEAR`) is premultiplied: composite it as
+/// `rgb + (1 − alpha)·host` in linear light. Shadows are unchanged. NULL `depth` stops hiding. The values are copied. A preset
 /// rendering below full size (fast) then fails at render with a size mismatch.
 ///
 /// # Safety
@@ -661,6 +662,32 @@ pub unsafe extern "C" fn srug_renderer_set_host_depth(
                 height: r.height,
                 convention,
             }))?;
+            Ok(())
+        })
+    })
+}
+
+/// What relit frames show behind the splats: `rgb` a constant linear radiance
+/// (3 finite floats ≥ 0; black gives premultiplied radiance for compositing),
+/// or NULL for the sky light's environment (the default).
+///
+/// # Safety
+/// `rgb` NULL or valid for 3 floats.
+#[no_mangle]
+pub unsafe extern "C" fn srug_renderer_set_background(renderer: *mut srug_renderer, rgb: *const f32) -> srug_status {
+    guard("srug_renderer_set_background", || {
+        let background = if rgb.is_null() {
+            Background::Environment
+        } else {
+            // SAFETY: the caller's contract: 3 floats.
+            let c = unsafe { std::slice::from_raw_parts(rgb, 3) };
+            Background::Color([c[0], c[1], c[2]])
+        };
+        with_renderer(renderer, |r| {
+            let mut shade = r.settings.shade;
+            shade.background = background;
+            shade.validate()?;
+            r.settings.shade = shade;
             Ok(())
         })
     })

@@ -290,6 +290,29 @@ int main(int argc, char **argv) {
   printf("host depth: %zu left-half pixels lost coverage; %zu of %zu right-half pixels unchanged\n", lost, kept,
          right);
   REQUIRE(lost * 4 > pixels / 2 && kept == right);
+  /* Backgrounds: where nothing covers a pixel its linear radiance is the background exactly; black
+     makes the radiance premultiplied, to composite over the host's colour. */
+  float *lin_bg = malloc(pixels * 16);
+  REQUIRE(lin_bg != NULL);
+  const float black[3] = {0.0f, 0.0f, 0.0f}, red[3] = {1.0f, 0.0f, 0.0f};
+  const float *backgrounds[2] = {black, red};
+  for (int b = 0; b < 2; b++) {
+    CHECK(srug_renderer_set_background(r, backgrounds[b]));
+    CHECK(srug_renderer_render(r, scene));
+    CHECK(srug_renderer_read_image(r, SRUG_FORMAT_RGBA32F_LINEAR, lin_bg, pixels * 16, 0));
+    size_t empty = 0;
+    for (size_t i = 0; i < pixels; i++) {
+      if (lin_bg[4 * i + 3] != 0.0f) continue;
+      empty++;
+      for (int c = 0; c < 3; c++) REQUIRE(lin_bg[4 * i + c] == backgrounds[b][c]);
+    }
+    printf("background %d: %zu uncovered pixels show it exactly\n", b, empty);
+    REQUIRE(empty > pixels / 10);
+  }
+  const float negative[3] = {-1.0f, 0.0f, 0.0f};
+  EXPECT(srug_renderer_set_background(r, negative), SRUG_ERROR_INVALID_ARGUMENT);
+  CHECK(srug_renderer_set_background(r, NULL));
+  free(lin_bg);
   EXPECT(srug_renderer_set_host_depth(r, host, pixels - 1, SRUG_DEPTH_CAMERA_Z, 0.0f, 0.0f),
          SRUG_ERROR_INVALID_ARGUMENT);
   EXPECT(srug_renderer_set_host_depth(r, host, pixels, 9, 0.0f, 0.0f), SRUG_ERROR_INVALID_ARGUMENT);
