@@ -346,7 +346,8 @@ impl Device {
     /// a dict name → array, (N, H, W, C) float32 for colour-like channels,
     /// (N, H, W) for one-float ones, uint32 for "top_gaussian".
     #[pyo3(signature = (scene, cameras, channels, background = (0.0, 0.0, 0.0), sh_degree = None, tile = 16, progress = None,
-                        surface_depth = false))]
+                        surface_depth = false, host_depth = None, depth_convention = "camera_z", near = 0.0,
+                        far = 0.0))]
     #[allow(clippy::too_many_arguments, reason = "the Python keyword arguments of one call")]
     fn render<'py>(
         &self,
@@ -359,10 +360,45 @@ impl Device {
         tile: u32,
         progress: Option<Py<PyAny>>,
         surface_depth: bool,
+        host_depth: Option<PyReadonlyArrayDyn<'py, f32>>,
+        depth_convention: &str,
+        near: f32,
+        far: f32,
     ) -> PyResult<Bound<'py, PyDict>> {
         let device = self.gpu()?;
         let cams = &cameras.cameras;
         let (w, h) = batch_size(cams)?;
+        // The host's depth: one image for every camera, or one per camera.
+        let host = match host_depth {
+            None => None,
+            Some(a) => {
+                let convention = match depth_convention {
+                    "camera_z" => srug::splat::HostDepth::CameraZ,
+                    "vulkan" => srug::splat::HostDepth::Vulkan { near, far },
+                    "reversed_z" => srug::splat::HostDepth::ReversedZ { near, far },
+                    other => {
+                        return Err(invalid(
+                            format!("depth convention \"{other}\""),
+                            "is not \"camera_z\", \"vulkan\" or \"reversed_z\"",
+                        ))
+                    }
+                };
+                convention.validate().map_err(py_err)?;
+                let shape = a.shape().to_vec();
+                let (n, hh, ww) = (cams.len(), h as usize, w as usize);
+                if shape != [n, hh, ww] && shape != [hh, ww] {
+                    return Err(invalid(
+                        format!("host_depth of shape {shape:?}"),
+                        format!("must be ({n}, {hh}, {ww}) or ({hh}, {ww})"),
+                    ));
+                }
+                let values: Vec<f32> = a.as_array().iter().copied().collect();
+                if let Some(i) = values.iter().position(|v| v.is_nan()) {
+                    return Err(invalid(format!("host_depth value {i}"), "is NaN"));
+                }
+                Some((values, shape.len() == 2, convention))
+            }
+        };
         let blended: Vec<&str> = channels.iter().map(String::as_str).filter(|c| *c != "range").collect();
         let mut set = Channels::parse(&blended.join(",")).map_err(py_err)?;
         let rgb = channels.iter().any(|c| c == "rgb" || c == "all");
@@ -414,7 +450,17 @@ impl Device {
             let mut depth_scratch = if range && !wants_depth { vec![0.0f32; p] } else { Vec::new() };
             let result = (|| -> PyResult<()> {
                 for (i, cam) in cams.iter().enumerate() {
-                    let (g, stats) = splatter.render(&gpu_scene, cam, &settings).map_err(py_err)?;
+                    let (g, stats) = match &host {
+                        None => splatter.render(&gpu_scene, cam, &settings).map_err(py_err)?,
+                        Some((values, shared, convention)) => {
+                            let slice = if *shared { &values[..] } else { &values[i * p..(i + 1) * p] };
+                            let depth = device.upload("host depth", slice).map_err(|e| py_err(e.into()))?;
+                            let frame = splatter
+                                .render_frame_occluded(&gpu_scene, cam, &settings, &depth, *convention)
+                                .map_err(py_err)?;
+                            (frame.gbuffer, frame.stats)
+                        }
+                    };
                     let d = &device;
                     read_into(d, &g.alpha, outputs.slot_f32("alpha", i))?;
                     if let Some(b) = &g.rgb {

@@ -359,6 +359,10 @@ class Device:
         tile: int = 16,
         progress: Progress = None,
         surface_depth: bool = False,
+        host_depth: Optional[np.ndarray] = None,
+        depth_convention: str = "camera_z",
+        near: float = 0.0,
+        far: float = 0.0,
     ) -> Dict[str, np.ndarray]:
         """Splats every camera into G-buffer channels, stacked over the cameras.
 
@@ -372,6 +376,12 @@ class Device:
         callable (done, total), or True for a bar (tqdm) or progress lines.
         ``surface_depth``: depths where each pixel's ray meets the splat's plane
         (its shortest axis) instead of at its centre (pinhole cameras).
+        ``host_depth``: your meshes' depth, (H, W) for every camera or (N, H, W),
+        as camera z (``depth_convention="camera_z"``, 0 or inf: nothing),
+        Vulkan [0, 1] depth (``"vulkan"``, 1: nothing) or reversed-Z
+        (``"reversed_z"``, 0: nothing; ``far`` may be inf), with ``near`` and
+        ``far``: splats behind it are hidden per pixel, so with a black
+        background ``rgb + (1 - alpha) * yours`` composites the two.
         """
         if isinstance(channels, str):
             channels = [channels]
@@ -381,7 +391,18 @@ class Device:
             raise _invalid(f"background {background!r} is not r, g, b")
         cb = _progress(progress, len(cameras), "cameras")
         return self._native.render(
-            scene._native, cameras._native, names, bg, sh_degree, int(tile), cb, surface_depth=bool(surface_depth)
+            scene._native,
+            cameras._native,
+            names,
+            bg,
+            sh_degree,
+            int(tile),
+            cb,
+            surface_depth=bool(surface_depth),
+            host_depth=None if host_depth is None else np.ascontiguousarray(host_depth, dtype=np.float32),
+            depth_convention=str(depth_convention),
+            near=float(near),
+            far=float(far),
         )
 
     def relight(

@@ -32,6 +32,10 @@ class Device:
         tile: int = ...,
         progress: Optional[Callable[[int, int], Any]] = ...,
         surface_depth: bool = ...,
+        host_depth: Optional[np.ndarray] = ...,
+        depth_convention: str = ...,
+        near: float = ...,
+        far: float = ...,
     ) -> Dict[str, np.ndarray]: ...
     def relight(
         self,

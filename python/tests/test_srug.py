@@ -452,3 +452,27 @@ def test_surface_depth_moves_depths_only(dev, city):
     with pytest.raises(srug.Error) as e:
         dev.relight(scene, cam, sun=(260.0, 50.0), shadow_fit="tight")
     assert "scene or view" in str(e.value)
+
+
+def test_host_depth_hides_the_splats_behind_your_meshes(dev, city):
+    """A mesh 5 m away over the left half of the frame hides the splats there;
+    the right half, where the host has nothing, is unchanged; the Vulkan
+    encoding of the same depth gives the same frame; bad shapes and
+    conventions raise."""
+    scene, cams = city
+    cam = cams[:1].resized(176, 48)
+    open_ = dev.render(scene, cam, channels=["rgb"])
+    depth = np.zeros((48, 176), np.float32)
+    depth[:, :88] = 5.0
+    hidden = dev.render(scene, cam, channels=["rgb"], host_depth=depth)
+    assert (hidden["alpha"][0, :, :88] + 0.05 < open_["alpha"][0, :, :88]).mean() > 0.5
+    assert np.array_equal(hidden["alpha"][0, :, 88:], open_["alpha"][0, :, 88:])
+    near, far = 0.1, 500.0
+    vulkan = np.where(depth > 0, far / (far - near) * (1 - near / np.maximum(depth, 1e-9)), 1.0).astype(np.float32)
+    same = dev.render(scene, cam, channels=["rgb"], host_depth=vulkan[None], depth_convention="vulkan", near=near, far=far)
+    assert np.array_equal(same["alpha"], hidden["alpha"])
+    with pytest.raises(srug.Error) as e:
+        dev.render(scene, cam, channels=["rgb"], host_depth=depth[:, :10])
+    assert "host_depth of shape" in str(e.value)
+    with pytest.raises(srug.Error):
+        dev.render(scene, cam, channels=["rgb"], host_depth=depth, depth_convention="opengl")
