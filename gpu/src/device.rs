@@ -242,19 +242,7 @@ impl Device {
         let debug = match &log_box {
             Some(log) => {
                 let user = std::ptr::from_ref::<ValidationLog>(log).cast_mut().cast::<c_void>();
-                let info = vk::DebugUtilsMessengerCreateInfoEXT::default()
-                    .message_severity(
-                        vk::DebugUtilsMessageSeverityFlagsEXT::WARNING
-                            | vk::DebugUtilsMessageSeverityFlagsEXT::ERROR
-                            | vk::DebugUtilsMessageSeverityFlagsEXT::INFO,
-                    )
-                    .message_type(
-                        vk::DebugUtilsMessageTypeFlagsEXT::GENERAL
-                            | vk::DebugUtilsMessageTypeFlagsEXT::VALIDATION
-                            | vk::DebugUtilsMessageTypeFlagsEXT::PERFORMANCE,
-                    )
-                    .pfn_user_callback(Some(on_validation_message))
-                    .user_data(user);
+                let info = messenger_create_info(user);
                 let loader = ash::ext::debug_utils::Instance::new(&entry, &instance);
                 // SAFETY: valid create info; the log outlives the messenger (both live in Shared).
                 let messenger = unsafe { loader.create_debug_utils_messenger(&info, None) }.map_err(|e| {
@@ -266,14 +254,7 @@ impl Device {
             }
             None => None,
         };
-        let allocator = Allocator::new(&AllocatorCreateDesc {
-            instance: instance.clone(),
-            device: device.clone(),
-            physical_device,
-            debug_settings: Default::default(),
-            buffer_device_address: true,
-            allocation_sizes: Default::default(),
-        });
+        let allocator = new_allocator(&instance, &device, physical_device);
         let allocator = match allocator {
             Ok(a) => a,
             Err(e) => {
@@ -287,23 +268,18 @@ impl Device {
         // SAFETY: the caller vouches that the family has this queue.
         let queue = unsafe { device.get_device_queue(queue_family, queue_index) };
         log::info!("srug on the host's device: {} ({:?}), driver {}", info.name, info.device_type, info.driver);
-        let shared = Arc::new(Shared {
-            _entry: entry,
+        Ok(Self::assemble(Parts {
+            entry,
             instance,
             debug,
             validation_log: log_box,
             device,
             owns_device: false,
-            queue: Mutex::new(queue),
+            queue,
             queue_family,
-            allocator: Mutex::new(ManuallyDrop::new(allocator)),
-            tracker: Mutex::new(Tracker::default()),
+            allocator,
             info,
-            current_bytes: AtomicU64::new(0),
-            peak_bytes: AtomicU64::new(0),
-            kernel_cache: Mutex::new(HashMap::new()),
-        });
-        Ok(Self { _cache_owner: Arc::new(CacheOwner(shared.clone())), shared })
+        }))
     }
 
     /// Whether srug created this device (false for [`Device::from_raw`]).
@@ -372,19 +348,7 @@ impl Device {
         let user_ptr = log_box
             .as_ref()
             .map_or(std::ptr::null_mut(), |b| std::ptr::from_ref::<ValidationLog>(b).cast_mut().cast::<c_void>());
-        let mut messenger_info = vk::DebugUtilsMessengerCreateInfoEXT::default()
-            .message_severity(
-                vk::DebugUtilsMessageSeverityFlagsEXT::WARNING
-                    | vk::DebugUtilsMessageSeverityFlagsEXT::ERROR
-                    | vk::DebugUtilsMessageSeverityFlagsEXT::INFO,
-            )
-            .message_type(
-                vk::DebugUtilsMessageTypeFlagsEXT::GENERAL
-                    | vk::DebugUtilsMessageTypeFlagsEXT::VALIDATION
-                    | vk::DebugUtilsMessageTypeFlagsEXT::PERFORMANCE,
-            )
-            .pfn_user_callback(Some(on_validation_message))
-            .user_data(user_ptr);
+        let mut messenger_info = messenger_create_info(user_ptr);
         let enabled_features = [vk::ValidationFeatureEnableEXT::SYNCHRONIZATION_VALIDATION];
         let mut validation_features =
             vk::ValidationFeaturesEXT::default().enabled_validation_features(&enabled_features);
@@ -436,14 +400,7 @@ impl Device {
                 return Err(e);
             }
         };
-        let allocator = Allocator::new(&AllocatorCreateDesc {
-            instance: instance.clone(),
-            device: device.clone(),
-            physical_device: physical,
-            debug_settings: Default::default(),
-            buffer_device_address: true,
-            allocation_sizes: Default::default(),
-        });
+        let allocator = new_allocator(&instance, &device, physical);
         let allocator = match allocator {
             Ok(a) => a,
             Err(e) => {
@@ -466,23 +423,18 @@ impl Device {
             info.api_version,
             if validation { "on (with synchronization validation)" } else { "off" }
         );
-        let shared = Arc::new(Shared {
-            _entry: entry,
+        Ok(Self::assemble(Parts {
+            entry,
             instance,
             debug,
             validation_log: log_box,
             device,
             owns_device: true,
-            queue: Mutex::new(queue),
+            queue,
             queue_family,
-            allocator: Mutex::new(ManuallyDrop::new(allocator)),
-            tracker: Mutex::new(Tracker::default()),
+            allocator,
             info,
-            current_bytes: AtomicU64::new(0),
-            peak_bytes: AtomicU64::new(0),
-            kernel_cache: Mutex::new(HashMap::new()),
-        });
-        Ok(Self { _cache_owner: Arc::new(CacheOwner(shared.clone())), shared })
+        }))
     }
 
     /// What the device is and can do.
@@ -533,6 +485,76 @@ impl Device {
         let last = lock(&self.shared.tracker).submitted;
         self.shared.maintain(Some(last))
     }
+}
+
+/// What a [`Device`] is made of, from [`Device::new`] or [`Device::from_raw`].
+struct Parts {
+    entry: ash::Entry,
+    instance: ash::Instance,
+    debug: Option<(ash::ext::debug_utils::Instance, vk::DebugUtilsMessengerEXT)>,
+    validation_log: Option<Box<ValidationLog>>,
+    device: ash::Device,
+    owns_device: bool,
+    queue: vk::Queue,
+    queue_family: u32,
+    allocator: Allocator,
+    info: DeviceInfo,
+}
+
+impl Device {
+    fn assemble(p: Parts) -> Self {
+        let shared = Arc::new(Shared {
+            _entry: p.entry,
+            instance: p.instance,
+            debug: p.debug,
+            validation_log: p.validation_log,
+            device: p.device,
+            owns_device: p.owns_device,
+            queue: Mutex::new(p.queue),
+            queue_family: p.queue_family,
+            allocator: Mutex::new(ManuallyDrop::new(p.allocator)),
+            tracker: Mutex::new(Tracker::default()),
+            info: p.info,
+            current_bytes: AtomicU64::new(0),
+            peak_bytes: AtomicU64::new(0),
+            kernel_cache: Mutex::new(HashMap::new()),
+        });
+        Self { _cache_owner: Arc::new(CacheOwner(shared.clone())), shared }
+    }
+}
+
+/// The debug messenger srug listens with: warnings, errors and info of every
+/// type, into the [`ValidationLog`] at `user`.
+fn messenger_create_info(user: *mut c_void) -> vk::DebugUtilsMessengerCreateInfoEXT<'static> {
+    vk::DebugUtilsMessengerCreateInfoEXT::default()
+        .message_severity(
+            vk::DebugUtilsMessageSeverityFlagsEXT::WARNING
+                | vk::DebugUtilsMessageSeverityFlagsEXT::ERROR
+                | vk::DebugUtilsMessageSeverityFlagsEXT::INFO,
+        )
+        .message_type(
+            vk::DebugUtilsMessageTypeFlagsEXT::GENERAL
+                | vk::DebugUtilsMessageTypeFlagsEXT::VALIDATION
+                | vk::DebugUtilsMessageTypeFlagsEXT::PERFORMANCE,
+        )
+        .pfn_user_callback(Some(on_validation_message))
+        .user_data(user)
+}
+
+/// srug's memory allocator on `device` (buffer device addresses on).
+fn new_allocator(
+    instance: &ash::Instance,
+    device: &ash::Device,
+    physical_device: vk::PhysicalDevice,
+) -> std::result::Result<Allocator, gpu_allocator::AllocationError> {
+    Allocator::new(&AllocatorCreateDesc {
+        instance: instance.clone(),
+        device: device.clone(),
+        physical_device,
+        debug_settings: Default::default(),
+        buffer_device_address: true,
+        allocation_sizes: Default::default(),
+    })
 }
 
 /// Destroys the instance if device creation fails half-way.
