@@ -276,7 +276,7 @@ impl Device {
 }
 
 /// A run of `elements` elements of `buffer` starting `offset` bytes in, bound
-/// to a `samplerBuffer` through a texel-buffer view that the recording makes
+/// to a `textureBuffer` through a texel-buffer view that the recording makes
 /// (and destroys once its submission has finished). The offset must be a
 /// multiple of the device's `minTexelBufferOffsetAlignment`, and `elements`
 /// at most `maxTexelBufferElements`.

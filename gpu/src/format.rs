@@ -3,20 +3,20 @@
 use ash::vk;
 
 /// Element formats of texel-buffer views: what `texelFetch` on a
-/// `samplerBuffer` converts to float, or a `usamplerBuffer` returns as uints.
+/// `textureBuffer` converts to float, or a `utextureBuffer` returns as uints.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum TexelFormat {
     /// 32-bit float.
     R32Float,
     /// 16-bit float (widened to fp32 by the fetch; no 16-bit storage feature needed).
     R16Float,
-    /// 32-bit unsigned integer (`usamplerBuffer`).
+    /// 32-bit unsigned integer (`utextureBuffer`).
     R32Uint,
-    /// Two 32-bit unsigned integers (`usamplerBuffer`, `.xy`), e.g. a 64-bit key as (low, high).
+    /// Two 32-bit unsigned integers (`utextureBuffer`, `.xy`), e.g. a 64-bit key as (low, high).
     Rg32Uint,
-    /// Four 32-bit floats (`samplerBuffer`, a `vec4` per element).
+    /// Four 32-bit floats (`textureBuffer`, a `vec4` per element).
     Rgba32Float,
-    /// Four 16-bit floats (`samplerBuffer`, widened to a `vec4` per element).
+    /// Four 16-bit floats (`textureBuffer`, widened to a `vec4` per element).
     Rgba16Float,
 }
 

@@ -17,7 +17,7 @@
 //! - **Large buffers.** Descriptor bindings are limited to
 //!   `maxStorageBufferRange` (128 MiB on lavapipe); larger data is reached by
 //!   device address (`shaders/include/address.glsl`).
-//! - **Texel buffers.** A kernel may read a buffer through a `samplerBuffer`
+//! - **Texel buffers.** A kernel may read a buffer through a `textureBuffer`
 //!   ([`Texels`], bound with [`Recording::dispatch`]); the recording makes
 //!   the view and checks `maxTexelBufferElements` and the offset alignment.
 //!   On lavapipe a `texelFetch` with per-lane indices is a vector gather, while

@@ -32,7 +32,7 @@ const DESCRIPTORS_PER_POOL: u32 = 512;
 pub enum Binding<'a> {
     /// A storage or uniform buffer, bound whole.
     Buffer(&'a Buffer),
-    /// Elements of a buffer seen through a texel-buffer view (`samplerBuffer`).
+    /// Elements of a buffer seen through a texel-buffer view (`textureBuffer`).
     Texels(Texels<'a>),
 }
 
@@ -499,7 +499,7 @@ impl<'a> Recording<'a> {
                 Binding::Buffer(b) => {
                     self.check_device(b)?;
                     if texel_kind {
-                        return Err(err(format!("binding {i} is a samplerBuffer; buffer {} given", b.name())));
+                        return Err(err(format!("binding {i} is a texel buffer; buffer {} given", b.name())));
                     }
                     if b.size().max(4) > max_range {
                         return Err(err(format!(

@@ -395,7 +395,7 @@ fn texel_buffer_views() {
     assert_eq!(
         kernels::CORE_TEXEL_COPY.bindings[0].kind,
         BindingKind::UniformTexelBuffer,
-        "the build script reflects samplerBuffer"
+        "the build script reflects textureBuffer"
     );
     let decl = KernelDecl {
         bindings: &[BindingKind::UniformTexelBuffer, BindingKind::StorageBuffer { read_only: false }],
@@ -457,7 +457,7 @@ fn texel_buffer_views() {
         "maxTexelBufferElements",
     );
     expect(&[Binding::Texels(view(0, buffer.size() / 4 + 1)), Binding::Buffer(&out)], "overrun");
-    expect(&[Binding::Buffer(buffer), Binding::Buffer(&out)], "samplerBuffer");
+    expect(&[Binding::Buffer(buffer), Binding::Buffer(&out)], "is a texel buffer");
     expect(&[Binding::Texels(view(0, 4)), Binding::Texels(view(0, 4))], "buffer block");
     assert_no_validation_messages(&d);
 }
