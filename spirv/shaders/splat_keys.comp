@@ -5,7 +5,9 @@
 // ids are also kept in emission order (pair tiles) for the backward pass.
 // With ELLIPSE_TILES only the tiles of `tile_row_span` get pairs, as the
 // preprocess counted them. Columns x ≥ tiles_x (a full equirectangular
-// panorama) are column x − tiles_x. Should this compilation of it find fewer (f32
+// panorama) are column x − tiles_x. With ROW_MASKS the key's top TILE bits,
+// above every bit the sort orders (the host checks they are free), carry
+// `tile_row_mask`: which of the tile's rows the splat reaches. Should this compilation of it find fewer (f32
 // rounding at the widened bound), the rest get the key (tiles, ~0): they sort
 // last and belong to no tile; it never writes past the count.
 #define WORKGROUP_SIZE_X 64
@@ -15,6 +17,7 @@
 layout(constant_id = 1) const bool ELLIPSE_TILES = false;
 // Tile edge in pixels (engine/src/splat/mod.rs `TILE_SPEC_IDS`).
 layout(constant_id = 15) const uint TILE = 16u;
+layout(constant_id = 2) const bool ROW_MASKS = false;
 
 void main() {
     uint i = linear_index();
@@ -31,9 +34,10 @@ void main() {
     bool wraps = s.rect.z > frame.size.z;
     for (uint y = s.rect.y; y < s.rect.w; y++) {
         uvec2 span = ELLIPSE_TILES && !wraps ? tile_row_span(e, s.head.xy, s.rect, y, TILE) : s.rect.xz;
+        uint rows = ROW_MASKS ? tile_row_mask(e, s.head.y, y, TILE) << (32u - TILE) : 0u;
         for (uint x = span.x; x < span.y && offset < end; x++) {
             uint tile = y * frame.size.z + (x < frame.size.z ? x : x - frame.size.z);
-            keys.v[offset] = uvec2(depth_bits, tile);
+            keys.v[offset] = uvec2(depth_bits, tile | rows);
             values.v[offset] = i;
             pair_tiles.v[offset] = tile;
             offset++;

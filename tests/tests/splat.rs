@@ -345,6 +345,70 @@ fn every_tile_size_matches_cpu_twin_in_every_variant() {
     assert_no_validation_messages(&d);
 }
 
+/// Every channel's bits, for exact comparisons.
+fn gbuffer_bits(g: &GBuffer) -> Vec<u32> {
+    let mut bits: Vec<u32> = g.alpha.iter().map(|v| v.to_bits()).collect();
+    bits.extend(g.rgb.iter().flatten().map(|v| v.to_bits()));
+    for (_, values) in g.channels.iter() {
+        bits.extend(values.iter().map(|v| v.to_bits()));
+    }
+    bits.extend(g.top_gaussian.iter().flatten());
+    bits
+}
+
+#[test]
+fn row_skipping_blend_is_bit_identical_to_reading_every_splat() {
+    // The texel blend skips a splat for a subgroup whose rows its α ≥ 1/255
+    // ellipse misses (row masks in the keys); the device-address blend reads
+    // every splat of the tile. Same arithmetic in the same order, so any
+    // wrongly skipped splat changes some bit. Elongated, rotated splats of
+    // every size (random scenes) and the demo street; tiles of 8 and 16 carry
+    // row masks at these sizes, 32 has no room for them in the key.
+    let d = device();
+    if !d.info().subgroup_ballot {
+        eprintln!("skipping: the texel blend needs subgroup ballot");
+        return;
+    }
+    let mut splatter = Splatter::new(&d).unwrap();
+    let city = demo_city(&DemoOptions { seed: 7, gaussians: 30_000, sh_degree: 1 }).unwrap();
+    let street = (city.scene.clone(), city.cameras[1].resized(203, 77));
+    let random = random_scene(6000, 1, 91, 2.0);
+    let close = Camera::look_at(Vec3::new(0.0, -4.0, 0.3), Vec3::ZERO, Vec3::Z, 80.0, 190, 110).unwrap();
+    // The random scene has no materials: the channels it has.
+    let geometric =
+        Channels { depth: true, median_depth: true, normal: true, top_gaussian: true, ..Channels::default() };
+    let mut checked_with_masks = 0;
+    for (name, (scene, cam), channels) in
+        [("street", street, all_settings().channels), ("random", (random, close), geometric)]
+    {
+        let gpu_scene = GpuScene::upload(&d, &scene).unwrap();
+        for tile in TILE_SIZES {
+            let settings = SplatSettings { tile, channels, ..all_settings() };
+            splatter.set_texel_blend(false).unwrap();
+            let (everything, all_stats) = splatter.render(&gpu_scene, &cam, &settings).unwrap();
+            assert!(!all_stats.row_masks, "{name} tile {tile}: only the texel blend skips rows");
+            let everything = gbuffer_bits(&everything.read(&d).unwrap());
+            splatter.set_texel_blend(true).unwrap();
+            for pixels in BLEND_PIXELS {
+                splatter.set_blend_pixels(pixels).unwrap();
+                let (skipping, stats) = splatter.render(&gpu_scene, &cam, &settings).unwrap();
+                assert_eq!(
+                    stats.row_masks,
+                    tile < 32,
+                    "{name} tile {tile}: row masks fit the key below 32-pixel tiles"
+                );
+                checked_with_masks += usize::from(stats.row_masks);
+                let skipping = gbuffer_bits(&skipping.read(&d).unwrap());
+                let differ = everything.iter().zip(&skipping).filter(|(a, b)| a != b).count();
+                assert_eq!(differ, 0, "{name} tile {tile}, {pixels} pixels per invocation: {differ} values differ");
+            }
+        }
+    }
+    assert_eq!(checked_with_masks, 2 * 2 * BLEND_PIXELS.len());
+    splatter.set_blend_pixels(default_blend_pixels(d.info())).unwrap();
+    assert_no_validation_messages(&d);
+}
+
 #[test]
 fn random_scenes_match_cpu_twin() {
     let d = device();

@@ -27,6 +27,9 @@ pub struct SplatStats {
     pub key_bits: u32,
     /// GPU bytes of per-frame working memory (splats, features, keys, sort scratch, ranges).
     pub working_bytes: u64,
+    /// Whether the blend skipped splats for the rows of a tile they cannot
+    /// reach (the texel blend, where each key has room for its tile's rows).
+    pub row_masks: bool,
 }
 
 /// One rendered frame with the per-frame buffers later stages walk again:
@@ -82,7 +85,6 @@ impl SplatFrame {
 /// first use) and the sort's scratch memory, reused across frames.
 pub struct Splatter {
     pub(super) device: Device,
-    ranges: Arc<Kernel>,
     blend_variant: BlendVariant,
     texel_blend: bool,
     texel_preprocess: bool,
@@ -96,7 +98,6 @@ impl Splatter {
     pub fn new(device: &Device) -> Result<Self> {
         Ok(Self {
             device: device.clone(),
-            ranges: device.kernel(&kernels::SPLAT_RANGES, &KernelDecl::uniform(&[]))?,
             blend_variant: if device.info().subgroup_ballot {
                 BlendVariant::SubgroupLoads
             } else {
@@ -193,6 +194,7 @@ impl Splatter {
         wrap_x: bool,
         surface: bool,
         occluded: bool,
+        row_masks: bool,
     ) -> Result<Arc<Kernel>> {
         let pixels = if texel { self.blend_pixels } else { 1 };
         let info = match (self.blend_variant, texel) {
@@ -216,13 +218,16 @@ impl Splatter {
         if occluded {
             spec.push((5, SpecValue::Bool(true)));
         }
+        if row_masks {
+            spec.push((6, SpecValue::Bool(true)));
+        }
         if texel {
             // PIXELS per invocation along x: TILE / PIXELS invocations across.
             spec[1].1 = SpecValue::U32(tile / pixels);
             spec.push((2, SpecValue::U32(pixels)));
-            // The frame; splats, features and sorted indices as texel-buffer views.
+            // The frame; splats, features, sorted indices and pair row masks as texel-buffer views.
             let mut bindings = vec![BindingKind::UniformBuffer];
-            bindings.extend([BindingKind::UniformTexelBuffer; 3]);
+            bindings.extend([BindingKind::UniformTexelBuffer; 4]);
             Ok(self
                 .device
                 .kernel(info, &KernelDecl { bindings: &bindings, push_constant_size: 0, specialization: &spec })?)
@@ -412,14 +417,21 @@ impl Splatter {
         frame.counts[3] = pairs as u32;
         // Tile ids 0..=tiles: `tiles` marks the keys kernel's padding (splat_keys.comp).
         let key_bits = 32 + (64 - tiles.leading_zeros());
-        let keys_kernel =
-            device.kernel(&kernels::SPLAT_KEYS, &KernelDecl::uniform(&[(1, ellipse), tile_spec(tile)[0]]))?;
         // Texel-buffer reads where the device has RGBA32F/R32UI views and the splats and pairs fit them.
         let texel = self.texel_blend
             && self.blend_variant == BlendVariant::SubgroupLoads
             && n > 0
             && 4 * n <= max_texels
-            && pairs <= max_texels;
+            && 2 * pairs <= max_texels;
+        // The texel blend skips a splat for the rows of its tile it cannot
+        // reach: each key's high word carries those rows above the tile id
+        // where both fit (splat_keys.comp).
+        let row_masks = texel && key_bits - 32 + tile <= 32;
+        let row_spec = (2, SpecValue::Bool(row_masks));
+        let keys_kernel =
+            device.kernel(&kernels::SPLAT_KEYS, &KernelDecl::uniform(&[(1, ellipse), tile_spec(tile)[0], row_spec]))?;
+        let ranges_kernel =
+            device.kernel(&kernels::SPLAT_RANGES, &KernelDecl::uniform(&[tile_spec(tile)[0], row_spec]))?;
         let blend = self.blend_kernel(
             ch.blend_bits(settings.rgb),
             tile,
@@ -427,8 +439,9 @@ impl Splatter {
             camera.wrap_period().is_some(),
             settings.surface_depth,
             occluder.is_some(),
+            row_masks,
         )?;
-        let (sort, keys_kernel, ranges_kernel, blend) = (&self.sort, &*keys_kernel, &*self.ranges, &*blend);
+        let (sort, keys_kernel, ranges_kernel, blend) = (&self.sort, &*keys_kernel, &*ranges_kernel, &*blend);
         let outputs: Vec<&Buffer> = [&out.alpha]
             .into_iter()
             .chain(out.rgb.as_ref())
@@ -485,6 +498,12 @@ impl Splatter {
                             elements: pairs,
                             format: TexelFormat::R32Uint,
                         }),
+                        Binding::Texels(Texels {
+                            buffer: &keys,
+                            offset: 0,
+                            elements: 2 * pairs,
+                            format: TexelFormat::R32Uint,
+                        }),
                     ],
                     &(),
                 )?;
@@ -506,7 +525,7 @@ impl Splatter {
             + self.scan.scratch_bytes();
         Ok(SplatFrame {
             gbuffer: out,
-            stats: SplatStats { timings, pairs, key_bits, working_bytes },
+            stats: SplatStats { timings, pairs, key_bits, working_bytes, row_masks },
             camera: camera.clone(),
             splats,
             pair_offsets: tile_counts,

@@ -9,10 +9,14 @@
 //!    (reading the scene through R32F texel-buffer views where the device has
 //!    them: [`Splatter::texel_preprocess`]);
 //! 2. **scan** of per-Gaussian tile counts, then **keys**: one
-//!    `tile << 32 | depth bits` key per (Gaussian, tile) counted;
+//!    `tile << 32 | depth bits` key per (Gaussian, tile) counted (for the
+//!    texel blend, where the key has room, its top bits also say which of the
+//!    tile's rows the splat reaches: [`SplatStats::row_masks`]);
 //! 3. **sort**: the stable radix sort over the bits in use only;
 //! 4. **ranges**: each tile's slice of the sorted pairs;
-//! 5. **blend**: per-pixel front-to-back blending into the requested channels.
+//! 5. **blend**: per-pixel front-to-back blending into the requested channels
+//!    (a subgroup skips the splats that reach none of its rows: exact, the
+//!    same bits as reading every splat).
 //!
 //! Conventions follow the INRIA and gsplat rasterizers (docs/conventions.md §3): pixel
 //! centres at +0.5, α = min(0.99, o·exp(−σ)), skip α < 1/255, stop when

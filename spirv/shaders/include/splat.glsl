@@ -94,4 +94,21 @@ uvec2 tile_row_span(TileEllipse e, vec2 mean, uvec4 rect, uint ty, uint tile) {
     return uvec2(x0, x1);
 }
 
+// The rows of tile row `ty` (bit r: the tile's row r; `tile` ≤ 32) whose
+// pixel centres lie within the splat's α ≥ 1/255 ellipse's height (`e` from
+// `tile_ellipse`, widened, and 0.01 px more): the texel blend skips a splat
+// for rows outside (splat_keys.comp stores them with each pair). Every row
+// where Q is too ill-conditioned for f32.
+uint tile_row_mask(TileEllipse e, float mean_y, uint ty, uint tile) {
+    if (!(e.r2 > 0.0)) return 0u;
+    uint all_rows = tile >= 32u ? ~0u : (1u << tile) - 1u;
+    if (!(e.det > 0.0)) return all_rows;
+    float top = float(ty * tile);
+    float lo = ceil(mean_y - e.y_max - top - 0.5 - 0.01);
+    float hi = floor(mean_y + e.y_max - top - 0.5 + 0.01);
+    if (!(lo <= hi) || hi < 0.0 || lo > float(tile) - 1.0) return 0u;
+    uint r0 = uint(max(lo, 0.0)), r1 = uint(min(hi, float(tile) - 1.0));
+    return (r1 >= 31u ? ~0u : (1u << (r1 + 1u)) - 1u) & ~((1u << r0) - 1u);
+}
+
 #endif

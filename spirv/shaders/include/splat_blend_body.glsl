@@ -17,6 +17,8 @@ layout(constant_id = 4) const bool SURFACE_DEPTH = false;
 // The host's depth per pixel hides the splats behind it (compositing with a
 // host's meshes; frame.occluder gives its convention).
 layout(constant_id = 5) const bool OCCLUDED = false;
+// The texel blend: each sorted key carries the rows its splat reaches (splat_keys.comp).
+layout(constant_id = 6) const bool ROW_MASKS = false;
 // Without rgb (shadow maps) no colour is read, blended or stored.
 const bool RGB = (CHANNELS & 256u) != 0u;
 // The index of the splat with the largest weight wᵢ = αᵢ Tᵢ (the first of equal ones), per pixel.
@@ -33,6 +35,9 @@ layout(set = 0, binding = 1) uniform textureBuffer splat_texels;
 layout(set = 0, binding = 2) uniform textureBuffer feature_texels;
 // The sorted splat indices (R32UI), the tile's list.
 layout(set = 0, binding = 3) uniform utextureBuffer value_texels;
+// The sorted keys (R32UI, two words per pair): with ROW_MASKS the high
+// word's top TILE bits are the rows of its tile the pair's splat reaches.
+layout(set = 0, binding = 4) uniform utextureBuffer key_texels;
 #define SPLAT_COLOR(g) texelFetch(splat_texels, int(4u * (g) + 2u)).rgb
 #define SPLAT_SLOPE_BITS(g) texelFetch(splat_texels, int(4u * (g) + 2u)).w
 #define FEATURE(i) texelFetch(feature_texels, int(i))
@@ -221,14 +226,30 @@ void main() {
         limit[k] = live[k] ? occluder_z(pix) : 0.0;
         any_live = any_live || live[k];
     }
+    // The tile rows this invocation's subgroup covers, as a mask (assuming
+    // subgroups of consecutive invocations, as implementations form them; its
+    // own row is always in, so a wrong guess costs speed, never pixels): a
+    // splat whose row mask (ROW_MASKS) misses them is skipped.
+    uint first = gl_SubgroupID * gl_SubgroupSize;
+    uint last = min(first + gl_SubgroupSize, gl_WorkGroupSize.x * gl_WorkGroupSize.y) - 1u;
+    uint first_row = first / gl_WorkGroupSize.x, last_row = last / gl_WorkGroupSize.x;
+    uint rows = (last_row >= 31u ? ~0u : (1u << (last_row + 1u)) - 1u) & ~((1u << first_row) - 1u);
+    rows |= 1u << gl_LocalInvocationID.y;
     // Straight-line body: lavapipe predicates every branch (both sides of an
-    // `if` always run under a mask, only loop exits jump), so the loop has no
-    // `if` and no `continue`; updates are selects, colour is fetched always.
-    for (uint j = range.x; j < range.y && any_live; j++) {
+    // `if` always run under a mask, only loop exits jump), so the blending has
+    // no `if` and no `continue`; updates are selects, colour is fetched always.
+    // Skipping splats is a loop of its own for the same reason.
+    uint j = range.x;
+    while (any_live) {
+        for (; j < range.y; j++) {
+            if (!ROW_MASKS || ((texelFetch(key_texels, int(2u * j + 1u)).x >> (32u - TILE)) & rows) != 0u) break;
+        }
+        if (j >= range.y) break;
         // Every lane fetches the same texels: one vector gather each, no election or broadcast.
         uint g = texelFetch(value_texels, int(j)).x;
         vec4 head = texelFetch(splat_texels, int(4u * g));
         vec4 conic = texelFetch(splat_texels, int(4u * g + 1u));
+        j++;
         Contribution c = splat_contribution(g);
         vec2 slope = splat_slope(g);
         any_live = false;
