@@ -32,6 +32,24 @@ pub struct SplatStats {
     pub row_masks: bool,
 }
 
+/// What selects a blend kernel: its channel bits, tile edge, and which
+/// specialization each of its options takes.
+#[derive(Clone, Copy, Debug)]
+struct BlendOptions {
+    bits: u32,
+    tile: u32,
+    /// The texel-buffer reads (`splat_blend_texel.comp`).
+    texel: bool,
+    /// A full panorama: offsets wrap along x.
+    wrap_x: bool,
+    /// Surface depth.
+    surface: bool,
+    /// A host's depth hides splats.
+    occluded: bool,
+    /// Row masks in the keys (texel blend only).
+    row_masks: bool,
+}
+
 /// One rendered frame with the per-frame buffers later stages walk again:
 /// the traced shadow reference and the backward pass read the projected
 /// splats, the sorted pair list and the per-tile ranges.
@@ -184,18 +202,9 @@ impl Splatter {
         Ok(())
     }
 
-    /// The blend kernel for channel bits `bits`, `tile` and the texel path,
-    /// from the device's kernel cache.
-    fn blend_kernel(
-        &self,
-        bits: u32,
-        tile: u32,
-        texel: bool,
-        wrap_x: bool,
-        surface: bool,
-        occluded: bool,
-        row_masks: bool,
-    ) -> Result<Arc<Kernel>> {
+    /// The blend kernel for `options`, from the device's kernel cache.
+    fn blend_kernel(&self, options: BlendOptions) -> Result<Arc<Kernel>> {
+        let BlendOptions { bits, tile, texel, wrap_x, surface, occluded, row_masks } = options;
         let pixels = if texel { self.blend_pixels } else { 1 };
         let info = match (self.blend_variant, texel) {
             (BlendVariant::PerPixel, _) => &kernels::SPLAT_BLEND_PORTABLE,
@@ -432,15 +441,15 @@ impl Splatter {
             device.kernel(&kernels::SPLAT_KEYS, &KernelDecl::uniform(&[(1, ellipse), tile_spec(tile)[0], row_spec]))?;
         let ranges_kernel =
             device.kernel(&kernels::SPLAT_RANGES, &KernelDecl::uniform(&[tile_spec(tile)[0], row_spec]))?;
-        let blend = self.blend_kernel(
-            ch.blend_bits(settings.rgb),
+        let blend = self.blend_kernel(BlendOptions {
+            bits: ch.blend_bits(settings.rgb),
             tile,
             texel,
-            camera.wrap_period().is_some(),
-            settings.surface_depth,
-            occluder.is_some(),
+            wrap_x: camera.wrap_period().is_some(),
+            surface: settings.surface_depth,
+            occluded: occluder.is_some(),
             row_masks,
-        )?;
+        })?;
         let (sort, keys_kernel, ranges_kernel, blend) = (&self.sort, &*keys_kernel, &*ranges_kernel, &*blend);
         let outputs: Vec<&Buffer> = [&out.alpha]
             .into_iter()
