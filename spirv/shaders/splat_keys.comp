@@ -1,15 +1,17 @@
 #version 460
 // Splatting stage 2b: one (key, value) pair per (Gaussian, tile) it covers,
-// written at the Gaussian's scanned offset. Key = tile << 32 | depth bits
-// (positive floats order like unsigned ints); value = Gaussian index. The tile
-// ids are also kept in emission order (pair tiles) for the backward pass.
-// With ELLIPSE_TILES only the tiles of `tile_row_span` get pairs, as the
-// preprocess counted them. Columns x ≥ tiles_x (a full equirectangular
-// panorama) are column x − tiles_x. With ROW_MASKS the key's top TILE bits,
-// above every bit the sort orders (the host checks they are free), carry
-// `tile_row_mask`: which of the tile's rows the splat reaches. Should this compilation of it find fewer (f32
-// rounding at the widened bound), the rest get the key (tiles, ~0): they sort
-// last and belong to no tile; it never writes past the count.
+// written at the Gaussian's scanned offset. Key = tile above DEPTH_BITS bits
+// of depth key (`pair_key`: the depth's float bits less the near plane's, so
+// the sort orders only bits that vary within [near, far]); value = Gaussian
+// index. The tile ids are also kept in emission order (pair tiles) for the
+// backward pass. With ELLIPSE_TILES only the tiles of `tile_row_span` get
+// pairs, as the preprocess counted them. Columns x ≥ tiles_x (a full
+// equirectangular panorama) are column x − tiles_x. With ROW_MASKS the key's
+// top TILE bits, above every bit the sort orders (the host checks they are
+// free), carry `tile_row_mask`: which of the tile's rows the splat reaches.
+// Should this compilation of it find fewer pairs (f32 rounding at the
+// widened bound), the rest get the key of tile `tiles` with every depth bit
+// set: they sort last and belong to no tile; it never writes past the count.
 #define WORKGROUP_SIZE_X 64
 #include "common.glsl"
 #include "splat.glsl"
@@ -18,6 +20,8 @@ layout(constant_id = 1) const bool ELLIPSE_TILES = false;
 // Tile edge in pixels (engine/src/splat/mod.rs `TILE_SPEC_IDS`).
 layout(constant_id = 15) const uint TILE = 16u;
 layout(constant_id = 2) const bool ROW_MASKS = false;
+// Depth key bits (1 to 32; 32 keeps the depth's float bits whole).
+layout(constant_id = 3) const uint DEPTH_BITS = 32u;
 
 void main() {
     uint i = linear_index();
@@ -25,7 +29,8 @@ void main() {
     Splat s = Splats(frame.splats).v[i];
     Uints offsets = Uints(frame.tile_counts);
     uint offset = offsets.v[i], end = offsets.v[i + 1u];
-    uint depth_bits = floatBitsToUint(s.head.z);
+    uint depth_key = floatBitsToUint(s.head.z) - (DEPTH_BITS < 32u ? floatBitsToUint(frame.clip.x) : 0u);
+    uint tiles = frame.size.z * frame.size.w;
     Uvec2s keys = Uvec2s(frame.keys);
     Uints values = Uints(frame.values);
     Uints pair_tiles = Uints(frame.pair_tiles);
@@ -37,15 +42,15 @@ void main() {
         uint rows = ROW_MASKS ? tile_row_mask(e, s.head.y, y, TILE) << (32u - TILE) : 0u;
         for (uint x = span.x; x < span.y && offset < end; x++) {
             uint tile = y * frame.size.z + (x < frame.size.z ? x : x - frame.size.z);
-            keys.v[offset] = uvec2(depth_bits, tile | rows);
+            keys.v[offset] = pair_key(tile, depth_key, DEPTH_BITS, rows);
             values.v[offset] = i;
             pair_tiles.v[offset] = tile;
             offset++;
         }
     }
     for (; offset < end; offset++) {
-        keys.v[offset] = uvec2(~0u, frame.size.z * frame.size.w);
+        keys.v[offset] = pair_key(tiles, DEPTH_BITS >= 32u ? ~0u : (1u << DEPTH_BITS) - 1u, DEPTH_BITS, 0u);
         values.v[offset] = i;
-        pair_tiles.v[offset] = frame.size.z * frame.size.w;
+        pair_tiles.v[offset] = tiles;
     }
 }

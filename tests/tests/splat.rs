@@ -421,6 +421,12 @@ fn random_scenes_match_cpu_twin() {
         let scene = random_scene(n, degree, n as u64, 2.0);
         let cam = Camera::look_at(Vec3::new(0.0, -6.0, 0.5), Vec3::ZERO, Vec3::Z, 70.0, w, h).unwrap();
         render_both(&d, &mut splatter, &scene, &cam, &settings, &format!("random_{n}"));
+        // Near and far planes tight around the scene: the depth key keeps only the bits
+        // between them (23 here, not the float's 32), and splats beyond them are culled.
+        assert_eq!(srug::splat::depth_key_bits(&cam), 28, "the default planes, 0.01 to 10⁴");
+        let tight = Camera { near: 4.5, far: 7.5, ..cam };
+        assert_eq!(srug::splat::depth_key_bits(&tight), 23);
+        render_both(&d, &mut splatter, &scene, &tight, &settings, &format!("random_{n}_tight_planes"));
     }
     assert_no_validation_messages(&d);
 }

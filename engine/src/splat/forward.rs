@@ -32,6 +32,19 @@ pub struct SplatStats {
     pub row_masks: bool,
 }
 
+/// Bits of the depth key (splat_keys.comp `pair_key`): every splat kept
+/// has near < depth < far, so its depth's float bits less the near plane's
+/// lie in [1, far bits − near bits) and only that many bits need sorting;
+/// 32 (the float bits whole) where the planes are not 0 < near < far < ∞.
+pub fn depth_key_bits(camera: &Camera) -> u32 {
+    let (near, far) = (camera.near, camera.far);
+    if !(near > 0.0 && far > near && far.is_finite()) {
+        return 32;
+    }
+    let span = far.to_bits() - near.to_bits();
+    (32 - span.leading_zeros()).max(1)
+}
+
 /// What selects a blend kernel: its channel bits, tile edge, and which
 /// specialization each of its options takes.
 #[derive(Clone, Copy, Debug)]
@@ -424,8 +437,9 @@ impl Splatter {
         let pair_tiles = device.create_buffer("pair tiles", pairs * 4, MemoryKind::Storage)?;
         self.sort.reserve(&device, pairs)?;
         frame.counts[3] = pairs as u32;
-        // Tile ids 0..=tiles: `tiles` marks the keys kernel's padding (splat_keys.comp).
-        let key_bits = 32 + (64 - tiles.leading_zeros());
+        // Tile ids 0..=tiles (`tiles` marks the keys kernel's padding) above the depth key.
+        let depth_bits = depth_key_bits(camera);
+        let key_bits = depth_bits + (64 - tiles.leading_zeros());
         // Texel-buffer reads where the device has RGBA32F/R32UI views and the splats and pairs fit them.
         let texel = self.texel_blend
             && self.blend_variant == BlendVariant::SubgroupLoads
@@ -435,12 +449,11 @@ impl Splatter {
         // The texel blend skips a splat for the rows of its tile it cannot
         // reach: each key's high word carries those rows above the tile id
         // where both fit (splat_keys.comp).
-        let row_masks = texel && key_bits - 32 + tile <= 32;
-        let row_spec = (2, SpecValue::Bool(row_masks));
-        let keys_kernel =
-            device.kernel(&kernels::SPLAT_KEYS, &KernelDecl::uniform(&[(1, ellipse), tile_spec(tile)[0], row_spec]))?;
-        let ranges_kernel =
-            device.kernel(&kernels::SPLAT_RANGES, &KernelDecl::uniform(&[tile_spec(tile)[0], row_spec]))?;
+        let row_masks = texel && key_bits + tile <= 64;
+        let depth_spec = (3, SpecValue::U32(depth_bits));
+        let keys_spec = [(1, ellipse), (2, SpecValue::Bool(row_masks)), depth_spec, tile_spec(tile)[0]];
+        let keys_kernel = device.kernel(&kernels::SPLAT_KEYS, &KernelDecl::uniform(&keys_spec))?;
+        let ranges_kernel = device.kernel(&kernels::SPLAT_RANGES, &KernelDecl::uniform(&[depth_spec]))?;
         let blend = self.blend_kernel(BlendOptions {
             bits: ch.blend_bits(settings.rgb),
             tile,

@@ -9,7 +9,9 @@
 //!    (reading the scene through R32F texel-buffer views where the device has
 //!    them: [`Splatter::texel_preprocess`]);
 //! 2. **scan** of per-Gaussian tile counts, then **keys**: one
-//!    `tile << 32 | depth bits` key per (Gaussian, tile) counted (for the
+//!    `tile << d | depth key` key per (Gaussian, tile) counted, the depth key
+//!    being the depth's float bits less the near plane's, `d` bits wide
+//!    ([`depth_key_bits`]: only the bits that vary between the planes) (for the
 //!    texel blend, where the key has room, its top bits also say which of the
 //!    tile's rows the splat reaches: [`SplatStats::row_masks`]);
 //! 3. **sort**: the stable radix sort over the bits in use only;

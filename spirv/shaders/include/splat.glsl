@@ -111,4 +111,22 @@ uint tile_row_mask(TileEllipse e, float mean_y, uint ty, uint tile) {
     return (r1 >= 31u ? ~0u : (1u << (r1 + 1u)) - 1u) & ~((1u << r0) - 1u);
 }
 
+// A (Gaussian, tile) pair's sort key, 64 bits as (low, high): the tile id
+// above `depth_bits` bits of depth key (the depth's float bits less the near
+// plane's: depth > near > 0, so they order like the depths), and `rows` (a
+// row mask already in place, or 0) in the high word's top bits, above every
+// bit the sort orders. Keep in sync with engine/src/splat/forward.rs
+// (`depth_key_bits`, the row-mask room check).
+uvec2 pair_key(uint tile, uint depth_key, uint depth_bits, uint rows) {
+    if (depth_bits >= 32u) return uvec2(depth_key, tile | rows);
+    return uvec2(depth_key | (tile << depth_bits), (tile >> (32u - depth_bits)) | rows);
+}
+
+// The tile id of a `pair_key` for an image of `tiles` tiles (ids 0..=tiles).
+uint pair_key_tile(uvec2 key, uint depth_bits, uint tiles) {
+    uint id = depth_bits >= 32u ? key.y : (key.x >> depth_bits) | (key.y << (32u - depth_bits));
+    uint bits = uint(findMSB(tiles)) + 1u;
+    return bits >= 32u ? id : id & ((1u << bits) - 1u);
+}
+
 #endif
