@@ -360,6 +360,14 @@ impl<'a> Recording<'a> {
         }
     }
 
+    /// Stages begun so far in this recording (each becomes one
+    /// [`StageTime`], in order, unless the recording ran out of timestamp
+    /// queries, in which case later stages are neither counted nor timed):
+    /// callers that record several frames split [`Timings`] at these marks.
+    pub fn stages_begun(&self) -> usize {
+        self.stages.len()
+    }
+
     /// Ends the open stage, if any.
     pub fn end_stage(&mut self) {
         if self.open_stage {

@@ -32,7 +32,7 @@ use srug::shade::{
 };
 use srug::shadow::backward::GpuVisibilityLoss;
 use srug::shadow::{ShadowMap, ShadowPass, ShadowSettings, Sun, VisibilityKind};
-use srug::splat::{Channel, Channels, SplatFrame, SplatSettings, Splatter};
+use srug::splat::{cameras_per_batch, Channel, Channels, SplatFrame, SplatSettings, Splatter, BATCH_BYTES};
 
 create_exception!(
     srug,
@@ -449,48 +449,57 @@ impl Device {
             let mut timings = Vec::with_capacity(n);
             let mut depth_scratch = if range && !wants_depth { vec![0.0f32; p] } else { Vec::new() };
             let result = (|| -> PyResult<()> {
-                for (i, cam) in cams.iter().enumerate() {
-                    let (g, stats) = match &host {
-                        None => splatter.render(&gpu_scene, cam, &settings).map_err(py_err)?,
+                // Without a host depth, cameras in batches: one submission per step for each.
+                let batch = cams
+                    .first()
+                    .map_or(1, |cam| cameras_per_batch(gpu_scene.count as u64, cam, &settings, BATCH_BYTES));
+                let mut i = 0;
+                while i < n {
+                    let frames = match &host {
+                        None => splatter.render_batch(&gpu_scene, &cams[i..(i + batch).min(n)], &settings),
                         Some((values, shared, convention)) => {
                             let slice = if *shared { &values[..] } else { &values[i * p..(i + 1) * p] };
                             let depth = device.upload("host depth", slice).map_err(|e| py_err(e.into()))?;
-                            let frame = splatter
-                                .render_frame_occluded(&gpu_scene, cam, &settings, &depth, *convention)
-                                .map_err(py_err)?;
-                            (frame.gbuffer, frame.stats)
-                        }
-                    };
-                    let d = &device;
-                    read_into(d, &g.alpha, outputs.slot_f32("alpha", i))?;
-                    if let Some(b) = &g.rgb {
-                        read_into(d, b, outputs.slot_f32("rgb", i))?;
-                    }
-                    for c in set.iter() {
-                        let Some(b) = g.get(c) else { continue };
-                        if c == Channel::Depth && !wants_depth {
-                            read_into(d, b, Some(&mut depth_scratch))?;
-                        } else {
-                            read_into(d, b, outputs.slot_f32(c.name(), i))?;
+                            splatter
+                                .render_frame_occluded(&gpu_scene, &cams[i], &settings, &depth, *convention)
+                                .map(|frame| vec![(frame.gbuffer, frame.stats)])
                         }
                     }
-                    if let (Some(b), Some(dst)) = (&g.top_gaussian, outputs.slot_u32("top_gaussian", i)) {
-                        d.read_buffer_into(b, dst).map_err(|e| py_err(e.into()))?;
-                    }
-                    if range {
-                        let depth: Vec<f32> = match outputs.slot_f32("depth", i) {
-                            Some(v) => v.to_vec(),
-                            None => depth_scratch.clone(),
-                        };
-                        if let Some(dst) = outputs.slot_f32("range", i) {
-                            for (px, (r, z)) in dst.iter_mut().zip(&depth).enumerate() {
-                                let centre = [(px % w as usize) as f64 + 0.5, (px / w as usize) as f64 + 0.5];
-                                *r = cam.ray_length_per_depth(centre).map_or(0.0, |s| (f64::from(*z) * s) as f32);
+                    .map_err(py_err)?;
+                    for (g, stats) in frames {
+                        let cam = &cams[i];
+                        let d = &device;
+                        read_into(d, &g.alpha, outputs.slot_f32("alpha", i))?;
+                        if let Some(b) = &g.rgb {
+                            read_into(d, b, outputs.slot_f32("rgb", i))?;
+                        }
+                        for c in set.iter() {
+                            let Some(b) = g.get(c) else { continue };
+                            if c == Channel::Depth && !wants_depth {
+                                read_into(d, b, Some(&mut depth_scratch))?;
+                            } else {
+                                read_into(d, b, outputs.slot_f32(c.name(), i))?;
                             }
                         }
+                        if let (Some(b), Some(dst)) = (&g.top_gaussian, outputs.slot_u32("top_gaussian", i)) {
+                            d.read_buffer_into(b, dst).map_err(|e| py_err(e.into()))?;
+                        }
+                        if range {
+                            let depth: Vec<f32> = match outputs.slot_f32("depth", i) {
+                                Some(v) => v.to_vec(),
+                                None => depth_scratch.clone(),
+                            };
+                            if let Some(dst) = outputs.slot_f32("range", i) {
+                                for (px, (r, z)) in dst.iter_mut().zip(&depth).enumerate() {
+                                    let centre = [(px % w as usize) as f64 + 0.5, (px / w as usize) as f64 + 0.5];
+                                    *r = cam.ray_length_per_depth(centre).map_or(0.0, |s| (f64::from(*z) * s) as f32);
+                                }
+                            }
+                        }
+                        timings.push(stats.timings.stages.iter().map(|s| (s.name.clone(), s.seconds * 1e3)).collect());
+                        report(progress, i + 1, n)?;
+                        i += 1;
                     }
-                    timings.push(stats.timings.stages.iter().map(|s| (s.name.clone(), s.seconds * 1e3)).collect());
-                    report(progress, i + 1, n)?;
                 }
                 Ok(())
             })();

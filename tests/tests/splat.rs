@@ -16,7 +16,7 @@ use srug::splat::cpu::{preprocess_one, render_cpu, tile_row_span, CpuSplat};
 use srug::splat::Channel;
 use srug::splat::{
     default_blend_pixels, BlendVariant, Channels, GBuffer, NormalSource, SplatSettings, Splatter, TileBounds,
-    BLEND_PIXELS, DEFAULT_TILE, TILE_SIZES,
+    BLEND_PIXELS, DEFAULT_TILE, FRAMES_PER_SUBMISSION, TILE_SIZES,
 };
 use srug_tests::{assert_no_validation_messages, device, psnr, random_scene, save_comparison, NAN_SENTINEL};
 
@@ -406,6 +406,50 @@ fn row_skipping_blend_is_bit_identical_to_reading_every_splat() {
     }
     assert_eq!(checked_with_masks, 2 * 2 * BLEND_PIXELS.len());
     splatter.set_blend_pixels(default_blend_pixels(d.info())).unwrap();
+    assert_no_validation_messages(&d);
+}
+
+#[test]
+fn a_batch_of_cameras_renders_the_same_bits_as_one_camera_at_a_time() {
+    // render_frames records many cameras per submission (preprocess and scan
+    // of all, one read of their pair counts, then every sort and blend); each
+    // frame must be exactly the frame render_frame gives for its camera alone,
+    // across more cameras than one submission takes, sizes mixed.
+    let d = device();
+    let mut splatter = Splatter::new(&d).unwrap();
+    let city = demo_city(&DemoOptions { seed: 7, gaussians: 20_000, sh_degree: 1 }).unwrap();
+    let gpu_scene = GpuScene::upload(&d, &city.scene).unwrap();
+    let count = FRAMES_PER_SUBMISSION + 3;
+    let cameras: Vec<Camera> = (0..count)
+        .map(|i| {
+            let base = &city.cameras[i % city.cameras.len()];
+            let size = if i % 2 == 0 { (88, 24) } else { (61, 37) };
+            let mut cam = base.resized(size.0, size.1);
+            cam.position += Vec3::new(0.4 * i as f32, 0.0, 0.0);
+            cam
+        })
+        .collect();
+    let settings = all_settings();
+    let batch = splatter.render_frames(&gpu_scene, &cameras, &settings).unwrap();
+    assert_eq!(batch.len(), count);
+    for (i, (frame, cam)) in batch.iter().zip(&cameras).enumerate() {
+        let alone = splatter.render_frame(&gpu_scene, cam, &settings).unwrap();
+        assert_eq!((frame.gbuffer.width, frame.gbuffer.height), (cam.width, cam.height), "camera {i}");
+        assert_eq!(frame.stats.pairs, alone.stats.pairs, "camera {i}: pairs");
+        assert!(frame.stats.pairs > 0, "camera {i} sees the street");
+        let (a, b) = (gbuffer_bits(&frame.gbuffer.read(&d).unwrap()), gbuffer_bits(&alone.gbuffer.read(&d).unwrap()));
+        assert!(a == b, "camera {i}: the batched frame differs from the one rendered alone");
+        let stages: Vec<&str> = frame.stats.timings.stages.iter().map(|s| s.name.as_str()).collect();
+        for stage in ["preprocess", "scan", "keys", "sort", "ranges", "blend"] {
+            assert_eq!(stages.iter().filter(|s| **s == stage).count(), 1, "camera {i}: {stage} in {stages:?}");
+        }
+    }
+    // Nothing to render is no work; one bad camera fails the whole call.
+    assert!(splatter.render_frames(&gpu_scene, &[], &settings).unwrap().is_empty());
+    let mut bad = cameras[..3].to_vec();
+    bad[1] = bad[1].resized(70_000, 70_000);
+    let text = splatter.render_frames(&gpu_scene, &bad, &settings).err().map(|e| e.to_string()).unwrap_or_default();
+    assert!(text.contains("image 70000x70000") && text.contains("too large"), "{text}");
     assert_no_validation_messages(&d);
 }
 

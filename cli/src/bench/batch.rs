@@ -17,7 +17,7 @@ use srug::scene::demo::{demo_city, DemoOptions};
 use srug::scene::{Camera, Scene};
 use srug::shade::{BrdfLut, EnvironmentPrep, PrepareSettings, ProceduralSky};
 use srug::shadow::Sun;
-use srug::splat::{SplatSettings, Splatter};
+use srug::splat::{cameras_per_batch, SplatSettings, Splatter, BATCH_BYTES};
 use srug::{io, Error, Result};
 
 /// What the batch benchmark runs.
@@ -130,12 +130,16 @@ fn render_to_memory(device: &Device, scene: &GpuScene, cams: &[Camera]) -> Resul
     splatter.render(scene, &cams[0], &settings)?;
     let (w, h) = (cams[0].width as usize, cams[0].height as usize);
     let (mut rgb, mut alpha) = (vec![0.0f32; cams.len() * w * h * 3], vec![0.0f32; cams.len() * w * h]);
+    // In batches, as the Python package renders (one submission per step for each).
+    let batch = cameras_per_batch(scene.count as u64, &cams[0], &settings, BATCH_BYTES);
     let (start, mut gpu) = (Instant::now(), 0.0);
-    for (i, cam) in cams.iter().enumerate() {
-        let (g, stats) = splatter.render(scene, cam, &settings)?;
-        device.read_buffer_into(g.rgb_buffer()?, &mut rgb[i * w * h * 3..(i + 1) * w * h * 3])?;
-        device.read_buffer_into(&g.alpha, &mut alpha[i * w * h..(i + 1) * w * h])?;
-        gpu += stats.timings.total_seconds();
+    for (b, chunk) in cams.chunks(batch).enumerate() {
+        for (k, (g, stats)) in splatter.render_batch(scene, chunk, &settings)?.into_iter().enumerate() {
+            let i = b * batch + k;
+            device.read_buffer_into(g.rgb_buffer()?, &mut rgb[i * w * h * 3..(i + 1) * w * h * 3])?;
+            device.read_buffer_into(&g.alpha, &mut alpha[i * w * h..(i + 1) * w * h])?;
+            gpu += stats.timings.total_seconds();
+        }
     }
     Ok((start.elapsed().as_secs_f64(), gpu))
 }

@@ -6,7 +6,11 @@ use std::path::PathBuf;
 use indicatif::ProgressBar;
 use srug::io;
 use srug::scene::activate;
-use srug::splat::{Channels, NormalSource, SplatSettings, Splatter, TileBounds, DEFAULT_TILE};
+use srug::scene::Camera;
+use srug::splat::{
+    cameras_per_batch, Channels, GBuffer, NormalSource, SplatSettings, SplatStats, Splatter, TileBounds, BATCH_BYTES,
+    DEFAULT_TILE,
+};
 use srug::{Error, Result};
 
 use crate::args::{
@@ -119,34 +123,47 @@ impl RenderArgs {
             ProgressBar::hidden()
         };
         let mut written = RunOutputs::default();
-        // Camera i + 1 splats while camera i is encoded and written.
+        let mut write_frame = |(target, g, stats, cam): (PathBuf, GBuffer, SplatStats, &Camera)| -> Result<()> {
+            if is_exr {
+                let range = if channels.range { g.ray_distance(cam) } else { None };
+                let extra: Vec<(&str, &[f32], usize)> = range.as_deref().map(|r| ("range", r, 1)).into_iter().collect();
+                g.write_exr_with(&target, &extra, &id_channels)?;
+            } else {
+                io::write_png(&target, g.width, g.height, g.rgb_values()?)?;
+            }
+            written.add(target.clone());
+            bar.inc(1);
+            let line = format!(
+                "{} ({}x{}, {:.1} ms GPU)",
+                target.display(),
+                g.width,
+                g.height,
+                stats.timings.total_seconds() * 1e3
+            );
+            print_line(&bar, &line);
+            Ok(())
+        };
+        // Cameras in batches (one submission per step for the batch); batch
+        // k + 1 splats while batch k is encoded and written.
+        let largest = cams.iter().map(|(_, cam)| cam).max_by_key(|cam| u64::from(cam.width) * u64::from(cam.height));
+        let batch = largest.map_or(1, |cam| cameras_per_batch(gpu_scene.count as u64, cam, &settings, BATCH_BYTES));
         overlapped(
-            &cams,
-            2,
-            |(number, cam)| -> Result<_> {
-                let target = if numbered_outputs { numbered(out, *number) } else { out.clone() };
-                let (gpu, stats) = splatter.render(&gpu_scene, cam, &settings)?;
-                Ok((target, gpu.read(&device)?, stats, cam))
-            },
-            |(target, g, stats, cam)| -> Result<()> {
-                if is_exr {
-                    let range = if channels.range { g.ray_distance(cam) } else { None };
-                    let extra: Vec<(&str, &[f32], usize)> =
-                        range.as_deref().map(|r| ("range", r, 1)).into_iter().collect();
-                    g.write_exr_with(&target, &extra, &id_channels)?;
-                } else {
-                    io::write_png(&target, g.width, g.height, g.rgb_values()?)?;
+            cams.chunks(batch),
+            1,
+            |chunk| -> Result<Vec<_>> {
+                let cameras: Vec<_> = chunk.iter().map(|(_, cam)| cam.clone()).collect();
+                let frames = splatter.render_batch(&gpu_scene, &cameras, &settings)?;
+                let mut read = Vec::with_capacity(frames.len());
+                for ((number, cam), (gpu, stats)) in chunk.iter().zip(frames) {
+                    let target = if numbered_outputs { numbered(out, *number) } else { out.clone() };
+                    read.push((target, gpu.read(&device)?, stats, cam));
                 }
-                written.add(target.clone());
-                bar.inc(1);
-                let line = format!(
-                    "{} ({}x{}, {:.1} ms GPU)",
-                    target.display(),
-                    g.width,
-                    g.height,
-                    stats.timings.total_seconds() * 1e3
-                );
-                print_line(&bar, &line);
+                Ok(read)
+            },
+            |frames| -> Result<()> {
+                for frame in frames {
+                    write_frame(frame)?;
+                }
                 Ok(())
             },
         )?;

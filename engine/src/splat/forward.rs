@@ -311,47 +311,48 @@ impl Splatter {
         settings: &SplatSettings,
         occluder: Option<(&Buffer, HostDepth)>,
     ) -> Result<SplatFrame> {
-        let device = self.device.clone();
-        let ch = settings.channels;
-        let missing = [
-            (ch.albedo, &scene.albedo, "albedo"),
-            (ch.roughness, &scene.roughness, "roughness"),
-            (ch.metallic, &scene.metallic, "metallic"),
-            (ch.ao, &scene.ao, "ao"),
-            (ch.visibility, &scene.visibility, "visibility"),
-        ];
-        if let Some((_, _, name)) = missing.iter().find(|(want, have, _)| *want && have.is_none()) {
-            return Err(Error::invalid(
-                format!("channel {name}"),
-                format!("was requested but the scene has no {name}"),
-            ));
+        let mut frames = self.render_views(scene, &[View { camera, occluder }], settings)?;
+        frames.pop().ok_or_else(|| Error::Internal("a one-camera render returned no frame".into()))
+    }
+
+    /// Renders `scene` from each of `cameras` with the same settings: the
+    /// frames [`Splatter::render_frame`] gives for each (the same bits), but
+    /// with one GPU submission per step for up to [`FRAMES_PER_SUBMISSION`]
+    /// cameras at a time (their preprocessing and scans, one read of all their
+    /// pair counts, then their sorts and blends), not two submissions and a
+    /// readback per camera. Every frame's buffers are held until returned, so
+    /// the caller chooses how many cameras to pass at once.
+    pub fn render_frames(
+        &mut self,
+        scene: &GpuScene,
+        cameras: &[Camera],
+        settings: &SplatSettings,
+    ) -> Result<Vec<SplatFrame>> {
+        let views: Vec<View<'_>> = cameras.iter().map(|camera| View { camera, occluder: None }).collect();
+        let mut frames = Vec::with_capacity(cameras.len());
+        for group in views.chunks(FRAMES_PER_SUBMISSION) {
+            frames.extend(self.render_views(scene, group, settings)?);
         }
-        let tile = settings.tile;
-        check_tile(tile)?;
-        let features = ch.needs_features();
+        Ok(frames)
+    }
+
+    /// Renders like [`Splatter::render_frames`] and keeps only the G-buffers
+    /// and stats, as [`Splatter::render`] does for one camera.
+    pub fn render_batch(
+        &mut self,
+        scene: &GpuScene,
+        cameras: &[Camera],
+        settings: &SplatSettings,
+    ) -> Result<Vec<(GpuGBuffer, SplatStats)>> {
+        Ok(self.render_frames(scene, cameras, settings)?.into_iter().map(|f| (f.gbuffer, f.stats)).collect())
+    }
+
+    /// Everything [`Splatter::render_views`] needs to know about one view
+    /// before its splats are counted: its uniform, G-buffers and per-splat buffers.
+    fn prepare_view(&self, scene: &GpuScene, view: &View<'_>, settings: &SplatSettings) -> Result<PendingView> {
+        let device = &self.device;
+        let (camera, tile, ch) = (view.camera, settings.tile, settings.channels);
         let n = scene.count as u64;
-        if n >= u64::from(u32::MAX) {
-            return Err(Error::invalid(format!("scene of {n} Gaussians"), "exceeds the 2³² − 1 the kernels index"));
-        }
-        // The scene arrays the texel preprocess views (binding 1 on), each as R32F.
-        let scene_inputs = [&scene.means, &scene.log_scales, &scene.rotations, &scene.opacity_logits, &scene.sh];
-        let max_texels = device.info().max_texel_buffer_elements;
-        let texel_preprocess =
-            self.texel_preprocess && n > 0 && scene_inputs.iter().all(|b| b.size() / 4 <= max_texels);
-        let bounds = settings.tile_bounds;
-        let ellipse = SpecValue::Bool(bounds == TileBounds::Ellipse);
-        let surface = SpecValue::Bool(settings.surface_depth);
-        let preprocess_spec = [(0, SpecValue::Bool(features)), (1, ellipse), (2, surface), tile_spec(tile)[0]];
-        let preprocess = if texel_preprocess {
-            let mut bindings = vec![BindingKind::UniformBuffer];
-            bindings.extend([BindingKind::UniformTexelBuffer; 5]);
-            device.kernel(
-                &kernels::SPLAT_PREPROCESS_TEXEL,
-                &KernelDecl { bindings: &bindings, push_constant_size: 0, specialization: &preprocess_spec },
-            )?
-        } else {
-            device.kernel(&kernels::SPLAT_PREPROCESS, &KernelDecl::uniform(&preprocess_spec))?
-        };
         let (w, h) = (camera.width, camera.height);
         let (tiles_x, tiles_y) = (w.div_ceil(tile), h.div_ceil(tile));
         let tiles = u64::from(tiles_x) * u64::from(tiles_y);
@@ -362,8 +363,7 @@ impl Splatter {
         let mut frame = FrameUniform::zeroed();
         camera_frame(camera, &mut frame)?;
         frame.background = [settings.background[0], settings.background[1], settings.background[2], 0.0];
-        frame.occluder = occluder.map_or([0.0; 4], |(_, c)| c.packed());
-        let occluder_buffer = occluder.map(|(b, _)| b);
+        frame.occluder = view.occluder.map_or([0.0; 4], |(_, c)| c.packed());
         frame.size = [w, h, tiles_x, tiles_y];
         // Without rgb the colour is never read: degree 0 spares the SH reads.
         let sh_used =
@@ -383,62 +383,39 @@ impl Splatter {
             })?,
             top_gaussian: opt(ch.top_gaussian, "gbuffer top gaussian", pixels)?,
         };
-        let splats = device.create_buffer("splats", n * SPLAT_BYTES, MemoryKind::Storage)?;
-        let feature_buf = features
-            .then(|| device.create_buffer("splat features", n * FEATURE_BYTES, MemoryKind::Storage))
-            .transpose()?;
-        let tile_counts = device.create_buffer("tile counts", (n + 1) * 4, MemoryKind::Storage)?;
-        let ranges = device.create_buffer("tile ranges", tiles * 8, MemoryKind::Storage)?;
-        let uniform =
-            device.create_buffer("splat frame", std::mem::size_of::<FrameUniform>() as u64, MemoryKind::Storage)?;
-        self.scan.reserve(&device, n + 1)?;
+        Ok(PendingView {
+            camera: camera.clone(),
+            frame,
+            out,
+            splats: device.create_buffer("splats", n * SPLAT_BYTES, MemoryKind::Storage)?,
+            features: ch
+                .needs_features()
+                .then(|| device.create_buffer("splat features", n * FEATURE_BYTES, MemoryKind::Storage))
+                .transpose()?,
+            tile_counts: device.create_buffer("tile counts", (n + 1) * 4, MemoryKind::Storage)?,
+            ranges: device.create_buffer("tile ranges", tiles * 8, MemoryKind::Storage)?,
+            uniform: device.create_buffer(
+                "splat frame",
+                std::mem::size_of::<FrameUniform>() as u64,
+                MemoryKind::Storage,
+            )?,
+            tiles,
+        })
+    }
 
-        // Phase 1: preprocess and scan the tile counts; the total sizes phase 2.
-        let preprocess = &*preprocess;
-        let scan = &self.scan;
-        let mut timings = device.run(|rec| -> Result<()> {
-            let buffers = FrameBuffers {
-                scene,
-                splats: &splats,
-                features: feature_buf.as_ref(),
-                tile_counts: &tile_counts,
-                keys: None,
-                values: None,
-                pair_tiles: None,
-                ranges: &ranges,
-                out: &out,
-                occluder: occluder_buffer,
-            };
-            frame.record(rec, &uniform, &buffers)?;
-            rec.begin_stage("preprocess");
-            rec.fill(&tile_counts, 0)?;
-            if texel_preprocess {
-                let mut bindings = vec![Binding::Buffer(&uniform)];
-                bindings.extend(scene_inputs.iter().map(|&buffer| {
-                    Binding::Texels(Texels {
-                        buffer,
-                        offset: 0,
-                        elements: buffer.size() / 4,
-                        format: TexelFormat::R32Float,
-                    })
-                }));
-                rec.dispatch(preprocess, Grid::Items(n), &bindings, &())?;
-            } else {
-                rec.dispatch(preprocess, Grid::Items(n), &[Binding::from(&uniform)], &())?;
-            }
-            rec.begin_stage("scan");
-            scan.record(rec, &tile_counts, n + 1)
-        })?;
-        let pairs = u64::from(device.read_range::<u32>(&tile_counts, n, 1)?[0]);
-
-        // Phase 2: keys, sort, ranges, blend.
-        let keys = device.create_buffer("sort keys", pairs * 8, MemoryKind::Storage)?;
-        let values = device.create_buffer("sort values", pairs * 4, MemoryKind::Storage)?;
-        let pair_tiles = device.create_buffer("pair tiles", pairs * 4, MemoryKind::Storage)?;
-        self.sort.reserve(&device, pairs)?;
-        frame.counts[3] = pairs as u32;
+    /// The sort's and blend's buffers and kernels for a view of `pairs` pairs.
+    fn plan_sort(
+        &self,
+        view: &View<'_>,
+        pending: &PendingView,
+        settings: &SplatSettings,
+        pairs: u64,
+    ) -> Result<SortPlan> {
+        let device = &self.device;
+        let (tile, tiles, n) = (settings.tile, pending.tiles, u64::from(pending.frame.counts[0]));
+        let max_texels = device.info().max_texel_buffer_elements;
         // Tile ids 0..=tiles (`tiles` marks the keys kernel's padding) above the depth key.
-        let depth_bits = depth_key_bits(camera);
+        let depth_bits = depth_key_bits(view.camera);
         let key_bits = depth_bits + (64 - tiles.leading_zeros());
         // Texel-buffer reads where the device has RGBA32F/R32UI views and the splats and pairs fit them.
         let texel = self.texel_blend
@@ -451,117 +428,321 @@ impl Splatter {
         // where both fit (splat_keys.comp).
         let row_masks = texel && key_bits + tile <= 64;
         let depth_spec = (3, SpecValue::U32(depth_bits));
+        let ellipse = SpecValue::Bool(settings.tile_bounds == TileBounds::Ellipse);
         let keys_spec = [(1, ellipse), (2, SpecValue::Bool(row_masks)), depth_spec, tile_spec(tile)[0]];
-        let keys_kernel = device.kernel(&kernels::SPLAT_KEYS, &KernelDecl::uniform(&keys_spec))?;
-        let ranges_kernel = device.kernel(&kernels::SPLAT_RANGES, &KernelDecl::uniform(&[depth_spec]))?;
-        let blend = self.blend_kernel(BlendOptions {
-            bits: ch.blend_bits(settings.rgb),
-            tile,
+        Ok(SortPlan {
+            keys: device.create_buffer("sort keys", pairs * 8, MemoryKind::Storage)?,
+            values: device.create_buffer("sort values", pairs * 4, MemoryKind::Storage)?,
+            pair_tiles: device.create_buffer("pair tiles", pairs * 4, MemoryKind::Storage)?,
+            keys_kernel: device.kernel(&kernels::SPLAT_KEYS, &KernelDecl::uniform(&keys_spec))?,
+            ranges_kernel: device.kernel(&kernels::SPLAT_RANGES, &KernelDecl::uniform(&[depth_spec]))?,
+            blend: self.blend_kernel(BlendOptions {
+                bits: settings.channels.blend_bits(settings.rgb),
+                tile,
+                texel,
+                wrap_x: view.camera.wrap_period().is_some(),
+                surface: settings.surface_depth,
+                occluded: view.occluder.is_some(),
+                row_masks,
+            })?,
+            pairs,
+            key_bits,
             texel,
-            wrap_x: camera.wrap_period().is_some(),
-            surface: settings.surface_depth,
-            occluded: occluder.is_some(),
             row_masks,
-        })?;
-        let (sort, keys_kernel, ranges_kernel, blend) = (&self.sort, &*keys_kernel, &*ranges_kernel, &*blend);
-        let outputs: Vec<&Buffer> = [&out.alpha]
-            .into_iter()
-            .chain(out.rgb.as_ref())
-            .chain(out.channels.iter().map(|(_, b)| b))
-            .chain(&out.top_gaussian)
-            .collect();
-        let phase2 = device.run(|rec| -> Result<()> {
-            let buffers = FrameBuffers {
-                scene,
-                splats: &splats,
-                features: feature_buf.as_ref(),
-                tile_counts: &tile_counts,
-                keys: Some(&keys),
-                values: Some(&values),
-                pair_tiles: Some(&pair_tiles),
-                ranges: &ranges,
-                out: &out,
-                occluder: occluder_buffer,
-            };
-            frame.record(rec, &uniform, &buffers)?;
-            if let Some(word) = settings.prefill {
-                for b in &outputs {
-                    rec.fill(b, word)?;
-                }
-            }
-            if pairs > 0 {
-                rec.begin_stage("keys");
-                rec.dispatch(keys_kernel, Grid::Items(n), &[Binding::from(&uniform)], &())?;
-                rec.begin_stage("sort");
-                sort.record(rec, &keys, &values, pairs, key_bits)?;
-            }
-            rec.begin_stage("ranges");
-            rec.fill(&ranges, 0)?;
-            if pairs > 0 {
-                rec.dispatch(ranges_kernel, Grid::Items(pairs), &[Binding::from(&uniform)], &())?;
-            }
-            rec.begin_stage("blend");
-            if texel {
-                let view = |buffer, elements| {
-                    Binding::Texels(Texels { buffer, offset: 0, elements, format: TexelFormat::Rgba32Float })
-                };
-                // Without features the kernel never reads binding 2; the splats stand in.
-                let features = feature_buf.as_ref().map_or(view(&splats, 4 * n), |fb| view(fb, 3 * n));
-                rec.dispatch(
-                    blend,
-                    Grid::Groups(tiles),
-                    &[
-                        Binding::Buffer(&uniform),
-                        view(&splats, 4 * n),
-                        features,
-                        Binding::Texels(Texels {
-                            buffer: &values,
-                            offset: 0,
-                            elements: pairs,
-                            format: TexelFormat::R32Uint,
-                        }),
-                        Binding::Texels(Texels {
-                            buffer: &keys,
-                            offset: 0,
-                            elements: 2 * pairs,
-                            format: TexelFormat::R32Uint,
-                        }),
-                    ],
-                    &(),
-                )?;
-            } else {
-                rec.dispatch(blend, Grid::Groups(tiles), &[Binding::from(&uniform)], &())?;
-            }
-            rec.end_stage();
-            Ok(())
-        })?;
-        timings.stages.extend(phase2.stages);
-        let working_bytes = splats.size()
-            + feature_buf.as_ref().map_or(0, Buffer::size)
-            + tile_counts.size()
-            + keys.size()
-            + values.size()
-            + pair_tiles.size()
-            + ranges.size()
-            + self.sort.scratch_bytes()
-            + self.scan.scratch_bytes();
-        Ok(SplatFrame {
-            gbuffer: out,
-            stats: SplatStats { timings, pairs, key_bits, working_bytes, row_masks },
-            camera: camera.clone(),
-            splats,
-            pair_offsets: tile_counts,
-            sorted_gaussians: values,
-            pair_tiles,
-            ranges,
-            features: feature_buf,
-            uniform,
-            params: frame,
-            scene_means: scene.means.id(),
-            gaussians: n,
-            tile,
-            surface_depth: settings.surface_depth,
-            occluded: occluder.is_some(),
         })
     }
+
+    /// Renders `views` (at most [`FRAMES_PER_SUBMISSION`]) with two
+    /// submissions: preprocess and scan of every view, then keys, sort,
+    /// ranges and blend of every view.
+    fn render_views(
+        &mut self,
+        scene: &GpuScene,
+        views: &[View<'_>],
+        settings: &SplatSettings,
+    ) -> Result<Vec<SplatFrame>> {
+        let device = self.device.clone();
+        let ch = settings.channels;
+        let missing = [
+            (ch.albedo, &scene.albedo, "albedo"),
+            (ch.roughness, &scene.roughness, "roughness"),
+            (ch.metallic, &scene.metallic, "metallic"),
+            (ch.ao, &scene.ao, "ao"),
+            (ch.visibility, &scene.visibility, "visibility"),
+        ];
+        if let Some((_, _, name)) = missing.iter().find(|(want, have, _)| *want && have.is_none()) {
+            return Err(Error::invalid(
+                format!("channel {name}"),
+                format!("was requested but the scene has no {name}"),
+            ));
+        }
+        let tile = settings.tile;
+        check_tile(tile)?;
+        let n = scene.count as u64;
+        if n >= u64::from(u32::MAX) {
+            return Err(Error::invalid(format!("scene of {n} Gaussians"), "exceeds the 2³² − 1 the kernels index"));
+        }
+        if views.is_empty() {
+            return Ok(Vec::new());
+        }
+        // The scene arrays the texel preprocess views (binding 1 on), each as R32F.
+        let scene_inputs = [&scene.means, &scene.log_scales, &scene.rotations, &scene.opacity_logits, &scene.sh];
+        let max_texels = device.info().max_texel_buffer_elements;
+        let texel_preprocess =
+            self.texel_preprocess && n > 0 && scene_inputs.iter().all(|b| b.size() / 4 <= max_texels);
+        let ellipse = SpecValue::Bool(settings.tile_bounds == TileBounds::Ellipse);
+        let surface = SpecValue::Bool(settings.surface_depth);
+        let features = SpecValue::Bool(ch.needs_features());
+        let preprocess_spec = [(0, features), (1, ellipse), (2, surface), tile_spec(tile)[0]];
+        let preprocess = if texel_preprocess {
+            let mut bindings = vec![BindingKind::UniformBuffer];
+            bindings.extend([BindingKind::UniformTexelBuffer; 5]);
+            device.kernel(
+                &kernels::SPLAT_PREPROCESS_TEXEL,
+                &KernelDecl { bindings: &bindings, push_constant_size: 0, specialization: &preprocess_spec },
+            )?
+        } else {
+            device.kernel(&kernels::SPLAT_PREPROCESS, &KernelDecl::uniform(&preprocess_spec))?
+        };
+        let mut pending =
+            views.iter().map(|view| self.prepare_view(scene, view, settings)).collect::<Result<Vec<_>>>()?;
+        self.scan.reserve(&device, n + 1)?;
+        let counts = device.create_buffer("pair counts", 4 * views.len() as u64, MemoryKind::Readback)?;
+
+        // Phase 1, every view: preprocess and scan the tile counts; each total sizes its phase 2.
+        let (preprocess, scan) = (&*preprocess, &self.scan);
+        let mut phase1_marks = Vec::with_capacity(views.len());
+        let phase1 = device.run(|rec| -> Result<()> {
+            for (i, (p, view)) in pending.iter().zip(views).enumerate() {
+                phase1_marks.push(rec.stages_begun());
+                let buffers = FrameBuffers {
+                    scene,
+                    splats: &p.splats,
+                    features: p.features.as_ref(),
+                    tile_counts: &p.tile_counts,
+                    keys: None,
+                    values: None,
+                    pair_tiles: None,
+                    ranges: &p.ranges,
+                    out: &p.out,
+                    occluder: view.occluder.map(|(b, _)| b),
+                };
+                p.frame.record(rec, &p.uniform, &buffers)?;
+                rec.begin_stage("preprocess");
+                rec.fill(&p.tile_counts, 0)?;
+                if texel_preprocess {
+                    let mut bindings = vec![Binding::Buffer(&p.uniform)];
+                    bindings.extend(scene_inputs.iter().map(|&buffer| {
+                        Binding::Texels(Texels {
+                            buffer,
+                            offset: 0,
+                            elements: buffer.size() / 4,
+                            format: TexelFormat::R32Float,
+                        })
+                    }));
+                    rec.dispatch(preprocess, Grid::Items(n), &bindings, &())?;
+                } else {
+                    rec.dispatch(preprocess, Grid::Items(n), &[Binding::from(&p.uniform)], &())?;
+                }
+                rec.begin_stage("scan");
+                scan.record(rec, &p.tile_counts, n + 1)?;
+                rec.end_stage();
+                rec.copy(&p.tile_counts, 4 * n, &counts, 4 * i as u64, 4)?;
+            }
+            Ok(())
+        })?;
+        let pair_counts: Vec<u32> = device.read_mapped(&counts)?;
+
+        // Phase 2, every view: keys, sort, ranges, blend.
+        let plans = views
+            .iter()
+            .zip(&mut pending)
+            .zip(&pair_counts)
+            .map(|((view, p), &pairs)| {
+                p.frame.counts[3] = pairs;
+                self.plan_sort(view, p, settings, u64::from(pairs))
+            })
+            .collect::<Result<Vec<_>>>()?;
+        self.sort.reserve(&device, plans.iter().map(|s| s.pairs).max().unwrap_or(0))?;
+        let sort = &self.sort;
+        let mut phase2_marks = Vec::with_capacity(views.len());
+        let phase2 = device.run(|rec| -> Result<()> {
+            for ((p, s), view) in pending.iter().zip(&plans).zip(views) {
+                phase2_marks.push(rec.stages_begun());
+                let buffers = FrameBuffers {
+                    scene,
+                    splats: &p.splats,
+                    features: p.features.as_ref(),
+                    tile_counts: &p.tile_counts,
+                    keys: Some(&s.keys),
+                    values: Some(&s.values),
+                    pair_tiles: Some(&s.pair_tiles),
+                    ranges: &p.ranges,
+                    out: &p.out,
+                    occluder: view.occluder.map(|(b, _)| b),
+                };
+                p.frame.record(rec, &p.uniform, &buffers)?;
+                if let Some(word) = settings.prefill {
+                    for b in [&p.out.alpha]
+                        .into_iter()
+                        .chain(p.out.rgb.as_ref())
+                        .chain(p.out.channels.iter().map(|(_, b)| b))
+                        .chain(&p.out.top_gaussian)
+                    {
+                        rec.fill(b, word)?;
+                    }
+                }
+                if s.pairs > 0 {
+                    rec.begin_stage("keys");
+                    rec.dispatch(&s.keys_kernel, Grid::Items(n), &[Binding::from(&p.uniform)], &())?;
+                    rec.begin_stage("sort");
+                    sort.record(rec, &s.keys, &s.values, s.pairs, s.key_bits)?;
+                }
+                rec.begin_stage("ranges");
+                rec.fill(&p.ranges, 0)?;
+                if s.pairs > 0 {
+                    rec.dispatch(&s.ranges_kernel, Grid::Items(s.pairs), &[Binding::from(&p.uniform)], &())?;
+                }
+                rec.begin_stage("blend");
+                if s.texel {
+                    let view = |buffer, elements| {
+                        Binding::Texels(Texels { buffer, offset: 0, elements, format: TexelFormat::Rgba32Float })
+                    };
+                    let uints = |buffer, elements| {
+                        Binding::Texels(Texels { buffer, offset: 0, elements, format: TexelFormat::R32Uint })
+                    };
+                    // Without features the kernel never reads binding 2; the splats stand in.
+                    let features = p.features.as_ref().map_or(view(&p.splats, 4 * n), |fb| view(fb, 3 * n));
+                    let bindings = [
+                        Binding::Buffer(&p.uniform),
+                        view(&p.splats, 4 * n),
+                        features,
+                        uints(&s.values, s.pairs),
+                        uints(&s.keys, 2 * s.pairs),
+                    ];
+                    rec.dispatch(&s.blend, Grid::Groups(p.tiles), &bindings, &())?;
+                } else {
+                    rec.dispatch(&s.blend, Grid::Groups(p.tiles), &[Binding::from(&p.uniform)], &())?;
+                }
+                rec.end_stage();
+            }
+            Ok(())
+        })?;
+
+        let phase1 = split_timings(phase1, &phase1_marks);
+        let phase2 = split_timings(phase2, &phase2_marks);
+        let scratch = self.sort.scratch_bytes() + self.scan.scratch_bytes();
+        let mut frames = Vec::with_capacity(views.len());
+        for ((((p, s), view), mut timings), later) in pending.into_iter().zip(plans).zip(views).zip(phase1).zip(phase2)
+        {
+            timings.stages.extend(later.stages);
+            let working_bytes = p.splats.size()
+                + p.features.as_ref().map_or(0, Buffer::size)
+                + p.tile_counts.size()
+                + s.keys.size()
+                + s.values.size()
+                + s.pair_tiles.size()
+                + p.ranges.size()
+                + scratch;
+            frames.push(SplatFrame {
+                gbuffer: p.out,
+                stats: SplatStats {
+                    timings,
+                    pairs: s.pairs,
+                    key_bits: s.key_bits,
+                    working_bytes,
+                    row_masks: s.row_masks,
+                },
+                camera: p.camera,
+                splats: p.splats,
+                pair_offsets: p.tile_counts,
+                sorted_gaussians: s.values,
+                pair_tiles: s.pair_tiles,
+                ranges: p.ranges,
+                features: p.features,
+                uniform: p.uniform,
+                params: p.frame,
+                scene_means: scene.means.id(),
+                gaussians: n,
+                tile,
+                surface_depth: settings.surface_depth,
+                occluded: view.occluder.is_some(),
+            });
+        }
+        Ok(frames)
+    }
+}
+
+/// Cameras whose preprocessing, and then whose sorts and blends, one
+/// submission records ([`Splatter::render_frames`]); within the timestamp
+/// queries one recording holds.
+pub const FRAMES_PER_SUBMISSION: usize = 16;
+
+/// Per-frame memory a batch of cameras may hold at once by default
+/// ([`cameras_per_batch`]).
+pub const BATCH_BYTES: u64 = 256 << 20;
+
+/// How many cameras of `camera`'s size to pass to one
+/// [`Splatter::render_frames`] call for a scene of `gaussians` so that the
+/// batch's per-frame buffers stay near `budget` bytes, estimated from the
+/// splat records, features and tile counts per Gaussian, about two sorted
+/// pairs per Gaussian, and the G-buffer floats per pixel; at least 1, at
+/// most [`FRAMES_PER_SUBMISSION`].
+pub fn cameras_per_batch(gaussians: u64, camera: &Camera, settings: &SplatSettings, budget: u64) -> usize {
+    let ch = settings.channels;
+    let pixels = u64::from(camera.width) * u64::from(camera.height);
+    let floats = 1
+        + 3 * u64::from(settings.rgb)
+        + ch.iter().map(|c| c.floats() as u64).sum::<u64>()
+        + u64::from(ch.top_gaussian);
+    let features = if ch.needs_features() { FEATURE_BYTES } else { 0 };
+    let per_frame = gaussians.saturating_mul(SPLAT_BYTES + features + 4 + 2 * 16).saturating_add(pixels * floats * 4);
+    (budget / per_frame.max(1)).clamp(1, FRAMES_PER_SUBMISSION as u64) as usize
+}
+
+/// One camera of a batch, with the host's depth it is rendered in front of.
+#[derive(Clone, Copy)]
+struct View<'a> {
+    camera: &'a Camera,
+    occluder: Option<(&'a Buffer, HostDepth)>,
+}
+
+/// A view's buffers before its pairs are counted.
+struct PendingView {
+    camera: Camera,
+    frame: FrameUniform,
+    out: GpuGBuffer,
+    splats: Buffer,
+    features: Option<Buffer>,
+    tile_counts: Buffer,
+    ranges: Buffer,
+    uniform: Buffer,
+    tiles: u64,
+}
+
+/// A view's sort and blend, once its pairs are counted.
+struct SortPlan {
+    keys: Buffer,
+    values: Buffer,
+    pair_tiles: Buffer,
+    keys_kernel: Arc<Kernel>,
+    ranges_kernel: Arc<Kernel>,
+    blend: Arc<Kernel>,
+    pairs: u64,
+    key_bits: u32,
+    texel: bool,
+    row_masks: bool,
+}
+
+/// Splits one submission's stage timings at `marks` (the stage count when
+/// each view's recording began), one [`Timings`] per view.
+fn split_timings(timings: Timings, marks: &[usize]) -> Vec<Timings> {
+    let mut stages = timings.stages;
+    let mut out: Vec<Timings> = Vec::with_capacity(marks.len());
+    for &mark in marks.iter().rev() {
+        let tail = stages.split_off(mark.min(stages.len()));
+        out.push(Timings { stages: tail });
+    }
+    out.reverse();
+    out
 }
