@@ -6,8 +6,8 @@
 
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64Mcg;
-use srug::gpu::Device;
-use srug::io::read_ply;
+use srug::gpu::{Buffer, Device};
+use srug::io::{read_ply, read_ply_blocks, read_scene, write_ply, write_scene, PlyFormat, SceneFormat};
 use srug::scene::activate::{activate, activate_cpu, activate_kernel, GpuScene};
 use srug::scene::demo::{demo_city, DemoOptions};
 use srug::scene::{sh_coefficients, Scene};
@@ -112,6 +112,83 @@ fn activation_on_the_real_trained_scene() {
     let d = device();
     let scene = read_ply(data.join("scenes").join("trained_iter7000.ply")).unwrap();
     check_activation(&d, &scene, "trained", 1);
+    assert_no_validation_messages(&d);
+}
+
+/// Every buffer of a scene on the device, as bytes (absent groups as `None`).
+fn device_bytes(d: &Device, s: &GpuScene) -> Vec<Option<Vec<u8>>> {
+    let read = |b: &Buffer| d.read_buffer::<u8>(b).unwrap();
+    let mut out = vec![read(&s.means), read(&s.log_scales), read(&s.rotations), read(&s.opacity_logits), read(&s.sh)]
+        .into_iter()
+        .map(Some)
+        .collect::<Vec<_>>();
+    for b in [&s.normals, &s.albedo, &s.roughness, &s.metallic, &s.ao, &s.visibility] {
+        out.push(b.as_ref().map(read));
+    }
+    out
+}
+
+#[test]
+fn a_scene_loads_straight_to_the_device_as_its_upload() {
+    // GpuScene::load streams a PLY in blocks (the host never holds it whole):
+    // the device must hold exactly what reading the file and uploading it
+    // gives, for PLY in every encoding srug writes, in blocks of a few rows
+    // or one, and for another format (read whole); and the trained scene
+    // (another tool's PLY) when present.
+    let d = device();
+    let dir = std::env::temp_dir().join(format!("srug-load-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    // Materials, normals and SH 3: every optional buffer.
+    let city = demo_city(&DemoOptions { seed: 3, gaussians: 5_000, sh_degree: 3 }).unwrap().scene;
+    let mut files = Vec::new();
+    for (name, format) in [
+        ("le.ply", PlyFormat::BinaryLittleEndian),
+        ("be.ply", PlyFormat::BinaryBigEndian),
+        ("ascii.ply", PlyFormat::Ascii),
+    ] {
+        write_ply(dir.join(name), &city, format).unwrap();
+        files.push(dir.join(name));
+    }
+    write_scene(dir.join("city.splat"), &city, SceneFormat::Splat).unwrap();
+    files.push(dir.join("city.splat"));
+    if let Some(data) = srug_tests::shared_data() {
+        files.push(data.join("scenes").join("trained_iter7000.ply"));
+    } else {
+        eprintln!("the trained scene skipped: ../shared/data is absent");
+    }
+    for file in &files {
+        let host = read_scene(file).unwrap();
+        let expected = device_bytes(&d, &GpuScene::upload(&d, &host).unwrap());
+        for block_bytes in [50_000, 1 << 24] {
+            let loaded = GpuScene::load_in_blocks(&d, file, block_bytes).unwrap();
+            let label = format!("{} in blocks of {block_bytes} bytes", file.display());
+            assert_eq!(loaded.gpu.count, host.len(), "{label}");
+            assert_eq!(loaded.gpu.sh_degree, host.sh_degree, "{label}");
+            assert_eq!(loaded.attributes, host.attributes(), "{label}");
+            assert_eq!(loaded.bounds, host.bounds(), "{label}");
+            assert!(device_bytes(&d, &loaded.gpu) == expected, "{label}: the device holds other bytes");
+        }
+    }
+
+    // A bad value in a late block fails the load, naming its row in the file.
+    let mut bytes = std::fs::read(dir.join("le.ply")).unwrap();
+    let data = bytes.windows(11).position(|w| w == b"end_header\n").unwrap() + 11;
+    let stride = (bytes.len() - data) / city.len();
+    let row = 4321;
+    bytes[data + row * stride..data + row * stride + 4].copy_from_slice(&f32::NAN.to_le_bytes());
+    std::fs::write(dir.join("nan.ply"), &bytes).unwrap();
+    let mut blocks = 0;
+    let e = read_ply_blocks(dir.join("nan.ply"), 1000, |_| {
+        blocks += 1;
+        Ok(())
+    })
+    .unwrap_err()
+    .to_string();
+    assert!(e.contains(&format!("row {row}")) && e.contains("property x"), "{e}");
+    assert!(blocks > 1, "the blocks before the bad row arrive first ({blocks})");
+    let e = GpuScene::load_in_blocks(&d, dir.join("nan.ply"), 50_000).err().map(|e| e.to_string()).unwrap_or_default();
+    assert!(e.contains(&format!("row {row}")), "{e}");
+    std::fs::remove_dir_all(&dir).unwrap();
     assert_no_validation_messages(&d);
 }
 

@@ -179,16 +179,15 @@ fn relight(device: &Device, args: &RelightArgs) -> Result<()> {
     // With --sun-from-env the sun comes from the map, once it is loaded.
     let suns = if sun.sun_from_env { Vec::new() } else { sun.resolve()? };
     let settings = shade.settings()?;
-    let scene = io::read_scene(scene_path)?;
-    let attributes = scene.attributes();
+    // Straight to the device: the host never holds the whole scene.
+    let activate::LoadedScene { gpu: gpu_scene, attributes, bounds } = activate::GpuScene::load(device, scene_path)?;
     if !attributes.shadeable() {
         return Err(Error::invalid(
             scene_path.display().to_string(),
             "the scene has no albedo attribute, so it cannot be relit; `srug render` renders its colour",
         ));
     }
-    let bounds = scene.bounds().ok_or_else(|| Error::invalid("scene", "is empty"))?;
-    let gpu_scene = activate::GpuScene::upload(device, &scene)?;
+    let bounds = bounds.ok_or_else(|| Error::invalid("scene", "is empty"))?;
     let lights = Lights::new(device, env)?;
     let suns = if sun.sun_from_env { vec![lights.sun_from_map(sun.sun_intensity)?] } else { suns };
     let mut relighter = Relighter::new(device)?;

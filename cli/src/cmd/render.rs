@@ -97,14 +97,14 @@ impl RenderArgs {
         let rgb = !is_exr || channels.names_rgb;
         let (cams, _) = view.resolve_numbered()?;
         let numbered_outputs = view.numbers_outputs(cams.len());
-        let scene = io::read_scene(path)?;
         let id_values = if ids.is_empty() { Vec::new() } else { io::read_ply_ids(path, ids)? };
         let id_channels: Vec<(&str, &[u32])> =
             ids.iter().map(String::as_str).zip(id_values.iter().map(Vec::as_slice)).collect();
         let mut channel_set = channels.channels;
         channel_set.top_gaussian |= !ids.is_empty();
         let device = device_args.open()?;
-        let gpu_scene = activate::GpuScene::upload(&device, &scene)?;
+        // Straight to the device: the host never holds the whole scene.
+        let gpu_scene = activate::GpuScene::load(&device, path)?.gpu;
         let mut splatter = Splatter::new(&device)?;
         let settings = SplatSettings {
             background: background.0.to_array(),

@@ -24,8 +24,10 @@ pub use atomic::write_atomic;
 pub use cameras::{parse_cameras_json, read_cameras, read_cameras_json, write_cameras_json, CameraFormat};
 pub use colmap::{parse_colmap, read_colmap};
 pub use environment::EnvironmentMap;
-pub use formats::{dropped_by, encode_scene, read_scene, read_scene_as, read_scene_bytes, write_scene, SceneFormat};
+pub use formats::{
+    dropped_by, encode_scene, read_scene, read_scene_as, read_scene_blocks, read_scene_bytes, write_scene, SceneFormat,
+};
 pub use image::{display_byte, write_exr_channels, write_exr_layer, write_png};
 pub use limits::{limits, read_file, read_text, set_limits, Limits};
-pub use ply::{read_ply, read_ply_bytes, read_ply_ids, write_ply, PlyFormat};
+pub use ply::{read_ply, read_ply_blocks, read_ply_bytes, read_ply_ids, write_ply, PlyBlock, PlyFormat};
 pub use transforms_json::{parse_transforms_json, read_transforms_json};

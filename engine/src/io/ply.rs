@@ -497,15 +497,131 @@ fn check_binary_length(header: &Header, data_len: usize, origin: &str) -> Result
 /// the scene's arrays, so the host holds one copy of the scene, not the file
 /// and the scene.
 pub fn read_ply(path: impl AsRef<Path>) -> Result<Scene> {
-    use std::io::{BufRead, Read};
     let path = path.as_ref();
+    match open_ply(path)? {
+        OpenedPly::Whole(scene) => Ok(scene),
+        OpenedPly::Rows(mut rows) => {
+            let mut scene = rows.plan.empty_scene(rows.header.count);
+            while let Some((first, n)) = rows.next_block(1 << 20)? {
+                for r in 0..n {
+                    rows.set_row(&mut scene, first + r, r);
+                }
+            }
+            scene.validate(&rows.origin)?;
+            Ok(scene)
+        }
+    }
+}
+
+/// One block of a PLY scene read by [`read_ply_blocks`].
+pub struct PlyBlock<'a> {
+    /// Gaussians in the whole file.
+    pub total: usize,
+    /// Index of this block's first Gaussian in the file.
+    pub first: usize,
+    /// This block's Gaussians, validated (errors name their rows in the file).
+    pub gaussians: &'a Scene,
+}
+
+/// Reads a PLY scene in blocks of about `block_bytes` of the file, in file
+/// order, each validated, so a caller can move the scene elsewhere (to the
+/// device) without the host ever holding all of it. Files [`read_ply`]
+/// cannot stream (ASCII, or past the size limit it words refusals for) come
+/// as one block. Stops at the first error `on_block` returns.
+pub fn read_ply_blocks(
+    path: impl AsRef<Path>,
+    block_bytes: usize,
+    mut on_block: impl FnMut(&PlyBlock<'_>) -> Result<()>,
+) -> Result<()> {
+    match open_ply(path.as_ref())? {
+        OpenedPly::Whole(scene) => on_block(&PlyBlock { total: scene.len(), first: 0, gaussians: &scene }),
+        OpenedPly::Rows(mut rows) => {
+            let total = rows.header.count;
+            if total == 0 {
+                return on_block(&PlyBlock { total, first: 0, gaussians: &rows.plan.empty_scene(0) });
+            }
+            let mut block = Scene::default();
+            while let Some((first, n)) = rows.next_block(block_bytes)? {
+                if block.len() != n {
+                    block = rows.plan.empty_scene(n);
+                }
+                for r in 0..n {
+                    rows.set_row(&mut block, r, r);
+                }
+                block.validate(&rows.origin).map_err(|mut e| {
+                    e.row = e.row.map(|r| r + first);
+                    e
+                })?;
+                on_block(&PlyBlock { total, first, gaussians: &block })?;
+            }
+            Ok(())
+        }
+    }
+}
+
+/// A PLY file opened for reading: whole where it cannot stream, else its
+/// binary rows behind the parsed header.
+enum OpenedPly {
+    Whole(Scene),
+    Rows(PlyRows),
+}
+
+/// The binary rows of an opened PLY file, read a block at a time.
+struct PlyRows {
+    reader: std::io::BufReader<std::fs::File>,
+    header: Header,
+    plan: Plan,
+    big_endian: bool,
+    origin: String,
+    path: std::path::PathBuf,
+    /// Rows read so far.
+    next: usize,
+    /// The current block's bytes.
+    block: Vec<u8>,
+}
+
+impl PlyRows {
+    /// Reads the next block of about `block_bytes`: (its first row, its rows),
+    /// or `None` at the end.
+    fn next_block(&mut self, block_bytes: usize) -> Result<Option<(usize, usize)>> {
+        use std::io::Read;
+        let (count, stride) = (self.header.count, self.header.stride);
+        if self.next >= count {
+            return Ok(None);
+        }
+        let rows = (block_bytes / stride.max(1) + 1).min(count - self.next);
+        self.block.resize(rows * stride, 0);
+        let (first, header, origin, path) = (self.next, &self.header, &self.origin, &self.path);
+        self.reader.read_exact(&mut self.block).map_err(|e| match e.kind() {
+            std::io::ErrorKind::UnexpectedEof => Error::from(truncated(header, first * stride, origin)),
+            _ => Error::io(path)(e),
+        })?;
+        self.next += rows;
+        Ok(Some((first, rows)))
+    }
+
+    /// Writes the current block's row `r` as row `g` of `scene`.
+    fn set_row(&self, scene: &mut Scene, g: usize, r: usize) {
+        let stride = self.header.stride;
+        let row = &self.block[r * stride..(r + 1) * stride];
+        self.plan.set_row(scene, g, |i| {
+            let p = &self.header.properties[i];
+            p.ty.decode(&row[p.offset..p.offset + p.ty.size()], self.big_endian)
+        });
+    }
+}
+
+/// Opens a PLY scene: binary files behind their parsed header, ready to
+/// stream; ASCII files and those past the size limit read whole.
+fn open_ply(path: &Path) -> Result<OpenedPly> {
+    use std::io::{BufRead, Read};
     let origin = path.display().to_string();
     let file = std::fs::File::open(path).map_err(Error::io(path))?;
     let meta = file.metadata().map_err(Error::io(path))?;
     let max = super::limits().max_file_bytes;
     if !meta.is_file() || meta.len() > max {
         // The whole-file reader words these refusals.
-        return Ok(read_ply_bytes(&super::read_file(path)?, &origin)?);
+        return Ok(OpenedPly::Whole(read_ply_bytes(&super::read_file(path)?, &origin)?));
     }
     let mut reader = std::io::BufReader::with_capacity(1 << 20, file);
     // The header: bytes up to end_header and its newline (at most 16 MiB).
@@ -523,33 +639,22 @@ pub fn read_ply(path: impl AsRef<Path>) -> Result<Scene> {
     }
     let header = parse_header(&head, &origin)?;
     if header.format == PlyFormat::Ascii {
-        return Ok(read_ply_bytes(&super::read_file(path)?, &origin)?);
+        return Ok(OpenedPly::Whole(read_ply_bytes(&super::read_file(path)?, &origin)?));
     }
     let data_len = usize::try_from(meta.len()).unwrap_or(usize::MAX).saturating_sub(header.data_start);
     check_binary_length(&header, data_len, &origin)?;
     let plan = Plan::new(&header, &origin)?;
-    let big = header.format == PlyFormat::BinaryBigEndian;
-    let mut scene = plan.empty_scene(header.count);
-    let rows_per_block = (1usize << 20) / header.stride.max(1) + 1;
-    let mut block = vec![0u8; rows_per_block * header.stride];
-    let mut g = 0;
-    while g < header.count {
-        let rows = rows_per_block.min(header.count - g);
-        let bytes = &mut block[..rows * header.stride];
-        reader.read_exact(bytes).map_err(|e| match e.kind() {
-            std::io::ErrorKind::UnexpectedEof => Error::from(truncated(&header, g * header.stride, &origin)),
-            _ => Error::io(path)(e),
-        })?;
-        for (r, row) in bytes.chunks_exact(header.stride).enumerate() {
-            plan.set_row(&mut scene, g + r, |i| {
-                let p = &header.properties[i];
-                p.ty.decode(&row[p.offset..p.offset + p.ty.size()], big)
-            });
-        }
-        g += rows;
-    }
-    scene.validate(&origin)?;
-    Ok(scene)
+    let big_endian = header.format == PlyFormat::BinaryBigEndian;
+    Ok(OpenedPly::Rows(PlyRows {
+        reader,
+        header,
+        plan,
+        big_endian,
+        origin,
+        path: path.to_path_buf(),
+        next: 0,
+        block: Vec::new(),
+    }))
 }
 
 /// Reads a PLY file held in memory; `origin` names it in errors.

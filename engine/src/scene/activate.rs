@@ -9,10 +9,12 @@
 
 use std::sync::Arc;
 
+use std::path::Path;
+
 use super::layout::ActivatePush;
-use super::Scene;
+use super::{AttributeGroups, Bounds, Scene};
 use crate::error::Result;
-use crate::gpu::{kernels, Buffer, Device, Grid, Kernel, KernelDecl, Timings};
+use crate::gpu::{kernels, Buffer, Device, Grid, Kernel, KernelDecl, MemoryKind, Timings};
 
 /// A scene's stored parameters in GPU memory.
 pub struct GpuScene {
@@ -79,6 +81,94 @@ impl GpuScene {
         })
     }
 
+    /// Reads the scene file at `path` straight into GPU buffers: a PLY in
+    /// blocks of about [`LOAD_BLOCK_BYTES`] of the file (each validated,
+    /// written where it belongs, then reused for the next), so the host never
+    /// holds the scene whole; any other format read whole, uploaded and
+    /// dropped. Errors name the file and the row at fault; on one, nothing is
+    /// kept. Returns what callers otherwise took from the host copy.
+    pub fn load(device: &Device, path: impl AsRef<Path>) -> Result<LoadedScene> {
+        Self::load_in_blocks(device, path, LOAD_BLOCK_BYTES)
+    }
+
+    /// [`GpuScene::load`] with blocks of about `block_bytes` of the file.
+    pub fn load_in_blocks(device: &Device, path: impl AsRef<Path>, block_bytes: usize) -> Result<LoadedScene> {
+        let mut loaded: Option<LoadedScene> = None;
+        crate::io::read_scene_blocks(path, block_bytes, |block| {
+            let part = block.gaussians;
+            let bounds = part.bounds();
+            let Some(l) = loaded.as_mut() else {
+                // The first block sizes every buffer (a whole scene is its only block).
+                let gpu = if block.total == part.len() {
+                    Self::upload(device, part)?
+                } else {
+                    let gpu = Self::allocate(device, part, block.total)?;
+                    gpu.write_rows(device, block.first, part)?;
+                    gpu
+                };
+                loaded = Some(LoadedScene { gpu, attributes: part.attributes(), bounds });
+                return Ok(());
+            };
+            l.gpu.write_rows(device, block.first, part)?;
+            l.bounds = match (l.bounds, bounds) {
+                (Some(a), Some(b)) => Some(a.union(&b)),
+                (a, b) => a.or(b),
+            };
+            Ok(())
+        })?;
+        loaded.ok_or_else(|| crate::Error::Internal("a scene file gave no block".into()))
+    }
+
+    /// Buffers for `total` Gaussians with `like`'s attributes, not yet written.
+    fn allocate(device: &Device, like: &Scene, total: usize) -> Result<Self> {
+        let n = total as u64;
+        let make = |name: &str, floats: u64| device.create_buffer(name, floats * 4, MemoryKind::Storage);
+        let optional = |on: bool, name: &str, floats: u64| on.then(|| make(name, floats)).transpose();
+        let m = &like.materials;
+        let k = super::sh_coefficients(like.sh_degree) as u64;
+        Ok(Self {
+            normals: optional(like.normals.is_some(), "scene normals", 3 * n)?,
+            albedo: optional(m.albedo.is_some(), "scene albedo", 3 * n)?,
+            roughness: optional(m.roughness.is_some(), "scene roughness", n)?,
+            metallic: optional(m.metallic.is_some(), "scene metallic", n)?,
+            ao: optional(m.ao.is_some(), "scene ao", n)?,
+            visibility: optional(m.visibility.is_some(), "scene visibility", n)?,
+            count: total,
+            sh_degree: like.sh_degree,
+            means: make("scene means", 3 * n)?,
+            log_scales: make("scene log scales", 3 * n)?,
+            rotations: make("scene rotations", 4 * n)?,
+            opacity_logits: make("scene opacity logits", n)?,
+            sh: make("scene SH", 3 * k * n)?,
+            version: next_scene_version(),
+        })
+    }
+
+    /// Writes `part`'s Gaussians as rows `first..` of every buffer.
+    fn write_rows(&self, device: &Device, first: usize, part: &Scene) -> Result<()> {
+        fn optional<T: bytemuck::Pod>(device: &Device, b: &Option<Buffer>, v: &Option<Vec<T>>, at: u64) -> Result<()> {
+            if let (Some(b), Some(v)) = (b, v) {
+                device.write_buffer(b, at * std::mem::size_of::<T>() as u64, v)?;
+            }
+            Ok(())
+        }
+        let at = first as u64;
+        let k = super::sh_coefficients(self.sh_degree) as u64;
+        let m = &part.materials;
+        device.write_buffer(&self.means, at * 12, &part.means)?;
+        device.write_buffer(&self.log_scales, at * 12, &part.log_scales)?;
+        device.write_buffer(&self.rotations, at * 16, &part.rotations)?;
+        device.write_buffer(&self.opacity_logits, at * 4, &part.opacity_logits)?;
+        device.write_buffer(&self.sh, at * 12 * k, &part.sh)?;
+        optional(device, &self.normals, &part.normals, at)?;
+        optional(device, &self.albedo, &m.albedo, at)?;
+        optional(device, &self.roughness, &m.roughness, at)?;
+        optional(device, &self.metallic, &m.metallic, at)?;
+        optional(device, &self.ao, &m.ao, at)?;
+        optional(device, &self.visibility, &m.visibility, at)?;
+        Ok(())
+    }
+
     /// Identifies this scene's contents: unique per upload, and renewed by
     /// [`GpuScene::mark_changed`]. Results derived from the Gaussians alone
     /// (a reused shadow map) are valid while it stays the same.
@@ -91,6 +181,20 @@ impl GpuScene {
     pub fn mark_changed(&mut self) {
         self.version = next_scene_version();
     }
+}
+
+/// Bytes of the file per block [`GpuScene::load`] reads and writes at a time.
+pub const LOAD_BLOCK_BYTES: usize = 16 << 20;
+
+/// A scene [`GpuScene::load`] read straight to the device, with what callers
+/// otherwise take from a host copy.
+pub struct LoadedScene {
+    /// The Gaussians on the device.
+    pub gpu: GpuScene,
+    /// Which optional attribute groups the scene has.
+    pub attributes: AttributeGroups,
+    /// Bounds of the centres; `None` for an empty scene.
+    pub bounds: Option<Bounds>,
 }
 
 /// Activated parameters on the GPU.

@@ -154,6 +154,14 @@ pub struct Bounds {
     pub max: [f32; 3],
 }
 
+impl Bounds {
+    /// The smallest bounds holding both.
+    pub fn union(&self, other: &Bounds) -> Bounds {
+        let pick = |a: [f32; 3], b: [f32; 3], f: fn(f32, f32) -> f32| [f(a[0], b[0]), f(a[1], b[1]), f(a[2], b[2])];
+        Bounds { min: pick(self.min, other.min, f32::min), max: pick(self.max, other.max, f32::max) }
+    }
+}
+
 impl Scene {
     /// A copy keeping spherical harmonics up to `degree` only (no change when
     /// `degree` is at least the scene's).

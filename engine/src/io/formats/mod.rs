@@ -224,6 +224,26 @@ pub fn read_scene_bytes(bytes: &[u8], origin: &str) -> std::result::Result<Scene
     read_scene_as(bytes, format, origin)
 }
 
+/// Reads the scene at `path` in blocks ([`super::read_ply_blocks`]): an
+/// INRIA PLY (detected from its content, as [`read_scene`] does) streams in
+/// blocks of about `block_bytes` of the file, so the host never holds it
+/// whole; every other format is read whole and given as one block.
+pub fn read_scene_blocks(
+    path: impl AsRef<Path>,
+    block_bytes: usize,
+    mut on_block: impl FnMut(&super::PlyBlock<'_>) -> Result<()>,
+) -> Result<()> {
+    let path = path.as_ref();
+    if prefix_format(path) == Some(SceneFormat::Ply) {
+        if let Some(named) = SceneFormat::from_extension(path).filter(|f| *f != SceneFormat::Ply) {
+            log::warn!("{}: the extension says {named} but the content is PLY; reading it as PLY", path.display());
+        }
+        return super::read_ply_blocks(path, block_bytes, on_block);
+    }
+    let scene = read_scene(path)?;
+    on_block(&super::PlyBlock { total: scene.len(), first: 0, gaussians: &scene })
+}
+
 /// Reads `bytes` as `format`.
 pub fn read_scene_as(bytes: &[u8], format: SceneFormat, origin: &str) -> std::result::Result<Scene, SceneError> {
     match format {
