@@ -515,19 +515,7 @@ impl Splatter {
         let phase1 = device.run(|rec| -> Result<()> {
             for (i, (p, view)) in pending.iter().zip(views).enumerate() {
                 phase1_marks.push(rec.stages_begun());
-                let buffers = FrameBuffers {
-                    scene,
-                    splats: &p.splats,
-                    features: p.features.as_ref(),
-                    tile_counts: &p.tile_counts,
-                    keys: None,
-                    values: None,
-                    pair_tiles: None,
-                    ranges: &p.ranges,
-                    out: &p.out,
-                    occluder: view.occluder.map(|(b, _)| b),
-                };
-                p.frame.record(rec, &p.uniform, &buffers)?;
+                p.frame.record(rec, &p.uniform, &p.buffers(scene, view, None))?;
                 rec.begin_stage("preprocess");
                 rec.fill(&p.tile_counts, 0)?;
                 if texel_preprocess {
@@ -569,19 +557,7 @@ impl Splatter {
         let phase2 = device.run(|rec| -> Result<()> {
             for ((p, s), view) in pending.iter().zip(&plans).zip(views) {
                 phase2_marks.push(rec.stages_begun());
-                let buffers = FrameBuffers {
-                    scene,
-                    splats: &p.splats,
-                    features: p.features.as_ref(),
-                    tile_counts: &p.tile_counts,
-                    keys: Some(&s.keys),
-                    values: Some(&s.values),
-                    pair_tiles: Some(&s.pair_tiles),
-                    ranges: &p.ranges,
-                    out: &p.out,
-                    occluder: view.occluder.map(|(b, _)| b),
-                };
-                p.frame.record(rec, &p.uniform, &buffers)?;
+                p.frame.record(rec, &p.uniform, &p.buffers(scene, view, Some(s)))?;
                 if let Some(word) = settings.prefill {
                     for b in [&p.out.alpha]
                         .into_iter()
@@ -718,6 +694,24 @@ struct PendingView {
     ranges: Buffer,
     uniform: Buffer,
     tiles: u64,
+}
+
+impl PendingView {
+    /// The buffers its uniform addresses: the sort's once `sort` exists.
+    fn buffers<'a>(&'a self, scene: &'a GpuScene, view: &View<'a>, sort: Option<&'a SortPlan>) -> FrameBuffers<'a> {
+        FrameBuffers {
+            scene,
+            splats: &self.splats,
+            features: self.features.as_ref(),
+            tile_counts: &self.tile_counts,
+            keys: sort.map(|s| &s.keys),
+            values: sort.map(|s| &s.values),
+            pair_tiles: sort.map(|s| &s.pair_tiles),
+            ranges: &self.ranges,
+            out: &self.out,
+            occluder: view.occluder.map(|(b, _)| b),
+        }
+    }
 }
 
 /// A view's sort and blend, once its pairs are counted.
