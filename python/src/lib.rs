@@ -576,10 +576,22 @@ impl Device {
                     (Some(_), Some((_, e)), _) | (None, _, Some((_, e))) => e,
                     _ => return Err(py_err(srug::Error::Internal("no environment was prepared".into()))),
                 };
-                for (i, cam) in cams.iter().enumerate() {
-                    let relit = relighter
-                        .render(&gpu_scene, &attributes, &bounds, cam, sun.as_ref(), env, brdf, &settings)
-                        .map_err(py_err)?;
+                // Cameras in batches: their splats one submission per step.
+                let estimate = SplatSettings { channels: Channels::ALL, ..SplatSettings::default() };
+                let batch = cams
+                    .first()
+                    .map_or(1, |cam| cameras_per_batch(gpu_scene.count as u64, cam, &estimate, BATCH_BYTES));
+                let mut frames = Vec::new().into_iter();
+                for i in 0..n {
+                    if frames.len() == 0 {
+                        let chunk = &cams[i..(i + batch).min(n)];
+                        frames = relighter
+                            .render_batch(&gpu_scene, &attributes, &bounds, chunk, sun.as_ref(), env, brdf, &settings)
+                            .map_err(py_err)?
+                            .into_iter();
+                    }
+                    let relit =
+                        frames.next().ok_or_else(|| py_err(srug::Error::Internal("a batch ran short".into())))?;
                     let dst = outputs.slot_f32(name, i);
                     if (relit.shaded.width, relit.shaded.height) == (w, h) {
                         let buffer = if display { &relit.shaded.display } else { &relit.shaded.radiance };

@@ -875,3 +875,54 @@ fn relighter_reuses_the_shadow_map_only_while_it_is_current() {
     check(&mut reusing, &other, 0, &sun_a, &settings, false, "still off");
     assert_no_validation_messages(&d);
 }
+
+#[test]
+fn a_batch_of_relit_cameras_is_each_camera_relit_alone() {
+    // Relighter::render_batch splats the cameras together (one submission per
+    // step) and shades each in turn: every frame (radiance, its parts and the
+    // sun visibility) must be the frame Relighter::render gives alone, with
+    // and without a kept shadow map, at a render scale below 1 too.
+    use srug::frame::{RelightSettings, Relighter};
+    use srug::scene::activate::GpuScene;
+    use srug::scene::demo::{demo_city, DemoOptions};
+    use srug::shadow::ShadowSettings;
+    let d = device();
+    let city = demo_city(&DemoOptions { seed: 4, gaussians: 5000, sh_degree: 1 }).unwrap();
+    let cams: Vec<Camera> =
+        (0..5).map(|i| city.cameras[i % city.cameras.len()].resized(96 + 8 * i as u32, 40)).collect();
+    let sun = Sun::from_azimuth_elevation(260.0, 50.0, [3.0; 3]).unwrap();
+    let prep = EnvironmentPrep::new(&d).unwrap();
+    let sky = srug::shade::ProceduralSky::new(sun.direction, 3.0).render().unwrap();
+    let env = prep.prepare(&sky, &PrepareSettings { samples: 16, ..PrepareSettings::default() }).unwrap();
+    let brdf = prep.brdf_table(BrdfLut::Karis, 33, 64).unwrap();
+    let bounds = city.scene.bounds().unwrap();
+    let attributes = city.scene.attributes();
+    let gpu = GpuScene::upload(&d, &city.scene).unwrap();
+    let read = |f: &srug::frame::RelitFrame| {
+        let img = f.shaded.read(&d).unwrap();
+        let v: Vec<f32> = d.read_buffer(f.visibility.as_ref().unwrap()).unwrap();
+        (img.radiance, img.sun, img.sky, v, f.pairs)
+    };
+    for (reuse, scale) in [(false, 1.0), (true, 1.0), (true, 0.5)] {
+        let settings = RelightSettings {
+            shadow: ShadowSettings { resolution: 256, prefill: Some(NAN), ..ShadowSettings::default() },
+            shade: ShadeSettings { prefill: Some(NAN), ..ShadeSettings::default() },
+            render_scale: scale,
+            ..RelightSettings::default()
+        };
+        let mut batched = Relighter::new(&d).unwrap();
+        batched.set_shadow_map_reuse(reuse);
+        let mut alone = Relighter::new(&d).unwrap();
+        alone.set_shadow_map_reuse(reuse);
+        let frames =
+            batched.render_batch(&gpu, &attributes, &bounds, &cams, Some(&sun), &env, &brdf, &settings).unwrap();
+        assert_eq!(frames.len(), cams.len());
+        for (i, (f, cam)) in frames.iter().zip(&cams).enumerate() {
+            let want = alone.render(&gpu, &attributes, &bounds, cam, Some(&sun), &env, &brdf, &settings).unwrap();
+            assert_eq!((f.shaded.width, f.shaded.height), (want.shaded.width, want.shaded.height), "camera {i}");
+            assert_eq!(f.shadow_map_reused, reuse && i > 0, "camera {i}, reuse {reuse}");
+            assert!(read(f) == read(&want), "camera {i}, reuse {reuse}, scale {scale}: the batched frame differs");
+        }
+    }
+    assert_no_validation_messages(&d);
+}

@@ -4,7 +4,7 @@
 use std::path::{Path, PathBuf};
 
 use indicatif::ProgressBar;
-use srug::frame::{Preset, Relighter};
+use srug::frame::{Preset, Relighter, RelitFrame};
 use srug::gpu::Device;
 use srug::indirect::StoragePrecision;
 use srug::scene::{self, activate, Camera};
@@ -13,6 +13,7 @@ use srug::shade::{
     VisibilitySource,
 };
 use srug::shadow::Sun;
+use srug::splat::{cameras_per_batch, Channels, SplatSettings, BATCH_BYTES};
 use srug::{io, Error, Result};
 
 use crate::args::{
@@ -210,65 +211,100 @@ fn relight(device: &Device, args: &RelightArgs) -> Result<()> {
         eprintln!("{warning}");
     }
     let mut written = RunOutputs::default();
-    // Frames in sun-major order; frame f + 1 renders while frame f is encoded and written.
-    let frames = suns.iter().enumerate().flat_map(|(si, sun)| cams.iter().map(move |c| (si, sun, c)));
+    // Frames in sun-major order, each sun's cameras in batches (their splats
+    // one submission per step); batch b + 1 renders while batch b is encoded and written.
+    let largest = cams.iter().map(|(_, cam)| cam).max_by_key(|cam| u64::from(cam.width) * u64::from(cam.height));
+    let estimate = SplatSettings { channels: Channels::ALL, ..SplatSettings::default() };
+    let batch = largest.map_or(1, |cam| cameras_per_batch(gpu_scene.count as u64, cam, &estimate, BATCH_BYTES));
+    let batches = suns.iter().enumerate().flat_map(|(si, sun)| cams.chunks(batch).map(move |c| (si, sun, c)));
     let mut environment: Option<(usize, EnvRef<'_>)> = None;
     let mut frame = 0;
     overlapped(
-        frames,
-        2,
-        |(si, (label, s), (number, cam))| -> Result<_> {
-            // A shard's frames keep their number in the whole run (sun-major), so shards never collide.
-            let target = match view.shard {
-                Some(_) => numbered(out, si * all_cameras + number),
-                None if total > 1 => numbered(out, frame),
-                None => out.to_path_buf(),
-            };
-            frame += 1;
+        batches,
+        1,
+        |(si, (label, s), chunk)| -> Result<Vec<_>> {
             if environment.as_ref().is_none_or(|(i, _)| *i != si) {
                 environment = Some((si, lights.environment(s)?));
             }
             let env =
                 environment.as_ref().map(|(_, e)| &**e).ok_or_else(|| Error::Internal("no environment".into()))?;
-            let relit =
-                relighter.render(&gpu_scene, &attributes, &bounds, cam, Some(s), env, &lights.brdf, &settings)?;
-            let image = relit.shaded.read(device)?.resampled(cam.width, cam.height)?;
-            let indirect = match &relit.shaded.indirect {
-                Some(b) => Some(resample_planar(&device.read_buffer::<f32>(b)?, &relit.shaded, cam)?),
-                None => None,
-            };
-            let visibility = match (&relit.visibility, exr) {
-                (Some(b), true) => {
-                    let v = device.read_buffer::<f32>(b)?;
-                    let size = (relit.shaded.width, relit.shaded.height);
-                    Some(srug::image::resample_bilinear(&v, size, 1, (cam.width, cam.height))?)
-                }
-                _ => None,
-            };
-            let line = format!(
-                "{} camera {} {label}: {:.0} ms GPU{}",
-                target.display(),
-                number,
-                relit.timings.total_seconds() * 1e3,
-                match (relit.shadow_pass_ran, relit.shadow_map_reused) {
-                    (false, _) => " (no shadow pass)",
-                    (true, true) => " (shadow map reused)",
-                    (true, false) => "",
-                }
-            );
-            Ok((target, image, indirect, visibility, line))
+            let cameras: Vec<Camera> = chunk.iter().map(|(_, cam)| cam.clone()).collect();
+            let relit = relighter.render_batch(
+                &gpu_scene,
+                &attributes,
+                &bounds,
+                &cameras,
+                Some(s),
+                env,
+                &lights.brdf,
+                &settings,
+            )?;
+            let mut outputs = Vec::with_capacity(relit.len());
+            for ((number, cam), relit) in chunk.iter().zip(relit) {
+                // A shard's frames keep their number in the whole run (sun-major), so shards never collide.
+                let target = match view.shard {
+                    Some(_) => numbered(out, si * all_cameras + number),
+                    None if total > 1 => numbered(out, frame),
+                    None => out.to_path_buf(),
+                };
+                frame += 1;
+                outputs.push(relit_outputs(device, target, &relit, cam, exr, number, label)?);
+            }
+            Ok(outputs)
         },
-        |(target, image, indirect, visibility, line)| -> Result<()> {
-            write_relit(&target, exr, &image, indirect.as_deref(), visibility.as_deref())?;
-            written.add(target);
-            print_line(&bar, &line);
-            bar.inc(1);
+        |frames| -> Result<()> {
+            for (target, image, indirect, visibility, line) in frames {
+                write_relit(&target, exr, &image, indirect.as_deref(), visibility.as_deref())?;
+                written.add(target);
+                print_line(&bar, &line);
+                bar.inc(1);
+            }
             Ok(())
         },
     )?;
     bar.finish_and_clear();
     written.keep();
     Ok(())
+}
+
+/// What a relit frame writes (read back at the camera's size) and its progress line.
+type RelitOutputs = (PathBuf, srug::shade::ShadedImage, Option<Vec<f32>>, Option<Vec<f32>>, String);
+
+/// Reads `relit` back for writing to `target`.
+fn relit_outputs(
+    device: &Device,
+    target: PathBuf,
+    relit: &RelitFrame,
+    cam: &Camera,
+    exr: bool,
+    number: &usize,
+    label: &str,
+) -> Result<RelitOutputs> {
+    let image = relit.shaded.read(device)?.resampled(cam.width, cam.height)?;
+    let indirect = match &relit.shaded.indirect {
+        Some(b) => Some(resample_planar(&device.read_buffer::<f32>(b)?, &relit.shaded, cam)?),
+        None => None,
+    };
+    let visibility = match (&relit.visibility, exr) {
+        (Some(b), true) => {
+            let v = device.read_buffer::<f32>(b)?;
+            let size = (relit.shaded.width, relit.shaded.height);
+            Some(srug::image::resample_bilinear(&v, size, 1, (cam.width, cam.height))?)
+        }
+        _ => None,
+    };
+    let line = format!(
+        "{} camera {} {label}: {:.0} ms GPU{}",
+        target.display(),
+        number,
+        relit.timings.total_seconds() * 1e3,
+        match (relit.shadow_pass_ran, relit.shadow_map_reused) {
+            (false, _) => " (no shadow pass)",
+            (true, true) => " (shadow map reused)",
+            (true, false) => "",
+        }
+    );
+    Ok((target, image, indirect, visibility, line))
 }
 
 /// Planar RGB `v` of `frame`'s size resampled to the camera's size.

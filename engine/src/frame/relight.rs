@@ -39,6 +39,50 @@ pub struct RelitFrame {
     pub pairs: u64,
 }
 
+/// What every frame of one scene, sun and settings runs, decided before
+/// anything runs (the plan reports the same).
+struct FramePlan {
+    decisions: RelightDecisions,
+    /// The shading settings, with the visibility the decisions chose.
+    shade: crate::shade::ShadeSettings,
+    /// The camera splat: only the channels the shading needs.
+    splat: SplatSettings,
+}
+
+impl FramePlan {
+    fn new(attributes: &AttributeGroups, sun: Option<&Sun>, settings: &RelightSettings) -> Result<Self> {
+        settings.validate()?;
+        let decisions = RelightDecisions::new(attributes, sun, settings)?;
+        if !decisions.shading {
+            return Err(Error::invalid(
+                "scene",
+                "has no albedo attribute: it cannot be relit (render its colour with `srug render`)",
+            ));
+        }
+        let mut shade = settings.shade;
+        shade.visibility = decisions.visibility;
+        let splat = SplatSettings {
+            channels: decisions.channels,
+            normal_source: settings.normal_source,
+            prefill: shade.prefill,
+            sh_degree: settings.sh_degree,
+            tile: settings.tile,
+            // The shadow test's receivers are these pixels: their depths follow its definition.
+            surface_depth: settings.shadow.surface_depth,
+            ..SplatSettings::default()
+        };
+        Ok(Self { decisions, shade, splat })
+    }
+}
+
+/// The light a frame is shaded under, and the bounds its light camera fits.
+struct Lights<'a> {
+    bounds: &'a Bounds,
+    sun: Option<&'a Sun>,
+    environment: &'a PreparedEnvironment,
+    brdf: &'a BrdfTable,
+}
+
 /// The relighting pipeline: splatting, shadows and shading kernels, reused across frames.
 pub struct Relighter {
     splatter: Splatter,
@@ -182,39 +226,67 @@ impl Relighter {
         brdf: &BrdfTable,
         settings: &RelightSettings,
     ) -> Result<RelitFrame> {
-        // What runs, decided before anything runs (the plan reports the same).
-        settings.validate()?;
-        let d = RelightDecisions::new(attributes, sun, settings)?;
+        let plan = FramePlan::new(attributes, sun, settings)?;
         let camera = &settings.render_camera(camera);
-        if !d.shading {
-            return Err(Error::invalid(
-                "scene",
-                "has no albedo attribute: it cannot be relit (render its colour with `srug render`)",
-            ));
-        }
-        let sun = d.sun.as_ref();
-        let mut shade = settings.shade;
-        shade.visibility = d.visibility;
+        let (gbuffer, stats) = self.splat_camera(scene, camera, &plan.splat)?;
+        let lights = Lights { bounds, sun: plan.decisions.sun.as_ref(), environment, brdf };
+        self.finish(scene, camera, &lights, settings, &plan, gbuffer, stats)
+    }
 
-        // 1. The camera's G-buffers: only the channels the shading needs.
-        let splat = SplatSettings {
-            channels: d.channels,
-            normal_source: settings.normal_source,
-            prefill: shade.prefill,
-            sh_degree: settings.sh_degree,
-            tile: settings.tile,
-            // The shadow test's receivers are these pixels: their depths follow its definition.
-            surface_depth: settings.shadow.surface_depth,
-            ..SplatSettings::default()
+    /// Renders each of `cameras` as [`Relighter::render`] does (the same
+    /// frames, in order), with the cameras' splats batched
+    /// ([`Splatter::render_batch`]: one submission per step for several
+    /// cameras) unless a host depth is set; the shadow map is shared as
+    /// reuse allows and each frame is shaded in turn. Every frame is held
+    /// until returned: pass as many cameras as memory allows
+    /// ([`crate::splat::cameras_per_batch`]).
+    #[allow(clippy::too_many_arguments, reason = "Relighter::render's inputs, with several cameras")]
+    pub fn render_batch(
+        &mut self,
+        scene: &GpuScene,
+        attributes: &AttributeGroups,
+        bounds: &Bounds,
+        cameras: &[Camera],
+        sun: Option<&Sun>,
+        environment: &PreparedEnvironment,
+        brdf: &BrdfTable,
+        settings: &RelightSettings,
+    ) -> Result<Vec<RelitFrame>> {
+        let plan = FramePlan::new(attributes, sun, settings)?;
+        let cameras: Vec<Camera> = cameras.iter().map(|c| settings.render_camera(c)).collect();
+        let splats = match self.host_depth {
+            None => self.splatter.render_batch(scene, &cameras, &plan.splat)?,
+            Some(_) => cameras.iter().map(|c| self.splat_camera(scene, c, &plan.splat)).collect::<Result<_>>()?,
         };
-        let (gbuffer, stats) = self.splat_camera(scene, camera, &splat)?;
+        let lights = Lights { bounds, sun: plan.decisions.sun.as_ref(), environment, brdf };
+        cameras
+            .iter()
+            .zip(splats)
+            .map(|(camera, (gbuffer, stats))| self.finish(scene, camera, &lights, settings, &plan, gbuffer, stats))
+            .collect()
+    }
+
+    /// Steps 2 to 5 of a frame whose G-buffers are splatted: the shadow pass
+    /// and the shading.
+    #[allow(clippy::too_many_arguments, reason = "one frame's inputs, each of a different stage")]
+    fn finish(
+        &mut self,
+        scene: &GpuScene,
+        camera: &Camera,
+        lights: &Lights<'_>,
+        settings: &RelightSettings,
+        plan: &FramePlan,
+        gbuffer: GpuGBuffer,
+        stats: crate::splat::SplatStats,
+    ) -> Result<RelitFrame> {
         let (mut timings, pairs) = (stats.timings, stats.pairs);
+        let sun = lights.sun;
 
         // 2. and 3. The sun's shadow map (splatted, or the last frame's) and its
         // test at every camera pixel, when the visibility is editable and there is a sun.
         let mut shadow = None;
-        if let (true, Some(s)) = (d.shadow_pass, sun) {
-            shadow = Some(self.shadow_pass(scene, bounds, camera, s, &gbuffer, settings, &mut timings)?);
+        if let (true, Some(s)) = (plan.decisions.shadow_pass, sun) {
+            shadow = Some(self.shadow_pass(scene, lights.bounds, camera, s, &gbuffer, settings, &mut timings)?);
         }
         let visibility = shadow.as_ref().map(|(v, _)| v);
 
@@ -222,15 +294,15 @@ impl Relighter {
         let inputs = ShadeInputs {
             gbuffer: &gbuffer,
             camera,
-            environment,
-            brdf,
+            environment: lights.environment,
+            brdf: lights.brdf,
             sun,
             editable_visibility: visibility,
             indirect: None,
         };
         let shaded = match self.network.as_mut() {
-            Some(net) => self.shader.shade_with_network(&inputs, &shade, net)?,
-            None => self.shader.shade(&inputs, &shade)?,
+            Some(net) => self.shader.shade_with_network(&inputs, &plan.shade, net)?,
+            None => self.shader.shade(&inputs, &plan.shade)?,
         };
         timings.stages.extend(shaded.timings.stages.iter().cloned());
         let shadow_map_reused = shadow.as_ref().is_some_and(|(_, reused)| *reused);
