@@ -17,7 +17,7 @@ use srug::scene::demo::{demo_city, DemoOptions};
 use srug::scene::{Camera, Scene};
 use srug::shade::{BrdfLut, EnvironmentPrep, PrepareSettings, ProceduralSky};
 use srug::shadow::Sun;
-use srug::splat::{cameras_per_batch, SplatSettings, Splatter, BATCH_BYTES};
+use srug::splat::{cameras_per_batch, Channels, SplatSettings, Splatter, BATCH_BYTES};
 use srug::{io, Error, Result};
 
 /// What the batch benchmark runs.
@@ -158,17 +158,22 @@ fn relight_to_memory(device: &Device, host: &Scene, scene: &GpuScene, cams: &[Ca
     let settings = RelightSettings::preset(Preset::Balanced);
     let bounds = host.bounds().ok_or_else(|| Error::invalid("scene", "is empty"))?;
     let attributes = host.attributes();
-    let frame = |r: &mut Relighter, cam: &Camera| {
-        r.render(scene, &attributes, &bounds, cam, Some(&sun), &sky, &brdf, &settings)
+    let frames = |r: &mut Relighter, cams: &[Camera]| {
+        r.render_batch(scene, &attributes, &bounds, cams, Some(&sun), &sky, &brdf, &settings)
     };
-    frame(&mut relighter, &cams[0])?;
+    frames(&mut relighter, &cams[..1])?;
     let (w, h) = (cams[0].width as usize, cams[0].height as usize);
     let mut radiance = vec![0.0f32; cams.len() * w * h * 3];
+    // In batches, as `srug relight` and the Python package relight.
+    let estimate = SplatSettings { channels: Channels::ALL, ..SplatSettings::default() };
+    let batch = cameras_per_batch(scene.count as u64, &cams[0], &estimate, BATCH_BYTES);
     let (start, mut gpu) = (Instant::now(), 0.0);
-    for (i, cam) in cams.iter().enumerate() {
-        let relit = frame(&mut relighter, cam)?;
-        device.read_buffer_into(&relit.shaded.radiance, &mut radiance[i * w * h * 3..(i + 1) * w * h * 3])?;
-        gpu += relit.timings.total_seconds();
+    for (b, chunk) in cams.chunks(batch).enumerate() {
+        for (k, relit) in frames(&mut relighter, chunk)?.into_iter().enumerate() {
+            let i = b * batch + k;
+            device.read_buffer_into(&relit.shaded.radiance, &mut radiance[i * w * h * 3..(i + 1) * w * h * 3])?;
+            gpu += relit.timings.total_seconds();
+        }
     }
     Ok((start.elapsed().as_secs_f64(), gpu))
 }
