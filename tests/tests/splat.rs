@@ -15,8 +15,8 @@ use srug::scene::{Camera, Scene};
 use srug::splat::cpu::{preprocess_one, render_cpu, tile_row_span, CpuSplat};
 use srug::splat::Channel;
 use srug::splat::{
-    default_blend_pixels, BlendVariant, Channels, GBuffer, NormalSource, SplatSettings, Splatter, TileBounds,
-    BLEND_PIXELS, DEFAULT_TILE, FRAMES_PER_SUBMISSION, TILE_SIZES,
+    cameras_per_batch, default_blend_pixels, BlendVariant, Channels, GBuffer, NormalSource, SplatSettings, Splatter,
+    TileBounds, BATCH_BYTES, BLEND_PIXELS, DEFAULT_TILE, FRAMES_PER_SUBMISSION, TILE_SIZES,
 };
 use srug_tests::{assert_no_validation_messages, device, psnr, random_scene, save_comparison, NAN_SENTINEL};
 
@@ -444,6 +444,15 @@ fn a_batch_of_cameras_renders_the_same_bits_as_one_camera_at_a_time() {
             assert_eq!(stages.iter().filter(|s| **s == stage).count(), 1, "camera {i}: {stage} in {stages:?}");
         }
     }
+    // Batch sizes from the memory budget: a street frame of 200k Gaussians at
+    // 704x192 (rgb: 100 bytes per Gaussian, 16 per pixel; every channel: 148 and
+    // 64), never fewer than one camera however large, never more than a submission takes.
+    let street = city.cameras[0].resized(704, 192);
+    let all = SplatSettings { channels: Channels::ALL, ..SplatSettings::default() };
+    assert_eq!(cameras_per_batch(200_000, &street, &SplatSettings::default(), BATCH_BYTES), 12);
+    assert_eq!(cameras_per_batch(200_000, &street, &all, BATCH_BYTES), 7);
+    assert_eq!(cameras_per_batch(u64::MAX, &street, &all, BATCH_BYTES), 1);
+    assert_eq!(cameras_per_batch(10, &street.resized(8, 8), &all, BATCH_BYTES), FRAMES_PER_SUBMISSION);
     // Nothing to render is no work; one bad camera fails the whole call.
     assert!(splatter.render_frames(&gpu_scene, &[], &settings).unwrap().is_empty());
     let mut bad = cameras[..3].to_vec();
