@@ -35,8 +35,18 @@ fn setup(gaussians: usize) -> Setup {
     Setup { splatter: Splatter::new(&d).unwrap(), pass: ShadowPass::new(&d).unwrap(), demo, gpu_scene, d }
 }
 
+/// The twin tests' settings: a plain metre bias and expected receiver depths
+/// unless a test says otherwise (the default's slope bias needs receiver
+/// normals, which the tests that exercise it render).
 fn settings(resolution: u32) -> ShadowSettings {
-    ShadowSettings { resolution, prefill: Some(NAN), ..ShadowSettings::default() }
+    ShadowSettings {
+        resolution,
+        prefill: Some(NAN),
+        bias: 0.15,
+        slope_bias: 0.0,
+        receiver_depth: DepthMode::Expected,
+        ..ShadowSettings::default()
+    }
 }
 
 /// Renders the receiver G-buffer (its depth channels plus the fixed visibility).

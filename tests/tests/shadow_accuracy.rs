@@ -151,3 +151,15 @@ fn presets_shadow_the_analytic_block_as_the_truth_does() {
     assert_eq!((none.iou(), none.light_leak_rate()), (0.0, 1.0));
     assert_no_validation_messages(&d);
 }
+
+#[test]
+fn the_default_shadow_settings_are_the_balanced_presets_measured_ones() {
+    // ShadowSettings::default() is what a Rust caller gets without a preset:
+    // it must be the balanced preset's shadow, whose accuracy the floors above
+    // hold, not a weaker pair (0.15 m with expected depths measured worst).
+    let balanced = RelightSettings::preset(Preset::Balanced).shadow;
+    assert_eq!(srug::shadow::ShadowSettings::default(), balanced);
+    assert_eq!((balanced.bias, balanced.slope_bias), (0.3, 3.0));
+    assert_eq!(balanced.receiver_depth, srug::shadow::DepthMode::Median);
+    assert!(balanced.receiver_channels().normal, "a slope bias reads the receivers' normals");
+}

@@ -243,6 +243,7 @@ fn shadow_gradients_reach_the_gaussians_like_finite_differences() {
             resolution: 40,
             k: 6.0,
             bias: 0.02,
+            slope_bias: 0.0,
             map_depth,
             receiver_depth,
             ..ShadowSettings::default()
@@ -326,7 +327,12 @@ fn shadow_backward_is_finite_at_the_extremes() {
     for el in [0.01f32, 30.0, 90.0] {
         let sun = Sun::from_azimuth_elevation(265.0, el, [1.0; 3]).unwrap();
         // The map depends on neither k nor the bias.
-        let base = ShadowSettings { resolution: 128, ..ShadowSettings::default() };
+        let base = ShadowSettings {
+            resolution: 128,
+            slope_bias: 0.0,
+            receiver_depth: DepthMode::Expected,
+            ..ShadowSettings::default()
+        };
         let map = pass.shadow_map(&mut splatter, &gpu_scene, &bounds, &sun, &base, None).unwrap().unwrap();
         for k in [1e-3f32, 1.0, 1e4, 1e9] {
             // Bias is ≥ 0 (ShadowSettings::validate); 0 and 1e30 are its extremes.
@@ -416,7 +422,8 @@ impl Chain {
 
 fn check_chain(map_depth: DepthMode, receiver_depth: DepthMode, bce: bool) {
     let (scene, light, camera) = blob_scene();
-    let settings = ShadowSettings { k: 6.0, bias: 0.02, map_depth, receiver_depth, ..ShadowSettings::default() };
+    let settings =
+        ShadowSettings { k: 6.0, bias: 0.02, slope_bias: 0.0, map_depth, receiver_depth, ..ShadowSettings::default() };
     let chain = Chain { scene, light, camera, settings };
     let params: Vec<Gaussian64> = (0..chain.scene.len()).map(|i| Gaussian64::from_scene(&chain.scene, i)).collect();
     let mut rng = Pcg64Mcg::seed_from_u64(5);

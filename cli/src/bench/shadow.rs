@@ -138,10 +138,11 @@ pub fn shadow_accuracy(
     let demo = demo_city(&DemoOptions { gaussians, ..DemoOptions::default() })?;
     let gpu = GpuScene::upload(device, &demo.scene)?;
     let camera = demo.cameras[0].resized(setup.size.0, setup.size.1);
-    let channels = Channels { depth: true, median_depth: true, ..Channels::default() };
+    let base = ShadowSettings::default();
+    // Both depths (the map's mode varies) and the normals its slope bias reads.
+    let channels = Channels { depth: true, median_depth: true, ..base.receiver_channels() };
     let receivers = splatter.render_frame(&gpu, &camera, &SplatSettings { channels, ..SplatSettings::default() })?;
     let alpha: Vec<f32> = device.read_buffer(&receivers.gbuffer.alpha)?;
-    let base = ShadowSettings::default();
     let mask: Vec<bool> = alpha.iter().map(|a| *a >= base.min_alpha).collect();
     let covered = mask.iter().filter(|m| **m).count().max(1);
     let bounds = bounds_of(&demo.scene);

@@ -4,7 +4,7 @@
 use crate::error::{Error, Result};
 use crate::scene::Camera;
 use crate::shade::ShadeSettings;
-use crate::shadow::{DepthMode, ShadowSettings, VisibilityKind};
+use crate::shadow::{ShadowSettings, VisibilityKind};
 use crate::splat::{Channels, NormalSource};
 
 /// Everything a relit frame depends on besides the scene and the camera.
@@ -79,13 +79,11 @@ impl RelightSettings {
 
     /// The settings of a named quality preset.
     pub fn preset(preset: Preset) -> Self {
+        // The shadow's bias and depths are ShadowSettings::default(), chosen on the
+        // analytic block (tests/tests/shadow_accuracy.rs): a slope bias of 3 texels
+        // removes the fast preset's acne on steep receivers, and lets the metre bias
+        // drop from 0.5 to 0.3 at the same accuracy in the others.
         let mut s = RelightSettings::default();
-        // Chosen on the analytic block (tests/tests/shadow_accuracy.rs): a slope bias
-        // of 3 texels removes the fast preset's acne on steep receivers, and lets the
-        // metre bias drop from 0.5 to 0.3 at the same accuracy in the others.
-        s.shadow.bias = 0.3;
-        s.shadow.slope_bias = 3.0;
-        s.shadow.receiver_depth = DepthMode::Median;
         match preset {
             Preset::Fast => {
                 s.shadow.resolution = 512;

@@ -60,6 +60,8 @@ impl Default for CompletionSettings {
                 resolution: 256,
                 k: 4.0,
                 bias: 0.3,
+                // Differentiable receivers (expected depth), no normals rendered: no slope bias.
+                slope_bias: 0.0,
                 map_depth: super::DepthMode::Median,
                 receiver_depth: super::DepthMode::Expected,
                 fit: ShadowFit::ViewFrustum,
