@@ -23,7 +23,7 @@ use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
 use srug::camera::{Camera, Projection, DEFAULT_FAR, DEFAULT_NEAR};
-use srug::frame::{Preset, RelightSettings, Relighter};
+use srug::frame::{HostDepthImage, Preset, RelightSettings, Relighter};
 use srug::gpu::{Buffer, Device as GpuDevice, DeviceOptions, DeviceSelection};
 use srug::scene::activate::GpuScene;
 use srug::scene::Scene as HostScene;
@@ -218,6 +218,46 @@ impl Outputs {
     }
 }
 
+/// The host's depth given to `render`/`relight`: one (H, W) image for every
+/// camera or (N, H, W), one per camera, in `convention`; its values, whether
+/// one image serves all, and the convention.
+fn host_depth_values(
+    array: Option<PyReadonlyArrayDyn<'_, f32>>,
+    convention: &str,
+    near: f32,
+    far: f32,
+    n: usize,
+    w: u32,
+    h: u32,
+) -> PyResult<Option<(Vec<f32>, bool, srug::splat::HostDepth)>> {
+    let Some(a) = array else { return Ok(None) };
+    let convention = match convention {
+        "camera_z" => srug::splat::HostDepth::CameraZ,
+        "vulkan" => srug::splat::HostDepth::Vulkan { near, far },
+        "reversed_z" => srug::splat::HostDepth::ReversedZ { near, far },
+        other => {
+            return Err(invalid(
+                format!("depth convention \"{other}\""),
+                "is not \"camera_z\", \"vulkan\" or \"reversed_z\"",
+            ))
+        }
+    };
+    convention.validate().map_err(py_err)?;
+    let shape = a.shape().to_vec();
+    let (hh, ww) = (h as usize, w as usize);
+    if shape != [n, hh, ww] && shape != [hh, ww] {
+        return Err(invalid(
+            format!("host_depth of shape {shape:?}"),
+            format!("must be ({n}, {hh}, {ww}) or ({hh}, {ww})"),
+        ));
+    }
+    let values: Vec<f32> = a.as_array().iter().copied().collect();
+    if let Some(i) = values.iter().position(|v| v.is_nan()) {
+        return Err(invalid(format!("host_depth value {i}"), "is NaN"));
+    }
+    Ok(Some((values, shape.len() == 2, convention)))
+}
+
 /// One size for the whole batch (stacked outputs), or an error naming the first camera that differs.
 fn batch_size(cameras: &[Camera]) -> PyResult<(u32, u32)> {
     let first = cameras.first().ok_or_else(|| invalid("cameras", "is empty"))?;
@@ -368,37 +408,7 @@ impl Device {
         let device = self.gpu()?;
         let cams = &cameras.cameras;
         let (w, h) = batch_size(cams)?;
-        // The host's depth: one image for every camera, or one per camera.
-        let host = match host_depth {
-            None => None,
-            Some(a) => {
-                let convention = match depth_convention {
-                    "camera_z" => srug::splat::HostDepth::CameraZ,
-                    "vulkan" => srug::splat::HostDepth::Vulkan { near, far },
-                    "reversed_z" => srug::splat::HostDepth::ReversedZ { near, far },
-                    other => {
-                        return Err(invalid(
-                            format!("depth convention \"{other}\""),
-                            "is not \"camera_z\", \"vulkan\" or \"reversed_z\"",
-                        ))
-                    }
-                };
-                convention.validate().map_err(py_err)?;
-                let shape = a.shape().to_vec();
-                let (n, hh, ww) = (cams.len(), h as usize, w as usize);
-                if shape != [n, hh, ww] && shape != [hh, ww] {
-                    return Err(invalid(
-                        format!("host_depth of shape {shape:?}"),
-                        format!("must be ({n}, {hh}, {ww}) or ({hh}, {ww})"),
-                    ));
-                }
-                let values: Vec<f32> = a.as_array().iter().copied().collect();
-                if let Some(i) = values.iter().position(|v| v.is_nan()) {
-                    return Err(invalid(format!("host_depth value {i}"), "is NaN"));
-                }
-                Some((values, shape.len() == 2, convention))
-            }
-        };
+        let host = host_depth_values(host_depth, depth_convention, near, far, cams.len(), w, h)?;
         let blended: Vec<&str> = channels.iter().map(String::as_str).filter(|c| *c != "range").collect();
         let mut set = Channels::parse(&blended.join(",")).map_err(py_err)?;
         let rgb = channels.iter().any(|c| c == "rgb" || c == "all");
@@ -516,7 +526,8 @@ impl Device {
     /// exposure, tone map and sRGB (`output="display"`).
     #[pyo3(signature = (scene, cameras, sun = None, sun_intensity = std::f32::consts::PI, preset = "balanced",
                         environment = None, env_rotation = 0.0, env_intensity = 1.0, exposure = 0.0,
-                        output = "radiance", progress = None, surface_depth = false, shadow_fit = "scene"))]
+                        output = "radiance", progress = None, surface_depth = false, shadow_fit = "scene",
+                        host_depth = None, depth_convention = "camera_z", near = 0.0, far = 0.0, background = None))]
     #[allow(clippy::too_many_arguments, reason = "the Python keyword arguments of one call")]
     fn relight<'py>(
         &self,
@@ -534,10 +545,16 @@ impl Device {
         progress: Option<Py<PyAny>>,
         surface_depth: bool,
         shadow_fit: &str,
+        host_depth: Option<PyReadonlyArrayDyn<'py, f32>>,
+        depth_convention: &str,
+        near: f32,
+        far: f32,
+        background: Option<(f32, f32, f32)>,
     ) -> PyResult<Bound<'py, PyDict>> {
         let device = self.gpu()?;
         let cams = &cameras.cameras;
         let (w, h) = batch_size(cams)?;
+        let host = host_depth_values(host_depth, depth_convention, near, far, cams.len(), w, h)?;
         let display = match output {
             "radiance" => false,
             "display" => true,
@@ -553,7 +570,17 @@ impl Device {
         settings.shade.env_intensity = env_intensity;
         settings.shadow.surface_depth |= surface_depth;
         settings.shadow.fit = srug::shadow::ShadowFit::parse(shadow_fit).map_err(py_err)?;
+        if let Some((r, g, b)) = background {
+            settings.shade.background = srug::shade::Background::Color([r, g, b]);
+        }
         settings.validate().map_err(py_err)?;
+        // The host's depth is per pixel of the frame as rendered: a reduced render scale has other pixels.
+        if host.is_some() && cams.first().is_some_and(|c| settings.render_size(c.width, c.height) != (w, h)) {
+            return Err(invalid(
+                format!("host_depth with preset \"{preset}\""),
+                "needs frames rendered at the camera's size (the fast preset renders at half size: use balanced or reference)",
+            ));
+        }
         let attributes = scene.host.attributes();
         if !attributes.shadeable() {
             return Err(invalid("scene", "has no albedo attribute, so it cannot be relit; render its colour instead"));
@@ -562,7 +589,10 @@ impl Device {
         let (n, p) = (cams.len(), (w as usize) * (h as usize));
         let name = if display { "display" } else { "radiance" };
         let mut outputs = Outputs {
-            arrays: vec![(name.to_string(), vec![n, h as usize, w as usize, 3], Output::F32(vec![0.0; n * p * 3]))],
+            arrays: vec![
+                (name.to_string(), vec![n, h as usize, w as usize, 3], Output::F32(vec![0.0; n * p * 3])),
+                ("alpha".to_string(), vec![n, h as usize, w as usize], Output::F32(vec![0.0; n * p])),
+            ],
         };
         let gpu_scene = py.detach(|| scene.gpu(self.id, &device)).map_err(py_err)?;
         let progress = progress.as_ref();
@@ -584,11 +614,26 @@ impl Device {
                 let mut frames = Vec::new().into_iter();
                 for i in 0..n {
                     if frames.len() == 0 {
-                        let chunk = &cams[i..(i + batch).min(n)];
-                        frames = relighter
-                            .render_batch(&gpu_scene, &attributes, &bounds, chunk, sun.as_ref(), env, brdf, &settings)
-                            .map_err(py_err)?
-                            .into_iter();
+                        // With a host depth, one camera at a time (its own depth image, unless shared).
+                        let end = if host.is_some() { i + 1 } else { (i + batch).min(n) };
+                        if let Some((values, shared, convention)) = &host {
+                            let slice = if *shared { &values[..] } else { &values[i * p..(i + 1) * p] };
+                            let buffer = device.upload("host depth", slice).map_err(|e| py_err(e.into()))?;
+                            let image = HostDepthImage { buffer, width: w, height: h, convention: *convention };
+                            relighter.set_host_depth(Some(image)).map_err(py_err)?;
+                        }
+                        let chunk = &cams[i..end];
+                        let relit = relighter.render_batch(
+                            &gpu_scene,
+                            &attributes,
+                            &bounds,
+                            chunk,
+                            sun.as_ref(),
+                            env,
+                            brdf,
+                            &settings,
+                        );
+                        frames = relit.map_err(py_err)?.into_iter();
                     }
                     let relit =
                         frames.next().ok_or_else(|| py_err(srug::Error::Internal("a batch ran short".into())))?;
@@ -603,11 +648,22 @@ impl Device {
                             dst.copy_from_slice(if display { &image.display } else { &image.radiance });
                         }
                     }
+                    let alpha = outputs.slot_f32("alpha", i);
+                    if (relit.gbuffer.width, relit.gbuffer.height) == (w, h) {
+                        read_into(&device, &relit.gbuffer.alpha, alpha)?;
+                    } else if let Some(dst) = alpha {
+                        let size = (relit.gbuffer.width, relit.gbuffer.height);
+                        let v: Vec<f32> = device.read_buffer(&relit.gbuffer.alpha).map_err(|e| py_err(e.into()))?;
+                        dst.copy_from_slice(&srug::image::resample_bilinear(&v, size, 1, (w, h)).map_err(py_err)?);
+                    }
                     timings.push(relit.timings.stages.iter().map(|s| (s.name.clone(), s.seconds * 1e3)).collect());
                     report(progress, i + 1, n)?;
                 }
                 Ok(())
             })();
+            // The relighter is kept for later calls: without this call's host depth.
+            let reset = kit.relighter.set_host_depth(None).map_err(py_err);
+            let result = result.and(reset);
             lock(&self.relighters).push(kit);
             result.map(|()| timings)
         })?;

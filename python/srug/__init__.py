@@ -424,7 +424,13 @@ class Device:
         progress: Progress = None,
         surface_depth: bool = False,
         shadow_fit: str = "scene",
-    ) -> np.ndarray:
+        host_depth: Optional[np.ndarray] = None,
+        depth_convention: str = "camera_z",
+        near: float = 0.0,
+        far: float = 0.0,
+        background: Optional[Tuple[float, float, float]] = None,
+        return_alpha: bool = False,
+    ) -> Any:
         """Relights every camera: (N, H, W, 3) float32.
 
         The sun by ``sun=(azimuth, elevation)`` in degrees (azimuth from north
@@ -437,7 +443,19 @@ class Device:
         ``surface_depth``: surface depths for the shadow map and its receivers
         (docs/stages.md). ``shadow_fit``: "scene" (the map covers the scene's
         bounds) or "view" (each camera's view within them: finer texels).
+        ``host_depth``, ``depth_convention``, ``near``, ``far``: your meshes'
+        depth, as ``render`` takes it; the splats behind it are hidden per pixel
+        (their shadows stay), at the camera's size (not with the fast preset's
+        half-size frames). ``background``: a constant radiance (r, g, b) where
+        no splat covers a pixel instead of the environment; (0, 0, 0) gives
+        premultiplied radiance, so ``image + (1 - alpha) * yours`` composites
+        it over your frame. ``return_alpha``: return (image, alpha), alpha
+        (N, H, W) the splats' coverage.
         """
+        if background is not None:
+            background = tuple(float(v) for v in background)
+            if len(background) != 3:
+                raise _invalid(f"background {background!r} is not r, g, b")
         if time is not None:
             if latitude is None or longitude is None:
                 raise _invalid("time needs latitude and longitude")
@@ -461,8 +479,13 @@ class Device:
             cb,
             surface_depth=bool(surface_depth),
             shadow_fit=str(shadow_fit),
+            host_depth=None if host_depth is None else np.ascontiguousarray(host_depth, dtype=np.float32),
+            depth_convention=str(depth_convention),
+            near=float(near),
+            far=float(far),
+            background=background,
         )
-        return out[output]
+        return (out[output], out["alpha"]) if return_alpha else out[output]
 
     def shadow(
         self,

@@ -52,6 +52,11 @@ class Device:
         progress: Optional[Callable[[int, int], Any]] = ...,
         surface_depth: bool = ...,
         shadow_fit: str = ...,
+        host_depth: Optional[np.ndarray] = ...,
+        depth_convention: str = ...,
+        near: float = ...,
+        far: float = ...,
+        background: Optional[Tuple[float, float, float]] = ...,
     ) -> Dict[str, np.ndarray]: ...
 
     def shadow(

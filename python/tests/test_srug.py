@@ -454,6 +454,34 @@ def test_surface_depth_moves_depths_only(dev, city):
     assert "scene or view" in str(e.value)
 
 
+def test_relight_behind_your_meshes_composites(dev, city):
+    """relight with a host depth: a mesh 5 m away over the left half hides
+    the splats there, the right half is the plain relight's bit for bit; a
+    black background gives premultiplied radiance (zero where no splat
+    covers); the host depth does not outlive the call; the fast preset's
+    half-size frames refuse one."""
+    scene, cams = city
+    cam = cams[:1].resized(176, 48)
+    sun = (260.0, 50.0)
+    open_img, open_a = dev.relight(scene, cam, sun=sun, background=(0, 0, 0), return_alpha=True)
+    depth = np.zeros((48, 176), np.float32)
+    depth[:, :88] = 5.0
+    img, a = dev.relight(scene, cam, sun=sun, background=(0, 0, 0), host_depth=depth, return_alpha=True)
+    assert img.shape == (1, 48, 176, 3) and a.shape == (1, 48, 176)
+    assert (a[0, :, :88] + 0.05 < open_a[0, :, :88]).mean() > 0.5
+    assert np.array_equal(a[0, :, 88:], open_a[0, :, 88:])
+    assert np.array_equal(img[0, :, 88:], open_img[0, :, 88:])
+    uncovered = a == 0
+    assert uncovered.any() and np.all(img[uncovered] == 0)
+    assert np.array_equal(dev.relight(scene, cam, sun=sun, background=(0, 0, 0)), open_img)
+    with pytest.raises(srug.Error) as e:
+        dev.relight(scene, cam, sun=sun, preset="fast", host_depth=depth)
+    assert "half size" in str(e.value)
+    with pytest.raises(srug.Error) as e:
+        dev.relight(scene, cam, sun=sun, host_depth=depth[:, :10])
+    assert "host_depth of shape" in str(e.value)
+
+
 def test_host_depth_hides_the_splats_behind_your_meshes(dev, city):
     """A mesh 5 m away over the left half of the frame hides the splats there;
     the right half, where the host has nothing, is unchanged; the Vulkan
