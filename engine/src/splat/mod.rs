@@ -67,17 +67,17 @@ pub(crate) fn tile_spec(tile: u32) -> [(u32, SpecValue); 2] {
 }
 /// Pixels per invocation the texel-buffer blend accepts ([`Splatter::set_blend_pixels`]):
 /// each divides every tile edge of [`TILE_SIZES`].
-pub const BLEND_PIXELS: [u32; 3] = [1, 2, 4];
+pub const BLEND_PIXELS: [u32; 4] = [1, 2, 4, 8];
 /// The pixels per invocation of the texel-buffer blend on drivers not measured otherwise.
 pub const DEFAULT_BLEND_PIXELS: u32 = 2;
 
 /// The pixels per invocation a new [`Splatter`] uses on `info`'s device:
-/// 4 on lavapipe from Mesa 25 on, where sharing each fetch over four pixels
-/// is fastest, else [`DEFAULT_BLEND_PIXELS`] (chosen by `srug bench splat
-/// --blend-pixels`; docs/bench/mesa.md).
+/// 8 on lavapipe from Mesa 25 on, where sharing each fetch and each loop
+/// step over eight pixels is fastest, else [`DEFAULT_BLEND_PIXELS`] (chosen
+/// by `srug bench splat --blend-pixels`; docs/bench/splat.md, docs/bench/mesa.md).
 pub fn default_blend_pixels(info: &DeviceInfo) -> u32 {
     match info.mesa_version() {
-        Some((major, _)) if info.is_lavapipe() && major >= 25 => 4,
+        Some((major, _)) if info.is_lavapipe() && major >= 25 => 8,
         _ => DEFAULT_BLEND_PIXELS,
     }
 }

@@ -30,7 +30,7 @@ pub(crate) struct SplatBenchArgs {
     /// Tile edge in pixels: 8, 16 or 32.
     #[arg(long, default_value_t = DEFAULT_TILE)]
     tile: u32,
-    /// Pixels per invocation of the texel-buffer blend: 1, 2 or 4 (default: 4 on lavapipe from Mesa 25, else 2).
+    /// Pixels per invocation of the texel-buffer blend: 1, 2, 4 or 8 (default: 8 on lavapipe from Mesa 25, else 2).
     #[arg(long)]
     blend_pixels: Option<u32>,
     /// Which tiles list a splat: ellipse (those that can see it at α ≥ 1/255) or rectangle (its 3σ square).
