@@ -8,10 +8,12 @@
 // device-address load is a loop over the lanes. Replaces the subgroup-load
 // blend where the splats and pairs fit maxTexelBufferElements. Each invocation
 // blends PIXELS pixels (constant_id 2) of its tile row, so one set of fetches
-// serves them all. With ROW_MASKS (constant_id 6) a subgroup first reads only
-// each pair's key word and skips the splats whose rows miss all of its own
-// (most of a tile's list where splats are small against it), as one loop: the
-// skipped splats cost one fetch, not four and the pixel arithmetic.
+// serves them all (at TILE / 2, a lane shades half a row and a subgroup one
+// half of the tile). With ROW_MASKS (constant_id 6) a subgroup first reads
+// only each pair's key word and skips the splats that reach none of its
+// blocks (half-tile columns × row pairs; most of a tile's list where splats
+// are small against it), as one loop: the skipped splats cost one fetch, not
+// four and the pixel arithmetic.
 // CPU twin: engine/src/splat/cpu.rs `render_cpu`.
 #extension GL_EXT_control_flow_attributes : require
 #extension GL_KHR_shader_subgroup_basic : require

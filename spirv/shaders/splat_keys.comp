@@ -8,7 +8,7 @@
 // pairs, as the preprocess counted them. Columns x ≥ tiles_x (a full
 // equirectangular panorama) are column x − tiles_x. With ROW_MASKS the key's
 // top TILE bits, above every bit the sort orders (the host checks they are
-// free), carry `tile_row_mask`: which of the tile's rows the splat reaches.
+// free), carry `tile_block_mask`: which blocks of the tile the splat reaches.
 // Should this compilation of it find fewer pairs (f32 rounding at the
 // widened bound), the rest get the key of tile `tiles` with every depth bit
 // set: they sort last and belong to no tile; it never writes past the count.
@@ -37,12 +37,14 @@ void main() {
     TileEllipse e = tile_ellipse(s.head, s.conic.xyz);
     // A rectangle past the right edge (a wrapping panorama) continues at the left, whole rows.
     bool wraps = s.rect.z > frame.size.z;
+    // Block masks test columns only where x does not wrap (not on panoramas).
+    bool check_x = !wraps && frame.camera.lens2.x != 9.0;
     for (uint y = s.rect.y; y < s.rect.w; y++) {
         uvec2 span = ELLIPSE_TILES && !wraps ? tile_row_span(e, s.head.xy, s.rect, y, TILE) : s.rect.xz;
-        uint rows = ROW_MASKS ? tile_row_mask(e, s.head.y, y, TILE) << (32u - TILE) : 0u;
         for (uint x = span.x; x < span.y && offset < end; x++) {
             uint tile = y * frame.size.z + (x < frame.size.z ? x : x - frame.size.z);
-            keys.v[offset] = pair_key(tile, depth_key, DEPTH_BITS, rows);
+            uint blocks = ROW_MASKS ? tile_block_mask(e, s.head.xy, x, y, TILE, check_x) << (32u - TILE) : 0u;
+            keys.v[offset] = pair_key(tile, depth_key, DEPTH_BITS, blocks);
             values.v[offset] = i;
             pair_tiles.v[offset] = tile;
             offset++;

@@ -358,12 +358,14 @@ fn gbuffer_bits(g: &GBuffer) -> Vec<u32> {
 
 #[test]
 fn row_skipping_blend_is_bit_identical_to_reading_every_splat() {
-    // The texel blend skips a splat for a subgroup whose rows its α ≥ 1/255
-    // ellipse misses (row masks in the keys); the device-address blend reads
-    // every splat of the tile. Same arithmetic in the same order, so any
-    // wrongly skipped splat changes some bit. Elongated, rotated splats of
-    // every size (random scenes) and the demo street; tiles of 8 and 16 carry
-    // row masks at these sizes, 32 has no room for them in the key.
+    // The texel blend skips a splat for a subgroup whose blocks (half-tile
+    // columns × row pairs) its α ≥ 1/255 ellipse misses (block masks in the
+    // keys); the device-address blend reads every splat of the tile. Same
+    // arithmetic in the same order, so any wrongly skipped splat changes
+    // some bit. Elongated, rotated splats of every size (random scenes) and
+    // the demo street, every pixels-per-lane
+    // layout (8 at 16-pixel tiles is the half-tile one); tiles of 8 and 16
+    // carry masks at these sizes, 32 has no room for them in the key.
     let d = device();
     if !d.info().subgroup_ballot {
         eprintln!("skipping: the texel blend needs subgroup ballot");

@@ -27,8 +27,9 @@ pub struct SplatStats {
     pub key_bits: u32,
     /// GPU bytes of per-frame working memory (splats, features, keys, sort scratch, ranges).
     pub working_bytes: u64,
-    /// Whether the blend skipped splats for the rows of a tile they cannot
-    /// reach (the texel blend, where each key has room for its tile's rows).
+    /// Whether the blend skipped splats for the blocks of a tile (half-tile
+    /// columns × row pairs) they cannot reach (the texel blend, where each
+    /// key has room for the mask).
     pub row_masks: bool,
 }
 
@@ -423,9 +424,9 @@ impl Splatter {
             && n > 0
             && 4 * n <= max_texels
             && 2 * pairs <= max_texels;
-        // The texel blend skips a splat for the rows of its tile it cannot
-        // reach: each key's high word carries those rows above the tile id
-        // where both fit (splat_keys.comp).
+        // The texel blend skips a splat for the blocks of its tile it cannot
+        // reach: each key's high word carries them above the tile id where
+        // both fit (splat_keys.comp).
         let row_masks = texel && key_bits + tile <= 64;
         let depth_spec = (3, SpecValue::U32(depth_bits));
         let ellipse = SpecValue::Bool(settings.tile_bounds == TileBounds::Ellipse);

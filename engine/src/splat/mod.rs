@@ -12,12 +12,13 @@
 //!    `tile << d | depth key` key per (Gaussian, tile) counted, the depth key
 //!    being the depth's float bits less the near plane's, `d` bits wide
 //!    ([`depth_key_bits`]: only the bits that vary between the planes) (for the
-//!    texel blend, where the key has room, its top bits also say which of the
-//!    tile's rows the splat reaches: [`SplatStats::row_masks`]);
+//!    texel blend, where the key has room, its top bits also say which blocks
+//!    of the tile, half-tile columns × row pairs, the splat reaches:
+//!    [`SplatStats::row_masks`]);
 //! 3. **sort**: the stable radix sort over the bits in use only;
 //! 4. **ranges**: each tile's slice of the sorted pairs;
 //! 5. **blend**: per-pixel front-to-back blending into the requested channels
-//!    (a subgroup skips the splats that reach none of its rows: exact, the
+//!    (a subgroup skips the splats that reach none of its blocks: exact, the
 //!    same bits as reading every splat).
 //!
 //! Conventions follow the INRIA and gsplat rasterizers (docs/conventions.md §3): pixel

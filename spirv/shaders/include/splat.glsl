@@ -94,21 +94,40 @@ uvec2 tile_row_span(TileEllipse e, vec2 mean, uvec4 rect, uint ty, uint tile) {
     return uvec2(x0, x1);
 }
 
-// The rows of tile row `ty` (bit r: the tile's row r; `tile` ≤ 32) whose
-// pixel centres lie within the splat's α ≥ 1/255 ellipse's height (`e` from
-// `tile_ellipse`, widened, and 0.01 px more): the texel blend skips a splat
-// for rows outside (splat_keys.comp stores them with each pair). Every row
-// where Q is too ill-conditioned for f32.
-uint tile_row_mask(TileEllipse e, float mean_y, uint ty, uint tile) {
+// Which blocks of tile (tx, ty) the splat reaches at α ≥ 1/255: the tile
+// is cut into two halves of tile/2 columns and pairs of rows, bit
+// h·(tile/2) + r/2 for half h and row r (`tile` bits, `tile` ≤ 32); a block
+// is reached if some pixel centre of it lies within the ellipse of
+// `tile_ellipse` (`e`, widened) and 0.01 px more. Every block where Q is too
+// ill-conditioned for f32; both halves of a reached row without `check_x`
+// (panoramas). The texel blend skips a splat for subgroups whose blocks it
+// misses (splat_keys.comp stores the mask with each pair).
+uint tile_block_mask(TileEllipse e, vec2 mean, uint tx, uint ty, uint tile, bool check_x) {
     if (!(e.r2 > 0.0)) return 0u;
-    uint all_rows = tile >= 32u ? ~0u : (1u << tile) - 1u;
-    if (!(e.det > 0.0)) return all_rows;
-    float top = float(ty * tile);
-    float lo = ceil(mean_y - e.y_max - top - 0.5 - 0.01);
-    float hi = floor(mean_y + e.y_max - top - 0.5 + 0.01);
+    if (!(e.det > 0.0)) return tile >= 32u ? ~0u : (1u << tile) - 1u;
+    vec2 origin = vec2(uvec2(tx, ty) * tile);
+    float lo = ceil(mean.y - e.y_max - origin.y - 0.5 - 0.01);
+    float hi = floor(mean.y + e.y_max - origin.y - 0.5 + 0.01);
     if (!(lo <= hi) || hi < 0.0 || lo > float(tile) - 1.0) return 0u;
     uint r0 = uint(max(lo, 0.0)), r1 = uint(min(hi, float(tile) - 1.0));
-    return (r1 >= 31u ? ~0u : (1u << (r1 + 1u)) - 1u) & ~((1u << r0) - 1u);
+    uint half_cols = tile / 2u;
+    float split = origin.x + float(half_cols);
+    uint mask = 0u;
+    for (uint r = r0; r <= r1; r++) {
+        bool left = true, right = true;
+        if (check_x) {
+            // d = mean − centre; at this row's dy the ellipse spans dx ∈ (−b·dy ± sqrt(r²a − det·dy²)) / a.
+            float dy = mean.y - (origin.y + float(r) + 0.5);
+            float root = sqrt(max(e.r2 * e.a - e.det * dy * dy, 0.0));
+            float x_lo = mean.x - (-e.b * dy + root) / e.a - 0.01;
+            float x_hi = mean.x - (-e.b * dy - root) / e.a + 0.01;
+            left = x_hi >= origin.x + 0.5 && x_lo <= split - 0.5;
+            right = x_hi >= split + 0.5 && x_lo <= origin.x + float(tile) - 0.5;
+        }
+        uint bit = r / 2u;
+        mask |= (left ? 1u << bit : 0u) | (right ? 1u << (half_cols + bit) : 0u);
+    }
+    return mask;
 }
 
 // A (Gaussian, tile) pair's sort key, 64 bits as (low, high): the tile id

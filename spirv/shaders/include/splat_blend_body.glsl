@@ -17,7 +17,7 @@ layout(constant_id = 4) const bool SURFACE_DEPTH = false;
 // The host's depth per pixel hides the splats behind it (compositing with a
 // host's meshes; frame.occluder gives its convention).
 layout(constant_id = 5) const bool OCCLUDED = false;
-// The texel blend: each sorted key carries the rows its splat reaches (splat_keys.comp).
+// The texel blend: each sorted key carries the tile blocks its splat reaches (splat_keys.comp `tile_block_mask`).
 layout(constant_id = 6) const bool ROW_MASKS = false;
 // Without rgb (shadow maps) no colour is read, blended or stored.
 const bool RGB = (CHANNELS & 256u) != 0u;
@@ -36,7 +36,7 @@ layout(set = 0, binding = 2) uniform textureBuffer feature_texels;
 // The sorted splat indices (R32UI), the tile's list.
 layout(set = 0, binding = 3) uniform utextureBuffer value_texels;
 // The sorted keys (R32UI, two words per pair): with ROW_MASKS the high
-// word's top TILE bits are the rows of its tile the pair's splat reaches.
+// word's top TILE bits are the blocks of its tile the pair's splat reaches.
 layout(set = 0, binding = 4) uniform utextureBuffer key_texels;
 #define SPLAT_COLOR(g) texelFetch(splat_texels, int(4u * (g) + 2u)).rgb
 #define SPLAT_SLOPE_BITS(g) texelFetch(splat_texels, int(4u * (g) + 2u)).w
@@ -208,12 +208,30 @@ void store_pixel(uvec2 pix, Accumulated acc) {
 // are fetched once for all of them, and its colour and features once if
 // any of them takes it.
 layout(constant_id = 2) const uint PIXELS = 1u;
+// Half-row lanes (PIXELS = TILE / 2): invocation l shades half l / TILE of
+// row l % TILE, its pixels side by side, so consecutive invocations (a
+// subgroup) cover one half of the tile; otherwise a lane's pixels lie
+// TILE / PIXELS apart along its row.
+const bool HALVES = 2u * PIXELS == TILE;
+const uint STEP = HALVES ? 1u : TILE / PIXELS;
+
+// Invocation l's first pixel within the tile.
+uvec2 lane_pixel(uint l) {
+    return HALVES ? uvec2((l / TILE) * PIXELS, l % TILE) : uvec2(l % gl_WorkGroupSize.x, l / gl_WorkGroupSize.x);
+}
+
+// The blocks (`tile_block_mask`'s bits) invocation l's pixels lie in.
+uint lane_blocks(uint l) {
+    uvec2 p = lane_pixel(l);
+    uint last = p.x + (PIXELS - 1u) * STEP;
+    uint bit = p.y / 2u;
+    return (p.x < TILE / 2u ? 1u << bit : 0u) | (last >= TILE / 2u ? 1u << (TILE / 2u + bit) : 0u);
+}
 
 void main() {
     uint tile = block_index();
     uint tiles_x = frame.size.z;
-    uvec2 base = uvec2(tile % tiles_x, tile / tiles_x) * TILE + gl_LocalInvocationID.xy;
-    const uint STEP = TILE / PIXELS;
+    uvec2 base = uvec2(tile % tiles_x, tile / tiles_x) * TILE + lane_pixel(gl_LocalInvocationIndex);
     uvec2 range = Uvec2s(frame.ranges).v[tile];
     Accumulated acc[PIXELS];
     bool live[PIXELS];
@@ -226,15 +244,14 @@ void main() {
         limit[k] = live[k] ? occluder_z(pix) : 0.0;
         any_live = any_live || live[k];
     }
-    // The tile rows this invocation's subgroup covers, as a mask (assuming
-    // subgroups of consecutive invocations, as implementations form them; its
-    // own row is always in, so a wrong guess costs speed, never pixels): a
-    // splat whose row mask (ROW_MASKS) misses them is skipped.
+    // The tile blocks this invocation's subgroup covers (assuming subgroups
+    // of consecutive invocations, as implementations form them; its own are
+    // always in, so a wrong guess costs speed, never pixels): a splat whose
+    // block mask (ROW_MASKS) misses them is skipped.
     uint first = gl_SubgroupID * gl_SubgroupSize;
     uint last = min(first + gl_SubgroupSize, gl_WorkGroupSize.x * gl_WorkGroupSize.y) - 1u;
-    uint first_row = first / gl_WorkGroupSize.x, last_row = last / gl_WorkGroupSize.x;
-    uint rows = (last_row >= 31u ? ~0u : (1u << (last_row + 1u)) - 1u) & ~((1u << first_row) - 1u);
-    rows |= 1u << gl_LocalInvocationID.y;
+    uint blocks = lane_blocks(gl_LocalInvocationIndex);
+    for (uint l = first; l <= last; l++) blocks |= lane_blocks(l);
     // Straight-line body: lavapipe predicates every branch (both sides of an
     // `if` always run under a mask, only loop exits jump), so the blending has
     // no `if` and no `continue`; updates are selects, colour is fetched always.
@@ -242,7 +259,7 @@ void main() {
     uint j = range.x;
     while (any_live) {
         for (; j < range.y; j++) {
-            if (!ROW_MASKS || ((texelFetch(key_texels, int(2u * j + 1u)).x >> (32u - TILE)) & rows) != 0u) break;
+            if (!ROW_MASKS || ((texelFetch(key_texels, int(2u * j + 1u)).x >> (32u - TILE)) & blocks) != 0u) break;
         }
         if (j >= range.y) break;
         // Every lane fetches the same texels: one vector gather each, no election or broadcast.
