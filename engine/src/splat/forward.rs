@@ -33,6 +33,16 @@ pub struct SplatStats {
     pub row_masks: bool,
 }
 
+/// The SH degree the colour uses: the settings' cap on the scene's, and 0
+/// without rgb (the colour is never read: degree 0 spares the SH reads).
+fn sh_degree_used(scene: &GpuScene, settings: &SplatSettings) -> u32 {
+    if settings.rgb {
+        settings.sh_degree.map_or(scene.sh_degree, |d| d.min(scene.sh_degree))
+    } else {
+        0
+    }
+}
+
 /// Bits of the depth key (splat_keys.comp `pair_key`): every splat kept
 /// has near < depth < far, so its depth's float bits less the near plane's
 /// lie in [1, far bits − near bits) and only that many bits need sorting;
@@ -366,9 +376,7 @@ impl Splatter {
         frame.background = [settings.background[0], settings.background[1], settings.background[2], 0.0];
         frame.occluder = view.occluder.map_or([0.0; 4], |(_, c)| c.packed());
         frame.size = [w, h, tiles_x, tiles_y];
-        // Without rgb the colour is never read: degree 0 spares the SH reads.
-        let sh_used =
-            if settings.rgb { settings.sh_degree.map_or(scene.sh_degree, |d| d.min(scene.sh_degree)) } else { 0 };
+        let sh_used = sh_degree_used(scene, settings);
         frame.counts =
             [n as u32, scene.sh_degree | sh_used << 8, u32::from(settings.normal_source == NormalSource::Stored), 0];
 
@@ -494,7 +502,9 @@ impl Splatter {
         let ellipse = SpecValue::Bool(settings.tile_bounds == TileBounds::Ellipse);
         let surface = SpecValue::Bool(settings.surface_depth);
         let features = SpecValue::Bool(ch.needs_features());
-        let preprocess_spec = [(0, features), (1, ellipse), (2, surface), tile_spec(tile)[0]];
+        // The SH degree used (as in each view's uniform, `FrameUniform::counts`).
+        let sh_used = SpecValue::U32(sh_degree_used(scene, settings));
+        let preprocess_spec = [(0, features), (1, ellipse), (2, surface), (3, sh_used), tile_spec(tile)[0]];
         let preprocess = if texel_preprocess {
             let mut bindings = vec![BindingKind::UniformBuffer];
             bindings.extend([BindingKind::UniformTexelBuffer; 5]);

@@ -3,6 +3,7 @@
 // radius, SH colour, tile rectangle and count, and (when asked) the
 // per-splat features. Culled Gaussians get a tile count of 0.
 // CPU twin: engine/src/splat/cpu.rs `preprocess_one`.
+#extension GL_EXT_control_flow_attributes : require
 #define WORKGROUP_SIZE_X 64
 #include "common.glsl"
 #include "splat.glsl"
@@ -39,6 +40,10 @@ layout(constant_id = 1) const bool ELLIPSE_TILES = false;
 layout(constant_id = 2) const bool SURFACE_DEPTH = false;
 // Tile edge in pixels (engine/src/splat/mod.rs `TILE_SPEC_IDS`; the blend's workgroup edge).
 layout(constant_id = 15) const uint TILE = 16u;
+// The SH degree used for colour (≤ the scene's, frame.counts.y >> 8): a
+// constant, so the colour loop unrolls and each basis function is straight
+// code (lavapipe would run every case of `sh_basis`'s switch under a mask).
+layout(constant_id = 3) const uint SH_USED = 3u;
 
 float sigmoid(float x) {
     float e = exp(-abs(x));
@@ -177,10 +182,10 @@ void main() {
 
     // View-dependent colour.
     vec3 dir = ortho ? frame.view_dir.xyz : normalize(p - frame.eye.xyz);
-    uint stored = frame.counts.y & 255u, used = frame.counts.y >> 8;
+    uint stored = frame.counts.y & 255u;
     uint K = (stored + 1) * (stored + 1);
     vec3 color = vec3(0.0);
-    for (uint j = 0; j < (used + 1) * (used + 1); j++) {
+    [[unroll]] for (uint j = 0; j < (SH_USED + 1) * (SH_USED + 1); j++) {
         uint o = (i * K + j) * 3;
         color += sh_basis(j, dir) * vec3(SH(o), SH(o + 1), SH(o + 2));
     }
