@@ -239,34 +239,21 @@ impl Device {
     /// its mapping: no staging copy and no submission, for small results a
     /// recording copied into it (whose submission has finished).
     pub fn read_mapped<T: Pod>(&self, buffer: &Buffer) -> Result<Vec<T>> {
-        let elem = std::mem::size_of::<T>() as u64;
-        if elem == 0 || buffer.size % elem != 0 {
-            return Err(Error::invalid(
-                format!("buffer {}", buffer.name),
-                format!("holds {} bytes, not a whole number of {elem}-byte elements", buffer.size),
-            ));
-        }
+        let count = whole_elements::<T>(buffer)?;
         let bytes = buffer
             .allocation
             .as_ref()
             .and_then(|a| a.mapped_slice())
             .map(|s| &s[..buffer.size as usize])
             .ok_or_else(|| Error::invalid(format!("buffer {}", buffer.name), "is not host-visible"))?;
-        let mut out: Vec<T> = vec![T::zeroed(); (buffer.size / elem) as usize];
+        let mut out: Vec<T> = vec![T::zeroed(); count];
         bytemuck::cast_slice_mut::<T, u8>(&mut out).copy_from_slice(bytes);
         Ok(out)
     }
 
     /// Reads a whole buffer back as elements of `T`.
     pub fn read_buffer<T: Pod>(&self, buffer: &Buffer) -> Result<Vec<T>> {
-        let elem = std::mem::size_of::<T>() as u64;
-        if elem == 0 || buffer.size % elem != 0 {
-            return Err(Error::invalid(
-                format!("buffer {}", buffer.name),
-                format!("holds {} bytes, not a whole number of {elem}-byte elements", buffer.size),
-            ));
-        }
-        let mut out: Vec<T> = vec![T::zeroed(); (buffer.size / elem) as usize];
+        let mut out: Vec<T> = vec![T::zeroed(); whole_elements::<T>(buffer)?];
         self.read_buffer_into(buffer, &mut out)?;
         Ok(out)
     }
@@ -295,6 +282,18 @@ impl Device {
         }
         Ok(())
     }
+}
+
+/// How many `T` the buffer holds, or an error where its bytes are not a whole number of them.
+fn whole_elements<T: Pod>(buffer: &Buffer) -> Result<usize> {
+    let elem = std::mem::size_of::<T>() as u64;
+    if elem == 0 || buffer.size % elem != 0 {
+        return Err(Error::invalid(
+            format!("buffer {}", buffer.name),
+            format!("holds {} bytes, not a whole number of {elem}-byte elements", buffer.size),
+        ));
+    }
+    Ok((buffer.size / elem) as usize)
 }
 
 /// A run of `elements` elements of `buffer` starting `offset` bytes in, bound

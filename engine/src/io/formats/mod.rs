@@ -162,12 +162,7 @@ pub fn read_scene(path: impl AsRef<Path>) -> Result<Scene> {
     let path = path.as_ref();
     if let Some(format @ (SceneFormat::Ply | SceneFormat::Glb)) = prefix_format(path) {
         // Uncompressed formats stream from disk: one copy of the scene on the host, not the file and the scene.
-        if let Some(named) = SceneFormat::from_extension(path).filter(|f| *f != format) {
-            log::warn!(
-                "{}: the extension says {named} but the content is {format}; reading it as {format}",
-                path.display()
-            );
-        }
+        warn_if_misnamed(path, format);
         return if format == SceneFormat::Ply { super::read_ply(path) } else { glb::read_path(path) };
     }
     let bytes = super::read_file(path)?;
@@ -175,11 +170,7 @@ pub fn read_scene(path: impl AsRef<Path>) -> Result<Scene> {
     let format = SceneFormat::detect(&bytes).ok_or_else(|| {
         SceneError::file(&origin, "not a scene file srug reads (PLY, compressed PLY, .splat, SPZ, SOG or GLB)")
     })?;
-    if let Some(named) = SceneFormat::from_extension(path) {
-        if named != format {
-            log::warn!("{origin}: the extension says {named} but the content is {format}; reading it as {format}");
-        }
-    }
+    warn_if_misnamed(path, format);
     if format == SceneFormat::Sog && !bytes.starts_with(b"PK") {
         // An unbundled SOG: meta.json with the images beside it.
         let dir = path.parent().unwrap_or(Path::new(".")).to_path_buf();
@@ -235,13 +226,21 @@ pub fn read_scene_blocks(
 ) -> Result<()> {
     let path = path.as_ref();
     if prefix_format(path) == Some(SceneFormat::Ply) {
-        if let Some(named) = SceneFormat::from_extension(path).filter(|f| *f != SceneFormat::Ply) {
-            log::warn!("{}: the extension says {named} but the content is PLY; reading it as PLY", path.display());
-        }
+        warn_if_misnamed(path, SceneFormat::Ply);
         return super::read_ply_blocks(path, block_bytes, on_block);
     }
     let scene = read_scene(path)?;
     on_block(&super::PlyBlock { total: scene.len(), first: 0, gaussians: &scene })
+}
+
+/// Warns where `path`'s extension names another format than its content's.
+fn warn_if_misnamed(path: &Path, format: SceneFormat) {
+    if let Some(named) = SceneFormat::from_extension(path).filter(|f| *f != format) {
+        log::warn!(
+            "{}: the extension says {named} but the content is {format}; reading it as {format}",
+            path.display()
+        );
+    }
 }
 
 /// Reads `bytes` as `format`.
