@@ -84,6 +84,27 @@ impl FromStr for Vec3Arg {
     }
 }
 
+/// A box, `xmin,ymin,zmin,xmax,ymax,zmax` (finite, min below max on every axis).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BoxArg(pub srug::scene::Bounds);
+
+impl FromStr for BoxArg {
+    type Err = Error;
+    fn from_str(text: &str) -> Result<Self> {
+        let v: Vec<f32> = text
+            .split(',')
+            .map(|p| p.trim().parse::<f32>())
+            .collect::<std::result::Result<_, _>>()
+            .map_err(|_| Error::invalid(format!("\"{text}\""), "is not six comma-separated numbers"))?;
+        match v.as_slice() {
+            [a, b, c, d, e, f] if v.iter().all(|x| x.is_finite()) && a < d && b < e && c < f => {
+                Ok(Self(srug::scene::Bounds { min: [*a, *b, *c], max: [*d, *e, *f] }))
+            }
+            _ => Err(Error::invalid(format!("\"{text}\""), "is not xmin,ymin,zmin,xmax,ymax,zmax with min < max")),
+        }
+    }
+}
+
 /// A G-buffer channel list as `--channels` takes it.
 #[derive(Clone, Copy, Debug)]
 pub struct ChannelList {

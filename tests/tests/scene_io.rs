@@ -62,6 +62,34 @@ fn ply_round_trip_is_bit_exact() {
     }
 }
 
+#[test]
+fn flags_round_trip_as_uchar_properties() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = small_demo(1);
+    let flags: Vec<bool> = (0..scene.len()).map(|i| i % 3 == 1).collect();
+    for format in [PlyFormat::BinaryLittleEndian, PlyFormat::BinaryBigEndian, PlyFormat::Ascii] {
+        let path = dir.path().join(format!("flagged_{format:?}.ply"));
+        srug::io::write_ply_with_flags(&path, &scene, format, &[("srug_added", &flags)]).unwrap();
+        let text = std::fs::read(&path).unwrap();
+        let want = b"property uchar srug_added\n";
+        assert!(text.windows(want.len()).any(|w| w == want), "{format:?}: no uchar property");
+        // The Gaussians read back unchanged, the flag as a property srug does not use.
+        let back = read_ply(&path).unwrap();
+        assert!(bits_equal(&scene, &back), "{format:?}: the Gaussians changed");
+        assert_eq!(back.extra_properties, ["srug_added"]);
+        let ids = srug::io::read_ply_ids(&path, &["srug_added".into()]).unwrap();
+        assert_eq!(ids[0], flags.iter().map(|f| u32::from(*f)).collect::<Vec<_>>(), "{format:?}");
+    }
+    // A flag list of the wrong length or a clashing name writes nothing.
+    let path = dir.path().join("bad.ply");
+    let short = vec![true; scene.len() - 1];
+    let e = srug::io::write_ply_with_flags(&path, &scene, PlyFormat::Ascii, &[("srug_added", &short)]).unwrap_err();
+    assert!(e.to_string().contains("one value per Gaussian"), "{e}");
+    let e = srug::io::write_ply_with_flags(&path, &scene, PlyFormat::Ascii, &[("opacity", &flags)]).unwrap_err();
+    assert!(e.to_string().contains("srug_added") || e.to_string().contains("opacity"), "{e}");
+    assert!(!path.exists());
+}
+
 /// Writes a binary little-endian PLY with properties in the given order.
 fn ply_with(names: &[String], rows: &[Vec<f32>]) -> Vec<u8> {
     let mut header = format!("ply\nformat binary_little_endian 1.0\ncomment test\nelement vertex {}\n", rows.len());

@@ -3,9 +3,20 @@
 
 #![allow(clippy::unwrap_used, clippy::expect_used, reason = "a failed unwrap is a failed test")]
 
+use glam::Vec3;
+use srug::gpu::Device;
+use srug::scene::activate::GpuScene;
+use srug::scene::blocks::{block_completion, BlockCity, BlockOptions};
+use srug::scene::demo::Aabb;
 use srug::scene::demo::DemoOptions;
-use srug::shadow::completion::{complete_demo, shadow_iou, CompletionSettings, DemoCompletion};
-use srug_tests::{assert_no_validation_messages, device};
+use srug::scene::{Bounds, Camera};
+use srug::shadow::accuracy::shadow_accuracy;
+use srug::shadow::completion::{
+    complete_demo, complete_from_views, shadow_iou, CompletionProblem, CompletionSettings, DemoCompletion, ShadowView,
+};
+use srug::shadow::{ShadowPass, ShadowSettings, Sun, VisibilityKind};
+use srug::splat::{SplatSettings, Splatter};
+use srug_tests::{assert_no_validation_messages, device, psnr, save_comparison};
 
 #[test]
 fn shadow_fit_recovers_the_missing_shadow() {
@@ -18,25 +29,226 @@ fn shadow_fit_recovers_the_missing_shadow() {
         ..defaults
     };
     let mut seen = Vec::new();
-    let r = complete_demo(&d, &options, &mut |s| seen.push(*s)).unwrap();
+    let r = complete_demo(&d, &options, &mut |s| seen.push(s.clone())).unwrap();
     let c = &r.completion;
     assert_eq!(seen.len(), 17, "one report per step plus the start");
     assert!(r.removed > 1000, "the tower had Gaussians ({})", r.removed);
-    let without = shadow_iou(&c.without, &r.target, &c.mask);
-    let (first, last) = (c.history[0], *c.history.last().unwrap());
+    let v = &c.views[0];
+    let without = shadow_iou(&v.without, &r.target, &v.mask);
+    let (first, last) = (c.history[0].clone(), c.history.last().unwrap().clone());
     eprintln!(
         "IoU without {without:.3}, start {:.3}, end {:.3}; missing-shadow IoU {:.3} → {:.3}; visible added {}",
         first.iou, last.iou, first.missing_iou, last.missing_iou, c.visible_added
     );
-    // The issue's criterion: the shadow IoU rises from its starting value to ≥ 0.9 (here
-    // 0.82 → 0.99 in 16 steps), and the missing shadow itself is recovered (0 → 0.93).
-    assert!(first.iou < 0.9 && last.iou >= 0.9, "shadow IoU {:.3} → {:.3}", first.iou, last.iou);
-    assert!(last.iou > without, "overall IoU {:.3} not above the scene alone ({without:.3})", last.iou);
+    // The issue's criterion: the shadow IoU rises from what the scene without the tower gives
+    // (0.53) to ≥ 0.9 (0.97 in 16 steps), and the missing shadow itself is recovered (0.96).
+    // Spawned along the missing shadow's sun rays, the faint initial Gaussians already cast
+    // most of it (0.94); the fit sharpens it.
+    assert!(without < 0.6 && last.iou >= 0.9, "shadow IoU {without:.3} without the tower → {:.3}", last.iou);
+    assert!(last.iou > first.iou, "IoU {:.3} → {:.3}", first.iou, last.iou);
     assert!(last.missing_iou >= 0.85, "missing-shadow IoU {:.3}", last.missing_iou);
     assert!(last.loss < first.loss, "loss {} → {}", first.loss, last.loss);
-    assert!(c.after.iter().all(|v| v.is_finite() && (0.0..=1.0).contains(v)));
+    assert!(v.after.iter().all(|v| v.is_finite() && (0.0..=1.0).contains(v)));
     // The completed scene holds the input plus the added Gaussians and is valid.
-    assert_eq!(c.scene.len(), c.first_added + 1500);
+    assert!(c.added() > 0 && c.added() <= 1500, "{} added", c.added());
     c.scene.validate("completed").unwrap();
     assert_no_validation_messages(&d);
+}
+
+struct BlockProblem {
+    city: BlockCity,
+    without: srug::scene::Scene,
+    removed: Aabb,
+    sun: Sun,
+    cameras: Vec<Camera>,
+}
+
+/// The analytic block's completion problem (`srug::scene::blocks::block_completion`) at 352×96.
+fn block_problem() -> BlockProblem {
+    let b = block_completion(&BlockOptions::default(), 352, 96).unwrap();
+    let sun = Sun::from_direction(b.sun, [1.0; 3]).unwrap();
+    BlockProblem { city: b.city, without: b.without, removed: b.removed, sun, cameras: b.cameras }
+}
+
+/// Flips `fraction` of the pixels and erodes the shadow by `erode` pixels (lit where a shadowed
+/// pixel has a lit pixel within that many rows or columns).
+fn noisy(target: &[f32], width: usize, fraction: f64, erode: usize, seed: u64) -> Vec<f32> {
+    use rand::{Rng, SeedableRng};
+    let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(seed);
+    let height = target.len() / width;
+    let lit = |x: isize, y: isize| {
+        x >= 0
+            && y >= 0
+            && (x as usize) < width
+            && (y as usize) < height
+            && target[y as usize * width + x as usize] >= 0.5
+    };
+    (0..target.len())
+        .map(|p| {
+            let (x, y) = ((p % width) as isize, (p / width) as isize);
+            let r = erode as isize;
+            let mut v = target[p];
+            if v < 0.5 && (-r..=r).any(|d| lit(x + d, y) || lit(x, y + d)) {
+                v = 1.0;
+            }
+            if rng.random_bool(fraction) {
+                v = 1.0 - v;
+            }
+            v
+        })
+        .collect()
+}
+
+/// The shadow IoU of `scene` against the truth in every camera, with the balanced shadow.
+fn block_ious(d: &Device, scene: &GpuScene, bounds: &Bounds, p: &BlockProblem) -> Vec<f64> {
+    let mut splatter = Splatter::new(d).unwrap();
+    let pass = ShadowPass::new(d).unwrap();
+    let st = ShadowSettings::default();
+    let map = pass.shadow_map(&mut splatter, scene, bounds, &p.sun, &st, None).unwrap().unwrap();
+    p.cameras
+        .iter()
+        .map(|c| {
+            let (g, _) = splatter.render(scene, c, &st.receiver_splat()).unwrap();
+            let (v, _) = pass.visibility(&map, &g, c, &st, VisibilityKind::Sigmoid).unwrap();
+            let v: Vec<f32> = d.read_buffer(&v).unwrap();
+            let truth = p.city.true_visibility(c, p.sun.direction);
+            if std::env::var_os("SRUG_SAVE_SHADOW_FIT").is_some() {
+                let t = p.city.shadow_target(c, p.sun.direction);
+                save_comparison(&format!("shadow_fit_{}_{}", c.name, scene.count), c.width, c.height, 1, &v, &t);
+            }
+            shadow_accuracy(&v, &truth, c.width as usize, c.height as usize).iou()
+        })
+        .collect()
+}
+
+fn block_rgb(d: &Device, scene: &GpuScene, cameras: &[Camera]) -> Vec<Vec<f32>> {
+    let mut splatter = Splatter::new(d).unwrap();
+    cameras
+        .iter()
+        .map(|c| {
+            let (g, _) = splatter.render(scene, c, &SplatSettings::default()).unwrap();
+            g.read(d).unwrap().rgb_values().unwrap().to_vec()
+        })
+        .collect()
+}
+
+fn fit_block(noise: Option<(f64, usize)>) {
+    let d = device();
+    let p = block_problem();
+    let full_bounds = p.city.scene.bounds().unwrap();
+    // Views 0, 2 and 3 fit; view 1, between them, is held out.
+    let views: Vec<ShadowView> = [0, 2, 3]
+        .iter()
+        .map(|i| {
+            let c = &p.cameras[*i];
+            let t = p.city.shadow_target(c, p.sun.direction);
+            let target = match noise {
+                Some((f, e)) => noisy(&t, c.width as usize, f, e, 40 + *i as u64),
+                None => t,
+            };
+            ShadowView { camera: c.clone(), target }
+        })
+        .collect();
+    // The region: the block's extent with room above (the fit does not know the building).
+    let b = p.without.bounds().unwrap();
+    let region = Bounds { min: b.min, max: [b.max[0], b.max[1], b.max[2] + 30.0] };
+    let settings = CompletionSettings::default();
+    let start = std::time::Instant::now();
+    let mut steps = Vec::new();
+    let problem =
+        CompletionProblem { scene: &p.without, region: &region, views: &views, cameras: &p.cameras, sun: &p.sun };
+    let c = complete_from_views(&d, &problem, &settings, &mut |s| steps.push(s.clone())).unwrap();
+    let seconds = start.elapsed().as_secs_f64();
+    if std::env::var_os("SRUG_SAVE_SHADOW_FIT").is_some() {
+        for (v, o) in views.iter().zip(&c.views) {
+            let label = format!("shadow_fit_{}_fit", v.camera.name);
+            save_comparison(&label, v.camera.width, v.camera.height, 1, &o.after, &v.target);
+        }
+    }
+    let (first, last) = (steps[0].clone(), steps.last().unwrap().clone());
+    eprintln!(
+        "block fit ({noise:?}): {} steps in {seconds:.1} s ({:.0} ms each), {} Gaussians added; fit IoU {:.3} → {:.3}, \
+         missing {:.3} → {:.3}, loss {:.4} → {:.4}",
+        last.step,
+        1e3 * seconds / f64::from(last.step + 1),
+        c.added(),
+        first.iou,
+        last.iou,
+        first.missing_iou,
+        last.missing_iou,
+        first.loss,
+        last.loss
+    );
+    assert!(last.loss < 0.5 * first.loss, "loss {} → {}", first.loss, last.loss);
+    let fit_ious: Vec<f64> =
+        views.iter().zip(&c.views).map(|(v, o)| shadow_iou(&o.after, &v.target, &o.mask)).collect();
+    eprintln!("fit IoU per view: {fit_ious:.3?}");
+    let input_gpu = GpuScene::upload(&d, &p.without).unwrap();
+    let completed_gpu = GpuScene::upload(&d, &c.scene).unwrap();
+    let before = block_ious(&d, &input_gpu, &full_bounds, &p);
+    let after = block_ious(&d, &completed_gpu, &full_bounds, &p);
+    eprintln!("shadow IoU against the truth per camera (camera 1 held out): {before:.3?} → {after:.3?}");
+    let floor = if noise.is_some() { 0.85 } else { 0.9 };
+    for (i, (b, a)) in before.iter().zip(&after).enumerate() {
+        assert!(*b < 0.85 && *a >= floor, "camera {i}: IoU {b:.3} without the building → {a:.3} (≥ {floor})");
+    }
+    // The added Gaussians sit in the missing building's light-space prism: the line through
+    // each centre along the sun meets the building (grown by half a metre).
+    let grown = Aabb { min: p.removed.min - 0.5, max: p.removed.max + 0.5 };
+    let s = p.sun.direction;
+    let added = &c.scene.means[c.first_added..];
+    let opacities = &c.scene.opacity_logits[c.first_added..];
+    let (mut inside, mut weight_inside, mut weight) = (0usize, 0.0f64, 0.0f64);
+    for (m, o) in added.iter().zip(opacities) {
+        let o = 1.0 / (1.0 + f64::from(-o).exp());
+        weight += o;
+        if ray_meets(&grown, Vec3::from_array(*m) - s * 200.0, s) {
+            inside += 1;
+            weight_inside += o;
+        }
+    }
+    eprintln!(
+        "{inside} of {} added Gaussians ({:.1}% of their opacity) in the building's light-space prism",
+        added.len(),
+        100.0 * weight_inside / weight
+    );
+    assert!(inside as f64 >= 0.95 * added.len() as f64, "{inside} of {} in the prism", added.len());
+    assert!(weight_inside >= 0.95 * weight, "{:.1}% of the opacity in the prism", 100.0 * weight_inside / weight);
+    assert_eq!(c.visible_added, 0, "no added Gaussian ends inside a camera's view");
+    // Nothing else changes: the cameras' own renders within 45 dB of the input's.
+    for (i, (a, b)) in
+        block_rgb(&d, &completed_gpu, &p.cameras).iter().zip(block_rgb(&d, &input_gpu, &p.cameras)).enumerate()
+    {
+        let db = psnr(a, &b);
+        assert!(db >= 45.0, "camera {i}: render {db:.1} dB from the input's");
+    }
+    assert_no_validation_messages(&d);
+}
+
+/// Whether the line `o + t·d` (t ≥ 0) meets the box.
+fn ray_meets(b: &Aabb, o: Vec3, d: Vec3) -> bool {
+    let (mut t0, mut t1) = (0.0f32, f32::MAX);
+    for a in 0..3 {
+        if d[a].abs() < 1e-9 {
+            if o[a] < b.min[a] || o[a] > b.max[a] {
+                return false;
+            }
+            continue;
+        }
+        let (u, v) = ((b.min[a] - o[a]) / d[a], (b.max[a] - o[a]) / d[a]);
+        t0 = t0.max(u.min(v));
+        t1 = t1.min(u.max(v));
+    }
+    t0 <= t1
+}
+
+#[test]
+fn masks_of_three_views_complete_a_building_no_camera_sees() {
+    fit_block(None);
+}
+
+#[test]
+fn noisy_masks_still_complete_the_building() {
+    // 10% of the pixels flipped, the shadows eroded by 2 pixels.
+    fit_block(Some((0.1, 2)));
 }

@@ -1,109 +1,330 @@
-//! `srug shadow-fit`: shadow-guided completion on the demo — remove the
-//! off-screen tower, then grow Gaussians where no camera sees until they cast
-//! its shadow again (Adam on the shadow loss alone).
+//! `srug shadow-fit`: shadow-guided completion. With a scene, its cameras and
+//! shadow masks, Gaussians grow where no camera sees until the shadows they
+//! cast match the masks, and the completed scene is written with the added
+//! Gaussians flagged (`srug_added`). Without a scene, the demo: remove the
+//! off-screen tower, then grow it back from its shadow.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
+use glam::Vec3;
 use srug::io;
 use srug::io::PlyFormat;
-use srug::scene::demo;
-use srug::shadow::completion::{complete_demo, shadow_iou, CompletionSettings, DemoCompletion};
+use srug::scene::{demo, Bounds, Camera};
+use srug::shadow::completion::{
+    complete_demo, complete_from_views, shadow_iou, Completion, CompletionProblem, CompletionSettings, CompletionStep,
+    DemoCompletion, ShadowView,
+};
+use srug::shadow::masks::{find_masks, mask_stem, read_mask, MaskOptions};
 use srug::{Error, Result};
 
-use crate::args::{print_line, progress_bar, DeviceArgs, Size};
+use crate::args::{print_line, progress_bar, BoxArg, DeviceArgs, Size, SunArgs};
 
 /// Arguments of `srug shadow-fit`.
 #[derive(clap::Args, Clone, Debug)]
 pub(super) struct ShadowFitArgs {
+    /// Scene to complete (any format srug reads); without it, the demo's completion runs.
+    scene: Option<PathBuf>,
+    /// Every camera of the capture (any camera format srug reads); those with a mask are fitted,
+    /// and no Gaussian is added where any of them sees.
+    #[arg(long, requires = "scene")]
+    cameras: Option<PathBuf>,
+    /// Folder of shadow masks, one per camera, named as the camera's image (its stem: camera
+    /// "frames/0001.jpg" takes 0001.png, .jpg, .exr, ...). White = shadow, black = lit, grey a
+    /// probability; transparent pixels are unknown. A mask of another size is resampled.
+    #[arg(long, requires = "scene")]
+    masks: Option<PathBuf>,
+    /// Black = shadow instead.
+    #[arg(long, requires = "masks")]
+    invert_masks: bool,
+    /// Folder of ignore masks named as the masks: white pixels are unknown (not fitted).
+    #[arg(long, requires = "masks")]
+    ignore_masks: Option<PathBuf>,
+    /// Where occluders may be added, xmin,ymin,zmin,xmax,ymax,zmax (default: the scene's
+    /// bounds, raised by half their horizontal diagonal; give it for scenes with distant floaters).
+    #[arg(long, requires = "scene", allow_hyphen_values = true)]
+    region: Option<BoxArg>,
+    /// Folder for the mask agreement images before and after, per view, and history.csv.
+    #[arg(long, requires = "scene")]
+    report: Option<PathBuf>,
     /// Demo city size.
-    #[arg(long, default_value_t = 40_000)]
-    gaussians: usize,
+    #[arg(long, conflicts_with = "scene")]
+    gaussians: Option<usize>,
     /// Demo seed.
-    #[arg(long, default_value_t = 7)]
-    seed: u64,
+    #[arg(long, conflicts_with = "scene")]
+    seed: Option<u64>,
+    /// Which demo camera receives the shadow.
+    #[arg(long, conflicts_with = "scene")]
+    camera: Option<usize>,
+    /// Fit at this image size WxH (cameras rescaled, masks resampled); the demo's default 352x96,
+    /// a scene's cameras their own size.
+    #[arg(long)]
+    size: Option<Size>,
+    /// Where the sun is (one sun).
+    #[command(flatten)]
+    sun: SunArgs,
     /// Adam steps.
     #[arg(long, default_value_t = 60)]
     steps: u32,
-    /// Gaussians added where no camera sees.
+    /// Most Gaussians added.
     #[arg(long, default_value_t = 4000)]
     added: usize,
-    /// Which demo camera receives the shadow.
-    #[arg(long, default_value_t = 0)]
-    camera: usize,
-    /// Receiver image size WxH.
-    #[arg(long, default_value = "352x96")]
-    size: Size,
-    /// Sun azimuth, degrees from north toward east.
-    #[arg(long, default_value_t = 260.0, allow_negative_numbers = true)]
-    sun_azimuth: f32,
-    /// Sun elevation, degrees.
-    #[arg(long, default_value_t = 50.0, allow_negative_numbers = true)]
-    sun_elevation: f32,
-    /// Shadow-map resolution (longer side).
+    /// The added Gaussians' shadow-map resolution (longer side).
     #[arg(long, default_value_t = 256)]
     resolution: u32,
-    /// Sigmoid sharpness k per metre.
+    /// The added Gaussians' sigmoid sharpness k per metre.
     #[arg(long, default_value_t = 4.0)]
     k: f32,
-    /// Output folder.
-    #[arg(long, default_value = "out/shadow-fit")]
-    out: PathBuf,
+    /// Output: the completed scene (.ply) with a scene, a folder with the demo (default out/shadow-fit).
+    #[arg(long)]
+    out: Option<PathBuf>,
+}
+
+/// One line of progress.
+fn step_line(s: &CompletionStep) -> String {
+    let views: Vec<String> = s.view_iou.iter().map(|v| format!("{v:.3}")).collect();
+    format!(
+        "step {:3}: loss {:.4}, shadow IoU {:.3} (views {}), missing-shadow IoU {:.3}, {} added",
+        s.step,
+        s.loss,
+        s.iou,
+        views.join(" "),
+        s.missing_iou,
+        s.gaussians
+    )
+}
+
+/// Runs the completion with a progress bar; returns it and the history as CSV rows.
+fn run_with_progress(
+    steps: u32,
+    run: impl FnOnce(&mut dyn FnMut(&CompletionStep)) -> Result<Completion>,
+) -> Result<(Completion, Vec<String>)> {
+    let bar = progress_bar(u64::from(steps) + 1, "{bar:30} {pos}/{len} {msg} [{elapsed}, ETA {eta}]");
+    let mut lines = Vec::new();
+    let result = run(&mut |s| {
+        print_line(&bar, &step_line(s));
+        bar.set_message(format!("IoU {:.3}", s.iou));
+        bar.inc(1);
+        lines.push(format!("{},{},{},{},{}", s.step, s.loss, s.iou, s.missing_iou, s.gaussians));
+    });
+    bar.finish_and_clear();
+    Ok((result?, lines))
+}
+
+fn write_history(path: &Path, lines: &[String]) -> Result<()> {
+    let text = format!("step,loss,shadow_iou,missing_shadow_iou,added\n{}\n", lines.join("\n"));
+    io::write_atomic(path, text.as_bytes())
+}
+
+/// The mask agreement as colours: lit in both light grey, shadow in both dark
+/// grey, shadow the mask has and the render lacks red, shadow the render has
+/// and the mask lacks blue, unknown or no surface black.
+fn agreement(v: &[f32], target: &[f32], mask: &[bool]) -> Vec<f32> {
+    v.iter()
+        .zip(target)
+        .zip(mask)
+        .flat_map(|((v, t), m)| match (*m, *v < 0.5, *t < 0.5) {
+            (false, _, _) => [0.0, 0.0, 0.0],
+            (true, false, false) => [0.85, 0.85, 0.85],
+            (true, true, true) => [0.25, 0.25, 0.25],
+            (true, false, true) => [0.9, 0.1, 0.1],
+            (true, true, false) => [0.1, 0.3, 0.9],
+        })
+        .collect()
 }
 
 impl ShadowFitArgs {
+    fn settings(&self) -> CompletionSettings {
+        let mut settings =
+            CompletionSettings { steps: self.steps, gaussians: self.added, ..CompletionSettings::default() };
+        settings.shadow.resolution = self.resolution;
+        settings.shadow.k = self.k;
+        settings
+    }
+
+    /// The one sun, above the horizon.
+    fn sun(&self) -> Result<srug::shadow::Sun> {
+        let mut suns = self.sun.resolve()?;
+        if suns.len() != 1 {
+            return Err(Error::invalid(
+                "--sun-path",
+                "shadow-fit takes one sun (--sun-azimuth/--sun-elevation or --sun-time)",
+            ));
+        }
+        let (label, sun) = suns.remove(0);
+        if !sun.above_horizon() {
+            return Err(Error::invalid(
+                format!("sun {label}"),
+                "is at or below the horizon: it casts no shadow to fit (it must be above the horizon)",
+            ));
+        }
+        Ok(sun)
+    }
+
     /// Runs `srug shadow-fit`.
     pub(super) fn run(&self, device_args: &DeviceArgs) -> Result<()> {
-        let &Self { gaussians, seed, steps, added, camera, size, sun_azimuth, sun_elevation, resolution, k, ref out } =
-            self;
-        let mut settings = CompletionSettings { steps, gaussians: added, ..CompletionSettings::default() };
-        settings.shadow.resolution = resolution;
-        settings.shadow.k = k;
-        let options = DemoCompletion {
-            demo: demo::DemoOptions { gaussians, seed, ..demo::DemoOptions::default() },
-            camera,
-            size: size.pair(),
-            sun: (sun_azimuth, sun_elevation),
-            settings,
+        match &self.scene {
+            Some(scene) => self.run_scene(scene, device_args),
+            None => self.run_demo(device_args),
+        }
+    }
+
+    fn run_scene(&self, scene_path: &Path, device_args: &DeviceArgs) -> Result<()> {
+        let cameras_path =
+            self.cameras.as_ref().ok_or_else(|| Error::invalid("shadow-fit SCENE", "needs --cameras"))?;
+        let masks_dir = self.masks.as_ref().ok_or_else(|| Error::invalid("shadow-fit SCENE", "needs --masks DIR"))?;
+        let out = self.out.as_ref().ok_or_else(|| Error::invalid("shadow-fit SCENE", "needs --out COMPLETED.ply"))?;
+        if !out.extension().is_some_and(|e| e.eq_ignore_ascii_case("ply")) {
+            return Err(Error::invalid(
+                format!("--out {}", out.display()),
+                "must be a .ply file (it carries the srug_added flag)",
+            ));
+        }
+        let sun = self.sun()?;
+        let scene = io::read_scene(scene_path)?;
+        let mut cameras = io::read_cameras(cameras_path)?;
+        if let Some(size) = self.size {
+            let (w, h) = size.pair();
+            cameras = cameras.iter().map(|c| c.resized(w, h)).collect();
+        }
+        let (found, unmatched) = find_masks(masks_dir, &cameras)?;
+        let options = MaskOptions { invert: self.invert_masks };
+        let mut views = Vec::new();
+        let mut uniform = 0;
+        for (camera, mask) in cameras.iter().zip(&found) {
+            let Some(path) = mask else {
+                println!("camera \"{}\": no mask in {}, skipped", camera.name, masks_dir.display());
+                continue;
+            };
+            let image = read_mask(path)?;
+            let ignore = match &self.ignore_masks {
+                Some(dir) => {
+                    let (hits, _) = find_masks(dir, std::slice::from_ref(camera))?;
+                    hits[0].as_deref().map(read_mask).transpose()?
+                }
+                None => None,
+            };
+            if image.is_uniform() {
+                uniform += 1;
+                eprintln!(
+                    "warning: mask {} is all one value (all shadow or all lit at 0.5): check it and --invert-masks",
+                    path.display()
+                );
+            }
+            views.push(ShadowView { camera: camera.clone(), target: image.target(camera, ignore.as_ref(), options) });
+        }
+        for f in &unmatched {
+            eprintln!("warning: mask {} matches no camera (names: {})", f.display(), camera_names(&cameras));
+        }
+        if views.is_empty() {
+            return Err(Error::invalid(
+                format!("masks in {}", masks_dir.display()),
+                format!("match no camera: name them as the cameras' images ({})", camera_names(&cameras)),
+            ));
+        }
+        if uniform == views.len() {
+            return Err(Error::invalid(
+                format!("masks in {}", masks_dir.display()),
+                "are each all one value: nothing tells shadow from light",
+            ));
+        }
+        let region = match self.region {
+            Some(BoxArg(b)) => b,
+            None => default_region(&scene.bounds().ok_or_else(|| Error::invalid("scene", "has no Gaussians"))?),
         };
-        std::fs::create_dir_all(out).map_err(Error::io(out))?;
         let device = device_args.open()?;
-        let bar = progress_bar(u64::from(steps) + 1, "{bar:30} {pos}/{len} {msg} [{elapsed}, ETA {eta}]");
-        let mut lines = Vec::new();
-        let result = complete_demo(&device, &options, &mut |s| {
-            let line = format!(
-                "step {:3}: loss {:.4}, shadow IoU {:.3}, missing-shadow IoU {:.3}",
-                s.step, s.loss, s.iou, s.missing_iou
+        println!(
+            "fitting {} of {} cameras' masks, {} Gaussians, up to {} added in {:?}..{:?}",
+            views.len(),
+            cameras.len(),
+            scene.len(),
+            self.added,
+            region.min,
+            region.max
+        );
+        let settings = self.settings();
+        let problem = CompletionProblem { scene: &scene, region: &region, views: &views, cameras: &cameras, sun: &sun };
+        let start = std::time::Instant::now();
+        let (c, lines) = run_with_progress(self.steps, |p| complete_from_views(&device, &problem, &settings, p))?;
+        let seconds = start.elapsed().as_secs_f64();
+        let flags: Vec<bool> = (0..c.scene.len()).map(|i| i >= c.first_added).collect();
+        io::write_ply_with_flags(out, &c.scene, PlyFormat::BinaryLittleEndian, &[("srug_added", &flags)])?;
+        if let Some(dir) = &self.report {
+            std::fs::create_dir_all(dir).map_err(Error::io(dir))?;
+            for (view, o) in views.iter().zip(&c.views) {
+                let (w, h) = (view.camera.width, view.camera.height);
+                let stem = mask_stem(&view.camera);
+                for (name, v) in [("before", &o.without), ("after", &o.after)] {
+                    let png = dir.join(format!("agreement_{stem}_{name}.png"));
+                    io::write_png(&png, w, h, &agreement(v, &view.target, &o.mask))?;
+                }
+            }
+            write_history(&dir.join("history.csv"), &lines)?;
+        }
+        for (view, o) in views.iter().zip(&c.views) {
+            println!(
+                "camera \"{}\": shadow IoU against its mask {:.3} → {:.3}",
+                view.camera.name,
+                shadow_iou(&o.without, &view.target, &o.mask),
+                shadow_iou(&o.after, &view.target, &o.mask)
             );
-            print_line(&bar, &line);
-            bar.set_message(format!("IoU {:.3}", s.iou));
-            bar.inc(1);
-            lines.push(format!("{},{},{},{}", s.step, s.loss, s.iou, s.missing_iou));
-        });
-        bar.finish_and_clear();
-        let result = result?;
-        let c = &result.completion;
-        let (w, h) = (result.camera.width, result.camera.height);
+        }
+        println!(
+            "added {} Gaussians (flagged srug_added), {} inside a camera's view, in {seconds:.1} s ({:.0} ms per step)",
+            c.added(),
+            c.visible_added,
+            1e3 * seconds / f64::from(self.steps + 1)
+        );
+        println!("scene: {}", out.display());
+        if let Some(dir) = &self.report {
+            println!("report: {}/agreement_*_{{before,after}}.png, history.csv", dir.display());
+        }
+        report_validation(&device);
+        Ok(())
+    }
+
+    fn run_demo(&self, device_args: &DeviceArgs) -> Result<()> {
+        let defaults = DemoCompletion::default();
+        let sun = self.sun()?;
+        let (azimuth, elevation) = sun.azimuth_elevation();
+        let options = DemoCompletion {
+            demo: demo::DemoOptions {
+                gaussians: self.gaussians.unwrap_or(defaults.demo.gaussians),
+                seed: self.seed.unwrap_or(7),
+                ..demo::DemoOptions::default()
+            },
+            camera: self.camera.unwrap_or(defaults.camera),
+            size: self.size.map_or(defaults.size, Size::pair),
+            sun: (azimuth, elevation),
+            settings: self.settings(),
+        };
+        let out = self.out.clone().unwrap_or_else(|| PathBuf::from("out/shadow-fit"));
+        let device = device_args.open()?;
+        let mut target = Vec::new();
+        let mut removed = 0;
+        let mut camera = None;
+        let (c, lines) = run_with_progress(self.steps, |p| {
+            let r = complete_demo(&device, &options, p)?;
+            (target, removed, camera) = (r.target, r.removed, Some(r.camera));
+            Ok(r.completion)
+        })?;
+        let camera = camera.ok_or_else(|| Error::invalid("demo completion", "returned no camera"))?;
+        std::fs::create_dir_all(&out).map_err(Error::io(&out))?;
+        let v = &c.views[0];
+        let (w, h) = (camera.width, camera.height);
         let grey = |v: &[f32]| -> Vec<f32> { v.iter().flat_map(|x| [*x, *x, *x]).collect() };
-        for (name, v) in
-            [("target", &result.target), ("without", &c.without), ("before", &c.before), ("after", &c.after)]
-        {
+        for (name, v) in [("target", &target), ("without", &v.without), ("before", &v.before), ("after", &v.after)] {
             io::write_png(out.join(format!("visibility_{name}.png")), w, h, &grey(v))?;
         }
         let ply = out.join("completed.ply");
-        io::write_ply(&ply, &c.scene, PlyFormat::BinaryLittleEndian)?;
+        let flags: Vec<bool> = (0..c.scene.len()).map(|i| i >= c.first_added).collect();
+        io::write_ply_with_flags(&ply, &c.scene, PlyFormat::BinaryLittleEndian, &[("srug_added", &flags)])?;
         let csv = out.join("history.csv");
-        let text = format!("step,loss,shadow_iou,missing_shadow_iou\n{}\n", lines.join("\n"));
-        std::fs::write(&csv, text).map_err(Error::io(&csv))?;
-        let (first, last) = (c.history.first(), c.history.last());
-        if let (Some(a), Some(b)) = (first, last) {
-            println!(
-                "removed the off-screen tower ({} Gaussians); added {} where no camera sees",
-                result.removed,
-                c.scene.len() - c.first_added
-            );
+        write_history(&csv, &lines)?;
+        if let (Some(a), Some(b)) = (c.history.first(), c.history.last()) {
+            println!("removed the off-screen tower ({removed} Gaussians); added {} where no camera sees", c.added());
             println!(
                 "shadow IoU: {:.3} without the tower, {:.3} at the start, {:.3} after {} steps",
-                shadow_iou(&c.without, &result.target, &c.mask),
+                shadow_iou(&v.without, &target, &v.mask),
                 a.iou,
                 b.iou,
                 b.step
@@ -117,10 +338,29 @@ impl ShadowFitArgs {
         println!("images: {}/visibility_{{target,without,before,after}}.png", out.display());
         println!("scene: {}", ply.display());
         println!("history: {}", csv.display());
-        let messages = device.take_validation_messages();
-        if device.validation_enabled() {
-            println!("validation messages: {}", messages.len());
-        }
+        report_validation(&device);
         Ok(())
+    }
+}
+
+/// The scene's bounds raised by half their horizontal diagonal: what is
+/// missing may be taller than anything the cameras saw.
+fn default_region(b: &Bounds) -> Bounds {
+    let (lo, hi) = (Vec3::from_array(b.min), Vec3::from_array(b.max));
+    let diagonal = (hi - lo).truncate().length();
+    Bounds { min: b.min, max: [b.max[0], b.max[1], b.max[2] + 0.5 * diagonal.max(1.0)] }
+}
+
+/// The first few camera names, for messages.
+fn camera_names(cameras: &[Camera]) -> String {
+    let names: Vec<String> = cameras.iter().take(3).map(|c| format!("\"{}\"", mask_stem(c))).collect();
+    let more = if cameras.len() > 3 { ", ..." } else { "" };
+    format!("{}{more}", names.join(", "))
+}
+
+fn report_validation(device: &srug::gpu::Device) {
+    let messages = device.take_validation_messages();
+    if device.validation_enabled() {
+        println!("validation messages: {}", messages.len());
     }
 }

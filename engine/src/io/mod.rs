@@ -29,5 +29,7 @@ pub use formats::{
 };
 pub use image::{display_byte, write_exr_channels, write_exr_layer, write_png};
 pub use limits::{limits, read_file, read_text, set_limits, Limits};
-pub use ply::{read_ply, read_ply_blocks, read_ply_bytes, read_ply_ids, write_ply, PlyBlock, PlyFormat};
+pub use ply::{
+    read_ply, read_ply_blocks, read_ply_bytes, read_ply_ids, write_ply, write_ply_with_flags, PlyBlock, PlyFormat,
+};
 pub use transforms_json::{parse_transforms_json, read_transforms_json};

@@ -787,29 +787,58 @@ fn row_values(scene: &Scene, g: usize, out: &mut Vec<f32>) {
 /// Writes `scene` as a PLY file (all properties float). Validates first; on any
 /// failure nothing is left at `path`.
 pub fn write_ply(path: impl AsRef<Path>, scene: &Scene, format: PlyFormat) -> Result<()> {
+    write_ply_with_flags(path, scene, format, &[])
+}
+
+/// [`write_ply`] with per-Gaussian flags appended as `uchar` properties (0 or
+/// 1 each; tools that do not know them skip them, srug reads them with
+/// [`read_ply_ids`]), e.g. which Gaussians a completion added. Every flag
+/// list must hold one value per Gaussian.
+pub fn write_ply_with_flags(
+    path: impl AsRef<Path>,
+    scene: &Scene,
+    format: PlyFormat,
+    flags: &[(&str, &[bool])],
+) -> Result<()> {
     let path = path.as_ref();
     scene.validate("scene to write")?;
+    for (name, values) in flags {
+        let clash = property_names(scene).iter().any(|n| n == name);
+        if values.len() != scene.len() || clash || name.is_empty() || !name.bytes().all(|b| b.is_ascii_graphic()) {
+            return Err(Error::invalid(
+                format!("PLY flag property \"{name}\" ({} values)", values.len()),
+                format!("needs a new printable name and one value per Gaussian ({})", scene.len()),
+            ));
+        }
+    }
     let tmp = path.with_file_name(format!(
         ".{}.tmp-{}",
         path.file_name().map(|f| f.to_string_lossy().into_owned()).unwrap_or_default(),
         std::process::id()
     ));
-    let result = write_ply_to(&tmp, scene, format).and_then(|()| std::fs::rename(&tmp, path).map_err(Error::io(path)));
+    let result =
+        write_ply_to(&tmp, scene, format, flags).and_then(|()| std::fs::rename(&tmp, path).map_err(Error::io(path)));
     if result.is_err() {
         let _ = std::fs::remove_file(&tmp);
     }
     result
 }
 
-fn write_ply_to(path: &Path, scene: &Scene, format: PlyFormat) -> Result<()> {
+fn write_ply_to(path: &Path, scene: &Scene, format: PlyFormat, flags: &[(&str, &[bool])]) -> Result<()> {
     let file = std::fs::File::create(path).map_err(Error::io(path))?;
     let mut w = std::io::BufWriter::with_capacity(1 << 20, file);
-    let written = write_ply_into(&mut w, scene, format).and_then(|()| w.flush());
+    let written = write_ply_into(&mut w, scene, format, flags).and_then(|()| w.flush());
     written.and_then(|()| w.get_ref().sync_all()).map_err(Error::io(path))
 }
 
-/// Writes `scene` as PLY into any writer (all properties float; not validated here).
-pub(crate) fn write_ply_into(w: &mut impl Write, scene: &Scene, format: PlyFormat) -> std::io::Result<()> {
+/// Writes `scene` as PLY into any writer (its properties float, then `flags`
+/// as uchar; not validated here).
+pub(crate) fn write_ply_into(
+    w: &mut impl Write,
+    scene: &Scene,
+    format: PlyFormat,
+    flags: &[(&str, &[bool])],
+) -> std::io::Result<()> {
     let names = property_names(scene);
     let mut header = String::from("ply\n");
     header += match format {
@@ -822,6 +851,9 @@ pub(crate) fn write_ply_into(w: &mut impl Write, scene: &Scene, format: PlyForma
     for n in &names {
         header += &format!("property float {n}\n");
     }
+    for (n, _) in flags {
+        header += &format!("property uchar {n}\n");
+    }
     header += "end_header\n";
     w.write_all(header.as_bytes())?;
     let mut row = Vec::with_capacity(names.len());
@@ -829,8 +861,11 @@ pub(crate) fn write_ply_into(w: &mut impl Write, scene: &Scene, format: PlyForma
     for g in 0..scene.len() {
         row_values(scene, g, &mut row);
         match format {
-            PlyFormat::BinaryLittleEndian => row.iter().try_for_each(|v| w.write_all(&v.to_le_bytes()))?,
-            PlyFormat::BinaryBigEndian => row.iter().try_for_each(|v| w.write_all(&v.to_be_bytes()))?,
+            PlyFormat::BinaryLittleEndian | PlyFormat::BinaryBigEndian => {
+                let little = format == PlyFormat::BinaryLittleEndian;
+                row.iter().try_for_each(|v| w.write_all(&if little { v.to_le_bytes() } else { v.to_be_bytes() }))?;
+                flags.iter().try_for_each(|(_, f)| w.write_all(&[u8::from(f[g])]))?;
+            }
             PlyFormat::Ascii => {
                 line.clear();
                 for (i, v) in row.iter().enumerate() {
@@ -839,6 +874,9 @@ pub(crate) fn write_ply_into(w: &mut impl Write, scene: &Scene, format: PlyForma
                     }
                     // Rust's float Display is the shortest string that parses back exactly.
                     line += &v.to_string();
+                }
+                for (_, f) in flags {
+                    line += if f[g] { " 1" } else { " 0" };
                 }
                 line.push('\n');
                 w.write_all(line.as_bytes())?;

@@ -215,6 +215,75 @@ impl BlockCity {
     }
 }
 
+/// The block's shadow-completion problem: the tallest building (x 18–36,
+/// y 7–16, 25 m) removed; four street cameras at y = 5.5 looking south, so
+/// no camera sees where it stood; a northern sun (azimuth 100° from +x
+/// toward +y, 40° up) throws its shadow across the street they see.
+#[derive(Clone, Debug)]
+pub struct BlockCompletion {
+    /// The whole block (its truth has the building).
+    pub city: BlockCity,
+    /// The block's Gaussians without the building's (those within 0.3 m of it).
+    pub without: Scene,
+    /// The removed building.
+    pub removed: Aabb,
+    /// Unit vector toward the sun.
+    pub sun: Vec3,
+    /// The street cameras.
+    pub cameras: Vec<Camera>,
+}
+
+/// Generates [`BlockCompletion`] with cameras of `width`×`height` (90° across).
+pub fn block_completion(options: &BlockOptions, width: u32, height: u32) -> Result<BlockCompletion> {
+    let city = block_city(options)?;
+    let removed = city.boxes[3];
+    let keep: Vec<bool> = city
+        .scene
+        .means
+        .iter()
+        .map(|p| {
+            let p = Vec3::from_array(*p);
+            !(p.cmpge(removed.min - 0.3).all() && p.cmple(removed.max + 0.3).all())
+        })
+        .collect();
+    let without = city.scene.select(&keep);
+    let mut cameras = Vec::new();
+    for (i, (x, tx)) in [(6.0, 14.0), (14.0, 22.0), (22.0, 30.0), (30.0, 24.0)].into_iter().enumerate() {
+        let mut c = Camera::look_at(Vec3::new(x, 5.5, 1.6), Vec3::new(tx, -7.0, 2.0), Vec3::Z, 90.0, width, height)?;
+        c.name = format!("street_{i}");
+        cameras.push(c);
+    }
+    Ok(BlockCompletion { city, without, removed, sun: toward(100.0, 40.0), cameras })
+}
+
+impl BlockCity {
+    /// The true visibility as a shadow detector marks a photograph: lit 1,
+    /// shadowed 0, surfaces facing away from the sun 0 (they are dark), the
+    /// sky 1 (not shadow).
+    pub fn shadow_target(&self, camera: &Camera, sun: Vec3) -> Vec<f32> {
+        let w = camera.width as usize;
+        let truth = self.true_visibility(camera, sun);
+        truth
+            .iter()
+            .enumerate()
+            .map(|(p, t)| match t {
+                Some(lit) => f32::from(u8::from(*lit)),
+                None => {
+                    let Some(dir) = camera.pixel_direction([(p % w) as f64 + 0.5, (p / w) as f64 + 0.5]) else {
+                        return 1.0;
+                    };
+                    let d = camera.rotation * Vec3::new(dir[0] as f32, dir[1] as f32, dir[2] as f32);
+                    if self.hit(camera.position, d).is_some() {
+                        0.0
+                    } else {
+                        1.0
+                    }
+                }
+            })
+            .collect()
+    }
+}
+
 /// Where the ray `o + t·d` (t > 0) enters the box from outside: t and the
 /// outward normal of the face it crosses.
 fn box_entry(b: &Aabb, o: Vec3, d: Vec3) -> Option<(f32, Vec3)> {

@@ -1,24 +1,30 @@
 //! Shadow-guided completion: Gaussians that no camera sees are optimised so
-//! the shadows they cast match a target (the paper's shadow guidance).
+//! the shadows they cast match target shadows in one or more views (the
+//! paper's shadow guidance: shadow masks V' per training view, the sun known).
 //!
-//! The scene as given casts its shadows through a median-depth shadow map,
-//! rendered once (V_scene). The added Gaussians get their own shadow map in
-//! expected-over-far depth — differentiable even where they are still faint —
-//! from the same light camera, fitted once so texels stay put while Gaussians
-//! move; their visibility V_added multiplies (independent occluders):
-//! V = V_scene·V_added. Each step takes the paper's visibility loss
-//! BCE(V_added, V_target) over the receivers the scene leaves lit, back through
-//! the sigmoid shadow test and the added map's splat to the added Gaussians,
-//! and moves them with Adam.
+//! The scene as given casts its own shadows through its shadow map, rendered
+//! once per view with [`CompletionSettings::scene_shadow`] (V_scene). The
+//! added Gaussians get one shadow map of their own in expected-over-far depth
+//! — differentiable even where they are still faint — from one light camera
+//! covering every view's receivers, fixed for the run so texels stay put
+//! while Gaussians move. Their visibility V_added multiplies (independent
+//! occluders): V = V_scene·V_added. Each step takes the visibility loss
+//! BCE(V_added, V') over the receivers the scene leaves lit and the target
+//! knows, in every view, back through the sigmoid test and the added map's
+//! splat to the added Gaussians (the map gradients of the views add up before
+//! one splat backward), and moves them with Adam.
 //!
-//! The initial Gaussians fill the region that can shadow the view but that no
-//! camera sees: the box spanned by the sun rays from every receiver in view,
-//! minus every point a camera sees. The optimisation has to carve the
-//! occluder out of that cloud.
+//! Gaussians are spawned along the sun rays of the pixels whose shadow is
+//! missing (the target says shadow, V says lit), between the receiver and
+//! where the ray leaves the region, at points no camera sees. Every
+//! [`CompletionSettings::refresh_every`] steps, until two thirds of the run,
+//! those whose opacity the loss drove below [`CompletionSettings::prune_opacity`]
+//! are pruned and new ones spawned along the rays still missing their shadow,
+//! up to the count allowed; at the end those that splat nothing (peak α
+//! below 1/255) are dropped. The input Gaussians are never changed.
 //!
-//! The receivers are the input scene's, rendered once: the added Gaussians
-//! start outside every view (their centres; [`Completion::visible_added`]
-//! counts those that end inside one).
+//! Targets are visibilities: 1 lit, 0 shadowed, soft values in between
+//! (a detector's probability), negative where unknown (ignored).
 
 use glam::{DVec3, Vec3};
 use rand::{Rng, SeedableRng};
@@ -31,23 +37,35 @@ use crate::error::{Error, Result};
 use crate::gpu::Device;
 use crate::scene::activate::GpuScene;
 use crate::scene::{sh_coefficients, Bounds, Camera, Scene};
+use crate::splat::backward::BlendGrads;
 use crate::splat::{Channels, SplatSettings, Splatter};
 
-/// Knobs of [`complete_from_shadow`].
+/// Knobs of [`complete_from_views`].
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct CompletionSettings {
     /// Adam steps.
     pub steps: u32,
-    /// Gaussians added.
+    /// Most Gaussians added at once.
     pub gaussians: usize,
-    /// The shadow test (resolution, k, bias, the scene map's depth mode, receivers).
+    /// The added Gaussians' shadow test (resolution, k, bias, receivers); its
+    /// map depth is always expected-over-far and its light camera covers every view.
     pub shadow: ShadowSettings,
+    /// The scene's own shadow map and test (V_scene), rendered once per view.
+    pub scene_shadow: ShadowSettings,
     /// Learning rates: means (in units of the initial Gaussian size), log-scales,
     /// rotations, opacity logits.
     pub learning_rates: [f32; 4],
     /// Initial opacity logit of the added Gaussians.
     pub initial_opacity_logit: f32,
-    /// Seed of the initial placement.
+    /// Steps between pruning and respawning (0: never).
+    pub refresh_every: u32,
+    /// Added Gaussians whose opacity falls below this are pruned at a refresh.
+    pub prune_opacity: f32,
+    /// Weight of the coverage loss against the visibility loss (see
+    /// [`complete_from_views`]): shadows from opaque coverage, as the
+    /// median-depth map that renders the result needs.
+    pub coverage_weight: f32,
+    /// Seed of the placement.
     pub seed: u64,
 }
 
@@ -62,54 +80,109 @@ impl Default for CompletionSettings {
                 bias: 0.3,
                 // Differentiable receivers (expected depth), no normals rendered: no slope bias.
                 slope_bias: 0.0,
-                map_depth: super::DepthMode::Median,
-                receiver_depth: super::DepthMode::Expected,
-                fit: ShadowFit::ViewFrustum,
+                map_depth: DepthMode::ExpectedOverFar,
+                receiver_depth: DepthMode::Expected,
+                fit: ShadowFit::SceneBounds,
                 ..ShadowSettings::default()
             },
+            scene_shadow: ShadowSettings::default(),
             learning_rates: [0.025, 0.025, 0.01, 0.1],
             initial_opacity_logit: -4.0,
+            refresh_every: 10,
+            prune_opacity: 0.005,
+            coverage_weight: 1000.0,
             seed: 1,
         }
     }
 }
 
+impl CompletionSettings {
+    /// Checks the values.
+    pub fn validate(&self) -> Result<()> {
+        self.shadow.validate()?;
+        self.scene_shadow.validate()?;
+        if self.gaussians == 0 {
+            return Err(Error::invalid("added Gaussians 0", "must be at least 1"));
+        }
+        if self.learning_rates.iter().any(|r| !r.is_finite() || *r < 0.0) {
+            return Err(Error::invalid(format!("learning rates {:?}", self.learning_rates), "must be finite, ≥ 0"));
+        }
+        if !self.initial_opacity_logit.is_finite() || !(0.0..1.0).contains(&self.prune_opacity) {
+            return Err(Error::invalid(
+                format!("initial opacity logit {} / prune opacity {}", self.initial_opacity_logit, self.prune_opacity),
+                "need a finite logit and a pruning opacity in [0, 1)",
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// One view of the fit: a camera and its target visibility.
+#[derive(Clone, Debug)]
+pub struct ShadowView {
+    /// The camera (pinhole or orthographic, no lens distortion).
+    pub camera: Camera,
+    /// Target sun visibility per pixel, row-major at the camera's size: 1 lit,
+    /// 0 shadowed, soft values between; negative where unknown (ignored).
+    pub target: Vec<f32>,
+}
+
 /// One step's figures.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct CompletionStep {
     /// Step index (0 is the initial state).
     pub step: u32,
-    /// Mean BCE over the receivers the scene leaves lit.
+    /// Mean BCE over the receivers the scene leaves lit, summed over the views.
     pub loss: f64,
-    /// IoU of the shadowed pixels (V < 0.5) against the target's, over every receiver.
+    /// IoU of the shadowed pixels (V < 0.5) against the target's, over every
+    /// known receiver of every view (pooled).
     pub iou: f64,
     /// The same over the receivers the scene alone leaves lit: how well the
     /// missing shadow is recovered (0 for the scene alone).
     pub missing_iou: f64,
+    /// Added Gaussians at this step.
+    pub gaussians: usize,
+    /// The shadow IoU of each view, in the order given.
+    pub view_iou: Vec<f64>,
 }
 
-/// What [`complete_from_shadow`] produced.
-pub struct Completion {
-    /// The input scene with the optimised Gaussians appended.
-    pub scene: Scene,
-    /// Index of the first added Gaussian.
-    pub first_added: usize,
+/// One view's visibilities.
+#[derive(Clone, Debug)]
+pub struct ViewCompletion {
     /// Visibility of the scene alone.
     pub without: Vec<f32>,
     /// Visibility with the initial Gaussians.
     pub before: Vec<f32>,
     /// Visibility with the optimised Gaussians.
     pub after: Vec<f32>,
-    /// Receivers with a surface (where IoU is measured).
+    /// Receivers with a surface that faces the sun and a known target (where
+    /// IoU is measured).
     pub mask: Vec<bool>,
+}
+
+/// What [`complete_from_views`] produced.
+pub struct Completion {
+    /// The input scene with the optimised Gaussians appended.
+    pub scene: Scene,
+    /// Index of the first added Gaussian.
+    pub first_added: usize,
+    /// Per view, in the order given.
+    pub views: Vec<ViewCompletion>,
     /// Per-step loss and IoU (the first entry is the initial state).
     pub history: Vec<CompletionStep>,
     /// Added Gaussians whose centre ended inside a camera's view.
     pub visible_added: usize,
 }
 
-/// IoU of the shadowed sets (V < 0.5) of `a` and `b` over pixels where `mask`.
-pub fn shadow_iou(a: &[f32], b: &[f32], mask: &[bool]) -> f64 {
+impl Completion {
+    /// Gaussians added.
+    pub fn added(&self) -> usize {
+        self.scene.len() - self.first_added
+    }
+}
+
+/// Shadowed-pixel intersection and union of `a` and `b` (V < 0.5) over pixels where `mask`.
+fn shadow_overlap(a: &[f32], b: &[f32], mask: &[bool]) -> (usize, usize) {
     let (mut inter, mut union) = (0usize, 0usize);
     for ((x, y), m) in a.iter().zip(b).zip(mask) {
         if *m {
@@ -118,6 +191,10 @@ pub fn shadow_iou(a: &[f32], b: &[f32], mask: &[bool]) -> f64 {
             union += usize::from(sx || sy);
         }
     }
+    (inter, union)
+}
+
+fn ratio((inter, union): (usize, usize)) -> f64 {
     if union == 0 {
         1.0
     } else {
@@ -125,214 +202,546 @@ pub fn shadow_iou(a: &[f32], b: &[f32], mask: &[bool]) -> f64 {
     }
 }
 
+/// IoU of the shadowed sets (V < 0.5) of `a` and `b` over pixels where `mask`.
+pub fn shadow_iou(a: &[f32], b: &[f32], mask: &[bool]) -> f64 {
+    ratio(shadow_overlap(a, b, mask))
+}
+
+/// Adam (β = 0.9, 0.999) over rows of [`ROW`] parameters, rows removable.
 struct Adam {
-    m: Vec<f32>,
-    v: Vec<f32>,
+    m: Vec<[f32; ROW]>,
+    v: Vec<[f32; ROW]>,
     t: i32,
 }
 
-impl Adam {
-    fn new(n: usize) -> Self {
-        Self { m: vec![0.0; n], v: vec![0.0; n], t: 0 }
-    }
+/// Parameters of one added Gaussian: mean, log-scales, rotation, opacity logit.
+const ROW: usize = 11;
 
-    /// One Adam step (β = 0.9, 0.999) on `params` with per-entry learning rates `lr(i)`.
-    fn step(&mut self, params: &mut [f32], grads: &[f32], lr: impl Fn(usize) -> f32) {
+impl Adam {
+    fn step(&mut self, params: &mut [[f32; ROW]], grads: &[[f32; ROW]], lr: impl Fn(usize) -> f32) {
         self.t += 1;
         let (b1, b2) = (0.9f32, 0.999f32);
         let (c1, c2) = (1.0 - b1.powi(self.t), 1.0 - b2.powi(self.t));
-        for (i, (p, g)) in params.iter_mut().zip(grads).enumerate() {
-            let g = if g.is_finite() { *g } else { 0.0 };
-            self.m[i] = b1 * self.m[i] + (1.0 - b1) * g;
-            self.v[i] = b2 * self.v[i] + (1.0 - b2) * g * g;
-            *p -= lr(i) * (self.m[i] / c1) / ((self.v[i] / c2).sqrt() + 1e-12);
+        self.m.resize(params.len(), [0.0; ROW]);
+        self.v.resize(params.len(), [0.0; ROW]);
+        for (((p, g), m), v) in params.iter_mut().zip(grads).zip(&mut self.m).zip(&mut self.v) {
+            for i in 0..ROW {
+                let g = if g[i].is_finite() { g[i] } else { 0.0 };
+                m[i] = b1 * m[i] + (1.0 - b1) * g;
+                v[i] = b2 * v[i] + (1.0 - b2) * g * g;
+                p[i] -= lr(i) * (m[i] / c1) / ((v[i] / c2).sqrt() + 1e-12);
+            }
         }
+    }
+
+    /// Keeps the rows where `keep`.
+    fn retain(&mut self, keep: &[bool]) {
+        let mut k = keep.iter();
+        self.m.retain(|_| *k.next().unwrap_or(&false));
+        let mut k = keep.iter();
+        self.v.retain(|_| *k.next().unwrap_or(&false));
     }
 }
 
-/// Optimises Gaussians added to `scene` so the shadows seen from `camera`
-/// under `sun` match `target` (per-pixel visibility, e.g. rendered with the
-/// missing geometry present). `region` bounds where occluders may be (the
-/// light camera covers it, the initial Gaussians stay in it): the scene's
-/// bounds or wider, since what is missing may lie outside them. `cameras` are
-/// every view: initial Gaussians are placed where none of them sees.
-/// `progress` gets every step's figures.
-#[allow(clippy::too_many_arguments, reason = "the problem is defined by these independent inputs")]
-pub fn complete_from_shadow(
+/// The ray parameters t ≥ 0 where `o + t·d` is inside the box [lo, hi].
+fn ray_in_box(o: DVec3, d: DVec3, lo: DVec3, hi: DVec3) -> Option<(f64, f64)> {
+    let (mut t0, mut t1) = (0.0f64, f64::MAX);
+    for a in 0..3 {
+        if d[a].abs() < 1e-12 {
+            if o[a] < lo[a] || o[a] > hi[a] {
+                return None;
+            }
+            continue;
+        }
+        let (u, v) = ((lo[a] - o[a]) / d[a], (hi[a] - o[a]) / d[a]);
+        t0 = t0.max(u.min(v));
+        t1 = t1.min(u.max(v));
+    }
+    (t0 < t1).then_some((t0, t1))
+}
+
+/// Where Gaussians may be spawned: the sun rays of receivers whose shadow is
+/// missing, inside the region, outside every camera's view.
+struct Spawner<'a> {
+    rays: Vec<(DVec3, f64, f64)>,
+    sun: DVec3,
+    cameras: &'a [Camera],
+}
+
+impl Spawner<'_> {
+    /// Up to `n` points (fewer when the rays are seen everywhere).
+    fn points(&self, rng: &mut Pcg64Mcg, n: usize) -> Vec<Vec3> {
+        let mut out = Vec::with_capacity(n);
+        if self.rays.is_empty() {
+            return out;
+        }
+        for _ in 0..n.saturating_mul(200) {
+            if out.len() == n {
+                break;
+            }
+            let (o, t0, t1) = self.rays[rng.random_range(0..self.rays.len())];
+            let p = (o + self.sun * rng.random_range(t0..=t1)).as_vec3();
+            if !self.cameras.iter().any(|c| c.sees(p)) {
+                out.push(p);
+            }
+        }
+        out
+    }
+}
+
+/// A view's receivers, rendered once from the input scene.
+struct Receivers {
+    gbuffer: crate::splat::GpuGBuffer,
+    depth: DepthImage,
+    /// A surface and a known target.
+    mask: Vec<bool>,
+    without: Vec<f32>,
+    /// The target where the added Gaussians answer for it (the scene leaves
+    /// the receiver lit), else -1 (ignored by the loss).
+    added_target: crate::gpu::Buffer,
+    /// Those receivers in the added map: texel, light-space depth, whether the target shadows it.
+    coverage: Vec<(usize, f32, bool)>,
+}
+
+/// The sun rays, inside `region`, of `view`'s receivers where `select(p)`.
+fn receiver_rays(
+    view: &ShadowView,
+    r: &Receivers,
+    st: &ShadowSettings,
+    sun: DVec3,
+    region: (DVec3, DVec3),
+    select: impl Fn(usize) -> bool,
+) -> Vec<(DVec3, f64, f64)> {
+    (0..r.mask.len())
+        .filter(|p| r.mask[*p] && select(*p))
+        .filter_map(|p| {
+            let z = r.depth.depth(st.receiver_depth, p, f64::from(st.min_alpha), 0.0)?;
+            let x = unproject(&view.camera, p, z);
+            let (t0, t1) = ray_in_box(x, sun, region.0, region.1)?;
+            Some((x, t0, t1))
+        })
+        .collect()
+}
+
+fn add_grads(device: &Device, into: &BlendGrads, from: &BlendGrads) -> Result<()> {
+    let pairs = into.channels.iter().filter_map(|(c, b)| from.channels.get(c).map(|f| (b, f)));
+    for (a, b) in pairs.chain(into.alpha.iter().zip(from.alpha.iter())) {
+        let mut x: Vec<f32> = device.read_buffer(a)?;
+        let y: Vec<f32> = device.read_buffer(b)?;
+        x.iter_mut().zip(&y).for_each(|(x, y)| *x += y);
+        device.write_buffer(a, 0, &x)?;
+    }
+    Ok(())
+}
+
+/// What a completion is asked: the scene, where occluders may be, the views
+/// with their targets, every camera, and the sun.
+#[derive(Clone, Copy)]
+pub struct CompletionProblem<'a> {
+    /// The scene as given (never changed).
+    pub scene: &'a Scene,
+    /// Where occluders may be added: what is missing may lie outside the
+    /// scene's bounds (give it room above).
+    pub region: &'a Bounds,
+    /// The views with targets.
+    pub views: &'a [ShadowView],
+    /// Every camera of the capture, the views' included: no Gaussian is
+    /// spawned or left where one of them sees.
+    pub cameras: &'a [Camera],
+    /// The sun.
+    pub sun: &'a Sun,
+}
+
+/// Optimises Gaussians added to the problem's scene so the shadows seen in
+/// its views match their targets. `progress` gets every step's figures.
+pub fn complete_from_views(
     device: &Device,
-    scene: &Scene,
-    region: &Bounds,
-    camera: &Camera,
-    cameras: &[Camera],
-    sun: &Sun,
-    target: &[f32],
+    problem: &CompletionProblem<'_>,
     settings: &CompletionSettings,
     progress: &mut dyn FnMut(&CompletionStep),
 ) -> Result<Completion> {
-    let pixels = (camera.width * camera.height) as usize;
-    if target.len() != pixels || target.iter().any(|v| !v.is_finite()) {
-        return Err(Error::invalid(
-            format!("target visibility of {} values", target.len()),
-            format!("needs {pixels} finite values for the {}x{} camera", camera.width, camera.height),
-        ));
+    let &CompletionProblem { scene, region, views, cameras, sun } = problem;
+    settings.validate()?;
+    if views.is_empty() {
+        return Err(Error::invalid("shadow views", "none given: the fit needs at least one view with a target"));
     }
+    if !sun.above_horizon() {
+        return Err(Error::invalid("sun", "is at or below the horizon: it casts no shadow to fit"));
+    }
+    for (i, v) in views.iter().enumerate() {
+        let pixels = (v.camera.width * v.camera.height) as usize;
+        if v.target.len() != pixels || v.target.iter().any(|t| !t.is_finite() || *t > 1.0) {
+            return Err(Error::invalid(
+                format!("target visibility of view {i} (\"{}\", {} values)", v.camera.name, v.target.len()),
+                format!("needs {pixels} finite values ≤ 1 for the {}x{} camera", v.camera.width, v.camera.height),
+            ));
+        }
+        v.camera.require_no_lens("shadow-guided completion")?;
+    }
+    let (lo, hi) = (DVec3::from_array(region.min.map(f64::from)), DVec3::from_array(region.max.map(f64::from)));
+    if !lo.is_finite() || !hi.is_finite() || lo.cmpge(hi).any() {
+        return Err(Error::invalid(format!("region {lo}..{hi}"), "is not a box"));
+    }
+    let scene_bounds = scene.bounds().ok_or_else(|| Error::invalid("scene", "has no Gaussians"))?;
     let st = settings.shadow;
-    let added_st = ShadowSettings { map_depth: DepthMode::ExpectedOverFar, ..st };
+    let added_st = ShadowSettings { map_depth: DepthMode::ExpectedOverFar, fit: ShadowFit::SceneBounds, ..st };
+    let sst = settings.scene_shadow;
     let mut splatter = Splatter::new(device)?;
     let mut pass = ShadowPass::new(device)?;
-    let receiver_settings = SplatSettings {
-        channels: Channels { depth: true, median_depth: true, ..Channels::default() },
-        ..SplatSettings::default()
+    let (a, b) = (sst.receiver_channels(), added_st.receiver_channels());
+    let channels = Channels {
+        depth: a.depth || b.depth,
+        median_depth: a.median_depth || b.median_depth,
+        normal: true,
+        ..Channels::default()
     };
+    let receiver_settings = SplatSettings { channels, ..SplatSettings::default() };
 
-    // The scene as given: its receivers and its own shadows, once.
+    // The scene as given: its receivers and its own shadows, once per view.
     let gpu = GpuScene::upload(device, scene)?;
-    let receivers = splatter.render_frame(&gpu, camera, &receiver_settings)?;
-    let host = receivers.gbuffer.read(device)?;
-    let bounds = *region;
-    let light = light_camera(&bounds, sun, st.resolution, st.fit, Some(camera))?;
-    let map = pass.shadow_map_from(&mut splatter, &gpu, light.clone(), sun, &st)?;
-    let (v, _) = pass.visibility(&map, &receivers.gbuffer, camera, &st, VisibilityKind::Sigmoid)?;
-    let without: Vec<f32> = device.read_buffer(&v)?;
-    drop(map);
-    let mask: Vec<bool> = host.alpha.iter().map(|a| *a >= st.min_alpha).collect();
+    let sun_d = sun.direction.as_dvec3();
+    let mut receivers = Vec::with_capacity(views.len());
+    for view in views {
+        let frame = splatter.render_frame(&gpu, &view.camera, &receiver_settings)?;
+        let host = frame.gbuffer.read(device)?;
+        let map = pass
+            .shadow_map(&mut splatter, &gpu, &scene_bounds, sun, &sst, Some(&view.camera))?
+            .ok_or_else(|| Error::invalid("sun", "is below the horizon"))?;
+        let (v, _) = pass.visibility(&map, &frame.gbuffer, &view.camera, &sst, VisibilityKind::Sigmoid)?;
+        let without: Vec<f32> = device.read_buffer(&v)?;
+        // Receivers facing away from the sun get no sun light whatever their
+        // visibility (a mask calls them shadow): they do not count.
+        let facing = |p: usize| {
+            host.get(crate::splat::Channel::Normal)
+                .is_none_or(|n| Vec3::new(n[3 * p], n[3 * p + 1], n[3 * p + 2]).dot(sun.direction) > 0.0)
+        };
+        let mask: Vec<bool> = (0..host.alpha.len())
+            .map(|p| host.alpha[p] >= st.min_alpha && view.target[p] >= 0.0 && facing(p))
+            .collect();
+        let added_target: Vec<f32> = view
+            .target
+            .iter()
+            .zip(&without)
+            .zip(&mask)
+            .map(|((t, w), m)| if *m && *w >= 0.5 { *t } else { -1.0 })
+            .collect();
+        receivers.push(Receivers {
+            gbuffer: frame.gbuffer,
+            depth: DepthImage::from_gbuffer(&host),
+            mask,
+            without,
+            added_target: device.upload("shadow target", &added_target)?,
+            coverage: Vec::new(),
+        });
+    }
+    if receivers.iter().all(|r| !r.mask.iter().any(|m| *m)) {
+        return Err(Error::invalid("receivers", "no view has a surface with a known target"));
+    }
 
-    // Initial Gaussians: in the box of sun rays from the receivers, where no camera sees.
-    let img = DepthImage::from_gbuffer(&host);
-    let mut lo = DVec3::splat(f64::MAX);
-    let mut hi = DVec3::splat(f64::MIN);
-    let d = sun.direction.as_dvec3();
-    let reach = f64::from((Vec3::from_array(bounds.max) - Vec3::from_array(bounds.min)).length());
-    for (p, covered) in mask.iter().enumerate() {
-        if !covered {
-            continue;
-        }
-        let Some(z) = img.depth(st.receiver_depth, p, f64::from(st.min_alpha), 0.0) else { continue };
-        let x = unproject(camera, p, z);
-        for t in [1.0, reach] {
-            let q = x + d * t;
-            lo = lo.min(q);
-            hi = hi.max(q);
+    // One light camera over every receiver and the region toward the sun.
+    let (mut blo, mut bhi) = (DVec3::splat(f64::MAX), DVec3::splat(f64::MIN));
+    for (view, r) in views.iter().zip(&receivers) {
+        for p in (0..r.mask.len()).filter(|p| r.mask[*p]) {
+            let Some(z) = r.depth.depth(st.receiver_depth, p, f64::from(st.min_alpha), 0.0) else { continue };
+            let x = unproject(&view.camera, p, z);
+            blo = blo.min(x);
+            bhi = bhi.max(x);
+            if let Some((_, t1)) = ray_in_box(x, sun_d, lo, hi) {
+                blo = blo.min(x + sun_d * t1);
+                bhi = bhi.max(x + sun_d * t1);
+            }
         }
     }
-    if lo.x > hi.x {
+    if blo.x > bhi.x {
         return Err(Error::invalid("receivers", "none in view has a surface"));
     }
-    lo = lo.max(DVec3::from_array(bounds.min.map(f64::from)));
-    hi = hi.min(DVec3::from_array(bounds.max.map(f64::from)) + DVec3::new(0.0, 0.0, 0.5 * reach));
-    let mut rng = Pcg64Mcg::seed_from_u64(settings.seed);
-    let mut added = Scene { sh_degree: scene.sh_degree, ..Scene::default() };
-    let k = sh_coefficients(scene.sh_degree);
-    let volume = (hi - lo).max(DVec3::splat(1e-3));
-    let scale = ((volume.x * volume.y * volume.z / settings.gaussians.max(1) as f64).cbrt()).max(1e-3) as f32;
-    let mut tries = 0usize;
-    while added.means.len() < settings.gaussians && tries < settings.gaussians * 200 {
-        tries += 1;
-        let p = Vec3::new(
-            rng.random_range(lo.x..=hi.x) as f32,
-            rng.random_range(lo.y..=hi.y) as f32,
-            rng.random_range(lo.z..=hi.z) as f32,
-        );
-        if cameras.iter().chain([camera]).any(|c| c.sees(p)) {
-            continue;
+    let light_box = Bounds { min: blo.as_vec3().to_array(), max: bhi.as_vec3().to_array() };
+    let light = light_camera(&light_box, sun, st.resolution, ShadowFit::SceneBounds, None)?;
+    let texel = f64::from(super::texel_size(&light));
+    for (view, r) in views.iter().zip(&mut receivers) {
+        for p in 0..r.mask.len() {
+            if !r.mask[p] || r.without[p] < 0.5 {
+                continue;
+            }
+            let Some(z) = r.depth.depth(st.receiver_depth, p, f64::from(st.min_alpha), 0.0) else { continue };
+            let l = light.world_to_camera(unproject(&view.camera, p, z).as_vec3());
+            let px = light.project(l);
+            let (tx, ty) = (px.x.floor(), px.y.floor());
+            if tx >= 0.0 && ty >= 0.0 && (tx as u32) < light.width && (ty as u32) < light.height {
+                let t = ty as usize * light.width as usize + tx as usize;
+                r.coverage.push((t, l.z, view.target[p] < 0.5));
+            }
         }
-        added.means.push(p.to_array());
-        added.log_scales.push([scale.ln(); 3]);
-        added.rotations.push([1.0, 0.0, 0.0, 0.0]);
-        added.opacity_logits.push(settings.initial_opacity_logit);
-        added.sh.extend(std::iter::repeat_n(0.0, 3 * k));
     }
-    if added.means.is_empty() {
+
+    // The missing shadow: rays to spawn along, and the initial size from the
+    // light-space footprint of the missing receivers times their ray length.
+    let missing = |without: &[f32], i: usize| -> Vec<bool> {
+        let raw: Vec<bool> =
+            (0..without.len()).map(|p| receivers[i].mask[p] && views[i].target[p] < 0.5 && without[p] >= 0.5).collect();
+        majority(&raw, views[i].camera.width as usize)
+    };
+    let mut spawner = Spawner { rays: Vec::new(), sun: sun_d, cameras };
+    for (i, (view, r)) in views.iter().zip(&receivers).enumerate() {
+        let m = missing(&r.without, i);
+        spawner.rays.extend(receiver_rays(view, r, &st, sun_d, (lo, hi), |p| m[p]));
+    }
+    if spawner.rays.is_empty() {
+        return Err(Error::invalid(
+            "targets",
+            "mark no shadow missing from the scene inside the region: nothing to complete",
+        ));
+    }
+    let mut footprint = std::collections::HashSet::new();
+    let mut length = 0.0;
+    for (o, t0, t1) in &spawner.rays {
+        let l = light.world_to_camera(o.as_vec3());
+        let px = light.project(l);
+        footprint.insert((px.x.floor() as i64, px.y.floor() as i64));
+        length += t1 - t0;
+    }
+    let volume = footprint.len() as f64 * texel * texel * length / spawner.rays.len() as f64;
+    let scale = (volume / settings.gaussians as f64).cbrt().max(texel) as f32;
+    let k = sh_coefficients(scene.sh_degree);
+    let mut rng = Pcg64Mcg::seed_from_u64(settings.seed);
+    let (log_lo, log_hi) = ((1e-2 * scale).ln(), (10.0 * scale).ln());
+    let row = |p: Vec3| -> [f32; ROW] {
+        let s = scale.ln();
+        let mut r = [p.x, p.y, p.z, s, s, s, 1.0, 0.0, 0.0, 0.0, settings.initial_opacity_logit];
+        keep_unseen(&mut r, cameras, log_lo);
+        r
+    };
+    let mut params: Vec<[f32; ROW]> = spawner.points(&mut rng, settings.gaussians).into_iter().map(row).collect();
+    if params.is_empty() {
         return Err(Error::invalid("occluder region", "every point of it is seen by a camera"));
     }
-    let added_gpu = GpuScene::upload(device, &added)?;
-
-    // The added Gaussians answer for the receivers the scene leaves lit.
-    let added_target: Vec<f32> = target.iter().zip(&without).map(|(t, w)| if *w >= 0.5 { *t } else { -1.0 }).collect();
-    let target_buf = device.upload("shadow target", &added_target)?;
-    let lit_mask: Vec<bool> = mask.iter().zip(&without).map(|(m, w)| *m && *w >= 0.5).collect();
-    let n = added.means.len();
-    let mut params: Vec<f32> = Vec::with_capacity(n * 11);
-    for i in 0..n {
-        params.extend(added.means[i]);
-        params.extend(added.log_scales[i]);
-        params.extend(added.rotations[i]);
-        params.push(added.opacity_logits[i]);
-    }
-    let mut adam = Adam::new(params.len());
+    let to_scene = |params: &[[f32; ROW]]| -> Scene {
+        let mut s = Scene { sh_degree: scene.sh_degree, ..Scene::default() };
+        for r in params {
+            s.means.push([r[0], r[1], r[2]]);
+            s.log_scales.push([r[3], r[4], r[5]]);
+            s.rotations.push([r[6], r[7], r[8], r[9]]);
+            s.opacity_logits.push(r[10]);
+        }
+        s.sh = vec![0.0; 3 * k * params.len()];
+        s
+    };
+    let mut added_gpu = GpuScene::upload(device, &to_scene(&params))?;
+    let mut adam = Adam { m: Vec::new(), v: Vec::new(), t: 0 };
     let lrs = settings.learning_rates;
-    let lr = |i: usize| match i % 11 {
+    let lr = |i: usize| match i {
         0..=2 => lrs[0] * scale,
         3..=5 => lrs[1],
         6..=9 => lrs[2],
         _ => lrs[3],
     };
     let mut history = Vec::new();
-    let mut before = Vec::new();
-    let mut after = Vec::new();
+    let mut out: Vec<ViewCompletion> = receivers
+        .iter()
+        .map(|r| ViewCompletion {
+            without: r.without.clone(),
+            before: Vec::new(),
+            after: Vec::new(),
+            mask: r.mask.clone(),
+        })
+        .collect();
+    let refresh_until = settings.steps * 2 / 3;
     for step in 0..=settings.steps {
-        let (mut m, mut ls, mut r, mut o) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
-        for chunk in params.chunks(11) {
-            m.extend_from_slice(&chunk[0..3]);
-            ls.extend_from_slice(&chunk[3..6]);
-            r.extend_from_slice(&chunk[6..10]);
-            o.push(chunk[10]);
+        if step > 0 && settings.refresh_every > 0 && step % settings.refresh_every == 0 && step <= refresh_until {
+            // Prune what the loss faded, respawn along the rays still missing their shadow.
+            let keep: Vec<bool> = params.iter().map(|r| sigmoid(r[10]) >= settings.prune_opacity).collect();
+            let mut k = keep.iter();
+            params.retain(|_| *k.next().unwrap_or(&false));
+            adam.retain(&keep);
+            let still: Vec<_> = out.iter().map(|o| o.after.clone()).collect();
+            spawner.rays.clear();
+            for (i, (view, r)) in views.iter().zip(&receivers).enumerate() {
+                let m = missing(&still[i], i);
+                spawner.rays.extend(receiver_rays(view, r, &st, sun_d, (lo, hi), |p| m[p]));
+            }
+            let room = settings.gaussians.saturating_sub(params.len());
+            params.extend(spawner.points(&mut rng, room).into_iter().map(row));
+            if params.is_empty() {
+                return Err(Error::invalid("shadow fit", "pruned every added Gaussian: the targets ask for no shadow"));
+            }
+            added_gpu = GpuScene::upload(device, &to_scene(&params))?;
+        } else {
+            let s = to_scene(&params);
+            device.write_buffer(&added_gpu.means, 0, &s.means)?;
+            device.write_buffer(&added_gpu.log_scales, 0, &s.log_scales)?;
+            device.write_buffer(&added_gpu.rotations, 0, &s.rotations)?;
+            device.write_buffer(&added_gpu.opacity_logits, 0, &s.opacity_logits)?;
         }
-        device.write_buffer(&added_gpu.means, 0, &m)?;
-        device.write_buffer(&added_gpu.log_scales, 0, &ls)?;
-        device.write_buffer(&added_gpu.rotations, 0, &r)?;
-        device.write_buffer(&added_gpu.opacity_logits, 0, &o)?;
 
         let map = pass.shadow_map_from(&mut splatter, &added_gpu, light.clone(), sun, &added_st)?;
-        let (v, _) = pass.visibility(&map, &receivers.gbuffer, camera, &added_st, VisibilityKind::Sigmoid)?;
-        let v_added: Vec<f32> = device.read_buffer(&v)?;
-        let v: Vec<f32> = v_added.iter().zip(&without).map(|(a, b)| a * b).collect();
-        let b = pass.backward(&map, &receivers.gbuffer, camera, &added_st, GpuVisibilityLoss::Bce(&target_buf))?;
-        let figures = CompletionStep {
-            step,
-            loss: b.loss,
-            iou: shadow_iou(&v, target, &mask),
-            missing_iou: shadow_iou(&v, target, &lit_mask),
-        };
+        let mut loss = 0.0;
+        let (mut all, mut lit) = ((0, 0), (0, 0));
+        let mut view_iou = Vec::with_capacity(views.len());
+        let mut map_grads: Option<BlendGrads> = None;
+        for ((view, r), o) in views.iter().zip(&receivers).zip(&mut out) {
+            let (v, _) = pass.visibility(&map, &r.gbuffer, &view.camera, &added_st, VisibilityKind::Sigmoid)?;
+            let v_added: Vec<f32> = device.read_buffer(&v)?;
+            o.after = v_added.iter().zip(&r.without).map(|(a, b)| a * b).collect();
+            let (i, u) = shadow_overlap(&o.after, &view.target, &r.mask);
+            all = (all.0 + i, all.1 + u);
+            view_iou.push(ratio((i, u)));
+            let lit_mask: Vec<bool> = r.mask.iter().zip(&r.without).map(|(m, w)| *m && *w >= 0.5).collect();
+            let (i, u) = shadow_overlap(&o.after, &view.target, &lit_mask);
+            lit = (lit.0 + i, lit.1 + u);
+            if step == 0 {
+                o.before = o.after.clone();
+            }
+            let b =
+                pass.backward(&map, &r.gbuffer, &view.camera, &added_st, GpuVisibilityLoss::Bce(&r.added_target))?;
+            loss += b.loss;
+            match &map_grads {
+                None => map_grads = Some(b.map),
+                Some(g) => add_grads(device, g, &b.map)?,
+            }
+        }
+        if let (Some(g), true) = (&map_grads, settings.coverage_weight > 0.0) {
+            loss += coverage_loss(device, &map, g, &receivers, st.bias, settings.coverage_weight)?;
+        }
+        let figures =
+            CompletionStep { step, loss, iou: ratio(all), missing_iou: ratio(lit), gaussians: params.len(), view_iou };
         progress(&figures);
         history.push(figures);
-        if step == 0 {
-            before = v.clone();
-        }
-        if step == settings.steps {
-            after = v;
-            break;
-        }
-        let g = splatter.backward(&map.frame, &added_gpu, &b.map, false)?.read(device)?;
-        let mut grads = vec![0.0f32; params.len()];
-        for (i, gi) in grads.chunks_mut(11).enumerate() {
-            gi[0..3].copy_from_slice(&g.means[i]);
-            gi[3..6].copy_from_slice(&g.log_scales[i]);
-            gi[6..10].copy_from_slice(&g.rotations[i]);
-            gi[10] = g.opacity_logits[i];
-        }
+        let Some(map_grads) = map_grads.filter(|_| step < settings.steps) else { break };
+        let g = splatter.backward(&map.frame, &added_gpu, &map_grads, false)?.read(device)?;
+        let grads: Vec<[f32; ROW]> = (0..params.len())
+            .map(|i| {
+                let mut r = [0.0; ROW];
+                r[0..3].copy_from_slice(&g.means[i]);
+                r[3..6].copy_from_slice(&g.log_scales[i]);
+                r[6..10].copy_from_slice(&g.rotations[i]);
+                r[10] = g.opacity_logits[i];
+                r
+            })
+            .collect();
         // Learning rates decay linearly to a tenth over the run.
         let decay = 1.0 - 0.9 * step as f32 / settings.steps.max(1) as f32;
         adam.step(&mut params, &grads, |i| lr(i) * decay);
-        for chunk in params.chunks_mut(11) {
-            for s in &mut chunk[3..6] {
-                *s = s.clamp((1e-2 * scale).ln(), (10.0 * scale).ln());
+        for r in &mut params {
+            for s in &mut r[3..6] {
+                *s = s.clamp(log_lo, log_hi);
             }
-            chunk[10] = chunk[10].clamp(-12.0, 12.0);
+            r[10] = r[10].clamp(-12.0, 12.0);
+            keep_unseen(r, cameras, log_lo);
         }
     }
-    for (i, chunk) in params.chunks(11).enumerate() {
-        added.means[i] = [chunk[0], chunk[1], chunk[2]];
-        added.log_scales[i] = [chunk[3], chunk[4], chunk[5]];
-        added.rotations[i] = [chunk[6], chunk[7], chunk[8], chunk[9]];
-        added.opacity_logits[i] = chunk[10];
-    }
-    let visible_added =
-        added.means.iter().filter(|p| cameras.iter().chain([camera]).any(|c| c.sees(Vec3::from_array(**p)))).count();
+    // Those that splat nothing go: peak α below 1/255.
+    params.retain(|r| sigmoid(r[10]) >= 1.0 / 255.0);
+    let added = to_scene(&params);
+    let visible_added = added.means.iter().filter(|p| cameras.iter().any(|c| c.sees(Vec3::from_array(**p)))).count();
     let first_added = scene.len();
     let mut completed = scene.clone();
     append(&mut completed, &added);
-    Ok(Completion { scene: completed, first_added, without, before, after, mask, history, visible_added })
+    Ok(Completion { scene: completed, first_added, views: out, history, visible_added })
+}
+
+/// The coverage loss: a receiver the target shadows wants the added map's
+/// texel covered (−ln α); one the target leaves lit wants it uncovered
+/// (−ln(1 − α)) where the added Gaussians' mean depth there is in front of
+/// it. The expected-over-far test alone lets faint clouds cast shadows that
+/// a median-depth map (which needs α ≥ 0.5) would not, and lets half-opaque
+/// ones hide shadows it would cast. Adds dL/dα into `grads`; returns the loss.
+fn coverage_loss(
+    device: &Device,
+    map: &super::ShadowMap,
+    grads: &BlendGrads,
+    receivers: &[Receivers],
+    bias: f32,
+    weight: f32,
+) -> Result<f64> {
+    let Some(alpha_grad) = &grads.alpha else { return Ok(0.0) };
+    let alpha: Vec<f32> = device.read_buffer(&map.frame.gbuffer.alpha)?;
+    let depth_sum: Vec<f32> = match map.frame.gbuffer.get(crate::splat::Channel::Depth) {
+        Some(b) => device.read_buffer(b)?,
+        None => return Ok(0.0),
+    };
+    let mut d_alpha: Vec<f32> = device.read_buffer(alpha_grad)?;
+    let count: usize = receivers.iter().map(|r| r.coverage.len()).sum();
+    let scale = f64::from(weight) / count.max(1) as f64;
+    let mut loss = 0.0;
+    const EPS: f32 = 1e-4;
+    for &(t, z, shadowed) in receivers.iter().flat_map(|r| &r.coverage) {
+        let a = alpha[t].clamp(EPS, 1.0 - EPS);
+        if shadowed {
+            loss -= f64::from(a.ln()) * scale;
+            d_alpha[t] -= (scale / f64::from(a)) as f32;
+        } else if alpha[t] > EPS && depth_sum[t] / alpha[t] < z - bias {
+            loss -= f64::from((1.0 - a).ln()) * scale;
+            d_alpha[t] += (scale / f64::from(1.0 - a)) as f32;
+        }
+    }
+    device.write_buffer(alpha_grad, 0, &d_alpha)?;
+    Ok(loss)
+}
+
+/// The pixels set in most of their 3×3 neighbourhood (5 of 9): isolated
+/// pixels of a noisy mask seed no occluder.
+fn majority(set: &[bool], width: usize) -> Vec<bool> {
+    let height = set.len() / width.max(1);
+    (0..set.len())
+        .map(|p| {
+            let (x, y) = (p % width, p / width);
+            let mut n = 0;
+            for yy in y.saturating_sub(1)..(y + 2).min(height) {
+                for xx in x.saturating_sub(1)..(x + 2).min(width) {
+                    n += usize::from(set[yy * width + xx]);
+                }
+            }
+            set[p] && n >= 5
+        })
+        .collect()
+}
+
+/// Whether a ball of radius `radius` at `p` reaches into a camera's view
+/// (sampled: the centre, its 14 axis and diagonal extremes, the point nearest each camera).
+fn seen(cameras: &[Camera], p: Vec3, radius: f32) -> bool {
+    const DIRECTIONS: [[f32; 3]; 14] = [
+        [1.0, 0.0, 0.0],
+        [-1.0, 0.0, 0.0],
+        [0.0, 1.0, 0.0],
+        [0.0, -1.0, 0.0],
+        [0.0, 0.0, 1.0],
+        [0.0, 0.0, -1.0],
+        [1.0, 1.0, 1.0],
+        [1.0, 1.0, -1.0],
+        [1.0, -1.0, 1.0],
+        [1.0, -1.0, -1.0],
+        [-1.0, 1.0, 1.0],
+        [-1.0, 1.0, -1.0],
+        [-1.0, -1.0, 1.0],
+        [-1.0, -1.0, -1.0],
+    ];
+    cameras.iter().any(|c| {
+        let toward = (c.position - p).normalize_or_zero();
+        c.sees(p)
+            || c.sees(p + toward * radius)
+            || DIRECTIONS.iter().any(|d| c.sees(p + Vec3::from_array(*d).normalize() * radius))
+    })
+}
+
+/// Keeps an added Gaussian out of every view, so the input views do not
+/// change: its 3σ extent shrinks until no camera sees it; one whose centre a
+/// camera sees is faded to nothing (pruned at the end).
+fn keep_unseen(r: &mut [f32; ROW], cameras: &[Camera], log_lo: f32) {
+    let p = Vec3::new(r[0], r[1], r[2]);
+    if cameras.iter().any(|c| c.sees(p)) {
+        r[10] = -12.0;
+        return;
+    }
+    let largest = |r: &[f32; ROW]| r[3].max(r[4]).max(r[5]);
+    while largest(r) > log_lo && seen(cameras, p, 3.0 * largest(r).exp()) {
+        for s in &mut r[3..6] {
+            *s = (*s - 0.2).max(log_lo);
+        }
+    }
+}
+
+fn sigmoid(x: f32) -> f32 {
+    1.0 / (1.0 + (-x).exp())
 }
 
 /// Appends `b`'s Gaussians to `a` (optional attributes padded with neutral values).
@@ -431,12 +840,12 @@ pub fn complete_demo(
         return Err(Error::invalid("sun", "must be above the horizon to cast a shadow"));
     }
     let without = without_offscreen_tower(&demo);
-    let st = options.settings.shadow;
+    let st = options.settings.scene_shadow;
     // The target: the full scene's shadow, from the light camera the completion will use.
     let mut splatter = Splatter::new(device)?;
     let pass = ShadowPass::new(device)?;
     let full = GpuScene::upload(device, &demo.scene)?;
-    let channels = Channels { depth: true, median_depth: true, ..Channels::default() };
+    let channels = Channels { depth: true, median_depth: true, normal: true, ..Channels::default() };
     let receivers = splatter.render_frame(&full, &camera, &SplatSettings { channels, ..SplatSettings::default() })?;
     // Occluders may be anywhere in the city's extent (the tower included: what is
     // removed is unknown to the fit, the extent of the place is not).
@@ -445,16 +854,13 @@ pub fn complete_demo(
     let map = pass.shadow_map_from(&mut splatter, &full, light, &sun, &st)?;
     let (v, _) = pass.visibility(&map, &receivers.gbuffer, &camera, &st, VisibilityKind::Sigmoid)?;
     let target: Vec<f32> = device.read_buffer(&v)?;
-    let completion = complete_from_shadow(
-        device,
-        &without,
-        &bounds,
-        &camera,
-        &demo.cameras,
-        &sun,
-        &target,
-        &options.settings,
-        progress,
-    )?;
+    // The region: the city's extent, with room above for what is missing.
+    let diagonal = (Vec3::from_array(bounds.max) - Vec3::from_array(bounds.min)).length();
+    let region = Bounds { min: bounds.min, max: [bounds.max[0], bounds.max[1], bounds.max[2] + 0.5 * diagonal] };
+    let views = [ShadowView { camera: camera.clone(), target: target.clone() }];
+    let mut cameras = demo.cameras.clone();
+    cameras.push(camera.clone());
+    let problem = CompletionProblem { scene: &without, region: &region, views: &views, cameras: &cameras, sun: &sun };
+    let completion = complete_from_views(device, &problem, &options.settings, progress)?;
     Ok(DemoCompletionResult { camera, target, removed: demo.scene.len() - without.len(), completion })
 }

@@ -27,6 +27,7 @@ pub mod completion;
 pub mod cpu;
 mod forward;
 mod layout;
+pub mod masks;
 pub mod sun;
 
 pub use forward::*;

@@ -281,7 +281,7 @@ pub fn encode_scene(scene: &Scene, format: SceneFormat) -> Result<Vec<u8>> {
     match format {
         SceneFormat::Ply => {
             let mut out = Vec::new();
-            super::ply::write_ply_into(&mut out, scene, super::PlyFormat::BinaryLittleEndian)
+            super::ply::write_ply_into(&mut out, scene, super::PlyFormat::BinaryLittleEndian, &[])
                 .map_err(|e| Error::Internal(format!("writing PLY to memory: {e}")))?;
             Ok(out)
         }
