@@ -1085,3 +1085,84 @@ fn render_writes_exact_id_channels() {
         text(&o)
     );
 }
+
+/// The analytic block's completion from files on disk: the scene without its tallest building as
+/// PLY, every camera as cameras.json, shadow masks written by the `image` crate (white = shadow;
+/// PNG and JPEG, at twice the fit size) for three of the four cameras.
+#[test]
+fn shadow_fit_completes_a_scene_from_masks_on_disk() {
+    use srug::scene::blocks::{block_completion, BlockOptions};
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path();
+    let b = block_completion(&BlockOptions::default(), 352, 96).unwrap();
+    srug::io::write_ply(p.join("scene.ply"), &b.without, srug::io::PlyFormat::BinaryLittleEndian).unwrap();
+    srug::io::write_cameras_json(p.join("cameras.json"), &b.cameras).unwrap();
+    let masks = p.join("masks");
+    std::fs::create_dir_all(&masks).unwrap();
+    for (i, ext) in [(0, "png"), (2, "png"), (3, "jpg")] {
+        let c = &b.cameras[i];
+        let bytes: Vec<u8> = b.city.shadow_target(c, b.sun).iter().map(|v| ((1.0 - v) * 255.0) as u8).collect();
+        let img = image::GrayImage::from_raw(c.width, c.height, bytes).unwrap();
+        img.save(masks.join(format!("{}.{ext}", c.name))).unwrap();
+    }
+    let sun = srug::shadow::Sun::from_direction(b.sun, [1.0; 3]).unwrap();
+    let (azimuth, elevation) = sun.azimuth_elevation();
+    let (az, el) = (format!("{azimuth}"), format!("{elevation}"));
+    let s = |name: &str| p.join(name).to_str().unwrap().to_string();
+    let (scene, cams, mask_dir, out, report) = (s("scene.ply"), s("cameras.json"), s("masks"), s("done.ply"), s("rep"));
+    let base = ["shadow-fit", &scene, "--cameras", &cams, "--masks", &mask_dir];
+    let sun = ["--sun-azimuth", &az, "--sun-elevation", &el];
+    let run = [&base[..], &sun[..], &["--size", "176x48", "--steps", "30", "--added", "2000", "--out", &out]].concat();
+    let o = srug(&[&run[..], &["--report", &report, "--validation"]].concat());
+    let t = text(&o);
+    assert!(o.status.success(), "{t}");
+    assert!(t.contains("camera \"street_1\": no mask"), "{t}");
+    assert!(t.contains("step  30:") && t.contains("validation messages: 0"), "{t}");
+    for name in ["street_0", "street_2", "street_3"] {
+        let line = t.lines().find(|l| l.starts_with(&format!("camera \"{name}\": shadow IoU"))).expect(name);
+        let nums: Vec<f64> = line.split(' ').filter_map(|w| w.parse().ok()).collect();
+        let (before, after) = (nums[nums.len() - 2], nums[nums.len() - 1]);
+        // Small and short here (176×48, 30 steps); the library's test holds ≥ 0.9 against the
+        // truth at 352×96 (tests/tests/shadow_fit.rs).
+        assert!(before < 0.4 && after >= 0.8, "{line} in:\n{t}");
+        for when in ["before", "after"] {
+            let png = image::open(p.join("rep").join(format!("agreement_{name}_{when}.png"))).unwrap();
+            assert_eq!((png.width(), png.height()), (176, 48));
+        }
+    }
+    let history = std::fs::read_to_string(p.join("rep").join("history.csv")).unwrap();
+    assert_eq!(history.lines().count(), 32, "header and 31 steps:\n{history}");
+    // The input's Gaussians unchanged and unflagged, the added ones flagged.
+    let done = srug::io::read_ply(&out).unwrap();
+    let n = b.without.len();
+    assert!(done.len() > n && done.len() <= n + 2000, "{} Gaussians", done.len());
+    assert_eq!(done.means[..n], b.without.means[..]);
+    let flags = srug::io::read_ply_ids(&out, &["srug_added".into()]).unwrap().remove(0);
+    assert!(flags[..n].iter().all(|f| *f == 0) && flags[n..].iter().all(|f| *f == 1));
+
+    // Bad input: a clear message, a failing exit, nothing written.
+    let bad = |extra: &[&str], masks: &str, out: &str, want: &str| {
+        let mut args: Vec<&str> = base.to_vec();
+        args[5] = masks;
+        args.extend(if extra.is_empty() { &sun[..] } else { extra });
+        args.extend(["--out", out]);
+        let o = srug(&args);
+        let t = text(&o);
+        assert!(!o.status.success() && t.contains(want), "{args:?}: wanted {want:?} in:\n{t}");
+        assert!(!t.contains("panicked"), "{t}");
+        assert!(!std::path::Path::new(out).exists(), "{args:?} wrote {out}");
+    };
+    let other = p.join("other");
+    std::fs::create_dir_all(&other).unwrap();
+    image::GrayImage::new(8, 8).save(other.join("elsewhere.png")).unwrap();
+    let none = s("none.ply");
+    bad(&[], other.to_str().unwrap(), &none, "match no camera");
+    let white = p.join("white");
+    std::fs::create_dir_all(&white).unwrap();
+    image::GrayImage::from_pixel(8, 8, image::Luma([255])).save(white.join("street_0.png")).unwrap();
+    bad(&[], white.to_str().unwrap(), &none, "all one value");
+    bad(&["--sun-azimuth", &az, "--sun-elevation", "-5"], &mask_dir, &none, "above the horizon");
+    bad(&[], &mask_dir, &s("done.spz"), "must be a .ply");
+    let o = srug(&["shadow-fit", &scene, "--masks", &mask_dir, "--out", &none]);
+    assert!(!o.status.success() && text(&o).contains("needs --cameras"), "{}", text(&o));
+}

@@ -3,6 +3,7 @@
 //! efficiency is reported against a ceiling taken on the same machine, now.
 
 pub mod batch;
+pub mod completion;
 pub mod formats;
 pub mod limits;
 pub mod plot;

@@ -56,8 +56,9 @@ enum Command {
     Prefilter(prefilter::PrefilterArgs),
     /// The main job on the built-in demo city: generate it, write it, check the GPU on it, and render it.
     Demo(demo::DemoArgs),
-    /// Shadow-guided completion on the demo: remove the off-screen tower, then grow Gaussians
-    /// where no camera sees until they cast its shadow again (Adam on the shadow loss alone).
+    /// Shadow-guided completion: Gaussians grown where no camera sees until the shadows they cast
+    /// match each camera's shadow mask (`srug shadow-fit SCENE --cameras C --masks DIR --out
+    /// COMPLETED.ply`); without a scene, the demo's (remove the off-screen tower, grow it back).
     ShadowFit(shadow_fit::ShadowFitArgs),
 }
 

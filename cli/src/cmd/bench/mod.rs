@@ -2,6 +2,7 @@
 //! The measuring code lives in [`crate::bench`]; these files parse, run and print.
 
 mod batch;
+mod completion;
 mod formats;
 mod scaling;
 mod shade;
@@ -36,6 +37,9 @@ pub(super) enum BenchCommand {
     Batch(batch::BatchBenchArgs),
     /// Sigmoid shadow pass against the traced pass; shadow-map accuracy across resolution, k and depth mode.
     Shadow(shadow::ShadowBenchArgs),
+    /// Shadow-guided completion on the analytic block: setup, time per step, steps to converge and
+    /// shadow IoU against the truth, per scene size.
+    Completion(completion::CompletionBenchArgs),
 }
 
 impl BenchCommand {
@@ -50,6 +54,7 @@ impl BenchCommand {
             Self::Shadow(a) => a.run(device),
             Self::Formats(a) => a.run(),
             Self::Batch(a) => a.run(device),
+            Self::Completion(a) => a.run(device),
         }
     }
 }
