@@ -19,14 +19,6 @@ W, H, F = 64, 48, 60.0
 
 
 @pytest.fixture(scope="module")
-def dev():
-    d = srug.Device(validation=True)
-    assert d.validation
-    yield d
-    assert d.take_validation_messages() == []
-
-
-@pytest.fixture(scope="module")
 def city():
     return srug.demo_city(20_000, seed=7, sh_degree=1)
 
@@ -317,36 +309,21 @@ def test_type_stubs_ship_with_the_package():
     assert os.path.isfile(os.path.join(folder, "_srug.pyi"))
 
 
-def test_shadow_gradients_match_finite_differences(dev):
+def test_shadow_gradients_match_finite_differences(dev, shadow_problem):
     """V and dL/d(Gaussians) from Python on a ground of flat Gaussians under a
     cluster of occluders: for the occluder mean, occluder opacity and receiver
     height with the largest gradients, central differences of L = Σ w·V (each
     a fresh forward pass) agree within 10%. Expected depths (smooth) for both
     map and receivers; the ground's heights vary so no perturbed Gaussian sets the
     scene bounds the light camera is fitted to (those are not differentiated)."""
-    rng = np.random.default_rng(5)
-    gx, gy = np.meshgrid(np.linspace(-4, 4, 40), np.linspace(-4, 4, 40))
-    ground = np.stack([gx.ravel(), gy.ravel(), rng.uniform(0.0, 0.02, gx.size)], 1)
-    occluders = rng.normal([0, 0, 2.0], [0.3, 0.3, 0.2], (30, 3))
-    means = np.vstack([ground, occluders])
-    n, g0 = len(means), len(ground)
-    quats = np.tile([1.0, 0, 0, 0], (n, 1))
-    log_scales = np.vstack([np.tile(np.log([0.15, 0.15, 0.01]), (g0, 1)), np.tile(np.log([0.25] * 3), (n - g0, 1))])
-    sh = np.zeros((n, 1, 3))
+    p = shadow_problem
+    means, quats, log_scales, sh = p["means"], p["quats"], p["log_scales"], p["sh"]
+    cam, weights, kw = p["cam"], p["weights"], p["kw"]
+    n, g0 = len(means), p["ground"]
 
     def scene_of(m, o):
         return srug.Scene.from_arrays(m, quats, log_scales, o, sh=sh, activated=False)
 
-    eye = np.array([0.0, -6.0, 5.0])
-    f = -eye / np.linalg.norm(eye)
-    r = np.cross(f, [0, 0, 1.0])
-    r /= np.linalg.norm(r)
-    rot = np.stack([r, np.cross(f, r), f], 1)
-    view = np.eye(4)
-    view[:3, :3], view[:3, 3] = rot.T, -rot.T @ eye
-    cam = srug.Cameras(view, [[80.0, 0, 64], [0, 80.0, 48], [0, 0, 1]], 128, 96)
-    weights = rng.uniform(0.5, 1.5, (96, 128))
-    kw = dict(sun=(200.0, 55.0), resolution=512, k=20.0, map_depth="expected", receiver_depth="expected")
     logits = np.full(n, 3.0)
 
     def loss(m, o):
