@@ -1165,4 +1165,24 @@ fn shadow_fit_completes_a_scene_from_masks_on_disk() {
     bad(&[], &mask_dir, &s("done.spz"), "must be a .ply");
     let o = srug(&["shadow-fit", &scene, "--masks", &mask_dir, "--out", &none]);
     assert!(!o.status.success() && text(&o).contains("needs --cameras"), "{}", text(&o));
+    bad(&[&sun[..], &["--fixed-steps", "3"]].concat(), &mask_dir, &none, "fixed-visibility attribute");
+
+    // L_Vf alone on a relightable copy: only the fixed visibility changes, nothing is added.
+    let mut relightable = b.without.clone();
+    relightable.materials.albedo = Some(vec![[0.5; 3]; n]);
+    relightable.materials.visibility = Some(vec![2.0; n]);
+    srug::io::write_ply(p.join("relightable.ply"), &relightable, srug::io::PlyFormat::BinaryLittleEndian).unwrap();
+    let (relit_in, fixed_out) = (s("relightable.ply"), s("fixed.ply"));
+    let mut args = vec!["shadow-fit", &relit_in, "--cameras", &cams, "--masks", &mask_dir];
+    args.extend(sun);
+    args.extend(["--size", "176x48", "--fixed-steps", "8", "--added", "0", "--out", &fixed_out]);
+    let o = srug(&args);
+    let t = text(&o);
+    assert!(o.status.success() && t.contains("fixed visibility step   8:"), "{t}");
+    let line = t.lines().find(|l| l.starts_with("camera \"street_2\": fixed visibility IoU")).expect("a fixed line");
+    let nums: Vec<f64> = line.split(' ').filter_map(|w| w.parse().ok()).collect();
+    assert!(nums[nums.len() - 2] < 0.5 && nums[nums.len() - 1] >= 0.8, "{line}");
+    let fixed = srug::io::read_ply(&fixed_out).unwrap();
+    assert_eq!((fixed.len(), &fixed.means), (n, &relightable.means));
+    assert_ne!(fixed.materials.visibility, relightable.materials.visibility);
 }

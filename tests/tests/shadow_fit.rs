@@ -179,7 +179,9 @@ fn fit_block(noise: Option<(f64, usize)>) {
         first.loss,
         last.loss
     );
-    assert!(last.loss < 0.5 * first.loss, "loss {} → {}", first.loss, last.loss);
+    // Flipped pixels cannot be fitted: with noise the loss falls less.
+    let fall = if noise.is_some() { 0.7 } else { 0.5 };
+    assert!(last.loss < fall * first.loss, "loss {} → {}", first.loss, last.loss);
     let fit_ious: Vec<f64> =
         views.iter().zip(&c.views).map(|(v, o)| shadow_iou(&o.after, &v.target, &o.mask)).collect();
     eprintln!("fit IoU per view: {fit_ious:.3?}");
@@ -251,4 +253,56 @@ fn masks_of_three_views_complete_a_building_no_camera_sees() {
 fn noisy_masks_still_complete_the_building() {
     // 10% of the pixels flipped, the shadows eroded by 2 pixels.
     fit_block(Some((0.1, 2)));
+}
+
+/// L_Vf then L_Ve (the paper's pair): the scene's fixed visibility V_f is fitted to the masks of
+/// views 0, 2 and 3 (only the visibility logits change), then the added Gaussians' shadows fit
+/// V_f rendered in those views instead of the masks.
+#[test]
+fn fixed_visibility_fits_the_masks_and_guides_the_added_gaussians() {
+    let d = device();
+    let p = block_problem();
+    let mut scene = p.without.clone();
+    let n = scene.len();
+    scene.materials.albedo = Some(vec![[0.5; 3]; n]);
+    scene.materials.visibility = Some(vec![2.0; n]);
+    let views: Vec<ShadowView> = [0, 2, 3]
+        .iter()
+        .map(|i| ShadowView {
+            camera: p.cameras[*i].clone(),
+            target: p.city.shadow_target(&p.cameras[*i], p.sun.direction),
+        })
+        .collect();
+    let b = scene.bounds().unwrap();
+    let region = Bounds { min: b.min, max: [b.max[0], b.max[1], b.max[2] + 30.0] };
+    let problem = CompletionProblem { scene: &scene, region: &region, views: &views, cameras: &p.cameras, sun: &p.sun };
+    // L_Vf, then L_Ve: the added Gaussians fit V_f; judged against the truth as before.
+    let both = CompletionSettings { fixed_steps: 10, editable_from_fixed: true, ..CompletionSettings::default() };
+    let c = complete_from_views(&d, &problem, &both, &mut |_| {}).unwrap();
+    let fixed: Vec<_> = c.history.iter().filter(|s| s.stage == "fixed").collect();
+    let (first, last) = (fixed[0], fixed[fixed.len() - 1]);
+    for s in &fixed {
+        eprintln!("L_Vf step {}: IoU {:.3}, loss {:.4}", s.step, s.iou, s.loss);
+    }
+    assert!(fixed.len() == 11 && c.history.last().unwrap().stage == "editable");
+    assert!(first.iou < 0.5 && last.iou >= 0.9 && last.loss < 0.5 * first.loss, "{first:?} → {last:?}");
+    // Only the visibility logits of what the views see changed; the input's geometry is untouched.
+    assert_eq!(c.scene.means[..n], scene.means[..]);
+    let logits = c.scene.materials.visibility.as_ref().unwrap();
+    let unseen = (0..n).filter(|i| scene.means[*i][2] > 19.9).collect::<Vec<_>>();
+    assert!(!unseen.is_empty() && unseen.iter().all(|i| logits[*i] == 2.0), "the unseen roof's logits changed");
+    assert!(logits[..n].iter().any(|l| *l < 0.0), "no visibility turned to shadow");
+    let ious = block_ious(&d, &GpuScene::upload(&d, &c.scene).unwrap(), &p.city.scene.bounds().unwrap(), &p);
+    eprintln!("L_Vf + L_Ve: {} added, shadow IoU against the truth per camera {ious:.3?}", c.added());
+    assert!(ious.iter().all(|v| *v >= 0.9), "{ious:.3?}");
+    // L_Vf alone (no Gaussian added) returns the scene with its fitted logits only.
+    let only_fixed = CompletionSettings { fixed_steps: 1, gaussians: 0, ..CompletionSettings::default() };
+    let c = complete_from_views(&d, &problem, &only_fixed, &mut |_| {}).unwrap();
+    assert_eq!((c.added(), c.scene.len()), (0, n));
+    assert!(c.history.iter().all(|s| s.stage == "fixed") && c.views[0].fixed.is_some());
+    // Without the visibility attribute the fixed losses are refused.
+    let plain = CompletionProblem { scene: &p.without, ..problem };
+    let e = complete_from_views(&d, &plain, &only_fixed, &mut |_| {}).err().unwrap();
+    assert!(e.to_string().contains("fixed-visibility attribute"), "{e}");
+    assert_no_validation_messages(&d);
 }

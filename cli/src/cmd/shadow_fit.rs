@@ -62,12 +62,21 @@ pub(super) struct ShadowFitArgs {
     /// Where the sun is (one sun).
     #[command(flatten)]
     sun: SunArgs,
-    /// Adam steps.
+    /// Adam steps of the added Gaussians.
     #[arg(long, default_value_t = 60)]
     steps: u32,
-    /// Most Gaussians added.
+    /// Most Gaussians added (0: none, with --fixed-steps: only the fixed visibility is fitted).
     #[arg(long, default_value_t = 4000)]
     added: usize,
+    /// L_Vf: first fit the scene's fixed visibility (its visibility attribute, what
+    /// `relight --visibility fixed` shows) to the masks for this many Adam steps; only those
+    /// values change.
+    #[arg(long, default_value_t = 0)]
+    fixed_steps: u32,
+    /// What the added Gaussians' shadows fit: the masks, or (L_Ve) the fixed visibility rendered
+    /// in each view (after --fixed-steps when given).
+    #[arg(long, default_value = "masks", value_parser = ["masks", "fixed"])]
+    editable_target: String,
     /// The added Gaussians' shadow-map resolution (longer side).
     #[arg(long, default_value_t = 256)]
     resolution: u32,
@@ -82,6 +91,15 @@ pub(super) struct ShadowFitArgs {
 /// One line of progress.
 fn step_line(s: &CompletionStep) -> String {
     let views: Vec<String> = s.view_iou.iter().map(|v| format!("{v:.3}")).collect();
+    if s.stage == "fixed" {
+        return format!(
+            "fixed visibility step {:3}: loss {:.4}, IoU {:.3} (views {})",
+            s.step,
+            s.loss,
+            s.iou,
+            views.join(" ")
+        );
+    }
     format!(
         "step {:3}: loss {:.4}, shadow IoU {:.3} (views {}), missing-shadow IoU {:.3}, {} added",
         s.step,
@@ -95,23 +113,23 @@ fn step_line(s: &CompletionStep) -> String {
 
 /// Runs the completion with a progress bar; returns it and the history as CSV rows.
 fn run_with_progress(
-    steps: u32,
+    steps: u64,
     run: impl FnOnce(&mut dyn FnMut(&CompletionStep)) -> Result<Completion>,
 ) -> Result<(Completion, Vec<String>)> {
-    let bar = progress_bar(u64::from(steps) + 1, "{bar:30} {pos}/{len} {msg} [{elapsed}, ETA {eta}]");
+    let bar = progress_bar(u64::from(steps), "{bar:30} {pos}/{len} {msg} [{elapsed}, ETA {eta}]");
     let mut lines = Vec::new();
     let result = run(&mut |s| {
         print_line(&bar, &step_line(s));
         bar.set_message(format!("IoU {:.3}", s.iou));
         bar.inc(1);
-        lines.push(format!("{},{},{},{},{}", s.step, s.loss, s.iou, s.missing_iou, s.gaussians));
+        lines.push(format!("{},{},{},{},{},{}", s.stage, s.step, s.loss, s.iou, s.missing_iou, s.gaussians));
     });
     bar.finish_and_clear();
     Ok((result?, lines))
 }
 
 fn write_history(path: &Path, lines: &[String]) -> Result<()> {
-    let text = format!("step,loss,shadow_iou,missing_shadow_iou,added\n{}\n", lines.join("\n"));
+    let text = format!("stage,step,loss,shadow_iou,missing_shadow_iou,added\n{}\n", lines.join("\n"));
     io::write_atomic(path, text.as_bytes())
 }
 
@@ -133,9 +151,22 @@ fn agreement(v: &[f32], target: &[f32], mask: &[bool]) -> Vec<f32> {
 }
 
 impl ShadowFitArgs {
+    /// Progress reports: each stage's steps plus its initial state.
+    fn total_steps(&self) -> u64 {
+        let fixed =
+            if self.fixed_steps > 0 || self.editable_target == "fixed" { u64::from(self.fixed_steps) + 1 } else { 0 };
+        let grow = if self.added > 0 { u64::from(self.steps) + 1 } else { 0 };
+        fixed + grow
+    }
+
     fn settings(&self) -> CompletionSettings {
-        let mut settings =
-            CompletionSettings { steps: self.steps, gaussians: self.added, ..CompletionSettings::default() };
+        let mut settings = CompletionSettings {
+            steps: self.steps,
+            gaussians: self.added,
+            fixed_steps: self.fixed_steps,
+            editable_from_fixed: self.editable_target == "fixed",
+            ..CompletionSettings::default()
+        };
         settings.shadow.resolution = self.resolution;
         settings.shadow.k = self.k;
         settings
@@ -244,7 +275,8 @@ impl ShadowFitArgs {
         let settings = self.settings();
         let problem = CompletionProblem { scene: &scene, region: &region, views: &views, cameras: &cameras, sun: &sun };
         let start = std::time::Instant::now();
-        let (c, lines) = run_with_progress(self.steps, |p| complete_from_views(&device, &problem, &settings, p))?;
+        let (c, lines) =
+            run_with_progress(self.total_steps(), |p| complete_from_views(&device, &problem, &settings, p))?;
         let seconds = start.elapsed().as_secs_f64();
         let flags: Vec<bool> = (0..c.scene.len()).map(|i| i >= c.first_added).collect();
         io::write_ply_with_flags(out, &c.scene, PlyFormat::BinaryLittleEndian, &[("srug_added", &flags)])?;
@@ -253,7 +285,11 @@ impl ShadowFitArgs {
             for (view, o) in views.iter().zip(&c.views) {
                 let (w, h) = (view.camera.width, view.camera.height);
                 let stem = mask_stem(&view.camera);
-                for (name, v) in [("before", &o.without), ("after", &o.after)] {
+                let mut images = vec![("before", &o.without), ("after", &o.after)];
+                if let Some((before, after)) = &o.fixed {
+                    images.extend([("fixed_before", before), ("fixed_after", after)]);
+                }
+                for (name, v) in images.into_iter().filter(|(_, v)| !v.is_empty()) {
                     let png = dir.join(format!("agreement_{stem}_{name}.png"));
                     io::write_png(&png, w, h, &agreement(v, &view.target, &o.mask))?;
                 }
@@ -261,18 +297,28 @@ impl ShadowFitArgs {
             write_history(&dir.join("history.csv"), &lines)?;
         }
         for (view, o) in views.iter().zip(&c.views) {
-            println!(
-                "camera \"{}\": shadow IoU against its mask {:.3} → {:.3}",
-                view.camera.name,
-                shadow_iou(&o.without, &view.target, &o.mask),
-                shadow_iou(&o.after, &view.target, &o.mask)
-            );
+            if !o.after.is_empty() {
+                println!(
+                    "camera \"{}\": shadow IoU against its mask {:.3} → {:.3}",
+                    view.camera.name,
+                    shadow_iou(&o.without, &view.target, &o.mask),
+                    shadow_iou(&o.after, &view.target, &o.mask)
+                );
+            }
+            if let Some((before, after)) = &o.fixed {
+                println!(
+                    "camera \"{}\": fixed visibility IoU against its mask {:.3} → {:.3}",
+                    view.camera.name,
+                    shadow_iou(before, &view.target, &o.mask),
+                    shadow_iou(after, &view.target, &o.mask)
+                );
+            }
         }
         println!(
             "added {} Gaussians (flagged srug_added), {} inside a camera's view, in {seconds:.1} s ({:.0} ms per step)",
             c.added(),
             c.visible_added,
-            1e3 * seconds / f64::from(self.steps + 1)
+            1e3 * seconds / self.total_steps().max(1) as f64
         );
         println!("scene: {}", out.display());
         if let Some(dir) = &self.report {
@@ -302,7 +348,7 @@ impl ShadowFitArgs {
         let mut target = Vec::new();
         let mut removed = 0;
         let mut camera = None;
-        let (c, lines) = run_with_progress(self.steps, |p| {
+        let (c, lines) = run_with_progress(self.total_steps(), |p| {
             let r = complete_demo(&device, &options, p)?;
             (target, removed, camera) = (r.target, r.removed, Some(r.camera));
             Ok(r.completion)

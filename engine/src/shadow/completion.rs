@@ -65,6 +65,15 @@ pub struct CompletionSettings {
     /// [`complete_from_views`]): shadows from opaque coverage, as the
     /// median-depth map that renders the result needs.
     pub coverage_weight: f32,
+    /// L_Vf: Adam steps fitting the input scene's fixed visibility (its
+    /// `visibility` attribute, the paper's V_f) to the targets before the
+    /// added Gaussians grow (0: not fitted). Only those logits change.
+    pub fixed_steps: u32,
+    /// L_Vf's Adam learning rate on the visibility logits.
+    pub fixed_learning_rate: f32,
+    /// L_Ve: the added Gaussians' shadows fit the fixed visibility rendered
+    /// in each view (after L_Vf when it runs) instead of the targets.
+    pub editable_from_fixed: bool,
     /// Seed of the placement.
     pub seed: u64,
 }
@@ -91,6 +100,9 @@ impl Default for CompletionSettings {
             refresh_every: 10,
             prune_opacity: 0.005,
             coverage_weight: 1000.0,
+            fixed_steps: 0,
+            fixed_learning_rate: 0.5,
+            editable_from_fixed: false,
             seed: 1,
         }
     }
@@ -101,8 +113,8 @@ impl CompletionSettings {
     pub fn validate(&self) -> Result<()> {
         self.shadow.validate()?;
         self.scene_shadow.validate()?;
-        if self.gaussians == 0 {
-            return Err(Error::invalid("added Gaussians 0", "must be at least 1"));
+        if self.gaussians == 0 && self.fixed_steps == 0 {
+            return Err(Error::invalid("added Gaussians 0", "leaves nothing to fit (without L_Vf steps)"));
         }
         if self.learning_rates.iter().any(|r| !r.is_finite() || *r < 0.0) {
             return Err(Error::invalid(format!("learning rates {:?}", self.learning_rates), "must be finite, ≥ 0"));
@@ -130,7 +142,10 @@ pub struct ShadowView {
 /// One step's figures.
 #[derive(Clone, Debug, PartialEq)]
 pub struct CompletionStep {
-    /// Step index (0 is the initial state).
+    /// Which fit: "fixed" (L_Vf, the scene's fixed visibility) or "editable"
+    /// (the added Gaussians' shadows).
+    pub stage: &'static str,
+    /// Step index within the stage (0 is the initial state).
     pub step: u32,
     /// Mean BCE over the receivers the scene leaves lit, summed over the views.
     pub loss: f64,
@@ -158,6 +173,9 @@ pub struct ViewCompletion {
     /// Receivers with a surface that faces the sun and a known target (where
     /// IoU is measured).
     pub mask: Vec<bool>,
+    /// The fixed visibility V_f rendered before and after L_Vf (when it ran,
+    /// or when the added Gaussians fit it), 1 where no surface.
+    pub fixed: Option<(Vec<f32>, Vec<f32>)>,
 }
 
 /// What [`complete_from_views`] produced.
@@ -400,6 +418,62 @@ pub fn complete_from_views(
     // The scene as given: its receivers and its own shadows, once per view.
     let gpu = GpuScene::upload(device, scene)?;
     let sun_d = sun.direction.as_dvec3();
+
+    // L_Vf, then what the added Gaussians fit: the targets, or (L_Ve) V_f.
+    let mut history = Vec::new();
+    let mut fixed_fit = None;
+    if settings.fixed_steps > 0 || settings.editable_from_fixed {
+        let logits = scene.materials.visibility.clone().ok_or_else(|| {
+            Error::invalid(
+                "scene",
+                "has no fixed-visibility attribute (a relightable scene's visibility): the L_Vf and L_Ve losses need it",
+            )
+        })?;
+        let fit = fit_fixed_visibility(device, &mut splatter, &gpu, views, sun, settings, logits, progress)?;
+        history.extend(fit.history.iter().cloned());
+        fixed_fit = Some(fit);
+    }
+    let fixed_targets: Vec<ShadowView>;
+    let views: &[ShadowView] = match &fixed_fit {
+        Some(fit) if settings.editable_from_fixed => {
+            fixed_targets = views
+                .iter()
+                .zip(&fit.after)
+                .zip(&fit.surface)
+                .map(|((v, f), s)| ShadowView {
+                    camera: v.camera.clone(),
+                    target: f.iter().zip(s).map(|(f, s)| if *s { *f } else { -1.0 }).collect(),
+                })
+                .collect();
+            &fixed_targets
+        }
+        _ => views,
+    };
+    let fixed_views = |i: usize| fixed_fit.as_ref().map(|f| (f.before[i].clone(), f.after[i].clone()));
+    let with_fixed = |mut s: Scene| {
+        if let Some(f) = fixed_fit.as_ref().filter(|_| settings.fixed_steps > 0) {
+            s.materials.visibility = Some(f.logits.clone());
+        }
+        s
+    };
+    if settings.gaussians == 0 {
+        let out = (0..views.len())
+            .map(|i| ViewCompletion {
+                without: Vec::new(),
+                before: Vec::new(),
+                after: Vec::new(),
+                mask: fixed_fit.as_ref().map_or_else(Vec::new, |f| f.mask[i].clone()),
+                fixed: fixed_views(i),
+            })
+            .collect();
+        return Ok(Completion {
+            scene: with_fixed(scene.clone()),
+            first_added: scene.len(),
+            views: out,
+            history,
+            visible_added: 0,
+        });
+    }
     let mut receivers = Vec::with_capacity(views.len());
     for view in views {
         let frame = splatter.render_frame(&gpu, &view.camera, &receiver_settings)?;
@@ -535,14 +609,15 @@ pub fn complete_from_views(
         6..=9 => lrs[2],
         _ => lrs[3],
     };
-    let mut history = Vec::new();
     let mut out: Vec<ViewCompletion> = receivers
         .iter()
-        .map(|r| ViewCompletion {
+        .enumerate()
+        .map(|(i, r)| ViewCompletion {
             without: r.without.clone(),
             before: Vec::new(),
             after: Vec::new(),
             mask: r.mask.clone(),
+            fixed: fixed_views(i),
         })
         .collect();
     let refresh_until = settings.steps * 2 / 3;
@@ -602,8 +677,15 @@ pub fn complete_from_views(
         if let (Some(g), true) = (&map_grads, settings.coverage_weight > 0.0) {
             loss += coverage_loss(device, &map, g, &receivers, st.bias, settings.coverage_weight)?;
         }
-        let figures =
-            CompletionStep { step, loss, iou: ratio(all), missing_iou: ratio(lit), gaussians: params.len(), view_iou };
+        let figures = CompletionStep {
+            stage: "editable",
+            step,
+            loss,
+            iou: ratio(all),
+            missing_iou: ratio(lit),
+            gaussians: params.len(),
+            view_iou,
+        };
         progress(&figures);
         history.push(figures);
         let Some(map_grads) = map_grads.filter(|_| step < settings.steps) else { break };
@@ -634,9 +716,129 @@ pub fn complete_from_views(
     let added = to_scene(&params);
     let visible_added = added.means.iter().filter(|p| cameras.iter().any(|c| c.sees(Vec3::from_array(**p)))).count();
     let first_added = scene.len();
-    let mut completed = scene.clone();
+    let mut completed = with_fixed(scene.clone());
     append(&mut completed, &added);
     Ok(Completion { scene: completed, first_added, views: out, history, visible_added })
+}
+
+/// What L_Vf produced.
+struct FixedFit {
+    /// V_f per view before and after (1 where no surface).
+    before: Vec<Vec<f32>>,
+    after: Vec<Vec<f32>>,
+    /// Pixels with a surface.
+    surface: Vec<Vec<bool>>,
+    /// Pixels fitted: a surface facing the sun and a known target.
+    mask: Vec<Vec<bool>>,
+    /// The fitted visibility logits.
+    logits: Vec<f32>,
+    history: Vec<CompletionStep>,
+}
+
+/// L_Vf: Adam on the scene's fixed-visibility logits so that, in every view,
+/// the blended V_f = Σ wᵢ σ(vᵢ) / α matches the target (mean BCE over the
+/// pixels with a surface facing the sun and a known target), back through
+/// the splat of the visibility channel.
+#[allow(clippy::too_many_arguments, reason = "the stage's independent inputs")]
+fn fit_fixed_visibility(
+    device: &Device,
+    splatter: &mut Splatter,
+    gpu: &GpuScene,
+    views: &[ShadowView],
+    sun: &Sun,
+    settings: &CompletionSettings,
+    mut logits: Vec<f32>,
+    progress: &mut dyn FnMut(&CompletionStep),
+) -> Result<FixedFit> {
+    use crate::splat::{Channel, PerChannel};
+    let buffer = gpu.visibility.as_ref().ok_or_else(|| Error::invalid("scene", "has no visibility on the device"))?;
+    let min_alpha = settings.shadow.min_alpha;
+    let render = SplatSettings {
+        channels: Channels { visibility: true, normal: true, ..Channels::default() },
+        ..SplatSettings::default()
+    };
+    let (mut m, mut v) = (vec![0.0f32; logits.len()], vec![0.0f32; logits.len()]);
+    let mut fit = FixedFit {
+        before: Vec::new(),
+        after: Vec::new(),
+        surface: Vec::new(),
+        mask: Vec::new(),
+        logits: Vec::new(),
+        history: Vec::new(),
+    };
+    const EPS: f32 = 1e-4;
+    for step in 0..=settings.fixed_steps {
+        if step > 0 {
+            device.write_buffer(buffer, 0, &logits)?;
+        }
+        let (mut loss, mut all) = (0.0, (0, 0));
+        let mut view_iou = Vec::with_capacity(views.len());
+        let mut grad = vec![0.0f32; logits.len()];
+        fit.after.clear();
+        fit.surface.clear();
+        fit.mask.clear();
+        for view in views {
+            let frame = splatter.render_frame(gpu, &view.camera, &render)?;
+            let host = frame.gbuffer.read(device)?;
+            let (Some(c), Some(normal)) = (host.get(Channel::Visibility), host.get(Channel::Normal)) else {
+                return Err(Error::Internal("the fixed-visibility render lacks its channels".into()));
+            };
+            let n = host.alpha.len();
+            let surface: Vec<bool> = host.alpha.iter().map(|a| *a >= min_alpha).collect();
+            let facing =
+                |p: usize| Vec3::new(normal[3 * p], normal[3 * p + 1], normal[3 * p + 2]).dot(sun.direction) > 0.0;
+            let mask: Vec<bool> = (0..n).map(|p| surface[p] && view.target[p] >= 0.0 && facing(p)).collect();
+            let vf: Vec<f32> =
+                (0..n).map(|p| if surface[p] { (c[p] / host.alpha[p]).clamp(0.0, 1.0) } else { 1.0 }).collect();
+            let count = mask.iter().filter(|m| **m).count().max(1) as f64;
+            let mut d_c = vec![0.0f32; n];
+            for p in (0..n).filter(|p| mask[*p]) {
+                let (x, t) = (vf[p].clamp(EPS, 1.0 - EPS), view.target[p]);
+                loss -= (f64::from(t) * f64::from(x.ln()) + f64::from(1.0 - t) * f64::from((1.0 - x).ln())) / count;
+                d_c[p] = ((x - t) / (x * (1.0 - x)) / count as f32) / host.alpha[p];
+            }
+            let (i, u) = shadow_overlap(&vf, &view.target, &mask);
+            all = (all.0 + i, all.1 + u);
+            view_iou.push(ratio((i, u)));
+            if step < settings.fixed_steps {
+                let d = device.upload("dL/dV_f", &d_c)?;
+                let grads = BlendGrads {
+                    channels: PerChannel::default().with(Channel::Visibility, d),
+                    ..BlendGrads::default()
+                };
+                let g = splatter.backward(&frame, gpu, &grads, true)?.read(device)?;
+                let values = g.values.ok_or_else(|| Error::Internal("no value gradients".into()))?;
+                for ((gi, val), l) in grad.iter_mut().zip(&values).zip(&logits) {
+                    let s = sigmoid(*l);
+                    *gi += val[13] * s * (1.0 - s);
+                }
+            }
+            fit.after.push(vf);
+            fit.surface.push(surface);
+            fit.mask.push(mask);
+        }
+        if step == 0 {
+            fit.before = fit.after.clone();
+        }
+        let figures =
+            CompletionStep { stage: "fixed", step, loss, iou: ratio(all), missing_iou: 0.0, gaussians: 0, view_iou };
+        progress(&figures);
+        fit.history.push(figures);
+        if step == settings.fixed_steps {
+            break;
+        }
+        // Adam (β = 0.9, 0.999), the learning rate decaying to a tenth.
+        let t = (step + 1) as i32;
+        let lr = settings.fixed_learning_rate * (1.0 - 0.9 * step as f32 / settings.fixed_steps as f32);
+        let (c1, c2) = (1.0 - 0.9f32.powi(t), 1.0 - 0.999f32.powi(t));
+        for (((l, g), m), v) in logits.iter_mut().zip(&grad).zip(&mut m).zip(&mut v) {
+            *m = 0.9 * *m + 0.1 * g;
+            *v = 0.999 * *v + 0.001 * g * g;
+            *l = (*l - lr * (*m / c1) / ((*v / c2).sqrt() + 1e-12)).clamp(-12.0, 12.0);
+        }
+    }
+    fit.logits = logits;
+    Ok(fit)
 }
 
 /// The coverage loss: a receiver the target shadows wants the added map's
