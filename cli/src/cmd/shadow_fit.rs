@@ -116,7 +116,7 @@ fn run_with_progress(
     steps: u64,
     run: impl FnOnce(&mut dyn FnMut(&CompletionStep)) -> Result<Completion>,
 ) -> Result<(Completion, Vec<String>)> {
-    let bar = progress_bar(u64::from(steps), "{bar:30} {pos}/{len} {msg} [{elapsed}, ETA {eta}]");
+    let bar = progress_bar(steps, "{bar:30} {pos}/{len} {msg} [{elapsed}, ETA {eta}]");
     let mut lines = Vec::new();
     let result = run(&mut |s| {
         print_line(&bar, &step_line(s));
