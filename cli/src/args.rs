@@ -69,14 +69,18 @@ impl FromStr for Size {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Vec3Arg(pub glam::Vec3);
 
+/// Comma-separated numbers; `what` says how many in the error.
+fn numbers(text: &str, what: &str) -> Result<Vec<f32>> {
+    text.split(',')
+        .map(|p| p.trim().parse::<f32>())
+        .collect::<std::result::Result<_, _>>()
+        .map_err(|_| Error::invalid(format!("\"{text}\""), format!("is not {what} comma-separated numbers")))
+}
+
 impl FromStr for Vec3Arg {
     type Err = Error;
     fn from_str(text: &str) -> Result<Self> {
-        let v: Vec<f32> = text
-            .split(',')
-            .map(|p| p.trim().parse::<f32>())
-            .collect::<std::result::Result<_, _>>()
-            .map_err(|_| Error::invalid(format!("\"{text}\""), "is not three comma-separated numbers"))?;
+        let v = numbers(text, "three")?;
         match v.as_slice() {
             [x, y, z] if v.iter().all(|c| c.is_finite()) => Ok(Self(glam::Vec3::new(*x, *y, *z))),
             _ => Err(Error::invalid(format!("\"{text}\""), "is not three finite numbers")),
@@ -91,11 +95,7 @@ pub struct BoxArg(pub srug::scene::Bounds);
 impl FromStr for BoxArg {
     type Err = Error;
     fn from_str(text: &str) -> Result<Self> {
-        let v: Vec<f32> = text
-            .split(',')
-            .map(|p| p.trim().parse::<f32>())
-            .collect::<std::result::Result<_, _>>()
-            .map_err(|_| Error::invalid(format!("\"{text}\""), "is not six comma-separated numbers"))?;
+        let v = numbers(text, "six")?;
         match v.as_slice() {
             [a, b, c, d, e, f] if v.iter().all(|x| x.is_finite()) && a < d && b < e && c < f => {
                 Ok(Self(srug::scene::Bounds { min: [*a, *b, *c], max: [*d, *e, *f] }))

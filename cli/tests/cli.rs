@@ -1137,8 +1137,9 @@ fn shadow_fit_completes_a_scene_from_masks_on_disk() {
     let n = b.without.len();
     assert!(done.len() > n && done.len() <= n + 2000, "{} Gaussians", done.len());
     assert_eq!(done.means[..n], b.without.means[..]);
-    let flags = srug::io::read_ply_ids(&out, &["srug_added".into()]).unwrap().remove(0);
-    assert!(flags[..n].iter().all(|f| *f == 0) && flags[n..].iter().all(|f| *f == 1));
+    let flags = srug::io::read_ply_ids(&out, &["srug_added".into(), "srug_moved".into()]).unwrap();
+    assert!(flags[0][..n].iter().all(|f| *f == 0) && flags[0][n..].iter().all(|f| *f == 1));
+    assert!(flags[1].iter().all(|f| *f == 0), "nothing movable, nothing moved");
 
     // Bad input: a clear message, a failing exit, nothing written.
     let bad = |extra: &[&str], masks: &str, out: &str, want: &str| {

@@ -59,7 +59,7 @@ enum Command {
     /// Shadow-guided completion: Gaussians grown where no camera sees until the shadows they cast
     /// match each camera's shadow mask (`srug shadow-fit SCENE --cameras C --masks DIR --out
     /// COMPLETED.ply`); without a scene, the demo's (remove the off-screen tower, grow it back).
-    ShadowFit(shadow_fit::ShadowFitArgs),
+    ShadowFit(Box<shadow_fit::ShadowFitArgs>),
 }
 
 impl Cli {

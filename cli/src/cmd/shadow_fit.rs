@@ -43,6 +43,10 @@ pub(super) struct ShadowFitArgs {
     /// bounds, raised by half their horizontal diagonal; give it for scenes with distant floaters).
     #[arg(long, requires = "scene", allow_hyphen_values = true)]
     region: Option<BoxArg>,
+    /// Gaussians of the scene the fit may move with the added ones: those whose centre is in
+    /// this box (xmin,ymin,zmin,xmax,ymax,zmax) and that no camera sees (flagged srug_moved).
+    #[arg(long, requires = "scene", allow_hyphen_values = true)]
+    movable: Option<BoxArg>,
     /// Folder for the mask agreement images before and after, per view, and history.csv.
     #[arg(long, requires = "scene")]
     report: Option<PathBuf>,
@@ -165,6 +169,7 @@ impl ShadowFitArgs {
             gaussians: self.added,
             fixed_steps: self.fixed_steps,
             editable_from_fixed: self.editable_target == "fixed",
+            movable: self.movable.map(|BoxArg(b)| b),
             ..CompletionSettings::default()
         };
         settings.shadow.resolution = self.resolution;
@@ -278,8 +283,11 @@ impl ShadowFitArgs {
         let (c, lines) =
             run_with_progress(self.total_steps(), |p| complete_from_views(&device, &problem, &settings, p))?;
         let seconds = start.elapsed().as_secs_f64();
-        let flags: Vec<bool> = (0..c.scene.len()).map(|i| i >= c.first_added).collect();
-        io::write_ply_with_flags(out, &c.scene, PlyFormat::BinaryLittleEndian, &[("srug_added", &flags)])?;
+        let added: Vec<bool> = (0..c.scene.len()).map(|i| i >= c.first_added).collect();
+        let moved: Vec<bool> =
+            (0..c.scene.len()).map(|i| (c.first_added - c.moved..c.first_added).contains(&i)).collect();
+        let flags: &[(&str, &[bool])] = &[("srug_added", &added), ("srug_moved", &moved)];
+        io::write_ply_with_flags(out, &c.scene, PlyFormat::BinaryLittleEndian, flags)?;
         if let Some(dir) = &self.report {
             std::fs::create_dir_all(dir).map_err(Error::io(dir))?;
             for (view, o) in views.iter().zip(&c.views) {
@@ -315,8 +323,10 @@ impl ShadowFitArgs {
             }
         }
         println!(
-            "added {} Gaussians (flagged srug_added), {} inside a camera's view, in {seconds:.1} s ({:.0} ms per step)",
+            "added {} Gaussians (flagged srug_added), moved {} (srug_moved), {} added inside a camera's view, in \
+             {seconds:.1} s ({:.0} ms per step)",
             c.added(),
+            c.moved,
             c.visible_added,
             1e3 * seconds / self.total_steps().max(1) as f64
         );

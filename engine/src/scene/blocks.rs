@@ -237,16 +237,7 @@ pub struct BlockCompletion {
 pub fn block_completion(options: &BlockOptions, width: u32, height: u32) -> Result<BlockCompletion> {
     let city = block_city(options)?;
     let removed = city.boxes[3];
-    let keep: Vec<bool> = city
-        .scene
-        .means
-        .iter()
-        .map(|p| {
-            let p = Vec3::from_array(*p);
-            !(p.cmpge(removed.min - 0.3).all() && p.cmple(removed.max + 0.3).all())
-        })
-        .collect();
-    let without = city.scene.select(&keep);
+    let without = city.scene.without_box(&removed, 0.3);
     let mut cameras = Vec::new();
     for (i, (x, tx)) in [(6.0, 14.0), (14.0, 22.0), (22.0, 30.0), (30.0, 24.0)].into_iter().enumerate() {
         let mut c = Camera::look_at(Vec3::new(x, 5.5, 1.6), Vec3::new(tx, -7.0, 2.0), Vec3::Z, 90.0, width, height)?;

@@ -210,6 +210,19 @@ impl Scene {
         Some(b)
     }
 
+    /// The scene without the Gaussians whose centres lie in `b` grown by `margin` on every side.
+    pub fn without_box(&self, b: &demo::Aabb, margin: f32) -> Scene {
+        let keep: Vec<bool> = self
+            .means
+            .iter()
+            .map(|p| {
+                let p = glam::Vec3::from_array(*p);
+                !(p.cmpge(b.min - margin).all() && p.cmple(b.max + margin).all())
+            })
+            .collect();
+        self.select(&keep)
+    }
+
     /// The Gaussians where `keep` is true, every attribute kept in step.
     pub fn select(&self, keep: &[bool]) -> Scene {
         fn pick<T: Copy>(v: &[T], keep: &[bool], per: usize) -> Vec<T> {

@@ -65,6 +65,11 @@ pub struct CompletionSettings {
     /// [`complete_from_views`]): shadows from opaque coverage, as the
     /// median-depth map that renders the result needs.
     pub coverage_weight: f32,
+    /// Gaussians of the scene that the fit may move as it moves the added
+    /// ones: those whose centre is in this box and that no camera sees
+    /// (pruned like them when they fade). `None`: the input's geometry never
+    /// changes.
+    pub movable: Option<Bounds>,
     /// L_Vf: Adam steps fitting the input scene's fixed visibility (its
     /// `visibility` attribute, the paper's V_f) to the targets before the
     /// added Gaussians grow (0: not fitted). Only those logits change.
@@ -100,6 +105,7 @@ impl Default for CompletionSettings {
             refresh_every: 10,
             prune_opacity: 0.005,
             coverage_weight: 1000.0,
+            movable: None,
             fixed_steps: 0,
             fixed_learning_rate: 0.5,
             editable_from_fixed: false,
@@ -180,10 +186,12 @@ pub struct ViewCompletion {
 
 /// What [`complete_from_views`] produced.
 pub struct Completion {
-    /// The input scene with the optimised Gaussians appended.
+    /// The input scene's unmoved Gaussians, then the moved ones, then the added.
     pub scene: Scene,
     /// Index of the first added Gaussian.
     pub first_added: usize,
+    /// Gaussians of the input the fit moved (just before the added).
+    pub moved: usize,
     /// Per view, in the order given.
     pub views: Vec<ViewCompletion>,
     /// Per-step loss and IoU (the first entry is the initial state).
@@ -380,6 +388,28 @@ pub fn complete_from_views(
 ) -> Result<Completion> {
     let &CompletionProblem { scene, region, views, cameras, sun } = problem;
     settings.validate()?;
+    // The movable Gaussians leave the scene and join the added ones.
+    let movable: Vec<bool> = match settings.movable {
+        Some(b) => scene
+            .means
+            .iter()
+            .map(|p| {
+                let v = Vec3::from_array(*p);
+                v.cmpge(Vec3::from_array(b.min)).all()
+                    && v.cmple(Vec3::from_array(b.max)).all()
+                    && !cameras.iter().any(|c| c.sees(v))
+            })
+            .collect(),
+        None => vec![false; scene.len()],
+    };
+    let moving = scene.select(&movable);
+    let unmoved;
+    let scene = if moving.is_empty() {
+        scene
+    } else {
+        unmoved = scene.select(&movable.iter().map(|m| !m).collect::<Vec<_>>());
+        &unmoved
+    };
     if views.is_empty() {
         return Err(Error::invalid("shadow views", "none given: the fit needs at least one view with a target"));
     }
@@ -456,7 +486,7 @@ pub fn complete_from_views(
         }
         s
     };
-    if settings.gaussians == 0 {
+    if settings.gaussians == 0 && moving.is_empty() {
         let out = (0..views.len())
             .map(|i| ViewCompletion {
                 without: Vec::new(),
@@ -469,6 +499,7 @@ pub fn complete_from_views(
         return Ok(Completion {
             scene: with_fixed(scene.clone()),
             first_added: scene.len(),
+            moved: 0,
             views: out,
             history,
             visible_added: 0,
@@ -575,7 +606,7 @@ pub fn complete_from_views(
         length += t1 - t0;
     }
     let volume = footprint.len() as f64 * texel * texel * length / spawner.rays.len() as f64;
-    let scale = (volume / settings.gaussians as f64).cbrt().max(texel) as f32;
+    let scale = (volume / settings.gaussians.max(1) as f64).cbrt().max(texel) as f32;
     let k = sh_coefficients(scene.sh_degree);
     let mut rng = Pcg64Mcg::seed_from_u64(settings.seed);
     let (log_lo, log_hi) = ((1e-2 * scale).ln(), (10.0 * scale).ln());
@@ -585,7 +616,25 @@ pub fn complete_from_views(
         keep_unseen(&mut r, cameras, log_lo);
         r
     };
-    let mut params: Vec<[f32; ROW]> = spawner.points(&mut rng, settings.gaussians).into_iter().map(row).collect();
+    // The movable Gaussians first (their scales free within their own range and the
+    // added ones'), then the spawned; `origin` says which movable one a row is.
+    let mut params: Vec<[f32; ROW]> = (0..moving.len())
+        .map(|i| {
+            let (m, l, r) = (moving.means[i], moving.log_scales[i], moving.rotations[i]);
+            [m[0], m[1], m[2], l[0], l[1], l[2], r[0], r[1], r[2], r[3], moving.opacity_logits[i]]
+        })
+        .collect();
+    let mut origin: Vec<Option<usize>> = (0..moving.len()).map(Some).collect();
+    let limits = |o: Option<usize>| match o {
+        Some(i) => {
+            let l = moving.log_scales[i];
+            (l[0].min(l[1]).min(l[2]).min(log_lo), l[0].max(l[1]).max(l[2]).max(log_hi))
+        }
+        None => (log_lo, log_hi),
+    };
+    let spawned = spawner.points(&mut rng, settings.gaussians);
+    origin.extend(std::iter::repeat_n(None, spawned.len()));
+    params.extend(spawned.into_iter().map(row));
     if params.is_empty() {
         return Err(Error::invalid("occluder region", "every point of it is seen by a camera"));
     }
@@ -627,6 +676,8 @@ pub fn complete_from_views(
             let keep: Vec<bool> = params.iter().map(|r| sigmoid(r[10]) >= settings.prune_opacity).collect();
             let mut k = keep.iter();
             params.retain(|_| *k.next().unwrap_or(&false));
+            let mut k = keep.iter();
+            origin.retain(|_| *k.next().unwrap_or(&false));
             adam.retain(&keep);
             let still: Vec<_> = out.iter().map(|o| o.after.clone()).collect();
             spawner.rays.clear();
@@ -634,8 +685,10 @@ pub fn complete_from_views(
                 let m = missing(&still[i], i);
                 spawner.rays.extend(receiver_rays(view, r, &st, sun_d, (lo, hi), |p| m[p]));
             }
-            let room = settings.gaussians.saturating_sub(params.len());
-            params.extend(spawner.points(&mut rng, room).into_iter().map(row));
+            let room = settings.gaussians.saturating_sub(origin.iter().filter(|o| o.is_none()).count());
+            let spawned = spawner.points(&mut rng, room);
+            origin.extend(std::iter::repeat_n(None, spawned.len()));
+            params.extend(spawned.into_iter().map(row));
             if params.is_empty() {
                 return Err(Error::invalid("shadow fit", "pruned every added Gaussian: the targets ask for no shadow"));
             }
@@ -703,22 +756,44 @@ pub fn complete_from_views(
         // Learning rates decay linearly to a tenth over the run.
         let decay = 1.0 - 0.9 * step as f32 / settings.steps.max(1) as f32;
         adam.step(&mut params, &grads, |i| lr(i) * decay);
-        for r in &mut params {
+        for (r, o) in params.iter_mut().zip(&origin) {
+            let (lo, hi) = limits(*o);
             for s in &mut r[3..6] {
-                *s = s.clamp(log_lo, log_hi);
+                *s = s.clamp(lo, hi);
             }
             r[10] = r[10].clamp(-12.0, 12.0);
-            keep_unseen(r, cameras, log_lo);
+            keep_unseen(r, cameras, lo);
         }
     }
     // Those that splat nothing go: peak α below 1/255.
-    params.retain(|r| sigmoid(r[10]) >= 1.0 / 255.0);
-    let added = to_scene(&params);
+    let keep: Vec<bool> = params.iter().map(|r| sigmoid(r[10]) >= 1.0 / 255.0).collect();
+    let rows = |moved: bool| -> Vec<[f32; ROW]> {
+        params
+            .iter()
+            .zip(&origin)
+            .zip(&keep)
+            .filter(|((_, o), k)| **k && o.is_some() == moved)
+            .map(|((r, _), _)| *r)
+            .collect()
+    };
+    // The moved keep their colour and materials, with their new geometry.
+    let mut kept_moving = vec![false; moving.len()];
+    for (o, k) in origin.iter().zip(&keep) {
+        if let (Some(i), true) = (o, k) {
+            kept_moving[*i] = true;
+        }
+    }
+    let mut moved = moving.select(&kept_moving);
+    let geometry = to_scene(&rows(true));
+    (moved.means, moved.log_scales, moved.rotations, moved.opacity_logits) =
+        (geometry.means, geometry.log_scales, geometry.rotations, geometry.opacity_logits);
+    let added = to_scene(&rows(false));
     let visible_added = added.means.iter().filter(|p| cameras.iter().any(|c| c.sees(Vec3::from_array(**p)))).count();
-    let first_added = scene.len();
     let mut completed = with_fixed(scene.clone());
+    append(&mut completed, &moved);
+    let first_added = completed.len();
     append(&mut completed, &added);
-    Ok(Completion { scene: completed, first_added, views: out, history, visible_added })
+    Ok(Completion { scene: completed, first_added, moved: moved.len(), views: out, history, visible_added })
 }
 
 /// What L_Vf produced.
@@ -946,7 +1021,8 @@ fn sigmoid(x: f32) -> f32 {
     1.0 / (1.0 + (-x).exp())
 }
 
-/// Appends `b`'s Gaussians to `a` (optional attributes padded with neutral values).
+/// Appends `b`'s Gaussians to `a`: `a`'s optional attributes take `b`'s
+/// where it has them, neutral values where not (both share an SH degree).
 fn append(a: &mut Scene, b: &Scene) {
     let n = b.means.len();
     a.means.extend(&b.means);
@@ -954,32 +1030,27 @@ fn append(a: &mut Scene, b: &Scene) {
     a.rotations.extend(&b.rotations);
     a.opacity_logits.extend(&b.opacity_logits);
     a.sh.extend(&b.sh);
-    if let Some(v) = &mut a.normals {
-        v.extend(std::iter::repeat_n([0.0; 3], n));
+    fn extend<T: Copy>(to: &mut Option<Vec<T>>, from: &Option<Vec<T>>, n: usize, zero: T) {
+        if let Some(v) = to {
+            match from {
+                Some(f) => v.extend(f),
+                None => v.extend(std::iter::repeat_n(zero, n)),
+            }
+        }
     }
-    let m = &mut a.materials;
-    if let Some(v) = &mut m.albedo {
-        v.extend(std::iter::repeat_n([0.0; 3], n));
-    }
-    for v in [&mut m.roughness, &mut m.metallic, &mut m.ao, &mut m.visibility].into_iter().flatten() {
-        v.extend(std::iter::repeat_n(0.0, n));
-    }
+    extend(&mut a.normals, &b.normals, n, [0.0; 3]);
+    let (m, f) = (&mut a.materials, &b.materials);
+    extend(&mut m.albedo, &f.albedo, n, [0.0; 3]);
+    extend(&mut m.roughness, &f.roughness, n, 0.0);
+    extend(&mut m.metallic, &f.metallic, n, 0.0);
+    extend(&mut m.ao, &f.ao, n, 0.0);
+    extend(&mut m.visibility, &f.visibility, n, 0.0);
 }
 
 /// The demo's completion problem: the demo city without the Gaussians of its
 /// off-screen tower (those within half a metre of its box).
 pub fn without_offscreen_tower(demo: &crate::scene::demo::DemoCity) -> Scene {
-    let t = demo.offscreen_tower;
-    let keep: Vec<bool> = demo
-        .scene
-        .means
-        .iter()
-        .map(|p| {
-            let p = Vec3::from_array(*p);
-            !(p.cmpge(t.min - 0.5).all() && p.cmple(t.max + 0.5).all())
-        })
-        .collect();
-    demo.scene.select(&keep)
+    demo.scene.without_box(&demo.offscreen_tower, 0.5)
 }
 
 /// The demo's shadow-guided completion, as `srug shadow-fit` runs it.
