@@ -675,8 +675,8 @@ impl Device {
     /// visibility V_e): renders the receivers, splats the shadow map from the
     /// sun and tests every pixel, V = sigmoid(k·(z_s − z + bias)), 1 where no
     /// receiver. The returned object holds V and runs the backward pass.
-    #[pyo3(signature = (scene, camera, sun, resolution = 2048, k = 50.0, bias = 0.5, map_depth = None,
-                        receiver_depth = None, sun_intensity = std::f32::consts::PI, slope_bias = 0.0,
+    #[pyo3(signature = (scene, camera, sun, resolution = 2048, k = 50.0, bias = 0.3, map_depth = None,
+                        receiver_depth = None, sun_intensity = std::f32::consts::PI, slope_bias = 3.0,
                         normal_offset = 0.0, fit = "scene"))]
     #[allow(clippy::too_many_arguments, reason = "the Python keyword arguments of one call")]
     fn shadow(

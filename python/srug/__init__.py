@@ -495,10 +495,10 @@ class Device:
         *,
         resolution: int = 2048,
         k: float = 50.0,
-        bias: float = 0.5,
+        bias: float = 0.3,
         map_depth: Optional[str] = None,
         receiver_depth: Optional[str] = None,
-        slope_bias: float = 0.0,
+        slope_bias: float = 3.0,
         normal_offset: float = 0.0,
         fit: str = "scene",
     ) -> "ShadowTest":
@@ -510,8 +510,9 @@ class Device:
         the means only), "expected" (smooth; reaches opacities and shapes too) or, for the map,
         "expected-over-far" (docs/stages.md). ``slope_bias`` adds that many shadow-map texels
         times tan θ (θ: receiver normal to sun) to ``bias``; ``normal_offset`` moves each
-        receiver that many texels times sin θ along its normal (the relight presets use 3 and
-        0); the backward holds the normals they read fixed. ``fit``: "scene" or "view" (the map
+        receiver that many texels times sin θ along its normal; the defaults (2048 texels, k 50,
+        bias 0.3 m, slope bias 3, no normal offset, median depths) are the balanced preset's, as
+        ``srug::shadow::ShadowSettings::default()``; the backward holds the normals they read fixed. ``fit``: "scene" or "view" (the map
         covers the camera's view within the scene's bounds)."""
         if len(camera) != 1:
             raise _invalid(f"the shadow test takes one camera, not {len(camera)} (index the Cameras)")

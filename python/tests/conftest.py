@@ -19,7 +19,7 @@ def dev():
 def shadow_problem():
     """A ground of flat Gaussians (heights varied, so no perturbed Gaussian sets the bounds the
     light camera is fitted to) under a cluster of 30 occluders, a camera looking down at it,
-    per-pixel loss weights, and shadow options with expected (smooth) depths."""
+    per-pixel loss weights, and shadow options with expected (smooth) depths and no slope bias."""
     rng = np.random.default_rng(5)
     gx, gy = np.meshgrid(np.linspace(-4, 4, 40), np.linspace(-4, 4, 40))
     ground = np.stack([gx.ravel(), gy.ravel(), rng.uniform(0.0, 0.02, gx.size)], 1)
@@ -43,5 +43,9 @@ def shadow_problem():
         "sh": np.zeros((n, 1, 3)),
         "cam": srug.Cameras(view, [[80.0, 0, 64], [0, 80.0, 48], [0, 0, 1]], 128, 96),
         "weights": rng.uniform(0.5, 1.5, (96, 128)),
-        "kw": dict(sun=(200.0, 55.0), resolution=512, k=20.0, map_depth="expected", receiver_depth="expected"),
+        # No slope bias: the backward holds the receivers' normals fixed, and with a slope
+        # bias they carry V's dependence on opacities (through the blended normal).
+        "kw": dict(
+            sun=(200.0, 55.0), resolution=512, k=20.0, map_depth="expected", receiver_depth="expected", slope_bias=0.0
+        ),
     }
