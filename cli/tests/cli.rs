@@ -347,6 +347,13 @@ fn shadow_fit_writes_its_images_scene_and_history() {
     assert!(scene.len() > 300);
     let history = std::fs::read_to_string(dir.path().join("history.csv")).unwrap();
     assert_eq!(history.lines().count(), 4, "header and three steps:\n{history}");
+    // The fixed visibility alone (L_Vf, nothing added): its images, no editable ones.
+    let fixed = dir.path().join("fixed");
+    let args = ["shadow-fit", "--gaussians", "8000", "--fixed-steps", "2", "--added", "0", "--size", "88x24"];
+    let o = srug(&[&args[..], &["--out", fixed.to_str().unwrap()]].concat());
+    let t = text(&o);
+    assert!(o.status.success() && t.contains("fixed visibility IoU against the target"), "{t}");
+    assert!(fixed.join("visibility_fixed_after.png").exists() && !fixed.join("visibility_after.png").exists());
     // A sun below the horizon casts no shadow: refused with a message.
     let o = srug(&["shadow-fit", "--sun-elevation", "-5", "--gaussians", "2000", "--out", out]);
     assert!(!o.status.success() && text(&o).contains("above the horizon"), "{}", text(&o));

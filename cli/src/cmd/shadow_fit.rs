@@ -368,7 +368,12 @@ impl ShadowFitArgs {
         let v = &c.views[0];
         let (w, h) = (camera.width, camera.height);
         let grey = |v: &[f32]| -> Vec<f32> { v.iter().flat_map(|x| [*x, *x, *x]).collect() };
-        for (name, v) in [("target", &target), ("without", &v.without), ("before", &v.before), ("after", &v.after)] {
+        let mut images = vec![("target", &target), ("without", &v.without), ("before", &v.before), ("after", &v.after)];
+        if let Some((before, after)) = &v.fixed {
+            images.extend([("fixed_before", before), ("fixed_after", after)]);
+        }
+        // Without added Gaussians (--added 0) only the fixed visibility has images.
+        for (name, v) in images.into_iter().filter(|(_, v)| !v.is_empty()) {
             io::write_png(out.join(format!("visibility_{name}.png")), w, h, &grey(v))?;
         }
         let ply = out.join("completed.ply");
@@ -376,7 +381,15 @@ impl ShadowFitArgs {
         io::write_ply_with_flags(&ply, &c.scene, PlyFormat::BinaryLittleEndian, &[("srug_added", &flags)])?;
         let csv = out.join("history.csv");
         write_history(&csv, &lines)?;
-        if let (Some(a), Some(b)) = (c.history.first(), c.history.last()) {
+        let editable: Vec<_> = c.history.iter().filter(|s| s.stage == "editable").collect();
+        if let Some((before, after)) = &v.fixed {
+            println!(
+                "fixed visibility IoU against the target: {:.3} → {:.3}",
+                shadow_iou(before, &target, &v.mask),
+                shadow_iou(after, &target, &v.mask)
+            );
+        }
+        if let (Some(a), Some(b)) = (editable.first(), editable.last()) {
             println!("removed the off-screen tower ({removed} Gaussians); added {} where no camera sees", c.added());
             println!(
                 "shadow IoU: {:.3} without the tower, {:.3} at the start, {:.3} after {} steps",
@@ -391,7 +404,7 @@ impl ShadowFitArgs {
             );
             println!("added Gaussians that ended inside a camera's view: {}", c.visible_added);
         }
-        println!("images: {}/visibility_{{target,without,before,after}}.png", out.display());
+        println!("images: {}/visibility_*.png", out.display());
         println!("scene: {}", ply.display());
         println!("history: {}", csv.display());
         report_validation(&device);
