@@ -834,6 +834,9 @@ fn fit_fixed_visibility(
     let min_alpha = settings.shadow.min_alpha;
     let render = SplatSettings {
         channels: Channels { visibility: true, normal: true, ..Channels::default() },
+        // The splat backward replays each splat over its whole tile: 8-pixel tiles
+        // halve a step (the demo's 21 steps 9.05 → 4.75 s, measured).
+        tile: 8,
         ..SplatSettings::default()
     };
     let (mut m, mut v) = (vec![0.0f32; logits.len()], vec![0.0f32; logits.len()]);
