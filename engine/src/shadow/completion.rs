@@ -835,7 +835,7 @@ fn fit_fixed_visibility(
     let render = SplatSettings {
         channels: Channels { visibility: true, normal: true, ..Channels::default() },
         // The splat backward replays each splat over its whole tile: 8-pixel tiles
-        // halve a step (the demo's 21 steps 9.05 → 4.75 s, measured).
+        // halve a step (docs/bench/completion.md).
         tile: 8,
         ..SplatSettings::default()
     };
