@@ -228,6 +228,38 @@ pub(crate) fn read_exr(bytes: &[u8], origin: &str) -> Result<EnvironmentMap> {
     EnvironmentMap::from_rgb(size.width() as u32, size.height() as u32, data, origin)
 }
 
+/// Reads one channel of an OpenEXR image (width, height, row-major values):
+/// `Y`, else `R`, else the first; the same limits and checks as [`read_exr`].
+/// For single-channel images such as masks.
+pub(crate) fn read_exr_channel(bytes: &[u8], origin: &str) -> Result<(u32, u32, Vec<f32>)> {
+    use exr::prelude::*;
+    let not_exr = |e: exr::error::Error| env_error(origin, format!("not a readable OpenEXR image: {e}"));
+    let meta = exr::meta::MetaData::read_from_buffered(std::io::Cursor::new(bytes), false).map_err(not_exr)?;
+    let limits = super::limits();
+    for header in &meta.headers {
+        let size = header.layer_size;
+        limits
+            .image_bytes(size.width() as u64, size.height() as u64, header.channels.list.len() as u64, 4)
+            .map_err(|e| env_error(origin, format!("its data window {e}")))?;
+    }
+    check_dwa_chunks(bytes, origin)?;
+    let image = read()
+        .no_deep_data()
+        .largest_resolution_level()
+        .all_channels()
+        .first_valid_layer()
+        .all_attributes()
+        .non_parallel()
+        .from_buffered(std::io::Cursor::new(bytes))
+        .map_err(not_exr)?;
+    let size = image.layer_data.size;
+    let channels = &image.layer_data.channel_data.list;
+    let named = |n: &str| channels.iter().find(|c| c.name.to_string() == n);
+    let channel =
+        named("Y").or_else(|| named("R")).or(channels.first()).ok_or_else(|| env_error(origin, "has no channel"))?;
+    Ok((size.width() as u32, size.height() as u32, channel.sample_data.values_as_f32().collect()))
+}
+
 /// A DWA-compressed layer: the bound on a chunk's counters, rows per
 /// scan-line chunk, bytes per pixel, data window top, height and width.
 type DwaLayer = (u64, usize, usize, i32, usize, usize);

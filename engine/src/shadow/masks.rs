@@ -40,12 +40,19 @@ pub struct MaskOptions {
 }
 
 /// Reads a mask: PNG or JPEG (8 or 16 bit, grey or colour, with or without
-/// alpha) or EXR/HDR (float, clamped to [0, 1]).
+/// alpha: the mean of the colour channels), EXR (its Y channel, else R, else
+/// the first; NaN unknown) or Radiance HDR (mean of RGB); floats clamped to [0, 1].
 pub fn read_mask(path: &Path) -> Result<MaskImage> {
     let origin = path.display().to_string();
     let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
     match ext.as_deref() {
-        Some("exr") | Some("hdr") => {
+        Some("exr") => {
+            let (width, height, v) = crate::io::environment::read_exr_channel(&crate::io::read_file(path)?, &origin)?;
+            let known = v.iter().map(|x| x.is_finite()).collect();
+            let value = v.iter().map(|x| if x.is_finite() { x.clamp(0.0, 1.0) } else { 0.0 }).collect();
+            Ok(MaskImage { width, height, value, known })
+        }
+        Some("hdr") => {
             let map = crate::io::EnvironmentMap::load(path)?;
             let value = map.rgb.chunks_exact(3).map(|c| ((c[0] + c[1] + c[2]) / 3.0).clamp(0.0, 1.0)).collect();
             Ok(MaskImage { width: map.width, height: map.height, value, known: vec![true; map.rgb.len() / 3] })
@@ -208,6 +215,38 @@ mod tests {
         assert!(!m.is_uniform());
         let flat = MaskImage { width: 2, height: 1, value: vec![0.9, 0.7], known: vec![true, true] };
         assert!(flat.is_uniform());
+    }
+
+    #[test]
+    fn masks_read_from_files_other_tools_wrote() {
+        let dir = tempfile::tempdir().unwrap();
+        // 16-bit grey with alpha (the image crate's PNG encoder): white shadow, a transparent pixel.
+        let mut img = image::ImageBuffer::<image::LumaA<u16>, Vec<u16>>::new(3, 1);
+        img.put_pixel(0, 0, image::LumaA([65535, 65535]));
+        img.put_pixel(1, 0, image::LumaA([0, 65535]));
+        img.put_pixel(2, 0, image::LumaA([32768, 0]));
+        img.save(dir.path().join("a.png")).unwrap();
+        let m = read_mask(&dir.path().join("a.png")).unwrap();
+        assert_eq!((m.width, m.height, m.known.as_slice()), (3, 1, [true, true, false].as_slice()));
+        assert_eq!(&m.value[..2], &[1.0, 0.0]);
+        // A one-channel float EXR (the exr crate), as detectors save probabilities.
+        use exr::prelude::*;
+        let y = FlatSamples::F32(vec![0.25, 0.75, 2.0, f32::NAN]);
+        let layer = Layer::new(
+            (2, 2),
+            LayerAttributes::named("mask"),
+            Encoding::FAST_LOSSLESS,
+            AnyChannels::sort(SmallVec::from_vec(vec![AnyChannel::new("Y", y)])),
+        );
+        Image::from_layer(layer).write().to_file(dir.path().join("b.exr")).unwrap();
+        let m = read_mask(&dir.path().join("b.exr")).unwrap();
+        assert_eq!((m.width, m.height), (2, 2));
+        assert_eq!(m.value, [0.25, 0.75, 1.0, 0.0]);
+        assert_eq!(m.known, [true, true, true, false]);
+        // Not an image: a clear error naming the file.
+        std::fs::write(dir.path().join("c.png"), b"not a png").unwrap();
+        let e = read_mask(&dir.path().join("c.png")).unwrap_err().to_string();
+        assert!(e.contains("c.png") && e.contains("cannot read the mask"), "{e}");
     }
 
     #[test]
