@@ -562,3 +562,23 @@ fn ply_ids_read_exactly_in_every_encoding() {
         assert_eq!(read_ply(&path).unwrap().extra_properties, ["semantic", "instance"], "{name}");
     }
 }
+
+#[test]
+fn core_bounds_leave_far_floaters_out() {
+    let mut scene = srug_tests::random_scene(1000, 0, 3, 1.0);
+    let inner = scene.bounds().unwrap();
+    for (i, p) in [[1e4, 0.0, 0.0], [0.0, -1e4, 0.0], [0.0, 0.0, 5e3]].into_iter().enumerate() {
+        scene.means[i] = p;
+    }
+    let all = scene.bounds().unwrap();
+    assert!(all.max[0] >= 1e4 && all.min[1] <= -1e4);
+    let core = scene.core_bounds(0.005).unwrap();
+    for a in 0..3 {
+        assert!(core.min[a] >= inner.min[a] - 1e-6 && core.max[a] <= inner.max[a] + 1e-6, "{core:?} vs {inner:?}");
+        assert!(core.max[a] - core.min[a] > 0.5 * (inner.max[a] - inner.min[a]), "{core:?}");
+    }
+    // No tail: the plain bounds; a tail of a half or more, or an empty scene: none.
+    assert_eq!(scene.core_bounds(0.0), Some(all));
+    assert_eq!(scene.core_bounds(0.5), None);
+    assert_eq!(srug::scene::Scene::default().core_bounds(0.01), None);
+}

@@ -39,8 +39,9 @@ pub(super) struct ShadowFitArgs {
     /// Folder of ignore masks named as the masks: white pixels are unknown (not fitted).
     #[arg(long, requires = "masks")]
     ignore_masks: Option<PathBuf>,
-    /// Where occluders may be added, xmin,ymin,zmin,xmax,ymax,zmax (default: the scene's
-    /// bounds, raised by half their horizontal diagonal; give it for scenes with distant floaters).
+    /// Where occluders may be added, xmin,ymin,zmin,xmax,ymax,zmax (default: the box of the
+    /// scene's centres between the 0.5% and 99.5% quantiles on each axis, raised by half its
+    /// horizontal diagonal).
     #[arg(long, requires = "scene", allow_hyphen_values = true)]
     region: Option<BoxArg>,
     /// Gaussians of the scene the fit may move with the added ones: those whose centre is in
@@ -265,7 +266,9 @@ impl ShadowFitArgs {
         }
         let region = match self.region {
             Some(BoxArg(b)) => b,
-            None => default_region(&scene.bounds().ok_or_else(|| Error::invalid("scene", "has no Gaussians"))?),
+            None => {
+                default_region(&scene.core_bounds(0.005).ok_or_else(|| Error::invalid("scene", "has no Gaussians"))?)
+            }
         };
         let device = device_args.open()?;
         println!(
@@ -412,8 +415,9 @@ impl ShadowFitArgs {
     }
 }
 
-/// The scene's bounds raised by half their horizontal diagonal: what is
-/// missing may be taller than anything the cameras saw.
+/// The scene's core bounds (its centres between the 0.5% and 99.5% quantiles
+/// on each axis, floaters left out) raised by half their horizontal diagonal:
+/// what is missing may be taller than anything the cameras saw.
 fn default_region(b: &Bounds) -> Bounds {
     let (lo, hi) = (Vec3::from_array(b.min), Vec3::from_array(b.max));
     let diagonal = (hi - lo).truncate().length();

@@ -210,6 +210,26 @@ impl Scene {
         Some(b)
     }
 
+    /// Bounds of the centres between the `tail` and 1 − `tail` quantiles on
+    /// each axis (`tail` in [0, 0.5)): the place a trained scene covers, without
+    /// the few floaters far out that stretch [`Scene::bounds`]; `None` when empty.
+    pub fn core_bounds(&self, tail: f32) -> Option<Bounds> {
+        if self.means.is_empty() || !(0.0..0.5).contains(&tail) {
+            return None;
+        }
+        let n = self.means.len();
+        let (lo_i, hi_i) = (((n - 1) as f32 * tail) as usize, ((n - 1) as f32 * (1.0 - tail)).ceil() as usize);
+        let mut b = Bounds { min: [0.0; 3], max: [0.0; 3] };
+        let mut axis: Vec<f32> = Vec::with_capacity(n);
+        for a in 0..3 {
+            axis.clear();
+            axis.extend(self.means.iter().map(|p| p[a]));
+            b.min[a] = *axis.select_nth_unstable_by(lo_i, f32::total_cmp).1;
+            b.max[a] = *axis.select_nth_unstable_by(hi_i.min(n - 1), f32::total_cmp).1;
+        }
+        Some(b)
+    }
+
     /// The scene without the Gaussians whose centres lie in `b` grown by `margin` on every side.
     pub fn without_box(&self, b: &demo::Aabb, margin: f32) -> Scene {
         let keep: Vec<bool> = self
