@@ -10,18 +10,28 @@
 //! while Gaussians move. Their visibility V_added multiplies (independent
 //! occluders): V = V_scene·V_added. Each step takes the visibility loss
 //! BCE(V_added, V') over the receivers the scene leaves lit and the target
-//! knows, in every view, back through the sigmoid test and the added map's
-//! splat to the added Gaussians (the map gradients of the views add up before
-//! one splat backward), and moves them with Adam.
+//! knows, in every view, plus a coverage loss on the map's α (the
+//! median-depth map the result is rendered with shadows only under α ≥ 0.5,
+//! see [`CompletionSettings::coverage_weight`]), back through the sigmoid
+//! test and the added map's splat (the map gradients of the views add up
+//! before one splat backward), and moves the Gaussians with Adam. Receivers
+//! facing away from the sun do not count: no occluder changes them.
 //!
 //! Gaussians are spawned along the sun rays of the pixels whose shadow is
-//! missing (the target says shadow, V says lit), between the receiver and
-//! where the ray leaves the region, at points no camera sees. Every
-//! [`CompletionSettings::refresh_every`] steps, until two thirds of the run,
-//! those whose opacity the loss drove below [`CompletionSettings::prune_opacity`]
-//! are pruned and new ones spawned along the rays still missing their shadow,
-//! up to the count allowed; at the end those that splat nothing (peak α
-//! below 1/255) are dropped. The input Gaussians are never changed.
+//! missing (the target says shadow, V says lit, in most of the pixel's 3×3
+//! neighbourhood), between the receiver and where the ray leaves the region,
+//! at points no camera sees, and each one's 3σ extent is kept out of every
+//! view. Every [`CompletionSettings::refresh_every`] steps, until two thirds
+//! of the run, those whose opacity the loss drove below
+//! [`CompletionSettings::prune_opacity`] are pruned and new ones spawned
+//! along the rays still missing their shadow, up to the count allowed; at the
+//! end those that splat nothing (peak α below 1/255) are dropped.
+//!
+//! The input's Gaussians keep their geometry except those
+//! [`CompletionSettings::movable`] selects, which join the added ones; L_Vf
+//! ([`CompletionSettings::fixed_steps`]) changes only their fixed-visibility
+//! logits, and L_Ve ([`CompletionSettings::editable_from_fixed`]) makes the
+//! added Gaussians fit the fixed visibility instead of the targets.
 //!
 //! Targets are visibilities: 1 lit, 0 shadowed, soft values in between
 //! (a detector's probability), negative where unknown (ignored).
