@@ -70,6 +70,17 @@ fn block_problem() -> BlockProblem {
     BlockProblem { city: b.city, without: b.without, removed: b.removed, sun, cameras: b.cameras }
 }
 
+/// Views 0, 2 and 3 with the ray-cast truth as their masks (view 1 is held out).
+fn clean_views(p: &BlockProblem) -> Vec<ShadowView> {
+    [0, 2, 3]
+        .iter()
+        .map(|i| ShadowView {
+            camera: p.cameras[*i].clone(),
+            target: p.city.shadow_target(&p.cameras[*i], p.sun.direction),
+        })
+        .collect()
+}
+
 /// Flips `fraction` of the pixels and erodes the shadow by `erode` pixels (lit where a shadowed
 /// pixel has a lit pixel within that many rows or columns).
 fn noisy(target: &[f32], width: usize, fraction: f64, erode: usize, seed: u64) -> Vec<f32> {
@@ -266,13 +277,7 @@ fn fixed_visibility_fits_the_masks_and_guides_the_added_gaussians() {
     let n = scene.len();
     scene.materials.albedo = Some(vec![[0.5; 3]; n]);
     scene.materials.visibility = Some(vec![2.0; n]);
-    let views: Vec<ShadowView> = [0, 2, 3]
-        .iter()
-        .map(|i| ShadowView {
-            camera: p.cameras[*i].clone(),
-            target: p.city.shadow_target(&p.cameras[*i], p.sun.direction),
-        })
-        .collect();
+    let views = clean_views(&p);
     let b = scene.bounds().unwrap();
     let region = Bounds { min: b.min, max: [b.max[0], b.max[1], b.max[2] + 30.0] };
     let problem = CompletionProblem { scene: &scene, region: &region, views: &views, cameras: &p.cameras, sun: &p.sun };
@@ -326,13 +331,7 @@ fn movable_gaussians_of_the_scene_move_to_their_shadow() {
     for i in &building {
         scene.means[*i][0] += shift.x;
     }
-    let views: Vec<ShadowView> = [0, 2, 3]
-        .iter()
-        .map(|i| ShadowView {
-            camera: p.cameras[*i].clone(),
-            target: p.city.shadow_target(&p.cameras[*i], p.sun.direction),
-        })
-        .collect();
+    let views = clean_views(&p);
     let sb = scene.bounds().unwrap();
     let region = Bounds { min: sb.min, max: [sb.max[0], sb.max[1], sb.max[2] + 10.0] };
     let (lo, hi) = (b.min + shift - 2.0, b.max + shift + 2.0);

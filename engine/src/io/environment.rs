@@ -195,15 +195,7 @@ impl EnvironmentMap {
 pub(crate) fn read_exr(bytes: &[u8], origin: &str) -> Result<EnvironmentMap> {
     use exr::prelude::*;
     let not_exr = |e: exr::error::Error| env_error(origin, format!("not a readable OpenEXR RGB image: {e}"));
-    let meta = exr::meta::MetaData::read_from_buffered(std::io::Cursor::new(bytes), false).map_err(not_exr)?;
-    let limits = super::limits();
-    for header in &meta.headers {
-        let size = header.layer_size;
-        limits
-            .image_bytes(size.width() as u64, size.height() as u64, 1, 12)
-            .map_err(|e| env_error(origin, format!("its data window {e}")))?;
-    }
-    check_dwa_chunks(bytes, origin)?;
+    check_exr(bytes, origin, |_| 12)?;
     let image = read()
         .no_deep_data()
         .largest_resolution_level()
@@ -228,21 +220,28 @@ pub(crate) fn read_exr(bytes: &[u8], origin: &str) -> Result<EnvironmentMap> {
     EnvironmentMap::from_rgb(size.width() as u32, size.height() as u32, data, origin)
 }
 
-/// Reads one channel of an OpenEXR image (width, height, row-major values):
-/// `Y`, else `R`, else the first; the same limits and checks as [`read_exr`].
-/// For single-channel images such as masks.
-pub(crate) fn read_exr_channel(bytes: &[u8], origin: &str) -> Result<(u32, u32, Vec<f32>)> {
-    use exr::prelude::*;
+/// Checks an OpenEXR's data windows against the limits (`bytes_per_pixel`
+/// decoded for each layer) and its DWA chunks, before any pixel is decoded.
+fn check_exr(bytes: &[u8], origin: &str, bytes_per_pixel: impl Fn(&exr::meta::header::Header) -> u64) -> Result<()> {
     let not_exr = |e: exr::error::Error| env_error(origin, format!("not a readable OpenEXR image: {e}"));
     let meta = exr::meta::MetaData::read_from_buffered(std::io::Cursor::new(bytes), false).map_err(not_exr)?;
     let limits = super::limits();
     for header in &meta.headers {
         let size = header.layer_size;
         limits
-            .image_bytes(size.width() as u64, size.height() as u64, header.channels.list.len() as u64, 4)
+            .image_bytes(size.width() as u64, size.height() as u64, 1, bytes_per_pixel(header))
             .map_err(|e| env_error(origin, format!("its data window {e}")))?;
     }
-    check_dwa_chunks(bytes, origin)?;
+    check_dwa_chunks(bytes, origin)
+}
+
+/// Reads one channel of an OpenEXR image (width, height, row-major values):
+/// `Y`, else `R`, else the first; the same limits and checks as [`read_exr`].
+/// For single-channel images such as masks.
+pub(crate) fn read_exr_channel(bytes: &[u8], origin: &str) -> Result<(u32, u32, Vec<f32>)> {
+    use exr::prelude::*;
+    let not_exr = |e: exr::error::Error| env_error(origin, format!("not a readable OpenEXR image: {e}"));
+    check_exr(bytes, origin, |h| 4 * h.channels.list.len() as u64)?;
     let image = read()
         .no_deep_data()
         .largest_resolution_level()
