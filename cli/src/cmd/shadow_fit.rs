@@ -247,7 +247,7 @@ impl ShadowFitArgs {
                     path.display()
                 );
             }
-            views.push(ShadowView { camera: camera.clone(), target: image.target(camera, ignore.as_ref(), options) });
+            views.push(ShadowView { camera: camera.clone(), target: image.target(camera, ignore.as_ref(), options)? });
         }
         for f in &unmatched {
             eprintln!("warning: mask {} matches no camera (names: {})", f.display(), camera_names(&cameras));

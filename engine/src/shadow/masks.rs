@@ -39,10 +39,16 @@ pub struct MaskOptions {
     pub invert: bool,
 }
 
-/// Reads a mask: PNG or JPEG (8 or 16 bit, grey or colour, with or without
+/// Reads a mask (checked with [`MaskImage::validate`]): PNG or JPEG (8 or 16 bit, grey or colour, with or without
 /// alpha: the mean of the colour channels), EXR (its Y channel, else R, else
 /// the first; NaN unknown) or Radiance HDR (mean of RGB); floats clamped to [0, 1].
 pub fn read_mask(path: &Path) -> Result<MaskImage> {
+    let mask = read_mask_unchecked(path)?;
+    mask.validate(&path.display().to_string())?;
+    Ok(mask)
+}
+
+fn read_mask_unchecked(path: &Path) -> Result<MaskImage> {
     let origin = path.display().to_string();
     let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
     match ext.as_deref() {
@@ -82,8 +88,28 @@ pub fn read_mask(path: &Path) -> Result<MaskImage> {
 }
 
 impl MaskImage {
+    /// Checks that the mask has pixels and one value and one known flag per
+    /// pixel; `origin` names it in the error.
+    pub fn validate(&self, origin: &str) -> Result<()> {
+        let pixels = self.width as usize * self.height as usize;
+        if pixels == 0 || self.value.len() != pixels || self.known.len() != pixels {
+            return Err(Error::invalid(
+                format!(
+                    "mask {origin} ({}x{}, {} values, {} flags)",
+                    self.width,
+                    self.height,
+                    self.value.len(),
+                    self.known.len()
+                ),
+                "needs at least one pixel and one value and flag per pixel",
+            ));
+        }
+        Ok(())
+    }
+
     /// Resampled to `width`×`height` (bilinear, unknown where any of the four
-    /// source pixels is); itself when the size matches.
+    /// source pixels is); itself when the size matches. Needs a valid mask
+    /// ([`MaskImage::validate`]).
     pub fn resampled(&self, width: u32, height: u32) -> MaskImage {
         if (width, height) == (self.width, self.height) {
             return self.clone();
@@ -111,10 +137,14 @@ impl MaskImage {
 
     /// The target sun visibility for `camera`: 1 − shadow value (the value
     /// itself with `invert`), −1 where unknown here or white in `ignore`.
-    pub fn target(&self, camera: &Camera, ignore: Option<&MaskImage>, options: MaskOptions) -> Vec<f32> {
+    pub fn target(&self, camera: &Camera, ignore: Option<&MaskImage>, options: MaskOptions) -> Result<Vec<f32>> {
+        self.validate(&format!("of camera \"{}\"", camera.name))?;
+        if let Some(i) = ignore {
+            i.validate(&format!("ignoring pixels of camera \"{}\"", camera.name))?;
+        }
         let mask = self.resampled(camera.width, camera.height);
         let ignore = ignore.map(|i| i.resampled(camera.width, camera.height));
-        (0..mask.value.len())
+        Ok((0..mask.value.len())
             .map(|p| {
                 let ignored = ignore.as_ref().is_some_and(|i| !i.known[p] || i.value[p] >= 0.5);
                 if !mask.known[p] || ignored {
@@ -125,7 +155,7 @@ impl MaskImage {
                     1.0 - mask.value[p]
                 }
             })
-            .collect()
+            .collect())
     }
 
     /// Whether every known pixel says the same (all shadow or all lit at 0.5).
@@ -201,12 +231,20 @@ mod tests {
             known: vec![true, true, true, false, true, true, true, true],
         };
         let c = camera("a", 4, 2);
-        assert_eq!(m.target(&c, None, MaskOptions::default()), [0.0, 1.0, 0.75, -1.0, 1.0, 0.0, 1.0, 0.0]);
-        assert_eq!(m.target(&c, None, MaskOptions { invert: true }), [1.0, 0.0, 0.25, -1.0, 0.0, 1.0, 0.0, 1.0]);
+        assert_eq!(m.target(&c, None, MaskOptions::default()).unwrap(), [0.0, 1.0, 0.75, -1.0, 1.0, 0.0, 1.0, 0.0]);
+        assert_eq!(
+            m.target(&c, None, MaskOptions { invert: true }).unwrap(),
+            [1.0, 0.0, 0.25, -1.0, 0.0, 1.0, 0.0, 1.0]
+        );
         let mut ignore = m.clone();
         ignore.known = vec![true; 8];
         ignore.value = vec![0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0];
-        assert_eq!(m.target(&c, Some(&ignore), MaskOptions::default())[4], -1.0);
+        assert_eq!(m.target(&c, Some(&ignore), MaskOptions::default()).unwrap()[4], -1.0);
+        // Inconsistent sizes are an error, not a panic.
+        let broken = MaskImage { width: 4, height: 2, value: vec![0.0; 3], known: vec![true; 8] };
+        assert!(broken.target(&c, None, MaskOptions::default()).is_err());
+        let empty = MaskImage { width: 0, height: 0, value: vec![], known: vec![] };
+        assert!(m.target(&c, Some(&empty), MaskOptions::default()).is_err());
         // Half the size: each output pixel is the mean of a 2×2 block (centres line up);
         // the block holding the transparent pixel is unknown.
         let half = m.resampled(2, 1);
