@@ -677,7 +677,7 @@ impl Device {
     /// receiver. The returned object holds V and runs the backward pass.
     #[pyo3(signature = (scene, camera, sun, resolution = 2048, k = 50.0, bias = 0.3, map_depth = None,
                         receiver_depth = None, sun_intensity = std::f32::consts::PI, slope_bias = 3.0,
-                        normal_offset = 0.0, fit = "scene"))]
+                        normal_offset = 0.0, fit = "scene", tile = 16))]
     #[allow(clippy::too_many_arguments, reason = "the Python keyword arguments of one call")]
     fn shadow(
         &self,
@@ -694,6 +694,7 @@ impl Device {
         slope_bias: f32,
         normal_offset: f32,
         fit: &str,
+        tile: u32,
     ) -> PyResult<ShadowTest> {
         let [camera] = camera.cameras.as_slice() else {
             return Err(invalid(format!("{} cameras", camera.cameras.len()), "the shadow test takes one camera"));
@@ -712,6 +713,7 @@ impl Device {
         settings.slope_bias = slope_bias;
         settings.normal_offset = normal_offset;
         settings.fit = srug::shadow::ShadowFit::parse(fit).map_err(py_err)?;
+        settings.tile = tile;
         if let Some(m) = map_depth {
             settings.map_depth = srug::shadow::DepthMode::parse(m).map_err(py_err)?;
         }
@@ -726,7 +728,8 @@ impl Device {
             .detach(|| -> srug::Result<ShadowState> {
                 let mut splatter = Splatter::new(&device)?;
                 let pass = ShadowPass::new(&device)?;
-                let receivers = splatter.render_frame(&gpu_scene, camera, &settings.receiver_splat())?;
+                let receivers =
+                    splatter.render_frame(&gpu_scene, camera, &SplatSettings { tile, ..settings.receiver_splat() })?;
                 let map = pass
                     .shadow_map(&mut splatter, &gpu_scene, &bounds, &sun, &settings, Some(camera))?
                     .ok_or_else(|| srug::Error::invalid("sun", "is below the horizon"))?;

@@ -501,6 +501,7 @@ class Device:
         slope_bias: float = 3.0,
         normal_offset: float = 0.0,
         fit: str = "scene",
+        tile: int = 16,
     ) -> "ShadowTest":
         """The differentiable sun shadow test for one camera (the paper's editable visibility):
         ``.visibility`` is V = sigmoid(k·(z_s − z + bias)) per pixel, (H, W) float32 (1 where no
@@ -512,8 +513,10 @@ class Device:
         times tan θ (θ: receiver normal to sun) to ``bias``; ``normal_offset`` moves each
         receiver that many texels times sin θ along its normal; the defaults (2048 texels, k 50,
         bias 0.3 m, slope bias 3, no normal offset, median depths) are the balanced preset's, as
-        ``srug::shadow::ShadowSettings::default()``; the backward holds the normals they read fixed. ``fit``: "scene" or "view" (the map
-        covers the camera's view within the scene's bounds)."""
+        ``srug::shadow::ShadowSettings::default()``; the backward holds the normals they read
+        fixed. ``fit``: "scene" or "view" (the map covers the camera's view within the scene's
+        bounds). ``tile``: the splat tile of the map and the receivers, 16 or 8 (8 makes the
+        backward faster where splats crowd tiles; V is the same)."""
         if len(camera) != 1:
             raise _invalid(f"the shadow test takes one camera, not {len(camera)} (index the Cameras)")
         az, el = (float(v) for v in sun)
@@ -530,6 +533,7 @@ class Device:
                 slope_bias=float(slope_bias),
                 normal_offset=float(normal_offset),
                 fit=str(fit),
+                tile=int(tile),
             )
         )
 

@@ -73,6 +73,7 @@ class Device:
         slope_bias: float = ...,
         normal_offset: float = ...,
         fit: str = ...,
+        tile: int = ...,
     ) -> ShadowTest: ...
 
 class ShadowTest:

@@ -84,11 +84,13 @@ def shadow_visibility(
     parameterisation. The shadow map and the receivers are both these Gaussians: gradients
     reach occluders and receivers alike. ``sh`` (N, K, 3) only sets the scene's colour, which
     V does not depend on (default: grey). ``shadow_options`` are :meth:`srug.Device.shadow`'s
-    (resolution, k, bias, map_depth, receiver_depth, slope_bias, normal_offset, fit); for
+    (resolution, k, bias, map_depth, receiver_depth, slope_bias, normal_offset, fit, tile); for
     gradients that reach opacities and shapes use ``map_depth="expected"`` and
-    ``receiver_depth="expected"``."""
+    ``receiver_depth="expected"``. ``tile`` defaults to 8 here, not 16: a training step runs the
+    backward, which is about twice as fast at 8-pixel tiles (docs/python.md)."""
     n = means.shape[0]
     if sh is None:
         sh = np.zeros((n, 1, 3), np.float32)
     options = dict(shadow_options, sun=(float(sun[0]), float(sun[1])))
+    options.setdefault("tile", 8)
     return ShadowFunction.apply(means, log_scales, rotations, opacity_logits, device, sh, camera, options)
