@@ -376,36 +376,67 @@ impl CameraArgs {
     }
 }
 
-/// Where the sun is.
+/// Where the sun is at one moment: by angles, or by a time and a place.
 #[derive(clap::Args, Clone, Debug)]
-pub struct SunArgs {
+pub struct SunPlaceArgs {
     /// Sun azimuth, degrees from north toward east.
     #[arg(long, default_value_t = 260.0, allow_negative_numbers = true)]
     pub sun_azimuth: f32,
     /// Sun elevation, degrees (at or below 0: no sun light, no shadow pass).
     #[arg(long, default_value_t = 50.0, allow_negative_numbers = true)]
     pub sun_elevation: f32,
+    /// Sun from a time instead (ISO 8601 with a zone, e.g. 2024-06-21T14:30+02:00); needs --latitude, --longitude.
+    #[arg(long, value_parser = UtcTime::parse, conflicts_with_all = ["sun_azimuth", "sun_elevation"])]
+    pub sun_time: Option<UtcTime>,
+    /// Latitude in degrees (north positive), for a sun from a time.
+    #[arg(long, allow_negative_numbers = true)]
+    pub latitude: Option<f64>,
+    /// Longitude in degrees (east positive), for a sun from a time.
+    #[arg(long, allow_negative_numbers = true)]
+    pub longitude: Option<f64>,
+}
+
+impl SunPlaceArgs {
+    /// Latitude and longitude, both given.
+    fn place(&self) -> Result<(f64, f64)> {
+        match (self.latitude, self.longitude) {
+            (Some(a), Some(o)) => Ok((a, o)),
+            _ => Err(Error::invalid("--sun-time and --sun-path", "need --latitude and --longitude")),
+        }
+    }
+
+    /// The sun with a label.
+    pub fn resolve(&self, intensity: f32) -> Result<(String, Sun)> {
+        let intensity = [intensity; 3];
+        if let Some(t) = self.sun_time {
+            let (lat, lon) = self.place()?;
+            let p = srug::shadow::solar_position(&t, lat, lon)?;
+            let sun = Sun::from_azimuth_elevation(p.azimuth as f32, p.elevation as f32, intensity)?;
+            return Ok((format!("{} (sun {:.1}°, {:.1}°)", format_time(&t), p.azimuth, p.elevation), sun));
+        }
+        let sun = Sun::from_azimuth_elevation(self.sun_azimuth, self.sun_elevation, intensity)?;
+        Ok((format!("sun {:.1}°, {:.1}°", self.sun_azimuth, self.sun_elevation), sun))
+    }
+}
+
+/// Where the sun is, or its path.
+#[derive(clap::Args, Clone, Debug)]
+pub struct SunArgs {
+    /// The sun at one moment.
+    #[command(flatten)]
+    pub at: SunPlaceArgs,
     /// Place the sun on the environment map's brightest point (its own sun), with --env FILE.
     #[arg(long, conflicts_with_all = ["sun_azimuth", "sun_elevation", "sun_time", "sun_path"])]
     pub sun_from_env: bool,
     /// Sun irradiance S_i (π: a white Lambertian surface facing the sun has radiance 1).
     #[arg(long, default_value_t = std::f32::consts::PI)]
     pub sun_intensity: f32,
-    /// Sun from a time instead (ISO 8601 with a zone, e.g. 2024-06-21T14:30+02:00); needs --latitude, --longitude.
-    #[arg(long, value_parser = UtcTime::parse, conflicts_with_all = ["sun_azimuth", "sun_elevation", "sun_path"])]
-    pub sun_time: Option<UtcTime>,
     /// Time-lapse: START..END (ISO 8601 times) rendered as --frames frames; needs --latitude, --longitude.
-    #[arg(long, conflicts_with_all = ["sun_azimuth", "sun_elevation"])]
+    #[arg(long, conflicts_with_all = ["sun_azimuth", "sun_elevation", "sun_time"])]
     pub sun_path: Option<TimeSpan>,
     /// Frames of the time-lapse.
     #[arg(long, default_value_t = 12)]
     pub frames: u32,
-    /// Latitude in degrees (north positive), for --sun-time and --sun-path.
-    #[arg(long, allow_negative_numbers = true)]
-    pub latitude: Option<f64>,
-    /// Longitude in degrees (east positive), for --sun-time and --sun-path.
-    #[arg(long, allow_negative_numbers = true)]
-    pub longitude: Option<f64>,
 }
 
 fn format_time(t: &UtcTime) -> String {
@@ -419,13 +450,9 @@ impl SunArgs {
         if self.sun_from_env {
             return Err(Error::invalid("--sun-from-env", "applies to `srug relight --env FILE` only"));
         }
-        let intensity = [self.sun_intensity; 3];
-        let place = || match (self.latitude, self.longitude) {
-            (Some(a), Some(o)) => Ok((a, o)),
-            _ => Err(Error::invalid("--sun-time and --sun-path", "need --latitude and --longitude")),
-        };
         if let Some(span) = &self.sun_path {
-            let (lat, lon) = place()?;
+            let (lat, lon) = self.at.place()?;
+            let intensity = [self.sun_intensity; 3];
             let frames = sun_path(&span.start, &span.end, self.frames, lat, lon)?;
             return frames
                 .iter()
@@ -435,14 +462,7 @@ impl SunArgs {
                 })
                 .collect();
         }
-        if let Some(t) = self.sun_time {
-            let (lat, lon) = place()?;
-            let p = srug::shadow::solar_position(&t, lat, lon)?;
-            let sun = Sun::from_azimuth_elevation(p.azimuth as f32, p.elevation as f32, intensity)?;
-            return Ok(vec![(format!("{} (sun {:.1}°, {:.1}°)", format_time(&t), p.azimuth, p.elevation), sun)]);
-        }
-        let sun = Sun::from_azimuth_elevation(self.sun_azimuth, self.sun_elevation, intensity)?;
-        Ok(vec![(format!("sun {:.1}°, {:.1}°", self.sun_azimuth, self.sun_elevation), sun)])
+        Ok(vec![self.at.resolve(self.sun_intensity)?])
     }
 }
 

@@ -17,7 +17,7 @@ use srug::shadow::completion::{
 use srug::shadow::masks::{find_masks, mask_stem, read_mask, MaskOptions};
 use srug::{Error, Result};
 
-use crate::args::{print_line, progress_bar, BoxArg, DeviceArgs, Size, SunArgs};
+use crate::args::{print_line, progress_bar, BoxArg, DeviceArgs, Size, SunPlaceArgs};
 
 /// Arguments of `srug shadow-fit`.
 #[derive(clap::Args, Clone, Debug)]
@@ -64,9 +64,9 @@ pub(super) struct ShadowFitArgs {
     /// a scene's cameras their own size.
     #[arg(long)]
     size: Option<Size>,
-    /// Where the sun is (one sun).
+    /// Where the sun is.
     #[command(flatten)]
-    sun: SunArgs,
+    sun: SunPlaceArgs,
     /// Adam steps of the added Gaussians.
     #[arg(long, default_value_t = 60)]
     steps: u32,
@@ -180,14 +180,7 @@ impl ShadowFitArgs {
 
     /// The one sun, above the horizon.
     fn sun(&self) -> Result<srug::shadow::Sun> {
-        let mut suns = self.sun.resolve()?;
-        if suns.len() != 1 {
-            return Err(Error::invalid(
-                "--sun-path",
-                "shadow-fit takes one sun (--sun-azimuth/--sun-elevation or --sun-time)",
-            ));
-        }
-        let (label, sun) = suns.remove(0);
+        let (label, sun) = self.sun.resolve(std::f32::consts::PI)?;
         if !sun.above_horizon() {
             return Err(Error::invalid(
                 format!("sun {label}"),
