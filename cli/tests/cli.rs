@@ -379,9 +379,15 @@ fn bench_shadow_prints_its_tables() {
     ]);
     let t = text(&o);
     assert!(o.status.success(), "{t}");
-    for want in
-        ["| Gaussians | map | map pairs", "| map | depth | k | IoU", "| 128 | Median | 5 |", "| 64 | Expected | 5 |"]
-    {
+    for want in [
+        "| Gaussians | map | map pairs",
+        "| map | depth | k | IoU",
+        "| 128 | Median | 5 |",
+        "| 64 | Expected | 5 |",
+        "| splats | preset | IoU | false shadow",
+        "| Ideal | balanced |",
+        "| Rough | fast |",
+    ] {
         assert!(t.contains(want), "missing {want:?} in:\n{t}");
     }
 }

@@ -10,16 +10,19 @@
 
 #![allow(clippy::unwrap_used, clippy::expect_used, reason = "a failed unwrap is a failed test")]
 
+use srug::frame::block_accuracy::block_shadow_accuracy;
 use srug::frame::{Preset, RelightSettings};
 use srug::gpu::Device;
 use srug::scene::activate::GpuScene;
 use srug::scene::blocks::{block_city, BlockCity, BlockOptions, BlockSplats};
 use srug::shadow::accuracy::{shadow_accuracy, ShadowAccuracy};
-use srug::shadow::{ShadowFit, ShadowPass, Sun};
-use srug::splat::{SplatSettings, Splatter};
+use srug::shadow::{ShadowFit, ShadowPass};
+use srug::splat::Splatter;
 use srug_tests::{assert_no_validation_messages, device, save_comparison, NAN_SENTINEL};
 
-/// The accuracy of one preset over every sun and camera of the block.
+/// The accuracy of one preset over every sun and camera of the block (outputs pre-filled with a
+/// NaN sentinel, every V checked written and in range, each view's truth checked to hold some
+/// shadow and some light).
 fn measure(
     d: &Device,
     splatter: &mut Splatter,
@@ -29,58 +32,35 @@ fn measure(
     settings: &RelightSettings,
     label: &str,
 ) -> ShadowAccuracy {
-    let mut st = settings.shadow;
-    st.prefill = Some(NAN_SENTINEL);
-    let bounds = city.scene.bounds().unwrap();
-    let mut total = ShadowAccuracy::default();
-    for sun in &city.suns {
-        let light = Sun::from_direction(sun.direction, [1.0; 3]).unwrap();
-        // One map per sun, or per camera where it is fitted to the view.
-        let scene_map = (st.fit == ShadowFit::SceneBounds)
-            .then(|| pass.shadow_map(splatter, scene, &bounds, &light, &st, None).unwrap().expect("the sun is up"));
-        let mut per_sun = ShadowAccuracy::default();
-        for camera in &city.cameras {
-            let camera = settings.render_camera(camera);
-            let view_map;
-            let map = match &scene_map {
-                Some(m) => m,
-                None => {
-                    view_map = pass.shadow_map(splatter, scene, &bounds, &light, &st, Some(&camera)).unwrap().unwrap();
-                    &view_map
-                }
-            };
-            let splat = SplatSettings { prefill: Some(NAN_SENTINEL), tile: settings.tile, ..st.receiver_splat() };
-            let (g, _) = splatter.render(scene, &camera, &splat).unwrap();
-            let (v, _) = pass.visibility(map, &g, &camera, &st, settings.visibility_kind).unwrap();
-            let v: Vec<f32> = d.read_buffer(&v).unwrap();
-            assert!(v.iter().all(|x| x.is_finite() && (0.0..=1.0).contains(x)), "{label}: V unwritten or out of range");
-            let truth = city.true_visibility(&camera, sun.direction);
-            let known = truth.iter().flatten().count();
-            let shadowed = truth.iter().flatten().filter(|lit| !**lit).count();
-            assert!(
-                shadowed * 50 > known && shadowed * 50 < known * 49,
-                "{}: {shadowed} of {known} truly shadowed",
-                camera.name
-            );
-            let mut acc = shadow_accuracy(&v, &truth, camera.width as usize, camera.height as usize);
-            // Edge error in pixels of the full-size image.
-            acc.edge_distance_sum *= f64::from(city.cameras[0].width) / f64::from(camera.width);
-            if std::env::var_os("SRUG_SAVE_SHADOW_ACCURACY").is_some() {
-                let t: Vec<f32> = truth.iter().map(|t| t.map_or(0.5, |lit| if lit { 1.0 } else { 0.0 })).collect();
-                let name = format!("accuracy_{label}_{}_{}", sun.name, camera.name);
-                save_comparison(&name, camera.width, camera.height, 1, &v, &t);
-            }
-            per_sun.add(&acc);
-        }
-        eprintln!(
-            "{label:>22} sun {:>9}: IoU {:.3}, false shadow {:.2}%, light leak {:.2}%, edge error {:.2} px",
-            sun.name,
-            per_sun.iou(),
-            100.0 * per_sun.false_shadow_rate(),
-            100.0 * per_sun.light_leak_rate(),
-            per_sun.edge_error()
+    let save = std::env::var_os("SRUG_SAVE_SHADOW_ACCURACY").is_some();
+    let per_sun = block_shadow_accuracy(d, splatter, pass, city, scene, settings, Some(NAN_SENTINEL), &mut |view| {
+        let v = view.visibility;
+        assert!(v.iter().all(|x| x.is_finite() && (0.0..=1.0).contains(x)), "{label}: V unwritten or out of range");
+        let known = view.truth.iter().flatten().count();
+        let shadowed = view.truth.iter().flatten().filter(|lit| !**lit).count();
+        assert!(
+            shadowed * 50 > known && shadowed * 50 < known * 49,
+            "{}: {shadowed} of {known} truly shadowed",
+            view.camera.name
         );
-        total.add(&per_sun);
+        if save {
+            let t: Vec<f32> = view.truth.iter().map(|t| t.map_or(0.5, |lit| if lit { 1.0 } else { 0.0 })).collect();
+            let name = format!("accuracy_{label}_{}_{}", view.sun.name, view.camera.name);
+            save_comparison(&name, view.camera.width, view.camera.height, 1, v, &t);
+        }
+        Ok(())
+    })
+    .unwrap();
+    let mut total = ShadowAccuracy::default();
+    for (name, acc) in &per_sun {
+        eprintln!(
+            "{label:>22} sun {name:>9}: IoU {:.3}, false shadow {:.2}%, light leak {:.2}%, edge error {:.2} px",
+            acc.iou(),
+            100.0 * acc.false_shadow_rate(),
+            100.0 * acc.light_leak_rate(),
+            acc.edge_error()
+        );
+        total.add(acc);
     }
     eprintln!(
         "{label:>22}      all: IoU {:.3}, false shadow {:.2}%, light leak {:.2}%, edge error {:.2} px",

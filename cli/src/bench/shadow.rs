@@ -1,12 +1,17 @@
-//! `srug bench shadow`: the sigmoid shadow pass against the traced pass, and
-//! the shadow map's accuracy (IoU and mean |V_e − V_t| against the traced
-//! visibility) across resolution, k and depth mode. GPU timestamps only.
+//! `srug bench shadow`: the sigmoid shadow pass against the traced pass, the
+//! shadow map's accuracy (IoU and mean |V_e − V_t| against the traced
+//! visibility) across resolution, k and depth mode, and each preset's
+//! accuracy against the analytic block's ray-cast truth. GPU timestamps only.
 
 use srug::error::Result;
+use srug::frame::block_accuracy::block_shadow_accuracy;
+use srug::frame::{Preset, RelightSettings};
 use srug::gpu::Device;
 use srug::scene::activate::GpuScene;
+use srug::scene::blocks::{block_city, BlockOptions, BlockSplats};
 use srug::scene::demo::{demo_city, DemoOptions};
 use srug::scene::Bounds;
+use srug::shadow::accuracy::ShadowAccuracy;
 use srug::shadow::completion::shadow_iou;
 use srug::shadow::{DepthMode, ShadowPass, ShadowSettings, Sun, VisibilityKind};
 use srug::splat::{Channels, SplatSettings, Splatter};
@@ -189,6 +194,39 @@ pub fn shadow_accuracy(
                     map_seconds,
                 });
             }
+        }
+    }
+    Ok(rows)
+}
+
+/// One sampling and preset on the analytic block.
+#[derive(Clone, Debug)]
+pub struct BlockAccuracyRow {
+    /// How the block's surfaces are sampled.
+    pub splats: BlockSplats,
+    /// The preset.
+    pub preset: Preset,
+    /// Over every sun and camera.
+    pub accuracy: ShadowAccuracy,
+}
+
+/// Every preset's shadows against the analytic block's ray-cast truth (three
+/// suns, three street cameras), with ideal and rough splats.
+pub fn block_accuracy(device: &Device, mut progress: impl FnMut(&str)) -> Result<Vec<BlockAccuracyRow>> {
+    let mut splatter = Splatter::new(device)?;
+    let pass = ShadowPass::new(device)?;
+    let mut rows = Vec::new();
+    for splats in [BlockSplats::Ideal, BlockSplats::Rough] {
+        progress(&format!("analytic block, {splats:?} splats"));
+        let city = block_city(&BlockOptions { splats, ..BlockOptions::default() })?;
+        let scene = GpuScene::upload(device, &city.scene)?;
+        for preset in Preset::ALL {
+            let settings = RelightSettings::preset(preset);
+            let per_sun =
+                block_shadow_accuracy(device, &mut splatter, &pass, &city, &scene, &settings, None, &mut |_| Ok(()))?;
+            let mut accuracy = ShadowAccuracy::default();
+            per_sun.iter().for_each(|(_, a)| accuracy.add(a));
+            rows.push(BlockAccuracyRow { splats, preset, accuracy });
         }
     }
     Ok(rows)

@@ -7,6 +7,7 @@
 //! those same decisions before anything runs, so the plan and the renderer
 //! cannot disagree. Stages never import this module.
 
+pub mod block_accuracy;
 mod decisions;
 pub mod plan;
 mod relight;

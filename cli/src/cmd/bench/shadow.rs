@@ -5,7 +5,7 @@ use srug::shadow::ShadowSettings;
 use srug::Result;
 
 use crate::args::{spinner, DeviceArgs, Size};
-use crate::bench::shadow::{shadow_accuracy, shadow_speed, ShadowBenchSetup};
+use crate::bench::shadow::{block_accuracy, shadow_accuracy, shadow_speed, ShadowBenchSetup};
 
 /// Arguments of `srug bench shadow`.
 #[derive(clap::Args, Clone, Debug)]
@@ -47,6 +47,7 @@ impl ShadowBenchArgs {
         let speed = shadow_speed(&device, counts, default_resolution, &setup, |m| bar.set_message(m.to_string()))?;
         let accuracy =
             shadow_accuracy(&device, accuracy_gaussians, resolutions, ks, &setup, |m| bar.set_message(m.to_string()))?;
+        let block = block_accuracy(&device, |m| bar.set_message(m.to_string()))?;
         bar.finish_and_clear();
         println!("| Gaussians | map | map pairs | map splat ms (once per sun) | sigmoid test ms | traced ms | traced / sigmoid |");
         println!("|---:|---:|---:|---:|---:|---:|---:|");
@@ -79,6 +80,24 @@ impl ShadowBenchArgs {
                 r.mean_abs_diff,
                 r.sigmoid_seconds * 1e3,
                 r.map_seconds * 1e3
+            );
+        }
+        println!(
+            "\nagainst the ray-cast truth of the analytic block (3 suns, 3 street cameras at 704x192, each preset as \
+             `srug relight` runs it; edge error in full-size pixels):\n"
+        );
+        println!("| splats | preset | IoU | false shadow | light leak | edge error px |");
+        println!("|---|---|---:|---:|---:|---:|");
+        for r in &block {
+            let a = &r.accuracy;
+            println!(
+                "| {:?} | {} | {:.3} | {:.2}% | {:.2}% | {:.2} |",
+                r.splats,
+                r.preset.name(),
+                a.iou(),
+                100.0 * a.false_shadow_rate(),
+                100.0 * a.light_leak_rate(),
+                a.edge_error()
             );
         }
         Ok(())
