@@ -738,6 +738,17 @@ fn bench_trade_writes_csv_markdown_and_a_plot_with_the_pareto_front() {
     let reference = rows.iter().find(|r| r[knob] == "preset" && r[value] == "reference").unwrap();
     assert_eq!(reference[psnr], "inf");
     assert_eq!(reference[pareto], "true");
+    // Every setting's shadows against the analytic block's truth: a real IoU, rates, edge error.
+    let (block_iou, block_false, block_edge) = (col("block_iou"), col("block_false_shadow"), col("block_edge_px"));
+    for r in &rows {
+        let (iou, false_shadow, edge): (f64, f64, f64) =
+            (r[block_iou].parse().unwrap(), r[block_false].parse().unwrap(), r[block_edge].parse().unwrap());
+        assert!(iou > 0.5 && iou <= 1.0 && (0.0..0.5).contains(&false_shadow) && edge >= 0.0, "{r:?}");
+    }
+    let balanced = rows.iter().find(|r| r[knob] == "preset" && r[value] == "balanced").unwrap();
+    let fast = rows.iter().find(|r| r[knob] == "preset" && r[value] == "fast").unwrap();
+    let iou_of = |r: &Vec<&str>| r[block_iou].parse::<f64>().unwrap();
+    assert!(iou_of(balanced) > iou_of(fast), "the balanced preset's shadows beat the fast one's");
     for r in &rows {
         let ms: f64 = r[median].parse().unwrap();
         assert!(ms > 0.0 && ms.is_finite(), "{r:?}");

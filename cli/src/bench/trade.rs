@@ -17,15 +17,18 @@
 
 use super::median;
 use srug::error::{Error, Result};
+use srug::frame::block_accuracy::block_shadow_accuracy;
 use srug::frame::{Preset, RelightSettings, Relighter};
 use srug::gpu::Device;
 use srug::indirect::{StoragePrecision, UNet, UNetWeights};
 use srug::metrics::{psnr, ssim, RgbImage};
 use srug::scene::activate::GpuScene;
+use srug::scene::blocks::{block_city, BlockOptions, BlockSplats};
 use srug::scene::demo::{demo_city, DemoOptions};
 use srug::shade::{BrdfLut, EnvironmentPrep, PrepareSettings, ProceduralSky};
+use srug::shadow::accuracy::ShadowAccuracy;
 use srug::shadow::completion::shadow_iou;
-use srug::shadow::{DepthMode, Sun, VisibilityKind};
+use srug::shadow::{DepthMode, ShadowPass, Sun, VisibilityKind};
 
 /// One setting to measure.
 #[derive(Clone, Debug, PartialEq)]
@@ -127,6 +130,9 @@ pub struct TradeRow {
     pub shadow_iou: Option<f64>,
     /// Mean |V − V_traced| over receivers with a surface.
     pub shadow_mean_abs_diff: Option<f64>,
+    /// The setting's shadows against the ray-cast truth of the analytic block
+    /// (rough splats, three suns, three street cameras).
+    pub block: ShadowAccuracy,
     /// Whether no other row is both faster (median) and more accurate (PSNR).
     pub pareto: bool,
 }
@@ -200,6 +206,29 @@ pub fn trade_bench(device: &Device, setup: &TradeSetup, mut progress: impl FnMut
         settings.retain(|s| s.knob != "U-Net storage");
     }
     let reference = RelightSettings::preset(Preset::Reference);
+    // Every setting's shadows against the analytic block's truth.
+    let block = block_city(&BlockOptions { splats: BlockSplats::Rough, ..BlockOptions::default() })?;
+    let block_gpu = GpuScene::upload(device, &block.scene)?;
+    let mut block_splatter = srug::splat::Splatter::new(device)?;
+    let block_pass = ShadowPass::new(device)?;
+    let mut block_accuracies = Vec::with_capacity(settings.len());
+    for setting in &settings {
+        progress(&format!("{} {}: the analytic block", setting.knob, setting.value));
+        let (splatter, pass) = (&mut block_splatter, &block_pass);
+        let per_sun = block_shadow_accuracy(
+            device,
+            splatter,
+            pass,
+            &block,
+            &block_gpu,
+            &setting.settings,
+            None,
+            &mut |_| Ok(()),
+        )?;
+        let mut accuracy = ShadowAccuracy::default();
+        per_sun.iter().for_each(|(_, a)| accuracy.add(a));
+        block_accuracies.push(accuracy);
+    }
 
     let mut measure = |setting: &TradeSetting, label: &str| -> Result<Measured> {
         // The setting's precision, or fp32 where the device cannot store fp16.
@@ -261,7 +290,7 @@ pub fn trade_bench(device: &Device, setup: &TradeSetup, mut progress: impl FnMut
     let covered = mask.iter().filter(|m| **m).count().max(1);
 
     let mut rows = Vec::new();
-    for setting in settings {
+    for (setting, block_accuracy) in settings.into_iter().zip(block_accuracies) {
         let label = format!("{} {}", setting.knob, setting.value);
         let m = if setting == reference_setting { None } else { Some(measure(&setting, &label)?) };
         let m = m.as_ref().unwrap_or(&truth);
@@ -283,6 +312,7 @@ pub fn trade_bench(device: &Device, setup: &TradeSetup, mut progress: impl FnMut
             colour_psnr: psnr(&m.colour, &truth.colour, 1.0)?,
             shadow_iou: shadow_iou_v,
             shadow_mean_abs_diff: mad,
+            block: block_accuracy,
             pareto: false,
             setting,
         });
@@ -322,7 +352,8 @@ pub fn trade_csv(rows: &[TradeRow]) -> String {
     for g in STAGE_GROUPS {
         s += &format!(",{}_ms", g.replace(' ', "_"));
     }
-    s += ",psnr_db,ssim,colour_psnr_db,shadow_iou,shadow_mean_abs_dv,pareto\n";
+    s += ",psnr_db,ssim,colour_psnr_db,shadow_iou,shadow_mean_abs_dv,block_iou,block_false_shadow,block_light_leak,\
+          block_edge_px,pareto\n";
     for r in rows {
         s += &format!(
             "{},{},{:.3},{:.3},{:.3}",
@@ -336,13 +367,18 @@ pub fn trade_csv(rows: &[TradeRow]) -> String {
             s += &format!(",{:.3}", t * 1e3);
         }
         let csv_db = |v: f64| if v.is_infinite() { "inf".into() } else { format!("{v:.3}") };
+        let b = &r.block;
         s += &format!(
-            ",{},{:.5},{},{},{},{}\n",
+            ",{},{:.5},{},{},{},{:.4},{:.5},{:.5},{:.3},{}\n",
             csv_db(r.psnr),
             r.ssim,
             csv_db(r.colour_psnr),
             opt(r.shadow_iou, 4).replace('–', ""),
             opt(r.shadow_mean_abs_diff, 4).replace('–', ""),
+            b.iou(),
+            b.false_shadow_rate(),
+            b.light_leak_rate(),
+            b.edge_error(),
             r.pareto
         );
     }
@@ -353,8 +389,9 @@ pub fn trade_csv(rows: &[TradeRow]) -> String {
 pub fn trade_markdown(rows: &[TradeRow]) -> String {
     let mut s = String::from(
         "| knob | value | frame ms (median [min, max]) | splat | shadow map | shadow test | shading | indirect \
-         | PSNR dB | SSIM | colour PSNR dB | shadow IoU | mean abs dV | Pareto |\n\
-         |---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
+         | PSNR dB | SSIM | colour PSNR dB | shadow IoU | mean abs dV | block IoU | block false shadow | block leak \
+         | block edge px | Pareto |\n\
+         |---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
     );
     for r in rows {
         s += &format!(
@@ -368,13 +405,18 @@ pub fn trade_markdown(rows: &[TradeRow]) -> String {
         for (_, t) in &r.groups {
             s += &format!(" {:.1} |", t * 1e3);
         }
+        let b = &r.block;
         s += &format!(
-            " {} | {:.4} | {} | {} | {} | {} |\n",
+            " {} | {:.4} | {} | {} | {} | {:.3} | {:.2}% | {:.2}% | {:.2} | {} |\n",
             db(r.psnr),
             r.ssim,
             db(r.colour_psnr),
             opt(r.shadow_iou, 3),
             opt(r.shadow_mean_abs_diff, 4),
+            b.iou(),
+            100.0 * b.false_shadow_rate(),
+            100.0 * b.light_leak_rate(),
+            b.edge_error(),
             if r.pareto { "yes" } else { "" }
         );
     }
@@ -395,6 +437,7 @@ mod tests {
             colour_psnr: psnr,
             shadow_iou: None,
             shadow_mean_abs_diff: None,
+            block: ShadowAccuracy::default(),
             pareto: false,
         }
     }
