@@ -305,6 +305,15 @@ fn fixed_visibility_fits_the_masks_and_guides_the_added_gaussians() {
     let c = complete_from_views(&d, &problem, &only_fixed, &mut |_| {}).unwrap();
     assert_eq!((c.added(), c.scene.len()), (0, n));
     assert!(c.history.iter().all(|s| s.stage == "fixed") && c.views[0].fixed.is_some());
+    // Bad knobs are refused before any work.
+    for bad in [
+        CompletionSettings { coverage_weight: f32::NAN, ..CompletionSettings::default() },
+        CompletionSettings { fixed_learning_rate: -1.0, ..CompletionSettings::default() },
+        CompletionSettings { prune_opacity: 1.0, ..CompletionSettings::default() },
+    ] {
+        let e = complete_from_views(&d, &problem, &bad, &mut |_| {}).err().unwrap();
+        assert!(e.to_string().contains("must") || e.to_string().contains("need"), "{e}");
+    }
     // Without the visibility attribute the fixed losses are refused.
     let plain = CompletionProblem { scene: &p.without, ..problem };
     let e = complete_from_views(&d, &plain, &only_fixed, &mut |_| {}).err().unwrap();

@@ -136,8 +136,15 @@ impl CompletionSettings {
         if self.gaussians == 0 && self.fixed_steps == 0 {
             return Err(Error::invalid("added Gaussians 0", "leaves nothing to fit (without L_Vf steps)"));
         }
-        if self.learning_rates.iter().any(|r| !r.is_finite() || *r < 0.0) {
-            return Err(Error::invalid(format!("learning rates {:?}", self.learning_rates), "must be finite, ≥ 0"));
+        let rates = self.learning_rates.iter().chain([&self.fixed_learning_rate, &self.coverage_weight]);
+        if rates.into_iter().any(|r| !r.is_finite() || *r < 0.0) {
+            return Err(Error::invalid(
+                format!(
+                    "learning rates {:?}, fixed-visibility rate {}, coverage weight {}",
+                    self.learning_rates, self.fixed_learning_rate, self.coverage_weight
+                ),
+                "must be finite, ≥ 0",
+            ));
         }
         if !self.initial_opacity_logit.is_finite() || !(0.0..1.0).contains(&self.prune_opacity) {
             return Err(Error::invalid(
