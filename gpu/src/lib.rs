@@ -14,6 +14,9 @@
 //! - **Validation.** With [`DeviceOptions::validation`] (or `SRUG_VALIDATION=1`)
 //!   the Khronos layer runs with synchronization validation and every warning
 //!   or error it emits is kept for [`Device::take_validation_messages`].
+//! - **Host images.** On a host's device, [`HostImage`]s are copied to and
+//!   from with layout barriers scoped to every stage, and submissions wait on
+//!   and signal the host's semaphores ([`HostSync`], [`Device::submit_synced`]).
 //! - **Large buffers.** Descriptor bindings are limited to
 //!   `maxStorageBufferRange` (128 MiB on lavapipe); larger data is reached by
 //!   device address (`shaders/include/address.glsl`).
@@ -30,21 +33,24 @@
 //!   ([`GpuLayout`], [`check_layout`]).
 //!
 //! # Module graph (no cycles)
-//! `error`, `format`, `info` and `layout` are leaves; `shared` (instance, device,
+//! `error`, `format`, `info`, `layout` and `sync` are leaves; `shared` (instance, device,
 //! allocator, garbage of raw handles) imports only those; `device`, `buffer`,
 //! `kernel` and `recording` import `shared` and the leaves, and `recording`
-//! also imports `buffer` and `kernel`.
+//! also imports `buffer`, `kernel` and `sync`; `host_image` (the host's
+//! images) imports `buffer`, `device` and `recording`.
 
 mod buffer;
 mod device;
 mod error;
 mod format;
+mod host_image;
 mod info;
 mod kernel;
 mod layout;
 mod recording;
 pub mod selftest;
 mod shared;
+mod sync;
 
 /// The Vulkan result a failed call returned (in [`GpuError::Vulkan`]).
 /// The `ash` srug is built with: a host passing its own device ([`Device::from_raw`]) uses these types.
@@ -54,8 +60,10 @@ pub use buffer::{Buffer, MemoryKind, Texels};
 pub use device::{Device, DeviceOptions, DeviceSelection, EnabledFeatures, RawVulkan, DEVICE_ENV, VALIDATION_ENV};
 pub use error::{GpuError, Result};
 pub use format::TexelFormat;
+pub use host_image::{HostImage, HostImageAccess, HostImageFormat};
 pub use info::{AdapterSummary, DeviceInfo, MemoryUsage};
 pub use kernel::{check_decl, specialized_workgroup_size, Kernel, KernelDecl, SpecValue};
 pub use layout::{check_block, check_layout, DeviceAddress, GpuLayout};
 pub use recording::{grid_1d, Binding, Grid, Recording, StageTime, Submission, Timings};
 pub use srug_spirv::{kernels, BindingInfo, BindingKind, BlockInfo, KernelInfo, MemberInfo, SpecConstantInfo};
+pub use sync::{HostSync, SemaphoreSignal, SemaphoreWait};

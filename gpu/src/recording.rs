@@ -19,6 +19,7 @@ use crate::info::DeviceInfo;
 use crate::kernel::Kernel;
 use crate::layout::DeviceAddress;
 use crate::shared::{lock, Garbage, Transient};
+use crate::sync::HostSync;
 
 /// Timestamp queries per recording: two per stage.
 const MAX_QUERIES: u32 = 256;
@@ -116,7 +117,7 @@ impl Timings {
 /// Commands being recorded. Consume it with [`Device::submit`] or [`Device::run`].
 pub struct Recording<'a> {
     device: &'a Device,
-    cmd: vk::CommandBuffer,
+    pub(crate) cmd: vk::CommandBuffer,
     transient: Option<Transient>,
     stages: Vec<(String, u32)>,
     open_stage: bool,
@@ -190,7 +191,14 @@ impl Device {
     }
 
     /// Ends and submits a recording.
-    pub fn submit(&self, mut rec: Recording<'_>) -> Result<Submission> {
+    pub fn submit(&self, rec: Recording<'_>) -> Result<Submission> {
+        self.submit_synced(rec, &HostSync::default())
+    }
+
+    /// Ends and submits a recording that first waits on the host's `sync.wait`
+    /// semaphores (at every stage) and signals `sync.signal` when done.
+    pub fn submit_synced(&self, mut rec: Recording<'_>, sync: &HostSync) -> Result<Submission> {
+        sync.check("the submission's semaphores")?;
         let shared = &self.shared;
         rec.end_stage();
         rec.barrier(vk::PipelineStageFlags::HOST, vk::AccessFlags::HOST_READ);
@@ -216,7 +224,22 @@ impl Device {
             }
         };
         let cmds = [cmd];
-        let submit = vk::SubmitInfo::default().command_buffers(&cmds);
+        let wait: Vec<vk::Semaphore> = sync.wait.iter().map(|w| w.semaphore).collect();
+        let wait_values: Vec<u64> = sync.wait.iter().map(|w| w.value).collect();
+        let wait_stages = vec![vk::PipelineStageFlags::ALL_COMMANDS; wait.len()];
+        let signal: Vec<vk::Semaphore> = sync.signal.iter().map(|s| s.semaphore).collect();
+        let signal_values: Vec<u64> = sync.signal.iter().map(|s| s.value).collect();
+        let mut timeline = vk::TimelineSemaphoreSubmitInfo::default()
+            .wait_semaphore_values(&wait_values)
+            .signal_semaphore_values(&signal_values);
+        let mut submit = vk::SubmitInfo::default()
+            .command_buffers(&cmds)
+            .wait_semaphores(&wait)
+            .wait_dst_stage_mask(&wait_stages)
+            .signal_semaphores(&signal);
+        if !(wait.is_empty() && signal.is_empty()) {
+            submit = submit.push_next(&mut timeline);
+        }
         let mut tracker = lock(&shared.tracker);
         let queue = lock(&shared.queue);
         // SAFETY: the command buffer is executable, the fence unsignalled, the queue externally synchronized by its lock.
@@ -244,9 +267,19 @@ impl Device {
         F: FnOnce(&mut Recording<'a>) -> Result<(), E>,
         E: From<Error>,
     {
+        self.run_synced(&HostSync::default(), f)
+    }
+
+    /// [`Device::run`], with the submission waiting on and signalling the
+    /// host's semaphores ([`Device::submit_synced`]).
+    pub fn run_synced<'a, F, E>(&'a self, sync: &HostSync, f: F) -> Result<Timings, E>
+    where
+        F: FnOnce(&mut Recording<'a>) -> Result<(), E>,
+        E: From<Error>,
+    {
         let mut rec = self.begin()?;
         f(&mut rec)?;
-        Ok(self.submit(rec)?.wait()?)
+        Ok(self.submit_synced(rec, sync)?.wait()?)
     }
 }
 
@@ -322,7 +355,7 @@ impl<'a> Recording<'a> {
         }
     }
 
-    fn before_command(&mut self) {
+    pub(crate) fn before_command(&mut self) {
         self.barrier(
             vk::PipelineStageFlags::COMPUTE_SHADER | vk::PipelineStageFlags::TRANSFER,
             vk::AccessFlags::SHADER_READ
@@ -427,7 +460,7 @@ impl<'a> Recording<'a> {
         Ok(())
     }
 
-    fn check_device(&self, buffer: &Buffer) -> Result<()> {
+    pub(crate) fn check_device(&self, buffer: &Buffer) -> Result<()> {
         if std::sync::Arc::ptr_eq(&buffer.shared, &self.device.shared) {
             Ok(())
         } else {

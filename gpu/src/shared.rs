@@ -79,6 +79,7 @@ pub(crate) struct Shared {
     /// Whether srug created the device and instance (and so destroys them);
     /// false for a host's ([`crate::Device::from_raw`]).
     pub(crate) owns_device: bool,
+    pub(crate) physical_device: vk::PhysicalDevice,
     pub(crate) queue: Mutex<vk::Queue>,
     pub(crate) queue_family: u32,
     pub(crate) allocator: Mutex<ManuallyDrop<Allocator>>,

@@ -6,17 +6,7 @@
 #define WORKGROUP_SIZE_X 64
 #include "common.glsl"
 #include "shade.glsl"
-
-vec3 tone_map(vec3 c, uint op) {
-    if (op == 1u) return c / (1.0 + c);
-    if (op == 2u) return (c * (2.51 * c + 0.03)) / (c * (2.43 * c + 0.59) + 0.14);
-    return c;
-}
-
-float srgb_encode(float c) {
-    c = clamp(c, 0.0, 1.0);
-    return c <= 0.0031308 ? 12.92 * c : 1.055 * pow(c, 1.0 / 2.4) - 0.055;
-}
+#include "display.glsl"
 
 void main() {
     uint p = linear_index();
@@ -37,6 +27,5 @@ void main() {
         : shade.background.rgb;
     vec3 radiance = alpha * lo + (1.0 - alpha) * bg;
     write3(shade.out_radiance, p, radiance);
-    vec3 c = max(tone_map(max(radiance * shade.display.x, 0.0), uint(shade.display.y)), 0.0);
-    write3(shade.out_display, p, vec3(srgb_encode(c.x), srgb_encode(c.y), srgb_encode(c.z)));
+    write3(shade.out_display, p, display_encode(radiance, shade.display.x, uint(shade.display.y)));
 }

@@ -8,6 +8,7 @@
 //! stage tests share.
 
 pub mod fuzz;
+pub mod host_vulkan;
 
 use std::path::PathBuf;
 

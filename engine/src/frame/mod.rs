@@ -9,10 +9,11 @@
 
 pub mod block_accuracy;
 mod decisions;
+pub mod host_images;
 pub mod plan;
 mod relight;
 mod settings;
 
 pub use decisions::RelightDecisions;
-pub use relight::{HostDepthImage, Relighter, RelitFrame};
+pub use relight::{HostDepthImage, HostFrameSource, Relighter, RelitFrame};
 pub use settings::{Preset, RelightSettings};

@@ -18,6 +18,7 @@ use crate::shade::{BrdfTable, PreparedEnvironment, ShadeInputs, ShadedFrame, Sha
 use crate::shadow::{light_camera, DepthMode, ShadowMap, ShadowPass, Sun};
 use crate::splat::{GpuGBuffer, SplatSettings, Splatter};
 
+use super::host_images::{FrameOutputs, HostImageWriter, HostPixels, HostTargets};
 use super::{RelightDecisions, RelightSettings};
 
 /// A relit frame.
@@ -37,6 +38,10 @@ pub struct RelitFrame {
     pub visibility: Option<crate::gpu::Buffer>,
     /// (Gaussian, tile) pairs the camera splat sorted.
     pub pairs: u64,
+    /// The exposure the display values were made with (EV).
+    pub exposure_ev: f32,
+    /// The tone map the display values were made with.
+    pub tone_map: crate::shade::ToneMap,
 }
 
 /// What every frame of one scene, sun and settings runs, decided before
@@ -95,6 +100,28 @@ pub struct Relighter {
     shadow_map: Option<(ShadowMapKey, ShadowMap)>,
     /// A host's depth the camera's splats are hidden behind.
     host_depth: Option<HostDepthImage>,
+    /// Writes frames into host images (made on first use).
+    host_writer: Option<HostImageWriter>,
+    device: Device,
+}
+
+/// A frame whose buffers can be written into host images.
+pub trait HostFrameSource {
+    /// The buffers [`HostImageWriter::write`] reads.
+    fn outputs(&self) -> Result<FrameOutputs<'_>>;
+}
+
+impl HostFrameSource for RelitFrame {
+    fn outputs(&self) -> Result<FrameOutputs<'_>> {
+        Ok(FrameOutputs {
+            width: self.gbuffer.width,
+            height: self.gbuffer.height,
+            colour: &self.shaded.radiance,
+            alpha: &self.gbuffer.alpha,
+            median_depth: self.gbuffer.get(crate::splat::Channel::MedianDepth),
+            display: Some((self.exposure_ev, self.tone_map)),
+        })
+    }
 }
 
 /// A host's depth per pixel for [`Relighter::set_host_depth`]: one f32 per
@@ -135,7 +162,86 @@ impl Relighter {
             reuse_shadow_map: false,
             shadow_map: None,
             host_depth: None,
+            host_writer: None,
+            device: device.clone(),
         })
+    }
+
+    /// Renders as [`Relighter::render`] does, into the host's images
+    /// ([`HostTargets`]; module [`super::host_images`]): with `composite`, the
+    /// splats behind the host's depth image are hidden and the rest blend
+    /// over its colour (the background is then black). The images' size must
+    /// be the rendered frame's (the settings' render scale applied). The
+    /// frame's buffers are returned too; its timings include the copies.
+    #[allow(clippy::too_many_arguments, reason = "Relighter::render's inputs, with the host's images")]
+    pub fn render_to_host(
+        &mut self,
+        scene: &GpuScene,
+        attributes: &AttributeGroups,
+        bounds: &Bounds,
+        camera: &Camera,
+        sun: Option<&Sun>,
+        environment: &PreparedEnvironment,
+        brdf: &BrdfTable,
+        settings: &RelightSettings,
+        targets: &HostTargets,
+    ) -> Result<RelitFrame> {
+        let mut settings = *settings;
+        if targets.composite {
+            settings.shade.background = crate::shade::Background::Color([0.0; 3]);
+        }
+        if targets.depth.is_some() {
+            settings.extra_channels.median_depth = true;
+        }
+        let size = settings.render_size(camera.width, camera.height);
+        let (mut frame, t) = self.with_host_targets(targets, size, |r| {
+            r.render(scene, attributes, bounds, camera, sun, environment, brdf, &settings)
+        })?;
+        frame.timings.stages.extend(t.stages);
+        Ok(frame)
+    }
+
+    /// Runs `render` between reading the host's texels from `targets` (when
+    /// compositing: its depth hides the splats meanwhile, in place of any
+    /// [`Relighter::set_host_depth`]) and writing the frame it returns into
+    /// them; `size` is the frame's. Returns the frame and the copies' timings.
+    /// The frame must have been rendered with the median depth channel when
+    /// `targets` has a depth image, and over black when compositing.
+    pub fn with_host_targets<T: HostFrameSource>(
+        &mut self,
+        targets: &HostTargets,
+        size: (u32, u32),
+        render: impl FnOnce(&mut Self) -> Result<T>,
+    ) -> Result<(T, Timings)> {
+        targets.validate(&self.device, size.0, size.1)?;
+        if self.host_writer.is_none() {
+            self.host_writer = Some(HostImageWriter::new(&self.device)?);
+        }
+        let Some(writer) = self.host_writer.as_ref() else {
+            return Err(Error::Internal("no host image writer".into()));
+        };
+        let mut pixels: HostPixels = writer.read(targets)?;
+        let hide = targets.composite && targets.depth.is_some();
+        let previous = if hide {
+            let Some(buffer) = pixels.depth.take() else {
+                return Err(Error::Internal("the host's depth was not read".into()));
+            };
+            let own = HostDepthImage { buffer, width: size.0, height: size.1, convention: targets.depth_convention };
+            self.host_depth.replace(own)
+        } else {
+            None
+        };
+        let rendered = render(self);
+        if hide {
+            pixels.depth = self.host_depth.take().map(|h| h.buffer);
+            self.host_depth = previous;
+        }
+        let frame = rendered?;
+        let Some(writer) = self.host_writer.as_ref() else {
+            return Err(Error::Internal("no host image writer".into()));
+        };
+        let timings = writer.write(targets, &frame.outputs()?, &pixels)?;
+        Ok((frame, timings))
     }
 
     /// Splats `camera`'s G-buffers with `settings`, behind the host's depth
@@ -314,6 +420,8 @@ impl Relighter {
             gbuffer,
             visibility: shadow.map(|(v, _)| v),
             pairs,
+            exposure_ev: settings.shade.exposure_ev,
+            tone_map: settings.shade.tone_map,
         })
     }
 

@@ -310,7 +310,18 @@ pub fn srgb_encode(c: f64) -> f64 {
     }
 }
 
-fn tone_map(c: f64, op: ToneMap) -> f64 {
+/// sRGB decoding of an encoded value (clamped to [0, 1]).
+pub fn srgb_decode(c: f64) -> f64 {
+    let c = c.clamp(0.0, 1.0);
+    if c <= 0.040_45 {
+        c / 12.92
+    } else {
+        ((c + 0.055) / 1.055).powf(2.4)
+    }
+}
+
+/// Tone map `op` of one linear value.
+pub fn tone_map(c: f64, op: ToneMap) -> f64 {
     match op {
         ToneMap::Clamp => c,
         ToneMap::Reinhard => c / (1.0 + c),

@@ -133,7 +133,7 @@ impl ToneMap {
         }
     }
 
-    fn code(self) -> u32 {
+    pub(crate) fn code(self) -> u32 {
         match self {
             Self::Clamp => 0,
             Self::Reinhard => 1,
