@@ -162,6 +162,62 @@ typedef struct {
   size_t count;
 } srug_gaussian_gradients;
 
+// One of the host's images, as the host created it (Vulkan cannot be asked).
+typedef struct {
+  // `VkImage`: 2D, one mip level and layer, optimal tiling, single-sampled,
+  // on the context's device, owned by srug's queue family or concurrent.
+  uint64_t image;
+  // `VkFormat`: colour `R8G8B8A8_UNORM`/`_SRGB`, `B8G8R8A8_UNORM`/`_SRGB`,
+  // `R16G16B16A16_SFLOAT`, `R32G32B32A32_SFLOAT`; depth `R32_SFLOAT`, `D32_SFLOAT`.
+  uint32_t format;
+  // Width in texels: the renderer's.
+  uint32_t width;
+  // Height in texels: the renderer's.
+  uint32_t height;
+  // `VkImageUsageFlags` it was created with: `TRANSFER_DST` to be written,
+  // `TRANSFER_SRC` too to be read (compositing).
+  uint32_t usage;
+  // `VkImageLayout` it is in when srug's work begins (`UNDEFINED`: contents
+  // discarded, only when not compositing).
+  uint32_t layout_before;
+  // `VkImageLayout` srug leaves it in.
+  uint32_t layout_after;
+} srug_vulkan_image;
+
+// A host semaphore and a value (timeline semaphores; ignored for binary ones).
+typedef struct {
+  // `VkSemaphore`.
+  uint64_t semaphore;
+  // The value waited for or signalled.
+  uint64_t value;
+} srug_vulkan_semaphore;
+
+// Where `srug_renderer_render_to_vulkan` writes a frame, and how.
+typedef struct {
+  // The colour image, or NULL.
+  const srug_vulkan_image *colour;
+  // The depth image (`R32_SFLOAT` or `D32_SFLOAT`), or NULL.
+  const srug_vulkan_image *depth;
+  // How the depth image encodes depth (`SRUG_DEPTH_*`), with its planes.
+  srug_depth_convention depth_convention;
+  // Near plane (camera z) of the Vulkan and reversed-Z conventions.
+  float near;
+  // Far plane (camera z; `INFINITY` allowed with reversed-Z).
+  float far;
+  // Read the images first: splats behind the host's depth are hidden, the
+  // rest blend over the host's colour, and the depth keeps the nearer.
+  bool composite;
+  // Semaphores srug's first submission waits on (all stages); their
+  // signals must already be submitted: the call blocks until its work is done.
+  const srug_vulkan_semaphore *wait;
+  // Entries of `wait`.
+  size_t wait_count;
+  // Semaphores srug's last submission signals.
+  const srug_vulkan_semaphore *signal;
+  // Entries of `signal`.
+  size_t signal_count;
+} srug_vulkan_targets;
+
 // Colour over the background (3 floats per pixel); always rendered.
 #define SRUG_CHANNEL_RGB 0
 
@@ -676,6 +732,32 @@ srug_status srug_renderer_shadow_backward(srug_renderer *renderer,
                                           const float *dl_dv,
                                           size_t len,
                                           const srug_gaussian_gradients *grads);
+
+// Renders `scene` as `srug_renderer_render` does and writes the frame into
+// the host's images (`targets`), on the host's device: the context must come
+// from `srug_context_create_from_vulkan` and the images from that device,
+// at the renderer's size (a preset rendering below full size is refused).
+// Colour images get a relit frame's display values (8-bit formats: exposure,
+// tone map, sRGB-encoded, as `SRUG_FORMAT_RGBA8_SRGB` reads) or its linear
+// radiance (float formats), a plain frame's colour as is; alpha is coverage.
+// A depth image gets the camera z where the splats' coverage crosses 50%, in
+// `depth_convention` ("nothing" where it never does). With `composite`, the
+// images are read first: splats behind the depth image's values are hidden,
+// the rest blend over the colour image (relit frames over black, in linear
+// light; 8-bit images as display values), and the depth keeps the host's
+// value unless a splat is nearer. Barriers cover every pipeline stage before
+// srug's first access and after its last; the images end in `layout_after`.
+// The frame stays readable (`srug_renderer_read_image`, `_read_channel`).
+// Every image statement is checked before any work (format, usage, size,
+// layouts; `SRUG_ERROR_INVALID_ARGUMENT` naming it); a statement that does not
+// match the image itself is undefined behaviour, as in Vulkan.
+//
+// # Safety
+// `targets` NULL or valid for reads, its pointers NULL or valid for their
+// counts; the handles in it valid on the context's device.
+srug_status srug_renderer_render_to_vulkan(srug_renderer *renderer,
+                                           const srug_scene *scene,
+                                           const srug_vulkan_targets *targets);
 
 #ifdef __cplusplus
 }  // extern "C"

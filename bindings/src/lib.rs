@@ -32,6 +32,8 @@ mod environment;
 
 mod renderer;
 
+mod vulkan_targets;
+
 mod ffi;
 mod handle;
 
@@ -39,6 +41,7 @@ pub use context::*;
 pub use environment::*;
 pub use renderer::*;
 pub use scene::*;
+pub use vulkan_targets::*;
 
 use std::cell::RefCell;
 use std::ffi::c_char;

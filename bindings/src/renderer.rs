@@ -124,6 +124,8 @@ pub struct srug_gaussian_gradients {
 pub(crate) struct Frame {
     pub(crate) gbuffer: GpuGBuffer,
     pub(crate) shaded: Option<ShadedFrame>,
+    /// A relit frame's exposure (EV) and tone map.
+    pub(crate) display: Option<(f32, ToneMap)>,
 }
 
 /// The last shadow forward pass, kept for the backward pass.
@@ -607,6 +609,18 @@ pub extern "C" fn srug_renderer_set_shadow_geometry_bias(
     })
 }
 
+/// The depth convention `SRUG_DEPTH_*` with its planes (checked).
+pub(crate) fn depth_convention(convention: srug_depth_convention, near: f32, far: f32) -> FfiResult<HostDepth> {
+    let c = match convention {
+        SRUG_DEPTH_CAMERA_Z => HostDepth::CameraZ,
+        SRUG_DEPTH_VULKAN => HostDepth::Vulkan { near, far },
+        SRUG_DEPTH_REVERSED_Z => HostDepth::ReversedZ { near, far },
+        other => return Err(invalid(format!("unknown depth convention {other}"))),
+    };
+    c.validate()?;
+    Ok(c)
+}
+
 /// Hides the splats behind the host's depth in the renders that follow, for
 /// compositing over the host's meshes: `depth` holds one value per pixel of
 /// the renderer's size (row-major, `count` = width × height) in `convention`
@@ -631,12 +645,7 @@ pub unsafe extern "C" fn srug_renderer_set_host_depth(
     far: f32,
 ) -> srug_status {
     guard("srug_renderer_set_host_depth", || {
-        let convention = match convention {
-            SRUG_DEPTH_CAMERA_Z => HostDepth::CameraZ,
-            SRUG_DEPTH_VULKAN => HostDepth::Vulkan { near, far },
-            SRUG_DEPTH_REVERSED_Z => HostDepth::ReversedZ { near, far },
-            other => return Err(invalid(format!("unknown depth convention {other}"))),
-        };
+        let convention = depth_convention(convention, near, far)?;
         with_renderer(renderer, |r| {
             if depth.is_null() {
                 r.relighter.set_host_depth(None)?;
@@ -817,7 +826,7 @@ impl RendererObject {
         })
     }
 
-    fn render(&mut self, scene: &SceneObject) -> FfiResult {
+    pub(crate) fn render(&mut self, scene: &SceneObject) -> FfiResult {
         let camera = self.camera()?;
         self.frame = None;
         self.timings = None;
@@ -837,7 +846,7 @@ impl RendererObject {
                 };
                 let camera = self.settings.render_camera(&camera);
                 let (gbuffer, stats) = self.relighter.splat_camera(&scene.gpu, &camera, &settings)?;
-                self.frame = Some(Frame { gbuffer, shaded: None });
+                self.frame = Some(Frame { gbuffer, shaded: None, display: None });
                 self.timings = Some(stats.timings);
                 return Ok(());
             }
@@ -880,7 +889,11 @@ impl RendererObject {
             brdf,
             &self.settings,
         )?;
-        self.frame = Some(Frame { gbuffer: relit.gbuffer, shaded: Some(relit.shaded) });
+        self.frame = Some(Frame {
+            gbuffer: relit.gbuffer,
+            shaded: Some(relit.shaded),
+            display: Some((relit.exposure_ev, relit.tone_map)),
+        });
         self.timings = Some(relit.timings);
         Ok(())
     }

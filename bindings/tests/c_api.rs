@@ -165,6 +165,34 @@ fn c_host_program_lends_srug_its_vulkan_device() {
 }
 
 #[test]
+fn c_host_program_composites_srug_over_its_rasterized_mesh_in_its_own_images() {
+    let dir = tempfile::tempdir().unwrap();
+    // Debian's shaderc archives, users before what they use (as spirv/shaderc-link links them).
+    let shaderc = [
+        "-lshaderc_combined",
+        "-lglslang",
+        "-lMachineIndependent",
+        "-lOSDependent",
+        "-lGenericCodeGen",
+        "-lOGLCompiler",
+        "-lSPIRV",
+        "-lglslang-default-resource-limits",
+        "-lSPIRV-Tools-opt",
+        "-lSPIRV-Tools",
+        "-lstdc++",
+    ];
+    let exe = build_with("composite", dir.path(), &[&["-lvulkan"][..], &shaderc].concat());
+    let ppm = dir.path().join("composite.ppm");
+    let out = run(&exe, &[&ppm]);
+    assert!(out.contains("composite: 100 frames of 256x96, worst PSNR"), "{out}");
+    assert!(out.contains("host messenger heard 0 message(s)"), "{out}");
+    assert!(out.contains("SRUG_ERROR_INVALID_ARGUMENT"), "{out}");
+    if let Ok(at) = std::env::var("SRUG_COMPOSITE_PPM") {
+        std::fs::copy(&ppm, at).unwrap();
+    }
+}
+
+#[test]
 fn c_program_gets_errors_for_every_misuse() {
     let dir = tempfile::tempdir().unwrap();
     let (ply, _) = demo_files(dir.path());

@@ -64,13 +64,13 @@ impl HostTargets {
             return Err(Error::invalid("host targets", "name neither a colour nor a depth image"));
         }
         self.depth_convention.validate()?;
-        self.sync.check("host targets")?;
+        self.sync.check("host targets").map_err(user_error)?;
         let access = if self.composite { HostImageAccess::ReadWrite } else { HostImageAccess::Write };
         let mut formats = [None, None];
         for (i, (name, image)) in [("colour image", &self.colour), ("depth image", &self.depth)].into_iter().enumerate()
         {
             let Some(image) = image else { continue };
-            let format = image.check(device, name, access)?;
+            let format = image.check(device, name, access).map_err(user_error)?;
             if format.is_single_channel() != (i == 1) {
                 return Err(Error::invalid(
                     format!("{name} of format {:?}", image.format),
@@ -91,6 +91,14 @@ impl HostTargets {
             }
         }
         Ok((formats[0], formats[1]))
+    }
+}
+
+/// A statement of the host's refused by the core: the caller's error, not srug's.
+fn user_error(e: crate::gpu::GpuError) -> Error {
+    match e {
+        crate::gpu::GpuError::InvalidArgument { what, why } => Error::invalid(what, why),
+        other => other.into(),
     }
 }
 

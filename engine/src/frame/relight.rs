@@ -194,9 +194,13 @@ impl Relighter {
             settings.extra_channels.median_depth = true;
         }
         let size = settings.render_size(camera.width, camera.height);
-        let (mut frame, t) = self.with_host_targets(targets, size, |r| {
-            r.render(scene, attributes, bounds, camera, sun, environment, brdf, &settings)
-        })?;
+        let (mut frame, t) = Self::with_host_targets(
+            self,
+            |r| r,
+            targets,
+            size,
+            |r| r.render(scene, attributes, bounds, camera, sun, environment, brdf, &settings),
+        )?;
         frame.timings.stages.extend(t.stages);
         Ok(frame)
     }
@@ -204,44 +208,46 @@ impl Relighter {
     /// Runs `render` between reading the host's texels from `targets` (when
     /// compositing: its depth hides the splats meanwhile, in place of any
     /// [`Relighter::set_host_depth`]) and writing the frame it returns into
-    /// them; `size` is the frame's. Returns the frame and the copies' timings.
-    /// The frame must have been rendered with the median depth channel when
-    /// `targets` has a depth image, and over black when compositing.
-    pub fn with_host_targets<T: HostFrameSource>(
-        &mut self,
+    /// them; `size` is the frame's. `ctx` holds the relighter (`relighter_of`
+    /// reaches it) and whatever else `render` needs. Returns the frame and the
+    /// copies' timings. The frame must have the median depth channel when
+    /// `targets` has a depth image, and be shaded over black when compositing.
+    pub fn with_host_targets<C, T: HostFrameSource>(
+        ctx: &mut C,
+        relighter_of: fn(&mut C) -> &mut Self,
         targets: &HostTargets,
         size: (u32, u32),
-        render: impl FnOnce(&mut Self) -> Result<T>,
+        render: impl FnOnce(&mut C) -> Result<T>,
     ) -> Result<(T, Timings)> {
-        targets.validate(&self.device, size.0, size.1)?;
-        if self.host_writer.is_none() {
-            self.host_writer = Some(HostImageWriter::new(&self.device)?);
+        let this = relighter_of(ctx);
+        targets.validate(&this.device, size.0, size.1)?;
+        if this.host_writer.is_none() {
+            this.host_writer = Some(HostImageWriter::new(&this.device)?);
         }
-        let Some(writer) = self.host_writer.as_ref() else {
-            return Err(Error::Internal("no host image writer".into()));
-        };
-        let mut pixels: HostPixels = writer.read(targets)?;
+        let mut pixels: HostPixels = this.writer()?.read(targets)?;
         let hide = targets.composite && targets.depth.is_some();
         let previous = if hide {
             let Some(buffer) = pixels.depth.take() else {
                 return Err(Error::Internal("the host's depth was not read".into()));
             };
             let own = HostDepthImage { buffer, width: size.0, height: size.1, convention: targets.depth_convention };
-            self.host_depth.replace(own)
+            this.host_depth.replace(own)
         } else {
             None
         };
-        let rendered = render(self);
+        let rendered = render(ctx);
+        let this = relighter_of(ctx);
         if hide {
-            pixels.depth = self.host_depth.take().map(|h| h.buffer);
-            self.host_depth = previous;
+            pixels.depth = this.host_depth.take().map(|h| h.buffer);
+            this.host_depth = previous;
         }
         let frame = rendered?;
-        let Some(writer) = self.host_writer.as_ref() else {
-            return Err(Error::Internal("no host image writer".into()));
-        };
-        let timings = writer.write(targets, &frame.outputs()?, &pixels)?;
+        let timings = this.writer()?.write(targets, &frame.outputs()?, &pixels)?;
         Ok((frame, timings))
+    }
+
+    fn writer(&self) -> Result<&HostImageWriter> {
+        self.host_writer.as_ref().ok_or_else(|| Error::Internal("no host image writer".into()))
     }
 
     /// Splats `camera`'s G-buffers with `settings`, behind the host's depth

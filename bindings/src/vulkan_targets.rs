@@ -1,0 +1,221 @@
+//! Rendering into the host's own Vulkan images (a context made with
+//! `srug_context_create_from_vulkan`): [`srug_renderer_render_to_vulkan`].
+//! Vulkan handles are `uint64_t` (non-dispatchable) and enumerations
+//! `uint32_t`, so the header needs no `vulkan.h`.
+
+use srug::frame::host_images::{FrameOutputs, HostTargets};
+use srug::frame::{HostFrameSource, Relighter};
+use srug::gpu::ash::vk::{self, Handle};
+use srug::gpu::{HostImage, HostSync, SemaphoreSignal, SemaphoreWait};
+
+use crate::ffi::*;
+use crate::renderer::*;
+use crate::{guard, srug_status, Failure, FfiResult};
+
+/// One of the host's images, as the host created it (Vulkan cannot be asked).
+#[repr(C)]
+#[derive(Clone, Copy, Debug)]
+pub struct srug_vulkan_image {
+    /// `VkImage`: 2D, one mip level and layer, optimal tiling, single-sampled,
+    /// on the context's device, owned by srug's queue family or concurrent.
+    pub image: u64,
+    /// `VkFormat`: colour `R8G8B8A8_UNORM`/`_SRGB`, `B8G8R8A8_UNORM`/`_SRGB`,
+    /// `R16G16B16A16_SFLOAT`, `R32G32B32A32_SFLOAT`; depth `R32_SFLOAT`, `D32_SFLOAT`.
+    pub format: u32,
+    /// Width in texels: the renderer's.
+    pub width: u32,
+    /// Height in texels: the renderer's.
+    pub height: u32,
+    /// `VkImageUsageFlags` it was created with: `TRANSFER_DST` to be written,
+    /// `TRANSFER_SRC` too to be read (compositing).
+    pub usage: u32,
+    /// `VkImageLayout` it is in when srug's work begins (`UNDEFINED`: contents
+    /// discarded, only when not compositing).
+    pub layout_before: u32,
+    /// `VkImageLayout` srug leaves it in.
+    pub layout_after: u32,
+}
+
+/// A host semaphore and a value (timeline semaphores; ignored for binary ones).
+#[repr(C)]
+#[derive(Clone, Copy, Debug)]
+pub struct srug_vulkan_semaphore {
+    /// `VkSemaphore`.
+    pub semaphore: u64,
+    /// The value waited for or signalled.
+    pub value: u64,
+}
+
+/// Where `srug_renderer_render_to_vulkan` writes a frame, and how.
+#[repr(C)]
+#[derive(Clone, Copy, Debug)]
+pub struct srug_vulkan_targets {
+    /// The colour image, or NULL.
+    pub colour: *const srug_vulkan_image,
+    /// The depth image (`R32_SFLOAT` or `D32_SFLOAT`), or NULL.
+    pub depth: *const srug_vulkan_image,
+    /// How the depth image encodes depth (`SRUG_DEPTH_*`), with its planes.
+    pub depth_convention: srug_depth_convention,
+    /// Near plane (camera z) of the Vulkan and reversed-Z conventions.
+    pub near: f32,
+    /// Far plane (camera z; `INFINITY` allowed with reversed-Z).
+    pub far: f32,
+    /// Read the images first: splats behind the host's depth are hidden, the
+    /// rest blend over the host's colour, and the depth keeps the nearer.
+    pub composite: bool,
+    /// Semaphores srug's first submission waits on (all stages); their
+    /// signals must already be submitted: the call blocks until its work is done.
+    pub wait: *const srug_vulkan_semaphore,
+    /// Entries of `wait`.
+    pub wait_count: usize,
+    /// Semaphores srug's last submission signals.
+    pub signal: *const srug_vulkan_semaphore,
+    /// Entries of `signal`.
+    pub signal_count: usize,
+}
+
+fn host_image(i: &srug_vulkan_image) -> HostImage {
+    HostImage {
+        image: vk::Image::from_raw(i.image),
+        format: vk::Format::from_raw(i.format as i32),
+        width: i.width,
+        height: i.height,
+        usage: vk::ImageUsageFlags::from_raw(i.usage),
+        layout_before: vk::ImageLayout::from_raw(i.layout_before as i32),
+        layout_after: vk::ImageLayout::from_raw(i.layout_after as i32),
+    }
+}
+
+/// The targets a C caller described.
+///
+/// # Safety
+/// As `srug_renderer_render_to_vulkan`'s `targets`.
+unsafe fn targets_of(t: *const srug_vulkan_targets) -> FfiResult<HostTargets> {
+    if t.is_null() {
+        return Err(null("targets"));
+    }
+    // SAFETY: non-null, and the caller's contract.
+    let t = unsafe { &*t };
+    // SAFETY: NULL or one image, by the caller's contract.
+    let colour = unsafe { t.colour.as_ref() }.map(host_image);
+    // SAFETY: as above.
+    let depth = unsafe { t.depth.as_ref() }.map(host_image);
+    // SAFETY: `wait_count` entries at `wait`, by the caller's contract.
+    let wait = unsafe { slice(t.wait, t.wait_count, "targets->wait") }?;
+    // SAFETY: as above.
+    let signal = unsafe { slice(t.signal, t.signal_count, "targets->signal") }?;
+    Ok(HostTargets {
+        colour,
+        depth,
+        depth_convention: depth_convention(t.depth_convention, t.near, t.far)?,
+        composite: t.composite,
+        sync: HostSync {
+            wait: wait
+                .iter()
+                .map(|s| SemaphoreWait { semaphore: vk::Semaphore::from_raw(s.semaphore), value: s.value })
+                .collect(),
+            signal: signal
+                .iter()
+                .map(|s| SemaphoreSignal { semaphore: vk::Semaphore::from_raw(s.semaphore), value: s.value })
+                .collect(),
+        },
+    })
+}
+
+impl HostFrameSource for Frame {
+    fn outputs(&self) -> srug::Result<FrameOutputs<'_>> {
+        let (colour, display) = match &self.shaded {
+            Some(s) => (&s.radiance, self.display),
+            None => (self.gbuffer.rgb_buffer()?, None),
+        };
+        Ok(FrameOutputs {
+            width: self.gbuffer.width,
+            height: self.gbuffer.height,
+            colour,
+            alpha: &self.gbuffer.alpha,
+            median_depth: self.gbuffer.get(srug::splat::Channel::MedianDepth),
+            display,
+        })
+    }
+}
+
+impl RendererObject {
+    fn render_to_vulkan(&mut self, scene: &crate::scene::SceneObject, targets: &HostTargets) -> FfiResult {
+        if self.device.owns_vulkan_device() {
+            return Err(Failure::new(
+                srug_status::SRUG_ERROR_WRONG_ORDER,
+                "the renderer's context opened its own Vulkan device: render into host images needs a context made \
+                 by srug_context_create_from_vulkan on the images' device",
+            ));
+        }
+        let saved = self.settings;
+        if targets.composite {
+            self.settings.shade.background = srug::shade::Background::Color([0.0; 3]);
+        }
+        if targets.depth.is_some() {
+            self.settings.extra_channels.median_depth = true;
+        }
+        let size = self.settings.render_size(self.width, self.height);
+        // The render's own failure (its status and message) is reported as it is.
+        let mut failure = None;
+        let result = Relighter::with_host_targets(
+            self,
+            |r| &mut r.relighter,
+            targets,
+            size,
+            |r| match r.render(scene) {
+                Ok(()) => r.frame.take().ok_or_else(|| srug::Error::Internal("the render left no frame".into())),
+                Err(f) => {
+                    let message = f.message.clone();
+                    failure = Some(f);
+                    Err(srug::Error::Internal(message))
+                }
+            },
+        );
+        self.settings = saved;
+        if let Some(f) = failure {
+            return Err(f);
+        }
+        let (frame, timings) = result?;
+        if let Some(t) = self.timings.as_mut() {
+            t.stages.extend(timings.stages);
+        }
+        self.frame = Some(frame);
+        Ok(())
+    }
+}
+
+/// Renders `scene` as `srug_renderer_render` does and writes the frame into
+/// the host's images (`targets`), on the host's device: the context must come
+/// from `srug_context_create_from_vulkan` and the images from that device,
+/// at the renderer's size (a preset rendering below full size is refused).
+/// Colour images get a relit frame's display values (8-bit formats: exposure,
+/// tone map, sRGB-encoded, as `SRUG_FORMAT_RGBA8_SRGB` reads) or its linear
+/// radiance (float formats), a plain frame's colour as is; alpha is coverage.
+/// A depth image gets the camera z where the splats' coverage crosses 50%, in
+/// `depth_convention` ("nothing" where it never does). With `composite`, the
+/// images are read first: splats behind the depth image's values are hidden,
+/// the rest blend over the colour image (relit frames over black, in linear
+/// light; 8-bit images as display values), and the depth keeps the host's
+/// value unless a splat is nearer. Barriers cover every pipeline stage before
+/// srug's first access and after its last; the images end in `layout_after`.
+/// The frame stays readable (`srug_renderer_read_image`, `_read_channel`).
+/// Every image statement is checked before any work (format, usage, size,
+/// layouts; `SRUG_ERROR_INVALID_ARGUMENT` naming it); a statement that does not
+/// match the image itself is undefined behaviour, as in Vulkan.
+///
+/// # Safety
+/// `targets` NULL or valid for reads, its pointers NULL or valid for their
+/// counts; the handles in it valid on the context's device.
+#[no_mangle]
+pub unsafe extern "C" fn srug_renderer_render_to_vulkan(
+    renderer: *mut srug_renderer,
+    scene: *const crate::scene::srug_scene,
+    targets: *const srug_vulkan_targets,
+) -> srug_status {
+    guard("srug_renderer_render_to_vulkan", || {
+        // SAFETY: the caller's contract.
+        let targets = unsafe { targets_of(targets) }?;
+        with_renderer_and_scene(renderer, scene, |r, _, s| r.render_to_vulkan(s, &targets))
+    })
+}
