@@ -570,6 +570,17 @@ srug_status srug_renderer_set_sun(srug_renderer *renderer,
                                   float elevation_degrees,
                                   const float *intensity);
 
+// The sun the renderer shades with, for a host that lights its own meshes
+// the same way: `direction` gets the world-space unit vector toward the sun
+// (srug's world axes, z up), `radiance` its RGB intensity (what
+// `srug_renderer_set_sun` was given); a surface of albedo ρ and normal n
+// receives ρ/π · radiance · max(n·direction, 0) from it, as srug's diffuse
+// term. No sun set: `SRUG_ERROR_WRONG_ORDER`.
+//
+// # Safety
+// `direction` and `radiance` each valid for 3 float writes.
+srug_status srug_renderer_get_sun(const srug_renderer *renderer, float *direction, float *radiance);
+
 // Removes the sun: no sun light, no shadow pass.
 srug_status srug_renderer_clear_sun(srug_renderer *renderer);
 

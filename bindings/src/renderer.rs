@@ -522,6 +522,35 @@ pub unsafe extern "C" fn srug_renderer_set_sun(
     })
 }
 
+/// The sun the renderer shades with, for a host that lights its own meshes
+/// the same way: `direction` gets the world-space unit vector toward the sun
+/// (srug's world axes, z up), `radiance` its RGB intensity (what
+/// `srug_renderer_set_sun` was given); a surface of albedo ρ and normal n
+/// receives ρ/π · radiance · max(n·direction, 0) from it, as srug's diffuse
+/// term. No sun set: `SRUG_ERROR_WRONG_ORDER`.
+///
+/// # Safety
+/// `direction` and `radiance` each valid for 3 float writes.
+#[no_mangle]
+pub unsafe extern "C" fn srug_renderer_get_sun(
+    renderer: *const srug_renderer,
+    direction: *mut f32,
+    radiance: *mut f32,
+) -> srug_status {
+    guard("srug_renderer_get_sun", || {
+        check_out(direction, "direction")?;
+        check_out(radiance, "radiance")?;
+        with_renderer(renderer.cast_mut(), |r| {
+            let sun = r.sun.as_ref().ok_or_else(|| wrong_order("no sun set (srug_renderer_set_sun first)"))?;
+            // SAFETY: the caller's contract: 3 floats each, checked non-null.
+            let (d, l) = unsafe { (slice_mut(direction, 3, "direction")?, slice_mut(radiance, 3, "radiance")?) };
+            d.copy_from_slice(&sun.direction.to_array());
+            l.copy_from_slice(&sun.intensity);
+            Ok(())
+        })
+    })
+}
+
 /// Removes the sun: no sun light, no shadow pass.
 #[no_mangle]
 pub extern "C" fn srug_renderer_clear_sun(renderer: *mut srug_renderer) -> srug_status {

@@ -268,6 +268,26 @@ fn bench_batch_prints_its_table() {
     assert!(!o.status.success() && text(&o).contains("--counts"), "{}", text(&o));
 }
 
+/// `srug bench embed` renders into an image on srug's device and through the
+/// host-copy path, and prints a row of positive times per size.
+#[test]
+fn bench_embed_prints_its_table() {
+    let o =
+        srug(&["bench", "embed", "--gaussians", "2000", "--sh-degree", "1", "--sizes", "88x24,64x32", "--frames", "1"]);
+    let t = text(&o);
+    assert!(o.status.success(), "{t}");
+    assert!(t.contains("shared device ms/frame") && t.contains("host copy ms/frame"), "{t}");
+    for size in ["88x24", "64x32"] {
+        let row =
+            t.lines().find(|l| l.starts_with(&format!("| {size} |"))).unwrap_or_else(|| panic!("no {size}:\n{t}"));
+        let values: Vec<f64> = row.split('|').filter_map(|c| c.trim().parse().ok()).collect();
+        assert_eq!(values.len(), 5, "{row}");
+        assert!(values.iter().all(|v| *v > 0.0), "{row}");
+    }
+    let o = srug(&["bench", "embed", "--frames", "0"]);
+    assert!(!o.status.success() && text(&o).contains("--frames"), "{}", text(&o));
+}
+
 #[test]
 fn malformed_values_are_usage_errors() {
     let cases: &[(&[&str], &[&str])] = &[

@@ -82,7 +82,7 @@ impl HostImageFormat {
     pub fn from_vk(format: vk::Format) -> Result<Self> {
         Self::ALL.into_iter().find(|f| f.vk() == format).ok_or_else(|| {
             let names: Vec<String> = Self::ALL.iter().map(|f| format!("{:?}", f.vk())).collect();
-            Error::Unsupported(format!("image format {format:?}: srug copies {}", names.join(", ")))
+            Error::invalid(format!("image format {format:?}"), format!("is not one srug copies ({})", names.join(", ")))
         })
     }
 
@@ -184,7 +184,10 @@ impl HostImage {
         if self.image == vk::Image::null() {
             return Err(bad("is VK_NULL_HANDLE".into()));
         }
-        let format = HostImageFormat::from_vk(self.format).map_err(|e| bad(e.to_string()))?;
+        let format = HostImageFormat::from_vk(self.format).map_err(|e| match e {
+            Error::InvalidArgument { what: format, why } => bad(format!("has {format}, which {why}")),
+            other => other,
+        })?;
         if self.width == 0 || self.height == 0 {
             return Err(bad(format!("is {}x{}", self.width, self.height)));
         }

@@ -37,13 +37,15 @@
 //! allocator, garbage of raw handles) imports only those; `device`, `buffer`,
 //! `kernel` and `recording` import `shared` and the leaves, and `recording`
 //! also imports `buffer`, `kernel` and `sync`; `host_image` (the host's
-//! images) imports `buffer`, `device` and `recording`.
+//! images) imports `buffer`, `device` and `recording`; `image` (images on
+//! srug's own device) imports `shared`, `device` and `host_image`.
 
 mod buffer;
 mod device;
 mod error;
 mod format;
 mod host_image;
+mod image;
 mod info;
 mod kernel;
 mod layout;
@@ -61,6 +63,7 @@ pub use device::{Device, DeviceOptions, DeviceSelection, EnabledFeatures, RawVul
 pub use error::{GpuError, Result};
 pub use format::TexelFormat;
 pub use host_image::{HostImage, HostImageAccess, HostImageFormat};
+pub use image::DeviceImage;
 pub use info::{AdapterSummary, DeviceInfo, MemoryUsage};
 pub use kernel::{check_decl, specialized_workgroup_size, Kernel, KernelDecl, SpecValue};
 pub use layout::{check_block, check_layout, DeviceAddress, GpuLayout};

@@ -53,6 +53,7 @@ pub(crate) struct ValidationLog {
 /// Something to destroy once the GPU has finished the submission it may be used in.
 pub(crate) enum Garbage {
     Buffer(vk::Buffer, Allocation),
+    Image(vk::Image, Allocation),
     Pipeline { pipeline: vk::Pipeline, layout: vk::PipelineLayout, set_layout: Option<vk::DescriptorSetLayout> },
     Transient(Transient),
 }
@@ -121,6 +122,15 @@ impl Shared {
                 self.current_bytes.fetch_sub(size, Ordering::Relaxed);
                 // SAFETY: the buffer belongs to this device and no submission uses it any more.
                 unsafe { self.device.destroy_buffer(buffer, None) };
+            }
+            Garbage::Image(image, allocation) => {
+                let size = allocation.size();
+                if let Err(e) = lock(&self.allocator).free(allocation) {
+                    log::error!("freeing GPU memory failed: {e}");
+                }
+                self.current_bytes.fetch_sub(size, Ordering::Relaxed);
+                // SAFETY: the image belongs to this device and no submission uses it any more.
+                unsafe { self.device.destroy_image(image, None) };
             }
             Garbage::Pipeline { pipeline, layout, set_layout } => {
                 // SAFETY: as above; the objects were created on this device.

@@ -368,3 +368,45 @@ fn misstated_host_images_and_semaphores_are_refused_by_name() {
     assert!(e.contains("does not match the rendered frame's 88x24"), "{e}");
     assert_no_validation_messages(&d);
 }
+
+#[test]
+fn frames_land_in_an_image_srug_made_on_its_own_device() {
+    let d = srug_tests::device();
+    let i = inputs(&d);
+    let mut relighter = Relighter::new(&d).unwrap();
+    let usage = vk::ImageUsageFlags::TRANSFER_SRC | vk::ImageUsageFlags::TRANSFER_DST;
+    let image = d.create_image("target", HostImageFormat::Rgba32Float, SIZE, usage).unwrap();
+    let targets = HostTargets {
+        colour: Some(image.host_image(vk::ImageLayout::UNDEFINED, vk::ImageLayout::TRANSFER_SRC_OPTIMAL)),
+        depth: None,
+        depth_convention: HostDepth::CameraZ,
+        composite: false,
+        sync: HostSync::default(),
+    };
+    let settings = RelightSettings::default();
+    let bounds = i.scene.bounds().unwrap();
+    let frame = relighter
+        .render_to_host(
+            &i.gpu,
+            &i.scene.attributes(),
+            &bounds,
+            &i.camera,
+            Some(&i.sun),
+            &i.env,
+            &i.brdf,
+            &settings,
+            &targets,
+        )
+        .unwrap();
+    let texels = d.create_filled::<u32>("texels", SIZE.0 as usize * SIZE.1 as usize * 4, 0xffff_ffff).unwrap();
+    let stated = image.host_image(vk::ImageLayout::TRANSFER_SRC_OPTIMAL, vk::ImageLayout::TRANSFER_SRC_OPTIMAL);
+    d.run(|rec| rec.copy_host_image_to_buffer(&stated, stated.layout_before, &texels)).unwrap();
+    let got: Vec<f32> = d.read_buffer(&texels).unwrap();
+    let radiance: Vec<f32> = d.read_buffer(&frame.shaded.radiance).unwrap();
+    let alpha: Vec<f32> = d.read_buffer(&frame.gbuffer.alpha).unwrap();
+    for (p, texel) in got.chunks_exact(4).enumerate() {
+        let expected = [radiance[3 * p], radiance[3 * p + 1], radiance[3 * p + 2], alpha[p].clamp(0.0, 1.0)];
+        assert_eq!(texel, expected, "pixel {p}");
+    }
+    assert_no_validation_messages(&d);
+}

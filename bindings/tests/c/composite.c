@@ -2,7 +2,7 @@
  * synchronization validation, its own messenger) and device, a colour image
  * (RGBA16F) and a depth image (D32) of its own, and a graphics pipeline that
  * rasterizes a triangle mesh (a wall receding across the street and a sign)
- * into them. Each of FRAMES frames of a camera moving down the demo street:
+ * into them, lit by srug's sun (srug_renderer_get_sun). Each of FRAMES frames of a camera moving down the demo street:
  * the host draws its mesh (signalling a semaphore), srug renders the demo city
  * into the same images with srug_renderer_render_to_vulkan (waiting on it,
  * hiding splats behind the mesh, blending the rest over the mesh's colour,
@@ -154,19 +154,33 @@ static VkShaderModule compile(const Gpu *g, shaderc_compiler_t compiler, const c
   return module;
 }
 
+/* The mesh is lit by srug's sun (srug_renderer_get_sun): albedo / pi * radiance * max(n.l, 0),
+ * srug's diffuse term, plus a little ambient; flat normals facing the camera. */
+#define PUSH_BLOCK "layout(push_constant) uniform Push { mat4 clip; vec4 eye; vec4 sun_dir; vec4 sun_radiance; } push;\n"
 static const char *VERTEX_SHADER =
     "#version 450\n"
     "layout(location = 0) in vec3 position;\n"
-    "layout(location = 1) in vec3 colour;\n"
-    "layout(push_constant) uniform Push { mat4 clip; } push;\n"
+    "layout(location = 1) in vec3 colour;\n" PUSH_BLOCK
     "layout(location = 0) out vec3 v_colour;\n"
-    "void main() { gl_Position = push.clip * vec4(position, 1.0); v_colour = colour; }\n";
+    "layout(location = 1) out vec3 v_world;\n"
+    "void main() { gl_Position = push.clip * vec4(position, 1.0); v_colour = colour; v_world = position; }\n";
 
 static const char *FRAGMENT_SHADER =
-    "#version 450\n"
+    "#version 450\n" PUSH_BLOCK
     "layout(location = 0) in vec3 v_colour;\n"
+    "layout(location = 1) in vec3 v_world;\n"
     "layout(location = 0) out vec4 colour;\n"
-    "void main() { colour = vec4(v_colour, 1.0); }\n";
+    "void main() {\n"
+    "  vec3 n = normalize(cross(dFdx(v_world), dFdy(v_world)));\n"
+    "  if (dot(n, push.eye.xyz - v_world) < 0.0) n = -n;\n"
+    "  vec3 lit = v_colour / 3.14159265 * push.sun_radiance.rgb * max(dot(n, push.sun_dir.xyz), 0.0);\n"
+    "  colour = vec4(lit + 0.05 * v_colour, 1.0);\n"
+    "}\n";
+
+/* The push constants both stages read. */
+typedef struct {
+  float clip[16], eye[4], sun_dir[4], sun_radiance[4];
+} Push;
 
 /* The mesh, in world coordinates (z up): a wall from 6 m to 26 m ahead,
  * receding from the left of the street to its right, and a sign near the camera. */
@@ -422,7 +436,7 @@ static Raster make_raster(const Gpu *g, const Image *colour, const Image *depth)
                                  .height = H,
                                  .layers = 1};
   VK(vkCreateFramebuffer(g->device, &fbi, NULL, &r.framebuffer));
-  VkPushConstantRange push = {VK_SHADER_STAGE_VERTEX_BIT, 0, 64};
+  VkPushConstantRange push = {VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT, 0, sizeof(Push)};
   VkPipelineLayoutCreateInfo pli = {.sType = VK_STRUCTURE_TYPE_PIPELINE_LAYOUT_CREATE_INFO,
                                     .pushConstantRangeCount = 1,
                                     .pPushConstantRanges = &push};
@@ -579,6 +593,8 @@ int main(int argc, char **argv) {
 
   /* Misuse is refused before any work. */
   printf("refusals:\n");
+  float unused[3];
+  EXPECT(srug_renderer_get_sun(r, NULL, unused), SRUG_ERROR_NULL_POINTER);
   EXPECT(srug_renderer_render_to_vulkan(r, scene, NULL), SRUG_ERROR_NULL_POINTER);
   srug_vulkan_image wrong = colour_target;
   wrong.format = VK_FORMAT_R8_UNORM;
@@ -605,13 +621,16 @@ int main(int argc, char **argv) {
     /* The camera walks down the street. */
     const float eye[3] = {-40.0f + 0.08f * (float)frame, -2.0f + 0.01f * (float)frame, 1.6f};
     const float target[3] = {eye[0] + 30.0f, -2.0f, 1.3f}, up[3] = {0.0f, 0.0f, 1.0f};
-    float view[16], projection[16], clip[16];
+    float view[16], projection[16];
+    Push push = {.eye = {eye[0], eye[1], eye[2], 1.0f}};
     look_at(view, eye, target, up);
     perspective(projection, 50.0f, (float)W / (float)H, NEAR, FAR);
     /* OpenGL clip space to Vulkan's: y down, depth in [0, 1]. */
     const float to_vulkan[16] = {1, 0, 0, 0, 0, -1, 0, 0, 0, 0, 0.5f, 0, 0, 0, 0.5f, 1};
-    mul(clip, projection, view);
-    mul(clip, to_vulkan, clip);
+    mul(push.clip, projection, view);
+    mul(push.clip, to_vulkan, push.clip);
+    /* The same sun as the splats. */
+    CHECK(srug_renderer_get_sun(r, push.sun_dir, push.sun_radiance));
     CHECK(srug_renderer_set_camera_matrices(r, view, projection));
 
     /* The host draws its mesh and keeps a copy of what it drew. */
@@ -627,7 +646,8 @@ int main(int argc, char **argv) {
     vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, raster.pipeline);
     VkDeviceSize offset = 0;
     vkCmdBindVertexBuffers(cmd, 0, 1, &vertices.buffer, &offset);
-    vkCmdPushConstants(cmd, raster.layout, VK_SHADER_STAGE_VERTEX_BIT, 0, 64, clip);
+    vkCmdPushConstants(cmd, raster.layout, VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT, 0, sizeof push,
+                       &push);
     vkCmdDraw(cmd, VERTICES, 1, 0, 0);
     vkCmdEndRenderPass(cmd);
     barrier(cmd, colour.image, VK_IMAGE_ASPECT_COLOR_BIT, VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL,

@@ -4,6 +4,7 @@
 
 pub mod batch;
 pub mod completion;
+pub mod embed;
 pub mod formats;
 pub mod limits;
 pub mod plot;

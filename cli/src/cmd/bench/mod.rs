@@ -3,6 +3,7 @@
 
 mod batch;
 mod completion;
+mod embed;
 mod formats;
 mod scaling;
 mod shade;
@@ -40,6 +41,9 @@ pub(super) enum BenchCommand {
     /// Shadow-guided completion on the analytic block: setup, time per step, steps to converge and
     /// shadow IoU against the truth, per scene size.
     Completion(completion::CompletionBenchArgs),
+    /// Rendering into a host's own Vulkan image against reading the frame back and uploading it,
+    /// per relit frame and image size.
+    Embed(embed::EmbedBenchArgs),
 }
 
 impl BenchCommand {
@@ -55,6 +59,7 @@ impl BenchCommand {
             Self::Formats(a) => a.run(),
             Self::Batch(a) => a.run(device),
             Self::Completion(a) => a.run(device),
+            Self::Embed(a) => a.run(device),
         }
     }
 }
