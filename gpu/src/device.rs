@@ -237,7 +237,8 @@ impl Device {
             .iter()
             .position(|p| *p == physical_device)
             .unwrap_or(0);
-        let info = describe(&instance, physical_device, index, queue_family, &enabled);
+        // The host's device: srug does not know which extensions it enabled, so it exports nothing.
+        let info = describe(&instance, physical_device, index, queue_family, &enabled, Exports::default());
         let log_box: Option<Box<ValidationLog>> = validation_messages.then(Box::default);
         let debug = match &log_box {
             Some(log) => {
@@ -653,13 +654,16 @@ fn describe(
     index: usize,
     family: u32,
     enabled: &EnabledFeatures,
+    exports: Exports,
 ) -> DeviceInfo {
     // SAFETY: `physical` comes from this instance.
     let families = unsafe { instance.get_physical_device_queue_family_properties(physical) };
     let family_timestamps = families.get(family as usize).map_or(0, |f| f.timestamp_valid_bits);
     let mut driver = vk::PhysicalDeviceDriverProperties::default();
     let mut subgroup = vk::PhysicalDeviceSubgroupProperties::default();
-    let mut props2 = vk::PhysicalDeviceProperties2::default().push_next(&mut driver).push_next(&mut subgroup);
+    let mut ids = vk::PhysicalDeviceIDProperties::default();
+    let mut props2 =
+        vk::PhysicalDeviceProperties2::default().push_next(&mut driver).push_next(&mut subgroup).push_next(&mut ids);
     // SAFETY: valid physical device and property chain.
     unsafe { instance.get_physical_device_properties2(physical, &mut props2) };
     let props = props2.properties;
@@ -699,6 +703,28 @@ fn describe(
                 props.buffer_features.contains(vk::FormatFeatureFlags::UNIFORM_TEXEL_BUFFER)
             })
             .collect(),
+        external_memory_fd: exports.memory_fd,
+        external_semaphore_fd: exports.semaphore_fd,
+        device_uuid: ids.device_uuid,
+        driver_uuid: ids.driver_uuid,
+    }
+}
+
+/// The fd exports srug enabled on a device it created.
+#[derive(Clone, Copy, Debug, Default)]
+struct Exports {
+    memory_fd: bool,
+    semaphore_fd: bool,
+}
+
+/// Which of the fd export extensions `physical` offers.
+fn supported_exports(instance: &ash::Instance, physical: vk::PhysicalDevice) -> Exports {
+    // SAFETY: valid physical device.
+    let extensions = unsafe { instance.enumerate_device_extension_properties(physical) }.unwrap_or_default();
+    let has = |name: &std::ffi::CStr| extensions.iter().any(|e| e.extension_name_as_c_str() == Ok(name));
+    Exports {
+        memory_fd: has(ash::khr::external_memory_fd::NAME),
+        semaphore_fd: has(ash::khr::external_semaphore_fd::NAME),
     }
 }
 
@@ -712,7 +738,15 @@ fn make_device(
     if !supported.buffer_device_address {
         return Err(Error::NoDevice("the device lacks bufferDeviceAddress, which srug needs for large scenes".into()));
     }
-    let info = describe(instance, physical, index, family, &supported);
+    let exports = supported_exports(instance, physical);
+    let info = describe(instance, physical, index, family, &supported, exports);
+    let mut extensions = Vec::new();
+    if exports.memory_fd {
+        extensions.push(ash::khr::external_memory_fd::NAME.as_ptr());
+    }
+    if exports.semaphore_fd {
+        extensions.push(ash::khr::external_semaphore_fd::NAME.as_ptr());
+    }
     let priorities = [1.0f32];
     let queue_info = [vk::DeviceQueueCreateInfo::default().queue_family_index(family).queue_priorities(&priorities)];
     let mut en11 = vk::PhysicalDeviceVulkan11Features::default()
@@ -724,6 +758,7 @@ fn make_device(
         vk::PhysicalDeviceFeatures::default().shader_int64(supported.shader_int64).shader_int16(supported.shader_int16);
     let create = vk::DeviceCreateInfo::default()
         .queue_create_infos(&queue_info)
+        .enabled_extension_names(&extensions)
         .enabled_features(&en_base)
         .push_next(&mut en11)
         .push_next(&mut en12);

@@ -340,4 +340,34 @@ impl<'a> Recording<'a> {
         self.host_image_barrier(image, format, dst, image.layout_after);
         Ok(())
     }
+
+    /// Releases a host image (in `layout`, left there) from srug's queue
+    /// family to `VK_QUEUE_FAMILY_EXTERNAL`, after srug's last write: what an
+    /// image whose memory another device imports needs before that device's
+    /// acquire barrier (from `VK_QUEUE_FAMILY_EXTERNAL`, same layout).
+    pub fn release_host_image_to_external(&mut self, image: &HostImage, layout: vk::ImageLayout) -> Result<()> {
+        let format = image.host_format()?;
+        let barrier = vk::ImageMemoryBarrier::default()
+            .src_access_mask(vk::AccessFlags::MEMORY_WRITE)
+            .dst_access_mask(vk::AccessFlags::empty())
+            .old_layout(layout)
+            .new_layout(layout)
+            .src_queue_family_index(self.device().shared.queue_family)
+            .dst_queue_family_index(vk::QUEUE_FAMILY_EXTERNAL)
+            .image(image.image)
+            .subresource_range(image.range(format));
+        // SAFETY: recording state on srug's queue family; the image is srug's or the host's as stated.
+        unsafe {
+            self.device().shared.device.cmd_pipeline_barrier(
+                self.cmd,
+                vk::PipelineStageFlags::ALL_COMMANDS,
+                vk::PipelineStageFlags::BOTTOM_OF_PIPE,
+                vk::DependencyFlags::empty(),
+                &[],
+                &[],
+                &[barrier],
+            );
+        }
+        Ok(())
+    }
 }

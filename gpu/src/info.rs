@@ -48,6 +48,16 @@ pub struct DeviceInfo {
     pub min_texel_buffer_offset_alignment: u64,
     /// The [`TexelFormat`]s usable as uniform texel buffers.
     pub texel_formats: Vec<TexelFormat>,
+    /// Whether srug enabled `VK_KHR_external_memory_fd` (on devices it
+    /// creates, where offered): images can be exported ([`crate::ExportedImage`]).
+    pub external_memory_fd: bool,
+    /// Whether srug enabled `VK_KHR_external_semaphore_fd`: semaphores can be exported.
+    pub external_semaphore_fd: bool,
+    /// `VkPhysicalDeviceIDProperties::deviceUUID`: an importer of exported
+    /// memory must be on a physical device with the same one.
+    pub device_uuid: [u8; 16],
+    /// `VkPhysicalDeviceIDProperties::driverUUID`: and the same driver.
+    pub driver_uuid: [u8; 16],
 }
 
 impl DeviceInfo {

@@ -38,11 +38,13 @@
 //! `kernel` and `recording` import `shared` and the leaves, and `recording`
 //! also imports `buffer`, `kernel` and `sync`; `host_image` (the host's
 //! images) imports `buffer`, `device` and `recording`; `image` (images on
-//! srug's own device) imports `shared`, `device` and `host_image`.
+//! srug's own device) and `export` (images and semaphores exported as fds)
+//! import `shared`, `device` and `host_image`.
 
 mod buffer;
 mod device;
 mod error;
+mod export;
 mod format;
 mod host_image;
 mod image;
@@ -61,6 +63,7 @@ pub use ash::vk::Result as VkResult;
 pub use buffer::{Buffer, MemoryKind, Texels};
 pub use device::{Device, DeviceOptions, DeviceSelection, EnabledFeatures, RawVulkan, DEVICE_ENV, VALIDATION_ENV};
 pub use error::{GpuError, Result};
+pub use export::{ExportedImage, ExportedImageInfo, ExportedSemaphore};
 pub use format::TexelFormat;
 pub use host_image::{HostImage, HostImageAccess, HostImageFormat};
 pub use image::DeviceImage;

@@ -54,7 +54,14 @@ pub(crate) struct ValidationLog {
 pub(crate) enum Garbage {
     Buffer(vk::Buffer, Allocation),
     Image(vk::Image, Allocation),
-    Pipeline { pipeline: vk::Pipeline, layout: vk::PipelineLayout, set_layout: Option<vk::DescriptorSetLayout> },
+    /// An exported image and its dedicated memory (not srug's allocator's).
+    ExportedImage(vk::Image, vk::DeviceMemory),
+    Semaphore(vk::Semaphore),
+    Pipeline {
+        pipeline: vk::Pipeline,
+        layout: vk::PipelineLayout,
+        set_layout: Option<vk::DescriptorSetLayout>,
+    },
     Transient(Transient),
 }
 
@@ -131,6 +138,17 @@ impl Shared {
                 self.current_bytes.fetch_sub(size, Ordering::Relaxed);
                 // SAFETY: the image belongs to this device and no submission uses it any more.
                 unsafe { self.device.destroy_image(image, None) };
+            }
+            Garbage::ExportedImage(image, memory) => {
+                // SAFETY: as above; the memory was allocated for this image alone.
+                unsafe {
+                    self.device.destroy_image(image, None);
+                    self.device.free_memory(memory, None);
+                }
+            }
+            Garbage::Semaphore(semaphore) => {
+                // SAFETY: as above.
+                unsafe { self.device.destroy_semaphore(semaphore, None) };
             }
             Garbage::Pipeline { pipeline, layout, set_layout } => {
                 // SAFETY: as above; the objects were created on this device.

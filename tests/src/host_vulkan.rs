@@ -95,6 +95,13 @@ pub fn host(enable_bda: bool) -> Host {
     let base = vk::PhysicalDeviceFeatures::default().shader_int64(true);
     let create =
         vk::DeviceCreateInfo::default().queue_create_infos(&queues).enabled_features(&base).push_next(&mut v12);
+    // Memory srug exports is imported through this extension (lavapipe offers it).
+    // SAFETY: valid physical device.
+    let offered = unsafe { instance.enumerate_device_extension_properties(physical) }.unwrap();
+    let fd = ash::khr::external_memory_fd::NAME;
+    let extensions: Vec<_> =
+        offered.iter().filter(|e| e.extension_name_as_c_str() == Ok(fd)).map(|_| fd.as_ptr()).collect();
+    let create = create.enabled_extension_names(&extensions);
     // SAFETY: valid create info; lavapipe supports these features.
     let device = unsafe { instance.create_device(physical, &create, None) }.unwrap();
     let enabled =
@@ -421,5 +428,79 @@ impl Host {
         unsafe { std::ptr::copy_nonoverlapping(ptr, out.as_mut_ptr(), bytes) };
         self.free_staging(buffer, memory);
         out
+    }
+
+    /// Imports memory another device exported as an opaque fd (ownership of
+    /// `fd` passes to Vulkan) into a new image of that description.
+    pub fn import_image(
+        &self,
+        fd: std::os::fd::OwnedFd,
+        format: vk::Format,
+        size: (u32, u32),
+        usage: vk::ImageUsageFlags,
+        allocation_size: u64,
+    ) -> OwnImage {
+        use std::os::fd::IntoRawFd;
+        let handle = vk::ExternalMemoryHandleTypeFlags::OPAQUE_FD;
+        let mut external = vk::ExternalMemoryImageCreateInfo::default().handle_types(handle);
+        let info = vk::ImageCreateInfo::default()
+            .image_type(vk::ImageType::TYPE_2D)
+            .format(format)
+            .extent(vk::Extent3D { width: size.0, height: size.1, depth: 1 })
+            .mip_levels(1)
+            .array_layers(1)
+            .samples(vk::SampleCountFlags::TYPE_1)
+            .tiling(vk::ImageTiling::OPTIMAL)
+            .usage(usage)
+            .initial_layout(vk::ImageLayout::UNDEFINED)
+            .push_next(&mut external);
+        // SAFETY: valid create info; the fd's memory was made for an identical image.
+        unsafe {
+            let image = self.device.create_image(&info, None).unwrap();
+            let req = self.device.get_image_memory_requirements(image);
+            let mut dedicated = vk::MemoryDedicatedAllocateInfo::default().image(image);
+            let mut import = vk::ImportMemoryFdInfoKHR::default().handle_type(handle).fd(fd.into_raw_fd());
+            let alloc = vk::MemoryAllocateInfo::default()
+                .allocation_size(allocation_size)
+                .memory_type_index(self.memory_type(req.memory_type_bits, vk::MemoryPropertyFlags::DEVICE_LOCAL))
+                .push_next(&mut dedicated)
+                .push_next(&mut import);
+            let memory = self.device.allocate_memory(&alloc, None).unwrap();
+            self.device.bind_image_memory(image, memory, 0).unwrap();
+            OwnImage { image, memory, aspect: vk::ImageAspectFlags::COLOR, size }
+        }
+    }
+
+    /// Acquires an imported image (in `layout`, kept) from `VK_QUEUE_FAMILY_EXTERNAL`.
+    pub fn acquire_external(&self, image: &OwnImage, layout: vk::ImageLayout) {
+        let family = self.family;
+        self.submit(
+            |d, cmd| {
+                let range =
+                    vk::ImageSubresourceRange::default().aspect_mask(image.aspect).level_count(1).layer_count(1);
+                let b = vk::ImageMemoryBarrier::default()
+                    .old_layout(layout)
+                    .new_layout(layout)
+                    .dst_access_mask(vk::AccessFlags::MEMORY_READ)
+                    .src_queue_family_index(vk::QUEUE_FAMILY_EXTERNAL)
+                    .dst_queue_family_index(family)
+                    .image(image.image)
+                    .subresource_range(range);
+                // SAFETY: recording state; the host's own image.
+                unsafe {
+                    d.cmd_pipeline_barrier(
+                        cmd,
+                        vk::PipelineStageFlags::TOP_OF_PIPE,
+                        vk::PipelineStageFlags::ALL_COMMANDS,
+                        vk::DependencyFlags::empty(),
+                        &[],
+                        &[],
+                        &[b],
+                    );
+                }
+            },
+            &[],
+            &[],
+        );
     }
 }

@@ -410,3 +410,79 @@ fn frames_land_in_an_image_srug_made_on_its_own_device() {
     }
     assert_no_validation_messages(&d);
 }
+
+/// srug on a device of its own (the separate-device path): it renders into
+/// an image whose memory it exports as an opaque fd, releases it to
+/// `VK_QUEUE_FAMILY_EXTERNAL`; the host imports the fd into an image on its
+/// own device (another VkDevice and VkInstance), acquires it and reads the
+/// frame back bit for bit. Semaphore export is refused by name where the
+/// device lacks `VK_KHR_external_semaphore_fd` (lavapipe does).
+#[test]
+fn a_host_on_another_device_imports_the_frame_srug_exported() {
+    let d = srug_tests::device();
+    if !d.info().external_memory_fd {
+        let e = d.create_exported_image(HostImageFormat::Rgba32Float, SIZE, vk::ImageUsageFlags::TRANSFER_DST).err();
+        let e = e.map(|e| e.to_string()).unwrap_or_default();
+        assert!(e.contains("VK_KHR_external_memory_fd"), "{e}");
+        println!("skipped the import: {} does not offer VK_KHR_external_memory_fd", d.info().name);
+        return;
+    }
+    let i = inputs(&d);
+    let mut relighter = Relighter::new(&d).unwrap();
+    let usage = vk::ImageUsageFlags::TRANSFER_SRC | vk::ImageUsageFlags::TRANSFER_DST;
+    let exported = d.create_exported_image(HostImageFormat::Rgba32Float, SIZE, usage).unwrap();
+    let general = vk::ImageLayout::GENERAL;
+    let targets = HostTargets {
+        colour: Some(exported.host_image(vk::ImageLayout::UNDEFINED, general)),
+        depth: None,
+        depth_convention: HostDepth::CameraZ,
+        composite: false,
+        sync: HostSync::default(),
+    };
+    let settings = RelightSettings::default();
+    let bounds = i.scene.bounds().unwrap();
+    let frame = relighter
+        .render_to_host(
+            &i.gpu,
+            &i.scene.attributes(),
+            &bounds,
+            &i.camera,
+            Some(&i.sun),
+            &i.env,
+            &i.brdf,
+            &settings,
+            &targets,
+        )
+        .unwrap();
+    let stated = exported.host_image(general, general);
+    d.run(|rec| rec.release_host_image_to_external(&stated, general)).unwrap();
+    let radiance: Vec<f32> = d.read_buffer(&frame.shaded.radiance).unwrap();
+    let alpha: Vec<f32> = d.read_buffer(&frame.gbuffer.alpha).unwrap();
+    let info = exported.info();
+    let fd = exported.export_fd().unwrap();
+    match d.create_exported_semaphore() {
+        Ok(_) => println!("{} exports semaphores", d.info().name),
+        Err(e) => assert!(e.to_string().contains("VK_KHR_external_semaphore_fd"), "{e}"),
+    }
+    assert_no_validation_messages(&d);
+
+    let h = host(true);
+    let mut ids = vk::PhysicalDeviceIDProperties::default();
+    let mut props = vk::PhysicalDeviceProperties2::default().push_next(&mut ids);
+    // SAFETY: valid physical device of the host's instance.
+    unsafe { h.instance.get_physical_device_properties2(h.physical, &mut props) };
+    assert_eq!((ids.device_uuid, ids.driver_uuid), (info.device_uuid, info.driver_uuid), "the same GPU and driver");
+    let imported = h.import_image(fd, info.format.vk(), (info.width, info.height), info.usage, info.allocation_size);
+    h.acquire_external(&imported, general);
+    let bytes = h.download_image(&imported, SIZE.0 as usize * SIZE.1 as usize * 16, general, &[]);
+    let got: Vec<f32> = bytemuck::pod_collect_to_vec(&bytes);
+    for (p, texel) in got.chunks_exact(4).enumerate() {
+        let expected = [radiance[3 * p], radiance[3 * p + 1], radiance[3 * p + 2], alpha[p].clamp(0.0, 1.0)];
+        assert_eq!(texel, expected, "pixel {p}");
+    }
+    drop(exported);
+    h.destroy_image(imported);
+    let heard = h.finish();
+    assert!(heard.is_empty(), "the host's messenger heard: {heard:?}");
+    assert_no_validation_messages(&d);
+}
