@@ -218,6 +218,29 @@ typedef struct {
   size_t signal_count;
 } srug_vulkan_targets;
 
+// An image srug exported for a host on another device (`srug_renderer_export_image`).
+typedef struct {
+  // Its memory as an opaque POSIX file descriptor (`VK_EXTERNAL_MEMORY_HANDLE_TYPE_OPAQUE_FD_BIT`),
+  // owned by the caller: import it (Vulkan then owns it) or close it.
+  int32_t fd;
+  // `VkFormat`, as asked.
+  uint32_t format;
+  // Width: the renderer's.
+  uint32_t width;
+  // Height: the renderer's.
+  uint32_t height;
+  // `VkImageUsageFlags` it was created with (`TRANSFER_SRC | TRANSFER_DST | SAMPLED`):
+  // the importer's image must be created alike (2D, one level and layer,
+  // optimal tiling, `VkExternalMemoryImageCreateInfo` with the opaque-fd type).
+  uint32_t usage;
+  // `allocationSize` of the import (a dedicated allocation).
+  uint64_t allocation_size;
+  // The importer's physical device must have this `deviceUUID` ...
+  uint8_t device_uuid[16];
+  // ... and this `driverUUID`.
+  uint8_t driver_uuid[16];
+} srug_exported_image;
+
 // Colour over the background (3 floats per pixel); always rendered.
 #define SRUG_CHANNEL_RGB 0
 
@@ -769,6 +792,29 @@ srug_status srug_renderer_shadow_backward(srug_renderer *renderer,
 srug_status srug_renderer_render_to_vulkan(srug_renderer *renderer,
                                            const srug_scene *scene,
                                            const srug_vulkan_targets *targets);
+
+// Makes an image at the renderer's size whose memory the host imports into
+// its own device, for hosts that keep srug on a device of its own (a context
+// from `srug_context_create`). `vk_format` as for
+// `srug_renderer_render_to_vulkan`'s colour images. A later call replaces the
+// image (the host's imports of the old one stay valid until it frees them).
+// Devices without `VK_KHR_external_memory_fd`: `SRUG_ERROR_UNSUPPORTED`.
+//
+// # Safety
+// `out` valid for one write.
+srug_status srug_renderer_export_image(srug_renderer *renderer,
+                                       uint32_t vk_format,
+                                       srug_exported_image *out);
+
+// Renders `scene` as `srug_renderer_render` does into the exported image
+// (`srug_renderer_export_image`), as `srug_renderer_render_to_vulkan` writes
+// a colour image without compositing, and returns when the GPU is done. The
+// image is left in `VK_IMAGE_LAYOUT_GENERAL`, released to
+// `VK_QUEUE_FAMILY_EXTERNAL`: the host's first barrier on its imported image
+// acquires it (from `VK_QUEUE_FAMILY_EXTERNAL`, GENERAL to GENERAL) before
+// reading and releases it back (to `VK_QUEUE_FAMILY_EXTERNAL`) before the
+// next call, which acquires it for srug. The frame stays readable as usual.
+srug_status srug_renderer_render_to_exported(srug_renderer *renderer, const srug_scene *scene);
 
 #ifdef __cplusplus
 }  // extern "C"

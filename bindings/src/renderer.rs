@@ -155,6 +155,9 @@ pub(crate) struct RendererObject {
     pub(crate) shadow: Option<ShadowState>,
     /// GPU stages of the last render or shadow pass.
     pub(crate) timings: Option<Timings>,
+    /// The image exported to a host on another device (`srug_renderer_export_image`).
+    /// With whether srug has released it to the host (after a render).
+    pub(crate) exported: Option<(srug::gpu::ExportedImage, bool)>,
 }
 
 pub(crate) fn renderer(p: *const srug_renderer) -> FfiResult<(u64, Arc<Mutex<RendererObject>>)> {
@@ -237,6 +240,7 @@ pub unsafe extern "C" fn srug_renderer_create(
             frame: None,
             shadow: None,
             timings: None,
+            exported: None,
         };
         let id = handle::insert(Object::Renderer(Arc::new(Mutex::new(obj))), ctx_id);
         // SAFETY: checked non-null above; the caller's contract.

@@ -145,9 +145,14 @@ impl RendererObject {
             return Err(Failure::new(
                 srug_status::SRUG_ERROR_WRONG_ORDER,
                 "the renderer's context opened its own Vulkan device: render into host images needs a context made \
-                 by srug_context_create_from_vulkan on the images' device",
+                 by srug_context_create_from_vulkan on the images' device (or srug_renderer_export_image)",
             ));
         }
+        self.render_into(scene, targets)
+    }
+
+    /// Renders into `targets` (images of the renderer's device).
+    fn render_into(&mut self, scene: &crate::scene::SceneObject, targets: &HostTargets) -> FfiResult {
         let saved = self.settings;
         if targets.composite {
             self.settings.shade.background = srug::shade::Background::Color([0.0; 3]);
@@ -217,5 +222,120 @@ pub unsafe extern "C" fn srug_renderer_render_to_vulkan(
         // SAFETY: the caller's contract.
         let targets = unsafe { targets_of(targets) }?;
         with_renderer_and_scene(renderer, scene, |r, _, s| r.render_to_vulkan(s, &targets))
+    })
+}
+
+/// An image srug exported for a host on another device (`srug_renderer_export_image`).
+#[repr(C)]
+#[derive(Clone, Copy, Debug)]
+pub struct srug_exported_image {
+    /// Its memory as an opaque POSIX file descriptor (`VK_EXTERNAL_MEMORY_HANDLE_TYPE_OPAQUE_FD_BIT`),
+    /// owned by the caller: import it (Vulkan then owns it) or close it.
+    pub fd: i32,
+    /// `VkFormat`, as asked.
+    pub format: u32,
+    /// Width: the renderer's.
+    pub width: u32,
+    /// Height: the renderer's.
+    pub height: u32,
+    /// `VkImageUsageFlags` it was created with (`TRANSFER_SRC | TRANSFER_DST | SAMPLED`):
+    /// the importer's image must be created alike (2D, one level and layer,
+    /// optimal tiling, `VkExternalMemoryImageCreateInfo` with the opaque-fd type).
+    pub usage: u32,
+    /// `allocationSize` of the import (a dedicated allocation).
+    pub allocation_size: u64,
+    /// The importer's physical device must have this `deviceUUID` ...
+    pub device_uuid: [u8; 16],
+    /// ... and this `driverUUID`.
+    pub driver_uuid: [u8; 16],
+}
+
+/// Makes an image at the renderer's size whose memory the host imports into
+/// its own device, for hosts that keep srug on a device of its own (a context
+/// from `srug_context_create`). `vk_format` as for
+/// `srug_renderer_render_to_vulkan`'s colour images. A later call replaces the
+/// image (the host's imports of the old one stay valid until it frees them).
+/// Devices without `VK_KHR_external_memory_fd`: `SRUG_ERROR_UNSUPPORTED`.
+///
+/// # Safety
+/// `out` valid for one write.
+#[no_mangle]
+pub unsafe extern "C" fn srug_renderer_export_image(
+    renderer: *mut srug_renderer,
+    vk_format: u32,
+    out: *mut srug_exported_image,
+) -> srug_status {
+    guard("srug_renderer_export_image", || {
+        check_out(out, "out")?;
+        with_renderer(renderer, |r| {
+            let format = srug::gpu::HostImageFormat::from_vk(vk::Format::from_raw(vk_format as i32))
+                .map_err(|e| invalid(e.to_string()))?;
+            if format.is_single_channel() {
+                return Err(invalid(format!("format {:?} is a depth format: export a colour one", format.vk())));
+            }
+            let usage =
+                vk::ImageUsageFlags::TRANSFER_SRC | vk::ImageUsageFlags::TRANSFER_DST | vk::ImageUsageFlags::SAMPLED;
+            let image =
+                r.device.create_exported_image(format, (r.width, r.height), usage).map_err(srug::Error::from)?;
+            let fd = image.export_fd().map_err(srug::Error::from)?;
+            let info = image.info();
+            r.exported = Some((image, false));
+            let description = srug_exported_image {
+                fd: std::os::fd::IntoRawFd::into_raw_fd(fd),
+                format: vk_format,
+                width: info.width,
+                height: info.height,
+                usage: usage.as_raw(),
+                allocation_size: info.allocation_size,
+                device_uuid: info.device_uuid,
+                driver_uuid: info.driver_uuid,
+            };
+            // SAFETY: checked non-null; the caller's contract.
+            unsafe { write_out(out, "out", description) }
+        })
+    })
+}
+
+/// Renders `scene` as `srug_renderer_render` does into the exported image
+/// (`srug_renderer_export_image`), as `srug_renderer_render_to_vulkan` writes
+/// a colour image without compositing, and returns when the GPU is done. The
+/// image is left in `VK_IMAGE_LAYOUT_GENERAL`, released to
+/// `VK_QUEUE_FAMILY_EXTERNAL`: the host's first barrier on its imported image
+/// acquires it (from `VK_QUEUE_FAMILY_EXTERNAL`, GENERAL to GENERAL) before
+/// reading and releases it back (to `VK_QUEUE_FAMILY_EXTERNAL`) before the
+/// next call, which acquires it for srug. The frame stays readable as usual.
+#[no_mangle]
+pub extern "C" fn srug_renderer_render_to_exported(
+    renderer: *mut srug_renderer,
+    scene: *const crate::scene::srug_scene,
+) -> srug_status {
+    guard("srug_renderer_render_to_exported", || {
+        with_renderer_and_scene(renderer, scene, |r, _, s| {
+            let general = vk::ImageLayout::GENERAL;
+            let Some((exported, released)) = r.exported.as_mut() else {
+                return Err(wrong_order("no exported image (srug_renderer_export_image first)"));
+            };
+            // After the first frame the image is the host's until srug takes it back.
+            let before = if *released { general } else { vk::ImageLayout::UNDEFINED };
+            let image = exported.host_image(before, general);
+            if *released {
+                r.device
+                    .run(|rec| rec.transfer_host_image_external(&image, general, true))
+                    .map_err(srug::Error::from)?;
+            }
+            let targets = HostTargets {
+                colour: Some(image),
+                depth: None,
+                depth_convention: srug::splat::HostDepth::CameraZ,
+                composite: false,
+                sync: HostSync::default(),
+            };
+            r.render_into(s, &targets)?;
+            r.device.run(|rec| rec.transfer_host_image_external(&image, general, false)).map_err(srug::Error::from)?;
+            if let Some((_, released)) = r.exported.as_mut() {
+                *released = true;
+            }
+            Ok(())
+        })
     })
 }

@@ -193,6 +193,16 @@ fn c_host_program_composites_srug_over_its_rasterized_mesh_in_its_own_images() {
 }
 
 #[test]
+fn c_host_on_its_own_device_imports_the_frames_srug_exports() {
+    let dir = tempfile::tempdir().unwrap();
+    let exe = build_with("export", dir.path(), &["-lvulkan"]);
+    let out = run(&exe, &[]);
+    assert!(out.contains("export: 4 frames imported into the host's device equal srug's"), "{out}");
+    assert!(out.contains("host messenger heard 0 message(s)"), "{out}");
+    assert!(out.contains("SRUG_ERROR_WRONG_ORDER") && out.contains("SRUG_ERROR_INVALID_ARGUMENT"), "{out}");
+}
+
+#[test]
 fn c_program_gets_errors_for_every_misuse() {
     let dir = tempfile::tempdir().unwrap();
     let (ply, _) = demo_files(dir.path());

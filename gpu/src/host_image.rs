@@ -342,26 +342,44 @@ impl<'a> Recording<'a> {
     }
 
     /// Releases a host image (in `layout`, left there) from srug's queue
-    /// family to `VK_QUEUE_FAMILY_EXTERNAL`, after srug's last write: what an
-    /// image whose memory another device imports needs before that device's
-    /// acquire barrier (from `VK_QUEUE_FAMILY_EXTERNAL`, same layout).
-    pub fn release_host_image_to_external(&mut self, image: &HostImage, layout: vk::ImageLayout) -> Result<()> {
+    /// family to `VK_QUEUE_FAMILY_EXTERNAL` after srug's last write, or with
+    /// `acquire` takes it back before srug's next access: an image whose
+    /// memory another device imports passes between the devices so, the other
+    /// device acquiring and releasing it in turn (same layout).
+    pub fn transfer_host_image_external(
+        &mut self,
+        image: &HostImage,
+        layout: vk::ImageLayout,
+        acquire: bool,
+    ) -> Result<()> {
         let format = image.host_format()?;
+        let own = self.device().shared.queue_family;
+        let (src, dst) = if acquire { (vk::QUEUE_FAMILY_EXTERNAL, own) } else { (own, vk::QUEUE_FAMILY_EXTERNAL) };
+        let (src_access, dst_access) = if acquire {
+            (vk::AccessFlags::empty(), vk::AccessFlags::MEMORY_READ | vk::AccessFlags::MEMORY_WRITE)
+        } else {
+            (vk::AccessFlags::MEMORY_WRITE, vk::AccessFlags::empty())
+        };
         let barrier = vk::ImageMemoryBarrier::default()
-            .src_access_mask(vk::AccessFlags::MEMORY_WRITE)
-            .dst_access_mask(vk::AccessFlags::empty())
+            .src_access_mask(src_access)
+            .dst_access_mask(dst_access)
             .old_layout(layout)
             .new_layout(layout)
-            .src_queue_family_index(self.device().shared.queue_family)
-            .dst_queue_family_index(vk::QUEUE_FAMILY_EXTERNAL)
+            .src_queue_family_index(src)
+            .dst_queue_family_index(dst)
             .image(image.image)
             .subresource_range(image.range(format));
+        let (src_stage, dst_stage) = if acquire {
+            (vk::PipelineStageFlags::TOP_OF_PIPE, vk::PipelineStageFlags::ALL_COMMANDS)
+        } else {
+            (vk::PipelineStageFlags::ALL_COMMANDS, vk::PipelineStageFlags::BOTTOM_OF_PIPE)
+        };
         // SAFETY: recording state on srug's queue family; the image is srug's or the host's as stated.
         unsafe {
             self.device().shared.device.cmd_pipeline_barrier(
                 self.cmd,
-                vk::PipelineStageFlags::ALL_COMMANDS,
-                vk::PipelineStageFlags::BOTTOM_OF_PIPE,
+                src_stage,
+                dst_stage,
                 vk::DependencyFlags::empty(),
                 &[],
                 &[],

@@ -455,7 +455,7 @@ fn a_host_on_another_device_imports_the_frame_srug_exported() {
         )
         .unwrap();
     let stated = exported.host_image(general, general);
-    d.run(|rec| rec.release_host_image_to_external(&stated, general)).unwrap();
+    d.run(|rec| rec.transfer_host_image_external(&stated, general, false)).unwrap();
     let radiance: Vec<f32> = d.read_buffer(&frame.shaded.radiance).unwrap();
     let alpha: Vec<f32> = d.read_buffer(&frame.gbuffer.alpha).unwrap();
     let info = exported.info();
