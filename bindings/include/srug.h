@@ -184,6 +184,19 @@ typedef struct {
   uint32_t layout_after;
 } srug_vulkan_image;
 
+// One of the host's buffers a frame channel is copied into: tightly packed
+// f32, row-major, `srug_channel_components(channel)` per pixel.
+typedef struct {
+  // `VkBuffer` on the context's device.
+  uint64_t buffer;
+  // Its size in bytes (at least width × height × components × 4).
+  uint64_t size;
+  // `VkBufferUsageFlags` it was created with: `TRANSFER_DST` needed.
+  uint32_t usage;
+  // The channel (`SRUG_CHANNEL_*`); G-buffer channels are rendered for it.
+  srug_channel channel;
+} srug_vulkan_buffer;
+
 // A host semaphore and a value (timeline semaphores; ignored for binary ones).
 typedef struct {
   // `VkSemaphore`.
@@ -207,6 +220,10 @@ typedef struct {
   // Read the images first: splats behind the host's depth are hidden, the
   // rest blend over the host's colour, and the depth keeps the nearer.
   bool composite;
+  // Buffers that further channels are copied into, or NULL.
+  const srug_vulkan_buffer *buffers;
+  // Entries of `buffers`.
+  size_t buffer_count;
   // Semaphores srug's first submission waits on (all stages); their
   // signals must already be submitted: the call blocks until its work is done.
   const srug_vulkan_semaphore *wait;
@@ -779,7 +796,9 @@ srug_status srug_renderer_shadow_backward(srug_renderer *renderer,
 // images are read first: splats behind the depth image's values are hidden,
 // the rest blend over the colour image (relit frames over black, in linear
 // light; 8-bit images as display values), and the depth keeps the host's
-// value unless a splat is nearer. Barriers cover every pipeline stage before
+// value unless a splat is nearer. `buffers` get further channels
+// (`SRUG_CHANNEL_*`, the G-buffer ones rendered for the purpose) as
+// tightly packed f32. Barriers cover every pipeline stage before
 // srug's first access and after its last; the images end in `layout_after`.
 // The frame stays readable (`srug_renderer_read_image`, `_read_channel`).
 // Every image statement is checked before any work (format, usage, size,

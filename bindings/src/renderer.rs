@@ -5,6 +5,7 @@ use std::ffi::{c_char, c_void};
 use std::sync::{Arc, Mutex};
 
 use glam::{Mat3, Vec3};
+use srug::frame::host_images::FrameChannel;
 use srug::frame::{HostDepthImage, Preset, RelightDecisions, RelightSettings, Relighter};
 use srug::gpu::{Device, Timings};
 use srug::scene::{Camera, Projection};
@@ -642,6 +643,26 @@ pub extern "C" fn srug_renderer_set_shadow_geometry_bias(
     })
 }
 
+/// The frame channel `SRUG_CHANNEL_*` names, if any.
+pub(crate) fn frame_channel(channel: srug_channel) -> Option<FrameChannel> {
+    Some(match channel {
+        SRUG_CHANNEL_RGB => FrameChannel::Rgb,
+        SRUG_CHANNEL_ALPHA => FrameChannel::Alpha,
+        SRUG_CHANNEL_DEPTH => FrameChannel::GBuffer(Channel::Depth),
+        SRUG_CHANNEL_MEDIAN_DEPTH => FrameChannel::GBuffer(Channel::MedianDepth),
+        SRUG_CHANNEL_NORMAL => FrameChannel::GBuffer(Channel::Normal),
+        SRUG_CHANNEL_ALBEDO => FrameChannel::GBuffer(Channel::Albedo),
+        SRUG_CHANNEL_ROUGHNESS => FrameChannel::GBuffer(Channel::Roughness),
+        SRUG_CHANNEL_METALLIC => FrameChannel::GBuffer(Channel::Metallic),
+        SRUG_CHANNEL_AO => FrameChannel::GBuffer(Channel::Ao),
+        SRUG_CHANNEL_VISIBILITY => FrameChannel::GBuffer(Channel::Visibility),
+        SRUG_CHANNEL_SUN_LIGHT => FrameChannel::SunLight,
+        SRUG_CHANNEL_SKY_LIGHT => FrameChannel::SkyLight,
+        SRUG_CHANNEL_RADIANCE => FrameChannel::Radiance,
+        _ => return None,
+    })
+}
+
 /// The depth convention `SRUG_DEPTH_*` with its planes (checked).
 pub(crate) fn depth_convention(convention: srug_depth_convention, near: f32, far: f32) -> FfiResult<HostDepth> {
     let c = match convention {
@@ -1043,24 +1064,8 @@ pub unsafe extern "C" fn srug_renderer_read_channel(
         }
         with_renderer(renderer.cast_mut(), |r| {
             let f = r.frame()?;
-            let g = &f.gbuffer;
-            let s = f.shaded.as_ref();
-            let buffer = match channel {
-                SRUG_CHANNEL_RGB => g.rgb.as_ref(),
-                SRUG_CHANNEL_ALPHA => Some(&g.alpha),
-                SRUG_CHANNEL_DEPTH => g.get(Channel::Depth),
-                SRUG_CHANNEL_MEDIAN_DEPTH => g.get(Channel::MedianDepth),
-                SRUG_CHANNEL_NORMAL => g.get(Channel::Normal),
-                SRUG_CHANNEL_ALBEDO => g.get(Channel::Albedo),
-                SRUG_CHANNEL_ROUGHNESS => g.get(Channel::Roughness),
-                SRUG_CHANNEL_METALLIC => g.get(Channel::Metallic),
-                SRUG_CHANNEL_AO => g.get(Channel::Ao),
-                SRUG_CHANNEL_VISIBILITY => g.get(Channel::Visibility),
-                SRUG_CHANNEL_SUN_LIGHT => s.map(|s| &s.sun),
-                SRUG_CHANNEL_SKY_LIGHT => s.map(|s| &s.sky),
-                _ => s.map(|s| &s.radiance),
-            };
-            let buffer = buffer.ok_or_else(|| {
+            let which = frame_channel(channel).ok_or_else(|| invalid(format!("unknown channel {channel}")))?;
+            let buffer = which.resolve(&f.gbuffer, f.shaded.as_ref()).ok_or_else(|| {
                 wrong_order(format!(
                     "channel {channel} was not rendered (add 1u << {channel} to the renderer's channel mask; \
                      shading outputs exist only for scenes with materials)"

@@ -3,10 +3,10 @@
 //! Vulkan handles are `uint64_t` (non-dispatchable) and enumerations
 //! `uint32_t`, so the header needs no `vulkan.h`.
 
-use srug::frame::host_images::{FrameOutputs, HostTargets};
+use srug::frame::host_images::{FrameChannel, FrameOutputs, HostTargets};
 use srug::frame::{HostFrameSource, Relighter};
 use srug::gpu::ash::vk::{self, Handle};
-use srug::gpu::{HostImage, HostSync, SemaphoreSignal, SemaphoreWait};
+use srug::gpu::{HostBuffer, HostImage, HostSync, SemaphoreSignal, SemaphoreWait};
 
 use crate::ffi::*;
 use crate::renderer::*;
@@ -36,6 +36,21 @@ pub struct srug_vulkan_image {
     pub layout_after: u32,
 }
 
+/// One of the host's buffers a frame channel is copied into: tightly packed
+/// f32, row-major, `srug_channel_components(channel)` per pixel.
+#[repr(C)]
+#[derive(Clone, Copy, Debug)]
+pub struct srug_vulkan_buffer {
+    /// `VkBuffer` on the context's device.
+    pub buffer: u64,
+    /// Its size in bytes (at least width × height × components × 4).
+    pub size: u64,
+    /// `VkBufferUsageFlags` it was created with: `TRANSFER_DST` needed.
+    pub usage: u32,
+    /// The channel (`SRUG_CHANNEL_*`); G-buffer channels are rendered for it.
+    pub channel: srug_channel,
+}
+
 /// A host semaphore and a value (timeline semaphores; ignored for binary ones).
 #[repr(C)]
 #[derive(Clone, Copy, Debug)]
@@ -63,6 +78,10 @@ pub struct srug_vulkan_targets {
     /// Read the images first: splats behind the host's depth are hidden, the
     /// rest blend over the host's colour, and the depth keeps the nearer.
     pub composite: bool,
+    /// Buffers that further channels are copied into, or NULL.
+    pub buffers: *const srug_vulkan_buffer,
+    /// Entries of `buffers`.
+    pub buffer_count: usize,
     /// Semaphores srug's first submission waits on (all stages); their
     /// signals must already be submitted: the call blocks until its work is done.
     pub wait: *const srug_vulkan_semaphore,
@@ -104,11 +123,26 @@ unsafe fn targets_of(t: *const srug_vulkan_targets) -> FfiResult<HostTargets> {
     let wait = unsafe { slice(t.wait, t.wait_count, "targets->wait") }?;
     // SAFETY: as above.
     let signal = unsafe { slice(t.signal, t.signal_count, "targets->signal") }?;
+    // SAFETY: as above.
+    let buffers = unsafe { slice(t.buffers, t.buffer_count, "targets->buffers") }?;
+    let buffers = buffers
+        .iter()
+        .map(|b| {
+            let channel = frame_channel(b.channel).ok_or_else(|| invalid(format!("unknown channel {}", b.channel)))?;
+            let buffer = HostBuffer {
+                buffer: vk::Buffer::from_raw(b.buffer),
+                size: b.size,
+                usage: vk::BufferUsageFlags::from_raw(b.usage),
+            };
+            Ok((channel, buffer))
+        })
+        .collect::<FfiResult<Vec<_>>>()?;
     Ok(HostTargets {
         colour,
         depth,
         depth_convention: depth_convention(t.depth_convention, t.near, t.far)?,
         composite: t.composite,
+        buffers,
         sync: HostSync {
             wait: wait
                 .iter()
@@ -123,7 +157,7 @@ unsafe fn targets_of(t: *const srug_vulkan_targets) -> FfiResult<HostTargets> {
 }
 
 impl HostFrameSource for Frame {
-    fn outputs(&self) -> srug::Result<FrameOutputs<'_>> {
+    fn outputs(&self, channels: &[FrameChannel]) -> srug::Result<FrameOutputs<'_>> {
         let (colour, display) = match &self.shaded {
             Some(s) => (&s.radiance, self.display),
             None => (self.gbuffer.rgb_buffer()?, None),
@@ -135,6 +169,7 @@ impl HostFrameSource for Frame {
             alpha: &self.gbuffer.alpha,
             median_depth: self.gbuffer.get(srug::splat::Channel::MedianDepth),
             display,
+            channels: channels.iter().map(|c| c.resolve(&self.gbuffer, self.shaded.as_ref())).collect(),
         })
     }
 }
@@ -157,9 +192,7 @@ impl RendererObject {
         if targets.composite {
             self.settings.shade.background = srug::shade::Background::Color([0.0; 3]);
         }
-        if targets.depth.is_some() {
-            self.settings.extra_channels.median_depth = true;
-        }
+        targets.request_channels(&mut self.settings.extra_channels);
         let size = self.settings.render_size(self.width, self.height);
         // The render's own failure (its status and message) is reported as it is.
         let mut failure = None;
@@ -202,7 +235,9 @@ impl RendererObject {
 /// images are read first: splats behind the depth image's values are hidden,
 /// the rest blend over the colour image (relit frames over black, in linear
 /// light; 8-bit images as display values), and the depth keeps the host's
-/// value unless a splat is nearer. Barriers cover every pipeline stage before
+/// value unless a splat is nearer. `buffers` get further channels
+/// (`SRUG_CHANNEL_*`, the G-buffer ones rendered for the purpose) as
+/// tightly packed f32. Barriers cover every pipeline stage before
 /// srug's first access and after its last; the images end in `layout_after`.
 /// The frame stays readable (`srug_renderer_read_image`, `_read_channel`).
 /// Every image statement is checked before any work (format, usage, size,
@@ -328,6 +363,7 @@ pub extern "C" fn srug_renderer_render_to_exported(
                 depth: None,
                 depth_convention: srug::splat::HostDepth::CameraZ,
                 composite: false,
+                buffers: Vec::new(),
                 sync: HostSync::default(),
             };
             r.render_into(s, &targets)?;

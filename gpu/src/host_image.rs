@@ -136,6 +136,34 @@ pub struct HostImage {
     pub layout_after: vk::ImageLayout,
 }
 
+/// A host's buffer srug copies a frame's values into, as the host describes it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct HostBuffer {
+    /// The buffer, created by the host on the device it lent srug.
+    pub buffer: vk::Buffer,
+    /// Its size in bytes.
+    pub size: u64,
+    /// The usage flags it was created with (srug needs `TRANSFER_DST`).
+    pub usage: vk::BufferUsageFlags,
+}
+
+impl HostBuffer {
+    /// Checks that srug can write `bytes` into it; `what` names it in the error.
+    pub fn check(&self, what: &str, bytes: u64) -> Result<()> {
+        let bad = |why: String| Error::invalid(what, why);
+        if self.buffer == vk::Buffer::null() {
+            return Err(bad("is VK_NULL_HANDLE".into()));
+        }
+        if !self.usage.contains(vk::BufferUsageFlags::TRANSFER_DST) {
+            return Err(bad("lacks usage TRANSFER_DST, which srug needs to write it".into()));
+        }
+        if self.size < bytes {
+            return Err(bad(format!("holds {} bytes, the frame's values {bytes}", self.size)));
+        }
+        Ok(())
+    }
+}
+
 /// What srug will do with a [`HostImage`].
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum HostImageAccess {
@@ -384,6 +412,37 @@ impl<'a> Recording<'a> {
                 &[],
                 &[],
                 &[barrier],
+            );
+        }
+        Ok(())
+    }
+
+    /// Copies `bytes` of `src` to the start of a host's buffer (checked with
+    /// [`HostBuffer::check`]); the copy is ordered before every later command
+    /// on the queue.
+    pub fn copy_to_host_buffer(&mut self, src: &'a Buffer, dst: &HostBuffer, bytes: u64) -> Result<()> {
+        self.check_device(src)?;
+        dst.check("host buffer", bytes)?;
+        if src.size() < bytes {
+            return Err(Error::invalid(format!("buffer {}", src.name()), format!("holds fewer than {bytes} bytes")));
+        }
+        self.before_command();
+        let region = vk::BufferCopy { src_offset: 0, dst_offset: 0, size: bytes };
+        let after = vk::MemoryBarrier::default()
+            .src_access_mask(vk::AccessFlags::TRANSFER_WRITE)
+            .dst_access_mask(vk::AccessFlags::MEMORY_READ | vk::AccessFlags::MEMORY_WRITE);
+        // SAFETY: a live buffer of this device and the host's buffer (its contract), in bounds.
+        unsafe {
+            let d = &self.device().shared.device;
+            d.cmd_copy_buffer(self.cmd, src.raw, dst.buffer, &[region]);
+            d.cmd_pipeline_barrier(
+                self.cmd,
+                vk::PipelineStageFlags::TRANSFER,
+                vk::PipelineStageFlags::ALL_COMMANDS,
+                vk::DependencyFlags::empty(),
+                &[after],
+                &[],
+                &[],
             );
         }
         Ok(())

@@ -65,7 +65,7 @@ pub use device::{Device, DeviceOptions, DeviceSelection, EnabledFeatures, RawVul
 pub use error::{GpuError, Result};
 pub use export::{ExportedImage, ExportedImageInfo, ExportedSemaphore};
 pub use format::TexelFormat;
-pub use host_image::{HostImage, HostImageAccess, HostImageFormat};
+pub use host_image::{HostBuffer, HostImage, HostImageAccess, HostImageFormat};
 pub use image::DeviceImage;
 pub use info::{AdapterSummary, DeviceInfo, MemoryUsage};
 pub use kernel::{check_decl, specialized_workgroup_size, Kernel, KernelDecl, SpecValue};

@@ -11,10 +11,10 @@
 
 #![allow(clippy::unwrap_used, clippy::expect_used, reason = "a failed unwrap is a failed test")]
 
-use srug::frame::host_images::{decode_texels, pack_cpu, FrameValues, HostTargets};
+use srug::frame::host_images::{decode_texels, pack_cpu, FrameChannel, FrameValues, HostTargets};
 use srug::frame::{HostDepthImage, RelightSettings, Relighter};
 use srug::gpu::ash::vk;
-use srug::gpu::{Device, HostImage, HostImageFormat, HostSync, SemaphoreSignal, SemaphoreWait};
+use srug::gpu::{Device, HostBuffer, HostImage, HostImageFormat, HostSync, SemaphoreSignal, SemaphoreWait};
 use srug::scene::activate::GpuScene;
 use srug::scene::demo::{demo_city, DemoOptions};
 use srug::scene::{Camera, Scene};
@@ -197,6 +197,7 @@ fn run_case(h: &Host, shared: &Device, i: &Inputs, relighter: &mut Relighter, ca
         depth: Some(stated(&depth, vk::Format::D32_SFLOAT, depth_layout)),
         depth_convention: HostDepth::Vulkan { near: NEAR, far: FAR },
         composite: case.composite,
+        buffers: Vec::new(),
         sync: HostSync {
             wait: vec![SemaphoreWait { semaphore: ready, value: ready_value }],
             signal: vec![SemaphoreSignal { semaphore: done, value: done_value }],
@@ -307,8 +308,10 @@ fn misstated_host_images_and_semaphores_are_refused_by_name() {
         depth: Some(image(2, vk::Format::D32_SFLOAT)),
         depth_convention: HostDepth::Vulkan { near: NEAR, far: FAR },
         composite: true,
+        buffers: Vec::new(),
         sync: HostSync::default(),
     };
+    let buffer = |size: u64, usage: vk::BufferUsageFlags| HostBuffer { buffer: vk::Handle::from_raw(3), size, usage };
     let colour = |f: &dyn Fn(&mut HostImage)| {
         let mut t = good.clone();
         f(t.colour.as_mut().unwrap());
@@ -325,7 +328,24 @@ fn misstated_host_images_and_semaphores_are_refused_by_name() {
         (colour(&|c| c.layout_after = vk::ImageLayout::DEPTH_STENCIL_ATTACHMENT_OPTIMAL), "does not suit"),
         (HostTargets { depth: Some(image(2, vk::Format::R8G8B8A8_UNORM)), ..good.clone() }, "not a depth format"),
         (HostTargets { depth: Some(image(1, vk::Format::D32_SFLOAT)), ..good.clone() }, "both colour and depth"),
-        (HostTargets { colour: None, depth: None, ..good.clone() }, "neither a colour nor a depth"),
+        (HostTargets { colour: None, depth: None, ..good.clone() }, "name no image and no buffer"),
+        (
+            HostTargets {
+                buffers: vec![(
+                    FrameChannel::GBuffer(Channel::Normal),
+                    buffer(100, vk::BufferUsageFlags::TRANSFER_DST),
+                )],
+                ..good.clone()
+            },
+            "holds 100 bytes, the frame's values 101376",
+        ),
+        (
+            HostTargets {
+                buffers: vec![(FrameChannel::Alpha, buffer(1 << 20, vk::BufferUsageFlags::TRANSFER_SRC))],
+                ..good.clone()
+            },
+            "lacks usage TRANSFER_DST",
+        ),
         (HostTargets { depth_convention: HostDepth::Vulkan { near: 0.0, far: FAR }, ..good.clone() }, "near 0"),
         (
             HostTargets {
@@ -381,6 +401,7 @@ fn frames_land_in_an_image_srug_made_on_its_own_device() {
         depth: None,
         depth_convention: HostDepth::CameraZ,
         composite: false,
+        buffers: Vec::new(),
         sync: HostSync::default(),
     };
     let settings = RelightSettings::default();
@@ -437,6 +458,7 @@ fn a_host_on_another_device_imports_the_frame_srug_exported() {
         depth: None,
         depth_convention: HostDepth::CameraZ,
         composite: false,
+        buffers: Vec::new(),
         sync: HostSync::default(),
     };
     let settings = RelightSettings::default();

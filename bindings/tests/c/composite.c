@@ -310,6 +310,9 @@ int main(int argc, char **argv) {
   const VkDeviceSize readback_bytes = (VkDeviceSize)W * H * 12; /* RGBA16F, then D32 */
   Mapped mesh_pixels = make_mapped(&g, readback_bytes, VK_BUFFER_USAGE_TRANSFER_DST_BIT);
   Mapped final_pixels = make_mapped(&g, readback_bytes, VK_BUFFER_USAGE_TRANSFER_DST_BIT);
+  /* Further channels straight into the host's buffers: normals and coverage. */
+  Mapped normals = make_mapped(&g, (VkDeviceSize)W * H * 12, VK_BUFFER_USAGE_TRANSFER_DST_BIT);
+  Mapped coverage = make_mapped(&g, (VkDeviceSize)W * H * 4, VK_BUFFER_USAGE_TRANSFER_DST_BIT);
   VkSemaphoreCreateInfo sci = {.sType = VK_STRUCTURE_TYPE_SEMAPHORE_CREATE_INFO};
   VkSemaphore mesh_drawn, srug_done;
   VK(vkCreateSemaphore(g.device, &sci, NULL, &mesh_drawn));
@@ -355,12 +358,19 @@ int main(int argc, char **argv) {
                                     .layout_before = VK_IMAGE_LAYOUT_DEPTH_STENCIL_ATTACHMENT_OPTIMAL,
                                     .layout_after = VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL};
   srug_vulkan_semaphore wait = {(uint64_t)(uintptr_t)mesh_drawn, 0}, signal = {(uint64_t)(uintptr_t)srug_done, 0};
+  srug_vulkan_buffer channel_targets[2] = {
+      {(uint64_t)(uintptr_t)normals.buffer, (VkDeviceSize)W * H * 12, VK_BUFFER_USAGE_TRANSFER_DST_BIT,
+       SRUG_CHANNEL_NORMAL},
+      {(uint64_t)(uintptr_t)coverage.buffer, (VkDeviceSize)W * H * 4, VK_BUFFER_USAGE_TRANSFER_DST_BIT,
+       SRUG_CHANNEL_ALPHA}};
   srug_vulkan_targets targets = {.colour = &colour_target,
                                  .depth = &depth_target,
                                  .depth_convention = SRUG_DEPTH_VULKAN,
                                  .near = NEAR,
                                  .far = FAR,
                                  .composite = true,
+                                 .buffers = channel_targets,
+                                 .buffer_count = 2,
                                  .wait = &wait,
                                  .wait_count = 1,
                                  .signal = &signal,
@@ -383,13 +393,20 @@ int main(int argc, char **argv) {
   wrong.usage = VK_IMAGE_USAGE_TRANSFER_DST_BIT;
   EXPECT(srug_renderer_render_to_vulkan(r, scene, &misstated), SRUG_ERROR_INVALID_ARGUMENT);
   misstated = targets;
+  srug_vulkan_buffer small = channel_targets[0];
+  small.size = 16;
+  misstated.buffers = &small;
+  misstated.buffer_count = 1;
+  EXPECT(srug_renderer_render_to_vulkan(r, scene, &misstated), SRUG_ERROR_INVALID_ARGUMENT);
+  misstated = targets;
   misstated.wait_count = 1;
   misstated.wait = NULL;
   EXPECT(srug_renderer_render_to_vulkan(r, scene, &misstated), SRUG_ERROR_NULL_POINTER);
 
   float *reference = malloc((size_t)W * H * 16), *mesh_colour = malloc((size_t)W * H * 16);
   float *composite = malloc((size_t)W * H * 16), *mesh_depth = malloc((size_t)W * H * 4);
-  REQUIRE(reference && mesh_colour && composite && mesh_depth);
+  float *channel = malloc((size_t)W * H * 12);
+  REQUIRE(reference && mesh_colour && composite && mesh_depth && channel);
   double worst_psnr = INFINITY;
   long nearer = 0;
   for (int frame = 0; frame < FRAMES; frame++) {
@@ -441,6 +458,11 @@ int main(int argc, char **argv) {
     cmd = begin(&g);
     copy_out(cmd, &colour, &depth, &final_pixels);
     submit(&g, cmd, srug_done, VK_NULL_HANDLE);
+    /* The channels in the host's buffers are the frame's, bit for bit. */
+    CHECK(srug_renderer_read_channel(r, SRUG_CHANNEL_NORMAL, channel, (size_t)W * H * 3));
+    REQUIRE(memcmp(channel, normals.data, (size_t)W * H * 12) == 0);
+    CHECK(srug_renderer_read_channel(r, SRUG_CHANNEL_ALPHA, channel, (size_t)W * H));
+    REQUIRE(memcmp(channel, coverage.data, (size_t)W * H * 4) == 0);
 
     /* The CPU reference: srug's splats behind the mesh's depth from host memory, over the mesh's colour. */
     const uint16_t *mesh_half = mesh_pixels.data, *final_half = final_pixels.data;
@@ -491,6 +513,9 @@ int main(int argc, char **argv) {
   free(mesh_colour);
   free(composite);
   free(mesh_depth);
+  free(channel);
+  free_mapped(&g, &normals);
+  free_mapped(&g, &coverage);
   vkDestroySemaphore(g.device, mesh_drawn, NULL);
   vkDestroySemaphore(g.device, srug_done, NULL);
   free_mapped(&g, &vertices);

@@ -86,6 +86,7 @@ pub fn embed_bench(device: &Device, setup: &EmbedSetup, mut progress: impl FnMut
             depth: None,
             depth_convention: HostDepth::Vulkan { near: 0.1, far: 500.0 },
             composite: false,
+            buffers: Vec::new(),
             sync: HostSync::default(),
         };
         let kept = vk::ImageLayout::TRANSFER_SRC_OPTIMAL;

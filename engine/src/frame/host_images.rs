@@ -29,11 +29,11 @@ use bytemuck::{Pod, Zeroable};
 use crate::error::{Error, Result};
 use crate::gpu::ash::vk;
 use crate::gpu::{
-    kernels, Binding, Buffer, Device, DeviceAddress, Grid, HostImage, HostImageAccess, HostImageFormat, HostSync,
-    Kernel, KernelDecl, MemoryKind, Timings,
+    kernels, Binding, Buffer, Device, DeviceAddress, Grid, HostBuffer, HostImage, HostImageAccess, HostImageFormat,
+    HostSync, Kernel, KernelDecl, MemoryKind, Timings,
 };
 use crate::shade::ToneMap;
-use crate::splat::HostDepth;
+use crate::splat::{Channel, HostDepth};
 
 /// The host's images one frame is written into, and how.
 #[derive(Clone, Debug, PartialEq)]
@@ -47,11 +47,72 @@ pub struct HostTargets {
     /// Read the images first: splats behind the host's depth are hidden and
     /// the rest blend over the host's colour; the depth keeps the nearer.
     pub composite: bool,
+    /// Further frame values copied into the host's buffers (tightly packed
+    /// f32, row-major, the channel's components per pixel).
+    pub buffers: Vec<(FrameChannel, HostBuffer)>,
     /// The host's semaphores: waited on before the images are touched, signalled when written.
     pub sync: HostSync,
 }
 
+/// A frame's per-pixel values a host can have copied into its buffers.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FrameChannel {
+    /// The splatted colour (premultiplied).
+    Rgb,
+    /// Coverage.
+    Alpha,
+    /// An optional G-buffer channel (splatted with the frame on request).
+    GBuffer(Channel),
+    /// L_sun of a relit frame.
+    SunLight,
+    /// L_sky of a relit frame.
+    SkyLight,
+    /// Linear radiance of a relit frame.
+    Radiance,
+}
+
+impl FrameChannel {
+    /// This channel's buffer in a frame's G-buffers and shading outputs
+    /// (`None`: not rendered, or a shading output of a frame without shading).
+    pub fn resolve<'a>(
+        self,
+        gbuffer: &'a crate::splat::GpuGBuffer,
+        shaded: Option<&'a crate::shade::ShadedFrame>,
+    ) -> Option<&'a Buffer> {
+        match self {
+            Self::Rgb => gbuffer.rgb.as_ref(),
+            Self::Alpha => Some(&gbuffer.alpha),
+            Self::GBuffer(c) => gbuffer.get(c),
+            Self::SunLight => shaded.map(|s| &s.sun),
+            Self::SkyLight => shaded.map(|s| &s.sky),
+            Self::Radiance => shaded.map(|s| &s.radiance),
+        }
+    }
+
+    /// Floats per pixel.
+    pub fn components(self) -> usize {
+        match self {
+            Self::Rgb | Self::SunLight | Self::SkyLight | Self::Radiance => 3,
+            Self::Alpha => 1,
+            Self::GBuffer(c) => c.floats(),
+        }
+    }
+}
+
 impl HostTargets {
+    /// Adds the G-buffer channels these targets read to `channels`: the
+    /// median depth for a depth image, and those of the host buffers.
+    pub fn request_channels(&self, channels: &mut crate::splat::Channels) {
+        if self.depth.is_some() {
+            channels.median_depth = true;
+        }
+        for (c, _) in &self.buffers {
+            if let FrameChannel::GBuffer(c) = c {
+                channels.set(*c);
+            }
+        }
+    }
+
     /// Checks every image for a `width`×`height` frame on `device`; returns
     /// the colour and depth formats.
     pub fn validate(
@@ -60,8 +121,8 @@ impl HostTargets {
         width: u32,
         height: u32,
     ) -> Result<(Option<HostImageFormat>, Option<HostImageFormat>)> {
-        if self.colour.is_none() && self.depth.is_none() {
-            return Err(Error::invalid("host targets", "name neither a colour nor a depth image"));
+        if self.colour.is_none() && self.depth.is_none() && self.buffers.is_empty() {
+            return Err(Error::invalid("host targets", "name no image and no buffer"));
         }
         self.depth_convention.validate()?;
         self.sync.check("host targets").map_err(user_error)?;
@@ -85,6 +146,11 @@ impl HostTargets {
             }
             formats[i] = Some(format);
         }
+        let pixels = u64::from(width) * u64::from(height);
+        for (channel, buffer) in &self.buffers {
+            let bytes = pixels * channel.components() as u64 * 4;
+            buffer.check(&format!("host buffer for {channel:?}"), bytes).map_err(user_error)?;
+        }
         if let (Some(c), Some(d)) = (&self.colour, &self.depth) {
             if c.image == d.image {
                 return Err(Error::invalid("host targets", "name one image as both colour and depth"));
@@ -103,7 +169,7 @@ fn user_error(e: crate::gpu::GpuError) -> Error {
 }
 
 /// A rendered frame's buffers, as the writer reads them.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Debug)]
 pub struct FrameOutputs<'a> {
     /// Width in pixels.
     pub width: u32,
@@ -117,6 +183,8 @@ pub struct FrameOutputs<'a> {
     pub median_depth: Option<&'a Buffer>,
     /// For a relit frame: the exposure in EV and the tone map of its display values.
     pub display: Option<(f32, ToneMap)>,
+    /// The frame's buffers for `HostTargets::buffers`, in their order (`None`: not rendered).
+    pub channels: Vec<Option<&'a Buffer>>,
 }
 
 /// The host's texels read before a composited frame.
@@ -231,8 +299,24 @@ impl HostImageWriter {
             )?;
             outputs.push((image, format, texels.as_ref(), buffer, uniform));
         }
+        if frame.channels.len() != targets.buffers.len() {
+            return Err(Error::Internal("the frame's channels do not match the host buffers".into()));
+        }
+        let mut copies = Vec::new();
+        for ((channel, host_buffer), source) in targets.buffers.iter().zip(&frame.channels) {
+            let Some(source) = source else {
+                return Err(Error::invalid(
+                    format!("host buffer for {channel:?}"),
+                    "asks for a value the frame does not have (shading outputs exist only for relit frames)",
+                ));
+            };
+            copies.push((*source, host_buffer, pixels * channel.components() as u64 * 4));
+        }
         let timings = self.device.run_synced(&sync, |rec| -> Result<()> {
             rec.begin_stage("host images write");
+            for (source, host_buffer, bytes) in &copies {
+                rec.copy_to_host_buffer(source, host_buffer, *bytes)?;
+            }
             for (image, format, texels, buffer, uniform) in &outputs {
                 let mut flags = if targets.composite { COMPOSITE } else { 0 };
                 let mut display = [1.0, 0.0, 0.0, 0.0];

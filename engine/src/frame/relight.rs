@@ -18,7 +18,7 @@ use crate::shade::{BrdfTable, PreparedEnvironment, ShadeInputs, ShadedFrame, Sha
 use crate::shadow::{light_camera, DepthMode, ShadowMap, ShadowPass, Sun};
 use crate::splat::{GpuGBuffer, SplatSettings, Splatter};
 
-use super::host_images::{FrameOutputs, HostImageWriter, HostPixels, HostTargets};
+use super::host_images::{FrameChannel, FrameOutputs, HostImageWriter, HostPixels, HostTargets};
 use super::{RelightDecisions, RelightSettings};
 
 /// A relit frame.
@@ -107,19 +107,22 @@ pub struct Relighter {
 
 /// A frame whose buffers can be written into host images.
 pub trait HostFrameSource {
-    /// The buffers [`HostImageWriter::write`] reads.
-    fn outputs(&self) -> Result<FrameOutputs<'_>>;
+    /// The buffers [`HostImageWriter::write`] reads, with `channels` resolved
+    /// in order (`None` where the frame lacks one).
+    fn outputs(&self, channels: &[FrameChannel]) -> Result<FrameOutputs<'_>>;
 }
 
 impl HostFrameSource for RelitFrame {
-    fn outputs(&self) -> Result<FrameOutputs<'_>> {
+    fn outputs(&self, channels: &[FrameChannel]) -> Result<FrameOutputs<'_>> {
+        let (g, s) = (&self.gbuffer, &self.shaded);
         Ok(FrameOutputs {
-            width: self.gbuffer.width,
-            height: self.gbuffer.height,
-            colour: &self.shaded.radiance,
-            alpha: &self.gbuffer.alpha,
-            median_depth: self.gbuffer.get(crate::splat::Channel::MedianDepth),
+            width: g.width,
+            height: g.height,
+            colour: &s.radiance,
+            alpha: &g.alpha,
+            median_depth: g.get(crate::splat::Channel::MedianDepth),
             display: Some((self.exposure_ev, self.tone_map)),
+            channels: channels.iter().map(|c| c.resolve(g, Some(s))).collect(),
         })
     }
 }
@@ -190,9 +193,7 @@ impl Relighter {
         if targets.composite {
             settings.shade.background = crate::shade::Background::Color([0.0; 3]);
         }
-        if targets.depth.is_some() {
-            settings.extra_channels.median_depth = true;
-        }
+        targets.request_channels(&mut settings.extra_channels);
         let size = settings.render_size(camera.width, camera.height);
         let (mut frame, t) = Self::with_host_targets(
             self,
@@ -242,7 +243,8 @@ impl Relighter {
             this.host_depth = previous;
         }
         let frame = rendered?;
-        let timings = this.writer()?.write(targets, &frame.outputs()?, &pixels)?;
+        let channels: Vec<FrameChannel> = targets.buffers.iter().map(|(c, _)| *c).collect();
+        let timings = this.writer()?.write(targets, &frame.outputs(&channels)?, &pixels)?;
         Ok((frame, timings))
     }
 
