@@ -835,6 +835,18 @@ srug_status srug_renderer_export_image(srug_renderer *renderer,
 // next call, which acquires it for srug. The frame stays readable as usual.
 srug_status srug_renderer_render_to_exported(srug_renderer *renderer, const srug_scene *scene);
 
+// Makes a binary semaphore that each `srug_renderer_render_to_exported`
+// signals when its frame is written, exported as an opaque POSIX fd in
+// `*fd` (the caller's: import it into a `VkSemaphore` with
+// `vkImportSemaphoreFdKHR` and wait on it before reading the imported image,
+// instead of relying on the call's return). A later call replaces it.
+// Devices without `VK_KHR_external_semaphore_fd` (lavapipe among them):
+// `SRUG_ERROR_UNSUPPORTED` naming it.
+//
+// # Safety
+// `fd` valid for one write.
+srug_status srug_renderer_export_semaphore(srug_renderer *renderer, int32_t *fd);
+
 #ifdef __cplusplus
 }  // extern "C"
 #endif  // __cplusplus

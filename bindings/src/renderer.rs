@@ -159,6 +159,8 @@ pub(crate) struct RendererObject {
     /// The image exported to a host on another device (`srug_renderer_export_image`).
     /// With whether srug has released it to the host (after a render).
     pub(crate) exported: Option<(srug::gpu::ExportedImage, bool)>,
+    /// The semaphore each render to the exported image signals (`srug_renderer_export_semaphore`).
+    pub(crate) exported_semaphore: Option<srug::gpu::ExportedSemaphore>,
 }
 
 pub(crate) fn renderer(p: *const srug_renderer) -> FfiResult<(u64, Arc<Mutex<RendererObject>>)> {
@@ -242,6 +244,7 @@ pub unsafe extern "C" fn srug_renderer_create(
             shadow: None,
             timings: None,
             exported: None,
+            exported_semaphore: None,
         };
         let id = handle::insert(Object::Renderer(Arc::new(Mutex::new(obj))), ctx_id);
         // SAFETY: checked non-null above; the caller's contract.

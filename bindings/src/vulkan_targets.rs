@@ -358,6 +358,7 @@ pub extern "C" fn srug_renderer_render_to_exported(
                     .run(|rec| rec.transfer_host_image_external(&image, general, true))
                     .map_err(srug::Error::from)?;
             }
+            let signal = r.exported_semaphore.as_ref().map(|s| SemaphoreSignal { semaphore: s.semaphore(), value: 0 });
             let targets = HostTargets {
                 colour: Some(image),
                 depth: None,
@@ -367,11 +368,39 @@ pub extern "C" fn srug_renderer_render_to_exported(
                 sync: HostSync::default(),
             };
             r.render_into(s, &targets)?;
-            r.device.run(|rec| rec.transfer_host_image_external(&image, general, false)).map_err(srug::Error::from)?;
+            // The release is the call's last submission: it signals the exported semaphore, if any.
+            let sync = HostSync { wait: Vec::new(), signal: signal.into_iter().collect() };
+            r.device
+                .run_synced(&sync, |rec| rec.transfer_host_image_external(&image, general, false))
+                .map_err(srug::Error::from)?;
             if let Some((_, released)) = r.exported.as_mut() {
                 *released = true;
             }
             Ok(())
+        })
+    })
+}
+
+/// Makes a binary semaphore that each `srug_renderer_render_to_exported`
+/// signals when its frame is written, exported as an opaque POSIX fd in
+/// `*fd` (the caller's: import it into a `VkSemaphore` with
+/// `vkImportSemaphoreFdKHR` and wait on it before reading the imported image,
+/// instead of relying on the call's return). A later call replaces it.
+/// Devices without `VK_KHR_external_semaphore_fd` (lavapipe among them):
+/// `SRUG_ERROR_UNSUPPORTED` naming it.
+///
+/// # Safety
+/// `fd` valid for one write.
+#[no_mangle]
+pub unsafe extern "C" fn srug_renderer_export_semaphore(renderer: *mut srug_renderer, fd: *mut i32) -> srug_status {
+    guard("srug_renderer_export_semaphore", || {
+        check_out(fd, "fd")?;
+        with_renderer(renderer, |r| {
+            let semaphore = r.device.create_exported_semaphore().map_err(srug::Error::from)?;
+            let exported = semaphore.export_fd().map_err(srug::Error::from)?;
+            r.exported_semaphore = Some(semaphore);
+            // SAFETY: checked non-null; the caller's contract.
+            unsafe { write_out(fd, "fd", std::os::fd::IntoRawFd::into_raw_fd(exported)) }
         })
     })
 }

@@ -10,7 +10,6 @@
  * VK_KHR_external_memory_fd the export is refused with SRUG_ERROR_UNSUPPORTED. */
 #define _GNU_SOURCE /* dl_iterate_phdr, RTLD_NODELETE */
 #include <math.h>
-#include <unistd.h>
 
 #include "vkhost.h"
 
@@ -62,6 +61,17 @@ int main(void) {
   }
   CHECK(status);
   REQUIRE(exported.fd >= 0 && exported.width == W && exported.height == H);
+  /* Semaphore export: lavapipe lacks VK_KHR_external_semaphore_fd, so it is refused by name there. */
+  int semaphore_fd = -1;
+  status = srug_renderer_export_semaphore(r, &semaphore_fd);
+  if (status == SRUG_OK) {
+    printf("semaphore exported\n");
+  } else {
+    char m[512] = {0};
+    srug_last_error(m, sizeof m, NULL);
+    REQUIRE(status == SRUG_ERROR_UNSUPPORTED && strstr(m, "VK_KHR_external_semaphore_fd") != NULL);
+    printf("  %-28s %s\n", srug_status_name(status), m);
+  }
 
   /* The host's own instance and device, on the same GPU and driver. */
   VkDebugUtilsMessengerEXT messenger;
@@ -73,6 +83,21 @@ int main(void) {
   vkGetPhysicalDeviceProperties2(g.physical, &props);
   REQUIRE(memcmp(ids.deviceUUID, exported.device_uuid, 16) == 0);
   REQUIRE(memcmp(ids.driverUUID, exported.driver_uuid, 16) == 0);
+  /* With an exported semaphore, the host's reads wait on srug's signal through it. */
+  VkSemaphore frame_done = VK_NULL_HANDLE;
+  if (semaphore_fd >= 0) {
+    REQUIRE(g.external_semaphore_fd);
+    VkSemaphoreCreateInfo sci = {.sType = VK_STRUCTURE_TYPE_SEMAPHORE_CREATE_INFO};
+    VK(vkCreateSemaphore(g.device, &sci, NULL, &frame_done));
+    PFN_vkImportSemaphoreFdKHR import_fd =
+        (PFN_vkImportSemaphoreFdKHR)vkGetDeviceProcAddr(g.device, "vkImportSemaphoreFdKHR");
+    REQUIRE(import_fd != NULL);
+    VkImportSemaphoreFdInfoKHR info = {.sType = VK_STRUCTURE_TYPE_IMPORT_SEMAPHORE_FD_INFO_KHR,
+                                       .semaphore = frame_done,
+                                       .handleType = VK_EXTERNAL_SEMAPHORE_HANDLE_TYPE_OPAQUE_FD_BIT,
+                                       .fd = semaphore_fd};
+    VK(import_fd(g.device, &info));
+  }
 
   /* The imported image: created as srug's, bound to the exported memory (Vulkan now owns the fd). */
   VkExternalMemoryImageCreateInfo external = {.sType = VK_STRUCTURE_TYPE_EXTERNAL_MEMORY_IMAGE_CREATE_INFO,
@@ -126,7 +151,7 @@ int main(void) {
                             .dstAccessMask = VK_ACCESS_HOST_READ_BIT};
     vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_HOST_BIT, 0, 1, &host, 0, NULL, 0,
                          NULL);
-    submit(&g, cmd, VK_NULL_HANDLE, VK_NULL_HANDLE);
+    submit(&g, cmd, frame_done, VK_NULL_HANDLE);
     CHECK(srug_renderer_read_image(r, SRUG_FORMAT_RGBA32F_LINEAR, expected, bytes, 0));
     const float *got = readback.data;
     int lit = 0;
@@ -149,6 +174,7 @@ int main(void) {
   VK(vkDeviceWaitIdle(g.device));
   free(expected);
   free_mapped(&g, &readback);
+  if (frame_done != VK_NULL_HANDLE) vkDestroySemaphore(g.device, frame_done, NULL);
   vkDestroyImage(g.device, imported, NULL);
   vkFreeMemory(g.device, memory, NULL);
   vkDestroyCommandPool(g.device, g.pool, NULL);

@@ -38,7 +38,8 @@ typedef struct {
   VkQueue queue;
   uint32_t family;
   VkCommandPool pool;
-  int external_memory_fd; /* VK_KHR_external_memory_fd enabled */
+  int external_memory_fd;    /* VK_KHR_external_memory_fd enabled */
+  int external_semaphore_fd; /* VK_KHR_external_semaphore_fd enabled */
 } Gpu;
 
 static inline uint32_t memory_type(const Gpu *g, uint32_t bits, VkMemoryPropertyFlags flags) {
@@ -222,23 +223,29 @@ static inline Gpu make_device(VkInstance instance) {
                                           .bufferDeviceAddress = VK_TRUE};
   VkPhysicalDeviceFeatures2 f2 = {.sType = VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_FEATURES_2, .pNext = &v12};
   f2.features.shaderInt64 = VK_TRUE;
-  /* Memory srug exports is imported through VK_KHR_external_memory_fd, where offered. */
+  /* What srug exports is imported through VK_KHR_external_{memory,semaphore}_fd, where offered. */
   uint32_t offered = 0;
   VK(vkEnumerateDeviceExtensionProperties(g.physical, NULL, &offered, NULL));
   VkExtensionProperties *extensions = calloc(offered ? offered : 1, sizeof *extensions);
   REQUIRE(extensions != NULL);
   VK(vkEnumerateDeviceExtensionProperties(g.physical, NULL, &offered, extensions));
-  const char *fd_extension = VK_KHR_EXTERNAL_MEMORY_FD_EXTENSION_NAME;
-  g.external_memory_fd = 0;
-  for (uint32_t i = 0; i < offered; i++)
-    if (strcmp(extensions[i].extensionName, fd_extension) == 0) g.external_memory_fd = 1;
+  const char *wanted[2] = {VK_KHR_EXTERNAL_MEMORY_FD_EXTENSION_NAME, VK_KHR_EXTERNAL_SEMAPHORE_FD_EXTENSION_NAME};
+  const char *enabled[2];
+  uint32_t enabled_count = 0;
+  g.external_memory_fd = g.external_semaphore_fd = 0;
+  for (int w = 0; w < 2; w++)
+    for (uint32_t i = 0; i < offered; i++)
+      if (strcmp(extensions[i].extensionName, wanted[w]) == 0) {
+        enabled[enabled_count++] = wanted[w];
+        *(w == 0 ? &g.external_memory_fd : &g.external_semaphore_fd) = 1;
+      }
   free(extensions);
   VkDeviceCreateInfo dci = {.sType = VK_STRUCTURE_TYPE_DEVICE_CREATE_INFO,
                             .pNext = &f2,
                             .queueCreateInfoCount = 1,
                             .pQueueCreateInfos = &qci,
-                            .enabledExtensionCount = g.external_memory_fd ? 1 : 0,
-                            .ppEnabledExtensionNames = &fd_extension};
+                            .enabledExtensionCount = enabled_count,
+                            .ppEnabledExtensionNames = enabled};
   VK(vkCreateDevice(g.physical, &dci, NULL, &g.device));
   vkGetDeviceQueue(g.device, g.family, 0, &g.queue);
   VkCommandPoolCreateInfo pci = {.sType = VK_STRUCTURE_TYPE_COMMAND_POOL_CREATE_INFO,
