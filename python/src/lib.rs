@@ -373,13 +373,20 @@ impl Device {
         lock(&self.timings).clone()
     }
 
-    /// Reads a scene file (any format srug reads, detected from the content) and uploads it.
+    /// Reads a scene file (any format srug reads, detected from the content)
+    /// straight onto this device: a binary PLY streams in blocks, so the host
+    /// never holds the whole scene (its arrays are read back from the device
+    /// if `Scene.arrays`, `save` or another device asks for them).
     fn load_scene(&self, py: Python<'_>, path: PathBuf) -> PyResult<Scene> {
         let device = self.gpu()?;
-        let host = py.detach(|| srug::io::read_scene(&path)).map_err(py_err)?;
-        let scene = Scene { host: Arc::new(host), uploads: Mutex::new(Vec::new()) };
-        py.detach(|| scene.gpu(self.id, &device)).map_err(py_err)?;
-        Ok(scene)
+        let loaded = py.detach(|| GpuScene::load(&device, &path)).map_err(py_err)?;
+        let info = SceneInfo {
+            count: loaded.gpu.count,
+            sh_degree: loaded.gpu.sh_degree,
+            attributes: loaded.attributes,
+            bounds: loaded.bounds,
+        };
+        Ok(Scene { host: Mutex::new(None), info, uploads: Mutex::new(vec![(self.id, Arc::new(loaded.gpu), device)]) })
     }
 
     /// Renders every camera of `cameras` into G-buffer channels, stacked:
@@ -581,11 +588,11 @@ impl Device {
                 "needs frames rendered at the camera's size (the fast preset renders at half size: use balanced or reference)",
             ));
         }
-        let attributes = scene.host.attributes();
+        let attributes = scene.info.attributes;
         if !attributes.shadeable() {
             return Err(invalid("scene", "has no albedo attribute, so it cannot be relit; render its colour instead"));
         }
-        let bounds = scene.host.bounds().ok_or_else(|| invalid("scene", "is empty"))?;
+        let bounds = scene.info.bounds.ok_or_else(|| invalid("scene", "is empty"))?;
         let (n, p) = (cams.len(), (w as usize) * (h as usize));
         let name = if display { "display" } else { "radiance" };
         let mut outputs = Outputs {
@@ -721,7 +728,7 @@ impl Device {
             settings.receiver_depth = srug::shadow::DepthMode::parse(m).map_err(py_err)?;
         }
         settings.validate().map_err(py_err)?;
-        let bounds = scene.host.bounds().ok_or_else(|| invalid("scene", "is empty"))?;
+        let bounds = scene.info.bounds.ok_or_else(|| invalid("scene", "is empty"))?;
         let device = self.gpu()?;
         let gpu_scene = py.detach(|| scene.gpu(self.id, &device)).map_err(py_err)?;
         let state = py
@@ -739,7 +746,7 @@ impl Device {
                 Ok(ShadowState {
                     device: device.clone(),
                     scene: gpu_scene,
-                    count: scene.host.len(),
+                    count: scene.info.count,
                     camera: camera.clone(),
                     settings,
                     pass,
@@ -859,23 +866,61 @@ impl ShadowTest {
     }
 }
 
-/// A scene of 3D Gaussians on the host, uploaded to each device on first use.
+/// A scene of 3D Gaussians: on the host (from arrays or a file), uploaded
+/// to each device on first use, or loaded straight onto a device
+/// (`Device.load_scene`), its host arrays then read back only when asked for.
 #[pyclass(frozen, module = "srug._srug")]
 struct Scene {
-    host: Arc<HostScene>,
-    /// (device id, upload) for each device that rendered it.
-    uploads: Mutex<Vec<(u64, Arc<GpuScene>)>>,
+    /// The host arrays; `None` for a scene loaded onto a device until needed.
+    host: Mutex<Option<Arc<HostScene>>>,
+    /// What renders need without the arrays.
+    info: SceneInfo,
+    /// (device id, upload, device) for each device that holds it.
+    uploads: Mutex<Vec<(u64, Arc<GpuScene>, GpuDevice)>>,
+}
+
+/// A scene's size and attributes, known without its arrays.
+struct SceneInfo {
+    count: usize,
+    sh_degree: u32,
+    attributes: srug::scene::AttributeGroups,
+    bounds: Option<srug::scene::Bounds>,
 }
 
 impl Scene {
+    /// A scene from host arrays.
+    fn from_host(host: HostScene) -> Self {
+        let info = SceneInfo {
+            count: host.len(),
+            sh_degree: host.sh_degree,
+            attributes: host.attributes(),
+            bounds: host.bounds(),
+        };
+        Self { host: Mutex::new(Some(Arc::new(host))), info, uploads: Mutex::new(Vec::new()) }
+    }
+
+    /// The host arrays, read back from the device the scene was loaded onto if need be.
+    fn host(&self) -> srug::Result<Arc<HostScene>> {
+        let mut host = lock(&self.host);
+        if let Some(h) = host.as_ref() {
+            return Ok(h.clone());
+        }
+        let first = lock(&self.uploads).first().map(|(_, g, d)| (g.clone(), d.clone()));
+        let (gpu, device) =
+            first.ok_or_else(|| srug::Error::Internal("a scene with neither arrays nor an upload".into()))?;
+        let h = Arc::new(gpu.download(&device)?);
+        *host = Some(h.clone());
+        Ok(h)
+    }
+
     /// The scene on device `id`, uploaded on first use.
     fn gpu(&self, id: u64, device: &GpuDevice) -> srug::Result<Arc<GpuScene>> {
-        let mut uploads = lock(&self.uploads);
-        if let Some((_, g)) = uploads.iter().find(|(i, _)| *i == id) {
+        if let Some((_, g, _)) = lock(&self.uploads).iter().find(|(i, _, _)| *i == id) {
             return Ok(g.clone());
         }
-        let g = Arc::new(GpuScene::upload(device, &self.host)?);
-        uploads.push((id, g.clone()));
+        let host = self.host()?;
+        let g = Arc::new(GpuScene::upload(device, &host)?);
+        lock(&self.uploads).push((id, g.clone(), device.clone()));
         Ok(g)
     }
 }
@@ -886,7 +931,7 @@ impl Scene {
     #[staticmethod]
     fn from_file(py: Python<'_>, path: PathBuf) -> PyResult<Self> {
         let host = py.detach(|| srug::io::read_scene(&path)).map_err(py_err)?;
-        Ok(Self { host: Arc::new(host), uploads: Mutex::new(Vec::new()) })
+        Ok(Self::from_host(host))
     }
 
     /// Writes the scene in the format its extension names (.ply, .spz, .splat,
@@ -899,7 +944,7 @@ impl Scene {
                 invalid(format!("{}", path.display()), "has no extension naming a scene format (give format=)")
             })?,
         };
-        py.detach(|| srug::io::write_scene(&path, &self.host, format)).map_err(py_err)
+        py.detach(|| srug::io::write_scene(&path, &*self.host()?, format)).map_err(py_err)
     }
 
     /// The scene's arrays as srug stores them: means (N, 3), quats (N, 4) w, x,
@@ -907,7 +952,7 @@ impl Scene {
     /// sh (N, K, 3), and where present normals (N, 3) and the relighting
     /// attributes as logits: albedo (N, 3), roughness, metallic, ao, visibility (N,).
     fn arrays<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        let h = &self.host;
+        let h = py.detach(|| self.host()).map_err(py_err)?;
         let n = h.len();
         let k = h.sh.len() / (3 * n.max(1));
         let d = PyDict::new(py);
@@ -1026,39 +1071,39 @@ impl Scene {
             ..HostScene::default()
         };
         host.validate("arrays").map_err(|e| py_err(e.into()))?;
-        Ok(Self { host: Arc::new(host), uploads: Mutex::new(Vec::new()) })
+        Ok(Self::from_host(host))
     }
 
     /// The number of Gaussians.
     #[getter]
     fn count(&self) -> usize {
-        self.host.len()
+        self.info.count
     }
 
     fn __len__(&self) -> usize {
-        self.host.len()
+        self.info.count
     }
 
     /// The spherical-harmonic degree stored.
     #[getter]
     fn sh_degree(&self) -> u32 {
-        self.host.sh_degree
+        self.info.sh_degree
     }
 
     /// Whether the scene can be relit (it has an albedo attribute).
     #[getter]
     fn relightable(&self) -> bool {
-        self.host.attributes().shadeable()
+        self.info.attributes.shadeable()
     }
 
     /// ((min x, y, z), (max x, y, z)) of the Gaussian centres; None when empty.
     #[getter]
     fn bounds(&self) -> Option<(Point, Point)> {
-        self.host.bounds().map(|b| ((b.min[0], b.min[1], b.min[2]), (b.max[0], b.max[1], b.max[2])))
+        self.info.bounds.map(|b| ((b.min[0], b.min[1], b.min[2]), (b.max[0], b.max[1], b.max[2])))
     }
 
     fn __repr__(&self) -> String {
-        format!("srug.Scene({} Gaussians, SH degree {})", self.host.len(), self.host.sh_degree)
+        format!("srug.Scene({} Gaussians, SH degree {})", self.info.count, self.info.sh_degree)
     }
 }
 
@@ -1238,7 +1283,7 @@ impl Cameras {
 fn demo_city(py: Python<'_>, gaussians: usize, seed: u64, sh_degree: u32) -> PyResult<(Scene, Cameras)> {
     let options = srug::scene::demo::DemoOptions { gaussians, seed, sh_degree };
     let city = py.detach(|| srug::scene::demo::demo_city(&options)).map_err(py_err)?;
-    Ok((Scene { host: Arc::new(city.scene), uploads: Mutex::new(Vec::new()) }, Cameras { cameras: city.cameras }))
+    Ok((Scene::from_host(city.scene), Cameras { cameras: city.cameras }))
 }
 
 /// The sun's (azimuth, elevation) in degrees at `time` (ISO 8601 with a zone,

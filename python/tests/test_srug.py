@@ -500,3 +500,35 @@ def test_shadow_tiles_agree_and_bad_tiles_are_refused(dev, shadow_problem):
     with pytest.raises(srug.Error) as e:
         dev.shadow(scene, p["cam"], tile=12, **p["kw"])
     assert "tile" in str(e.value)
+
+
+def test_load_scene_streams_to_the_device_and_reads_back_on_demand(dev, city, tmp_path):
+    """`Device.load_scene` puts a PLY straight on the device (no host copy);
+    its renders, metadata and, read back from the device, its arrays equal
+    those of the same file read on the host."""
+    scene, cams = city
+    path = tmp_path / "city.ply"
+    scene.save(str(path))
+    on_host = srug.Scene.from_file(str(path))
+    loaded = dev.load_scene(str(path))
+    assert (len(loaded), loaded.sh_degree, loaded.relightable) == (len(on_host), on_host.sh_degree, on_host.relightable)
+    assert loaded.bounds == on_host.bounds
+    few = cams[:2]
+    a = dev.render(loaded, few, channels=["rgb", "depth"])
+    b = dev.render(on_host, few, channels=["rgb", "depth"])
+    for name in ("rgb", "depth", "alpha"):
+        assert np.array_equal(a[name], b[name]), name
+    np.testing.assert_array_equal(
+        dev.relight(loaded, few, sun=(260.0, 50.0)), dev.relight(on_host, few, sun=(260.0, 50.0))
+    )
+    arrays, expected = loaded.arrays(), on_host.arrays()
+    assert sorted(arrays) == sorted(expected)
+    for name in expected:
+        assert np.array_equal(arrays[name], expected[name]), name
+    # Saved from the device's copy, it reads back as the same scene.
+    again = tmp_path / "again.ply"
+    loaded.save(str(again))
+    assert np.array_equal(srug.Scene.from_file(str(again)).arrays()["sh"], expected["sh"])
+    with pytest.raises(srug.Error) as e:
+        dev.load_scene(str(tmp_path / "missing.ply"))
+    assert "missing.ply" in str(e.value)

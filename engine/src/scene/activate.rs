@@ -119,6 +119,40 @@ impl GpuScene {
         loaded.ok_or_else(|| crate::Error::Internal("a scene file gave no block".into()))
     }
 
+    /// The scene back on the host, every attribute read from the device: for
+    /// callers that loaded it straight to the device ([`GpuScene::load`]) and
+    /// later need its arrays. Extra PLY properties are not kept on the device.
+    pub fn download(&self, device: &Device) -> Result<Scene> {
+        fn optional<T: bytemuck::Pod>(device: &Device, b: &Option<Buffer>) -> Result<Option<Vec<T>>> {
+            Ok(b.as_ref().map(|b| device.read_buffer(b)).transpose()?)
+        }
+        let n = self.count;
+        let k = super::sh_coefficients(self.sh_degree) * 3;
+        let mut sh: Vec<f32> = device.read_buffer(&self.sh)?;
+        sh.truncate(n * k);
+        let scene = Scene {
+            means: device.read_buffer(&self.means)?,
+            log_scales: device.read_buffer(&self.log_scales)?,
+            rotations: device.read_buffer(&self.rotations)?,
+            opacity_logits: device.read_buffer(&self.opacity_logits)?,
+            sh_degree: self.sh_degree,
+            sh,
+            normals: optional(device, &self.normals)?,
+            materials: super::Materials {
+                albedo: optional(device, &self.albedo)?,
+                roughness: optional(device, &self.roughness)?,
+                metallic: optional(device, &self.metallic)?,
+                ao: optional(device, &self.ao)?,
+                visibility: optional(device, &self.visibility)?,
+            },
+            ..Scene::default()
+        };
+        if scene.len() != n || scene.means.len() != n {
+            return Err(crate::Error::Internal(format!("the scene's buffers hold {} Gaussians, not {n}", scene.len())));
+        }
+        Ok(scene)
+    }
+
     /// Buffers for `total` Gaussians with `like`'s attributes, not yet written.
     fn allocate(device: &Device, like: &Scene, total: usize) -> Result<Self> {
         let n = total as u64;
