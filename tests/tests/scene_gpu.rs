@@ -167,6 +167,10 @@ fn a_scene_loads_straight_to_the_device_as_its_upload() {
             assert_eq!(loaded.attributes, host.attributes(), "{label}");
             assert_eq!(loaded.bounds, host.bounds(), "{label}");
             assert!(device_bytes(&d, &loaded.gpu) == expected, "{label}: the device holds other bytes");
+            // Read back (what the Python package does when a loaded scene's arrays are asked for).
+            let back = loaded.gpu.download(&d).unwrap();
+            let kept = Scene { extra_properties: Vec::new(), ..host.clone() };
+            assert!(back == kept, "{label}: the scene read back from the device differs");
         }
     }
 
