@@ -6,6 +6,8 @@
 //! image through a staging buffer). Wall clock per frame, median of the
 //! frames, with the GPU time of the pack and copy and the CPU time of the
 //! read-back and upload beside it; the sun stays, so the shadow map is reused.
+//! Composited frames go over a host depth of a wall 10 m away across the
+//! left half of the frame (nothing on the right), restored before each.
 //! The images are made on srug's own device ([`Device::create_image`]).
 
 use std::time::Instant;
@@ -111,8 +113,16 @@ pub fn embed_bench(device: &Device, setup: &EmbedSetup, mut progress: impl FnMut
             )?;
             Ok((start.elapsed().as_secs_f64(), frame.timings.get("host images write").unwrap_or(f64::NAN)))
         };
-        // Warm-up (the map, kernels), then the frames; the composited ones
-        // read what the previous frame left in the images.
+        // The host's mesh for the composited frames: a wall 10 m away over
+        // the left half of the frame, nothing on the right (Vulkan depth, 0.1 to 500 m).
+        let (near, far) = (0.1f64, 500.0f64);
+        let wall = (far * (10.0 - near) / (10.0 * (far - near))) as f32;
+        let (w, h) = (size.0 as usize, size.1 as usize);
+        let mesh: Vec<f32> = (0..w * h).map(|p| if p % w < w / 2 { wall } else { 1.0 }).collect();
+        let mesh = device.upload("host mesh depth", &mesh)?;
+        let reset = stated(&depth, undefined);
+        // Warm-up (the map, kernels), then the frames; before each composited
+        // one (untimed) the mesh's depth goes back into the depth image.
         shared(&write_only)?;
         let mut s = Vec::new();
         let mut s_write = Vec::new();
@@ -121,6 +131,7 @@ pub fn embed_bench(device: &Device, setup: &EmbedSetup, mut progress: impl FnMut
             let (t, w) = shared(&write_only)?;
             s.push(t);
             s_write.push(w);
+            device.run(|rec| rec.copy_buffer_to_host_image(&mesh, &reset, undefined))?;
             c.push(shared(&composited)?.0);
         }
         let image = stated(&colour, undefined);

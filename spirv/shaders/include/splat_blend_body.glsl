@@ -147,6 +147,9 @@ bool blend_one(inout Accumulated acc, uint g, vec4 head, vec4 conic, vec2 centre
     float alpha, gauss;
     vec2 d;
     head = nearest_copy(head, centre);
+    // A tile's splats come in order of centre depth: once one lies at or
+    // behind the host's depth, so do the rest (not with per-pixel surface depths).
+    if (OCCLUDED && !SURFACE_DEPTH && !(head.z < limit)) return false;
     if (!splat_alpha(head, conic, centre, alpha, gauss, d)) return true;
     float z = splat_depth(head, splat_slope(g), d);
     if (OCCLUDED && !(z < limit)) return true;
@@ -281,7 +284,10 @@ void main() {
             // Done once T·(1−α) < 1e-4, this splat excluded (as blend_one).
             bool stop = all(bvec2(hit, next_T < 1e-4));
             bool takes = all(bvec2(hit, !stop));
-            live[k] = all(bvec2(live[k], !stop));
+            // Splats come in order of centre depth: once one lies at or behind
+            // the host's depth, so do the rest (not with per-pixel surface depths).
+            bool behind = OCCLUDED && !SURFACE_DEPTH && !(head.z < limit[k]);
+            live[k] = all(bvec3(live[k], !stop, !behind));
             any_live = any(bvec2(any_live, live[k]));
             accumulate_select(acc[k], takes, alpha, next_T, z, c, g);
         }
