@@ -112,7 +112,9 @@ type Point = (f32, f32, f32);
 static NEXT_DEVICE: AtomicU64 = AtomicU64::new(1);
 
 /// What relighting keeps between calls: the relighter's kernels, the
-/// environment preparation, the BRDF table and the last environments.
+/// environment preparation, the BRDF table, the last environments and the
+/// last shadow map (reused while the scene, the sun's direction and the map
+/// settings stay; a Python scene's arrays never change in place).
 struct RelightKit {
     relighter: Relighter,
     prep: EnvironmentPrep,
@@ -127,7 +129,9 @@ impl RelightKit {
     fn new(device: &GpuDevice) -> srug::Result<Self> {
         let prep = EnvironmentPrep::new(device)?;
         let brdf = prep.brdf_table(BrdfLut::default(), 129, 1024)?;
-        Ok(Self { relighter: Relighter::new(device)?, prep, brdf, sky: None, file: None })
+        let mut relighter = Relighter::new(device)?;
+        relighter.set_shadow_map_reuse(true);
+        Ok(Self { relighter, prep, brdf, sky: None, file: None })
     }
 
     /// The environment: a map file or prepared folder, else the procedural sky of the sun.

@@ -350,8 +350,10 @@ impl Relighter {
     /// Renders each of `cameras` as [`Relighter::render`] does (the same
     /// frames, in order), with the cameras' splats batched
     /// ([`Splatter::render_batch`]: one submission per step for several
-    /// cameras) unless a host depth is set; the shadow map is shared as
-    /// reuse allows and each frame is shaded in turn. Every frame is held
+    /// cameras) unless a host depth is set; the cameras share one shadow map
+    /// (splatted once for the batch, whether or not
+    /// [`Relighter::set_shadow_map_reuse`] keeps it after) and each frame is
+    /// shaded in turn. Every frame is held
     /// until returned: pass as many cameras as memory allows
     /// ([`crate::splat::cameras_per_batch`]).
     #[allow(clippy::too_many_arguments, reason = "Relighter::render's inputs, with several cameras")]
@@ -373,11 +375,20 @@ impl Relighter {
             Some(_) => cameras.iter().map(|c| self.splat_camera(scene, c, &plan.splat)).collect::<Result<_>>()?,
         };
         let lights = Lights { bounds, sun: plan.decisions.sun.as_ref(), environment, brdf };
-        cameras
+        // The cameras of one batch share the shadow map (the same scene, sun and
+        // settings: the same map unless it is fitted to each view), reuse on or off.
+        let reuse = self.reuse_shadow_map;
+        self.reuse_shadow_map = true;
+        let frames = cameras
             .iter()
             .zip(splats)
             .map(|(camera, (gbuffer, stats))| self.finish(scene, camera, &lights, settings, &plan, gbuffer, stats))
-            .collect()
+            .collect();
+        self.reuse_shadow_map = reuse;
+        if !reuse {
+            self.shadow_map = None;
+        }
+        frames
     }
 
     /// Steps 2 to 5 of a frame whose G-buffers are splatted: the shadow pass
