@@ -775,6 +775,19 @@ pub extern "C" fn srug_renderer_set_shadow_fit(renderer: *mut srug_renderer, fit
     })
 }
 
+/// Shadow maps splatted only where the frame's receivers look them up, on or
+/// off (off by default): the same shadows for less, but a map per camera, so
+/// with `srug_renderer_set_shadow_map_reuse` a map is reused only for the same camera.
+#[no_mangle]
+pub extern "C" fn srug_renderer_set_shadow_cull(renderer: *mut srug_renderer, on: bool) -> srug_status {
+    guard("srug_renderer_set_shadow_cull", || {
+        with_renderer(renderer, |r| {
+            r.settings.shadow.cull_to_receivers = on;
+            Ok(())
+        })
+    })
+}
+
 /// Surface depths on or off: each splat's depth at a pixel where the pixel's
 /// ray meets the splat's plane (its shortest axis) rather than its centre's,
 /// for the depth channels, the shadow map and its receivers (off by default;

@@ -513,6 +513,10 @@ pub struct ShadeArgs {
     /// camera's view frustum within them: finer texels; casters anywhere still cast) [preset: scene].
     #[arg(long, value_parser = ShadowFit::parse)]
     pub shadow_fit: Option<ShadowFit>,
+    /// Splat the shadow map only where the frame's receivers look it up (the same
+    /// shadows, for less; a map per camera, so not reused across cameras) [preset: off].
+    #[arg(long)]
+    pub shadow_cull: bool,
     /// Sigmoid sharpness k per metre [preset: 50].
     #[arg(long)]
     pub shadow_k: Option<f32>,
@@ -572,6 +576,7 @@ impl ShadeArgs {
         sh.slope_bias = self.shadow_slope_bias.unwrap_or(sh.slope_bias);
         sh.normal_offset = self.shadow_normal_offset.unwrap_or(sh.normal_offset);
         sh.surface_depth |= self.shadow_surface_depth;
+        sh.cull_to_receivers |= self.shadow_cull;
         sh.receiver_depth = self.receiver_depth.unwrap_or(sh.receiver_depth);
         s.visibility_kind = self.shadow_test.unwrap_or(s.visibility_kind);
         if self.sh_degree.is_some() {

@@ -538,7 +538,8 @@ impl Device {
     #[pyo3(signature = (scene, cameras, sun = None, sun_intensity = std::f32::consts::PI, preset = "balanced",
                         environment = None, env_rotation = 0.0, env_intensity = 1.0, exposure = 0.0,
                         output = "radiance", progress = None, surface_depth = false, shadow_fit = "scene",
-                        host_depth = None, depth_convention = "camera_z", near = 0.0, far = 0.0, background = None))]
+                        host_depth = None, depth_convention = "camera_z", near = 0.0, far = 0.0, background = None,
+                        shadow_cull = false))]
     #[allow(clippy::too_many_arguments, reason = "the Python keyword arguments of one call")]
     fn relight<'py>(
         &self,
@@ -561,6 +562,7 @@ impl Device {
         near: f32,
         far: f32,
         background: Option<(f32, f32, f32)>,
+        shadow_cull: bool,
     ) -> PyResult<Bound<'py, PyDict>> {
         let device = self.gpu()?;
         let cams = &cameras.cameras;
@@ -581,6 +583,7 @@ impl Device {
         settings.shade.env_intensity = env_intensity;
         settings.shadow.surface_depth |= surface_depth;
         settings.shadow.fit = srug::shadow::ShadowFit::parse(shadow_fit).map_err(py_err)?;
+        settings.shadow.cull_to_receivers = shadow_cull;
         if let Some((r, g, b)) = background {
             settings.shade.background = srug::shade::Background::Color([r, g, b]);
         }

@@ -430,6 +430,7 @@ class Device:
         far: float = 0.0,
         background: Optional[Tuple[float, float, float]] = None,
         return_alpha: bool = False,
+        shadow_cull: bool = False,
     ) -> Any:
         """Relights every camera: (N, H, W, 3) float32.
 
@@ -450,7 +451,9 @@ class Device:
         no splat covers a pixel instead of the environment; (0, 0, 0) gives
         premultiplied radiance, so ``image + (1 - alpha) * yours`` composites
         it over your frame. ``return_alpha``: return (image, alpha), alpha
-        (N, H, W) the splats' coverage.
+        (N, H, W) the splats' coverage. ``shadow_cull``: splat the shadow map
+        only where each frame looks it up (the same shadows, for less when the
+        sun or the cameras change from call to call; a map per camera).
         """
         if background is not None:
             background = tuple(float(v) for v in background)
@@ -484,6 +487,7 @@ class Device:
             near=float(near),
             far=float(far),
             background=background,
+            shadow_cull=bool(shadow_cull),
         )
         return (out[output], out["alpha"]) if return_alpha else out[output]
 

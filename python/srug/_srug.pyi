@@ -57,6 +57,7 @@ class Device:
         near: float = ...,
         far: float = ...,
         background: Optional[Tuple[float, float, float]] = ...,
+        shadow_cull: bool = ...,
     ) -> Dict[str, np.ndarray]: ...
 
     def shadow(

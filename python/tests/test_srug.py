@@ -532,3 +532,12 @@ def test_load_scene_streams_to_the_device_and_reads_back_on_demand(dev, city, tm
     with pytest.raises(srug.Error) as e:
         dev.load_scene(str(tmp_path / "missing.ply"))
     assert "missing.ply" in str(e.value)
+
+
+def test_shadow_cull_relights_alike(dev, city):
+    """A shadow map splatted only where the frame looks gives the same frames."""
+    scene, cams = city
+    few = cams[:2]
+    a = dev.relight(scene, few, sun=(250.0, 40.0))
+    b = dev.relight(scene, few, sun=(250.0, 40.0), shadow_cull=True)
+    np.testing.assert_array_equal(a, b)

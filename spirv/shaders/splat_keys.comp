@@ -22,6 +22,8 @@ layout(constant_id = 15) const uint TILE = 16u;
 layout(constant_id = 2) const bool ROW_MASKS = false;
 // Depth key bits (1 to 32; 32 keeps the depth's float bits whole).
 layout(constant_id = 3) const uint DEPTH_BITS = 32u;
+// Pairs only for the tiles the frame's tile mask wants, as the preprocess counted.
+layout(constant_id = 4) const bool TILE_MASK = false;
 
 void main() {
     uint i = linear_index();
@@ -43,6 +45,7 @@ void main() {
         uvec2 span = ELLIPSE_TILES && !wraps ? tile_row_span(e, s.head.xy, s.rect, y, TILE) : s.rect.xz;
         for (uint x = span.x; x < span.y && offset < end; x++) {
             uint tile = y * frame.size.z + (x < frame.size.z ? x : x - frame.size.z);
+            if (TILE_MASK && !tile_wanted(tile)) continue;
             uint blocks = ROW_MASKS ? tile_block_mask(e, s.head.xy, x, y, TILE, check_x) << (32u - TILE) : 0u;
             keys.v[offset] = pair_key(tile, depth_key, DEPTH_BITS, blocks);
             values.v[offset] = i;

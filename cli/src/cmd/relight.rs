@@ -346,6 +346,7 @@ pub(crate) fn relight_demo(
         shadow_normal_offset: None,
         shadow_surface_depth: false,
         shadow_fit: None,
+        shadow_cull: false,
         receiver_depth: None,
         shadow_test: None,
         sh_degree: None,

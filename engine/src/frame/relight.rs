@@ -152,6 +152,8 @@ struct ShadowMapKey {
     depth: DepthMode,
     tile: u32,
     surface_depth: bool,
+    /// The receivers' camera, where the map is splatted only for them.
+    receivers: Option<Camera>,
 }
 
 impl Relighter {
@@ -466,13 +468,19 @@ impl Relighter {
             depth: shadow.map_depth,
             tile: shadow.tile,
             surface_depth: shadow.surface_depth,
+            receivers: shadow.cull_to_receivers.then(|| camera.clone()),
         };
         let reused = self.reuse_shadow_map && self.shadow_map.as_ref().is_some_and(|(k, _)| *k == key);
         if !reused {
             // Free the old map before splatting the new one.
             self.shadow_map = None;
             let light = key.light.clone();
-            let map = self.shadows.shadow_map_from(&mut self.splatter, scene, light, sun, shadow)?;
+            let map = if shadow.cull_to_receivers {
+                let receivers = [(gbuffer, camera)];
+                self.shadows.shadow_map_for_receivers(&mut self.splatter, scene, light, sun, shadow, &receivers)?
+            } else {
+                self.shadows.shadow_map_from(&mut self.splatter, scene, light, sun, shadow)?
+            };
             // Its stages are named "shadow map …" already.
             timings.stages.extend(map.frame.stats.timings.stages.iter().cloned());
             self.shadow_map = Some((key, map));

@@ -23,6 +23,7 @@ pub struct ShadowPass {
     pub(super) bins: Arc<Kernel>,
     pub(super) gather: Arc<Kernel>,
     pub(super) sort: RadixSort,
+    pub(super) receiver_tiles: Arc<Kernel>,
 }
 
 /// Which visibility [`ShadowPass::visibility`] computes.
@@ -64,6 +65,7 @@ impl ShadowPass {
             )?,
             gather: device.kernel(&kernels::SHADOW_TEXEL_GRADS, &plain)?,
             sort: RadixSort::new(device)?,
+            receiver_tiles: device.kernel(&kernels::SHADOW_RECEIVER_TILES, &decl)?,
         })
     }
 
@@ -97,6 +99,19 @@ impl ShadowPass {
         sun: &Sun,
         settings: &ShadowSettings,
     ) -> Result<ShadowMap> {
+        self.splat_map(splatter, scene, camera, sun, settings, None)
+    }
+
+    /// The map's splat, in the tiles `mask` wants (all without one).
+    fn splat_map(
+        &self,
+        splatter: &mut Splatter,
+        scene: &GpuScene,
+        camera: Camera,
+        sun: &Sun,
+        settings: &ShadowSettings,
+        mask: Option<&Buffer>,
+    ) -> Result<ShadowMap> {
         settings.validate()?;
         if !sun.above_horizon() || !matches!(camera.projection, Projection::Orthographic { .. }) {
             return Err(Error::invalid("shadow map", "needs a sun above the horizon and an orthographic camera"));
@@ -109,11 +124,66 @@ impl ShadowPass {
             surface_depth: settings.surface_depth,
             ..SplatSettings::default()
         };
-        let mut frame = splatter.render_frame(scene, &camera, &splat)?;
+        let mut frame = match mask {
+            Some(m) => splatter.render_frame_in_tiles(scene, &camera, &splat, m)?,
+            None => splatter.render_frame(scene, &camera, &splat)?,
+        };
         for stage in &mut frame.stats.timings.stages {
             stage.name = format!("shadow map {}", stage.name);
         }
         Ok(ShadowMap { camera, sun: *sun, depth: settings.map_depth, frame })
+    }
+
+    /// [`ShadowPass::shadow_map_from`] splatted only in the map tiles that
+    /// `receivers` (G-buffers with the cameras they were rendered from, as
+    /// for [`ShadowPass::visibility`]) look up, and around them: casters
+    /// elsewhere cost nothing, and every one of those receivers gets exactly
+    /// the visibility the whole map gives (off-screen casters included: the
+    /// culling is in light space). The map serves only those receivers.
+    pub fn shadow_map_for_receivers(
+        &self,
+        splatter: &mut Splatter,
+        scene: &GpuScene,
+        camera: Camera,
+        sun: &Sun,
+        settings: &ShadowSettings,
+        receivers: &[(&GpuGBuffer, &Camera)],
+    ) -> Result<ShadowMap> {
+        let device = &self.device;
+        let tile = settings.tile;
+        let tiles = (camera.width.div_ceil(tile), camera.height.div_ceil(tile));
+        let mask = device.create_buffer(
+            "shadow tile mask",
+            u64::from(tiles.0) * u64::from(tiles.1) * 4,
+            MemoryKind::Storage,
+        )?;
+        let uniforms = receivers
+            .iter()
+            .map(|(g, c)| {
+                let (u, inputs) = receiver_uniform(&camera, settings.map_depth, (tiles.0, tile), g, c, settings)?;
+                let buffer = device.create_buffer(
+                    "receiver tiles uniform",
+                    std::mem::size_of::<ShadowUniform>() as u64,
+                    MemoryKind::Storage,
+                )?;
+                Ok((u, inputs, buffer, u64::from(c.width) * u64::from(c.height)))
+            })
+            .collect::<Result<Vec<_>>>()?;
+        let marked = device.run(|rec| -> Result<()> {
+            rec.fill(&mask, 0)?;
+            rec.begin_stage("shadow map receiver tiles");
+            for (u, inputs, buffer, pixels) in &uniforms {
+                u.record_receiver_tiles(rec, buffer, inputs, &mask)?;
+                rec.dispatch(&self.receiver_tiles, Grid::Items(*pixels), &[Binding::from(buffer)], &())?;
+            }
+            rec.end_stage();
+            Ok(())
+        })?;
+        let mut map = self.splat_map(splatter, scene, camera, sun, settings, Some(&mask))?;
+        let mut stages = marked.stages;
+        stages.append(&mut map.frame.stats.timings.stages);
+        map.frame.stats.timings.stages = stages;
+        Ok(map)
     }
 
     /// Per-pixel visibility of the receivers in `gbuffer` (rendered from

@@ -37,7 +37,7 @@ pub(crate) struct ShadowUniform {
     pub(super) splats: DeviceAddress,
     pub(super) sorted_gaussians: DeviceAddress,
     pub(super) ranges: DeviceAddress,
-    pub(super) unused1: DeviceAddress,
+    pub(super) tile_mask: DeviceAddress,
 }
 crate::gpu::gpu_layout!(
     ShadowUniform,
@@ -70,11 +70,27 @@ crate::gpu::gpu_layout!(
         splats,
         sorted_gaussians,
         ranges,
-        unused1
+        tile_mask
     ]
 );
 
 impl ShadowUniform {
+    /// Writes the uniform for `shadow_receiver_tiles.comp`: the receivers'
+    /// addresses and the tile mask it marks.
+    pub(crate) fn record_receiver_tiles<'a>(
+        mut self,
+        rec: &mut Recording<'a>,
+        uniform: &'a Buffer,
+        receivers: &ReceiverInputs<'a>,
+        mask: &'a Buffer,
+    ) -> Result<()> {
+        self.receiver_depth = rec.addr(receivers.receiver_depth)?;
+        self.receiver_alpha = rec.addr(receivers.receiver_alpha)?;
+        self.receiver_normal = rec.addr_or_null(receivers.receiver_normal)?;
+        self.tile_mask = rec.addr(mask)?;
+        Ok(rec.update(uniform, 0, &self)?)
+    }
+
     /// Takes every address through `rec` (which keeps the buffers borrowed
     /// until it is submitted) and writes the uniform into `uniform`.
     /// `visibility` is the forward's output (none in the backward pass).
@@ -109,25 +125,30 @@ pub(crate) struct ShadowInputs<'a> {
     pub(crate) map: &'a ShadowMap,
 }
 
-/// The shadow kernels' uniform (without addresses) for `map`, receivers
-/// `gbuffer` seen from `camera`, and `settings`, and the buffers it reads.
-pub(super) fn shadow_uniform<'a>(
-    map: &'a ShadowMap,
+/// The receivers' buffers the shadow kernels read.
+pub(crate) struct ReceiverInputs<'a> {
+    pub(crate) receiver_depth: &'a Buffer,
+    pub(crate) receiver_alpha: &'a Buffer,
+    /// The receivers' normals, where the settings ask for a geometric bias.
+    pub(crate) receiver_normal: Option<&'a Buffer>,
+}
+
+/// The shadow kernels' uniform (without addresses) for receivers `gbuffer`
+/// seen from `camera` and a map of `depth` from `light` splatted in tiles of
+/// `tile` texels, `tiles_x` across; and the receivers' buffers it reads.
+pub(super) fn receiver_uniform<'a>(
+    light: &Camera,
+    depth: DepthMode,
+    (tiles_x, tile): (u32, u32),
     gbuffer: &'a GpuGBuffer,
     camera: &Camera,
     settings: &ShadowSettings,
-) -> Result<(ShadowUniform, ShadowInputs<'a>)> {
+) -> Result<(ShadowUniform, ReceiverInputs<'a>)> {
     settings.validate()?;
     if (gbuffer.width, gbuffer.height) != (camera.width, camera.height) {
         return Err(Error::invalid(
             format!("G-buffer {}x{}", gbuffer.width, gbuffer.height),
             format!("does not match camera {}x{}", camera.width, camera.height),
-        ));
-    }
-    if settings.map_depth != map.depth {
-        return Err(Error::invalid(
-            format!("shadow map of {:?} depth", map.depth),
-            format!("does not match the settings' {:?} depth", settings.map_depth),
         ));
     }
     let receiver_depth = match settings.receiver_depth {
@@ -147,26 +168,50 @@ pub(super) fn shadow_uniform<'a>(
     } else {
         None
     };
+    let mut u = ShadowUniform::zeroed();
+    u.camera = camera.packed().to_world;
+    let packed = light.packed().to_camera;
+    [u.light_rot0, u.light_rot1, u.light_rot2] = [packed.rot0, packed.rot1, packed.rot2];
+    u.light_t = [packed.translation[0], packed.translation[1], packed.translation[2], light.far];
+    u.light_intr = packed.intrinsics;
+    u.size = [camera.width, camera.height, light.width, light.height];
+    u.params = [settings.k, settings.bias, settings.min_alpha, depth.empty_depth(light.far)];
+    u.modes = [depth.code(), settings.receiver_depth.code(), tiles_x, tile];
+    let texel = texel_size(light);
+    u.geometry = [settings.slope_bias * texel, settings.normal_offset * texel, MAX_SLOPE, 0.0];
+    Ok((u, ReceiverInputs { receiver_depth, receiver_alpha: &gbuffer.alpha, receiver_normal }))
+}
+
+/// The shadow kernels' uniform (without addresses) for `map`, receivers
+/// `gbuffer` seen from `camera`, and `settings`, and the buffers it reads.
+pub(super) fn shadow_uniform<'a>(
+    map: &'a ShadowMap,
+    gbuffer: &'a GpuGBuffer,
+    camera: &Camera,
+    settings: &ShadowSettings,
+) -> Result<(ShadowUniform, ShadowInputs<'a>)> {
+    if settings.map_depth != map.depth {
+        return Err(Error::invalid(
+            format!("shadow map of {:?} depth", map.depth),
+            format!("does not match the settings' {:?} depth", settings.map_depth),
+        ));
+    }
+    let tiles = (map.frame.tiles().0, map.frame.tile);
+    let (u, r) = receiver_uniform(&map.camera, map.depth, tiles, gbuffer, camera, settings)?;
     let g = &map.frame.gbuffer;
     let map_depth = match map.depth {
         DepthMode::Median => g.get(Channel::MedianDepth),
         DepthMode::Expected | DepthMode::ExpectedOverFar => g.get(Channel::Depth),
     }
     .ok_or_else(|| Error::Internal("the shadow map lacks its depth channel".into()))?;
-    let mut u = ShadowUniform::zeroed();
-    u.camera = camera.packed().to_world;
-    let l = &map.camera;
-    let light = l.packed();
-    let light = light.to_camera;
-    [u.light_rot0, u.light_rot1, u.light_rot2] = [light.rot0, light.rot1, light.rot2];
-    u.light_t = [light.translation[0], light.translation[1], light.translation[2], l.far];
-    u.light_intr = light.intrinsics;
-    u.size = [camera.width, camera.height, l.width, l.height];
-    u.params = [settings.k, settings.bias, settings.min_alpha, map.depth.empty_depth(l.far)];
-    u.modes = [map.depth.code(), settings.receiver_depth.code(), map.frame.tiles().0, map.frame.tile];
-    let texel = map.texel_size();
-    u.geometry = [settings.slope_bias * texel, settings.normal_offset * texel, MAX_SLOPE, 0.0];
-    Ok((u, ShadowInputs { receiver_depth, receiver_alpha: &gbuffer.alpha, receiver_normal, map_depth, map }))
+    let inputs = ShadowInputs {
+        receiver_depth: r.receiver_depth,
+        receiver_alpha: r.receiver_alpha,
+        receiver_normal: r.receiver_normal,
+        map_depth,
+        map,
+    };
+    Ok((u, inputs))
 }
 
 #[cfg(test)]

@@ -163,6 +163,10 @@ pub struct ShadowSettings {
     pub prefill: Option<u32>,
     /// Tile edge of the shadow map's splatting ([`crate::splat::TILE_SIZES`]).
     pub tile: u32,
+    /// Splat the map only in the tiles the frame's receivers look up
+    /// ([`ShadowPass::shadow_map_for_receivers`]): the same visibility for
+    /// less, but a map per camera (it cannot be reused for another view).
+    pub cull_to_receivers: bool,
 }
 
 impl Default for ShadowSettings {
@@ -180,6 +184,7 @@ impl Default for ShadowSettings {
             min_alpha: 0.5,
             prefill: None,
             tile: crate::splat::DEFAULT_TILE,
+            cull_to_receivers: false,
         }
     }
 }

@@ -287,6 +287,7 @@ impl Splatter {
                 ranges: &frame.ranges,
                 out: &frame.gbuffer,
                 occluder: None,
+                tile_mask: None,
             };
             frame.params.record(rec, &frame.uniform, &buffers)?;
             let g = grads;

@@ -315,6 +315,35 @@ impl Splatter {
         self.render_frame_with(scene, camera, settings, Some((depth, convention)))
     }
 
+    /// Renders only the tiles `tile_mask` wants (one u32 per tile of
+    /// `camera` at `settings.tile`, row-major, non-zero: wanted): splats get
+    /// pairs only there, so elsewhere the frame is empty, and in the wanted
+    /// tiles it is [`Splatter::render_frame`]'s, bit for bit (the same splats
+    /// in the same order). A shadow map needs only the tiles its receivers
+    /// look up (`ShadowSettings::cull_to_receivers`).
+    pub fn render_frame_in_tiles(
+        &mut self,
+        scene: &GpuScene,
+        camera: &Camera,
+        settings: &SplatSettings,
+        tile_mask: &Buffer,
+    ) -> Result<SplatFrame> {
+        let tile = u64::from(settings.tile.max(1));
+        let tiles = u64::from(camera.width).div_ceil(tile) * u64::from(camera.height).div_ceil(tile);
+        if tile_mask.size() < tiles * 4 {
+            return Err(Error::invalid(
+                format!("tile mask of {} bytes", tile_mask.size()),
+                format!("is smaller than one u32 per tile ({tiles} tiles)"),
+            ));
+        }
+        if camera.wrap_period().is_some() {
+            return Err(Error::invalid("tile mask", "needs a camera whose tiles do not wrap (not a full panorama)"));
+        }
+        let view = View { camera, occluder: None, tile_mask: Some(tile_mask) };
+        let mut frames = self.render_views(scene, &[view], settings)?;
+        frames.pop().ok_or_else(|| Error::Internal("a one-camera render returned no frame".into()))
+    }
+
     fn render_frame_with(
         &mut self,
         scene: &GpuScene,
@@ -322,7 +351,7 @@ impl Splatter {
         settings: &SplatSettings,
         occluder: Option<(&Buffer, HostDepth)>,
     ) -> Result<SplatFrame> {
-        let mut frames = self.render_views(scene, &[View { camera, occluder }], settings)?;
+        let mut frames = self.render_views(scene, &[View { camera, occluder, tile_mask: None }], settings)?;
         frames.pop().ok_or_else(|| Error::Internal("a one-camera render returned no frame".into()))
     }
 
@@ -339,7 +368,8 @@ impl Splatter {
         cameras: &[Camera],
         settings: &SplatSettings,
     ) -> Result<Vec<SplatFrame>> {
-        let views: Vec<View<'_>> = cameras.iter().map(|camera| View { camera, occluder: None }).collect();
+        let views: Vec<View<'_>> =
+            cameras.iter().map(|camera| View { camera, occluder: None, tile_mask: None }).collect();
         let mut frames = Vec::with_capacity(cameras.len());
         for group in views.chunks(FRAMES_PER_SUBMISSION) {
             frames.extend(self.render_views(scene, group, settings)?);
@@ -438,7 +468,8 @@ impl Splatter {
         let row_masks = texel && key_bits + tile <= 64;
         let depth_spec = (3, SpecValue::U32(depth_bits));
         let ellipse = SpecValue::Bool(settings.tile_bounds == TileBounds::Ellipse);
-        let keys_spec = [(1, ellipse), (2, SpecValue::Bool(row_masks)), depth_spec, tile_spec(tile)[0]];
+        let mask = (4, SpecValue::Bool(view.tile_mask.is_some()));
+        let keys_spec = [(1, ellipse), (2, SpecValue::Bool(row_masks)), depth_spec, mask, tile_spec(tile)[0]];
         Ok(SortPlan {
             keys: device.create_buffer("sort keys", pairs * 8, MemoryKind::Storage)?,
             values: device.create_buffer("sort values", pairs * 4, MemoryKind::Storage)?,
@@ -504,7 +535,14 @@ impl Splatter {
         let features = SpecValue::Bool(ch.needs_features());
         // The SH degree used (as in each view's uniform, `FrameUniform::counts`).
         let sh_used = SpecValue::U32(sh_degree_used(scene, settings));
-        let preprocess_spec = [(0, features), (1, ellipse), (2, surface), (3, sh_used), tile_spec(tile)[0]];
+        // Every view of one call masks its tiles or none does (one preprocess kernel).
+        let masked = views.iter().any(|v| v.tile_mask.is_some());
+        if masked && views.iter().any(|v| v.tile_mask.is_none()) {
+            return Err(Error::Internal("views of one render either all mask their tiles or none does".into()));
+        }
+        let mask_spec = SpecValue::Bool(masked);
+        let preprocess_spec =
+            [(0, features), (1, ellipse), (2, surface), (3, sh_used), (5, mask_spec), tile_spec(tile)[0]];
         let preprocess = if texel_preprocess {
             let mut bindings = vec![BindingKind::UniformBuffer];
             bindings.extend([BindingKind::UniformTexelBuffer; 5]);
@@ -692,6 +730,8 @@ pub fn cameras_per_batch(gaussians: u64, camera: &Camera, settings: &SplatSettin
 struct View<'a> {
     camera: &'a Camera,
     occluder: Option<(&'a Buffer, HostDepth)>,
+    /// One u32 per tile, non-zero where pairs are wanted; `None`: every tile.
+    tile_mask: Option<&'a Buffer>,
 }
 
 /// A view's buffers before its pairs are counted.
@@ -721,6 +761,7 @@ impl PendingView {
             ranges: &self.ranges,
             out: &self.out,
             occluder: view.occluder.map(|(b, _)| b),
+            tile_mask: view.tile_mask,
         }
     }
 }

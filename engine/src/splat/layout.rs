@@ -55,6 +55,7 @@ pub(crate) struct FrameUniform {
     g_ao: DeviceAddress,
     g_visibility: DeviceAddress,
     g_top_gaussian: DeviceAddress,
+    tile_mask: DeviceAddress,
 }
 crate::gpu::gpu_layout!(
     FrameUniform,
@@ -105,7 +106,8 @@ crate::gpu::gpu_layout!(
         g_metallic,
         g_ao,
         g_visibility,
-        g_top_gaussian
+        g_top_gaussian,
+        tile_mask
     ]
 );
 
@@ -123,6 +125,8 @@ pub(crate) struct FrameBuffers<'b> {
     pub(crate) out: &'b GpuGBuffer,
     /// The host's depth per pixel, where splats behind it are hidden.
     pub(crate) occluder: Option<&'b Buffer>,
+    /// One u32 per tile, non-zero where pairs are wanted (`TILE_MASK` kernels).
+    pub(crate) tile_mask: Option<&'b Buffer>,
 }
 
 impl FrameUniform {
@@ -167,6 +171,7 @@ impl FrameUniform {
         self.g_ao = rec.addr_or_null(o.get(Channel::Ao))?;
         self.g_visibility = rec.addr_or_null(o.get(Channel::Visibility))?;
         self.g_top_gaussian = rec.addr_or_null(o.top_gaussian.as_ref())?;
+        self.tile_mask = rec.addr_or_null(b.tile_mask)?;
         Ok(rec.update(uniform, 0, &self)?)
     }
 }

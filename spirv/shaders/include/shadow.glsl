@@ -26,7 +26,7 @@ layout(std140, set = 0, binding = 0) uniform Shadow {
     uvec2 splats;             // the map's splats and sorted pairs (traced test)
     uvec2 sorted_gaussians;
     uvec2 ranges;
-    uvec2 unused1;
+    uvec2 tile_mask;          // u32 per map tile (shadow_receiver_tiles.comp)
 } shadow;
 
 // Depth of one pixel of a G-buffer: expected (Σwz / alpha) or median; false

@@ -46,7 +46,13 @@ layout(std140, set = 0, binding = 0) uniform Frame {
     uvec2 g_ao;
     uvec2 g_visibility;
     uvec2 g_top_gaussian;   // uint per pixel: the Gaussian with the largest blend weight
+    uvec2 tile_mask;        // uint per tile, non-zero where pairs are wanted (TILE_MASK)
 } frame;
+
+// Whether tile `tile` gets pairs (every tile without a mask).
+bool tile_wanted(uint tile) {
+    return UintsIn(frame.tile_mask).v[tile] != 0u;
+}
 
 // The per-splat part of `tile_row_span`, computed once per splat: r² (≤ 0:
 // the splat reaches no pixel), the conic's a and b, det Q (0 where too

@@ -44,6 +44,9 @@ layout(constant_id = 15) const uint TILE = 16u;
 // constant, so the colour loop unrolls and each basis function is straight
 // code (lavapipe would run every case of `sh_basis`'s switch under a mask).
 layout(constant_id = 3) const uint SH_USED = 3u;
+// Count only the tiles the frame's tile mask wants (`tile_wanted`); the keys
+// kernel must agree. Not for wrapping panoramas (the host refuses them).
+layout(constant_id = 5) const bool TILE_MASK = false;
 
 float sigmoid(float x) {
     float e = exp(-abs(x));
@@ -176,6 +179,14 @@ void main() {
         for (uint ty = rect.y; ty < rect.w; ty++) {
             uvec2 span = tile_row_span(e, mean, rect, ty, TILE);
             count += span.y - span.x;
+        }
+    }
+    if (TILE_MASK && count != 0u) {
+        count = 0u;
+        TileEllipse e = tile_ellipse(head, conic);
+        for (uint ty = rect.y; ty < rect.w; ty++) {
+            uvec2 span = ELLIPSE_TILES ? tile_row_span(e, mean, rect, ty, TILE) : rect.xz;
+            for (uint tx = span.x; tx < span.y; tx++) count += tile_wanted(ty * frame.size.z + tx) ? 1u : 0u;
         }
     }
     if (count == 0u) { cull(i); return; }

@@ -1,0 +1,33 @@
+#version 460
+// The shadow-map tiles a camera's receivers look up, one invocation per
+// receiver pixel: its world point (as the shadow test finds it, bias offsets
+// included) projected into light space marks the tile under it and the eight
+// around it (the test's bilinear taps stay within one texel), so a map
+// splatted only in the marked tiles (`Splatter::render_frame_in_tiles`) gives
+// every receiver the visibility the whole map gives. Tiles are u32 flags,
+// zeroed by the host first; several cameras may mark one mask.
+#define WORKGROUP_SIZE_X 64
+#include "common.glsl"
+#include "shadow.glsl"
+
+void main() {
+    uint p = linear_index();
+    if (p >= shadow.size.x * shadow.size.y) return;
+    vec3 world;
+    float bias;
+    if (!receiver_point(p, world, bias)) return;
+    vec3 l = light_coords(world);
+    if (!inside_map(l.xy)) return;
+    int tile = int(shadow.modes.w);
+    ivec2 tiles = ivec2(int(shadow.modes.z), (int(shadow.size.w) + tile - 1) / tile);
+    ivec2 t = ivec2(floor(l.xy / float(tile)));
+    Uints mask = Uints(shadow.tile_mask);
+    for (int dy = -1; dy <= 1; dy++) {
+        for (int dx = -1; dx <= 1; dx++) {
+            ivec2 c = t + ivec2(dx, dy);
+            if (all(greaterThanEqual(c, ivec2(0))) && all(lessThan(c, tiles))) {
+                atomicOr(mask.v[uint(c.y * tiles.x + c.x)], 1u);
+            }
+        }
+    }
+}

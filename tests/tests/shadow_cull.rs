@@ -1,0 +1,94 @@
+//! A shadow map splatted only where its receivers look
+//! (`ShadowPass::shadow_map_for_receivers`, `ShadowSettings::cull_to_receivers`):
+//! the receivers' visibility, sigmoid and traced, is the whole map's bit for
+//! bit, with the bias offsets on and off and for several cameras at once;
+//! every texel of the culled map is the whole map's or empty; it sorts fewer
+//! pairs; and a relit frame with it equals one without.
+
+#![allow(clippy::unwrap_used, clippy::expect_used, reason = "a failed unwrap is a failed test")]
+
+use srug::frame::{RelightSettings, Relighter};
+use srug::gpu::Device;
+use srug::scene::activate::GpuScene;
+use srug::scene::demo::{demo_city, DemoOptions};
+use srug::scene::Camera;
+use srug::shade::{BrdfLut, EnvironmentPrep, PrepareSettings, ProceduralSky};
+use srug::shadow::{ShadowPass, ShadowSettings, Sun, VisibilityKind};
+use srug::splat::{Channel, Splatter};
+use srug_tests::{assert_no_validation_messages, device};
+
+fn read(d: &Device, b: &srug::gpu::Buffer) -> Vec<f32> {
+    d.read_buffer(b).unwrap()
+}
+
+#[test]
+fn a_map_splatted_only_where_receivers_look_gives_them_the_same_visibility() {
+    let d = device();
+    let city = demo_city(&DemoOptions { seed: 5, gaussians: 20_000, sh_degree: 1 }).unwrap();
+    let scene = GpuScene::upload(&d, &city.scene).unwrap();
+    let bounds = city.scene.bounds().unwrap();
+    let sun = Sun::from_azimuth_elevation(260.0, 35.0, [3.0; 3]).unwrap();
+    let cameras: Vec<Camera> = city.cameras.iter().take(2).map(|c| c.resized(176, 48)).collect();
+    let pass = ShadowPass::new(&d).unwrap();
+    let mut splatter = Splatter::new(&d).unwrap();
+    for settings in [
+        ShadowSettings { resolution: 512, ..ShadowSettings::default() },
+        ShadowSettings { resolution: 512, normal_offset: 3.0, tile: 8, ..ShadowSettings::default() },
+    ] {
+        let receivers: Vec<_> = cameras
+            .iter()
+            .map(|c| splatter.render_frame(&scene, c, &settings.receiver_splat()).unwrap().gbuffer)
+            .collect();
+        let whole = pass.shadow_map(&mut splatter, &scene, &bounds, &sun, &settings, None).unwrap().unwrap();
+        let pairs: Vec<_> = receivers.iter().zip(&cameras).collect();
+        for chosen in [&pairs[..1], &pairs[..]] {
+            let culled = pass
+                .shadow_map_for_receivers(&mut splatter, &scene, whole.camera.clone(), &sun, &settings, chosen)
+                .unwrap();
+            let label =
+                format!("{} camera(s), normal offset {}, tile {}", chosen.len(), settings.normal_offset, settings.tile);
+            assert!(culled.frame.stats.pairs < whole.frame.stats.pairs, "{label}: no pairs saved");
+            println!("{label}: {} of {} map pairs", culled.frame.stats.pairs, whole.frame.stats.pairs);
+            for (g, camera) in chosen {
+                for kind in [VisibilityKind::Sigmoid, VisibilityKind::Traced] {
+                    let (a, _) = pass.visibility(&whole, g, camera, &settings, kind).unwrap();
+                    let (b, _) = pass.visibility(&culled, g, camera, &settings, kind).unwrap();
+                    let (a, b) = (read(&d, &a), read(&d, &b));
+                    assert!(a.iter().map(|v| v.to_bits()).eq(b.iter().map(|v| v.to_bits())), "{label}, {kind:?}");
+                    assert!(a.iter().any(|v| *v < 0.5), "{label}: the view has shadow");
+                }
+            }
+            // Every texel of the culled map is the whole map's, or empty.
+            let (wa, ca) = (read(&d, &whole.frame.gbuffer.alpha), read(&d, &culled.frame.gbuffer.alpha));
+            let depth = |m: &srug::shadow::ShadowMap| read(&d, m.frame.gbuffer.get(Channel::MedianDepth).unwrap());
+            let (wd, cd) = (depth(&whole), depth(&culled));
+            let mut kept = 0;
+            for i in 0..wa.len() {
+                let same = wa[i].to_bits() == ca[i].to_bits() && wd[i].to_bits() == cd[i].to_bits();
+                assert!(same || (ca[i] == 0.0 && cd[i] == 0.0), "{label}: texel {i}");
+                kept += usize::from(same && wa[i] > 0.0);
+            }
+            assert!(kept > 0, "{label}: no covered texel kept");
+        }
+    }
+
+    // Through the relighter: the same relit frame.
+    let prep = EnvironmentPrep::new(&d).unwrap();
+    let sky = ProceduralSky::new(sun.direction, 3.0).render().unwrap();
+    let env = prep.prepare(&sky, &PrepareSettings { samples: 16, ..PrepareSettings::default() }).unwrap();
+    let brdf = prep.brdf_table(BrdfLut::Karis, 33, 64).unwrap();
+    let attributes = city.scene.attributes();
+    let mut relighter = Relighter::new(&d).unwrap();
+    let mut frames = Vec::new();
+    for cull in [false, true] {
+        let mut settings = RelightSettings::default();
+        settings.shadow.cull_to_receivers = cull;
+        let f =
+            relighter.render(&scene, &attributes, &bounds, &cameras[0], Some(&sun), &env, &brdf, &settings).unwrap();
+        assert!(f.shadow_pass_ran);
+        assert_eq!(f.timings.get("shadow map receiver tiles").is_some(), cull);
+        frames.push((read(&d, &f.shaded.radiance), read(&d, f.visibility.as_ref().unwrap())));
+    }
+    assert!(frames[0] == frames[1], "the culled map relights the frame differently");
+    assert_no_validation_messages(&d);
+}
