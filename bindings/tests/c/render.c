@@ -267,6 +267,14 @@ int main(int argc, char **argv) {
   REQUIRE(fit_diff > 0.0 && fit_diff < 5.0);
   free(fitted);
   CHECK(srug_renderer_set_shadow_fit(r, SRUG_SHADOW_FIT_SCENE));
+  /* A shadow map splatted only where the frame looks: the same frame, byte for byte. */
+  CHECK(srug_renderer_set_shadow_cull(r, true));
+  CHECK(srug_renderer_render(r, scene));
+  unsigned char *culled = read_rgba8(r, w, h);
+  REQUIRE(memcmp(culled, image, pixels * 4) == 0);
+  free(culled);
+  CHECK(srug_renderer_set_shadow_cull(r, false));
+  printf("culled shadow map: the same frame\n");
   /* A host's mesh 5 m in front of the camera over the left half hides the splats there;
      the right half, where the host has nothing (camera z 0), keeps them. */
   CHECK(srug_renderer_render(r, scene));
