@@ -113,17 +113,7 @@ impl Device {
         }
         let handle = vk::ExternalMemoryHandleTypeFlags::OPAQUE_FD;
         let mut external = vk::ExternalMemoryImageCreateInfo::default().handle_types(handle);
-        let info = vk::ImageCreateInfo::default()
-            .image_type(vk::ImageType::TYPE_2D)
-            .format(format.vk())
-            .extent(vk::Extent3D { width, height, depth: 1 })
-            .mip_levels(1)
-            .array_layers(1)
-            .samples(vk::SampleCountFlags::TYPE_1)
-            .tiling(vk::ImageTiling::OPTIMAL)
-            .usage(usage)
-            .initial_layout(vk::ImageLayout::UNDEFINED)
-            .push_next(&mut external);
+        let info = crate::image::image_info(format, (width, height), usage).push_next(&mut external);
         let d = &shared.device;
         // SAFETY: valid create info on a live device with the extension enabled.
         let raw = unsafe { d.create_image(&info, None) }.map_err(vk_error("vkCreateImage"))?;

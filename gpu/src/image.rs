@@ -50,6 +50,25 @@ impl DeviceImage {
     }
 }
 
+/// The create info of srug's 2D images: one level and layer, optimal
+/// tiling, single-sampled, starting undefined.
+pub(crate) fn image_info<'a>(
+    format: HostImageFormat,
+    (width, height): (u32, u32),
+    usage: vk::ImageUsageFlags,
+) -> vk::ImageCreateInfo<'a> {
+    vk::ImageCreateInfo::default()
+        .image_type(vk::ImageType::TYPE_2D)
+        .format(format.vk())
+        .extent(vk::Extent3D { width, height, depth: 1 })
+        .mip_levels(1)
+        .array_layers(1)
+        .samples(vk::SampleCountFlags::TYPE_1)
+        .tiling(vk::ImageTiling::OPTIMAL)
+        .usage(usage)
+        .initial_layout(vk::ImageLayout::UNDEFINED)
+}
+
 impl Device {
     /// Creates a `width`×`height` image of `format` with `usage`, in device memory.
     pub fn create_image(
@@ -63,16 +82,7 @@ impl Device {
         if width == 0 || height == 0 {
             return Err(Error::invalid(format!("image {name}"), format!("is {width}x{height}")));
         }
-        let info = vk::ImageCreateInfo::default()
-            .image_type(vk::ImageType::TYPE_2D)
-            .format(format.vk())
-            .extent(vk::Extent3D { width, height, depth: 1 })
-            .mip_levels(1)
-            .array_layers(1)
-            .samples(vk::SampleCountFlags::TYPE_1)
-            .tiling(vk::ImageTiling::OPTIMAL)
-            .usage(usage)
-            .initial_layout(vk::ImageLayout::UNDEFINED);
+        let info = image_info(format, (width, height), usage);
         // SAFETY: valid create info on a live device.
         let raw = unsafe { shared.device.create_image(&info, None) }.map_err(vk_error("vkCreateImage"))?;
         // SAFETY: `raw` was just created on this device.

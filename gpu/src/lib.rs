@@ -39,7 +39,7 @@
 //! also imports `buffer`, `kernel` and `sync`; `host_image` (the host's
 //! images) imports `buffer`, `device` and `recording`; `image` (images on
 //! srug's own device) and `export` (images and semaphores exported as fds)
-//! import `shared`, `device` and `host_image`.
+//! import `shared`, `device` and `host_image`, and `export` also `image`.
 
 mod buffer;
 mod device;

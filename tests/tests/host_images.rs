@@ -38,6 +38,52 @@ struct Inputs {
     brdf: BrdfTable,
 }
 
+impl Inputs {
+    /// `Relighter::render_to_host` of the camera under the sun.
+    fn render_to_host(
+        &self,
+        relighter: &mut Relighter,
+        settings: &RelightSettings,
+        targets: &HostTargets,
+    ) -> srug::Result<srug::frame::RelitFrame> {
+        let bounds = self.scene.bounds().unwrap();
+        let attributes = self.scene.attributes();
+        relighter.render_to_host(
+            &self.gpu,
+            &attributes,
+            &bounds,
+            &self.camera,
+            Some(&self.sun),
+            &self.env,
+            &self.brdf,
+            settings,
+            targets,
+        )
+    }
+}
+
+/// Targets that write `colour` alone, no semaphores.
+fn colour_only(colour: HostImage) -> HostTargets {
+    HostTargets {
+        colour: Some(colour),
+        depth: None,
+        depth_convention: HostDepth::CameraZ,
+        composite: false,
+        buffers: Vec::new(),
+        sync: HostSync::default(),
+    }
+}
+
+/// RGBA32F texels `got` must be `frame`'s radiance and (clamped) alpha, bit for bit.
+fn assert_texels_are_the_frame(d: &Device, got: &[f32], frame: &srug::frame::RelitFrame) {
+    let radiance: Vec<f32> = d.read_buffer(&frame.shaded.radiance).unwrap();
+    let alpha: Vec<f32> = d.read_buffer(&frame.gbuffer.alpha).unwrap();
+    for (p, texel) in got.chunks_exact(4).enumerate() {
+        let expected = [radiance[3 * p], radiance[3 * p + 1], radiance[3 * p + 2], alpha[p].clamp(0.0, 1.0)];
+        assert_eq!(texel, expected, "pixel {p}");
+    }
+}
+
 fn inputs(d: &Device) -> Inputs {
     let city = demo_city(&DemoOptions { gaussians: 20_000, ..DemoOptions::default() }).unwrap();
     let camera = city.cameras[0].resized(SIZE.0, SIZE.1);
@@ -203,21 +249,8 @@ fn run_case(h: &Host, shared: &Device, i: &Inputs, relighter: &mut Relighter, ca
             signal: vec![SemaphoreSignal { semaphore: done, value: done_value }],
         },
     };
-    let bounds = i.scene.bounds().unwrap();
     let settings = RelightSettings::default();
-    let frame = relighter
-        .render_to_host(
-            &i.gpu,
-            &i.scene.attributes(),
-            &bounds,
-            &i.camera,
-            Some(&i.sun),
-            &i.env,
-            &i.brdf,
-            &settings,
-            &targets,
-        )
-        .unwrap();
+    let frame = i.render_to_host(relighter, &settings, &targets).unwrap();
     assert!(frame.timings.get("host images write").is_some(), "{what}: {:?}", frame.timings);
     let after = vk::ImageLayout::TRANSFER_SRC_OPTIMAL;
     let got_colour = h.download_image(&colour, host_colour.len(), after, &[(done, done_value)]);
@@ -358,33 +391,14 @@ fn misstated_host_images_and_semaphores_are_refused_by_name() {
             "semaphore is VK_NULL_HANDLE",
         ),
     ];
-    let bounds = i.scene.bounds().unwrap();
     let settings = RelightSettings::default();
     for (targets, expected) in cases {
-        let e = relighter
-            .render_to_host(
-                &i.gpu,
-                &i.scene.attributes(),
-                &bounds,
-                &i.camera,
-                Some(&i.sun),
-                &i.env,
-                &i.brdf,
-                &settings,
-                &targets,
-            )
-            .err()
-            .map(|e| e.to_string())
-            .unwrap_or_default();
+        let e = i.render_to_host(&mut relighter, &settings, &targets).err().map(|e| e.to_string()).unwrap_or_default();
         assert!(e.contains(expected), "expected \"{expected}\" in: {e}");
     }
     // The fast preset renders at half size: images of the camera's size do not fit it.
     let fast = RelightSettings::preset(srug::frame::Preset::Fast);
-    let e = relighter
-        .render_to_host(&i.gpu, &i.scene.attributes(), &bounds, &i.camera, Some(&i.sun), &i.env, &i.brdf, &fast, &good)
-        .err()
-        .map(|e| e.to_string())
-        .unwrap_or_default();
+    let e = i.render_to_host(&mut relighter, &fast, &good).err().map(|e| e.to_string()).unwrap_or_default();
     assert!(e.contains("does not match the rendered frame's 88x24"), "{e}");
     assert_no_validation_messages(&d);
 }
@@ -396,39 +410,14 @@ fn frames_land_in_an_image_srug_made_on_its_own_device() {
     let mut relighter = Relighter::new(&d).unwrap();
     let usage = vk::ImageUsageFlags::TRANSFER_SRC | vk::ImageUsageFlags::TRANSFER_DST;
     let image = d.create_image("target", HostImageFormat::Rgba32Float, SIZE, usage).unwrap();
-    let targets = HostTargets {
-        colour: Some(image.host_image(vk::ImageLayout::UNDEFINED, vk::ImageLayout::TRANSFER_SRC_OPTIMAL)),
-        depth: None,
-        depth_convention: HostDepth::CameraZ,
-        composite: false,
-        buffers: Vec::new(),
-        sync: HostSync::default(),
-    };
+    let targets = colour_only(image.host_image(vk::ImageLayout::UNDEFINED, vk::ImageLayout::TRANSFER_SRC_OPTIMAL));
     let settings = RelightSettings::default();
-    let bounds = i.scene.bounds().unwrap();
-    let frame = relighter
-        .render_to_host(
-            &i.gpu,
-            &i.scene.attributes(),
-            &bounds,
-            &i.camera,
-            Some(&i.sun),
-            &i.env,
-            &i.brdf,
-            &settings,
-            &targets,
-        )
-        .unwrap();
+    let frame = i.render_to_host(&mut relighter, &settings, &targets).unwrap();
     let texels = d.create_filled::<u32>("texels", SIZE.0 as usize * SIZE.1 as usize * 4, 0xffff_ffff).unwrap();
     let stated = image.host_image(vk::ImageLayout::TRANSFER_SRC_OPTIMAL, vk::ImageLayout::TRANSFER_SRC_OPTIMAL);
     d.run(|rec| rec.copy_host_image_to_buffer(&stated, stated.layout_before, &texels)).unwrap();
     let got: Vec<f32> = d.read_buffer(&texels).unwrap();
-    let radiance: Vec<f32> = d.read_buffer(&frame.shaded.radiance).unwrap();
-    let alpha: Vec<f32> = d.read_buffer(&frame.gbuffer.alpha).unwrap();
-    for (p, texel) in got.chunks_exact(4).enumerate() {
-        let expected = [radiance[3 * p], radiance[3 * p + 1], radiance[3 * p + 2], alpha[p].clamp(0.0, 1.0)];
-        assert_eq!(texel, expected, "pixel {p}");
-    }
+    assert_texels_are_the_frame(&d, &got, &frame);
     assert_no_validation_messages(&d);
 }
 
@@ -453,33 +442,11 @@ fn a_host_on_another_device_imports_the_frame_srug_exported() {
     let usage = vk::ImageUsageFlags::TRANSFER_SRC | vk::ImageUsageFlags::TRANSFER_DST;
     let exported = d.create_exported_image(HostImageFormat::Rgba32Float, SIZE, usage).unwrap();
     let general = vk::ImageLayout::GENERAL;
-    let targets = HostTargets {
-        colour: Some(exported.host_image(vk::ImageLayout::UNDEFINED, general)),
-        depth: None,
-        depth_convention: HostDepth::CameraZ,
-        composite: false,
-        buffers: Vec::new(),
-        sync: HostSync::default(),
-    };
+    let targets = colour_only(exported.host_image(vk::ImageLayout::UNDEFINED, general));
     let settings = RelightSettings::default();
-    let bounds = i.scene.bounds().unwrap();
-    let frame = relighter
-        .render_to_host(
-            &i.gpu,
-            &i.scene.attributes(),
-            &bounds,
-            &i.camera,
-            Some(&i.sun),
-            &i.env,
-            &i.brdf,
-            &settings,
-            &targets,
-        )
-        .unwrap();
+    let frame = i.render_to_host(&mut relighter, &settings, &targets).unwrap();
     let stated = exported.host_image(general, general);
     d.run(|rec| rec.transfer_host_image_external(&stated, general, false)).unwrap();
-    let radiance: Vec<f32> = d.read_buffer(&frame.shaded.radiance).unwrap();
-    let alpha: Vec<f32> = d.read_buffer(&frame.gbuffer.alpha).unwrap();
     let info = exported.info();
     let fd = exported.export_fd().unwrap();
     match d.create_exported_semaphore() {
@@ -498,10 +465,7 @@ fn a_host_on_another_device_imports_the_frame_srug_exported() {
     h.acquire_external(&imported, general);
     let bytes = h.download_image(&imported, SIZE.0 as usize * SIZE.1 as usize * 16, general, &[]);
     let got: Vec<f32> = bytemuck::pod_collect_to_vec(&bytes);
-    for (p, texel) in got.chunks_exact(4).enumerate() {
-        let expected = [radiance[3 * p], radiance[3 * p + 1], radiance[3 * p + 2], alpha[p].clamp(0.0, 1.0)];
-        assert_eq!(texel, expected, "pixel {p}");
-    }
+    assert_texels_are_the_frame(&d, &got, &frame);
     drop(exported);
     h.destroy_image(imported);
     let heard = h.finish();

@@ -531,10 +531,6 @@ int main(int argc, char **argv) {
   vkDestroyDevice(g.device, NULL);
   printf("host messenger heard %d message(s)\n", heard);
   REQUIRE(heard == 0);
-  PFN_vkDestroyDebugUtilsMessengerEXT destroy =
-      (PFN_vkDestroyDebugUtilsMessengerEXT)vkGetInstanceProcAddr(instance, "vkDestroyDebugUtilsMessengerEXT");
-  REQUIRE(destroy != NULL);
-  destroy(instance, messenger, NULL);
-  vkDestroyInstance(instance, NULL);
+  destroy_instance(instance, messenger);
   return 0;
 }

@@ -181,10 +181,6 @@ int main(void) {
   vkDestroyDevice(g.device, NULL);
   printf("host messenger heard %d message(s)\n", heard);
   REQUIRE(heard == 0);
-  PFN_vkDestroyDebugUtilsMessengerEXT destroy =
-      (PFN_vkDestroyDebugUtilsMessengerEXT)vkGetInstanceProcAddr(instance, "vkDestroyDebugUtilsMessengerEXT");
-  REQUIRE(destroy != NULL);
-  destroy(instance, messenger, NULL);
-  vkDestroyInstance(instance, NULL);
+  destroy_instance(instance, messenger);
   return 0;
 }

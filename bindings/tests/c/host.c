@@ -7,32 +7,7 @@
  * reported at vkDestroyDevice). Also: missing features and bad arguments are
  * refused by name. */
 #define _GNU_SOURCE /* dl_iterate_phdr, RTLD_NODELETE */
-#include <vulkan/vulkan.h>
-
-#include "check.h"
-
-static int heard = 0;
-
-static VKAPI_ATTR VkBool32 VKAPI_CALL hear(VkDebugUtilsMessageSeverityFlagBitsEXT severity,
-                                           VkDebugUtilsMessageTypeFlagsEXT type,
-                                           const VkDebugUtilsMessengerCallbackDataEXT *data, void *user) {
-  (void)type;
-  (void)user;
-  if (severity & (VK_DEBUG_UTILS_MESSAGE_SEVERITY_WARNING_BIT_EXT | VK_DEBUG_UTILS_MESSAGE_SEVERITY_ERROR_BIT_EXT)) {
-    heard++;
-    fprintf(stderr, "host messenger: %s\n", data->pMessage);
-  }
-  return VK_FALSE;
-}
-
-#define VK(call)                                                                      \
-  do {                                                                                \
-    VkResult r_ = (call);                                                             \
-    if (r_ != VK_SUCCESS) {                                                           \
-      fprintf(stderr, "%s:%d: %s returned %d\n", __FILE__, __LINE__, #call, (int)r_); \
-      exit(1);                                                                        \
-    }                                                                                 \
-  } while (0)
+#include "vkhost.h"
 
 enum { W = 176, H = 48 };
 
@@ -65,34 +40,8 @@ int main(void) {
   CHECK(srug_context_destroy(own));
 
   /* The host's instance, messenger and device. */
-  const char *layers[] = {"VK_LAYER_KHRONOS_validation"};
-  const char *extensions[] = {VK_EXT_DEBUG_UTILS_EXTENSION_NAME, VK_EXT_VALIDATION_FEATURES_EXTENSION_NAME};
-  VkValidationFeatureEnableEXT sync = VK_VALIDATION_FEATURE_ENABLE_SYNCHRONIZATION_VALIDATION_EXT;
-  VkValidationFeaturesEXT features = {.sType = VK_STRUCTURE_TYPE_VALIDATION_FEATURES_EXT,
-                                      .enabledValidationFeatureCount = 1,
-                                      .pEnabledValidationFeatures = &sync};
-  VkApplicationInfo app = {.sType = VK_STRUCTURE_TYPE_APPLICATION_INFO, .apiVersion = VK_API_VERSION_1_2};
-  VkInstanceCreateInfo ici = {.sType = VK_STRUCTURE_TYPE_INSTANCE_CREATE_INFO,
-                              .pNext = &features,
-                              .pApplicationInfo = &app,
-                              .enabledLayerCount = 1,
-                              .ppEnabledLayerNames = layers,
-                              .enabledExtensionCount = 2,
-                              .ppEnabledExtensionNames = extensions};
-  VkInstance instance;
-  VK(vkCreateInstance(&ici, NULL, &instance));
-  PFN_vkCreateDebugUtilsMessengerEXT create_messenger =
-      (PFN_vkCreateDebugUtilsMessengerEXT)vkGetInstanceProcAddr(instance, "vkCreateDebugUtilsMessengerEXT");
-  PFN_vkDestroyDebugUtilsMessengerEXT destroy_messenger =
-      (PFN_vkDestroyDebugUtilsMessengerEXT)vkGetInstanceProcAddr(instance, "vkDestroyDebugUtilsMessengerEXT");
-  REQUIRE(create_messenger != NULL && destroy_messenger != NULL);
-  VkDebugUtilsMessengerCreateInfoEXT mci = {
-      .sType = VK_STRUCTURE_TYPE_DEBUG_UTILS_MESSENGER_CREATE_INFO_EXT,
-      .messageSeverity = VK_DEBUG_UTILS_MESSAGE_SEVERITY_WARNING_BIT_EXT | VK_DEBUG_UTILS_MESSAGE_SEVERITY_ERROR_BIT_EXT,
-      .messageType = VK_DEBUG_UTILS_MESSAGE_TYPE_GENERAL_BIT_EXT | VK_DEBUG_UTILS_MESSAGE_TYPE_VALIDATION_BIT_EXT,
-      .pfnUserCallback = hear};
   VkDebugUtilsMessengerEXT messenger;
-  VK(create_messenger(instance, &mci, NULL, &messenger));
+  VkInstance instance = make_instance(&messenger);
   uint32_t count = 1;
   VkPhysicalDevice physical;
   VkResult listed = vkEnumeratePhysicalDevices(instance, &count, &physical);
@@ -171,8 +120,7 @@ int main(void) {
   vkDestroyDevice(device, NULL);
   printf("host device: srug's frame equals its own device's; host messenger heard %d message(s)\n", heard);
   REQUIRE(heard == 0);
-  destroy_messenger(instance, messenger, NULL);
-  vkDestroyInstance(instance, NULL);
+  destroy_instance(instance, messenger);
   free(own_frame);
   free(host_frame);
   return 0;

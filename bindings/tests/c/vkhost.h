@@ -255,4 +255,13 @@ static inline Gpu make_device(VkInstance instance) {
   return g;
 }
 
+/* Destroys the messenger and the instance (the device first, by the caller). */
+static inline void destroy_instance(VkInstance instance, VkDebugUtilsMessengerEXT messenger) {
+  PFN_vkDestroyDebugUtilsMessengerEXT destroy =
+      (PFN_vkDestroyDebugUtilsMessengerEXT)vkGetInstanceProcAddr(instance, "vkDestroyDebugUtilsMessengerEXT");
+  REQUIRE(destroy != NULL);
+  destroy(instance, messenger, NULL);
+  vkDestroyInstance(instance, NULL);
+}
+
 #endif

@@ -134,11 +134,12 @@ impl ShadowPass {
         Ok(ShadowMap { camera, sun: *sun, depth: settings.map_depth, frame })
     }
 
-    /// [`ShadowPass::shadow_map_from`] splatted only in the map tiles that
-    /// `receivers` (G-buffers with the cameras they were rendered from, as
-    /// for [`ShadowPass::visibility`]) look up, and around them: casters
-    /// elsewhere cost nothing, and every one of those receivers gets exactly
-    /// the visibility the whole map gives (off-screen casters included: the
+    /// The shadow map from light camera `camera` (as [`ShadowPass::shadow_map`]
+    /// makes it) splatted only in the map tiles that `receivers` (G-buffers
+    /// with the cameras they were rendered from, as for
+    /// [`ShadowPass::visibility`]) look up, and around them: casters elsewhere
+    /// cost nothing, and every one of those receivers gets exactly the
+    /// visibility the whole map gives (off-screen casters included: the
     /// culling is in light space). The map serves only those receivers.
     pub fn shadow_map_for_receivers(
         &self,
