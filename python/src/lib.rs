@@ -111,6 +111,40 @@ type Point = (f32, f32, f32);
 
 static NEXT_DEVICE: AtomicU64 = AtomicU64::new(1);
 
+/// Shadow options of `relight` that override the preset's (None: the preset's).
+#[derive(Clone, Debug, Default)]
+struct ShadowOptions {
+    resolution: Option<u32>,
+    k: Option<f32>,
+    bias: Option<f32>,
+    slope_bias: Option<f32>,
+    normal_offset: Option<f32>,
+    receiver_depth: Option<String>,
+    test: Option<String>,
+}
+
+impl ShadowOptions {
+    /// Overrides `settings`' shadow with the options given.
+    fn apply(&self, settings: &mut RelightSettings) -> PyResult<()> {
+        let s = &mut settings.shadow;
+        s.resolution = self.resolution.unwrap_or(s.resolution);
+        s.k = self.k.unwrap_or(s.k);
+        s.bias = self.bias.unwrap_or(s.bias);
+        s.slope_bias = self.slope_bias.unwrap_or(s.slope_bias);
+        s.normal_offset = self.normal_offset.unwrap_or(s.normal_offset);
+        if let Some(d) = &self.receiver_depth {
+            s.receiver_depth = srug::shadow::DepthMode::parse(d).map_err(py_err)?;
+        }
+        settings.visibility_kind = match self.test.as_deref() {
+            None => settings.visibility_kind,
+            Some("sigmoid") => VisibilityKind::Sigmoid,
+            Some("traced") => VisibilityKind::Traced,
+            Some(other) => return Err(invalid(format!("shadow test \"{other}\""), "is not sigmoid or traced")),
+        };
+        Ok(())
+    }
+}
+
 /// What relighting keeps between calls: the relighter's kernels, the
 /// environment preparation, the BRDF table, the last environments and the
 /// last shadow map (reused while the scene, the sun's direction and the map
@@ -539,7 +573,9 @@ impl Device {
                         environment = None, env_rotation = 0.0, env_intensity = 1.0, exposure = 0.0,
                         output = "radiance", progress = None, surface_depth = false, shadow_fit = "scene",
                         host_depth = None, depth_convention = "camera_z", near = 0.0, far = 0.0, background = None,
-                        shadow_cull = false))]
+                        shadow_cull = false, shadow_resolution = None, shadow_k = None, shadow_bias = None,
+                        shadow_slope_bias = None, shadow_normal_offset = None, receiver_depth = None,
+                        shadow_test = None))]
     #[allow(clippy::too_many_arguments, reason = "the Python keyword arguments of one call")]
     fn relight<'py>(
         &self,
@@ -563,7 +599,23 @@ impl Device {
         far: f32,
         background: Option<(f32, f32, f32)>,
         shadow_cull: bool,
+        shadow_resolution: Option<u32>,
+        shadow_k: Option<f32>,
+        shadow_bias: Option<f32>,
+        shadow_slope_bias: Option<f32>,
+        shadow_normal_offset: Option<f32>,
+        receiver_depth: Option<String>,
+        shadow_test: Option<String>,
     ) -> PyResult<Bound<'py, PyDict>> {
+        let shadow = ShadowOptions {
+            resolution: shadow_resolution,
+            k: shadow_k,
+            bias: shadow_bias,
+            slope_bias: shadow_slope_bias,
+            normal_offset: shadow_normal_offset,
+            receiver_depth,
+            test: shadow_test,
+        };
         let device = self.gpu()?;
         let cams = &cameras.cameras;
         let (w, h) = batch_size(cams)?;
@@ -584,6 +636,7 @@ impl Device {
         settings.shadow.surface_depth |= surface_depth;
         settings.shadow.fit = srug::shadow::ShadowFit::parse(shadow_fit).map_err(py_err)?;
         settings.shadow.cull_to_receivers = shadow_cull;
+        shadow.apply(&mut settings)?;
         if let Some((r, g, b)) = background {
             settings.shade.background = srug::shade::Background::Color([r, g, b]);
         }

@@ -431,6 +431,13 @@ class Device:
         background: Optional[Tuple[float, float, float]] = None,
         return_alpha: bool = False,
         shadow_cull: bool = False,
+        shadow_resolution: Optional[int] = None,
+        shadow_k: Optional[float] = None,
+        shadow_bias: Optional[float] = None,
+        shadow_slope_bias: Optional[float] = None,
+        shadow_normal_offset: Optional[float] = None,
+        receiver_depth: Optional[str] = None,
+        shadow_test: Optional[str] = None,
     ) -> Any:
         """Relights every camera: (N, H, W, 3) float32.
 
@@ -454,6 +461,11 @@ class Device:
         (N, H, W) the splats' coverage. ``shadow_cull``: splat the shadow map
         only where each frame looks it up (the same shadows, for less when the
         sun or the cameras change from call to call; a map per camera).
+        ``shadow_resolution`` (texels), ``shadow_k`` (sigmoid sharpness per
+        metre), ``shadow_bias`` (metres), ``shadow_slope_bias`` and
+        ``shadow_normal_offset`` (map texels), ``receiver_depth`` ("median" or
+        "expected"), ``shadow_test`` ("sigmoid" or "traced"): override the
+        preset's (None keeps it), as ``srug relight``'s options of those names.
         """
         if background is not None:
             background = tuple(float(v) for v in background)
@@ -488,6 +500,13 @@ class Device:
             far=float(far),
             background=background,
             shadow_cull=bool(shadow_cull),
+            shadow_resolution=None if shadow_resolution is None else int(shadow_resolution),
+            shadow_k=None if shadow_k is None else float(shadow_k),
+            shadow_bias=None if shadow_bias is None else float(shadow_bias),
+            shadow_slope_bias=None if shadow_slope_bias is None else float(shadow_slope_bias),
+            shadow_normal_offset=None if shadow_normal_offset is None else float(shadow_normal_offset),
+            receiver_depth=None if receiver_depth is None else str(receiver_depth),
+            shadow_test=None if shadow_test is None else str(shadow_test),
         )
         return (out[output], out["alpha"]) if return_alpha else out[output]
 

@@ -58,6 +58,13 @@ class Device:
         far: float = ...,
         background: Optional[Tuple[float, float, float]] = ...,
         shadow_cull: bool = ...,
+        shadow_resolution: Optional[int] = ...,
+        shadow_k: Optional[float] = ...,
+        shadow_bias: Optional[float] = ...,
+        shadow_slope_bias: Optional[float] = ...,
+        shadow_normal_offset: Optional[float] = ...,
+        receiver_depth: Optional[str] = ...,
+        shadow_test: Optional[str] = ...,
     ) -> Dict[str, np.ndarray]: ...
 
     def shadow(

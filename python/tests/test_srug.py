@@ -541,3 +541,29 @@ def test_shadow_cull_relights_alike(dev, city):
     a = dev.relight(scene, few, sun=(250.0, 40.0))
     b = dev.relight(scene, few, sun=(250.0, 40.0), shadow_cull=True)
     np.testing.assert_array_equal(a, b)
+
+
+def test_relight_shadow_options_override_the_preset(dev, city):
+    """The shadow options of relight: the preset's own values change nothing,
+    others change the frame, bad ones raise naming the option."""
+    scene, cams = city
+    one = cams[0]
+    base = dev.relight(scene, one, sun=(250.0, 30.0))
+    same = dev.relight(
+        scene, one, sun=(250.0, 30.0), shadow_resolution=2048, shadow_k=50.0, shadow_bias=0.3,
+        shadow_slope_bias=3.0, shadow_normal_offset=0.0, receiver_depth="median", shadow_test="sigmoid",
+    )
+    np.testing.assert_array_equal(base, same)
+    coarse = dev.relight(scene, one, sun=(250.0, 30.0), shadow_resolution=128, shadow_bias=0.0)
+    assert not np.array_equal(base, coarse)
+    traced = dev.relight(scene, one, sun=(250.0, 30.0), shadow_test="traced")
+    assert np.isfinite(traced).all() and not np.array_equal(base, traced)
+    for kwargs, word in [
+        ({"shadow_resolution": 3}, "resolution"),
+        ({"shadow_test": "exact"}, "shadow test"),
+        ({"receiver_depth": "deepest"}, "depth mode"),
+        ({"shadow_k": -1.0}, "sharpness"),
+    ]:
+        with pytest.raises(srug.Error) as e:
+            dev.relight(scene, one, sun=(250.0, 30.0), **kwargs)
+        assert word in str(e.value), (kwargs, str(e.value))
