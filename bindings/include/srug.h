@@ -678,9 +678,11 @@ srug_status srug_renderer_set_background(srug_renderer *renderer, const float *r
 // What the shadow map covers (`SRUG_SHADOW_FIT_*`); `srug_renderer_set_preset` resets it.
 srug_status srug_renderer_set_shadow_fit(srug_renderer *renderer, srug_shadow_fit fit);
 
-// Shadow maps splatted only where the frame's receivers look them up, on or
-// off (off by default): the same shadows for less, but a map per camera, so
-// with `srug_renderer_set_shadow_map_reuse` a map is reused only for the same camera.
+// Shadow maps splatted only where the frame's receivers look them up even
+// with `srug_renderer_set_shadow_map_reuse` on (off by default): the same
+// shadows for less, but a map per camera, so a kept map is reused only for
+// the same camera. Without reuse the renderer culls anyway (its map serves
+// one frame).
 srug_status srug_renderer_set_shadow_cull(srug_renderer *renderer, bool on);
 
 // Surface depths on or off: each splat's depth at a pixel where the pixel's

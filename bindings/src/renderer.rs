@@ -775,9 +775,11 @@ pub extern "C" fn srug_renderer_set_shadow_fit(renderer: *mut srug_renderer, fit
     })
 }
 
-/// Shadow maps splatted only where the frame's receivers look them up, on or
-/// off (off by default): the same shadows for less, but a map per camera, so
-/// with `srug_renderer_set_shadow_map_reuse` a map is reused only for the same camera.
+/// Shadow maps splatted only where the frame's receivers look them up even
+/// with `srug_renderer_set_shadow_map_reuse` on (off by default): the same
+/// shadows for less, but a map per camera, so a kept map is reused only for
+/// the same camera. Without reuse the renderer culls anyway (its map serves
+/// one frame).
 #[no_mangle]
 pub extern "C" fn srug_renderer_set_shadow_cull(renderer: *mut srug_renderer, on: bool) -> srug_status {
     guard("srug_renderer_set_shadow_cull", || {

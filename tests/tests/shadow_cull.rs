@@ -3,7 +3,8 @@
 //! the receivers' visibility, sigmoid and traced, is the whole map's bit for
 //! bit, with the bias offsets on and off and for several cameras at once;
 //! every texel of the culled map is the whole map's or empty; it sorts fewer
-//! pairs; and a relit frame with it equals one without.
+//! pairs; and a relit frame with it equals one without, where the relighter
+//! culls because it is asked to or because its map is not kept.
 
 #![allow(clippy::unwrap_used, clippy::expect_used, reason = "a failed unwrap is a failed test")]
 
@@ -72,23 +73,27 @@ fn a_map_splatted_only_where_receivers_look_gives_them_the_same_visibility() {
         }
     }
 
-    // Through the relighter: the same relit frame.
+    // Through the relighter: the same relit frame with the whole map (kept:
+    // reuse on), with culling asked for, and culled by itself (reuse off).
     let prep = EnvironmentPrep::new(&d).unwrap();
     let sky = ProceduralSky::new(sun.direction, 3.0).render().unwrap();
     let env = prep.prepare(&sky, &PrepareSettings { samples: 16, ..PrepareSettings::default() }).unwrap();
     let brdf = prep.brdf_table(BrdfLut::Karis, 33, 64).unwrap();
     let attributes = city.scene.attributes();
-    let mut relighter = Relighter::new(&d).unwrap();
     let mut frames = Vec::new();
-    for cull in [false, true] {
+    for (reuse, cull, culled) in [(true, false, false), (true, true, true), (false, false, true)] {
+        let mut relighter = Relighter::new(&d).unwrap();
+        relighter.set_shadow_map_reuse(reuse);
         let mut settings = RelightSettings::default();
         settings.shadow.cull_to_receivers = cull;
         let f =
             relighter.render(&scene, &attributes, &bounds, &cameras[0], Some(&sun), &env, &brdf, &settings).unwrap();
         assert!(f.shadow_pass_ran);
-        assert_eq!(f.timings.get("shadow map receiver tiles").is_some(), cull);
+        let label = format!("reuse {reuse}, cull {cull}");
+        assert_eq!(f.timings.get("shadow map receiver tiles").is_some(), culled, "{label}");
         frames.push((read(&d, &f.shaded.radiance), read(&d, f.visibility.as_ref().unwrap())));
     }
+    assert!(frames[0] == frames[2], "the map culled by itself relights the frame differently");
     assert!(frames[0] == frames[1], "the culled map relights the frame differently");
     assert_no_validation_messages(&d);
 }

@@ -461,6 +461,9 @@ impl Relighter {
         timings: &mut Timings,
     ) -> Result<(crate::gpu::Buffer, bool)> {
         let shadow = &settings.shadow;
+        // A map that will not be kept serves this frame's receivers alone: it
+        // is splatted only where they look (the same visibility, for less).
+        let cull = shadow.cull_to_receivers || !self.reuse_shadow_map;
         let key = ShadowMapKey {
             scene: scene.version(),
             light: light_camera(bounds, sun, shadow.resolution, shadow.fit, Some(camera))?,
@@ -468,14 +471,14 @@ impl Relighter {
             depth: shadow.map_depth,
             tile: shadow.tile,
             surface_depth: shadow.surface_depth,
-            receivers: shadow.cull_to_receivers.then(|| camera.clone()),
+            receivers: cull.then(|| camera.clone()),
         };
         let reused = self.reuse_shadow_map && self.shadow_map.as_ref().is_some_and(|(k, _)| *k == key);
         if !reused {
             // Free the old map before splatting the new one.
             self.shadow_map = None;
             let light = key.light.clone();
-            let map = if shadow.cull_to_receivers {
+            let map = if cull {
                 let receivers = [(gbuffer, camera)];
                 self.shadows.shadow_map_for_receivers(&mut self.splatter, scene, light, sun, shadow, &receivers)?
             } else {

@@ -164,8 +164,10 @@ pub struct ShadowSettings {
     /// Tile edge of the shadow map's splatting ([`crate::splat::TILE_SIZES`]).
     pub tile: u32,
     /// Splat the map only in the tiles the frame's receivers look up
-    /// ([`ShadowPass::shadow_map_for_receivers`]): the same visibility for
-    /// less, but a map per camera (it cannot be reused for another view).
+    /// ([`ShadowPass::shadow_map_for_receivers`]) even where it is kept for
+    /// later frames: the same visibility for less, but a map per camera (it
+    /// cannot be reused for another view). `frame::Relighter` culls anyway
+    /// whenever its map is not kept (shadow-map reuse off, one camera).
     pub cull_to_receivers: bool,
 }
 
