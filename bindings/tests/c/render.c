@@ -191,7 +191,8 @@ int main(int argc, char **argv) {
   REQUIRE(memcmp(image, again, pixels * 4) == 0);
   free(again);
   printf("shadow-map reuse: %zu stages, then %zu\n", fresh_stages, reused_stages);
-  REQUIRE(fresh_stages == stages && reused_stages < fresh_stages);
+  /* Without reuse the map served one frame, so it was culled to its receivers: one stage more. */
+  REQUIRE(fresh_stages + 1 == stages && reused_stages < fresh_stages);
   /* A different scene handle gets its own map. */
   CHECK(srug_renderer_render(r, from_memory));
   CHECK(srug_renderer_stage_count(r, &reused_stages));
@@ -199,7 +200,7 @@ int main(int argc, char **argv) {
   CHECK(srug_renderer_set_shadow_map_reuse(r, false));
   CHECK(srug_renderer_render(r, scene));
   CHECK(srug_renderer_stage_count(r, &reused_stages));
-  REQUIRE(reused_stages == fresh_stages);
+  REQUIRE(reused_stages == stages);
 
   /* 8-pixel tiles: the same frame up to rounding, which can
      flip a few shadow-edge pixels (the sigmoid test is steep). */
