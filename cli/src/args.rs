@@ -514,7 +514,8 @@ pub struct ShadeArgs {
     #[arg(long, value_parser = ShadowFit::parse)]
     pub shadow_fit: Option<ShadowFit>,
     /// Splat the shadow map only where the frame's receivers look it up (the same
-    /// shadows, for less; a map per camera, so not reused across cameras) [preset: off].
+    /// shadows, for less; a map per camera, so not reused across cameras) [default:
+    /// on for one camera, off for several, which share one map per sun].
     #[arg(long)]
     pub shadow_cull: bool,
     /// Sigmoid sharpness k per metre [preset: 50].

@@ -199,6 +199,9 @@ fn relight(device: &Device, args: &RelightArgs) -> Result<()> {
         relighter.set_network(Some(srug::indirect::UNet::with_precision(device, &weights, precision)?));
     }
     let mut settings = settings;
+    // One camera: each sun's map serves that camera alone, so it is splatted
+    // only where the camera looks (the same shadows, for less).
+    settings.shadow.cull_to_receivers |= cams.len() == 1;
     settings.shade.env_rotation_degrees = env.env_rotation;
     settings.shade.env_intensity = env.env_intensity;
     let total = (cams.len() * suns.len()) as u64;
