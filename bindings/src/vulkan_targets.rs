@@ -241,8 +241,10 @@ impl RendererObject {
 /// srug's first access and after its last; the images end in `layout_after`.
 /// The frame stays readable (`srug_renderer_read_image`, `_read_channel`).
 /// Every image statement is checked before any work (format, usage, size,
-/// layouts; `SRUG_ERROR_INVALID_ARGUMENT` naming it); a statement that does not
-/// match the image itself is undefined behaviour, as in Vulkan.
+/// layouts; `SRUG_ERROR_INVALID_ARGUMENT` naming it; no semaphore touched); a
+/// statement that does not match the image itself is undefined behaviour, as
+/// in Vulkan. A failure after the images were read still signals `signal`
+/// and leaves them, unwritten, in `layout_after`.
 ///
 /// # Safety
 /// `targets` NULL or valid for reads, its pointers NULL or valid for their

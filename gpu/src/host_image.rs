@@ -304,6 +304,19 @@ impl<'a> Recording<'a> {
         }
     }
 
+    /// Moves a host image from layout `from` to `to` with no copy (all
+    /// stages, all writes before; every later command after).
+    pub fn transition_host_image(
+        &mut self,
+        image: &HostImage,
+        from: vk::ImageLayout,
+        to: vk::ImageLayout,
+    ) -> Result<()> {
+        let format = image.host_format()?;
+        self.host_image_barrier(image, format, from, to);
+        Ok(())
+    }
+
     fn check_copy(&self, image: &HostImage, buffer: &Buffer) -> Result<HostImageFormat> {
         let format = image.host_format()?;
         let bytes = image.packed_bytes()?;

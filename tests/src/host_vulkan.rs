@@ -503,4 +503,17 @@ impl Host {
             &[],
         );
     }
+
+    /// Waits up to `timeout_ns` for timeline `semaphore` to reach `value`; whether it did.
+    pub fn wait_timeline(&self, semaphore: vk::Semaphore, value: u64, timeout_ns: u64) -> bool {
+        let semaphores = [semaphore];
+        let values = [value];
+        let info = vk::SemaphoreWaitInfo::default().semaphores(&semaphores).values(&values);
+        // SAFETY: a timeline semaphore of this device.
+        match unsafe { self.device.wait_semaphores(&info, timeout_ns) } {
+            Ok(()) => true,
+            Err(vk::Result::TIMEOUT) => false,
+            Err(e) => panic!("vkWaitSemaphores: {e}"),
+        }
+    }
 }

@@ -472,3 +472,64 @@ fn a_host_on_another_device_imports_the_frame_srug_exported() {
     assert!(heard.is_empty(), "the host's messenger heard: {heard:?}");
     assert_no_validation_messages(&d);
 }
+
+/// A call that fails once it has read the host's images (here: a scene
+/// without materials cannot be relit, found after the read) still signals
+/// the host's semaphore and leaves its images unwritten in their
+/// `layout_after`, so a host waiting on it does not hang.
+#[test]
+fn a_failed_call_still_signals_the_host_and_releases_its_images() {
+    let h = host(true);
+    {
+        // SAFETY: the host's handles belong together and outlive srug's device.
+        let shared = unsafe { Device::from_raw(h.raw()) }.unwrap();
+        let mut i = inputs(&shared);
+        let mut plain = i.scene.clone();
+        plain.materials = srug::scene::Materials::default();
+        i.gpu = GpuScene::upload(&shared, &plain).unwrap();
+        let format = HostImageFormat::Rgba8Unorm;
+        let usage = vk::ImageUsageFlags::TRANSFER_SRC | vk::ImageUsageFlags::TRANSFER_DST;
+        let colour = h.create_image(format.vk(), SIZE, usage);
+        let depth = h.create_image(vk::Format::D32_SFLOAT, SIZE, usage);
+        let host_colour = host_colour_bytes(format);
+        let host_depth: Vec<u8> = host_depth_values().iter().flat_map(|v| v.to_le_bytes()).collect();
+        let timeline = h.semaphore(Some(0));
+        let general = vk::ImageLayout::GENERAL;
+        h.upload_image(&colour, &host_colour, general, &[]);
+        h.upload_image(&depth, &host_depth, general, &[(timeline, 1)]);
+        let stated = |image: &OwnImage, format: vk::Format| HostImage {
+            image: image.image,
+            format,
+            width: SIZE.0,
+            height: SIZE.1,
+            usage,
+            layout_before: general,
+            layout_after: vk::ImageLayout::TRANSFER_SRC_OPTIMAL,
+        };
+        let targets = HostTargets {
+            colour: Some(stated(&colour, format.vk())),
+            depth: Some(stated(&depth, vk::Format::D32_SFLOAT)),
+            depth_convention: HostDepth::Vulkan { near: NEAR, far: FAR },
+            composite: true,
+            buffers: Vec::new(),
+            sync: HostSync {
+                wait: vec![SemaphoreWait { semaphore: timeline, value: 1 }],
+                signal: vec![SemaphoreSignal { semaphore: timeline, value: 2 }],
+            },
+        };
+        let mut relighter = Relighter::new(&shared).unwrap();
+        let e = i.render_to_host(&mut relighter, &RelightSettings::default(), &targets).err();
+        let e = e.map(|e| e.to_string()).unwrap_or_default();
+        assert!(e.contains("albedo"), "{e}");
+        assert!(h.wait_timeline(timeline, 2, 10_000_000_000), "the host's semaphore was never signalled");
+        let after = vk::ImageLayout::TRANSFER_SRC_OPTIMAL;
+        assert_eq!(h.download_image(&colour, host_colour.len(), after, &[]), host_colour, "colour written");
+        assert_eq!(h.download_image(&depth, host_depth.len(), after, &[]), host_depth, "depth written");
+        assert_no_validation_messages(&shared);
+        h.destroy_semaphore(timeline);
+        h.destroy_image(colour);
+        h.destroy_image(depth);
+    }
+    let heard = h.finish();
+    assert!(heard.is_empty(), "the host's messenger heard: {heard:?}");
+}

@@ -274,6 +274,23 @@ impl HostImageWriter {
         Ok(HostPixels { colour, depth, waited: true })
     }
 
+    /// After a failure once [`HostImageWriter::read`] has run (the host's
+    /// waits consumed): leaves the images unwritten in their `layout_after`
+    /// and signals the host's semaphores, so a host waiting on them does not
+    /// hang on a call that returned an error.
+    pub fn abandon(&self, targets: &HostTargets, host: &HostPixels) -> Result<()> {
+        if !host.waited {
+            return Ok(());
+        }
+        self.device.run_synced(&targets.sync.signals_only(), |rec| -> Result<()> {
+            for image in [&targets.colour, &targets.depth].into_iter().flatten() {
+                rec.transition_host_image(image, vk::ImageLayout::TRANSFER_SRC_OPTIMAL, image.layout_after)?;
+            }
+            Ok(())
+        })?;
+        Ok(())
+    }
+
     /// Packs `frame` into `targets`' images (over `host`'s texels when
     /// compositing) and signals the host's semaphores; waits on them too when
     /// [`HostImageWriter::read`] did not.

@@ -215,6 +215,8 @@ impl Relighter {
     /// reaches it) and whatever else `render` needs. Returns the frame and the
     /// copies' timings. The frame must have the median depth channel when
     /// `targets` has a depth image, and be shaded over black when compositing.
+    /// A failure once the host's images were read still leaves them in their
+    /// `layout_after` (unwritten) and signals the host's semaphores.
     pub fn with_host_targets<C, T: HostFrameSource>(
         ctx: &mut C,
         relighter_of: fn(&mut C) -> &mut Self,
@@ -244,10 +246,17 @@ impl Relighter {
             pixels.depth = this.host_depth.take().map(|h| h.buffer);
             this.host_depth = previous;
         }
-        let frame = rendered?;
         let channels: Vec<FrameChannel> = targets.buffers.iter().map(|(c, _)| *c).collect();
-        let timings = this.writer()?.write(targets, &frame.outputs(&channels)?, &pixels)?;
-        Ok((frame, timings))
+        let written = rendered.and_then(|frame| {
+            let timings = this.writer()?.write(targets, &frame.outputs(&channels)?, &pixels)?;
+            Ok((frame, timings))
+        });
+        if written.is_err() {
+            // The host's waits are consumed: release its images and signal it anyway
+            // (the call's own error is the one reported).
+            let _ = this.writer().and_then(|w| w.abandon(targets, &pixels));
+        }
+        written
     }
 
     fn writer(&self) -> Result<&HostImageWriter> {
