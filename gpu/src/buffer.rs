@@ -12,13 +12,13 @@ use std::sync::Arc;
 
 use ash::vk;
 use bytemuck::Pod;
-use gpu_allocator::vulkan::{Allocation, AllocationCreateDesc, AllocationScheme};
+use gpu_allocator::vulkan::Allocation;
 use gpu_allocator::MemoryLocation;
 
 use crate::device::Device;
 use crate::error::{vk_error, GpuError as Error, Result};
 use crate::format::TexelFormat;
-use crate::shared::{lock, Garbage, Shared};
+use crate::shared::{Garbage, Shared};
 
 /// Bytes moved per staging round trip; bounds host memory for huge buffers.
 const STAGING_CHUNK: u64 = 64 << 20;
@@ -130,32 +130,19 @@ impl Device {
             })?;
         // SAFETY: `raw` was just created on this device.
         let requirements = unsafe { shared.device.get_buffer_memory_requirements(raw) };
-        let allocation = lock(&shared.allocator).allocate(&AllocationCreateDesc {
+        let d = &shared.device;
+        let allocation = shared.allocate_bound(
+            &format!("buffer {name} ({size} bytes)"),
             name,
             requirements,
             location,
-            linear: true,
-            allocation_scheme: AllocationScheme::GpuAllocatorManaged,
-        });
-        let allocation = match allocation {
-            Ok(a) => a,
-            Err(e) => {
-                // SAFETY: unused buffer, created above.
-                unsafe { shared.device.destroy_buffer(raw, None) };
-                return Err(Error::OutOfMemory(format!("buffer {name} ({size} bytes): {e}")));
-            }
-        };
-        // SAFETY: memory and offset come from an allocation meeting the requirements.
-        let bound = unsafe { shared.device.bind_buffer_memory(raw, allocation.memory(), allocation.offset()) };
-        if let Err(e) = bound {
-            let _ = lock(&shared.allocator).free(allocation);
+            true,
+            "vkBindBufferMemory",
+            // SAFETY: memory and offset come from an allocation meeting the requirements.
+            |memory, offset| unsafe { d.bind_buffer_memory(raw, memory, offset) },
             // SAFETY: unused buffer, created above.
-            unsafe { shared.device.destroy_buffer(raw, None) };
-            return Err(vk_error("vkBindBufferMemory")(e));
-        }
-        let bytes = allocation.size();
-        let now = shared.current_bytes.fetch_add(bytes, Ordering::Relaxed) + bytes;
-        shared.peak_bytes.fetch_max(now, Ordering::Relaxed);
+            || unsafe { d.destroy_buffer(raw, None) },
+        )?;
         let address = if kind == MemoryKind::Storage {
             // SAFETY: the buffer has SHADER_DEVICE_ADDRESS usage and bound memory.
             unsafe { shared.device.get_buffer_device_address(&vk::BufferDeviceAddressInfo::default().buffer(raw)) }

@@ -4,17 +4,15 @@
 //! allocator; a dropped image is destroyed once every submission made before
 //! the drop has finished, as buffers are.
 
-use std::sync::atomic::Ordering;
 use std::sync::Arc;
 
 use ash::vk;
-use gpu_allocator::vulkan::{AllocationCreateDesc, AllocationScheme};
 use gpu_allocator::MemoryLocation;
 
 use crate::device::Device;
 use crate::error::{vk_error, GpuError as Error, Result};
 use crate::host_image::{HostImage, HostImageFormat};
-use crate::shared::{lock, Garbage, Shared};
+use crate::shared::{Garbage, Shared};
 
 /// A 2D image (one level, one layer, optimal tiling) on srug's device.
 pub struct DeviceImage {
@@ -87,32 +85,19 @@ impl Device {
         let raw = unsafe { shared.device.create_image(&info, None) }.map_err(vk_error("vkCreateImage"))?;
         // SAFETY: `raw` was just created on this device.
         let requirements = unsafe { shared.device.get_image_memory_requirements(raw) };
-        let allocation = lock(&shared.allocator).allocate(&AllocationCreateDesc {
+        let d = &shared.device;
+        let allocation = shared.allocate_bound(
+            &format!("image {name} ({width}x{height})"),
             name,
             requirements,
-            location: MemoryLocation::GpuOnly,
-            linear: false,
-            allocation_scheme: AllocationScheme::GpuAllocatorManaged,
-        });
-        let allocation = match allocation {
-            Ok(a) => a,
-            Err(e) => {
-                // SAFETY: unused image, created above.
-                unsafe { shared.device.destroy_image(raw, None) };
-                return Err(Error::OutOfMemory(format!("image {name} ({width}x{height}): {e}")));
-            }
-        };
-        // SAFETY: memory and offset come from an allocation meeting the requirements.
-        let bound = unsafe { shared.device.bind_image_memory(raw, allocation.memory(), allocation.offset()) };
-        if let Err(e) = bound {
-            let _ = lock(&shared.allocator).free(allocation);
+            MemoryLocation::GpuOnly,
+            false,
+            "vkBindImageMemory",
+            // SAFETY: memory and offset come from an allocation meeting the requirements.
+            |memory, offset| unsafe { d.bind_image_memory(raw, memory, offset) },
             // SAFETY: unused image, created above.
-            unsafe { shared.device.destroy_image(raw, None) };
-            return Err(vk_error("vkBindImageMemory")(e));
-        }
-        let bytes = allocation.size();
-        let now = shared.current_bytes.fetch_add(bytes, Ordering::Relaxed) + bytes;
-        shared.peak_bytes.fetch_max(now, Ordering::Relaxed);
+            || unsafe { d.destroy_image(raw, None) },
+        )?;
         Ok(DeviceImage { shared: shared.clone(), raw, allocation: Some(allocation), format, width, height, usage })
     }
 }

@@ -12,10 +12,11 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard};
 
 use ash::vk;
-use gpu_allocator::vulkan::{Allocation, Allocator};
+use gpu_allocator::vulkan::{Allocation, AllocationCreateDesc, AllocationScheme, Allocator};
+use gpu_allocator::MemoryLocation;
 use srug_spirv::BindingKind;
 
-use crate::error::{vk_error, Result};
+use crate::error::{vk_error, GpuError, Result};
 use crate::info::DeviceInfo;
 
 /// Per-recording Vulkan objects, destroyed once its submission has finished.
@@ -118,6 +119,50 @@ pub(crate) fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
 }
 
 impl Shared {
+    /// Memory for a resource srug just created: allocated to `requirements`
+    /// at `location`, bound with `bind` (memory, offset; `bind_call` names it
+    /// in errors) and counted in the memory use. On failure the allocation is
+    /// freed and `discard` destroys the resource. `what` names it in errors.
+    #[allow(clippy::too_many_arguments, reason = "one allocation's inputs and its two callbacks")]
+    pub(crate) fn allocate_bound(
+        &self,
+        what: &str,
+        name: &str,
+        requirements: vk::MemoryRequirements,
+        location: MemoryLocation,
+        linear: bool,
+        bind_call: &'static str,
+        bind: impl FnOnce(vk::DeviceMemory, u64) -> std::result::Result<(), vk::Result>,
+        discard: impl FnOnce(),
+    ) -> Result<Allocation> {
+        let desc = AllocationCreateDesc {
+            name,
+            requirements,
+            location,
+            linear,
+            allocation_scheme: AllocationScheme::GpuAllocatorManaged,
+        };
+        let allocation = match lock(&self.allocator).allocate(&desc) {
+            Ok(a) => a,
+            Err(e) => {
+                discard();
+                return Err(GpuError::OutOfMemory(format!("{what}: {e}")));
+            }
+        };
+        // SAFETY: the memory stays allocated while the resource it is bound to lives
+        // (it is freed with the resource, through `Garbage`).
+        let memory = unsafe { allocation.memory() };
+        if let Err(e) = bind(memory, allocation.offset()) {
+            let _ = lock(&self.allocator).free(allocation);
+            discard();
+            return Err(vk_error(bind_call)(e));
+        }
+        let bytes = allocation.size();
+        let now = self.current_bytes.fetch_add(bytes, Ordering::Relaxed) + bytes;
+        self.peak_bytes.fetch_max(now, Ordering::Relaxed);
+        Ok(allocation)
+    }
+
     /// Destroys a garbage item now. The caller guarantees the GPU is done with it.
     fn destroy(&self, item: Garbage) {
         match item {
