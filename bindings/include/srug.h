@@ -141,6 +141,9 @@ typedef uint32_t srug_depth_convention;
 // What the shadow map covers (`srug_renderer_set_shadow_fit`).
 typedef uint32_t srug_shadow_fit;
 
+// How the shadow test reads the map (`srug_renderer_set_shadow_filter`).
+typedef uint32_t srug_shadow_filter;
+
 // Tone maps of `srug_renderer_set_exposure`.
 typedef uint32_t srug_tone_map;
 
@@ -318,6 +321,13 @@ typedef struct {
 // The camera's view frustum within the scene's bounds: finer texels for the
 // same resolution; casters anywhere in the bounds still cast.
 #define SRUG_SHADOW_FIT_VIEW 1
+
+// Percentage-closer filtering (the presets): the four nearest texels' tests
+// weighted bilinearly; edges a texel wide, where the map's outline is.
+#define SRUG_SHADOW_FILTER_PCF 0
+
+// One test of the bilinearly interpolated depth: the paper's razor edge.
+#define SRUG_SHADOW_FILTER_DEPTH 1
 
 // Camera z in world units (0, negative or infinite: nothing there).
 #define SRUG_DEPTH_CAMERA_Z 0
@@ -677,6 +687,10 @@ srug_status srug_renderer_set_background(srug_renderer *renderer, const float *r
 
 // What the shadow map covers (`SRUG_SHADOW_FIT_*`); `srug_renderer_set_preset` resets it.
 srug_status srug_renderer_set_shadow_fit(srug_renderer *renderer, srug_shadow_fit fit);
+
+// How the shadow test reads the map (`SRUG_SHADOW_FILTER_*`; both
+// differentiable); `srug_renderer_set_preset` resets it.
+srug_status srug_renderer_set_shadow_filter(srug_renderer *renderer, srug_shadow_filter filter);
 
 // Shadow maps splatted only where the frame's receivers look them up even
 // with `srug_renderer_set_shadow_map_reuse` on (off by default): the same

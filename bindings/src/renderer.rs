@@ -14,7 +14,7 @@ use srug::shade::{
     ToneMap,
 };
 use srug::shadow::backward::GpuVisibilityLoss;
-use srug::shadow::{ShadowFit, ShadowMap, ShadowPass, Sun, VisibilityKind};
+use srug::shadow::{ShadowFilter, ShadowFit, ShadowMap, ShadowPass, Sun, VisibilityKind};
 use srug::splat::{Channels, GpuGBuffer, HostDepth, SplatFrame, SplatSettings};
 
 use crate::context::*;
@@ -95,6 +95,14 @@ pub const SRUG_SHADOW_FIT_SCENE: srug_shadow_fit = 0;
 /// The camera's view frustum within the scene's bounds: finer texels for the
 /// same resolution; casters anywhere in the bounds still cast.
 pub const SRUG_SHADOW_FIT_VIEW: srug_shadow_fit = 1;
+
+/// How the shadow test reads the map (`srug_renderer_set_shadow_filter`).
+pub type srug_shadow_filter = u32;
+/// Percentage-closer filtering (the presets): the four nearest texels' tests
+/// weighted bilinearly; edges a texel wide, where the map's outline is.
+pub const SRUG_SHADOW_FILTER_PCF: srug_shadow_filter = 0;
+/// One test of the bilinearly interpolated depth: the paper's razor edge.
+pub const SRUG_SHADOW_FILTER_DEPTH: srug_shadow_filter = 1;
 
 /// How `srug_renderer_set_host_depth`'s values encode depth.
 pub type srug_depth_convention = u32;
@@ -770,6 +778,26 @@ pub extern "C" fn srug_renderer_set_shadow_fit(renderer: *mut srug_renderer, fit
         };
         with_renderer(renderer, |r| {
             r.settings.shadow.fit = fit;
+            Ok(())
+        })
+    })
+}
+
+/// How the shadow test reads the map (`SRUG_SHADOW_FILTER_*`; both
+/// differentiable); `srug_renderer_set_preset` resets it.
+#[no_mangle]
+pub extern "C" fn srug_renderer_set_shadow_filter(
+    renderer: *mut srug_renderer,
+    filter: srug_shadow_filter,
+) -> srug_status {
+    guard("srug_renderer_set_shadow_filter", || {
+        let filter = match filter {
+            SRUG_SHADOW_FILTER_PCF => ShadowFilter::Pcf,
+            SRUG_SHADOW_FILTER_DEPTH => ShadowFilter::Depth,
+            other => return Err(invalid(format!("unknown shadow filter {other}"))),
+        };
+        with_renderer(renderer, |r| {
+            r.settings.shadow.filter = filter;
             Ok(())
         })
     })

@@ -10,7 +10,7 @@ use srug::gpu::{Device, DeviceOptions, DeviceSelection};
 use srug::io;
 use srug::scene::Camera;
 use srug::shade::{Background, BrdfLut, ShadeSettings, ToneMap, VisibilitySource};
-use srug::shadow::{sun_path, DepthMode, ShadowFit, Sun, UtcTime, VisibilityKind};
+use srug::shadow::{sun_path, DepthMode, ShadowFilter, ShadowFit, Sun, UtcTime, VisibilityKind};
 use srug::splat::Channels;
 use srug::{Error, Result};
 
@@ -532,6 +532,11 @@ pub struct ShadeArgs {
     /// Normal offset of the shadow receivers in shadow-map texels, times sin θ [preset: 0].
     #[arg(long, allow_negative_numbers = true)]
     pub shadow_normal_offset: Option<f32>,
+    /// Shadow-map filter: pcf (the four nearest texels' tests, weighted
+    /// bilinearly: edges a texel wide, where the map's outline is) or depth (one
+    /// test of the bilinear depth: the paper's razor edge) [preset: pcf].
+    #[arg(long, value_parser = ShadowFilter::parse)]
+    pub shadow_filter: Option<ShadowFilter>,
     /// Surface depths for the shadow map and its receivers (and the depth
     /// channels written): where each ray meets the splat's plane [preset: off].
     #[arg(long)]
@@ -576,6 +581,7 @@ impl ShadeArgs {
         sh.bias = self.shadow_bias.unwrap_or(sh.bias);
         sh.slope_bias = self.shadow_slope_bias.unwrap_or(sh.slope_bias);
         sh.normal_offset = self.shadow_normal_offset.unwrap_or(sh.normal_offset);
+        sh.filter = self.shadow_filter.unwrap_or(sh.filter);
         sh.surface_depth |= self.shadow_surface_depth;
         sh.cull_to_receivers |= self.shadow_cull;
         sh.receiver_depth = self.receiver_depth.unwrap_or(sh.receiver_depth);

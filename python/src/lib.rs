@@ -121,6 +121,7 @@ struct ShadowOptions {
     normal_offset: Option<f32>,
     receiver_depth: Option<String>,
     test: Option<String>,
+    filter: Option<String>,
 }
 
 impl ShadowOptions {
@@ -134,6 +135,9 @@ impl ShadowOptions {
         s.normal_offset = self.normal_offset.unwrap_or(s.normal_offset);
         if let Some(d) = &self.receiver_depth {
             s.receiver_depth = srug::shadow::DepthMode::parse(d).map_err(py_err)?;
+        }
+        if let Some(f) = &self.filter {
+            s.filter = srug::shadow::ShadowFilter::parse(f).map_err(py_err)?;
         }
         settings.visibility_kind = match self.test.as_deref() {
             None => settings.visibility_kind,
@@ -575,7 +579,7 @@ impl Device {
                         host_depth = None, depth_convention = "camera_z", near = 0.0, far = 0.0, background = None,
                         shadow_cull = false, shadow_resolution = None, shadow_k = None, shadow_bias = None,
                         shadow_slope_bias = None, shadow_normal_offset = None, receiver_depth = None,
-                        shadow_test = None))]
+                        shadow_test = None, shadow_filter = None))]
     #[allow(clippy::too_many_arguments, reason = "the Python keyword arguments of one call")]
     fn relight<'py>(
         &self,
@@ -606,6 +610,7 @@ impl Device {
         shadow_normal_offset: Option<f32>,
         receiver_depth: Option<String>,
         shadow_test: Option<String>,
+        shadow_filter: Option<String>,
     ) -> PyResult<Bound<'py, PyDict>> {
         let shadow = ShadowOptions {
             resolution: shadow_resolution,
@@ -615,6 +620,7 @@ impl Device {
             normal_offset: shadow_normal_offset,
             receiver_depth,
             test: shadow_test,
+            filter: shadow_filter,
         };
         let device = self.gpu()?;
         let cams = &cameras.cameras;
@@ -744,7 +750,7 @@ impl Device {
     /// receiver. The returned object holds V and runs the backward pass.
     #[pyo3(signature = (scene, camera, sun, resolution = 2048, k = 50.0, bias = 0.3, map_depth = None,
                         receiver_depth = None, sun_intensity = std::f32::consts::PI, slope_bias = 3.0,
-                        normal_offset = 0.0, fit = "scene", tile = 16))]
+                        normal_offset = 0.0, fit = "scene", tile = 16, filter = "pcf"))]
     #[allow(clippy::too_many_arguments, reason = "the Python keyword arguments of one call")]
     fn shadow(
         &self,
@@ -762,6 +768,7 @@ impl Device {
         normal_offset: f32,
         fit: &str,
         tile: u32,
+        filter: &str,
     ) -> PyResult<ShadowTest> {
         let [camera] = camera.cameras.as_slice() else {
             return Err(invalid(format!("{} cameras", camera.cameras.len()), "the shadow test takes one camera"));
@@ -780,6 +787,7 @@ impl Device {
         settings.slope_bias = slope_bias;
         settings.normal_offset = normal_offset;
         settings.fit = srug::shadow::ShadowFit::parse(fit).map_err(py_err)?;
+        settings.filter = srug::shadow::ShadowFilter::parse(filter).map_err(py_err)?;
         settings.tile = tile;
         if let Some(m) = map_depth {
             settings.map_depth = srug::shadow::DepthMode::parse(m).map_err(py_err)?;

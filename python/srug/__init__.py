@@ -438,6 +438,7 @@ class Device:
         shadow_normal_offset: Optional[float] = None,
         receiver_depth: Optional[str] = None,
         shadow_test: Optional[str] = None,
+        shadow_filter: Optional[str] = None,
     ) -> Any:
         """Relights every camera: (N, H, W, 3) float32.
 
@@ -464,8 +465,10 @@ class Device:
         ``shadow_resolution`` (texels), ``shadow_k`` (sigmoid sharpness per
         metre), ``shadow_bias`` (metres), ``shadow_slope_bias`` and
         ``shadow_normal_offset`` (map texels), ``receiver_depth`` ("median" or
-        "expected"), ``shadow_test`` ("sigmoid" or "traced"): override the
-        preset's (None keeps it), as ``srug relight``'s options of those names.
+        "expected"), ``shadow_test`` ("sigmoid" or "traced"), ``shadow_filter``
+        ("pcf": the four nearest texels' tests weighted bilinearly, or "depth":
+        one test of the bilinear depth): override the preset's (None keeps it),
+        as ``srug relight``'s options of those names.
         """
         if background is not None:
             background = tuple(float(v) for v in background)
@@ -507,6 +510,7 @@ class Device:
             shadow_normal_offset=None if shadow_normal_offset is None else float(shadow_normal_offset),
             receiver_depth=None if receiver_depth is None else str(receiver_depth),
             shadow_test=None if shadow_test is None else str(shadow_test),
+            shadow_filter=None if shadow_filter is None else str(shadow_filter),
         )
         return (out[output], out["alpha"]) if return_alpha else out[output]
 
@@ -525,6 +529,7 @@ class Device:
         normal_offset: float = 0.0,
         fit: str = "scene",
         tile: int = 16,
+        filter: str = "pcf",
     ) -> "ShadowTest":
         """The differentiable sun shadow test for one camera (the paper's editable visibility):
         ``.visibility`` is V = sigmoid(k·(z_s − z + bias)) per pixel, (H, W) float32 (1 where no
@@ -535,9 +540,10 @@ class Device:
         "expected-over-far" (docs/stages.md). ``slope_bias`` adds that many shadow-map texels
         times tan θ (θ: receiver normal to sun) to ``bias``; ``normal_offset`` moves each
         receiver that many texels times sin θ along its normal; the defaults (2048 texels, k 50,
-        bias 0.3 m, slope bias 3, no normal offset, median depths) are the balanced preset's, as
-        ``srug::shadow::ShadowSettings::default()``; the backward holds the normals they read
-        fixed. ``fit``: "scene" or "view" (the map covers the camera's view within the scene's
+        bias 0.3 m, slope bias 3, no normal offset, median depths, PCF) are the balanced
+        preset's, as ``srug::shadow::ShadowSettings::default()``; the backward holds the normals
+        they read fixed. ``filter``: "pcf" (V = Σ w_i·sigmoid(k·(z_i − z + bias)) over the four
+        nearest texels, weighted bilinearly) or "depth" (one sigmoid of the bilinear depth). ``fit``: "scene" or "view" (the map covers the camera's view within the scene's
         bounds). ``tile``: the splat tile of the map and the receivers, 16 or 8 (8 makes the
         backward faster where splats crowd tiles; V is the same)."""
         if len(camera) != 1:
@@ -557,6 +563,7 @@ class Device:
                 normal_offset=float(normal_offset),
                 fit=str(fit),
                 tile=int(tile),
+                filter=str(filter),
             )
         )
 

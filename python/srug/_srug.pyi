@@ -65,6 +65,7 @@ class Device:
         shadow_normal_offset: Optional[float] = ...,
         receiver_depth: Optional[str] = ...,
         shadow_test: Optional[str] = ...,
+        shadow_filter: Optional[str] = ...,
     ) -> Dict[str, np.ndarray]: ...
 
     def shadow(
@@ -82,6 +83,7 @@ class Device:
         normal_offset: float = ...,
         fit: str = ...,
         tile: int = ...,
+        filter: str = ...,
     ) -> ShadowTest: ...
 
 class ShadowTest:

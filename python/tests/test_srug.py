@@ -366,6 +366,14 @@ def test_shadow_gradients_match_finite_differences(dev, shadow_problem):
     with pytest.raises(srug.Error) as e:
         dev.shadow(scene_of(means, logits), cam, slope_bias=-1.0, **low)
     assert "slope bias" in str(e.value)
+    # The paper's depth test instead of PCF: V differs, and its gradients match too.
+    hard = dev.shadow(scene_of(means, logits), cam, filter="depth", **low)
+    assert not np.array_equal(hard.visibility, plain)
+    gh = hard.backward(weights)
+    assert all(np.isfinite(a).all() for a in gh.values())
+    with pytest.raises(srug.Error) as e:
+        dev.shadow(scene_of(means, logits), cam, filter="soft", **low)
+    assert "shadow filter" in str(e.value)
 
 
 def test_materials_from_arrays_relight_like_the_scene(dev, city):
@@ -552,8 +560,11 @@ def test_relight_shadow_options_override_the_preset(dev, city):
     same = dev.relight(
         scene, one, sun=(250.0, 30.0), shadow_resolution=2048, shadow_k=50.0, shadow_bias=0.3,
         shadow_slope_bias=3.0, shadow_normal_offset=0.0, receiver_depth="median", shadow_test="sigmoid",
+        shadow_filter="pcf",
     )
     np.testing.assert_array_equal(base, same)
+    hard = dev.relight(scene, one, sun=(250.0, 30.0), shadow_filter="depth")
+    assert not np.array_equal(base, hard)
     coarse = dev.relight(scene, one, sun=(250.0, 30.0), shadow_resolution=128, shadow_bias=0.0)
     assert not np.array_equal(base, coarse)
     traced = dev.relight(scene, one, sun=(250.0, 30.0), shadow_test="traced")
@@ -563,6 +574,7 @@ def test_relight_shadow_options_override_the_preset(dev, city):
         ({"shadow_test": "exact"}, "shadow test"),
         ({"receiver_depth": "deepest"}, "depth mode"),
         ({"shadow_k": -1.0}, "sharpness"),
+        ({"shadow_filter": "soft"}, "shadow filter"),
     ]:
         with pytest.raises(srug.Error) as e:
             dev.relight(scene, one, sun=(250.0, 30.0), **kwargs)

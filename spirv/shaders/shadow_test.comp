@@ -2,7 +2,9 @@
 // The sigmoid shadow test, one invocation per receiver pixel: the world point
 // from the camera G-buffer's depth, projected into light space; z_s sampled
 // bilinearly from the shadow map; V_e = σ(k·(z_s − z + bias)) in fp32 with
-// the logit clamped. Points outside the map and pixels without a surface are lit.
+// the logit clamped; with FILTER = 1 (PCF) V_e = Σ w_i·σ(k·(z_i − z + bias))
+// over the four texels instead. Points outside the map and pixels without a
+// surface are lit.
 // CPU twin: engine/src/shadow/cpu.rs `sigmoid_visibility_cpu`.
 #define WORKGROUP_SIZE_X 64
 #include "common.glsl"
@@ -20,9 +22,16 @@ void main() {
             ivec2 t[4];
             vec4 w;
             bilinear(l.xy, t, w);
-            float zs = w.x * texel_depth(t[0]) + w.y * texel_depth(t[1]) + w.z * texel_depth(t[2])
-                     + w.w * texel_depth(t[3]);
-            v = stable_sigmoid(shadow_logit(zs, l.z, bias));
+            if (FILTER == 1u) {
+                v = w.x * stable_sigmoid(shadow_logit(texel_depth(t[0]), l.z, bias))
+                  + w.y * stable_sigmoid(shadow_logit(texel_depth(t[1]), l.z, bias))
+                  + w.z * stable_sigmoid(shadow_logit(texel_depth(t[2]), l.z, bias))
+                  + w.w * stable_sigmoid(shadow_logit(texel_depth(t[3]), l.z, bias));
+            } else {
+                float zs = w.x * texel_depth(t[0]) + w.y * texel_depth(t[1]) + w.z * texel_depth(t[2])
+                         + w.w * texel_depth(t[3]);
+                v = stable_sigmoid(shadow_logit(zs, l.z, bias));
+            }
         }
     }
     FloatsOut(shadow.visibility).v[p] = v;

@@ -1,6 +1,8 @@
 #version 460
 // Shadow backward, gather: one invocation per shadow-map texel sums
-// w_k·dL/dz_s over the receiver pixels whose bilinear footprint holds it —
+// the dL/dz it gets from each receiver pixel whose bilinear footprint holds it
+// (w_k·dL/dz_s for the depth test, k·dL/dx_k for PCF; the backward kernel
+// records them) —
 // those binned at this texel and at its left, upper and upper-left
 // neighbours — in a fixed order (deterministic, no atomics). Then the texel's
 // depth z_s goes back to the map's channels: median depth directly,
@@ -27,12 +29,13 @@ void main() {
             if (b.x < 0 || b.y < 0) continue;
             uvec2 range = ranges.v[uint(b.y) * mw + uint(b.x)];
             for (uint j = range.x; j < range.y; j++) {
-                vec4 rec = records.v[order.v[j]];
+                uint q = order.v[j];
                 ivec2 t[4];
                 vec4 w;
-                bilinear(rec.xy, t, w);
-                for (int k = 0; k < 4; k++) {
-                    if (t[k] == tt) sum += w[k] * rec.z;
+                bilinear(records.v[2u * q].xy, t, w);
+                vec4 grads = records.v[2u * q + 1u];
+                for (int i = 0; i < 4; i++) {
+                    if (t[i] == tt) sum += grads[i];
                 }
             }
         }

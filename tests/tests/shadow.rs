@@ -13,7 +13,9 @@ use srug::scene::{Camera, Scene};
 use srug::shadow::backward::GpuVisibilityLoss;
 use srug::shadow::completion::shadow_iou;
 use srug::shadow::cpu::{sigmoid_visibility_cpu, traced_visibility_cpu, DepthImage};
-use srug::shadow::{light_camera, DepthMode, ShadowFit, ShadowMap, ShadowPass, ShadowSettings, Sun, VisibilityKind};
+use srug::shadow::{
+    light_camera, DepthMode, ShadowFilter, ShadowFit, ShadowMap, ShadowPass, ShadowSettings, Sun, VisibilityKind,
+};
 use srug::splat::Channel;
 use srug::splat::{Channels, GBuffer, SplatSettings, Splatter};
 use srug_tests::{assert_no_validation_messages, device, save_comparison};
@@ -110,6 +112,15 @@ fn sigmoid_test_and_traced_reference_match_cpu_twin() {
         // depth edge (metres between neighbouring texels) turns into ~1e-4 m of z_s;
         // with k = 4 per metre V moves by k/4 per metre: 5e-4 allows both.
         let err = max_diff(&format!("{label}_sigmoid"), &camera, &gpu, &cpu, 5e-4);
+        // Percentage-closer filtering: each texel's exact depth, so only the point's
+        // rounding and the weights' (~3e-5 texel) remain; the same bound holds.
+        let pcf = ShadowSettings { filter: ShadowFilter::Pcf, ..st };
+        let (vp, _) = s.pass.visibility(&map, &g, &camera, &pcf, VisibilityKind::Sigmoid).unwrap();
+        let gpu_pcf: Vec<f32> = s.d.read_buffer(&vp).unwrap();
+        let cpu_pcf = sigmoid_visibility_cpu(&map.camera, &map_host, &camera, &host, &pcf);
+        let err_pcf = max_diff(&format!("{label}_pcf"), &camera, &gpu_pcf, &cpu_pcf, 5e-4);
+        let moved = gpu.iter().zip(&gpu_pcf).filter(|(a, b)| (**a - **b).abs() > 1e-2).count();
+        assert!(moved > 10, "{label}: the PCF filter changes only {moved} pixels");
 
         let (t, _) = s.pass.visibility(&map, &g, &camera, &st, VisibilityKind::Traced).unwrap();
         let traced: Vec<f32> = s.d.read_buffer(&t).unwrap();
@@ -125,7 +136,7 @@ fn sigmoid_test_and_traced_reference_match_cpu_twin() {
         }
         let partial = gpu.iter().filter(|v| (0.01..0.99).contains(*v)).count();
         let shadowed = gpu.iter().filter(|v| **v < 0.5).count();
-        eprintln!("{label}: sigmoid max error {err:.2e} ({partial} pixels in transition, {shadowed} shadowed); traced: {bad} pixels off by > 1e-3");
+        eprintln!("{label}: sigmoid max error {err:.2e}, PCF {err_pcf:.2e} ({partial} pixels in transition, {shadowed} shadowed); traced: {bad} pixels off by > 1e-3");
         assert!(partial > 50 && shadowed > 50, "{label}: too few pixels test the sigmoid's transition");
     }
     // Receivers seen through lenses: each pixel is unprojected along its undistorted ray
@@ -279,15 +290,21 @@ fn extremes_give_finite_visibility() {
         let map = shadow_map(&mut s, &sun, &base, None);
         let map_host = DepthImage::from_gbuffer(&map.frame.gbuffer.read(&s.d).unwrap());
         for k in [1e-3f32, 1.0, 50.0, 1e4, 1e9] {
-            let st = ShadowSettings { k, ..base };
-            for kind in [VisibilityKind::Sigmoid, VisibilityKind::Traced] {
+            let runs = [
+                (VisibilityKind::Sigmoid, ShadowFilter::Depth),
+                (VisibilityKind::Sigmoid, ShadowFilter::Pcf),
+                (VisibilityKind::Traced, ShadowFilter::Depth),
+            ];
+            for (kind, filter) in runs {
+                let st = ShadowSettings { k, filter, ..base };
                 let (v, _) = s.pass.visibility(&map, &g, &camera, &st, kind).unwrap();
                 let v: Vec<f32> = s.d.read_buffer(&v).unwrap();
-                assert!(v.iter().all(|x| x.is_finite() && (0.0..=1.0).contains(x)), "el {el} k {k} {kind:?}");
+                let label = format!("el {el} k {k} {kind:?} {}", filter.name());
+                assert!(v.iter().all(|x| x.is_finite() && (0.0..=1.0).contains(x)), "{label}");
                 // Below k = 50 per metre the f32/f64 difference (~1e-4 m in z) moves V by ≤ k/4 · 1e-4.
                 if kind == VisibilityKind::Sigmoid && k <= 50.0 {
                     let cpu = sigmoid_visibility_cpu(&map.camera, &map_host, &camera, &host, &st);
-                    max_diff(&format!("extreme_el{el}_k{k}"), &camera, &v, &cpu, 2e-3);
+                    max_diff(&format!("extreme_el{el}_k{k}_{}", filter.name()), &camera, &v, &cpu, 2e-3);
                 }
             }
         }

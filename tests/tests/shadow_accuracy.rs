@@ -16,7 +16,7 @@ use srug::gpu::Device;
 use srug::scene::activate::GpuScene;
 use srug::scene::blocks::{block_city, BlockCity, BlockOptions, BlockSplats};
 use srug::shadow::accuracy::{shadow_accuracy, ShadowAccuracy};
-use srug::shadow::{ShadowFit, ShadowPass};
+use srug::shadow::{ShadowFilter, ShadowFit, ShadowPass};
 use srug::splat::Splatter;
 use srug_tests::{assert_no_validation_messages, device, save_comparison, NAN_SENTINEL};
 
@@ -77,23 +77,26 @@ fn presets_shadow_the_analytic_block_as_the_truth_does() {
     let d = device();
     let mut splatter = Splatter::new(&d).unwrap();
     let pass = ShadowPass::new(&d).unwrap();
-    // (sampling, preset, surface depths, map fit, lowest IoU accepted, highest false-shadow and
-    // leak rates, edge error px)
+    // (sampling, preset, surface depths, map fit, filter, lowest IoU accepted, highest
+    // false-shadow and leak rates, edge error px)
     let (scene_fit, view_fit) = (ShadowFit::SceneBounds, ShadowFit::ViewFrustum);
+    let (pcf, depth) = (ShadowFilter::Pcf, ShadowFilter::Depth);
     let floors = [
-        (BlockSplats::Ideal, Preset::Fast, false, scene_fit, 0.94, 0.03, 0.012, 8.5),
-        (BlockSplats::Ideal, Preset::Balanced, false, scene_fit, 0.97, 0.015, 0.006, 3.8),
-        (BlockSplats::Ideal, Preset::Balanced, true, scene_fit, 0.975, 0.014, 0.002, 8.5),
-        (BlockSplats::Ideal, Preset::Balanced, false, view_fit, 0.97, 0.015, 0.006, 3.8),
-        (BlockSplats::Ideal, Preset::Reference, false, scene_fit, 0.97, 0.015, 0.006, 3.8),
-        (BlockSplats::Rough, Preset::Fast, false, scene_fit, 0.94, 0.03, 0.012, 9.5),
-        (BlockSplats::Rough, Preset::Balanced, false, scene_fit, 0.965, 0.015, 0.008, 7.0),
-        (BlockSplats::Rough, Preset::Balanced, true, scene_fit, 0.97, 0.015, 0.004, 9.5),
-        (BlockSplats::Rough, Preset::Balanced, false, view_fit, 0.965, 0.015, 0.008, 7.0),
-        (BlockSplats::Rough, Preset::Reference, false, scene_fit, 0.965, 0.015, 0.008, 7.5),
+        (BlockSplats::Ideal, Preset::Fast, false, scene_fit, pcf, 0.95, 0.025, 0.012, 7.5),
+        (BlockSplats::Ideal, Preset::Balanced, false, scene_fit, pcf, 0.97, 0.0125, 0.006, 3.5),
+        (BlockSplats::Ideal, Preset::Balanced, false, scene_fit, depth, 0.97, 0.015, 0.006, 3.8),
+        (BlockSplats::Ideal, Preset::Balanced, true, scene_fit, pcf, 0.975, 0.011, 0.002, 8.5),
+        (BlockSplats::Ideal, Preset::Balanced, false, view_fit, pcf, 0.97, 0.0125, 0.006, 3.5),
+        (BlockSplats::Ideal, Preset::Reference, false, scene_fit, pcf, 0.97, 0.015, 0.006, 3.8),
+        (BlockSplats::Rough, Preset::Fast, false, scene_fit, pcf, 0.95, 0.025, 0.012, 9.0),
+        (BlockSplats::Rough, Preset::Balanced, false, scene_fit, pcf, 0.97, 0.0125, 0.008, 6.5),
+        (BlockSplats::Rough, Preset::Balanced, false, scene_fit, depth, 0.965, 0.015, 0.008, 7.0),
+        (BlockSplats::Rough, Preset::Balanced, true, scene_fit, pcf, 0.97, 0.0125, 0.004, 9.5),
+        (BlockSplats::Rough, Preset::Balanced, false, view_fit, pcf, 0.97, 0.0125, 0.008, 6.5),
+        (BlockSplats::Rough, Preset::Reference, false, scene_fit, pcf, 0.965, 0.015, 0.008, 7.5),
     ];
     let mut last: Option<(BlockSplats, BlockCity, GpuScene)> = None;
-    for (splats, preset, surface, fit, iou, false_shadow, leak, edge) in floors {
+    for (splats, preset, surface, fit, filter, iou, false_shadow, leak, edge) in floors {
         if last.as_ref().is_none_or(|(s, _, _)| *s != splats) {
             let city = block_city(&BlockOptions { splats, ..BlockOptions::default() }).unwrap();
             let scene = GpuScene::upload(&d, &city.scene).unwrap();
@@ -102,14 +105,16 @@ fn presets_shadow_the_analytic_block_as_the_truth_does() {
         }
         let (_, city, scene) = last.as_ref().unwrap();
         let label = format!(
-            "{splats:?} {}{}{}",
+            "{splats:?} {}{}{}{}",
             preset.name(),
             if surface { " surface" } else { "" },
-            if fit == view_fit { " view" } else { "" }
+            if fit == view_fit { " view" } else { "" },
+            if filter == depth { " depth" } else { "" }
         );
         let mut settings = RelightSettings::preset(preset);
         settings.shadow.surface_depth = surface;
         settings.shadow.fit = fit;
+        settings.shadow.filter = filter;
         let acc = measure(&d, &mut splatter, &pass, city, scene, &settings, &label);
         let failed = acc.iou() < iou
             || acc.false_shadow_rate() > false_shadow
@@ -141,5 +146,6 @@ fn the_default_shadow_settings_are_the_balanced_presets_measured_ones() {
     assert_eq!(srug::shadow::ShadowSettings::default(), balanced);
     assert_eq!((balanced.bias, balanced.slope_bias), (0.3, 3.0));
     assert_eq!(balanced.receiver_depth, srug::shadow::DepthMode::Median);
+    assert_eq!(balanced.filter, ShadowFilter::Pcf);
     assert!(balanced.receiver_channels().normal, "a slope bias reads the receivers' normals");
 }

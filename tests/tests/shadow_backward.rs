@@ -15,7 +15,7 @@ use srug::scene::demo::{demo_city, DemoOptions};
 use srug::scene::{Camera, Scene};
 use srug::shadow::backward::GpuVisibilityLoss;
 use srug::shadow::cpu::{sigmoid_backward_cpu, sigmoid_visibility_cpu, DepthImage, VisibilityLoss};
-use srug::shadow::{light_camera, DepthMode, ShadowFit, ShadowPass, ShadowSettings, Sun};
+use srug::shadow::{light_camera, DepthMode, ShadowFilter, ShadowFit, ShadowPass, ShadowSettings, Sun};
 use srug::splat::backward::HostGaussianGradients;
 use srug::splat::cpu::{render_blends, Gaussian64};
 use srug::splat::cpu_backward::{blend_backward_cpu, project_backward, GaussianGrad};
@@ -76,16 +76,22 @@ fn shadow_backward_matches_cpu_twin() {
         .collect();
     let upstream_buf = d.upload("dL/dV", &upstream).unwrap();
     let vf_buf = d.upload("V_f", &vf).unwrap();
-    // The last two with a slope bias and normal offset (texels), which hold the normals fixed.
-    for (map_depth, receiver_depth, bce, slope_bias, normal_offset) in [
-        (DepthMode::Median, DepthMode::Expected, false, 0.0, 0.0),
-        (DepthMode::Expected, DepthMode::Median, false, 0.0, 0.0),
-        (DepthMode::Median, DepthMode::Expected, true, 0.0, 0.0),
-        (DepthMode::ExpectedOverFar, DepthMode::Expected, true, 0.0, 0.0),
-        (DepthMode::Median, DepthMode::Expected, false, 1.5, 1.0),
-        (DepthMode::Median, DepthMode::Median, true, 2.0, 2.0),
+    // Two with a slope bias and normal offset (texels), which hold the normals fixed; the
+    // last three with percentage-closer filtering.
+    let (depth, pcf) = (ShadowFilter::Depth, ShadowFilter::Pcf);
+    for (map_depth, receiver_depth, bce, slope_bias, normal_offset, filter) in [
+        (DepthMode::Median, DepthMode::Expected, false, 0.0, 0.0, depth),
+        (DepthMode::Expected, DepthMode::Median, false, 0.0, 0.0, depth),
+        (DepthMode::Median, DepthMode::Expected, true, 0.0, 0.0, depth),
+        (DepthMode::ExpectedOverFar, DepthMode::Expected, true, 0.0, 0.0, depth),
+        (DepthMode::Median, DepthMode::Expected, false, 1.5, 1.0, depth),
+        (DepthMode::Median, DepthMode::Median, true, 2.0, 2.0, depth),
+        (DepthMode::Median, DepthMode::Expected, false, 0.0, 0.0, pcf),
+        (DepthMode::Expected, DepthMode::Median, true, 0.0, 0.0, pcf),
+        (DepthMode::ExpectedOverFar, DepthMode::Expected, true, 1.5, 1.0, pcf),
     ] {
         let st = ShadowSettings {
+            filter,
             resolution: 384,
             k: 4.0,
             map_depth,
@@ -102,7 +108,10 @@ fn shadow_backward_matches_cpu_twin() {
         let vf64: Vec<f64> = vf.iter().map(|v| f64::from(*v)).collect();
         let cpu_loss = if bce { VisibilityLoss::Bce(&vf64) } else { VisibilityLoss::Upstream(&up64) };
         let cpu = sigmoid_backward_cpu(&map.camera, &map_img, &camera, &rec_img, &st, cpu_loss);
-        let label = format!("{map_depth:?}_{receiver_depth:?}_bce{bce}_slope{slope_bias}_offset{normal_offset}");
+        let label = format!(
+            "{map_depth:?}_{receiver_depth:?}_bce{bce}_slope{slope_bias}_offset{normal_offset}_{}",
+            filter.name()
+        );
         let msize = (map.camera.width, map.camera.height);
         let csize = (camera.width, camera.height);
         // fp32 against f64 on the same inputs: 1e-2 relative, floor 1% of the largest value.
@@ -234,12 +243,14 @@ fn shadow_gradients_reach_the_gaussians_like_finite_differences() {
     let weights: Vec<f64> = (0..pixels).map(|_| rng.random_range(-1.0..1.0)).collect();
     let w32: Vec<f32> = weights.iter().map(|v| *v as f32).collect();
     let upstream = d.upload("dL/dV", &w32).unwrap();
-    for (map_depth, receiver_depth) in [
-        (DepthMode::Median, DepthMode::Expected),
-        (DepthMode::Expected, DepthMode::Expected),
-        (DepthMode::ExpectedOverFar, DepthMode::Median),
+    for (map_depth, receiver_depth, filter) in [
+        (DepthMode::Median, DepthMode::Expected, ShadowFilter::Depth),
+        (DepthMode::Expected, DepthMode::Expected, ShadowFilter::Depth),
+        (DepthMode::ExpectedOverFar, DepthMode::Median, ShadowFilter::Depth),
+        (DepthMode::Expected, DepthMode::Expected, ShadowFilter::Pcf),
     ] {
         let st = ShadowSettings {
+            filter,
             resolution: 40,
             k: 6.0,
             bias: 0.02,
@@ -336,11 +347,13 @@ fn shadow_backward_is_finite_at_the_extremes() {
         let map = pass.shadow_map(&mut splatter, &gpu_scene, &bounds, &sun, &base, None).unwrap().unwrap();
         for k in [1e-3f32, 1.0, 1e4, 1e9] {
             // Bias is ≥ 0 (ShadowSettings::validate); 0 and 1e30 are its extremes.
-            for bias in [0.15f32, 0.0, 1e30] {
-                let st = ShadowSettings { k, bias, ..base };
+            for (bias, filter) in
+                [0.15f32, 0.0, 1e30].into_iter().flat_map(|b| [(b, ShadowFilter::Depth), (b, ShadowFilter::Pcf)])
+            {
+                let st = ShadowSettings { k, bias, filter, ..base };
                 for loss in [GpuVisibilityLoss::Upstream(&ones), GpuVisibilityLoss::Bce(&halves)] {
                     let b = pass.backward(&map, &receivers.gbuffer, &camera, &st, loss).unwrap();
-                    let label = format!("el {el} k {k} bias {bias}");
+                    let label = format!("el {el} k {k} bias {bias} filter {}", filter.name());
                     assert!(b.k.is_finite() && b.loss.is_finite(), "{label}: dk {} loss {}", b.k, b.loss);
                     for v in [
                         read(&d, b.map.get(Channel::MedianDepth)),
@@ -420,10 +433,17 @@ impl Chain {
     }
 }
 
-fn check_chain(map_depth: DepthMode, receiver_depth: DepthMode, bce: bool) {
+fn check_chain(map_depth: DepthMode, receiver_depth: DepthMode, bce: bool, filter: ShadowFilter) {
     let (scene, light, camera) = blob_scene();
-    let settings =
-        ShadowSettings { k: 6.0, bias: 0.02, slope_bias: 0.0, map_depth, receiver_depth, ..ShadowSettings::default() };
+    let settings = ShadowSettings {
+        k: 6.0,
+        bias: 0.02,
+        slope_bias: 0.0,
+        map_depth,
+        receiver_depth,
+        filter,
+        ..ShadowSettings::default()
+    };
     let chain = Chain { scene, light, camera, settings };
     let params: Vec<Gaussian64> = (0..chain.scene.len()).map(|i| Gaussian64::from_scene(&chain.scene, i)).collect();
     let mut rng = Pcg64Mcg::seed_from_u64(5);
@@ -488,15 +508,23 @@ fn check_chain(map_depth: DepthMode, receiver_depth: DepthMode, bce: bool) {
     let (kp32, km32) = (f64::from(kp as f32), f64::from(km as f32));
     let fd_k = (loss_k(kp32, &mut shifted) - loss_k(km32, &mut shifted)) / (kp32 - km32);
     assert!((dk - fd_k).abs() <= 1e-3 * fd_k.abs().max(1e-9), "dL/dk {dk:.9e} vs finite difference {fd_k:.9e}");
-    eprintln!("{map_depth:?}/{receiver_depth:?}/bce {bce}: {significant} significant derivatives, dL/dk {dk:.4e}");
+    eprintln!(
+        "{map_depth:?}/{receiver_depth:?}/bce {bce}/{}: {significant} significant derivatives, dL/dk {dk:.4e}",
+        filter.name()
+    );
 }
 
 /// The CPU twin's shadow chain (analytic, through both splats) against central
-/// finite differences of the f64 pipeline, for every map depth mode and the BCE loss.
+/// finite differences of the f64 pipeline, for every map depth mode, the BCE
+/// loss and both filters.
 #[test]
 fn cpu_shadow_chain_gradients_match_finite_differences() {
-    check_chain(DepthMode::Median, DepthMode::Expected, false);
-    check_chain(DepthMode::Expected, DepthMode::Expected, false);
-    check_chain(DepthMode::Expected, DepthMode::Median, true);
-    check_chain(DepthMode::ExpectedOverFar, DepthMode::Expected, true);
+    let (depth, pcf) = (ShadowFilter::Depth, ShadowFilter::Pcf);
+    check_chain(DepthMode::Median, DepthMode::Expected, false, depth);
+    check_chain(DepthMode::Expected, DepthMode::Expected, false, depth);
+    check_chain(DepthMode::Expected, DepthMode::Median, true, depth);
+    check_chain(DepthMode::ExpectedOverFar, DepthMode::Expected, true, depth);
+    check_chain(DepthMode::Median, DepthMode::Expected, false, pcf);
+    check_chain(DepthMode::Expected, DepthMode::Median, true, pcf);
+    check_chain(DepthMode::ExpectedOverFar, DepthMode::Expected, true, pcf);
 }

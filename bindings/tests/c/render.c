@@ -268,6 +268,18 @@ int main(int argc, char **argv) {
   REQUIRE(fit_diff > 0.0 && fit_diff < 5.0);
   free(fitted);
   CHECK(srug_renderer_set_shadow_fit(r, SRUG_SHADOW_FIT_SCENE));
+  /* The paper's depth test instead of percentage-closer filtering: shadow edges move
+     by under a texel, so the frames are close but not equal. */
+  CHECK(srug_renderer_set_shadow_filter(r, SRUG_SHADOW_FILTER_DEPTH));
+  CHECK(srug_renderer_render(r, scene));
+  unsigned char *hard = read_rgba8(r, w, h);
+  double filter_diff = 0.0;
+  for (size_t i = 0; i < pixels * 4; i++) filter_diff += fabs((double)hard[i] - (double)image[i]);
+  filter_diff /= (double)(pixels * 4);
+  printf("depth-test shadows: mean |depth - pcf| = %.3f of 255\n", filter_diff);
+  REQUIRE(filter_diff > 0.0 && filter_diff < 2.0);
+  free(hard);
+  CHECK(srug_renderer_set_shadow_filter(r, SRUG_SHADOW_FILTER_PCF));
   /* A shadow map splatted only where the frame looks: the same frame, byte for byte. */
   CHECK(srug_renderer_set_shadow_cull(r, true));
   CHECK(srug_renderer_render(r, scene));

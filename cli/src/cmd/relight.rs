@@ -347,6 +347,7 @@ pub(crate) fn relight_demo(
         shadow_bias: None,
         shadow_slope_bias: None,
         shadow_normal_offset: None,
+        shadow_filter: None,
         shadow_surface_depth: false,
         shadow_fit: None,
         shadow_cull: false,

@@ -152,7 +152,7 @@ impl ShadowPass {
             (settings.receiver_depth == DepthMode::Expected).then(|| f("dL/d receiver alpha", pixels)).transpose()?;
         let keys = f("shadow bin keys", 2 * pixels)?;
         let order = f("shadow bin pixels", pixels)?;
-        let records = f("shadow pixel records", 4 * pixels)?;
+        let records = f("shadow pixel records", 8 * pixels)?;
         let ranges = f("shadow bin ranges", 2 * texels)?;
         let texel_depth = f("dL/dz_s", texels)?;
         let map_depth = f("dL/d map depth", texels)?;
@@ -170,7 +170,8 @@ impl ShadowPass {
         )?;
         let key_bits = 64 - texels.leading_zeros();
         self.sort.reserve(&device, pixels)?;
-        let kernel = if bce { &self.backward_bce } else { &self.backward_upstream };
+        let filter = settings.filter.code() as usize;
+        let kernel = if bce { &self.backward_bce[filter] } else { &self.backward_upstream[filter] };
         let (bins, gather, sort) = (&self.bins, &self.gather, &self.sort);
         let timings = device.run(|rec| -> Result<()> {
             u.record(rec, &shadow_u, &inputs, None)?;

@@ -3,7 +3,7 @@
 
 use glam::{DVec2, DVec3};
 
-use super::{DepthMode, ShadowSettings};
+use super::{DepthMode, ShadowFilter, ShadowSettings};
 use crate::scene::{Camera, Projection, Scene};
 use crate::splat::cpu::{preprocess_one, splat_alpha, tile_lists, CpuSplat, PixelBlend, VALUES};
 use crate::splat::cpu_backward::PixelGrads;
@@ -216,8 +216,16 @@ pub fn sigmoid_visibility_cpu(
         .map(|p| {
             let Some((uv, z, bias)) = receiver_in_light(light, camera, receiver, settings, p) else { return 1.0 };
             let (t, w) = bilinear(uv, light.width, light.height);
-            let zs: f64 = t.iter().zip(w).map(|(i, w)| w * zs_texels[*i]).sum();
-            sigmoid_visibility(zs, z, f64::from(settings.k), bias)
+            let k = f64::from(settings.k);
+            match settings.filter {
+                ShadowFilter::Depth => {
+                    let zs: f64 = t.iter().zip(w).map(|(i, w)| w * zs_texels[*i]).sum();
+                    sigmoid_visibility(zs, z, k, bias)
+                }
+                ShadowFilter::Pcf => {
+                    t.iter().zip(w).map(|(i, w)| w * sigmoid_visibility(zs_texels[*i], z, k, bias)).sum()
+                }
+            }
         })
         .collect()
 }
@@ -297,6 +305,66 @@ pub fn sigmoid_backward_cpu(
         }
         let Some((uv, z, bias)) = receiver_in_light(light, camera, receiver, settings, p) else { continue };
         let (t, w) = bilinear(uv, light.width, light.height);
+        // The receiver's camera depth moves its world point along the pixel ray,
+        // which moves both its light depth and where it samples the map.
+        let ray = unproject(camera, p, 1.0) - unproject(camera, p, 0.0);
+        let d_light = light_w * ray;
+        let d_uv = DVec2::new(f64::from(sx) * d_light.x, f64::from(sy) * d_light.y);
+        let s = uv - 0.5;
+        let f = s - s.floor();
+        // ∂/∂u and ∂/∂v of a bilinear blend of four values.
+        let slope = |q: [f64; 4]| {
+            ((q[1] - q[0]) * (1.0 - f.y) + (q[3] - q[2]) * f.y, (q[2] - q[0]) * (1.0 - f.x) + (q[3] - q[1]) * f.x)
+        };
+        if settings.filter == ShadowFilter::Pcf {
+            // V = Σ wᵢσ(xᵢ); dL/dxᵢ per texel and dL/dwᵢ (hᵢ) for the weights' motion.
+            let zt = t.map(|i| zs_texels[i]);
+            let raw = zt.map(|zi| k * (zi - z + bias));
+            let (mut d_x, mut h) = ([0.0; 4], [0.0; 4]);
+            match loss {
+                VisibilityLoss::Upstream(g) => {
+                    for j in 0..4 {
+                        let xc = raw[j].clamp(-LOGIT_LIMIT, LOGIT_LIMIT);
+                        h[j] = g[p] * stable_sigmoid(xc);
+                        if raw[j].abs() < LOGIT_LIMIT {
+                            d_x[j] = g[p] * w[j] * stable_sigmoid(xc) * stable_sigmoid(-xc);
+                        }
+                    }
+                }
+                VisibilityLoss::Bce(target) => {
+                    // In log space: log V = log Σ wᵢσ(xᵢ), log(1 − V) = log Σ wᵢσ(−xᵢ).
+                    let x = raw.map(|r| r.clamp(-BCE_LOGIT_LIMIT, BCE_LOGIT_LIMIT));
+                    let log_sum = |sign: f64| {
+                        let terms: Vec<f64> =
+                            (0..4).filter(|j| w[*j] > 0.0).map(|j| w[j].ln() + log_sigmoid(sign * x[j])).collect();
+                        let m = terms.iter().fold(f64::MIN, |a, b| a.max(*b));
+                        m + terms.iter().map(|t| (t - m).exp()).sum::<f64>().ln()
+                    };
+                    let (log_v, log_u) = (log_sum(1.0), log_sum(-1.0));
+                    let (vf, n) = (target[p], surfaces as f64);
+                    out.loss -= (vf * log_v + (1.0 - vf) * log_u) / n;
+                    for j in 0..4 {
+                        let (ls, ln) = (log_sigmoid(x[j]), log_sigmoid(-x[j]));
+                        h[j] = -(vf * (ls - log_v).exp() + (1.0 - vf) * (ln - log_u).exp()) / n;
+                        if w[j] > 0.0 && raw[j].abs() < BCE_LOGIT_LIMIT {
+                            let (r, q) = (w[j] * (ls - log_v).exp(), w[j] * (ln - log_u).exp());
+                            d_x[j] = (-vf * r * stable_sigmoid(-x[j]) + (1.0 - vf) * q * stable_sigmoid(x[j])) / n;
+                        }
+                    }
+                }
+            }
+            let mut d_z = 0.0;
+            for j in 0..4 {
+                out.texel_depth[t[j]] += k * d_x[j];
+                out.k += d_x[j] * (zt[j] - z + bias);
+                d_z -= k * d_x[j];
+            }
+            out.light_depth[p] = d_z;
+            let (dl_du, dl_dv) = slope(h);
+            let d_camera_depth = d_z * d_light.z + dl_du * d_uv.x + dl_dv * d_uv.y;
+            receiver.depth_backward(settings.receiver_depth, p, d_camera_depth, 0.0, &mut out.receiver);
+            continue;
+        }
         let zs: f64 = t.iter().zip(w).map(|(i, w)| w * zs_texels[*i]).sum();
         let raw = k * (zs - z + bias);
         let d_logit = match loss {
@@ -324,16 +392,7 @@ pub fn sigmoid_backward_cpu(
         for (i, wi) in t.iter().zip(w) {
             out.texel_depth[*i] += d_zs * wi;
         }
-        // The receiver's camera depth moves its world point along the pixel ray,
-        // which moves both its light depth and where it samples the map.
-        let s = uv - 0.5;
-        let f = s - s.floor();
-        let zt = t.map(|i| zs_texels[i]);
-        let d_zs_du = (zt[1] - zt[0]) * (1.0 - f.y) + (zt[3] - zt[2]) * f.y;
-        let d_zs_dv = (zt[2] - zt[0]) * (1.0 - f.x) + (zt[3] - zt[1]) * f.x;
-        let ray = unproject(camera, p, 1.0) - unproject(camera, p, 0.0);
-        let d_light = light_w * ray;
-        let d_uv = DVec2::new(f64::from(sx) * d_light.x, f64::from(sy) * d_light.y);
+        let (d_zs_du, d_zs_dv) = slope(t.map(|i| zs_texels[i]));
         let d_camera_depth = d_z * d_light.z + d_zs * (d_zs_du * d_uv.x + d_zs_dv * d_uv.y);
         receiver.depth_backward(settings.receiver_depth, p, d_camera_depth, 0.0, &mut out.receiver);
     }

@@ -13,13 +13,16 @@ use crate::scene::activate::GpuScene;
 use crate::scene::{Bounds, Camera, Projection};
 use crate::splat::{GpuGBuffer, SplatSettings, Splatter};
 
+/// A kernel per [`ShadowFilter`], indexed by its code.
+pub(super) type PerFilter = [Arc<Kernel>; 2];
+
 /// The shadow kernels (forward and backward) and the backward's sort scratch.
 pub struct ShadowPass {
     pub(super) device: Device,
-    pub(super) test: Arc<Kernel>,
+    pub(super) test: PerFilter,
     pub(super) traced: Arc<Kernel>,
-    pub(super) backward_upstream: Arc<Kernel>,
-    pub(super) backward_bce: Arc<Kernel>,
+    pub(super) backward_upstream: PerFilter,
+    pub(super) backward_bce: PerFilter,
     pub(super) bins: Arc<Kernel>,
     pub(super) gather: Arc<Kernel>,
     pub(super) sort: RadixSort,
@@ -39,22 +42,24 @@ pub enum VisibilityKind {
 impl ShadowPass {
     /// Builds the kernels.
     pub fn new(device: &Device) -> Result<Self> {
-        let decl = KernelDecl { bindings: &[BindingKind::UniformBuffer], push_constant_size: 0, specialization: &[] };
+        let one = [BindingKind::UniformBuffer];
+        let decl = KernelDecl { bindings: &one, push_constant_size: 0, specialization: &[] };
         let two = [BindingKind::UniformBuffer, BindingKind::UniformBuffer];
-        let backward = |loss: u32| {
-            let spec = [(0, SpecValue::U32(loss))];
-            device.kernel(
-                &kernels::SHADOW_BACKWARD,
-                &KernelDecl { bindings: &two, push_constant_size: 4, specialization: &spec },
-            )
+        // FILTER is specialization constant 1 of the test and backward kernels.
+        let per_filter = |info, bindings: &[BindingKind], push: usize, loss: Option<u32>| -> Result<PerFilter> {
+            let make = |filter: ShadowFilter| {
+                let mut spec = vec![(1, SpecValue::U32(filter.code()))];
+                spec.extend(loss.map(|l| (0, SpecValue::U32(l))));
+                device.kernel(info, &KernelDecl { bindings, push_constant_size: push, specialization: &spec })
+            };
+            Ok([make(ShadowFilter::Depth)?, make(ShadowFilter::Pcf)?])
         };
-        let plain = KernelDecl { bindings: &two, push_constant_size: 0, specialization: &[] };
         Ok(Self {
             device: device.clone(),
-            test: device.kernel(&kernels::SHADOW_TEST, &decl)?,
+            test: per_filter(&kernels::SHADOW_TEST, &one, 0, None)?,
             traced: device.kernel(&kernels::SHADOW_TRACED, &decl)?,
-            backward_upstream: backward(0)?,
-            backward_bce: backward(1)?,
+            backward_upstream: per_filter(&kernels::SHADOW_BACKWARD, &two, 4, Some(0))?,
+            backward_bce: per_filter(&kernels::SHADOW_BACKWARD, &two, 4, Some(1))?,
             bins: device.kernel(
                 &kernels::SHADOW_BINS,
                 &KernelDecl {
@@ -63,7 +68,10 @@ impl ShadowPass {
                     specialization: &[],
                 },
             )?,
-            gather: device.kernel(&kernels::SHADOW_TEXEL_GRADS, &plain)?,
+            gather: device.kernel(
+                &kernels::SHADOW_TEXEL_GRADS,
+                &KernelDecl { bindings: &two, push_constant_size: 0, specialization: &[] },
+            )?,
             sort: RadixSort::new(device)?,
             receiver_tiles: device.kernel(&kernels::SHADOW_RECEIVER_TILES, &decl)?,
         })
@@ -205,7 +213,7 @@ impl ShadowPass {
         let uniform =
             device.create_buffer("shadow uniform", std::mem::size_of::<ShadowUniform>() as u64, MemoryKind::Storage)?;
         let (kernel, stage) = match kind {
-            VisibilityKind::Sigmoid => (&self.test, "sigmoid shadow test"),
+            VisibilityKind::Sigmoid => (&self.test[settings.filter.code() as usize], "sigmoid shadow test"),
             VisibilityKind::Traced => (&self.traced, "traced visibility"),
         };
         let timings = device.run(|rec| -> Result<()> {

@@ -3,9 +3,11 @@
 //! The scene's depth is splatted from the sun by the splatting pipeline with
 //! an orthographic light camera ([`light_camera`]) into a [`ShadowMap`]. Each
 //! receiver pixel of a camera G-buffer is turned back into a world point,
-//! projected into light space, and compared with the bilinearly sampled map
-//! depth z_s through the paper's soft test V_e = σ(k·(z_s − z + bias)) (the
-//! *sigmoid shadow map*; docs/conventions.md §5 has the numerics). `[ShadowPass::traced]`
+//! projected into light space, and compared with the map's four nearest
+//! texels through the paper's soft test σ(k·(z − z_receiver + bias)) (the
+//! *sigmoid shadow map*; docs/conventions.md §5 has the numerics): one test
+//! of their bilinear depth, or their four tests weighted bilinearly
+//! ([`ShadowFilter`]). `[ShadowPass::traced]`
 //! computes the accurate transmittance toward the sun from the same light
 //! splat, the reference the sigmoid test is measured against.
 //!
@@ -112,6 +114,49 @@ impl ShadowFit {
     }
 }
 
+/// How the shadow test reads the map around a receiver's texel position.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum ShadowFilter {
+    /// One test of the bilinearly interpolated depth, σ(k·(Σwᵢzᵢ − z + bias)):
+    /// the paper's test, a point sun's razor edge. Near an occluder's outline
+    /// the interpolated depth mixes the occluder's with what lies behind it,
+    /// so the shadow reaches almost a texel past the outline.
+    Depth,
+    /// Percentage-closer filtering: the four texels' tests weighted
+    /// bilinearly, Σwᵢ·σ(k·(zᵢ − z + bias)). The edge falls where the map's
+    /// outline is, a texel wide and smooth rather than a pixel staircase where
+    /// texels are larger than pixels; differentiable like the depth test.
+    #[default]
+    Pcf,
+}
+
+impl ShadowFilter {
+    /// Parses `depth` or `pcf`.
+    pub fn parse(text: &str) -> Result<Self> {
+        match text {
+            "depth" => Ok(Self::Depth),
+            "pcf" => Ok(Self::Pcf),
+            other => Err(Error::invalid(format!("shadow filter \"{other}\""), "is not depth or pcf")),
+        }
+    }
+
+    /// The name [`ShadowFilter::parse`] reads.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Depth => "depth",
+            Self::Pcf => "pcf",
+        }
+    }
+
+    /// The `FILTER` specialization constant of the shadow kernels.
+    pub(crate) fn code(self) -> u32 {
+        match self {
+            Self::Depth => 0,
+            Self::Pcf => 1,
+        }
+    }
+}
+
 /// The world width of one texel of a light camera (orthographic, square texels).
 pub(crate) fn texel_size(light: &Camera) -> f32 {
     match light.projection {
@@ -127,7 +172,8 @@ pub const MAX_SLOPE: f32 = 10.0;
 
 /// Shadow quality knobs. The default is the balanced preset's shadow: a
 /// 2048 map, 0.3 m plus 3 texels of slope-scaled bias, median depths for the
-/// map and the receivers (chosen on the analytic block, docs/bench/shadow.md).
+/// map and the receivers, percentage-closer filtering (chosen on the analytic
+/// block, docs/bench/shadow.md).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ShadowSettings {
     /// Shadow-map texels along its longer side.
@@ -144,6 +190,8 @@ pub struct ShadowSettings {
     /// Normal offset, in shadow-map texels: the receiver point moves along its
     /// normal by this many texel widths times sin θ before the test.
     pub normal_offset: f32,
+    /// How the test reads the map around each receiver.
+    pub filter: ShadowFilter,
     /// Surface depths ([`crate::splat::SplatSettings::surface_depth`]) for the
     /// shadow map's occluders and the receivers: each splat's depth where the
     /// pixel's (or texel's) ray meets its plane, not its centre's. Receivers
@@ -179,6 +227,7 @@ impl Default for ShadowSettings {
             bias: 0.3,
             slope_bias: 3.0,
             normal_offset: 0.0,
+            filter: ShadowFilter::Pcf,
             surface_depth: false,
             map_depth: DepthMode::Median,
             receiver_depth: DepthMode::Median,

@@ -29,6 +29,10 @@ layout(std140, set = 0, binding = 0) uniform Shadow {
     uvec2 tile_mask;          // u32 per map tile (shadow_receiver_tiles.comp)
 } shadow;
 
+// How the test reads the map (engine/src/shadow/mod.rs `ShadowFilter`): 0 one
+// test of the bilinear depth, 1 the four texels' tests weighted bilinearly (PCF).
+layout(constant_id = 1) const uint FILTER = 0;
+
 // Depth of one pixel of a G-buffer: expected (Σwz / alpha) or median; false
 // where nothing (alpha below the minimum, or no median crossing) covers it.
 bool resolve_depth(uint mode, uvec2 depth_addr, uvec2 alpha_addr, uint p, out float z) {

@@ -13,7 +13,7 @@ layout(std140, set = 0, binding = 1) uniform ShadowBackward {
     uvec2 d_receiver_alpha;  // dL/d receiver alpha out
     uvec2 bin_keys;          // bin keys (uvec2) out
     uvec2 bin_pixels;        // bin values (pixel) out
-    uvec2 records;           // per-pixel (u, v, dL/dz_s, 0) out
+    uvec2 records;           // per pixel two vec4: (u, v, 0, 0), its footprint texels' dL/dz out
     uvec2 bin_ranges;        // per-texel bin ranges
     uvec2 texel_depth;       // dL/dz_s per texel out
     uvec2 d_map_depth;       // dL/d map depth channel out (Σwz or median)
