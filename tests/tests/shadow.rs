@@ -97,7 +97,17 @@ fn sigmoid_test_and_traced_reference_match_cpu_twin() {
     ] {
         // k = 4 per metre keeps most receivers inside the sigmoid's transition, where
         // a GPU/CPU difference would show.
-        let st = ShadowSettings { map_depth, fit, k: 4.0, tile, slope_bias, normal_offset, ..settings(384) };
+        // The paper's depth test first, then percentage-closer filtering.
+        let st = ShadowSettings {
+            map_depth,
+            fit,
+            k: 4.0,
+            tile,
+            slope_bias,
+            normal_offset,
+            filter: ShadowFilter::Depth,
+            ..settings(384)
+        };
         let (g, host) = receiver(&mut s, &camera, Channels { normal: st.geometric_bias(), ..Channels::default() });
         let map = shadow_map(&mut s, &sun, &st, Some(&camera));
         let map_host = DepthImage::from_gbuffer(&map.frame.gbuffer.read(&s.d).unwrap());
