@@ -322,6 +322,11 @@ typedef struct {
 // same resolution; casters anywhere in the bounds still cast.
 #define SRUG_SHADOW_FIT_VIEW 1
 
+// A map per slice of the camera's view depth (`srug_renderer_set_shadow_cascades`
+// maps, 3 by default): fine texels near the camera, coarse far away, snapped to a
+// grid fixed in the world; pinhole cameras; not differentiated.
+#define SRUG_SHADOW_FIT_CASCADES 2
+
 // Percentage-closer filtering (the presets): the four nearest texels' tests
 // weighted bilinearly; edges a texel wide, where the map's outline is.
 #define SRUG_SHADOW_FILTER_PCF 0
@@ -687,6 +692,10 @@ srug_status srug_renderer_set_background(srug_renderer *renderer, const float *r
 
 // What the shadow map covers (`SRUG_SHADOW_FIT_*`); `srug_renderer_set_preset` resets it.
 srug_status srug_renderer_set_shadow_fit(srug_renderer *renderer, srug_shadow_fit fit);
+
+// How many maps `SRUG_SHADOW_FIT_CASCADES` uses, 2 to 4 (3 by default; each
+// of the shadow resolution); `srug_renderer_set_preset` resets it.
+srug_status srug_renderer_set_shadow_cascades(srug_renderer *renderer, uint32_t count);
 
 // How the shadow test reads the map (`SRUG_SHADOW_FILTER_*`; both
 // differentiable); `srug_renderer_set_preset` resets it.

@@ -95,6 +95,10 @@ pub const SRUG_SHADOW_FIT_SCENE: srug_shadow_fit = 0;
 /// The camera's view frustum within the scene's bounds: finer texels for the
 /// same resolution; casters anywhere in the bounds still cast.
 pub const SRUG_SHADOW_FIT_VIEW: srug_shadow_fit = 1;
+/// A map per slice of the camera's view depth (`srug_renderer_set_shadow_cascades`
+/// maps, 3 by default): fine texels near the camera, coarse far away, snapped to a
+/// grid fixed in the world; pinhole cameras; not differentiated.
+pub const SRUG_SHADOW_FIT_CASCADES: srug_shadow_fit = 2;
 
 /// How the shadow test reads the map (`srug_renderer_set_shadow_filter`).
 pub type srug_shadow_filter = u32;
@@ -774,10 +778,26 @@ pub extern "C" fn srug_renderer_set_shadow_fit(renderer: *mut srug_renderer, fit
         let fit = match fit {
             SRUG_SHADOW_FIT_SCENE => ShadowFit::SceneBounds,
             SRUG_SHADOW_FIT_VIEW => ShadowFit::ViewFrustum,
+            SRUG_SHADOW_FIT_CASCADES => ShadowFit::Cascades,
             other => return Err(invalid(format!("unknown shadow fit {other}"))),
         };
         with_renderer(renderer, |r| {
             r.settings.shadow.fit = fit;
+            Ok(())
+        })
+    })
+}
+
+/// How many maps `SRUG_SHADOW_FIT_CASCADES` uses, 2 to 4 (3 by default; each
+/// of the shadow resolution); `srug_renderer_set_preset` resets it.
+#[no_mangle]
+pub extern "C" fn srug_renderer_set_shadow_cascades(renderer: *mut srug_renderer, count: u32) -> srug_status {
+    guard("srug_renderer_set_shadow_cascades", || {
+        with_renderer(renderer, |r| {
+            let mut s = r.settings.shadow;
+            s.cascades = count;
+            s.validate()?;
+            r.settings.shadow = s;
             Ok(())
         })
     })

@@ -509,10 +509,14 @@ pub struct ShadeArgs {
     /// Shadow-map resolution [preset: fast 512, balanced 2048, reference 4096].
     #[arg(long)]
     pub shadow_resolution: Option<u32>,
-    /// What the shadow map covers: scene (the whole scene's bounds) or view (the
-    /// camera's view frustum within them: finer texels; casters anywhere still cast) [preset: scene].
+    /// What the shadow map covers: scene (the whole scene's bounds), view (the
+    /// camera's view frustum within them: finer texels; casters anywhere still cast)
+    /// or cascades (a map per slice of the view's depth, fine near the camera) [preset: scene].
     #[arg(long, value_parser = ShadowFit::parse)]
     pub shadow_fit: Option<ShadowFit>,
+    /// Maps with `--shadow-fit cascades`, 2 to 4, each `--shadow-resolution` texels [default: 3].
+    #[arg(long)]
+    pub shadow_cascades: Option<u32>,
     /// Splat the shadow map only where the frame's receivers look it up (the same
     /// shadows, for less; a map per camera, so not reused across cameras) [default:
     /// on for one camera, off for several, which share one map per sun].
@@ -577,6 +581,7 @@ impl ShadeArgs {
         let sh = &mut s.shadow;
         sh.resolution = self.shadow_resolution.unwrap_or(sh.resolution);
         sh.fit = self.shadow_fit.unwrap_or(sh.fit);
+        sh.cascades = self.shadow_cascades.unwrap_or(sh.cascades);
         sh.k = self.shadow_k.unwrap_or(sh.k);
         sh.bias = self.shadow_bias.unwrap_or(sh.bias);
         sh.slope_bias = self.shadow_slope_bias.unwrap_or(sh.slope_bias);

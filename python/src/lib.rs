@@ -122,6 +122,7 @@ struct ShadowOptions {
     receiver_depth: Option<String>,
     test: Option<String>,
     filter: Option<String>,
+    cascades: Option<u32>,
 }
 
 impl ShadowOptions {
@@ -133,6 +134,7 @@ impl ShadowOptions {
         s.bias = self.bias.unwrap_or(s.bias);
         s.slope_bias = self.slope_bias.unwrap_or(s.slope_bias);
         s.normal_offset = self.normal_offset.unwrap_or(s.normal_offset);
+        s.cascades = self.cascades.unwrap_or(s.cascades);
         if let Some(d) = &self.receiver_depth {
             s.receiver_depth = srug::shadow::DepthMode::parse(d).map_err(py_err)?;
         }
@@ -579,7 +581,7 @@ impl Device {
                         host_depth = None, depth_convention = "camera_z", near = 0.0, far = 0.0, background = None,
                         shadow_cull = false, shadow_resolution = None, shadow_k = None, shadow_bias = None,
                         shadow_slope_bias = None, shadow_normal_offset = None, receiver_depth = None,
-                        shadow_test = None, shadow_filter = None))]
+                        shadow_test = None, shadow_filter = None, shadow_cascades = None))]
     #[allow(clippy::too_many_arguments, reason = "the Python keyword arguments of one call")]
     fn relight<'py>(
         &self,
@@ -611,6 +613,7 @@ impl Device {
         receiver_depth: Option<String>,
         shadow_test: Option<String>,
         shadow_filter: Option<String>,
+        shadow_cascades: Option<u32>,
     ) -> PyResult<Bound<'py, PyDict>> {
         let shadow = ShadowOptions {
             resolution: shadow_resolution,
@@ -621,6 +624,7 @@ impl Device {
             receiver_depth,
             test: shadow_test,
             filter: shadow_filter,
+            cascades: shadow_cascades,
         };
         let device = self.gpu()?;
         let cams = &cameras.cameras;

@@ -439,6 +439,7 @@ class Device:
         receiver_depth: Optional[str] = None,
         shadow_test: Optional[str] = None,
         shadow_filter: Optional[str] = None,
+        shadow_cascades: Optional[int] = None,
     ) -> Any:
         """Relights every camera: (N, H, W, 3) float32.
 
@@ -451,7 +452,9 @@ class Device:
         map and sRGB, in [0, 1]). The scene needs an albedo attribute.
         ``surface_depth``: surface depths for the shadow map and its receivers
         (docs/stages.md). ``shadow_fit``: "scene" (the map covers the scene's
-        bounds) or "view" (each camera's view within them: finer texels).
+        bounds), "view" (each camera's view within them: finer texels) or
+        "cascades" (``shadow_cascades`` maps, 2 to 4, 3 by default, each over a
+        slice of the camera's view depth: fine near the camera; pinhole cameras).
         ``host_depth``, ``depth_convention``, ``near``, ``far``: your meshes'
         depth, as ``render`` takes it; the splats behind it are hidden per pixel
         (their shadows stay), at the camera's size (not with the fast preset's
@@ -511,6 +514,7 @@ class Device:
             receiver_depth=None if receiver_depth is None else str(receiver_depth),
             shadow_test=None if shadow_test is None else str(shadow_test),
             shadow_filter=None if shadow_filter is None else str(shadow_filter),
+            shadow_cascades=None if shadow_cascades is None else int(shadow_cascades),
         )
         return (out[output], out["alpha"]) if return_alpha else out[output]
 

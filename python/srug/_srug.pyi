@@ -66,6 +66,7 @@ class Device:
         receiver_depth: Optional[str] = ...,
         shadow_test: Optional[str] = ...,
         shadow_filter: Optional[str] = ...,
+        shadow_cascades: Optional[int] = ...,
     ) -> Dict[str, np.ndarray]: ...
 
     def shadow(

@@ -565,6 +565,9 @@ def test_relight_shadow_options_override_the_preset(dev, city):
     np.testing.assert_array_equal(base, same)
     hard = dev.relight(scene, one, sun=(250.0, 30.0), shadow_filter="depth")
     assert not np.array_equal(base, hard)
+    cascaded = dev.relight(scene, one, sun=(250.0, 30.0), shadow_fit="cascades", shadow_cascades=2)
+    assert np.isfinite(cascaded).all() and not np.array_equal(base, cascaded)
+    assert np.abs(cascaded - base).mean() < 0.05 * np.abs(base).mean()
     coarse = dev.relight(scene, one, sun=(250.0, 30.0), shadow_resolution=128, shadow_bias=0.0)
     assert not np.array_equal(base, coarse)
     traced = dev.relight(scene, one, sun=(250.0, 30.0), shadow_test="traced")
@@ -575,6 +578,7 @@ def test_relight_shadow_options_override_the_preset(dev, city):
         ({"receiver_depth": "deepest"}, "depth mode"),
         ({"shadow_k": -1.0}, "sharpness"),
         ({"shadow_filter": "soft"}, "shadow filter"),
+        ({"shadow_fit": "cascades", "shadow_cascades": 9}, "cascades"),
     ]:
         with pytest.raises(srug.Error) as e:
             dev.relight(scene, one, sun=(250.0, 30.0), **kwargs)

@@ -417,3 +417,106 @@ fn empty_shadow_map_and_receivers_on_an_occluder() {
     assert!(err.to_string().contains("k NaN"), "{err}");
     assert_no_validation_messages(&d);
 }
+
+/// Cascaded shadow maps on the demo street: each cascade's map splatted where
+/// the receivers look (as the relighter does) and tested alone, their
+/// visibilities blended by depth on the CPU twin equal the GPU's blend; the
+/// cascades' shadows agree with the whole-scene map's (the off-screen tower's
+/// included), and the output is fully written over a NaN sentinel.
+#[test]
+fn cascaded_shadow_maps_blend_like_the_twin_and_shadow_like_the_scene_map() {
+    let mut s = setup(30_000);
+    let camera = s.demo.cameras[0].resized(352, 96);
+    let sun = Sun::from_azimuth_elevation(150.0, 40.0, [1.0; 3]).unwrap();
+    let bounds = s.demo.scene.bounds().unwrap();
+    let st = ShadowSettings { fit: ShadowFit::Cascades, cascades: 3, resolution: 1024, ..settings(1024) };
+    let (g, host) = receiver(&mut s, &camera, Channels::default());
+    let (blended, cascades, timings) = s
+        .pass
+        .cascaded_visibility(
+            &mut s.splatter,
+            &s.gpu_scene,
+            &bounds,
+            &sun,
+            &st,
+            &g,
+            &camera,
+            VisibilityKind::Sigmoid,
+            true,
+        )
+        .unwrap();
+    assert_eq!(cascades.len(), 3);
+    assert!(timings.stages.iter().any(|t| t.name == "shadow cascade blend"));
+    let gpu: Vec<f32> = s.d.read_buffer(&blended).unwrap();
+    assert!(gpu.iter().all(|v| v.is_finite() && (0.0..=1.0).contains(v)), "cascaded V unwritten or out of range");
+    // Slices tile the view: each starts where the previous hands over, finer texels first.
+    for pair in cascades.windows(2) {
+        assert_eq!(pair[1].near, pair[0].blend_start);
+        assert!(pair[0].near < pair[0].blend_start && pair[0].blend_start < pair[0].far);
+        assert!(pair[0].texel() < pair[1].texel());
+    }
+    // Each cascade alone, then the twin's blend.
+    let receivers = [(&g, &camera)];
+    let mut per_cascade = Vec::new();
+    for c in &cascades {
+        let map = s
+            .pass
+            .shadow_map_for_receivers(&mut s.splatter, &s.gpu_scene, c.camera.clone(), &sun, &st, &receivers)
+            .unwrap();
+        let (v, _) = s.pass.visibility(&map, &g, &camera, &st, VisibilityKind::Sigmoid).unwrap();
+        per_cascade.push(s.d.read_buffer::<f32>(&v).unwrap().iter().map(|x| f64::from(*x)).collect::<Vec<f64>>());
+    }
+    let img = DepthImage::from_gbuffer(&host);
+    let depths: Vec<Option<f64>> =
+        (0..img.alpha.len()).map(|p| img.depth(st.receiver_depth, p, f64::from(st.min_alpha), 0.0)).collect();
+    let cpu = srug::shadow::cascades::blend_cascades_cpu(&per_cascade, &depths, &cascades);
+    // The blend is one lerp in fp32 of the same inputs: 1e-6.
+    max_diff("cascade_blend", &camera, &gpu, &cpu, 1e-6);
+    // Every cascade serves some receivers, and some pixels lie in a hand-over band.
+    for (i, c) in cascades.iter().enumerate() {
+        let served = depths.iter().flatten().filter(|z| **z > f64::from(c.near) && **z <= f64::from(c.far)).count();
+        assert!(served > 50, "cascade {i} serves only {served} pixels");
+    }
+    let banded = depths
+        .iter()
+        .flatten()
+        .filter(|z| cascades.iter().take(2).any(|c| **z > f64::from(c.blend_start) && **z <= f64::from(c.far)))
+        .count();
+    assert!(banded > 20, "only {banded} pixels in the hand-over bands");
+    // Against the whole-scene map: the same shadows but at the edges.
+    let scene_st = ShadowSettings { fit: ShadowFit::SceneBounds, resolution: 2048, ..st };
+    let map = shadow_map(&mut s, &sun, &scene_st, None);
+    let (v, _) = s.pass.visibility(&map, &g, &camera, &scene_st, VisibilityKind::Sigmoid).unwrap();
+    let whole: Vec<f32> = s.d.read_buffer(&v).unwrap();
+    let (a, b): (Vec<bool>, Vec<bool>) = gpu.iter().zip(&whole).map(|(x, y)| (*x < 0.5, *y < 0.5)).unzip();
+    let both = a.iter().zip(&b).filter(|(x, y)| **x && **y).count();
+    let either = a.iter().zip(&b).filter(|(x, y)| **x || **y).count();
+    let iou = both as f64 / either.max(1) as f64;
+    eprintln!("cascades against the scene map: shadow IoU {iou:.3} over {either} pixels");
+    assert!(either > 500 && iou > 0.9, "cascaded shadows differ from the scene map's: IoU {iou:.3}");
+    assert_no_validation_messages(&s.d);
+}
+
+/// Cascades are refused where they cannot work: a lens model, an
+/// orthographic view, a count outside 2..=4; and a single light camera
+/// cannot be asked for a cascaded fit.
+#[test]
+fn cascades_refuse_what_they_cannot_slice() {
+    let s = setup(2_000);
+    let bounds = s.demo.scene.bounds().unwrap();
+    let sun = Sun::from_azimuth_elevation(150.0, 40.0, [1.0; 3]).unwrap();
+    let camera = s.demo.cameras[0].resized(176, 48);
+    let ok = srug::shadow::cascades::cascade_cameras(&bounds, &sun, 512, &camera, 3).unwrap();
+    assert_eq!(ok.len(), 3);
+    for n in [0, 1, 5] {
+        let e = srug::shadow::cascades::cascade_cameras(&bounds, &sun, 512, &camera, n).unwrap_err();
+        assert!(e.to_string().contains("cascades"), "{e}");
+    }
+    let ortho =
+        Camera::orthographic(Vec3::new(0.0, 0.0, 50.0), -Vec3::Z, Vec3::Y, 10.0, 10.0, 64, 64, 0.1, 100.0).unwrap();
+    assert!(srug::shadow::cascades::cascade_cameras(&bounds, &sun, 512, &ortho, 3).is_err());
+    let e = light_camera(&bounds, &sun, 512, ShadowFit::Cascades, Some(&camera)).unwrap_err();
+    assert!(e.to_string().contains("cascade"), "{e}");
+    let bad = ShadowSettings { fit: ShadowFit::Cascades, cascades: 7, ..settings(512) };
+    assert!(bad.validate().is_err());
+}

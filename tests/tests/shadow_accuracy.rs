@@ -79,7 +79,7 @@ fn presets_shadow_the_analytic_block_as_the_truth_does() {
     let pass = ShadowPass::new(&d).unwrap();
     // (sampling, preset, surface depths, map fit, filter, lowest IoU accepted, highest
     // false-shadow and leak rates, edge error px)
-    let (scene_fit, view_fit) = (ShadowFit::SceneBounds, ShadowFit::ViewFrustum);
+    let (scene_fit, view_fit, cascades) = (ShadowFit::SceneBounds, ShadowFit::ViewFrustum, ShadowFit::Cascades);
     let (pcf, depth) = (ShadowFilter::Pcf, ShadowFilter::Depth);
     let floors = [
         (BlockSplats::Ideal, Preset::Fast, false, scene_fit, pcf, 0.95, 0.025, 0.012, 7.5),
@@ -87,12 +87,14 @@ fn presets_shadow_the_analytic_block_as_the_truth_does() {
         (BlockSplats::Ideal, Preset::Balanced, false, scene_fit, depth, 0.97, 0.015, 0.006, 3.8),
         (BlockSplats::Ideal, Preset::Balanced, true, scene_fit, pcf, 0.975, 0.011, 0.002, 8.5),
         (BlockSplats::Ideal, Preset::Balanced, false, view_fit, pcf, 0.97, 0.0125, 0.006, 3.5),
+        (BlockSplats::Ideal, Preset::Balanced, false, cascades, pcf, 0.97, 0.0125, 0.006, 3.5),
         (BlockSplats::Ideal, Preset::Reference, false, scene_fit, pcf, 0.97, 0.015, 0.006, 3.8),
         (BlockSplats::Rough, Preset::Fast, false, scene_fit, pcf, 0.95, 0.025, 0.012, 9.0),
         (BlockSplats::Rough, Preset::Balanced, false, scene_fit, pcf, 0.97, 0.0125, 0.008, 6.5),
         (BlockSplats::Rough, Preset::Balanced, false, scene_fit, depth, 0.965, 0.015, 0.008, 7.0),
         (BlockSplats::Rough, Preset::Balanced, true, scene_fit, pcf, 0.97, 0.0125, 0.004, 9.5),
         (BlockSplats::Rough, Preset::Balanced, false, view_fit, pcf, 0.97, 0.0125, 0.008, 6.5),
+        (BlockSplats::Rough, Preset::Balanced, false, cascades, pcf, 0.97, 0.0125, 0.008, 7.5),
         (BlockSplats::Rough, Preset::Reference, false, scene_fit, pcf, 0.965, 0.015, 0.008, 7.5),
     ];
     let mut last: Option<(BlockSplats, BlockCity, GpuScene)> = None;
@@ -108,7 +110,11 @@ fn presets_shadow_the_analytic_block_as_the_truth_does() {
             "{splats:?} {}{}{}{}",
             preset.name(),
             if surface { " surface" } else { "" },
-            if fit == view_fit { " view" } else { "" },
+            match fit {
+                ShadowFit::ViewFrustum => " view",
+                ShadowFit::Cascades => " cascades",
+                ShadowFit::SceneBounds => "",
+            },
             if filter == depth { " depth" } else { "" }
         );
         let mut settings = RelightSettings::preset(preset);

@@ -168,6 +168,9 @@ int main(int argc, char **argv) {
   EXPECT(srug_renderer_set_shadow_fit(r, 7), SRUG_ERROR_INVALID_ARGUMENT);
   EXPECT(srug_renderer_set_shadow_fit(NULL, SRUG_SHADOW_FIT_VIEW), SRUG_ERROR_NULL_POINTER);
   EXPECT(srug_renderer_set_shadow_filter(r, 9), SRUG_ERROR_INVALID_ARGUMENT);
+  EXPECT(srug_renderer_set_shadow_cascades(r, 1), SRUG_ERROR_INVALID_ARGUMENT);
+  EXPECT(srug_renderer_set_shadow_cascades(r, 5), SRUG_ERROR_INVALID_ARGUMENT);
+  EXPECT(srug_renderer_set_shadow_cascades(NULL, 3), SRUG_ERROR_NULL_POINTER);
   EXPECT(srug_renderer_set_shadow_filter(NULL, SRUG_SHADOW_FILTER_DEPTH), SRUG_ERROR_NULL_POINTER);
   EXPECT(srug_renderer_set_camera_look_at(r, eye, target, up, 1e-40f), SRUG_ERROR_INVALID_ARGUMENT);
   const float along[3] = {0.0f, 30.0f, -15.0f}; /* parallel to target - eye */

@@ -267,6 +267,17 @@ int main(int argc, char **argv) {
   printf("view-fitted shadow map: mean |view - scene| = %.3f of 255\n", fit_diff);
   REQUIRE(fit_diff > 0.0 && fit_diff < 5.0);
   free(fitted);
+  /* Cascaded shadow maps: finer texels near the camera, the same shadows elsewhere. */
+  CHECK(srug_renderer_set_shadow_fit(r, SRUG_SHADOW_FIT_CASCADES));
+  CHECK(srug_renderer_set_shadow_cascades(r, 2));
+  CHECK(srug_renderer_render(r, scene));
+  unsigned char *cascaded = read_rgba8(r, w, h);
+  double cascade_diff = 0.0;
+  for (size_t i = 0; i < pixels * 4; i++) cascade_diff += fabs((double)cascaded[i] - (double)image[i]);
+  cascade_diff /= (double)(pixels * 4);
+  printf("cascaded shadow maps: mean |cascades - scene| = %.3f of 255\n", cascade_diff);
+  REQUIRE(cascade_diff > 0.0 && cascade_diff < 5.0);
+  free(cascaded);
   CHECK(srug_renderer_set_shadow_fit(r, SRUG_SHADOW_FIT_SCENE));
   /* The paper's depth test instead of percentage-closer filtering: shadow edges move
      by under a texel, so the frames are close but not equal. */

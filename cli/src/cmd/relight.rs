@@ -350,6 +350,7 @@ pub(crate) fn relight_demo(
         shadow_filter: None,
         shadow_surface_depth: false,
         shadow_fit: None,
+        shadow_cascades: None,
         shadow_cull: false,
         receiver_depth: None,
         shadow_test: None,

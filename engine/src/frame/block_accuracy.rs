@@ -54,22 +54,26 @@ pub fn block_shadow_accuracy(
             ShadowFit::SceneBounds => {
                 Some(pass.shadow_map(splatter, scene, &bounds, &light, &st, None)?.ok_or_else(up)?)
             }
-            ShadowFit::ViewFrustum => None,
+            ShadowFit::ViewFrustum | ShadowFit::Cascades => None,
         };
         let mut per_sun = ShadowAccuracy::default();
         for camera in &city.cameras {
             let camera = settings.render_camera(camera);
-            let view_map;
-            let map = match &scene_map {
-                Some(m) => m,
-                None => {
-                    view_map = pass.shadow_map(splatter, scene, &bounds, &light, &st, Some(&camera))?.ok_or_else(up)?;
-                    &view_map
-                }
-            };
             let splat = SplatSettings { prefill, tile: settings.tile, ..st.receiver_splat() };
             let (g, _) = splatter.render(scene, &camera, &splat)?;
-            let (v, _) = pass.visibility(map, &g, &camera, &st, settings.visibility_kind)?;
+            let kind = settings.visibility_kind;
+            let (v, _) = match (&scene_map, st.fit) {
+                (Some(map), _) => pass.visibility(map, &g, &camera, &st, kind)?,
+                (None, ShadowFit::Cascades) => {
+                    let (v, _, t) =
+                        pass.cascaded_visibility(splatter, scene, &bounds, &light, &st, &g, &camera, kind, true)?;
+                    (v, t)
+                }
+                (None, _) => {
+                    let map = pass.shadow_map(splatter, scene, &bounds, &light, &st, Some(&camera))?.ok_or_else(up)?;
+                    pass.visibility(&map, &g, &camera, &st, kind)?
+                }
+            };
             let v: Vec<f32> = device.read_buffer(&v)?;
             let truth = city.true_visibility(&camera, sun.direction);
             view(&BlockView { sun, camera: &camera, visibility: &v, truth: &truth })?;

@@ -143,10 +143,14 @@ pub fn plan_frame(scene: &Scene, settings: &PlanSettings<'_>) -> Result<FramePla
     match (d.shadow_pass, d.sun) {
         (true, Some(sun)) => {
             let st = &settings.relight.shadow;
-            let texels = scene
-                .bounds()
-                .and_then(|b| light_camera(&b, &sun, st.resolution, st.fit, None).ok())
-                .map_or(u64::from(st.resolution).pow(2), |c| u64::from(c.width) * u64::from(c.height));
+            // Cascades: that many square maps, each fitted to its camera's slice.
+            let texels = match st.fit {
+                crate::shadow::ShadowFit::Cascades => u64::from(st.cascades) * u64::from(st.resolution).pow(2),
+                _ => scene
+                    .bounds()
+                    .and_then(|b| light_camera(&b, &sun, st.resolution, st.fit, None).ok())
+                    .map_or(u64::from(st.resolution).pow(2), |c| u64::from(c.width) * u64::from(c.height)),
+            };
             // Shadow maps blend no colour (ShadowPass::shadow_map_from).
             let map_channels = (depth_channels(st.map_depth), false);
             let mut map = splat_stage("splat (shadow map)", n, texels, map_channels, settings.blend, st.tile);

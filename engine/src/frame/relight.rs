@@ -15,7 +15,7 @@ use crate::gpu::{Device, Timings};
 use crate::scene::activate::GpuScene;
 use crate::scene::{AttributeGroups, Bounds, Camera};
 use crate::shade::{BrdfTable, PreparedEnvironment, ShadeInputs, ShadedFrame, Shader};
-use crate::shadow::{light_camera, DepthMode, ShadowMap, ShadowPass, Sun};
+use crate::shadow::{light_camera, DepthMode, ShadowFit, ShadowMap, ShadowPass, Sun};
 use crate::splat::{GpuGBuffer, SplatSettings, Splatter};
 
 use super::host_images::{FrameChannel, FrameOutputs, HostImageWriter, HostPixels, HostTargets};
@@ -470,6 +470,24 @@ impl Relighter {
         timings: &mut Timings,
     ) -> Result<(crate::gpu::Buffer, bool)> {
         let shadow = &settings.shadow;
+        if shadow.fit == ShadowFit::Cascades {
+            // Cascades serve this camera alone: splatted where its receivers look, never kept.
+            self.shadow_map = None;
+            let kind = settings.visibility_kind;
+            let (visibility, _, t) = self.shadows.cascaded_visibility(
+                &mut self.splatter,
+                scene,
+                bounds,
+                sun,
+                shadow,
+                gbuffer,
+                camera,
+                kind,
+                true,
+            )?;
+            timings.stages.extend(t.stages);
+            return Ok((visibility, false));
+        }
         // A map that will not be kept serves this frame's receivers alone: it
         // is splatted only where they look (the same visibility, for less).
         let cull = shadow.cull_to_receivers || !self.reuse_shadow_map;

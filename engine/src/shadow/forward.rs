@@ -27,6 +27,7 @@ pub struct ShadowPass {
     pub(super) gather: Arc<Kernel>,
     pub(super) sort: RadixSort,
     pub(super) receiver_tiles: Arc<Kernel>,
+    pub(super) cascade_blend: Arc<Kernel>,
 }
 
 /// Which visibility [`ShadowPass::visibility`] computes.
@@ -74,6 +75,14 @@ impl ShadowPass {
             )?,
             sort: RadixSort::new(device)?,
             receiver_tiles: device.kernel(&kernels::SHADOW_RECEIVER_TILES, &decl)?,
+            cascade_blend: device.kernel(
+                &kernels::SHADOW_CASCADE_BLEND,
+                &KernelDecl {
+                    bindings: &one,
+                    push_constant_size: std::mem::size_of::<cascades::CascadePush>(),
+                    specialization: &[],
+                },
+            )?,
         })
     }
 

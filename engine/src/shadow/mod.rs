@@ -25,6 +25,7 @@
 
 pub mod accuracy;
 pub mod backward;
+pub mod cascades;
 pub mod completion;
 pub mod cpu;
 mod forward;
@@ -101,15 +102,22 @@ pub enum ShadowFit {
     /// texels for the same resolution; occluders anywhere in the bounds still
     /// cast, since the depth range stays the scene's).
     ViewFrustum,
+    /// [`ShadowSettings::cascades`] maps, each fitted to a slice of the
+    /// receiving camera's view depth ([`cascades`]): fine texels near the
+    /// camera, coarse far away, a smooth hand-over between them, and texels
+    /// snapped to a grid fixed in the world so a moving camera does not make
+    /// the edges shimmer. Pinhole cameras; not differentiated.
+    Cascades,
 }
 
 impl ShadowFit {
-    /// Parses `scene` or `view`.
+    /// Parses `scene`, `view` or `cascades`.
     pub fn parse(text: &str) -> Result<Self> {
         match text {
             "scene" => Ok(Self::SceneBounds),
             "view" => Ok(Self::ViewFrustum),
-            other => Err(Error::invalid(format!("shadow fit \"{other}\""), "is not scene or view")),
+            "cascades" => Ok(Self::Cascades),
+            other => Err(Error::invalid(format!("shadow fit \"{other}\""), "is not scene, view or cascades")),
         }
     }
 }
@@ -204,6 +212,8 @@ pub struct ShadowSettings {
     pub receiver_depth: DepthMode,
     /// Light camera fit.
     pub fit: ShadowFit,
+    /// Maps with [`ShadowFit::Cascades`], 2 to 4 (each `resolution` texels across).
+    pub cascades: u32,
     /// Alpha below which a texel or a receiver has no surface.
     pub min_alpha: f32,
     /// Fill outputs with this 32-bit word first (tests use NaN, so an
@@ -232,6 +242,7 @@ impl Default for ShadowSettings {
             map_depth: DepthMode::Median,
             receiver_depth: DepthMode::Median,
             fit: ShadowFit::SceneBounds,
+            cascades: 3,
             min_alpha: 0.5,
             prefill: None,
             tile: crate::splat::DEFAULT_TILE,
@@ -244,7 +255,7 @@ impl ShadowSettings {
     /// Checks the values.
     pub fn validate(&self) -> Result<()> {
         crate::splat::check_tile(self.tile)?;
-        let rules: [(bool, String, &str); 7] = [
+        let rules: [(bool, String, &str); 8] = [
             (
                 (16..=16384).contains(&self.resolution),
                 format!("shadow map resolution {}", self.resolution),
@@ -270,6 +281,11 @@ impl ShadowSettings {
                 self.min_alpha > 0.0 && self.min_alpha <= 1.0,
                 format!("shadow minimum alpha {}", self.min_alpha),
                 "must be in (0, 1]",
+            ),
+            (
+                (2..=cascades::MAX_CASCADES).contains(&self.cascades),
+                format!("{} shadow cascades", self.cascades),
+                "must be 2 to 4",
             ),
             (
                 self.receiver_depth != DepthMode::ExpectedOverFar,
@@ -312,9 +328,85 @@ pub fn depth_channels(mode: DepthMode) -> Channels {
     }
 }
 
+/// The light's frame for a scene: the padded bounds' centre (the light-space
+/// origin), the rotation looking along the sunlight, and the bounds' depth
+/// range along it.
+pub(crate) struct LightFrame {
+    centre: Vec3,
+    rotation: glam::Mat3,
+    /// Along the sunlight, and the up the rotation was made with.
+    towards: Vec3,
+    up: Vec3,
+    depth_range: (f32, f32),
+    /// The padded bounds.
+    lo: Vec3,
+    hi: Vec3,
+    diagonal: f32,
+}
+
+impl LightFrame {
+    pub(crate) fn new(bounds: &Bounds, sun: &Sun) -> Result<Self> {
+        let (lo, hi) = (Vec3::from_array(bounds.min), Vec3::from_array(bounds.max));
+        if !lo.is_finite() || !hi.is_finite() || lo.cmpgt(hi).any() {
+            return Err(Error::invalid(format!("scene bounds {lo}..{hi}"), "are not a box"));
+        }
+        let diagonal = (hi - lo).length();
+        let pad = 0.02 * diagonal + 1e-3 * (lo.abs().max(hi.abs()).max_element() + 1.0);
+        let (lo, hi) = (lo - pad, hi + pad);
+        let centre = 0.5 * (lo + hi);
+        let towards = -sun.direction;
+        let up = if sun.direction.z.abs() > 0.999 { Vec3::Y } else { Vec3::Z };
+        let rotation = crate::camera::look_rotation(centre, centre + towards, up)?;
+        let mut frame = Self { centre, rotation, towards, up, depth_range: (0.0, 0.0), lo, hi, diagonal };
+        frame.depth_range =
+            corners(lo, hi).map(|c| frame.to_light(c).z).fold((f32::MAX, f32::MIN), |(a, b), z| (a.min(z), b.max(z)));
+        Ok(frame)
+    }
+
+    /// A world point in light space (x, y across the light, z along it).
+    pub(crate) fn to_light(&self, p: Vec3) -> Vec3 {
+        self.rotation.transpose() * (p - self.centre)
+    }
+
+    /// The orthographic light camera over light-space `min..max` (x, y) with
+    /// `resolution` square texels along the longer side, covering the
+    /// scene's whole depth range.
+    pub(crate) fn camera(&self, min: glam::Vec2, max: glam::Vec2, resolution: u32) -> Result<Camera> {
+        let extent = (max - min).max(glam::Vec2::splat(1e-6 * self.diagonal.max(1e-6)));
+        let long = extent.max_element();
+        let width = ((resolution as f32 * extent.x / long).round() as u32).max(1);
+        let height = ((resolution as f32 * extent.y / long).round() as u32).max(1);
+        let depth = self.depth_range.1 - self.depth_range.0;
+        let near = 1e-3 * depth.max(1e-6);
+        let eye_light = Vec3::new(0.5 * (min.x + max.x), 0.5 * (min.y + max.y), self.depth_range.0 - 2.0 * near);
+        let eye = self.centre + self.rotation * eye_light;
+        // Texels are square: the extent along the shorter side is rounded up to whole texels.
+        let texel = long / resolution as f32;
+        let mut camera = Camera::orthographic(
+            eye,
+            self.towards,
+            self.up,
+            width as f32 * texel,
+            height as f32 * texel,
+            width,
+            height,
+            near,
+            depth + 4.0 * near,
+        )?;
+        camera.name = "sun".into();
+        Ok(camera)
+    }
+}
+
+/// The eight corners of the box `a..b`.
+fn corners(a: Vec3, b: Vec3) -> impl Iterator<Item = Vec3> {
+    (0..8).map(move |i| Vec3::new([a.x, b.x][i & 1], [a.y, b.y][(i >> 1) & 1], [a.z, b.z][i >> 2]))
+}
+
 /// The orthographic camera looking along the sunlight that covers `bounds`
 /// (padded), or with [`ShadowFit::ViewFrustum`] the part of them `view`
 /// sees, with `resolution` texels along its longer side and square texels.
+/// [`ShadowFit::Cascades`] has a camera per cascade ([`cascades::cascade_cameras`]).
 pub fn light_camera(
     bounds: &Bounds,
     sun: &Sun,
@@ -325,59 +417,28 @@ pub fn light_camera(
     if resolution == 0 || resolution > 16384 {
         return Err(Error::invalid(format!("shadow-map resolution {resolution}"), "is not in 1..=16384"));
     }
-    let (lo, hi) = (Vec3::from_array(bounds.min), Vec3::from_array(bounds.max));
-    if !lo.is_finite() || !hi.is_finite() || lo.cmpgt(hi).any() {
-        return Err(Error::invalid(format!("scene bounds {lo}..{hi}"), "are not a box"));
-    }
-    let diagonal = (hi - lo).length();
-    let pad = 0.02 * diagonal + 1e-3 * (lo.abs().max(hi.abs()).max_element() + 1.0);
-    let (lo, hi) = (lo - pad, hi + pad);
-    let centre = 0.5 * (lo + hi);
-    let towards = -sun.direction;
-    let up = if sun.direction.z.abs() > 0.999 { Vec3::Y } else { Vec3::Z };
-    let rotation = crate::camera::look_rotation(centre, centre + towards, up)?;
-    let to_light = |p: Vec3| rotation.transpose() * (p - centre);
-    let corners = |a: Vec3, b: Vec3| {
-        (0..8).map(move |i| Vec3::new([a.x, b.x][i & 1], [a.y, b.y][(i >> 1) & 1], [a.z, b.z][i >> 2]))
-    };
-    let depth_range =
-        corners(lo, hi).map(|c| to_light(c).z).fold((f32::MAX, f32::MIN), |(a, b), z| (a.min(z), b.max(z)));
+    let frame = LightFrame::new(bounds, sun)?;
+    let (lo, hi) = (frame.lo, frame.hi);
     let (xy_lo, xy_hi) = match (fit, view) {
         (ShadowFit::ViewFrustum, Some(v)) => frustum_box(v, lo, hi).unwrap_or((lo, hi)),
         (ShadowFit::ViewFrustum, None) => {
             return Err(Error::invalid("view-frustum shadow fit", "needs the view camera"))
         }
+        (ShadowFit::Cascades, _) => {
+            return Err(Error::invalid(
+                "cascaded shadow fit",
+                "has a light camera per cascade (shadow::cascades), and no single map: use the scene or view fit",
+            ))
+        }
         (ShadowFit::SceneBounds, _) => (lo, hi),
     };
-    let (mut min, mut max) = (Vec3::splat(f32::MAX), Vec3::splat(f32::MIN));
+    let (mut min, mut max) = (glam::Vec2::splat(f32::MAX), glam::Vec2::splat(f32::MIN));
     for c in corners(xy_lo, xy_hi) {
-        let l = to_light(c);
+        let l = frame.to_light(c).truncate();
         min = min.min(l);
         max = max.max(l);
     }
-    let extent = (max - min).truncate().max(glam::Vec2::splat(1e-6 * diagonal.max(1e-6)));
-    let long = extent.max_element();
-    let width = ((resolution as f32 * extent.x / long).round() as u32).max(1);
-    let height = ((resolution as f32 * extent.y / long).round() as u32).max(1);
-    let depth = depth_range.1 - depth_range.0;
-    let near = 1e-3 * depth.max(1e-6);
-    let eye_light = Vec3::new(0.5 * (min.x + max.x), 0.5 * (min.y + max.y), depth_range.0 - 2.0 * near);
-    let eye = centre + rotation * eye_light;
-    // Texels are square: the extent along the shorter side is rounded up to whole texels.
-    let texel = long / resolution as f32;
-    let mut camera = Camera::orthographic(
-        eye,
-        towards,
-        up,
-        width as f32 * texel,
-        height as f32 * texel,
-        width,
-        height,
-        near,
-        depth + 4.0 * near,
-    )?;
-    camera.name = "sun".into();
-    Ok(camera)
+    frame.camera(min, max, resolution)
 }
 
 /// The box of `view`'s frustum (far plane at the farthest bounds corner)
