@@ -560,7 +560,7 @@ fn relight_renders_stills_time_lapses_and_prefiltered_environments() {
     let png = dir.path().join("x.png");
     let png = png.to_str().unwrap();
     bad(&["relight", ply, "--cameras", cams, "--out", png, "--sun-time", "2026-06-21T12:00Z"], "--latitude");
-    bad(&["relight", ply, "--cameras", cams, "--out", png, "--shadow-fit", "tight"], "is not scene or view");
+    bad(&["relight", ply, "--cameras", cams, "--out", png, "--shadow-fit", "tight"], "is not scene, view or cascades");
     bad(&["relight", ply, "--cameras", cams, "--out", png, "--env", "/nonexistent/sky.exr"], "sky.exr");
     bad(&["relight", ply, "--cameras", cams, "--out", png, "--visibility", "sometimes"], "visibility");
     bad(&["relight", ply, "--cameras", cams, "--out", png, "--tone-map", "filmic"], "tone map");

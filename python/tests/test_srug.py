@@ -436,7 +436,7 @@ def test_surface_depth_moves_depths_only(dev, city):
     assert fitted.shape == (1, 48, 176, 3) and np.isfinite(fitted).all()
     with pytest.raises(srug.Error) as e:
         dev.relight(scene, cam, sun=(260.0, 50.0), shadow_fit="tight")
-    assert "scene or view" in str(e.value)
+    assert "scene, view or cascades" in str(e.value)
 
 
 def test_relight_behind_your_meshes_composites(dev, city):
