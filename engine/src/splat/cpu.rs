@@ -594,7 +594,13 @@ pub struct PixelBlend {
 
 /// Blends the splats of `list` (blend order) at pixel centre `centre`,
 /// skipping those whose depth there is not in front of `limit` (a host's depth).
-pub(crate) fn blend_pixel(list: &[(u32, usize)], splats: &[Option<CpuSplat>], centre: DVec2, limit: f64) -> PixelBlend {
+pub(crate) fn blend_pixel(
+    list: &[(u32, usize)],
+    splats: &[Option<CpuSplat>],
+    centre: DVec2,
+    limit: f64,
+    surface_depth: bool,
+) -> PixelBlend {
     let mut out = PixelBlend {
         values: [0.0; VALUES],
         t_final: 1.0,
@@ -627,6 +633,12 @@ pub(crate) fn blend_pixel(list: &[(u32, usize)], splats: &[Option<CpuSplat>], ce
             out.median = depth;
             out.median_index = Some(i);
         }
+        // With surface depths a later splat (in centre order) can be nearer at this
+        // pixel: a half-opaque one there is the surface the ray meets first.
+        if surface_depth && t <= 0.5 && alpha >= 0.5 && depth < out.median {
+            out.median = depth;
+            out.median_index = Some(i);
+        }
         if w > out.top_weight {
             out.top = Some(i);
             out.top_weight = w;
@@ -654,7 +666,7 @@ pub fn render_blends(
     let blends = (0..w * camera.height as usize)
         .map(|p| {
             let (x, y) = (p % w, p / w);
-            blend_pixel(lists.at(x, y), &splats, DVec2::new(x as f64 + 0.5, y as f64 + 0.5), f64::INFINITY)
+            blend_pixel(lists.at(x, y), &splats, DVec2::new(x as f64 + 0.5, y as f64 + 0.5), f64::INFINITY, false)
         })
         .collect();
     (splats, blends)
@@ -719,7 +731,8 @@ fn render_cpu_with(
             let px = y * w + x;
             let limit =
                 occluder.and_then(|(d, c)| d.get(px).map(|v| c.camera_z(f64::from(*v)))).unwrap_or(f64::INFINITY);
-            let b = blend_pixel(lists.at(x, y), &splats, DVec2::new(x as f64 + 0.5, y as f64 + 0.5), limit);
+            let centre = DVec2::new(x as f64 + 0.5, y as f64 + 0.5);
+            let b = blend_pixel(lists.at(x, y), &splats, centre, limit, settings.surface_depth);
             if let Some(rgb) = &mut g.rgb {
                 for (c, out) in rgb[3 * px..3 * px + 3].iter_mut().enumerate() {
                     *out = (b.values[c] + b.t_final * bg[c]) as f32;

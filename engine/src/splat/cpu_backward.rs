@@ -71,7 +71,7 @@ pub fn blend_backward_cpu(
         for x in 0..w {
             let p = y * w + x;
             let centre = DVec2::new(x as f64 + 0.5, y as f64 + 0.5);
-            let b = blend_pixel(lists.at(x, y), splats, centre, f64::INFINITY);
+            let b = blend_pixel(lists.at(x, y), splats, centre, f64::INFINITY, false);
             let dv = &grads.values[p];
             if let Some(m) = b.median_index {
                 out[m].values[3] += grads.median[p];

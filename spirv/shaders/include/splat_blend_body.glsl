@@ -115,6 +115,11 @@ void accumulate_select(inout Accumulated acc, bool takes, float alpha, float nex
     if (RGB) acc.rgb += w * c.color;
     if ((CHANNELS & 1u) != 0u) acc.depth += w * z;
     if ((CHANNELS & 2u) != 0u) acc.median = mix(acc.median, z, all(bvec3(takes, acc.T > 0.5, next_T <= 0.5)));
+    // With surface depths a later splat (in centre order) can be nearer at this pixel:
+    // a half-opaque one there is the surface the ray meets first.
+    if ((CHANNELS & 2u) != 0u && SURFACE_DEPTH) {
+        acc.median = mix(acc.median, z, all(bvec4(takes, acc.T <= 0.5, alpha >= 0.5, z < acc.median)));
+    }
     if (FEATURES) {
         acc.normal += w * c.f0.xyz;
         acc.rough += w * c.f0.w;
