@@ -83,6 +83,7 @@ fn presets_shadow_the_analytic_block_as_the_truth_does() {
     let (pcf, depth) = (ShadowFilter::Pcf, ShadowFilter::Depth);
     let floors = [
         (BlockSplats::Ideal, Preset::Fast, false, scene_fit, pcf, 0.95, 0.025, 0.012, 7.5),
+        (BlockSplats::Ideal, Preset::Fast, true, scene_fit, pcf, 0.965, 0.02, 0.003, 4.5),
         (BlockSplats::Ideal, Preset::Balanced, false, scene_fit, pcf, 0.97, 0.0125, 0.006, 3.5),
         (BlockSplats::Ideal, Preset::Balanced, false, scene_fit, depth, 0.97, 0.015, 0.006, 3.8),
         (BlockSplats::Ideal, Preset::Balanced, true, scene_fit, pcf, 0.98, 0.0095, 0.001, 3.5),
@@ -90,6 +91,7 @@ fn presets_shadow_the_analytic_block_as_the_truth_does() {
         (BlockSplats::Ideal, Preset::Balanced, false, cascades, pcf, 0.97, 0.0125, 0.006, 3.5),
         (BlockSplats::Ideal, Preset::Reference, false, scene_fit, pcf, 0.97, 0.015, 0.006, 3.8),
         (BlockSplats::Rough, Preset::Fast, false, scene_fit, pcf, 0.95, 0.025, 0.012, 9.0),
+        (BlockSplats::Rough, Preset::Fast, true, scene_fit, pcf, 0.95, 0.025, 0.012, 6.5),
         (BlockSplats::Rough, Preset::Balanced, false, scene_fit, pcf, 0.97, 0.0125, 0.008, 6.5),
         (BlockSplats::Rough, Preset::Balanced, false, scene_fit, depth, 0.965, 0.015, 0.008, 7.0),
         (BlockSplats::Rough, Preset::Balanced, true, scene_fit, pcf, 0.975, 0.0115, 0.004, 7.5),
