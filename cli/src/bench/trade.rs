@@ -28,7 +28,7 @@ use srug::scene::demo::{demo_city, DemoOptions};
 use srug::shade::{BrdfLut, EnvironmentPrep, PrepareSettings, ProceduralSky};
 use srug::shadow::accuracy::ShadowAccuracy;
 use srug::shadow::completion::shadow_iou;
-use srug::shadow::{DepthMode, ShadowPass, Sun, VisibilityKind};
+use srug::shadow::{DepthMode, ShadowFilter, ShadowFit, ShadowPass, Sun, VisibilityKind};
 
 /// One setting to measure.
 #[derive(Clone, Debug, PartialEq)]
@@ -72,6 +72,15 @@ pub fn trade_settings(with_network: bool) -> Vec<TradeSetting> {
     knob("receiver depth", "expected".into(), &|s| s.shadow.receiver_depth = DepthMode::Expected);
     knob("map depth", "expected".into(), &|s| s.shadow.map_depth = DepthMode::Expected);
     knob("shadow test", "traced".into(), &|s| s.visibility_kind = VisibilityKind::Traced);
+    knob("shadow filter", "depth".into(), &|s| s.shadow.filter = ShadowFilter::Depth);
+    knob("surface depths", "on".into(), &|s| s.shadow.surface_depth = true);
+    knob("shadow fit", "view".into(), &|s| s.shadow.fit = ShadowFit::ViewFrustum);
+    for n in [2u32, 3] {
+        knob("shadow fit", format!("{n} cascades"), &|s| {
+            s.shadow.fit = ShadowFit::Cascades;
+            s.shadow.cascades = n;
+        });
+    }
     for d in [0u32, 1, 2] {
         knob("SH degree", d.to_string(), &|s| s.sh_degree = Some(d));
     }
