@@ -662,7 +662,7 @@ fn relit_demo_street_shows_the_offscreen_towers_shadow() {
     use srug::scene::activate::GpuScene;
     use srug::scene::demo::{demo_city, DemoOptions};
     use srug::shadow::completion::without_offscreen_tower;
-    use srug::shadow::ShadowSettings;
+    use srug::shadow::{ShadowFit, ShadowSettings};
     let d = device();
     let city = demo_city(&DemoOptions { gaussians: 30_000, ..DemoOptions::default() }).unwrap();
     let camera = city.cameras[0].resized(176, 48);
@@ -671,35 +671,45 @@ fn relit_demo_street_shows_the_offscreen_towers_shadow() {
     let sky = srug::shade::ProceduralSky::new(sun.direction, sun.intensity[0]).render().unwrap();
     let env = prep.prepare(&sky, &PrepareSettings::default()).unwrap();
     let brdf = prep.brdf_table(BrdfLut::Karis, 33, 256).unwrap();
-    let settings = RelightSettings {
-        shadow: ShadowSettings { resolution: 1024, bias: 0.5, prefill: Some(NAN), ..ShadowSettings::default() },
-        shade: ShadeSettings { prefill: Some(NAN), ..ShadeSettings::default() },
-        ..RelightSettings::default()
-    };
-    let mut relighter = Relighter::new(&d).unwrap();
-    let bounds = city.scene.bounds().unwrap();
-    let mut render = |scene: &srug::scene::Scene| {
-        let gs = GpuScene::upload(&d, scene).unwrap();
-        let f =
-            relighter.render(&gs, &scene.attributes(), &bounds, &camera, Some(&sun), &env, &brdf, &settings).unwrap();
-        assert!(f.shadow_pass_ran);
-        assert!(!f.timings.stages.iter().any(|t| t.name == "inc"), "no weights: no inference");
-        f.shaded.read(&d).unwrap()
-    };
-    let with = render(&city.scene);
-    let without = render(&without_offscreen_tower(&city));
-    assert!(with.radiance.iter().chain(&without.radiance).all(|v| v.is_finite() && *v >= 0.0));
-    // Pixels the tower darkens (L_sun drops by more than half) and none it brightens.
-    let n = (176 * 48) as usize;
-    let sun_of = |img: &srug::shade::ShadedImage, p: usize| img.sun[3 * p] + img.sun[3 * p + 1] + img.sun[3 * p + 2];
-    let darkened = (0..n).filter(|&p| sun_of(&with, p) < 0.5 * sun_of(&without, p)).count();
-    let brightened = (0..n).filter(|&p| sun_of(&with, p) > 1.01 * sun_of(&without, p) + 1e-4).count();
-    println!(
-        "the tower darkens {darkened} of {n} pixels ({:.1}%), brightens {brightened}",
-        100.0 * darkened as f64 / n as f64
-    );
-    assert!(darkened as f64 > 0.05 * n as f64, "the off-screen tower's shadow should be in view");
-    assert_eq!(brightened, 0, "an added occluder cannot brighten anything");
+    // The whole scene's map, and cascades fitted to the camera's view: casters
+    // outside the view stay in every cascade's map.
+    for fit in [ShadowFit::SceneBounds, ShadowFit::Cascades] {
+        let shadow =
+            ShadowSettings { resolution: 1024, bias: 0.5, prefill: Some(NAN), fit, ..ShadowSettings::default() };
+        let settings = RelightSettings {
+            shadow,
+            shade: ShadeSettings { prefill: Some(NAN), ..ShadeSettings::default() },
+            ..RelightSettings::default()
+        };
+        let mut relighter = Relighter::new(&d).unwrap();
+        let bounds = city.scene.bounds().unwrap();
+        let mut render = |scene: &srug::scene::Scene| {
+            let gs = GpuScene::upload(&d, scene).unwrap();
+            let f = relighter
+                .render(&gs, &scene.attributes(), &bounds, &camera, Some(&sun), &env, &brdf, &settings)
+                .unwrap();
+            assert!(f.shadow_pass_ran);
+            assert!(!f.timings.stages.iter().any(|t| t.name == "inc"), "no weights: no inference");
+            let cascaded = f.timings.stages.iter().any(|t| t.name == "shadow cascade blend");
+            assert_eq!(cascaded, fit == ShadowFit::Cascades, "{fit:?}");
+            f.shaded.read(&d).unwrap()
+        };
+        let with = render(&city.scene);
+        let without = render(&without_offscreen_tower(&city));
+        assert!(with.radiance.iter().chain(&without.radiance).all(|v| v.is_finite() && *v >= 0.0));
+        // Pixels the tower darkens (L_sun drops by more than half) and none it brightens.
+        let n = (176 * 48) as usize;
+        let sun_of =
+            |img: &srug::shade::ShadedImage, p: usize| img.sun[3 * p] + img.sun[3 * p + 1] + img.sun[3 * p + 2];
+        let darkened = (0..n).filter(|&p| sun_of(&with, p) < 0.5 * sun_of(&without, p)).count();
+        let brightened = (0..n).filter(|&p| sun_of(&with, p) > 1.01 * sun_of(&without, p) + 1e-4).count();
+        println!(
+            "{fit:?}: the tower darkens {darkened} of {n} pixels ({:.1}%), brightens {brightened}",
+            100.0 * darkened as f64 / n as f64
+        );
+        assert!(darkened as f64 > 0.05 * n as f64, "{fit:?}: the off-screen tower's shadow should be in view");
+        assert_eq!(brightened, 0, "{fit:?}: an added occluder cannot brighten anything");
+    }
     assert_no_validation_messages(&d);
 }
 
