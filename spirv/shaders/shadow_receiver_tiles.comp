@@ -5,7 +5,9 @@
 // around it (the test's bilinear taps stay within one texel), so a map
 // splatted only in the marked tiles (`Splatter::render_frame_in_tiles`) gives
 // every receiver the visibility the whole map gives. Tiles are u32 flags,
-// zeroed by the host first; several cameras may mark one mask.
+// zeroed by the host first; several cameras may mark one mask. Receivers
+// outside the uniform's camera-depth range mark nothing (a cascade serves its
+// slice of the view only).
 #define WORKGROUP_SIZE_X 64
 #include "common.glsl"
 #include "shadow.glsl"
@@ -13,6 +15,10 @@
 void main() {
     uint p = linear_index();
     if (p >= shadow.size.x * shadow.size.y) return;
+    // Only receivers whose camera depth lies in the map's range (a cascade's slice).
+    float z;
+    if (!resolve_depth(shadow.modes.y, shadow.receiver_depth, shadow.receiver_alpha, p, z)) return;
+    if (z < shadow.receiver_range.x || z > shadow.receiver_range.y) return;
     vec3 world;
     float bias;
     if (!receiver_point(p, world, bias)) return;

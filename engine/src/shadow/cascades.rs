@@ -201,8 +201,13 @@ impl ShadowPass {
         let mut visibilities = Vec::with_capacity(cascades.len());
         for (i, cascade) in cascades.iter().enumerate() {
             let map: ShadowMap = if cull {
+                // Each cascade is splatted only where the receivers of its own slice look.
                 let receivers = [(gbuffer, camera)];
-                self.shadow_map_for_receivers(splatter, scene, cascade.camera.clone(), sun, settings, &receivers)?
+                let first = i == 0;
+                let last = i + 1 == cascades.len();
+                let depths = (if first { 0.0 } else { cascade.near }, if last { f32::MAX } else { cascade.far });
+                let light = cascade.camera.clone();
+                self.shadow_map_for_receivers_in(splatter, scene, light, sun, settings, &receivers, depths)?
             } else {
                 self.shadow_map_from(splatter, scene, cascade.camera.clone(), sun, settings)?
             };

@@ -167,6 +167,23 @@ impl ShadowPass {
         settings: &ShadowSettings,
         receivers: &[(&GpuGBuffer, &Camera)],
     ) -> Result<ShadowMap> {
+        self.shadow_map_for_receivers_in(splatter, scene, camera, sun, settings, receivers, (0.0, f32::MAX))
+    }
+
+    /// [`ShadowPass::shadow_map_for_receivers`] for the receivers whose camera
+    /// depth lies in `depths` only (a cascade's slice): the others may see a
+    /// wrong visibility in it.
+    #[allow(clippy::too_many_arguments, reason = "the map's inputs and the receivers it serves")]
+    pub(crate) fn shadow_map_for_receivers_in(
+        &self,
+        splatter: &mut Splatter,
+        scene: &GpuScene,
+        camera: Camera,
+        sun: &Sun,
+        settings: &ShadowSettings,
+        receivers: &[(&GpuGBuffer, &Camera)],
+        depths: (f32, f32),
+    ) -> Result<ShadowMap> {
         let device = &self.device;
         let tile = settings.tile;
         let tiles = (camera.width.div_ceil(tile), camera.height.div_ceil(tile));
@@ -178,7 +195,8 @@ impl ShadowPass {
         let uniforms = receivers
             .iter()
             .map(|(g, c)| {
-                let (u, inputs) = receiver_uniform(&camera, settings.map_depth, (tiles.0, tile), g, c, settings)?;
+                let (mut u, inputs) = receiver_uniform(&camera, settings.map_depth, (tiles.0, tile), g, c, settings)?;
+                u.receiver_range = [depths.0, depths.1, 0.0, 0.0];
                 let buffer = device.create_buffer(
                     "receiver tiles uniform",
                     std::mem::size_of::<ShadowUniform>() as u64,

@@ -28,6 +28,7 @@ pub(crate) struct ShadowUniform {
     pub(super) params: [f32; 4],
     pub(super) modes: [u32; 4],
     pub(super) geometry: [f32; 4],
+    pub(super) receiver_range: [f32; 4],
     pub(super) receiver_depth: DeviceAddress,
     pub(super) receiver_alpha: DeviceAddress,
     pub(super) map_depth: DeviceAddress,
@@ -61,6 +62,7 @@ crate::gpu::gpu_layout!(
         params,
         modes,
         geometry,
+        receiver_range,
         receiver_depth,
         receiver_alpha,
         map_depth,
@@ -179,6 +181,7 @@ pub(super) fn receiver_uniform<'a>(
     u.modes = [depth.code(), settings.receiver_depth.code(), tiles_x, tile];
     let texel = texel_size(light);
     u.geometry = [settings.slope_bias * texel, settings.normal_offset * texel, MAX_SLOPE, 0.0];
+    u.receiver_range = [0.0, f32::MAX, 0.0, 0.0];
     Ok((u, ReceiverInputs { receiver_depth, receiver_alpha: &gbuffer.alpha, receiver_normal }))
 }
 

@@ -17,6 +17,7 @@ layout(std140, set = 0, binding = 0) uniform Shadow {
     vec4 params;       // k, bias, minimum alpha of a surface, depth of an empty texel
     uvec4 modes;       // map depth (0 expected, 1 median, 2 expected over far), receiver depth (0, 1), map tiles across, map tile edge
     vec4 geometry;     // slope bias and normal offset in world units (per texel), the largest tan θ, 0
+    vec4 receiver_range;  // camera depths of the receivers a culled map serves (x..y; shadow_receiver_tiles.comp)
     uvec2 receiver_depth;     // by device address (low, high)
     uvec2 receiver_alpha;
     uvec2 map_depth;
