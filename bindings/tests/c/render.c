@@ -59,6 +59,19 @@ static unsigned char *read_rgba8(srug_renderer *r, uint32_t w, uint32_t h) {
   return tight;
 }
 
+/* Renders `scene` with the renderer's current settings and returns the mean absolute
+   difference (of 255) of its RGBA8 frame from `image`. */
+static double rerender_difference(srug_renderer *r, const srug_scene *scene, const unsigned char *image,
+                                  uint32_t w, uint32_t h) {
+  CHECK(srug_renderer_render(r, scene));
+  unsigned char *frame = read_rgba8(r, w, h);
+  size_t n = (size_t)w * h * 4;
+  double sum = 0.0;
+  for (size_t i = 0; i < n; i++) sum += fabs((double)frame[i] - (double)image[i]);
+  free(frame);
+  return sum / (double)n;
+}
+
 static int max_difference(const unsigned char *a, const unsigned char *b, size_t n) {
   int worst = 0;
   for (size_t i = 0; i < n; i++) {
@@ -259,37 +272,22 @@ int main(int argc, char **argv) {
   CHECK(srug_renderer_set_surface_depth(r, false));
   /* A shadow map fitted to the view: the same scene, finer texels, close to the default. */
   CHECK(srug_renderer_set_shadow_fit(r, SRUG_SHADOW_FIT_VIEW));
-  CHECK(srug_renderer_render(r, scene));
-  unsigned char *fitted = read_rgba8(r, w, h);
-  double fit_diff = 0.0;
-  for (size_t i = 0; i < pixels * 4; i++) fit_diff += fabs((double)fitted[i] - (double)image[i]);
-  fit_diff /= (double)(pixels * 4);
+  double fit_diff = rerender_difference(r, scene, image, w, h);
   printf("view-fitted shadow map: mean |view - scene| = %.3f of 255\n", fit_diff);
   REQUIRE(fit_diff > 0.0 && fit_diff < 5.0);
-  free(fitted);
   /* Cascaded shadow maps: finer texels near the camera, the same shadows elsewhere. */
   CHECK(srug_renderer_set_shadow_fit(r, SRUG_SHADOW_FIT_CASCADES));
   CHECK(srug_renderer_set_shadow_cascades(r, 2));
-  CHECK(srug_renderer_render(r, scene));
-  unsigned char *cascaded = read_rgba8(r, w, h);
-  double cascade_diff = 0.0;
-  for (size_t i = 0; i < pixels * 4; i++) cascade_diff += fabs((double)cascaded[i] - (double)image[i]);
-  cascade_diff /= (double)(pixels * 4);
+  double cascade_diff = rerender_difference(r, scene, image, w, h);
   printf("cascaded shadow maps: mean |cascades - scene| = %.3f of 255\n", cascade_diff);
   REQUIRE(cascade_diff > 0.0 && cascade_diff < 5.0);
-  free(cascaded);
   CHECK(srug_renderer_set_shadow_fit(r, SRUG_SHADOW_FIT_SCENE));
   /* The paper's depth test instead of percentage-closer filtering: shadow edges move
      by under a texel, so the frames are close but not equal. */
   CHECK(srug_renderer_set_shadow_filter(r, SRUG_SHADOW_FILTER_DEPTH));
-  CHECK(srug_renderer_render(r, scene));
-  unsigned char *hard = read_rgba8(r, w, h);
-  double filter_diff = 0.0;
-  for (size_t i = 0; i < pixels * 4; i++) filter_diff += fabs((double)hard[i] - (double)image[i]);
-  filter_diff /= (double)(pixels * 4);
+  double filter_diff = rerender_difference(r, scene, image, w, h);
   printf("depth-test shadows: mean |depth - pcf| = %.3f of 255\n", filter_diff);
   REQUIRE(filter_diff > 0.0 && filter_diff < 2.0);
-  free(hard);
   CHECK(srug_renderer_set_shadow_filter(r, SRUG_SHADOW_FILTER_PCF));
   /* A shadow map splatted only where the frame looks: the same frame, byte for byte. */
   CHECK(srug_renderer_set_shadow_cull(r, true));
