@@ -34,6 +34,8 @@ pub struct EmbedSetup {
     pub sizes: Vec<(u32, u32)>,
     /// Frames measured per path (after one warm-up frame).
     pub frames: usize,
+    /// Surface depths for the frames and their shadows.
+    pub surface_depth: bool,
 }
 
 /// One size's row: median milliseconds per frame.
@@ -70,7 +72,8 @@ pub fn embed_bench(device: &Device, setup: &EmbedSetup, mut progress: impl FnMut
     let sky =
         prep.prepare(&ProceduralSky::new(sun.direction, sun.intensity[0]).render()?, &PrepareSettings::default())?;
     let brdf = prep.brdf_table(BrdfLut::Karis, 129, 1024)?;
-    let settings = RelightSettings::preset(Preset::Balanced);
+    let mut settings = RelightSettings::preset(Preset::Balanced);
+    settings.shadow.surface_depth = setup.surface_depth;
     let mut relighter = Relighter::new(device)?;
     relighter.set_shadow_map_reuse(true);
     let mut rows = Vec::new();

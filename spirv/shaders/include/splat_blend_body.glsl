@@ -61,6 +61,18 @@ float splat_depth(vec4 head, vec2 slope, vec2 d) {
     return frame.camera.translation.w != 0.0 ? head.z + s : head.z / (1.0 + s);
 }
 
+// Whether this splat (centre depth z0) and every later one in the tile's
+// order (centre depths ≥ z0) lie at or behind the host's depth `limit` at
+// every pixel. Surface depths reach at most 1.56× nearer than the centre's:
+// the preprocess limits the plane's relative inverse depth to 0.5 over the
+// dilated 3σ footprint, α ≥ 1/255 reaches 3.33σ (0.555), plus half-precision
+// rounding of the slope (pinhole; the host's depth takes pinhole cameras only).
+const float SURFACE_NEARER = 1.56;
+bool behind_host(float z0, float limit) {
+    if (!OCCLUDED) return false;
+    return SURFACE_DEPTH ? !(z0 < SURFACE_NEARER * limit) : !(z0 < limit);
+}
+
 // The host's camera depth at pixel `pix` (infinity where it has nothing, or
 // without OCCLUDED): its stored value as camera z, or linearized from a
 // Vulkan [0, 1] depth (1: nothing) or a reversed-Z one (0: nothing; far may be
@@ -153,8 +165,8 @@ bool blend_one(inout Accumulated acc, uint g, vec4 head, vec4 conic, vec2 centre
     vec2 d;
     head = nearest_copy(head, centre);
     // A tile's splats come in order of centre depth: once one lies at or
-    // behind the host's depth, so do the rest (not with per-pixel surface depths).
-    if (OCCLUDED && !SURFACE_DEPTH && !(head.z < limit)) return false;
+    // behind the host's depth, so do the rest (`behind_host`).
+    if (behind_host(head.z, limit)) return false;
     if (!splat_alpha(head, conic, centre, alpha, gauss, d)) return true;
     float z = splat_depth(head, splat_slope(g), d);
     if (OCCLUDED && !(z < limit)) return true;
@@ -290,8 +302,8 @@ void main() {
             bool stop = all(bvec2(hit, next_T < 1e-4));
             bool takes = all(bvec2(hit, !stop));
             // Splats come in order of centre depth: once one lies at or behind
-            // the host's depth, so do the rest (not with per-pixel surface depths).
-            bool behind = OCCLUDED && !SURFACE_DEPTH && !(head.z < limit[k]);
+            // the host's depth, so do the rest (`behind_host`).
+            bool behind = behind_host(head.z, limit[k]);
             live[k] = all(bvec3(live[k], !stop, !behind));
             any_live = any(bvec2(any_live, live[k]));
             accumulate_select(acc[k], takes, alpha, next_T, z, c, g);

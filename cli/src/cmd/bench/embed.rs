@@ -21,6 +21,9 @@ pub(crate) struct EmbedBenchArgs {
     /// Frames measured per path and size (medians reported).
     #[arg(long, default_value_t = 5)]
     frames: usize,
+    /// Surface depths (`srug relight --shadow-surface-depth`) for the frames and their shadows.
+    #[arg(long)]
+    surface_depth: bool,
 }
 
 impl EmbedBenchArgs {
@@ -34,13 +37,19 @@ impl EmbedBenchArgs {
             sh_degree: self.sh_degree,
             sizes: self.sizes.iter().map(|s| s.pair()).collect(),
             frames: self.frames,
+            surface_depth: self.surface_depth,
         };
         let device = device_args.open()?;
         let info = device.info();
         println!(
-            "{} ({}): demo city, {} Gaussians, SH degree {}, balanced preset, sun fixed (map reused); wall clock \
+            "{} ({}): demo city, {} Gaussians, SH degree {}, balanced preset{}, sun fixed (map reused); wall clock \
              per frame, median of {}\n",
-            info.name, info.driver, setup.gaussians, setup.sh_degree, setup.frames
+            info.name,
+            info.driver,
+            setup.gaussians,
+            setup.sh_degree,
+            if setup.surface_depth { " with surface depths" } else { "" },
+            setup.frames
         );
         let bar = spinner("benchmarking");
         let rows = embed_bench(&device, &setup, |m| bar.set_message(m.to_string()));
