@@ -66,11 +66,13 @@ float splat_depth(vec4 head, vec2 slope, vec2 d) {
 // every pixel. Surface depths reach at most 1.56× nearer than the centre's:
 // the preprocess limits the plane's relative inverse depth to 0.5 over the
 // dilated 3σ footprint, α ≥ 1/255 reaches 3.33σ (0.555), plus half-precision
-// rounding of the slope (pinhole; the host's depth takes pinhole cameras only).
+// rounding of the slope. Orthographic surface depths move by an absolute
+// amount instead: no stop for them.
 const float SURFACE_NEARER = 1.56;
 bool behind_host(float z0, float limit) {
     if (!OCCLUDED) return false;
-    return SURFACE_DEPTH ? !(z0 < SURFACE_NEARER * limit) : !(z0 < limit);
+    if (!SURFACE_DEPTH) return !(z0 < limit);
+    return frame.camera.translation.w == 0.0 && !(z0 < SURFACE_NEARER * limit);
 }
 
 // The host's camera depth at pixel `pix` (infinity where it has nothing, or
