@@ -494,6 +494,25 @@ fn cascaded_shadow_maps_blend_like_the_twin_and_shadow_like_the_scene_map() {
     let iou = both as f64 / either.max(1) as f64;
     eprintln!("cascades against the scene map: shadow IoU {iou:.3} over {either} pixels");
     assert!(either > 500 && iou > 0.9, "cascaded shadows differ from the scene map's: IoU {iou:.3}");
+    // A camera far outside the scene (an aerial view 600 m away): its slices lie around the
+    // scene, not in the empty space before it, so its shadows are there too.
+    let centre = (Vec3::from_array(bounds.min) + Vec3::from_array(bounds.max)) * 0.5;
+    let aerial = Camera::look_at(centre + Vec3::new(-500.0, -100.0, 300.0), centre, Vec3::Z, 25.0, 176, 48).unwrap();
+    let (ga, _) = receiver(&mut s, &aerial, Channels::default());
+    let kind = VisibilityKind::Sigmoid;
+    let (va, cascades, _) = s
+        .pass
+        .cascaded_visibility(&mut s.splatter, &s.gpu_scene, &bounds, &sun, &st, &ga, &aerial, kind, true)
+        .unwrap();
+    assert!(cascades[0].near > 100.0, "the first slice starts at {} m", cascades[0].near);
+    let map = shadow_map(&mut s, &sun, &scene_st, None);
+    let (vw, _) = s.pass.visibility(&map, &ga, &aerial, &scene_st, kind).unwrap();
+    let (a, b): (Vec<f32>, Vec<f32>) = (s.d.read_buffer(&va).unwrap(), s.d.read_buffer(&vw).unwrap());
+    let both = a.iter().zip(&b).filter(|(x, y)| **x < 0.5 && **y < 0.5).count();
+    let either = a.iter().zip(&b).filter(|(x, y)| **x < 0.5 || **y < 0.5).count();
+    let iou = both as f64 / either.max(1) as f64;
+    eprintln!("aerial view: cascades against the scene map, shadow IoU {iou:.3} over {either} pixels");
+    assert!(either > 100 && iou > 0.8, "an aerial view's cascaded shadows: IoU {iou:.3}");
     assert_no_validation_messages(&s.d);
 }
 

@@ -4,9 +4,10 @@
 //!
 //! Invariants:
 //! - slices follow the practical split scheme (half logarithmic, half
-//!   uniform) between the camera's near plane and the scene bounds' diagonal
-//!   (or its far plane), whatever the camera's pose, and each slice's last
-//!   tenth is shared with the
+//!   uniform) between the nearest and the farthest the scene bounds' sphere
+//!   can be from the camera, in steps of its radius (0 to the diagonal from
+//!   inside the bounds), within the camera's planes, so they change only when
+//!   a distant camera crosses a step, and each slice's last tenth is shared with the
 //!   next: there the visibility ramps linearly from one cascade to the next
 //!   ([`blend_cascades_cpu`], `shadow_cascade_blend.comp`);
 //! - a cascade's map is square, `resolution` texels across its slice's
@@ -86,11 +87,14 @@ pub fn cascade_cameras(bounds: &Bounds, sun: &Sun, resolution: u32, view: &Camer
     }
     view.require_no_lens("cascaded shadow maps")?;
     let frame = LightFrame::new(bounds, sun)?;
-    // The view's depth: the bounds' diagonal, within the camera's far plane. Not the
-    // farthest corner in view: the slices, and so the maps' sizes, must not change
-    // as the camera moves or turns.
-    let far = (frame.hi - frame.lo).length().min(view.far);
-    let near = view.near.max(1e-4 * far);
+    // The view's depth: from the nearest to the farthest the bounds' sphere can be,
+    // in steps of its radius r, within the camera's planes. Not the corners in view:
+    // the slices, and so the maps' sizes, change only when the camera crosses a step
+    // (never for a camera inside the bounds: 0..2r), not as it moves or turns.
+    let r = 0.5 * (frame.hi - frame.lo).length();
+    let distance = (view.position - frame.centre).length();
+    let far = (((distance + r) / r).ceil() * r).min(view.far);
+    let near = view.near.max(((distance - r) / r).floor().max(0.0) * r).max(1e-4 * far);
     if far.partial_cmp(&near) != Some(std::cmp::Ordering::Greater) {
         return Err(Error::invalid(format!("camera \"{}\"", view.name), "has its far plane at its near plane"));
     }
@@ -287,6 +291,23 @@ mod tests {
     fn street(eye: Vec3, yaw_degrees: f32) -> Camera {
         let (s, c) = yaw_degrees.to_radians().sin_cos();
         Camera::look_at(eye, eye + Vec3::new(c, s, -0.05), Vec3::Z, 90.0, 704, 192).expect("a camera")
+    }
+
+    #[test]
+    fn a_distant_camera_gets_slices_over_the_scene() {
+        let sun = Sun::from_azimuth_elevation(200.0, 35.0, [1.0; 3]).expect("a sun");
+        // 1 km away, looking at the block: the slices start and end around it.
+        let far_away =
+            Camera::look_at(Vec3::new(-1000.0, 0.0, 200.0), Vec3::ZERO, Vec3::Z, 20.0, 704, 192).expect("a camera");
+        let c = cascade_cameras(&bounds(), &sun, 1024, &far_away, 3).expect("cascades");
+        let d = far_away.position.length();
+        assert!(c[0].near > 0.5 * d && c[0].near < d, "first slice from {}", c[0].near);
+        assert!(c[2].far > d && c[2].far < 1.5 * d, "last slice to {}", c[2].far);
+        // Inside the bounds: from the camera's near plane to the diagonal.
+        let inside =
+            cascade_cameras(&bounds(), &sun, 1024, &street(Vec3::new(-20.0, 0.0, 1.6), 10.0), 3).expect("cascades");
+        let diagonal = LightFrame::new(&bounds(), &sun).map(|f| (f.hi - f.lo).length()).expect("a frame");
+        assert!((inside[2].far - diagonal).abs() < 1e-3 * diagonal);
     }
 
     #[test]
