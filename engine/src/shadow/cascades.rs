@@ -19,10 +19,10 @@
 //!   outside the view still cast into it;
 //! - not differentiated ([`super::ShadowPass::backward`] takes one map).
 
-use bytemuck::{Pod, Zeroable};
+use bytemuck::Zeroable;
 use glam::{Vec2, Vec3};
 
-use super::{LightFrame, ShadowMap, ShadowPass, ShadowSettings, Sun, VisibilityKind};
+use super::{CascadePush, LightFrame, ShadowMap, ShadowPass, ShadowSettings, Sun, VisibilityKind};
 use crate::error::{Error, Result};
 use crate::gpu::{Binding, Buffer, DeviceAddress, Grid, MemoryKind, Timings};
 use crate::scene::activate::GpuScene;
@@ -161,24 +161,6 @@ pub fn blend_cascades_cpu(visibilities: &[Vec<f64>], depths: &[Option<f64>], cas
         })
         .collect()
 }
-
-/// `CascadePush` in `shadow_cascade_blend.comp` (its layout is checked against it).
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Pod, Zeroable)]
-pub(crate) struct CascadePush {
-    visibility01: [DeviceAddress; 2],
-    visibility23: [DeviceAddress; 2],
-    blended: DeviceAddress,
-    count: u32,
-    pixels: u32,
-    far: [f32; 4],
-    blend_start: [f32; 4],
-}
-crate::gpu::gpu_layout!(
-    CascadePush,
-    "CascadePush",
-    [visibility01, visibility23, blended, count, pixels, far, blend_start]
-);
 
 impl ShadowPass {
     /// The receivers' visibility in `gbuffer` (rendered from `camera` with

@@ -79,7 +79,7 @@ impl ShadowPass {
                 &kernels::SHADOW_CASCADE_BLEND,
                 &KernelDecl {
                     bindings: &one,
-                    push_constant_size: std::mem::size_of::<cascades::CascadePush>(),
+                    push_constant_size: std::mem::size_of::<CascadePush>(),
                     specialization: &[],
                 },
             )?,

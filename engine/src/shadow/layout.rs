@@ -116,6 +116,24 @@ impl ShadowUniform {
     }
 }
 
+/// `CascadePush` in `shadow_cascade_blend.comp` (its layout is checked against it).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+pub(crate) struct CascadePush {
+    pub(super) visibility01: [DeviceAddress; 2],
+    pub(super) visibility23: [DeviceAddress; 2],
+    pub(super) blended: DeviceAddress,
+    pub(super) count: u32,
+    pub(super) pixels: u32,
+    pub(super) far: [f32; 4],
+    pub(super) blend_start: [f32; 4],
+}
+crate::gpu::gpu_layout!(
+    CascadePush,
+    "CascadePush",
+    [visibility01, visibility23, blended, count, pixels, far, blend_start]
+);
+
 /// The buffers the shadow kernels read: the receiver's and the map's depth
 /// channels the settings select, the receiver's alpha, and the map itself.
 pub(crate) struct ShadowInputs<'a> {
@@ -231,5 +249,6 @@ mod layout_tests {
         let backward = check_layout::<ShadowBackwardUniform>(kernels::ALL);
         assert!(backward.as_ref().is_ok_and(|n| *n >= 2), "{backward:?}");
         assert_eq!(check_layout::<BinsPush>(&[&kernels::SHADOW_BINS]), Ok(1));
+        assert_eq!(check_layout::<super::CascadePush>(&[&kernels::SHADOW_CASCADE_BLEND]), Ok(1));
     }
 }
