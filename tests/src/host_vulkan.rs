@@ -315,11 +315,21 @@ impl Host {
             .dst_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
             .image(image.image)
             .subresource_range(range);
+        Self::record_barrier(d, cmd, vk::PipelineStageFlags::ALL_COMMANDS, b);
+    }
+
+    /// Records one image barrier from `src` stages to every later command.
+    fn record_barrier(
+        d: &ash::Device,
+        cmd: vk::CommandBuffer,
+        src: vk::PipelineStageFlags,
+        b: vk::ImageMemoryBarrier<'_>,
+    ) {
         // SAFETY: recording state; the host's own image.
         unsafe {
             d.cmd_pipeline_barrier(
                 cmd,
-                vk::PipelineStageFlags::ALL_COMMANDS,
+                src,
                 vk::PipelineStageFlags::ALL_COMMANDS,
                 vk::DependencyFlags::empty(),
                 &[],
@@ -486,18 +496,7 @@ impl Host {
                     .dst_queue_family_index(family)
                     .image(image.image)
                     .subresource_range(range);
-                // SAFETY: recording state; the host's own image.
-                unsafe {
-                    d.cmd_pipeline_barrier(
-                        cmd,
-                        vk::PipelineStageFlags::TOP_OF_PIPE,
-                        vk::PipelineStageFlags::ALL_COMMANDS,
-                        vk::DependencyFlags::empty(),
-                        &[],
-                        &[],
-                        &[b],
-                    );
-                }
+                Self::record_barrier(d, cmd, vk::PipelineStageFlags::TOP_OF_PIPE, b);
             },
             &[],
             &[],

@@ -185,7 +185,11 @@ impl ShadowPass {
         let cascades = cascade_cameras(bounds, sun, settings.resolution, camera, settings.cascades)?;
         let mut timings = Timings::default();
         let mut visibilities = Vec::with_capacity(cascades.len());
+        // The last cascade's map, kept for the receivers' uniform of the blend.
+        let mut last_map: Option<ShadowMap> = None;
         for (i, cascade) in cascades.iter().enumerate() {
+            // Free the previous map before splatting the next.
+            drop(last_map.take());
             let map: ShadowMap = if cull {
                 // Each cascade is splatted only where the receivers of its own slice look.
                 let receivers = [(gbuffer, camera)];
@@ -204,13 +208,12 @@ impl ShadowPass {
                 timings.stages.push(stage);
             }
             visibilities.push(v);
-            if i + 1 == cascades.len() {
-                let (blended, t) = self.blend_cascades(&map, gbuffer, camera, settings, &visibilities, &cascades)?;
-                timings.stages.extend(t.stages);
-                return Ok((blended, cascades, timings));
-            }
+            last_map = Some(map);
         }
-        Err(Error::Internal("cascaded shadow maps without a cascade".into()))
+        let map = last_map.ok_or_else(|| Error::Internal("cascaded shadow maps without a cascade".into()))?;
+        let (blended, t) = self.blend_cascades(&map, gbuffer, camera, settings, &visibilities, &cascades)?;
+        timings.stages.extend(t.stages);
+        Ok((blended, cascades, timings))
     }
 
     /// Blends the cascades' visibilities by the receivers' depth (`map`: any
