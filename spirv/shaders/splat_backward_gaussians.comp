@@ -4,13 +4,16 @@
 // its projected centre, conic, opacity and depth back through the EWA
 // projection (dilated 2D covariance, clamped Jacobian, camera transform,
 // R·S·Sᵀ·Rᵀ) to its stored mean, log-scale, quaternion and opacity logit;
-// normal gradients reach the quaternion where the normal is the shortest axis.
+// normal gradients reach the quaternion where the normal is the shortest axis;
+// with surface depths the slope's gradient goes back through surface_slope.glsl
+// to the shortest axis, the mean and the covariances.
 // Blended-value gradients (rgb, features) are written per Gaussian as they are.
 // Culled Gaussians get zeros. CPU twin: engine/src/splat/cpu_backward.rs `project_backward`.
 #define WORKGROUP_SIZE_X 64
 #include "common.glsl"
 #include "splat.glsl"
 #include "splat_backward.glsl"
+#include "surface_slope.glsl"
 
 void main() {
     uint i = linear_index();
@@ -84,11 +87,26 @@ void main() {
         mat2 C = mat2(conic.x, conic.y, conic.y, conic.z);
         mat2 G = mat2(d_conic.x, 0.5 * d_conic.y, 0.5 * d_conic.y, d_conic.z);
         mat2 d_cov2 = -(C * G * C);
+
+        // The surface-depth slope (as the preprocess computes it): from the
+        // shortest axis, the mean, 3σ along the view and the undilated JΣJᵀ.
+        int axis = s.x <= s.y && s.x <= s.z ? 0 : (s.y <= s.z ? 1 : 2);
+        vec3 d_n = vec3(0.0), d_t = vec3(0.0, 0.0, d_depth), d_cov_own = vec3(0.0);
+        float d_extent = 0.0;
+        vec2 d_slope = SURFACE_DEPTH ? vec2(sum[SLOPE_AT], sum[SLOPE_AT + 1u]) : vec2(0.0);
+        if (SURFACE_DEPTH && frame.camera.lens2.x == 0.0 && (d_slope.x != 0.0 || d_slope.y != 0.0)) {
+            mat3 cov2 = J * cov_cam * transpose(J);
+            vec3 own = vec3(cov2[0][0], cov2[1][0], cov2[1][1]);
+            float extent = 3.0 * sqrt(max(cov_cam[2][2], 0.0));
+            surface_slope_backward(W * R[axis], t, k.xy, ortho, extent, own, d_slope, d_n, d_t, d_extent, d_cov_own);
+            d_cov2 += mat2(d_cov_own.x, 0.5 * d_cov_own.y, 0.5 * d_cov_own.y, d_cov_own.z);
+        }
         mat3 g2 = mat3(d_cov2[0][0], d_cov2[0][1], 0.0, d_cov2[1][0], d_cov2[1][1], 0.0, 0.0, 0.0, 0.0);
         mat3 d_cov_cam = transpose(J) * g2 * J;
         mat3 d_J = 2.0 * g2 * J * cov_cam;
+        // extent = 3√Σc[z][z]
+        if (d_extent != 0.0 && cov_cam[2][2] > 0.0) d_cov_cam[2][2] += d_extent * 1.5 / sqrt(cov_cam[2][2]);
 
-        vec3 d_t = vec3(0.0, 0.0, d_depth);
         if (ortho) {
             d_t.xy += d_mean2 * k.xy;
         } else {
@@ -117,6 +135,8 @@ void main() {
         mat3 d_cov_world = transpose(W) * d_cov_cam * W;
         mat3 d_M = (d_cov_world + transpose(d_cov_world)) * M;
         mat3 d_R = mat3(d_M[0] * s.x, d_M[1] * s.y, d_M[2] * s.z);
+        // The slope's normal n = W·R[axis].
+        d_R[axis] += transpose(W) * d_n;
         d_ls = vec3(dot(R[0], d_M[0]), dot(R[1], d_M[1]), dot(R[2], d_M[2])) * s;
 
         // Shortest-axis normal turned toward the camera (when it is the normal used).
@@ -127,7 +147,6 @@ void main() {
                          vec3(nb.v[3 * i], nb.v[3 * i + 1], nb.v[3 * i + 2])) != 0.0;
         }
         if (GRAD_FEATURES && !stored) {
-            int axis = s.x <= s.y && s.x <= s.z ? 0 : (s.y <= s.z ? 1 : 2);
             vec3 toward = ortho ? -frame.view_dir.xyz : frame.eye.xyz - p;
             d_R[axis] += (dot(R[axis], toward) < 0.0 ? -1.0 : 1.0) * d_normal;
         }

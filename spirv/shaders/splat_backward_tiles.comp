@@ -4,7 +4,9 @@
 // contributors, final transmittance and median splat), then walks its splats
 // back to front (docs/conventions.md §4): T ← T / (1 − α); dL/dx = α·T·dL/dC;
 // dL/dα = Σ dL/dC·(x·T − S/(1 − α)) + (dL/dA − bg·dL/dC_rgb)·T_final/(1 − α);
-// S ← S + x·α·T; α clamped at 0.99 passes no geometric gradient. The tile's
+// S ← S + x·α·T; α clamped at 0.99 passes no geometric gradient. With
+// surface depths a pixel's depth gradient also moves the splat's centre and
+// slope (z = z₀/(1 + s·Δ), orthographic z₀ + s·Δ, Δ = centre − mean). The tile's
 // pixels are summed per splat in pixel order (deterministic) into that
 // (tile, splat) pair's record, where the keys kernel put the pair (found by
 // binary search in the splat's run of pair tiles, which is in tile order), so
@@ -71,25 +73,34 @@ void main() {
         if ((GRADS & 128u) != 0u) dv[13] = grad_in(bwd.d_visibility, p);
     }
 
-    // Replay the forward blend: where it stopped, the final T and the median splat.
-    float T = 1.0;
+    // Replay the forward blend: where it stopped, the final T and the median
+    // splat (with surface depths, a later half-opaque splat nearer at the pixel
+    // takes the median over, as the blend's `accumulate_select`).
+    bool ortho = frame.camera.translation.w != 0.0;
+    float T = 1.0, median_z = 0.0;
     uint end = range.x, median_j = 0xffffffffu;
     if (inside) {
         for (uint j = range.x; j < range.y; j++) {
-            vec4 head = vec4(0.0), conic = vec4(0.0);
+            vec4 head = vec4(0.0), conic = vec4(0.0), color = vec4(0.0);
             if (subgroupElect()) {
                 uint g = order.v[j];
                 head = splats.v[g].head;
                 conic = splats.v[g].conic;
+                if (SURFACE_DEPTH) color = splats.v[g].color;
             }
             head = subgroupBroadcastFirst(head);
             conic = subgroupBroadcastFirst(conic);
+            if (SURFACE_DEPTH) color = subgroupBroadcastFirst(color);
             float alpha, gauss;
             vec2 d;
             if (!splat_alpha(head, conic, centre, alpha, gauss, d)) continue;
             float next_T = T * (1.0 - alpha);
             if (next_T < 1e-4) break;
-            if (T > 0.5 && next_T <= 0.5) median_j = j;
+            float z = depth_at(head.z, stored_slope(color), d, ortho);
+            if ((T > 0.5 && next_T <= 0.5) || (SURFACE_DEPTH && T <= 0.5 && alpha >= 0.5 && z < median_z)) {
+                median_j = j;
+                median_z = z;
+            }
             T = next_T;
             end = j + 1u;
         }
@@ -119,7 +130,7 @@ void main() {
                 g = order.v[j];
                 head = splats.v[g].head;
                 conic = splats.v[g].conic;
-                if (GRAD_RGB) color = splats.v[g].color;
+                if (GRAD_RGB || SURFACE_DEPTH) color = splats.v[g].color;
                 if (GRAD_FEATURES) {
                     f0 = features.v[3u * g];
                     f1 = features.v[3u * g + 1u];
@@ -129,7 +140,7 @@ void main() {
             g = subgroupBroadcastFirst(g);
             head = subgroupBroadcastFirst(head);
             conic = subgroupBroadcastFirst(conic);
-            if (GRAD_RGB) color = subgroupBroadcastFirst(color);
+            if (GRAD_RGB || SURFACE_DEPTH) color = subgroupBroadcastFirst(color);
             if (GRAD_FEATURES) {
                 f0 = subgroupBroadcastFirst(f0);
                 f1 = subgroupBroadcastFirst(f1);
@@ -141,7 +152,9 @@ void main() {
             vec2 d;
             if (j < end && splat_alpha(head, conic, centre, alpha, gauss, d)) {
                 T /= 1.0 - alpha;
-                float x[14] = float[14](color.r, color.g, color.b, head.z, f0.x, f0.y, f0.z, f0.w,
+                vec2 slope = stored_slope(color);
+                float z = depth_at(head.z, slope, d, ortho);
+                float x[14] = float[14](color.r, color.g, color.b, z, f0.x, f0.y, f0.z, f0.w,
                                         f1.x, f1.y, f1.z, f1.w, f2.x, f2.y);
                 float w = alpha * T;
                 float d_alpha = bg_term * t_final / (1.0 - alpha);
@@ -159,14 +172,25 @@ void main() {
                     r[4] = -0.5 * d.y * d.y * d_power;
                     r[5] = gauss * d_alpha;
                 }
-                r[6] = w * dv[3];
+                float d_z = w * dv[3] + (j == median_j ? d_median : 0.0);
+                if (SURFACE_DEPTH) {
+                    // Δ = centre − mean = −d.
+                    float inv = ortho ? 1.0 : 1.0 / (1.0 - dot(slope, d));
+                    float dz_du = ortho ? 1.0 : -head.z * inv * inv;
+                    r[6] = d_z * inv;
+                    r[0] -= d_z * dz_du * slope.x;
+                    r[1] -= d_z * dz_du * slope.y;
+                    r[SLOPE_AT] = -d_z * dz_du * d.x;
+                    r[SLOPE_AT + 1u] = -d_z * dz_du * d.y;
+                } else {
+                    r[6] = d_z;
+                }
                 if (GRAD_RGB) { r[8] = w * dv[0]; r[9] = w * dv[1]; r[10] = w * dv[2]; }
                 if (GRAD_FEATURES) {
                     uint o = GRAD_RGB ? 12u : 8u;
                     for (uint k = 0u; k < 10u; k++) r[o + k] = w * dv[4u + k];
                 }
             }
-            if (j == median_j) r[6] += d_median;
             for (uint c = 0u; c < STRIDE; c++) terms[(b * STRIDE + c) * TILE_PIXELS + local] = r[c];
         }
         barrier();

@@ -17,7 +17,7 @@ use srug::shadow::backward::GpuVisibilityLoss;
 use srug::shadow::cpu::{sigmoid_backward_cpu, sigmoid_visibility_cpu, DepthImage, VisibilityLoss};
 use srug::shadow::{light_camera, DepthMode, ShadowFilter, ShadowFit, ShadowPass, ShadowSettings, Sun};
 use srug::splat::backward::HostGaussianGradients;
-use srug::splat::cpu::{render_blends, Gaussian64};
+use srug::splat::cpu::{render_blends, DepthAt, Gaussian64};
 use srug::splat::cpu_backward::{blend_backward_cpu, project_backward, GaussianGrad};
 use srug::splat::Channel;
 use srug::splat::{Channels, NormalSource, SplatFrame, SplatSettings, Splatter, DEFAULT_TILE};
@@ -271,7 +271,8 @@ fn shadow_gradients_reach_the_gaussians_like_finite_differences() {
 
         // Central finite differences of the f64 CPU pipeline: L = Σ w·V_e.
         let params: Vec<Gaussian64> = (0..scene.len()).map(|i| Gaussian64::from_scene(&scene, i)).collect();
-        let chain = Chain { scene: scene.clone(), light: light.clone(), camera: camera.clone(), settings: st };
+        let chain =
+            Chain { scene: scene.clone(), light: light.clone(), camera: camera.clone(), settings: st, depth: DepthAt::Centre };
         let loss = |p: &[Gaussian64]| chain.loss(p, VisibilityLoss::Upstream(&weights));
         let h = 1e-6;
         let mut rows: Vec<(usize, usize, f64, f64)> = Vec::new(); // (Gaussian, family, gpu, fd)
@@ -316,6 +317,101 @@ fn shadow_gradients_reach_the_gaussians_like_finite_differences() {
         }
         let blob = rows.iter().filter(|r| r.0 >= 49 && r.3.abs() > 1e-6).count();
         assert!(blob >= 20, "the floating blob must get gradient from its shadow ({blob})");
+    }
+    assert_no_validation_messages(&d);
+}
+
+/// With surface depths (map and receivers), the GPU's gradients to every
+/// Gaussian against the twin's chain (itself against central differences in
+/// `cpu_shadow_chain_gradients_match_finite_differences_with_surface_depths`),
+/// the slopes rounded to half precision in both as the kernels store them.
+#[test]
+fn shadow_gradients_with_surface_depths_match_the_twin() {
+    let d = device();
+    let (scene, light, camera) = blob_scene();
+    let sun = Sun::from_azimuth_elevation(250.0, 50.0, [1.0; 3]).unwrap();
+    let bounds = scene.bounds().unwrap();
+    let gpu_scene = GpuScene::upload(&d, &scene).unwrap();
+    let mut splatter = Splatter::new(&d).unwrap();
+    let mut pass = ShadowPass::new(&d).unwrap();
+    let mut rng = Pcg64Mcg::seed_from_u64(8);
+    let pixels = (camera.width * camera.height) as usize;
+    let targets: Vec<f64> = (0..pixels).map(|_| rng.random_range(0.0..1.0)).collect();
+    let t32: Vec<f32> = targets.iter().map(|v| *v as f32).collect();
+    let target = d.upload("V_f", &t32).unwrap();
+    let params: Vec<Gaussian64> = (0..scene.len()).map(|i| Gaussian64::from_scene(&scene, i)).collect();
+    for (map_depth, receiver_depth) in [(DepthMode::Median, DepthMode::Median), (DepthMode::Expected, DepthMode::Expected)]
+    {
+        let st = ShadowSettings {
+            resolution: 40,
+            k: 6.0,
+            bias: 0.02,
+            slope_bias: 0.0,
+            map_depth,
+            receiver_depth,
+            surface_depth: true,
+            ..ShadowSettings::default()
+        };
+        let map = pass.shadow_map(&mut splatter, &gpu_scene, &bounds, &sun, &st, None).unwrap().unwrap();
+        assert!(map.frame.surface_depth, "the map is splatted with surface depths");
+        let ch = Channels { depth: true, median_depth: true, ..Channels::default() };
+        let settings = SplatSettings { channels: ch, surface_depth: true, ..Default::default() };
+        let receivers = splatter.render_frame(&gpu_scene, &camera, &settings).unwrap();
+        let sb = pass.backward(&map, &receivers.gbuffer, &camera, &st, GpuVisibilityLoss::Bce(&target)).unwrap();
+        let mut total = HostGaussianGradients::default();
+        add(&mut total, &splatter.backward(&map.frame, &gpu_scene, &sb.map, false).unwrap().read(&d).unwrap());
+        add(&mut total, &splatter.backward(&receivers, &gpu_scene, &sb.receiver, false).unwrap().read(&d).unwrap());
+
+        let chain = Chain {
+            scene: scene.clone(),
+            light: light.clone(),
+            camera: camera.clone(),
+            settings: st,
+            depth: DepthAt::SurfaceHalf,
+        };
+        let (twin, _) = chain.gradients(&params, VisibilityLoss::Bce(&targets));
+        let centre = Chain { depth: DepthAt::Centre, ..chain }.gradients(&params, VisibilityLoss::Bce(&targets)).0;
+        let families: [(&str, Box<dyn Fn(usize) -> Vec<(f64, f64, f64)>>); 3] = [
+            (
+                "mean",
+                Box::new(|i| {
+                    (0..3).map(|c| (f64::from(total.means[i][c]), twin[i].mean[c], centre[i].mean[c])).collect()
+                }),
+            ),
+            (
+                "log_scale",
+                Box::new(|i| {
+                    (0..3)
+                        .map(|c| (f64::from(total.log_scales[i][c]), twin[i].log_scale[c], centre[i].log_scale[c]))
+                        .collect()
+                }),
+            ),
+            (
+                "rotation",
+                Box::new(|i| {
+                    (0..4)
+                        .map(|c| (f64::from(total.rotations[i][c]), twin[i].rotation[c], centre[i].rotation[c]))
+                        .collect()
+                }),
+            ),
+        ];
+        for (name, rows) in &families {
+            let all: Vec<(usize, (f64, f64, f64))> =
+                (0..params.len()).flat_map(|i| rows(i).into_iter().map(move |r| (i, r))).collect();
+            let scale = all.iter().fold(0.0f64, |m, (_, r)| m.max(r.1.abs()));
+            assert!(scale > 0.0, "{name}: no gradient");
+            let mut worst = 0.0f64;
+            for (i, (gpu, cpu, _)) in &all {
+                // As the finite-difference test above: relative 1e-3 above 1% of the family's largest.
+                let err = (gpu - cpu).abs() / cpu.abs().max(1e-2 * scale);
+                worst = worst.max(err);
+                assert!(err <= 1e-3, "{map_depth:?}: Gaussian {i} {name}: GPU {gpu:.6e}, twin {cpu:.6e}");
+            }
+            // Surface depths change the gradients: the test would see a centre-depth backward.
+            let changed = all.iter().filter(|(_, r)| (r.1 - r.2).abs() > 1e-2 * scale).count();
+            assert!(changed >= 10, "{map_depth:?} {name}: only {changed} gradients differ from centre depths'");
+            eprintln!("{map_depth:?}/{receiver_depth:?} {name}: worst relative error {worst:.2e}, {changed} changed");
+        }
     }
     assert_no_validation_messages(&d);
 }
@@ -386,12 +482,14 @@ struct Chain {
     light: Camera,
     camera: Camera,
     settings: ShadowSettings,
+    /// The splats' depths (surface depths when `settings.surface_depth`).
+    depth: DepthAt,
 }
 
 impl Chain {
     fn images(&self, params: &[Gaussian64]) -> (DepthImage, DepthImage) {
-        let (_, lb) = render_blends(params, &self.scene, &self.light, NormalSource::ShortestAxis, DEFAULT_TILE);
-        let (_, cb) = render_blends(params, &self.scene, &self.camera, NormalSource::ShortestAxis, DEFAULT_TILE);
+        let blends = |cam| render_blends(params, &self.scene, cam, NormalSource::ShortestAxis, DEFAULT_TILE, self.depth).1;
+        let (lb, cb) = (blends(&self.light), blends(&self.camera));
         (
             DepthImage::from_blends(self.light.width, self.light.height, &lb),
             DepthImage::from_blends(self.camera.width, self.camera.height, &cb),
@@ -416,8 +514,8 @@ impl Chain {
         let g = sigmoid_backward_cpu(&self.light, &map, &self.camera, &rec, &self.settings, loss);
         let mut out = vec![GaussianGrad::default(); params.len()];
         for (cam, pg) in [(&self.light, &g.map), (&self.camera, &g.receiver)] {
-            let (splats, _) = render_blends(params, &self.scene, cam, NormalSource::ShortestAxis, DEFAULT_TILE);
-            let sg = blend_backward_cpu(&splats, cam, [0.0; 3], pg, DEFAULT_TILE);
+            let (splats, _) = render_blends(params, &self.scene, cam, NormalSource::ShortestAxis, DEFAULT_TILE, self.depth);
+            let sg = blend_backward_cpu(&splats, cam, [0.0; 3], pg, DEFAULT_TILE, self.depth.is_surface());
             for (i, p) in params.iter().enumerate() {
                 let d = project_backward(p, cam, &sg[i], false, DEFAULT_TILE);
                 let o = &mut out[i];
@@ -433,7 +531,7 @@ impl Chain {
     }
 }
 
-fn check_chain(map_depth: DepthMode, receiver_depth: DepthMode, bce: bool, filter: ShadowFilter) {
+fn check_chain(map_depth: DepthMode, receiver_depth: DepthMode, bce: bool, filter: ShadowFilter, surface: bool) {
     let (scene, light, camera) = blob_scene();
     let settings = ShadowSettings {
         k: 6.0,
@@ -442,9 +540,11 @@ fn check_chain(map_depth: DepthMode, receiver_depth: DepthMode, bce: bool, filte
         map_depth,
         receiver_depth,
         filter,
+        surface_depth: surface,
         ..ShadowSettings::default()
     };
-    let chain = Chain { scene, light, camera, settings };
+    let depth = if surface { DepthAt::Surface } else { DepthAt::Centre };
+    let chain = Chain { scene, light, camera, settings, depth };
     let params: Vec<Gaussian64> = (0..chain.scene.len()).map(|i| Gaussian64::from_scene(&chain.scene, i)).collect();
     let mut rng = Pcg64Mcg::seed_from_u64(5);
     let n = (chain.camera.width * chain.camera.height) as usize;
@@ -499,6 +599,7 @@ fn check_chain(map_depth: DepthMode, receiver_depth: DepthMode, bce: bool, filte
             light: chain.light.clone(),
             camera: chain.camera.clone(),
             settings: *st,
+            depth: chain.depth,
         };
         c.loss(&params, loss)
     };
@@ -509,22 +610,34 @@ fn check_chain(map_depth: DepthMode, receiver_depth: DepthMode, bce: bool, filte
     let fd_k = (loss_k(kp32, &mut shifted) - loss_k(km32, &mut shifted)) / (kp32 - km32);
     assert!((dk - fd_k).abs() <= 1e-3 * fd_k.abs().max(1e-9), "dL/dk {dk:.9e} vs finite difference {fd_k:.9e}");
     eprintln!(
-        "{map_depth:?}/{receiver_depth:?}/bce {bce}/{}: {significant} significant derivatives, dL/dk {dk:.4e}",
+        "{map_depth:?}/{receiver_depth:?}/bce {bce}/{}/surface {surface}: {significant} significant derivatives, \
+         dL/dk {dk:.4e}",
         filter.name()
     );
 }
 
 /// The CPU twin's shadow chain (analytic, through both splats) against central
 /// finite differences of the f64 pipeline, for every map depth mode, the BCE
-/// loss and both filters.
+/// loss and both filters, with centre and with surface depths.
 #[test]
 fn cpu_shadow_chain_gradients_match_finite_differences() {
     let (depth, pcf) = (ShadowFilter::Depth, ShadowFilter::Pcf);
-    check_chain(DepthMode::Median, DepthMode::Expected, false, depth);
-    check_chain(DepthMode::Expected, DepthMode::Expected, false, depth);
-    check_chain(DepthMode::Expected, DepthMode::Median, true, depth);
-    check_chain(DepthMode::ExpectedOverFar, DepthMode::Expected, true, depth);
-    check_chain(DepthMode::Median, DepthMode::Expected, false, pcf);
-    check_chain(DepthMode::Expected, DepthMode::Median, true, pcf);
-    check_chain(DepthMode::ExpectedOverFar, DepthMode::Expected, true, pcf);
+    check_chain(DepthMode::Median, DepthMode::Expected, false, depth, false);
+    check_chain(DepthMode::Expected, DepthMode::Expected, false, depth, false);
+    check_chain(DepthMode::Expected, DepthMode::Median, true, depth, false);
+    check_chain(DepthMode::ExpectedOverFar, DepthMode::Expected, true, depth, false);
+    check_chain(DepthMode::Median, DepthMode::Expected, false, pcf, false);
+    check_chain(DepthMode::Expected, DepthMode::Median, true, pcf, false);
+    check_chain(DepthMode::ExpectedOverFar, DepthMode::Expected, true, pcf, false);
+}
+
+/// As above with surface depths for the map's occluders and the receivers
+/// (the presets' median depths, both losses, both filters).
+#[test]
+fn cpu_shadow_chain_gradients_match_finite_differences_with_surface_depths() {
+    let (depth, pcf) = (ShadowFilter::Depth, ShadowFilter::Pcf);
+    check_chain(DepthMode::Median, DepthMode::Median, false, pcf, true);
+    check_chain(DepthMode::Median, DepthMode::Median, true, pcf, true);
+    check_chain(DepthMode::Median, DepthMode::Expected, false, depth, true);
+    check_chain(DepthMode::Expected, DepthMode::Median, true, pcf, true);
 }

@@ -12,7 +12,7 @@ use srug::gpu::{Device, MemoryKind};
 use srug::scene::activate::GpuScene;
 use srug::scene::{Camera, Materials, Scene};
 use srug::splat::backward::{BlendGrads, HostGaussianGradients};
-use srug::splat::cpu::{preprocess_one, render_blends, CpuSplat, Gaussian64};
+use srug::splat::cpu::{preprocess_params, render_blends, DepthAt, Gaussian64};
 use srug::splat::cpu_backward::{blend_backward_cpu, project_backward, GaussianGrad, PixelGrads};
 use srug::splat::Channel;
 use srug::splat::PerChannel;
@@ -83,7 +83,7 @@ fn gpu_gradients(
     bg: [f32; 3],
     grads: &BlendGrads,
 ) -> HostGaussianGradients {
-    gpu_gradients_tiled(d, scene, camera, bg, grads, DEFAULT_TILE).unwrap()
+    gpu_gradients_tiled(d, scene, camera, bg, grads, DEFAULT_TILE, false).unwrap()
 }
 
 fn gpu_gradients_tiled(
@@ -93,10 +93,12 @@ fn gpu_gradients_tiled(
     bg: [f32; 3],
     grads: &BlendGrads,
     tile: u32,
+    surface_depth: bool,
 ) -> srug::Result<HostGaussianGradients> {
     let mut splatter = Splatter::new(d).unwrap();
     let gpu_scene = GpuScene::upload(d, scene).unwrap();
-    let settings = SplatSettings { background: bg, channels: Channels::ALL, tile, ..SplatSettings::default() };
+    let settings =
+        SplatSettings { background: bg, channels: Channels::ALL, tile, surface_depth, ..SplatSettings::default() };
     let frame = splatter.render_frame(&gpu_scene, camera, &settings).unwrap();
     let out = splatter.backward(&frame, &gpu_scene, grads, true)?;
     Ok(out.read(d).unwrap())
@@ -154,19 +156,22 @@ fn compare(label: &str, gpu: &HostGaussianGradients, cpu: &[GaussianGrad], tol: 
 }
 
 fn cpu_gradients(scene: &Scene, camera: &Camera, bg: [f32; 3], host: &PixelGrads) -> Vec<GaussianGrad> {
-    cpu_gradients_tiled(scene, camera, bg, host, DEFAULT_TILE)
+    cpu_gradients_tiled(scene, camera, bg, host, DEFAULT_TILE, DepthAt::Centre)
 }
 
+/// The twin's gradients; `DepthAt::SurfaceHalf` for the GPU's surface depths
+/// (the slopes rounded as the kernels store them).
 fn cpu_gradients_tiled(
     scene: &Scene,
     camera: &Camera,
     bg: [f32; 3],
     host: &PixelGrads,
     tile: u32,
+    depth: DepthAt,
 ) -> Vec<GaussianGrad> {
-    let splats: Vec<Option<CpuSplat>> =
-        (0..scene.len()).map(|i| preprocess_one(scene, i, camera, NormalSource::ShortestAxis, tile)).collect();
-    let sg = blend_backward_cpu(&splats, camera, bg.map(f64::from), host, tile);
+    let params: Vec<Gaussian64> = (0..scene.len()).map(|i| Gaussian64::from_scene(scene, i)).collect();
+    let splats = preprocess_params(&params, scene, camera, NormalSource::ShortestAxis, tile, depth);
+    let sg = blend_backward_cpu(&splats, camera, bg.map(f64::from), host, tile, depth.is_surface());
     (0..scene.len()).map(|i| project_backward(&Gaussian64::from_scene(scene, i), camera, &sg[i], true, tile)).collect()
 }
 
@@ -194,6 +199,37 @@ fn gpu_backward_matches_cpu_twin_in_every_channel() {
         let values = gpu.values.as_ref().expect("asked for value gradients");
         assert!(values.iter().all(|v| v.iter().all(|x| x.is_finite())));
         assert!(values.iter().any(|v| v[4] != 0.0 && v[0] != 0.0), "{name}: no value gradients");
+    }
+    assert_no_validation_messages(&d);
+}
+
+#[test]
+fn gpu_backward_matches_cpu_twin_with_surface_depths() {
+    // Each splat's depth at a pixel where the ray meets its plane: the depth
+    // and median gradients also reach its centre and its slope, and through the
+    // slope its shortest axis, mean and covariances (the twin's chain is checked
+    // against central differences in srug::splat::cpu_backward).
+    let d = device();
+    let bg = [0.2, 0.4, 0.7];
+    let cameras = [
+        ("pinhole", Camera::look_at(Vec3::new(0.3, -0.2, -3.0), Vec3::ZERO, Vec3::Y, 50.0, 75, 53).unwrap()),
+        ("narrow", Camera::look_at(Vec3::new(0.0, 0.0, -3.0), Vec3::ZERO, Vec3::Y, 20.0, 64, 40).unwrap()),
+        (
+            "orthographic",
+            Camera::orthographic(Vec3::new(0.0, 0.0, -3.0), Vec3::Z, Vec3::Y, 2.6, 2.0, 67, 51, 0.01, 10.0).unwrap(),
+        ),
+    ];
+    for (seed, (name, camera)) in cameras.iter().enumerate() {
+        let scene = scene(300, 20 + seed as u64);
+        let pixels = (camera.width * camera.height) as usize;
+        let (host, grads) = random_grads(&d, pixels, 120 + seed as u64);
+        let gpu = gpu_gradients_tiled(&d, &scene, camera, bg, &grads, DEFAULT_TILE, true).unwrap();
+        let cpu = cpu_gradients_tiled(&scene, camera, bg, &host, DEFAULT_TILE, DepthAt::SurfaceHalf);
+        compare(&format!("{name}, surface depths"), &gpu, &cpu, 1e-3);
+        // The slope's share is not negligible: without it the twin differs.
+        let centre = cpu_gradients_tiled(&scene, camera, bg, &host, DEFAULT_TILE, DepthAt::Centre);
+        let moved = cpu.iter().zip(&centre).filter(|(a, b)| (a.rotation[1] - b.rotation[1]).abs() > 1e-3).count();
+        assert!(moved >= 30, "{name}: only {moved} quaternion gradients changed with surface depths");
     }
     assert_no_validation_messages(&d);
 }
@@ -248,10 +284,10 @@ fn gpu_backward_matches_cpu_twin_at_every_tile_size() {
     for tile in TILE_SIZES {
         // Every pixel's terms of a batch of at least one splat: 24 floats per pixel with every channel.
         let needed = tile * tile * 24 * 4 + 64;
-        match gpu_gradients_tiled(&d, &scene, &camera, bg, &grads, tile) {
+        match gpu_gradients_tiled(&d, &scene, &camera, bg, &grads, tile, false) {
             Ok(gpu) => {
                 assert!(needed <= d.info().max_shared_memory, "tile {tile} ran with too little shared memory");
-                let cpu = cpu_gradients_tiled(&scene, &camera, bg, &host, tile);
+                let cpu = cpu_gradients_tiled(&scene, &camera, bg, &host, tile, DepthAt::Centre);
                 compare(&format!("tile {tile}"), &gpu, &cpu, 1e-3);
                 ran += 1;
             }
@@ -280,7 +316,7 @@ fn gpu_backward_matches_central_finite_differences() {
     let gpu = gpu_gradients(&d, &scene, &camera, bg, &grads);
     let params: Vec<Gaussian64> = (0..scene.len()).map(|i| Gaussian64::from_scene(&scene, i)).collect();
     let loss = |p: &[Gaussian64]| -> f64 {
-        let (_, blends) = render_blends(p, &scene, &camera, NormalSource::ShortestAxis, DEFAULT_TILE);
+        let (_, blends) = render_blends(p, &scene, &camera, NormalSource::ShortestAxis, DEFAULT_TILE, DepthAt::Centre);
         let mut total = 0.0;
         for (px, b) in blends.iter().enumerate() {
             for (k, (v, w)) in b.values.iter().zip(&host.values[px]).enumerate() {
@@ -343,11 +379,6 @@ fn backward_refuses_mismatched_inputs() {
         BlendGrads { channels: PerChannel::default().with(Channel::Normal, normal), ..BlendGrads::default() };
     let e = splatter.backward(&frame, &gpu_scene, &features, false).err().unwrap().to_string();
     assert!(e.contains("feature"), "{e}");
-    // Surface depths are not differentiated: refused, not silently wrong.
-    let surface = SplatSettings { surface_depth: true, ..SplatSettings::default() };
-    let surface_frame = splatter.render_frame(&gpu_scene, &camera, &surface).unwrap();
-    let e = splatter.backward(&surface_frame, &gpu_scene, &ok, false).err().unwrap().to_string();
-    assert!(e.contains("surface depths"), "{e}");
     // Zero upstream gradient gives exactly zero gradients.
     let zero = BlendGrads { alpha: Some(d.create_filled::<f32>("zero", 32 * 32, 0).unwrap()), ..BlendGrads::default() };
     let g = splatter.backward(&frame, &gpu_scene, &zero, false).unwrap().read(&d).unwrap();

@@ -158,9 +158,10 @@ crate::gpu::gpu_layout!(
     ]
 );
 
-/// Floats per (tile, splat) record for gradient set `bits` (keep in sync with `STRIDE`).
-fn record_stride(bits: u32) -> u64 {
-    8 + if bits & 256 != 0 { 4 } else { 0 } + if bits & 252 != 0 { 12 } else { 0 }
+/// Floats per (tile, splat) record for gradient set `bits`, with the slope's
+/// two for surface depths (keep in sync with `STRIDE`).
+fn record_stride(bits: u32, surface_depth: bool) -> u64 {
+    8 + if bits & 256 != 0 { 4 } else { 0 } + if bits & 252 != 0 { 12 } else { 0 } + if surface_depth { 2 } else { 0 }
 }
 
 /// The two backward kernels for one gradient set.
@@ -191,11 +192,6 @@ impl Splatter {
         frame.camera.require_no_lens("the splat backward pass")?;
         if frame.occluded {
             return Err(Error::unsupported("the splat backward pass of frames hidden behind a host's depth"));
-        }
-        if frame.surface_depth {
-            return Err(Error::unsupported(
-                "the splat backward pass of surface depths (render the frame with surface_depth off)",
-            ));
         }
         if frame.scene_means != scene.means.id() || frame.gaussians != scene.count as u64 {
             return Err(Error::invalid("splat frame", "was rendered from another scene"));
@@ -230,7 +226,7 @@ impl Splatter {
             // Splats per barrier: as many as every pixel's terms (batch × stride ×
             // tile² floats) fit in shared memory (32 KiB on lavapipe) and one
             // invocation per (splat, component) can sum them (batch × stride ≤ tile²).
-            let stride = record_stride(bits) as u32;
+            let stride = record_stride(bits, frame.surface_depth) as u32;
             let shared = info.max_shared_memory;
             let pixels = tile * tile;
             let batch = ((shared - 64) / 4 / (pixels * stride)).min(pixels / stride);
@@ -242,7 +238,8 @@ impl Splatter {
                 )));
             }
             let [x, y] = super::tile_spec(tile);
-            let spec = [(0, SpecValue::U32(bits)), (1, SpecValue::U32(batch)), x, y];
+            let surface = (2, SpecValue::Bool(frame.surface_depth));
+            let spec = [(0, SpecValue::U32(bits)), surface, (1, SpecValue::U32(batch)), x, y];
             let with_spec = KernelDecl {
                 bindings: &[BindingKind::UniformBuffer, BindingKind::UniformBuffer],
                 push_constant_size: 0,
@@ -252,12 +249,12 @@ impl Splatter {
                 tiles: device.kernel(&kernels::SPLAT_BACKWARD_TILES, &with_spec)?,
                 gaussians: device.kernel(
                     &kernels::SPLAT_BACKWARD_GAUSSIANS,
-                    &KernelDecl { specialization: &spec[..1], ..with_spec },
+                    &KernelDecl { specialization: &spec[..2], ..with_spec },
                 )?,
             }
         };
         let n = frame.gaussians;
-        let stride = record_stride(bits);
+        let stride = record_stride(bits, frame.surface_depth);
         let pairs =
             device.create_buffer("backward pair records", frame.stats.pairs * stride * 4, MemoryKind::Storage)?;
         let f = |name: &str, floats: u64| device.create_buffer(name, n * floats * 4, MemoryKind::Storage);

@@ -58,6 +58,183 @@ impl CpuSplat {
     }
 }
 
+/// What a Gaussian's surface-depth slope is computed from (camera space).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct SlopeInputs {
+    /// The shortest axis (unturned), camera space.
+    pub n: DVec3,
+    /// The mean, camera space.
+    pub t: DVec3,
+    /// Pixels per unit: the focal lengths, or the orthographic scales.
+    pub k: DVec2,
+    /// Whether the camera is orthographic.
+    pub ortho: bool,
+    /// 3σ along the view: 3·√Σc[z][z].
+    pub extent: f64,
+    /// The splat's own 2D covariance JΣcJᵀ (a, b, c), before the dilation.
+    pub cov: [f64; 3],
+}
+
+/// Gradients of a loss with respect to the [`SlopeInputs`].
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub(crate) struct SlopeInputGrads {
+    pub n: DVec3,
+    pub t: DVec3,
+    pub extent: f64,
+    pub cov: [f64; 3],
+}
+
+impl SlopeInputs {
+    /// Gaussian `g`'s inputs for `camera`; `None` for lenses other than the
+    /// pinhole and for equirectangular cameras (no slope there).
+    pub(crate) fn of(g: &Gaussian64, camera: &Camera) -> Option<Self> {
+        if !camera.lens.is_pinhole() || camera.depth_is_distance() {
+            return None;
+        }
+        let w = camera.rotation.as_dmat3().transpose();
+        let t = w * (g.mean - camera.position.as_dvec3());
+        let s = DVec3::new(g.log_scale.x.exp(), g.log_scale.y.exp(), g.log_scale.z.exp());
+        let rot = g.rotation_matrix();
+        let m = rot * DMat3::from_diagonal(s);
+        let cov_cam = w * (m * m.transpose()) * w.transpose();
+        let (_, j) = mean_and_jacobian(camera, t);
+        let cov2 = j * cov_cam * j.transpose();
+        let (k, ortho) = match camera.projection {
+            Projection::Pinhole { fx, fy, .. } => (DVec2::new(f64::from(fx), f64::from(fy)), false),
+            Projection::Orthographic { sx, sy, .. } => (DVec2::new(f64::from(sx), f64::from(sy)), true),
+        };
+        Some(Self {
+            n: w * rot.col(shortest_axis(s)),
+            t,
+            k,
+            ortho,
+            extent: 3.0 * cov_cam.z_axis.z.max(0.0).sqrt(),
+            cov: [cov2.x_axis.x, cov2.y_axis.x, cov2.y_axis.y],
+        })
+    }
+
+    /// The plane's slope before the limit, and the guarded n·t (pinhole) or n.z (orthographic).
+    fn unlimited(&self) -> (DVec2, f64) {
+        let n = self.n;
+        if self.ortho {
+            let nz = if n.z.abs() < 1e-6 { 1e-6f64.copysign(n.z) } else { n.z };
+            (-DVec2::new(n.x, n.y) / (nz * self.k), nz)
+        } else {
+            let nt = n.dot(self.t);
+            let nt = if nt.abs() < 1e-6 * self.t.z { (1e-6 * self.t.z).copysign(nt) } else { nt };
+            (DVec2::new(n.x, n.y) * (self.t.z / nt) / self.k, nt)
+        }
+    }
+
+    /// 3·√(sᵀ(C + da·I)s): the largest s·Δ over the ellipse ΔᵀC⁻¹Δ ≤ 9.
+    fn spread(&self, s: DVec2, da: f64) -> f64 {
+        let [a, b, c] = self.cov;
+        3.0 * (s.x * s.x * (a + da) + 2.0 * s.x * s.y * b + s.y * s.y * (c + da)).max(0.0).sqrt()
+    }
+
+    /// The limit's factor: which of its terms binds is what the backward follows.
+    fn limits(&self, s: DVec2) -> [f64; 3] {
+        let own = self.spread(s, 0.0);
+        if self.ortho {
+            [1.0, 1.5 * self.extent / own, f64::INFINITY]
+        } else {
+            [1.0, 1.5 * self.extent / (self.t.z * own), 0.5 / self.spread(s, 0.3)]
+        }
+    }
+
+    /// The limited slope in f64 (zero where it is not finite).
+    pub(crate) fn slope(&self) -> DVec2 {
+        let (s, _) = self.unlimited();
+        let scale = self.limits(s).into_iter().fold(f64::INFINITY, f64::min);
+        let out = s * scale;
+        if out.is_finite() {
+            out
+        } else {
+            DVec2::ZERO
+        }
+    }
+
+    /// Backward of [`SlopeInputs::slope`]: `d` is dL/d slope. The limit's
+    /// binding term is differentiated (a tie takes the first), the guards on
+    /// n·t and n.z pass no gradient to n, and a slope that was not finite none at all.
+    pub(crate) fn backward(&self, d: DVec2) -> SlopeInputGrads {
+        let mut g = SlopeInputGrads::default();
+        let (s, guarded) = self.unlimited();
+        let limits = self.limits(s);
+        let (which, scale) =
+            limits.iter().enumerate().fold((0, f64::INFINITY), |m, (i, v)| if *v < m.1 { (i, *v) } else { m });
+        if !(s * scale).is_finite() {
+            return g;
+        }
+        let mut ds = d * scale;
+        let d_scale = d.dot(s);
+        // spread(s, da) = 3√q: dq/ds = 2(Cs), dq/d(a, b, c) = (sx², 2·sx·sy, sy²).
+        let mut spread_back = |da: f64, d_spread: f64, ds: &mut DVec2| {
+            let sp = self.spread(s, da);
+            if sp <= 0.0 {
+                return;
+            }
+            let dq = d_spread * 4.5 / sp;
+            let [a, b, c] = self.cov;
+            *ds += dq * 2.0 * DVec2::new(s.x * (a + da) + s.y * b, s.x * b + s.y * (c + da));
+            g.cov[0] += dq * s.x * s.x;
+            g.cov[1] += dq * 2.0 * s.x * s.y;
+            g.cov[2] += dq * s.y * s.y;
+        };
+        match which {
+            1 => {
+                // 1.5·extent / (z·own) pinhole, 1.5·extent / own orthographic.
+                let own = self.spread(s, 0.0);
+                g.extent += d_scale * scale / self.extent;
+                if !self.ortho {
+                    g.t.z -= d_scale * scale / self.t.z;
+                }
+                spread_back(0.0, -d_scale * scale / own, &mut ds);
+            }
+            2 => {
+                let dilated = self.spread(s, 0.3);
+                spread_back(0.3, -d_scale * scale / dilated, &mut ds);
+            }
+            _ => {}
+        }
+        let n = self.n;
+        if self.ortho {
+            // s = −n.xy / (nz·k)
+            g.n.x -= ds.x / (guarded * self.k.x);
+            g.n.y -= ds.y / (guarded * self.k.y);
+            if n.z.abs() >= 1e-6 {
+                g.n.z += (ds.x * n.x / self.k.x + ds.y * n.y / self.k.y) / (guarded * guarded);
+            }
+        } else {
+            // s = n.xy·r / k with r = z / (n·t)
+            let r = self.t.z / guarded;
+            g.n.x += ds.x * r / self.k.x;
+            g.n.y += ds.y * r / self.k.y;
+            let dr = ds.x * n.x / self.k.x + ds.y * n.y / self.k.y;
+            if n.dot(self.t).abs() >= 1e-6 * self.t.z {
+                g.t.z += dr / guarded;
+                let d_nt = -dr * self.t.z / (guarded * guarded);
+                g.n += d_nt * self.t;
+                g.t += d_nt * n;
+            } else {
+                // n·t guarded to ±1e-6·z: r is constant.
+            }
+        }
+        g
+    }
+}
+
+/// Index of the shortest of three scales (the first of equal ones), as the kernels pick it.
+pub(crate) fn shortest_axis(s: DVec3) -> usize {
+    if s.x <= s.y && s.x <= s.z {
+        0
+    } else if s.y <= s.z {
+        1
+    } else {
+        2
+    }
+}
+
 /// How the depth where each pixel's ray meets Gaussian `g`'s plane (through
 /// its mean, normal its shortest axis) changes across `camera`'s image:
 /// pinhole, the relative inverse depth per pixel s (1/z = (1/z₀)(1 + s·Δ));
@@ -67,52 +244,12 @@ impl CpuSplat {
 /// most half of z₀; rounded to half precision as the kernel stores it. Zero for
 /// lenses other than the pinhole and for equirectangular cameras. Twin of `surface_slope` in `splat_preprocess_body.glsl`.
 pub fn surface_slope(g: &Gaussian64, camera: &Camera) -> [f64; 2] {
-    if !camera.lens.is_pinhole() || camera.depth_is_distance() {
-        return [0.0; 2];
-    }
-    let w = camera.rotation.as_dmat3().transpose();
-    let t = w * (g.mean - camera.position.as_dvec3());
-    let s = DVec3::new(g.log_scale.x.exp(), g.log_scale.y.exp(), g.log_scale.z.exp());
-    let rot = g.rotation_matrix();
-    let axis = if s.x <= s.y && s.x <= s.z {
-        rot.x_axis
-    } else if s.y <= s.z {
-        rot.y_axis
-    } else {
-        rot.z_axis
-    };
-    let n = w * axis;
-    let m = rot * DMat3::from_diagonal(s);
-    let cov_cam = w * (m * m.transpose()) * w.transpose();
-    let extent = 3.0 * cov_cam.z_axis.z.max(0.0).sqrt();
-    let (_, j) = mean_and_jacobian(camera, t);
-    let cov2 = j * cov_cam * j.transpose();
-    let (ca, cb, cc) = (cov2.x_axis.x, cov2.y_axis.x, cov2.y_axis.y);
-    let (k, ortho) = match camera.projection {
-        Projection::Pinhole { fx, fy, .. } => (DVec2::new(f64::from(fx), f64::from(fy)), false),
-        Projection::Orthographic { sx, sy, .. } => (DVec2::new(f64::from(sx), f64::from(sy)), true),
-    };
-    let mut slope = if ortho {
-        let nz = if n.z.abs() < 1e-6 { 1e-6f64.copysign(n.z) } else { n.z };
-        -DVec2::new(n.x, n.y) / (nz * k)
-    } else {
-        let nt = n.dot(t);
-        let nt = if nt.abs() < 1e-6 * t.z { (1e-6 * t.z).copysign(nt) } else { nt };
-        DVec2::new(n.x, n.y) * (t.z / nt) / k
-    };
-    let spread = |da: f64| {
-        3.0 * (slope.x * slope.x * (ca + da) + 2.0 * slope.x * slope.y * cb + slope.y * slope.y * (cc + da))
-            .max(0.0)
-            .sqrt()
-    };
-    let (own, dilated) = (spread(0.0), spread(0.3));
-    let scale =
-        if ortho { (1.5 * extent / own).min(1.0) } else { (1.5 * extent / (t.z * own)).min(1.0).min(0.5 / dilated) };
-    slope *= scale;
-    if !slope.is_finite() {
-        return [0.0; 2];
-    }
-    slope.to_array().map(|v| half::f16::from_f64(v).to_f64())
+    surface_slope_exact(g, camera).map(|v| half::f16::from_f64(v).to_f64())
+}
+
+/// [`surface_slope`] in f64, not rounded (what finite differences see).
+pub fn surface_slope_exact(g: &Gaussian64, camera: &Camera) -> [f64; 2] {
+    SlopeInputs::of(g, camera).map_or([0.0; 2], |inputs| inputs.slope().to_array())
 }
 
 const C0: f64 = 0.282_094_791_773_878_14;
@@ -650,6 +787,49 @@ pub(crate) fn blend_pixel(
     out
 }
 
+/// Which depth the twin's splats have at a pixel.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum DepthAt {
+    /// Each splat's centre depth.
+    Centre,
+    /// Where the pixel's ray meets the splat's plane, the slope in f64 (what
+    /// finite differences see).
+    Surface,
+    /// As `Surface`, the slope rounded to half precision as the kernels store it.
+    SurfaceHalf,
+}
+
+impl DepthAt {
+    /// Whether the depths are surface depths.
+    pub fn is_surface(self) -> bool {
+        self != Self::Centre
+    }
+}
+
+/// Stage 1 in f64 for geometry `params` (colour and materials from `scene`),
+/// with the slopes `depth` asks for.
+pub fn preprocess_params(
+    params: &[Gaussian64],
+    scene: &Scene,
+    camera: &Camera,
+    normal_source: NormalSource,
+    tile: u32,
+    depth: DepthAt,
+) -> Vec<Option<CpuSplat>> {
+    let slope = |g: &Gaussian64| match depth {
+        DepthAt::Centre => [0.0; 2],
+        DepthAt::Surface => surface_slope_exact(g, camera),
+        DepthAt::SurfaceHalf => surface_slope(g, camera),
+    };
+    params
+        .iter()
+        .enumerate()
+        .map(|(i, g)| {
+            preprocess_with(g, scene, i, camera, normal_source, tile).map(|s| CpuSplat { depth_slope: slope(g), ..s })
+        })
+        .collect()
+}
+
 /// Stages 1–5 in f64 for geometry `params` (colour and materials from
 /// `scene`): the projected splats and every pixel's blend, row-major.
 pub fn render_blends(
@@ -658,15 +838,16 @@ pub fn render_blends(
     camera: &Camera,
     normal_source: NormalSource,
     tile: u32,
+    depth: DepthAt,
 ) -> (Vec<Option<CpuSplat>>, Vec<PixelBlend>) {
-    let splats: Vec<Option<CpuSplat>> =
-        params.iter().enumerate().map(|(i, g)| preprocess_with(g, scene, i, camera, normal_source, tile)).collect();
+    let splats = preprocess_params(params, scene, camera, normal_source, tile, depth);
     let lists = tile_lists(&splats, camera, tile, TileBounds::default());
     let w = camera.width as usize;
     let blends = (0..w * camera.height as usize)
         .map(|p| {
             let (x, y) = (p % w, p / w);
-            blend_pixel(lists.at(x, y), &splats, DVec2::new(x as f64 + 0.5, y as f64 + 0.5), f64::INFINITY, false)
+            let centre = DVec2::new(x as f64 + 0.5, y as f64 + 0.5);
+            blend_pixel(lists.at(x, y), &splats, centre, f64::INFINITY, depth.is_surface())
         })
         .collect();
     (splats, blends)

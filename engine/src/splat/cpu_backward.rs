@@ -13,7 +13,8 @@
 use glam::{DMat2, DMat3, DVec2, DVec3};
 
 use super::cpu::{
-    blend_pixel, mean_and_jacobian, project, splat_alpha, splat_values, tile_lists, CpuSplat, Gaussian64, VALUES,
+    blend_pixel, mean_and_jacobian, project, shortest_axis, splat_alpha, splat_values, tile_lists, CpuSplat,
+    Gaussian64, SlopeInputs, VALUES,
 };
 use crate::scene::{Camera, Projection};
 
@@ -38,8 +39,11 @@ pub struct SplatGrad {
     pub conic: [f64; 3],
     /// dL/d activated opacity.
     pub opacity: f64,
-    /// dL/d blended values (index 3, depth, includes the median's share).
+    /// dL/d blended values (index 3: the centre depth, with the median's share
+    /// and, for surface depths, each pixel's depth taken back to it).
     pub values: [f64; VALUES],
+    /// dL/d surface-depth slope (zero for centre depths).
+    pub slope: DVec2,
 }
 
 /// Gradients of one Gaussian's stored parameters.
@@ -56,13 +60,15 @@ pub struct GaussianGrad {
 }
 
 /// Backward of the blend for every pixel of `camera`'s image, given the
-/// projected splats (from the forward twin) and the background.
+/// projected splats (from the forward twin, with their slopes when
+/// `surface_depth`) and the background.
 pub fn blend_backward_cpu(
     splats: &[Option<CpuSplat>],
     camera: &Camera,
     background: [f64; 3],
     grads: &PixelGrads,
     tile: u32,
+    surface_depth: bool,
 ) -> Vec<SplatGrad> {
     let lists = tile_lists(splats, camera, tile, crate::splat::TileBounds::default());
     let (w, h) = (camera.width as usize, camera.height as usize);
@@ -71,29 +77,57 @@ pub fn blend_backward_cpu(
         for x in 0..w {
             let p = y * w + x;
             let centre = DVec2::new(x as f64 + 0.5, y as f64 + 0.5);
-            let b = blend_pixel(lists.at(x, y), splats, centre, f64::INFINITY, false);
+            let b = blend_pixel(lists.at(x, y), splats, centre, f64::INFINITY, surface_depth);
             let dv = &grads.values[p];
-            if let Some(m) = b.median_index {
-                out[m].values[3] += grads.median[p];
-            }
             // dL/dα terms shared by every contributor: the alpha output and the background.
             let bg_term = grads.alpha[p] - (0..3).map(|c| background[c] * dv[c]).sum::<f64>();
             let mut behind = [0.0f64; VALUES];
             for c in b.contributions.iter().rev() {
                 let Some(s) = &splats[c.index] else { continue };
-                let x = splat_values(s);
+                let mut x = splat_values(s);
+                x[3] = s.depth_at(centre);
                 let g = &mut out[c.index];
                 let mut d_alpha = bg_term * b.t_final / (1.0 - c.alpha);
                 for k in 0..VALUES {
-                    g.values[k] += c.alpha * c.t_before * dv[k];
+                    if k != 3 {
+                        g.values[k] += c.alpha * c.t_before * dv[k];
+                    }
                     d_alpha += dv[k] * (x[k] * c.t_before - behind[k] / (1.0 - c.alpha));
                     behind[k] += x[k] * c.alpha * c.t_before;
+                }
+                let median = if b.median_index == Some(c.index) { grads.median[p] } else { 0.0 };
+                let d_z = c.alpha * c.t_before * dv[3] + median;
+                if surface_depth {
+                    add_surface_depth_gradient(g, s, centre, d_z);
+                } else {
+                    g.values[3] += d_z;
                 }
                 add_alpha_gradient(g, s, centre, d_alpha);
             }
         }
     }
     out
+}
+
+/// Chains dL/dz of splat `s`'s surface depth at `centre` into its centre
+/// depth, centre and slope (`CpuSplat::depth_at`).
+fn add_surface_depth_gradient(g: &mut SplatGrad, s: &CpuSplat, centre: DVec2, d_z: f64) {
+    let delta = centre - s.mean;
+    let slope = DVec2::from_array(s.depth_slope);
+    let u = slope.dot(delta);
+    if s.orthographic {
+        // z = z₀ + s·Δ, Δ = centre − mean.
+        g.values[3] += d_z;
+        g.mean -= d_z * slope;
+        g.slope += d_z * delta;
+    } else {
+        // z = z₀ / (1 + s·Δ).
+        let inv = 1.0 / (1.0 + u);
+        let dz_du = -s.depth * inv * inv;
+        g.values[3] += d_z * inv;
+        g.mean -= d_z * dz_du * slope;
+        g.slope += d_z * dz_du * delta;
+    }
 }
 
 /// Chains dL/dα of splat `s` at `centre` into its opacity, conic and centre.
@@ -151,18 +185,33 @@ pub fn project_backward(
         glam::DVec2::new(grad.conic[0], 0.5 * grad.conic[1]),
         glam::DVec2::new(0.5 * grad.conic[1], grad.conic[2]),
     );
-    let d_cov2 = -(conic * gm * conic);
+    let mut d_cov2 = -(conic * gm * conic);
+    // The surface-depth slope: from the shortest axis, the mean, 3σ along the
+    // view and the undilated 2D covariance.
+    let slope = (grad.slope != DVec2::ZERO).then(|| SlopeInputs::of(g, camera)).flatten().map(|inputs| {
+        let back = inputs.backward(grad.slope);
+        let [a, b, c] = back.cov;
+        d_cov2 += DMat2::from_cols(DVec2::new(a, 0.5 * b), DVec2::new(0.5 * b, c));
+        back
+    });
     // Σ2 = J Σc Jᵀ (top-left 2×2): as a 3×3 with the third row/column zero.
     let g2 = DMat3::from_cols(
         DVec3::new(d_cov2.x_axis.x, d_cov2.x_axis.y, 0.0),
         DVec3::new(d_cov2.y_axis.x, d_cov2.y_axis.y, 0.0),
         DVec3::ZERO,
     );
-    let d_cov_cam = j.transpose() * g2 * j;
+    let mut d_cov_cam = j.transpose() * g2 * j;
     let d_j = 2.0 * g2 * j * cov_cam;
+    let mut d_t = DVec3::new(0.0, 0.0, grad.values[3]);
+    if let Some(back) = &slope {
+        // extent = 3√Σc[z][z]
+        if cov_cam.z_axis.z > 0.0 {
+            d_cov_cam.z_axis.z += back.extent * 1.5 / cov_cam.z_axis.z.sqrt();
+        }
+        d_t += back.t;
+    }
 
     // Camera-space position: depth, centre and the Jacobian.
-    let mut d_t = DVec3::new(0.0, 0.0, grad.values[3]);
     match camera.projection {
         Projection::Pinhole { fx, fy, .. } => {
             let (fx, fy) = (f64::from(fx), f64::from(fy));
@@ -205,13 +254,7 @@ pub fn project_backward(
     // Shortest-axis normal, turned toward the camera: n = ±R[:, k].
     let dn = DVec3::new(grad.values[4], grad.values[5], grad.values[6]);
     if normal_from_rotation && dn != DVec3::ZERO {
-        let k = if s.x <= s.y && s.x <= s.z {
-            0
-        } else if s.y <= s.z {
-            1
-        } else {
-            2
-        };
+        let k = shortest_axis(s);
         let col = r.col(k);
         let toward = match camera.projection {
             Projection::Orthographic { .. } => -camera.rotation.as_dmat3().z_axis,
@@ -219,6 +262,11 @@ pub fn project_backward(
         };
         let sign = if col.dot(toward) < 0.0 { -1.0 } else { 1.0 };
         *d_r.col_mut(k) += sign * dn;
+    }
+
+    // The slope's normal n = W·R[:, shortest].
+    if let Some(back) = &slope {
+        *d_r.col_mut(shortest_axis(s)) += w.transpose() * back.n;
     }
 
     let q = g.rotation;
@@ -254,7 +302,7 @@ mod tests {
 
     use super::*;
     use crate::scene::Scene;
-    use crate::splat::cpu::{preprocess_with, render_blends};
+    use crate::splat::cpu::{preprocess_params, render_blends, DepthAt};
     use crate::splat::{NormalSource, DEFAULT_TILE};
 
     /// A few overlapping Gaussians in front of the camera, with normals from rotation.
@@ -280,8 +328,15 @@ mod tests {
     }
 
     /// L = Σ_p weights·(values, alpha, median) over the image.
-    fn loss(params: &[Gaussian64], scene: &Scene, camera: &Camera, bg: [f64; 3], wts: &PixelGrads) -> f64 {
-        let (_, blends) = render_blends(params, scene, camera, NormalSource::ShortestAxis, DEFAULT_TILE);
+    fn loss(
+        params: &[Gaussian64],
+        scene: &Scene,
+        camera: &Camera,
+        bg: [f64; 3],
+        wts: &PixelGrads,
+        depth: DepthAt,
+    ) -> f64 {
+        let (_, blends) = render_blends(params, scene, camera, NormalSource::ShortestAxis, DEFAULT_TILE, depth);
         let mut total = 0.0;
         for (p, b) in blends.iter().enumerate() {
             let mut v = b.values;
@@ -294,7 +349,7 @@ mod tests {
         total
     }
 
-    fn check(camera: &Camera, seed: u64) {
+    fn check(camera: &Camera, seed: u64, depth: DepthAt) {
         let mut rng = Pcg64Mcg::seed_from_u64(seed);
         let scene = scene(&mut rng, 12);
         let params: Vec<Gaussian64> = (0..scene.len()).map(|i| Gaussian64::from_scene(&scene, i)).collect();
@@ -305,12 +360,8 @@ mod tests {
             median: (0..pixels).map(|_| rng.random_range(-1.0..1.0)).collect(),
         };
         let bg = [0.2, 0.5, 0.9];
-        let splats: Vec<Option<CpuSplat>> = params
-            .iter()
-            .enumerate()
-            .map(|(i, g)| preprocess_with(g, &scene, i, camera, NormalSource::ShortestAxis, DEFAULT_TILE))
-            .collect();
-        let splat_grads = blend_backward_cpu(&splats, camera, bg, &wts, DEFAULT_TILE);
+        let splats = preprocess_params(&params, &scene, camera, NormalSource::ShortestAxis, DEFAULT_TILE, depth);
+        let splat_grads = blend_backward_cpu(&splats, camera, bg, &wts, DEFAULT_TILE, depth.is_surface());
         let mut worst = 0.0f64;
         let mut significant = 0;
         for (i, g) in params.iter().enumerate() {
@@ -322,7 +373,7 @@ mod tests {
                 perturb(&mut plus[i], h);
                 let mut minus = params.clone();
                 perturb(&mut minus[i], -h);
-                (loss(&plus, &scene, camera, bg, &wts) - loss(&minus, &scene, camera, bg, &wts)) / (2.0 * h)
+                (loss(&plus, &scene, camera, bg, &wts, depth) - loss(&minus, &scene, camera, bg, &wts, depth)) / (2.0 * h)
             };
             let mut pairs: Vec<(&str, f64, f64)> = Vec::new();
             for k in 0..3 {
@@ -342,6 +393,10 @@ mod tests {
             }
         }
         assert!(splat_grads.iter().any(|g| g.mean != DVec2::ZERO), "no gradient reached any splat");
+        if depth.is_surface() {
+            let sloped = splat_grads.iter().filter(|g| g.slope.length() > 1e-3).count();
+            assert!(sloped >= 6, "only {sloped} splats got a slope gradient");
+        }
         // Most of the 12 × 14 derivatives must be far from zero, or the test proves little.
         assert!(significant >= 100, "only {significant} derivatives above 1e-3");
         eprintln!("worst relative error {worst:.2e} over {significant} significant derivatives");
@@ -350,20 +405,34 @@ mod tests {
     #[test]
     fn pinhole_gradients_match_finite_differences() {
         let camera = Camera::look_at(Vec3::new(0.3, -0.2, -3.0), Vec3::ZERO, Vec3::Y, 50.0, 40, 28).unwrap();
-        check(&camera, 3);
+        check(&camera, 3, DepthAt::Centre);
+    }
+
+    #[test]
+    fn pinhole_surface_depth_gradients_match_finite_differences() {
+        let camera = Camera::look_at(Vec3::new(0.3, -0.2, -3.0), Vec3::ZERO, Vec3::Y, 50.0, 40, 28).unwrap();
+        check(&camera, 3, DepthAt::Surface);
+        check(&camera, 6, DepthAt::Surface);
+    }
+
+    #[test]
+    fn orthographic_surface_depth_gradients_match_finite_differences() {
+        let camera =
+            Camera::orthographic(Vec3::new(0.0, 0.0, -3.0), Vec3::Z, Vec3::Y, 2.6, 2.0, 36, 28, 0.01, 10.0).unwrap();
+        check(&camera, 4, DepthAt::Surface);
     }
 
     #[test]
     fn orthographic_gradients_match_finite_differences() {
         let camera =
             Camera::orthographic(Vec3::new(0.0, 0.0, -3.0), Vec3::Z, Vec3::Y, 2.6, 2.0, 36, 28, 0.01, 10.0).unwrap();
-        check(&camera, 4);
+        check(&camera, 4, DepthAt::Centre);
     }
 
     #[test]
     fn clamped_jacobian_gradients_match_finite_differences() {
         // A narrow field of view puts several centres beyond 1.3× the half-angle.
         let camera = Camera::look_at(Vec3::new(0.0, 0.0, -3.0), Vec3::ZERO, Vec3::Y, 15.0, 40, 28).unwrap();
-        check(&camera, 5);
+        check(&camera, 5, DepthAt::Centre);
     }
 }

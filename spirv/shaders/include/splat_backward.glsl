@@ -9,10 +9,28 @@
 layout(constant_id = 0) const uint GRADS = 0;
 const bool GRAD_RGB = (GRADS & 256u) != 0u;
 const bool GRAD_FEATURES = (GRADS & 252u) != 0u;
+// Surface depths (the forward's SURFACE_DEPTH): each splat's depth at a pixel
+// is where the pixel's ray meets its plane, so its gradient also reaches the
+// splat's centre and its slope.
+layout(constant_id = 2) const bool SURFACE_DEPTH = false;
 // Floats per (tile, splat) record: mean.xy, conic.abc, opacity, depth, 0;
-// then rgb + 0 with rgb; then the ten features + 0, 0 with any feature.
-const uint STRIDE = 8u + (GRAD_RGB ? 4u : 0u) + (GRAD_FEATURES ? 12u : 0u);
-const uint MAX_STRIDE = 24u;
+// then rgb + 0 with rgb; then the ten features + 0, 0 with any feature; then
+// the slope's xy with surface depths. Keep in sync with
+// engine/src/splat/backward.rs `record_stride`.
+const uint SLOPE_AT = 8u + (GRAD_RGB ? 4u : 0u) + (GRAD_FEATURES ? 12u : 0u);
+const uint STRIDE = SLOPE_AT + (SURFACE_DEPTH ? 2u : 0u);
+const uint MAX_STRIDE = 26u;
+
+// The splat's stored slope (splat_types.glsl: colour.w, two halves).
+vec2 stored_slope(vec4 color) { return unpackHalf2x16(floatBitsToUint(color.w)); }
+
+// The splat's depth at offset d = mean − centre: its centre's, or with
+// SURFACE_DEPTH where the ray meets its plane (as the blend's `splat_depth`).
+float depth_at(float z0, vec2 slope, vec2 d, bool ortho) {
+    if (!SURFACE_DEPTH) return z0;
+    float u = -dot(slope, d);
+    return ortho ? z0 + u : z0 / (1.0 + u);
+}
 
 // Host mirror: engine/src/splat/backward.rs `BackwardUniform` (its layout is checked against this block).
 // Addresses (low, high); 0 where a gradient is not given.

@@ -8,6 +8,7 @@
 #include "common.glsl"
 #include "splat.glsl"
 #include "sh.glsl"
+#include "surface_slope.glsl"
 
 #ifdef TEXEL_INPUTS
 // The scene's Gaussian arrays as R32F texel-buffer views (bindings 1-5): on
@@ -36,7 +37,7 @@ layout(constant_id = 0) const bool WRITE_FEATURES = false;
 // (`tile_row_span`), not its whole 3σ rectangle. The keys kernel must agree.
 layout(constant_id = 1) const bool ELLIPSE_TILES = false;
 // Surface depth: store how the depth where a pixel's ray meets the splat's
-// plane changes across the image (see `surface_slope`).
+// plane changes across the image (surface_slope.glsl).
 layout(constant_id = 2) const bool SURFACE_DEPTH = false;
 // Tile edge in pixels (engine/src/splat/mod.rs `TILE_SPEC_IDS`; the blend's workgroup edge).
 layout(constant_id = 15) const uint TILE = 16u;
@@ -54,34 +55,6 @@ float sigmoid(float x) {
 }
 
 bool finite(float x) { return !isnan(x) && !isinf(x); }
-
-// The plane through the splat's camera-space mean t with normal n (its
-// shortest axis) seen from pixel offsets Δ from the mean: pinhole cameras,
-// the relative inverse depth per pixel s (1/z = (1/z₀)(1 + s·Δ)); orthographic,
-// the depth per pixel (z = z₀ + s·Δ). k.xy: pixels per unit (focal, or scale).
-// Limited so that over the splat's own 3σ footprint (`cov`: JΣJᵀ, before the
-// dilation) the depth moves at most 1.5× its 3σ extent along the view
-// (`extent`; a flat splat's plane stays within it by itself) and, pinhole,
-// over the dilated footprint (`cov` + 0.3) at most half of z₀; zero for other lenses.
-// CPU twin: engine/src/splat/cpu.rs `surface_slope`.
-vec2 surface_slope(vec3 n, vec3 t, vec2 k, bool ortho, float extent, vec3 cov) {
-    vec2 slope;
-    if (ortho) {
-        float nz = abs(n.z) < 1e-6 ? (n.z < 0.0 ? -1e-6 : 1e-6) : n.z;
-        slope = -n.xy / (nz * k);
-    } else {
-        float nt = dot(n, t);
-        nt = abs(nt) < 1e-6 * t.z ? (nt < 0.0 ? -1e-6 : 1e-6) * t.z : nt;
-        slope = n.xy * (t.z / nt) / k;
-    }
-    // 3·√(sᵀ C s): the largest s·Δ over the ellipse ΔᵀC⁻¹Δ ≤ 9.
-    float own = 3.0 * sqrt(max(slope.x * slope.x * cov.x + 2.0 * slope.x * slope.y * cov.y + slope.y * slope.y * cov.z, 0.0));
-    float dilated = 3.0 * sqrt(max(slope.x * slope.x * (cov.x + 0.3) + 2.0 * slope.x * slope.y * cov.y
-                                   + slope.y * slope.y * (cov.z + 0.3), 0.0));
-    float scale = ortho ? min(1.0, 1.5 * extent / own) : min(min(1.0, 1.5 * extent / (t.z * own)), 0.5 / dilated);
-    slope *= scale;
-    return all(bvec2(finite(slope.x), finite(slope.y))) ? slope : vec2(0.0);
-}
 
 void cull(uint i) {
     Uints(frame.tile_counts).v[i] = 0u;
