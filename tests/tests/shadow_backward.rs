@@ -472,6 +472,27 @@ fn shadow_backward_is_finite_at_the_extremes() {
                 }
             }
         }
+        // Surface depths for the map and the receivers, to the Gaussians (planes seen
+        // edge-on by the grazing sun: their slopes are at the limit).
+        let st = ShadowSettings { surface_depth: true, receiver_depth: DepthMode::Median, ..base };
+        let map = pass.shadow_map(&mut splatter, &gpu_scene, &bounds, &sun, &st, None).unwrap().unwrap();
+        let settings = SplatSettings { channels: ch, surface_depth: true, ..Default::default() };
+        let surface_receivers = splatter.render_frame(&gpu_scene, &camera, &settings).unwrap();
+        for k in [1e-3f32, 1e9] {
+            let st = ShadowSettings { k, ..st };
+            let b = pass.backward(&map, &surface_receivers.gbuffer, &camera, &st, GpuVisibilityLoss::Bce(&halves));
+            let b = b.unwrap();
+            for (frame, grads) in [(&map.frame, &b.map), (&surface_receivers, &b.receiver)] {
+                let g = splatter.backward(frame, &gpu_scene, grads, false).unwrap().read(&d).unwrap();
+                let all = g.means.iter().flatten().chain(g.log_scales.iter().flatten());
+                let all = all.chain(g.rotations.iter().flatten()).chain(&g.opacity_logits);
+                assert!(all.clone().all(|x| x.is_finite()), "el {el} k {k}: surface depths, non-finite gradient");
+                // k = 1e9 saturates every logit at its clamp, where the test passes no gradient.
+                if k == 1e-3 {
+                    assert!(all.clone().any(|x| *x != 0.0), "el {el} k {k}: surface depths, no gradient at all");
+                }
+            }
+        }
     }
     assert_no_validation_messages(&d);
 }
