@@ -710,9 +710,13 @@ srug_status srug_renderer_set_shadow_cull(srug_renderer *renderer, bool on);
 
 // Surface depths on or off: each splat's depth at a pixel where the pixel's
 // ray meets the splat's plane (its shortest axis) rather than its centre's,
-// for the depth channels, the shadow map and its receivers (off by default;
-// not differentiated: `srug_renderer_shadow_backward` then fails).
+// for the depth channels and the shadow's receivers (on by default, as in
+// the presets; differentiated by `srug_renderer_shadow_backward`).
 srug_status srug_renderer_set_surface_depth(srug_renderer *renderer, bool on);
+
+// Surface depths for the shadow map's occluders too (off by default, as in
+// the presets: docs/stages.md says why).
+srug_status srug_renderer_set_map_surface_depth(srug_renderer *renderer, bool on);
 
 // Applies a quality preset by name: `"fast"`, `"balanced"` (the default) or
 // `"reference"` (docs/bench/trade.md measures them). It sets the shadow map

@@ -840,13 +840,25 @@ pub extern "C" fn srug_renderer_set_shadow_cull(renderer: *mut srug_renderer, on
 
 /// Surface depths on or off: each splat's depth at a pixel where the pixel's
 /// ray meets the splat's plane (its shortest axis) rather than its centre's,
-/// for the depth channels, the shadow map and its receivers (off by default;
-/// not differentiated: `srug_renderer_shadow_backward` then fails).
+/// for the depth channels and the shadow's receivers (on by default, as in
+/// the presets; differentiated by `srug_renderer_shadow_backward`).
 #[no_mangle]
 pub extern "C" fn srug_renderer_set_surface_depth(renderer: *mut srug_renderer, on: bool) -> srug_status {
     guard("srug_renderer_set_surface_depth", || {
         with_renderer(renderer, |r| {
             r.settings.shadow.surface_depth = on;
+            Ok(())
+        })
+    })
+}
+
+/// Surface depths for the shadow map's occluders too (off by default, as in
+/// the presets: docs/stages.md says why).
+#[no_mangle]
+pub extern "C" fn srug_renderer_set_map_surface_depth(renderer: *mut srug_renderer, on: bool) -> srug_status {
+    guard("srug_renderer_set_map_surface_depth", || {
+        with_renderer(renderer, |r| {
+            r.settings.shadow.map_surface_depth = on;
             Ok(())
         })
     })

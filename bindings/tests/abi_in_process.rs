@@ -88,9 +88,7 @@ fn abi_shadow_pass_matches_the_rust_api() {
     let st = ShadowSettings { resolution: res, k, bias, ..RelightSettings::preset(Preset::Balanced).shadow };
     let mut splatter = Splatter::new(&d).unwrap();
     let mut pass = ShadowPass::new(&d).unwrap();
-    let receivers = splatter
-        .render_frame(&gpu, &camera, &SplatSettings { channels: st.receiver_channels(), ..SplatSettings::default() })
-        .unwrap();
+    let receivers = splatter.render_frame(&gpu, &camera, &st.receiver_splat()).unwrap();
     let bounds = city.scene.bounds().unwrap();
     let map = pass.shadow_map(&mut splatter, &gpu, &bounds, &sun, &st, Some(&camera)).unwrap().unwrap();
     let (v, _) = pass.visibility(&map, &receivers.gbuffer, &camera, &st, VisibilityKind::Sigmoid).unwrap();

@@ -117,7 +117,7 @@ fn rust_frame(ply: &Path) -> Vec<u8> {
     sky.turbidity = 3.0;
     let env = prep.prepare(&sky.render().unwrap(), &PrepareSettings::default()).unwrap();
     let mut settings = RelightSettings::default();
-    (settings.shadow.bias, settings.shadow.slope_bias) = (0.3, 3.0);
+    (settings.shadow.bias, settings.shadow.slope_bias) = (0.8, 3.0);
     settings.shadow.receiver_depth = srug::shadow::DepthMode::Median;
     settings.shade.tone_map = ToneMap::Aces;
     settings.extra_channels = Channels { depth: true, normal: true, ..Channels::default() };

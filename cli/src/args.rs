@@ -542,9 +542,13 @@ pub struct ShadeArgs {
     #[arg(long, value_parser = ShadowFilter::parse)]
     pub shadow_filter: Option<ShadowFilter>,
     /// Surface depths for the shadow map and its receivers (and the depth
-    /// channels written): where each ray meets the splat's plane [preset: off].
-    #[arg(long)]
-    pub shadow_surface_depth: bool,
+    /// channels written): where each ray meets the splat's plane; `=false` for
+    /// the splats' centre depths [preset: true].
+    #[arg(long, num_args = 0..=1, default_missing_value = "true", require_equals = true)]
+    pub shadow_surface_depth: Option<bool>,
+    /// Surface depths for the shadow map's occluders too [preset: false].
+    #[arg(long, num_args = 0..=1, default_missing_value = "true", require_equals = true)]
+    pub shadow_map_surface_depth: Option<bool>,
     /// Receiver depth for the shadow test: median or expected [preset: median].
     #[arg(long, value_parser = DepthMode::parse)]
     pub receiver_depth: Option<DepthMode>,
@@ -587,7 +591,8 @@ impl ShadeArgs {
         sh.slope_bias = self.shadow_slope_bias.unwrap_or(sh.slope_bias);
         sh.normal_offset = self.shadow_normal_offset.unwrap_or(sh.normal_offset);
         sh.filter = self.shadow_filter.unwrap_or(sh.filter);
-        sh.surface_depth |= self.shadow_surface_depth;
+        sh.surface_depth = self.shadow_surface_depth.unwrap_or(sh.surface_depth);
+        sh.map_surface_depth = self.shadow_map_surface_depth.unwrap_or(sh.map_surface_depth);
         sh.cull_to_receivers |= self.shadow_cull;
         sh.receiver_depth = self.receiver_depth.unwrap_or(sh.receiver_depth);
         s.visibility_kind = self.shadow_test.unwrap_or(s.visibility_kind);

@@ -577,11 +577,12 @@ impl Device {
     /// exposure, tone map and sRGB (`output="display"`).
     #[pyo3(signature = (scene, cameras, sun = None, sun_intensity = std::f32::consts::PI, preset = "balanced",
                         environment = None, env_rotation = 0.0, env_intensity = 1.0, exposure = 0.0,
-                        output = "radiance", progress = None, surface_depth = false, shadow_fit = "scene",
+                        output = "radiance", progress = None, surface_depth = None, shadow_fit = "scene",
                         host_depth = None, depth_convention = "camera_z", near = 0.0, far = 0.0, background = None,
                         shadow_cull = false, shadow_resolution = None, shadow_k = None, shadow_bias = None,
                         shadow_slope_bias = None, shadow_normal_offset = None, receiver_depth = None,
-                        shadow_test = None, shadow_filter = None, shadow_cascades = None))]
+                        shadow_test = None, shadow_filter = None, shadow_cascades = None,
+                        map_surface_depth = None))]
     #[allow(clippy::too_many_arguments, reason = "the Python keyword arguments of one call")]
     fn relight<'py>(
         &self,
@@ -597,7 +598,7 @@ impl Device {
         exposure: f32,
         output: &str,
         progress: Option<Py<PyAny>>,
-        surface_depth: bool,
+        surface_depth: Option<bool>,
         shadow_fit: &str,
         host_depth: Option<PyReadonlyArrayDyn<'py, f32>>,
         depth_convention: &str,
@@ -614,6 +615,7 @@ impl Device {
         shadow_test: Option<String>,
         shadow_filter: Option<String>,
         shadow_cascades: Option<u32>,
+        map_surface_depth: Option<bool>,
     ) -> PyResult<Bound<'py, PyDict>> {
         let shadow = ShadowOptions {
             resolution: shadow_resolution,
@@ -643,7 +645,8 @@ impl Device {
         settings.shade.exposure_ev = exposure;
         settings.shade.env_rotation_degrees = env_rotation;
         settings.shade.env_intensity = env_intensity;
-        settings.shadow.surface_depth |= surface_depth;
+        settings.shadow.surface_depth = surface_depth.unwrap_or(settings.shadow.surface_depth);
+        settings.shadow.map_surface_depth = map_surface_depth.unwrap_or(settings.shadow.map_surface_depth);
         settings.shadow.fit = srug::shadow::ShadowFit::parse(shadow_fit).map_err(py_err)?;
         settings.shadow.cull_to_receivers = shadow_cull;
         shadow.apply(&mut settings)?;

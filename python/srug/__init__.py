@@ -422,7 +422,7 @@ class Device:
         exposure: float = 0.0,
         output: str = "radiance",
         progress: Progress = None,
-        surface_depth: bool = False,
+        surface_depth: Optional[bool] = None,
         shadow_fit: str = "scene",
         host_depth: Optional[np.ndarray] = None,
         depth_convention: str = "camera_z",
@@ -440,6 +440,7 @@ class Device:
         shadow_test: Optional[str] = None,
         shadow_filter: Optional[str] = None,
         shadow_cascades: Optional[int] = None,
+        map_surface_depth: Optional[bool] = None,
     ) -> Any:
         """Relights every camera: (N, H, W, 3) float32.
 
@@ -451,7 +452,9 @@ class Device:
         "radiance" (linear, before tone mapping) or "display" (exposure, tone
         map and sRGB, in [0, 1]). The scene needs an albedo attribute.
         ``surface_depth``: surface depths for the shadow map and its receivers
-        (docs/stages.md). ``shadow_fit``: "scene" (the map covers the scene's
+        (docs/stages.md; None: the preset's, on; False: the splats' centre depths);
+        ``map_surface_depth``: for the shadow map's occluders too (None: the
+        preset's, off). ``shadow_fit``: "scene" (the map covers the scene's
         bounds), "view" (each camera's view within them: finer texels) or
         "cascades" (``shadow_cascades`` maps, 2 to 4, 3 by default, each over a
         slice of the camera's view depth: fine near the camera; pinhole cameras).
@@ -498,7 +501,7 @@ class Device:
             float(exposure),
             str(output),
             cb,
-            surface_depth=bool(surface_depth),
+            surface_depth=None if surface_depth is None else bool(surface_depth),
             shadow_fit=str(shadow_fit),
             host_depth=None if host_depth is None else np.ascontiguousarray(host_depth, dtype=np.float32),
             depth_convention=str(depth_convention),
@@ -515,6 +518,7 @@ class Device:
             shadow_test=None if shadow_test is None else str(shadow_test),
             shadow_filter=None if shadow_filter is None else str(shadow_filter),
             shadow_cascades=None if shadow_cascades is None else int(shadow_cascades),
+            map_surface_depth=None if map_surface_depth is None else bool(map_surface_depth),
         )
         return (out[output], out["alpha"]) if return_alpha else out[output]
 

@@ -50,7 +50,7 @@ class Device:
         exposure: float = ...,
         output: str = ...,
         progress: Optional[Callable[[int, int], Any]] = ...,
-        surface_depth: bool = ...,
+        surface_depth: Optional[bool] = ...,
         shadow_fit: str = ...,
         host_depth: Optional[np.ndarray] = ...,
         depth_convention: str = ...,
@@ -67,6 +67,7 @@ class Device:
         shadow_test: Optional[str] = ...,
         shadow_filter: Optional[str] = ...,
         shadow_cascades: Optional[int] = ...,
+        map_surface_depth: Optional[bool] = ...,
     ) -> Dict[str, np.ndarray]: ...
 
     def shadow(

@@ -339,7 +339,11 @@ def test_shadow_gradients_match_finite_differences(dev, shadow_problem):
     occluder = g0 + int(np.argmax(np.abs(g["means"][g0:, 0])))
     receiver = int(np.argmax(np.abs(g["means"][:g0, 2])))
     opaque = g0 + int(np.argmax(np.abs(g["opacity_logits"][g0:])))
-    for name, i, j, h in [("means", occluder, 0, 0.02), ("means", receiver, 2, 0.01), ("opacity_logits", opaque, None, 0.05)]:
+    # The receiver's step is a tenth of its 1 cm thickness: its surface depth (the presets') bends
+    # over a step of its whole thickness (h = 0.01 gave 8.3 against 10.03; 0.003, 0.001 and 3e-4
+    # gave 9.81, 10.03 and 10.01).
+    steps = [("means", occluder, 0, 0.02), ("means", receiver, 2, 0.001), ("opacity_logits", opaque, None, 0.05)]
+    for name, i, j, h in steps:
         if name == "means":
             up, down = means.copy(), means.copy()
             up[i, j] += h
@@ -430,8 +434,12 @@ def test_surface_depth_moves_depths_only(dev, city):
     assert np.array_equal(centre["rgb"], surface["rgb"]) and np.array_equal(centre["alpha"], surface["alpha"])
     moved = np.abs(centre["median_depth"] - surface["median_depth"]) > 1e-3
     assert 0.01 < moved.mean(), moved.mean()
-    lit = dev.relight(scene, cam, sun=(260.0, 50.0), surface_depth=True)
+    lit = dev.relight(scene, cam, sun=(260.0, 50.0))
     assert lit.shape == (1, 48, 176, 3) and np.isfinite(lit).all()
+    # The presets' surface depths are the default: True changes nothing, False does.
+    assert np.array_equal(lit, dev.relight(scene, cam, sun=(260.0, 50.0), surface_depth=True))
+    centre_lit = dev.relight(scene, cam, sun=(260.0, 50.0), surface_depth=False)
+    assert np.isfinite(centre_lit).all() and not np.array_equal(lit, centre_lit)
     fitted = dev.relight(scene, cam, sun=(260.0, 50.0), shadow_fit="view")
     assert fitted.shape == (1, 48, 176, 3) and np.isfinite(fitted).all()
     with pytest.raises(srug.Error) as e:
@@ -558,9 +566,9 @@ def test_relight_shadow_options_override_the_preset(dev, city):
     one = cams[0]
     base = dev.relight(scene, one, sun=(250.0, 30.0))
     same = dev.relight(
-        scene, one, sun=(250.0, 30.0), shadow_resolution=2048, shadow_k=50.0, shadow_bias=0.3,
+        scene, one, sun=(250.0, 30.0), shadow_resolution=2048, shadow_k=50.0, shadow_bias=0.8,
         shadow_slope_bias=3.0, shadow_normal_offset=0.0, receiver_depth="median", shadow_test="sigmoid",
-        shadow_filter="pcf",
+        shadow_filter="pcf", surface_depth=True, map_surface_depth=False,
     )
     np.testing.assert_array_equal(base, same)
     hard = dev.relight(scene, one, sun=(250.0, 30.0), shadow_filter="depth")

@@ -96,7 +96,7 @@ void main() {
             if (!splat_alpha(head, conic, centre, alpha, gauss, d)) continue;
             float next_T = T * (1.0 - alpha);
             if (next_T < 1e-4) break;
-            float z = depth_at(head.z, stored_slope(color), d, ortho);
+            float z = depth_at(head.z, stored_slope(conic, color), d, ortho);
             if ((T > 0.5 && next_T <= 0.5) || (SURFACE_DEPTH && T <= 0.5 && alpha >= 0.5 && z < median_z)) {
                 median_j = j;
                 median_z = z;
@@ -152,7 +152,7 @@ void main() {
             vec2 d;
             if (j < end && splat_alpha(head, conic, centre, alpha, gauss, d)) {
                 T /= 1.0 - alpha;
-                vec2 slope = stored_slope(color);
+                vec2 slope = stored_slope(conic, color);
                 float z = depth_at(head.z, slope, d, ortho);
                 float x[14] = float[14](color.r, color.g, color.b, z, f0.x, f0.y, f0.z, f0.w,
                                         f1.x, f1.y, f1.z, f1.w, f2.x, f2.y);

@@ -674,8 +674,7 @@ fn relit_demo_street_shows_the_offscreen_towers_shadow() {
     // The whole scene's map, and cascades fitted to the camera's view: casters
     // outside the view stay in every cascade's map.
     for fit in [ShadowFit::SceneBounds, ShadowFit::Cascades] {
-        let shadow =
-            ShadowSettings { resolution: 1024, bias: 0.5, prefill: Some(NAN), fit, ..ShadowSettings::default() };
+        let shadow = ShadowSettings { resolution: 1024, prefill: Some(NAN), fit, ..ShadowSettings::default() };
         let settings = RelightSettings {
             shadow,
             shade: ShadeSettings { prefill: Some(NAN), ..ShadeSettings::default() },

@@ -271,8 +271,13 @@ fn shadow_gradients_reach_the_gaussians_like_finite_differences() {
 
         // Central finite differences of the f64 CPU pipeline: L = Σ w·V_e.
         let params: Vec<Gaussian64> = (0..scene.len()).map(|i| Gaussian64::from_scene(&scene, i)).collect();
-        let chain =
-            Chain { scene: scene.clone(), light: light.clone(), camera: camera.clone(), settings: st, depth: DepthAt::Centre };
+        let chain = Chain {
+            scene: scene.clone(),
+            light: light.clone(),
+            camera: camera.clone(),
+            settings: st,
+            depth: DepthAt::Centre,
+        };
         let loss = |p: &[Gaussian64]| chain.loss(p, VisibilityLoss::Upstream(&weights));
         let h = 1e-6;
         let mut rows: Vec<(usize, usize, f64, f64)> = Vec::new(); // (Gaussian, family, gpu, fd)
@@ -323,8 +328,7 @@ fn shadow_gradients_reach_the_gaussians_like_finite_differences() {
 
 /// With surface depths (map and receivers), the GPU's gradients to every
 /// Gaussian against the twin's chain (itself against central differences in
-/// `cpu_shadow_chain_gradients_match_finite_differences_with_surface_depths`),
-/// the slopes rounded to half precision in both as the kernels store them.
+/// `cpu_shadow_chain_gradients_match_finite_differences_with_surface_depths`).
 #[test]
 fn shadow_gradients_with_surface_depths_match_the_twin() {
     let d = device();
@@ -340,7 +344,8 @@ fn shadow_gradients_with_surface_depths_match_the_twin() {
     let t32: Vec<f32> = targets.iter().map(|v| *v as f32).collect();
     let target = d.upload("V_f", &t32).unwrap();
     let params: Vec<Gaussian64> = (0..scene.len()).map(|i| Gaussian64::from_scene(&scene, i)).collect();
-    for (map_depth, receiver_depth) in [(DepthMode::Median, DepthMode::Median), (DepthMode::Expected, DepthMode::Expected)]
+    for (map_depth, receiver_depth) in
+        [(DepthMode::Median, DepthMode::Median), (DepthMode::Expected, DepthMode::Expected)]
     {
         let st = ShadowSettings {
             resolution: 40,
@@ -350,6 +355,7 @@ fn shadow_gradients_with_surface_depths_match_the_twin() {
             map_depth,
             receiver_depth,
             surface_depth: true,
+            map_surface_depth: true,
             ..ShadowSettings::default()
         };
         let map = pass.shadow_map(&mut splatter, &gpu_scene, &bounds, &sun, &st, None).unwrap().unwrap();
@@ -367,48 +373,35 @@ fn shadow_gradients_with_surface_depths_match_the_twin() {
             light: light.clone(),
             camera: camera.clone(),
             settings: st,
-            depth: DepthAt::SurfaceHalf,
+            depth: DepthAt::Surface,
         };
         let (twin, _) = chain.gradients(&params, VisibilityLoss::Bce(&targets));
         let centre = Chain { depth: DepthAt::Centre, ..chain }.gradients(&params, VisibilityLoss::Bce(&targets)).0;
-        let families: [(&str, Box<dyn Fn(usize) -> Vec<(f64, f64, f64)>>); 3] = [
-            (
-                "mean",
-                Box::new(|i| {
-                    (0..3).map(|c| (f64::from(total.means[i][c]), twin[i].mean[c], centre[i].mean[c])).collect()
-                }),
-            ),
-            (
-                "log_scale",
-                Box::new(|i| {
-                    (0..3)
-                        .map(|c| (f64::from(total.log_scales[i][c]), twin[i].log_scale[c], centre[i].log_scale[c]))
-                        .collect()
-                }),
-            ),
-            (
-                "rotation",
-                Box::new(|i| {
-                    (0..4)
-                        .map(|c| (f64::from(total.rotations[i][c]), twin[i].rotation[c], centre[i].rotation[c]))
-                        .collect()
-                }),
-            ),
-        ];
-        for (name, rows) in &families {
-            let all: Vec<(usize, (f64, f64, f64))> =
-                (0..params.len()).flat_map(|i| rows(i).into_iter().map(move |r| (i, r))).collect();
-            let scale = all.iter().fold(0.0f64, |m, (_, r)| m.max(r.1.abs()));
+        // (Gaussian, family, GPU, twin, twin with centre depths)
+        let mut rows: Vec<(usize, usize, f64, f64, f64)> = Vec::new();
+        for i in 0..params.len() {
+            let (g, t, c) = (&total, &twin[i], &centre[i]);
+            for k in 0..3 {
+                rows.push((i, 0, f64::from(g.means[i][k]), t.mean[k], c.mean[k]));
+                rows.push((i, 1, f64::from(g.log_scales[i][k]), t.log_scale[k], c.log_scale[k]));
+            }
+            for k in 0..4 {
+                rows.push((i, 2, f64::from(g.rotations[i][k]), t.rotation[k], c.rotation[k]));
+            }
+        }
+        for (family, name) in ["mean", "log_scale", "rotation"].iter().enumerate() {
+            let all: Vec<&(usize, usize, f64, f64, f64)> = rows.iter().filter(|r| r.1 == family).collect();
+            let scale = all.iter().fold(0.0f64, |m, r| m.max(r.3.abs()));
             assert!(scale > 0.0, "{name}: no gradient");
             let mut worst = 0.0f64;
-            for (i, (gpu, cpu, _)) in &all {
+            for (i, _, gpu, cpu, _) in &all {
                 // As the finite-difference test above: relative 1e-3 above 1% of the family's largest.
                 let err = (gpu - cpu).abs() / cpu.abs().max(1e-2 * scale);
                 worst = worst.max(err);
                 assert!(err <= 1e-3, "{map_depth:?}: Gaussian {i} {name}: GPU {gpu:.6e}, twin {cpu:.6e}");
             }
             // Surface depths change the gradients: the test would see a centre-depth backward.
-            let changed = all.iter().filter(|(_, r)| (r.1 - r.2).abs() > 1e-2 * scale).count();
+            let changed = all.iter().filter(|r| (r.3 - r.4).abs() > 1e-2 * scale).count();
             assert!(changed >= 10, "{map_depth:?} {name}: only {changed} gradients differ from centre depths'");
             eprintln!("{map_depth:?}/{receiver_depth:?} {name}: worst relative error {worst:.2e}, {changed} changed");
         }
@@ -474,7 +467,8 @@ fn shadow_backward_is_finite_at_the_extremes() {
         }
         // Surface depths for the map and the receivers, to the Gaussians (planes seen
         // edge-on by the grazing sun: their slopes are at the limit).
-        let st = ShadowSettings { surface_depth: true, receiver_depth: DepthMode::Median, ..base };
+        let st =
+            ShadowSettings { surface_depth: true, map_surface_depth: true, receiver_depth: DepthMode::Median, ..base };
         let map = pass.shadow_map(&mut splatter, &gpu_scene, &bounds, &sun, &st, None).unwrap().unwrap();
         let settings = SplatSettings { channels: ch, surface_depth: true, ..Default::default() };
         let surface_receivers = splatter.render_frame(&gpu_scene, &camera, &settings).unwrap();
@@ -509,7 +503,8 @@ struct Chain {
 
 impl Chain {
     fn images(&self, params: &[Gaussian64]) -> (DepthImage, DepthImage) {
-        let blends = |cam| render_blends(params, &self.scene, cam, NormalSource::ShortestAxis, DEFAULT_TILE, self.depth).1;
+        let blends =
+            |cam| render_blends(params, &self.scene, cam, NormalSource::ShortestAxis, DEFAULT_TILE, self.depth).1;
         let (lb, cb) = (blends(&self.light), blends(&self.camera));
         (
             DepthImage::from_blends(self.light.width, self.light.height, &lb),
@@ -535,7 +530,8 @@ impl Chain {
         let g = sigmoid_backward_cpu(&self.light, &map, &self.camera, &rec, &self.settings, loss);
         let mut out = vec![GaussianGrad::default(); params.len()];
         for (cam, pg) in [(&self.light, &g.map), (&self.camera, &g.receiver)] {
-            let (splats, _) = render_blends(params, &self.scene, cam, NormalSource::ShortestAxis, DEFAULT_TILE, self.depth);
+            let (splats, _) =
+                render_blends(params, &self.scene, cam, NormalSource::ShortestAxis, DEFAULT_TILE, self.depth);
             let sg = blend_backward_cpu(&splats, cam, [0.0; 3], pg, DEFAULT_TILE, self.depth.is_surface());
             for (i, p) in params.iter().enumerate() {
                 let d = project_backward(p, cam, &sg[i], false, DEFAULT_TILE);
@@ -562,6 +558,7 @@ fn check_chain(map_depth: DepthMode, receiver_depth: DepthMode, bce: bool, filte
         receiver_depth,
         filter,
         surface_depth: surface,
+        map_surface_depth: surface,
         ..ShadowSettings::default()
     };
     let depth = if surface { DepthAt::Surface } else { DepthAt::Centre };

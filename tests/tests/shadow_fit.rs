@@ -14,7 +14,7 @@ use srug::shadow::accuracy::shadow_accuracy;
 use srug::shadow::completion::{
     complete_demo, complete_from_views, shadow_iou, CompletionProblem, CompletionSettings, DemoCompletion, ShadowView,
 };
-use srug::shadow::{ShadowPass, ShadowSettings, Sun, VisibilityKind};
+use srug::shadow::{ShadowPass, Sun, VisibilityKind};
 use srug::splat::{SplatSettings, Splatter};
 use srug_tests::{assert_no_validation_messages, device, psnr, save_comparison};
 
@@ -114,7 +114,9 @@ fn noisy(target: &[f32], width: usize, fraction: f64, erode: usize, seed: u64) -
 fn block_ious(d: &Device, scene: &GpuScene, bounds: &Bounds, p: &BlockProblem) -> Vec<f64> {
     let mut splatter = Splatter::new(d).unwrap();
     let pass = ShadowPass::new(d).unwrap();
-    let st = ShadowSettings::default();
+    // Judged with the shadow the completion fits against (the balanced preset's with centre
+    // depths: CompletionSettings::scene_shadow).
+    let st = CompletionSettings::default().scene_shadow;
     let map = pass.shadow_map(&mut splatter, scene, bounds, &p.sun, &st, None).unwrap().unwrap();
     p.cameras
         .iter()

@@ -159,8 +159,7 @@ fn cpu_gradients(scene: &Scene, camera: &Camera, bg: [f32; 3], host: &PixelGrads
     cpu_gradients_tiled(scene, camera, bg, host, DEFAULT_TILE, DepthAt::Centre)
 }
 
-/// The twin's gradients; `DepthAt::SurfaceHalf` for the GPU's surface depths
-/// (the slopes rounded as the kernels store them).
+/// The twin's gradients.
 fn cpu_gradients_tiled(
     scene: &Scene,
     camera: &Camera,
@@ -224,7 +223,7 @@ fn gpu_backward_matches_cpu_twin_with_surface_depths() {
         let pixels = (camera.width * camera.height) as usize;
         let (host, grads) = random_grads(&d, pixels, 120 + seed as u64);
         let gpu = gpu_gradients_tiled(&d, &scene, camera, bg, &grads, DEFAULT_TILE, true).unwrap();
-        let cpu = cpu_gradients_tiled(&scene, camera, bg, &host, DEFAULT_TILE, DepthAt::SurfaceHalf);
+        let cpu = cpu_gradients_tiled(&scene, camera, bg, &host, DEFAULT_TILE, DepthAt::Surface);
         compare(&format!("{name}, surface depths"), &gpu, &cpu, 1e-3);
         // The slope's share is not negligible: without it the twin differs.
         let centre = cpu_gradients_tiled(&scene, camera, bg, &host, DEFAULT_TILE, DepthAt::Centre);

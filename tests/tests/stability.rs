@@ -198,9 +198,7 @@ fn run(rig: &mut Rig, case: &Case) -> Vec<f32> {
     if case.sun.above_horizon() {
         let st = ShadowSettings { prefill: Some(NAN), ..settings.shadow };
         let splatter = rig.relighter.splatter();
-        let receivers = splatter
-            .render_frame(&gpu, &camera, &SplatSettings { channels: st.receiver_channels(), ..Default::default() })
-            .unwrap();
+        let receivers = splatter.render_frame(&gpu, &camera, &st.receiver_splat()).unwrap();
         let map = rig.pass.shadow_map(splatter, &gpu, &bounds, &case.sun, &st, Some(&camera)).unwrap().unwrap();
         let (v, _) = rig.pass.visibility(&map, &receivers.gbuffer, &camera, &st, VisibilityKind::Sigmoid).unwrap();
         let v: Vec<f32> = d.read_buffer(&v).unwrap();

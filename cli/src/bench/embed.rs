@@ -34,8 +34,8 @@ pub struct EmbedSetup {
     pub sizes: Vec<(u32, u32)>,
     /// Frames measured per path (after one warm-up frame).
     pub frames: usize,
-    /// Surface depths for the frames and their shadows.
-    pub surface_depth: bool,
+    /// Surface depths for the frames and their shadows (`None`: the preset's).
+    pub surface_depth: Option<bool>,
 }
 
 /// One size's row: median milliseconds per frame.
@@ -73,7 +73,7 @@ pub fn embed_bench(device: &Device, setup: &EmbedSetup, mut progress: impl FnMut
         prep.prepare(&ProceduralSky::new(sun.direction, sun.intensity[0]).render()?, &PrepareSettings::default())?;
     let brdf = prep.brdf_table(BrdfLut::Karis, 129, 1024)?;
     let mut settings = RelightSettings::preset(Preset::Balanced);
-    settings.shadow.surface_depth = setup.surface_depth;
+    settings.shadow.surface_depth = setup.surface_depth.unwrap_or(settings.shadow.surface_depth);
     let mut relighter = Relighter::new(device)?;
     relighter.set_shadow_map_reuse(true);
     let mut rows = Vec::new();

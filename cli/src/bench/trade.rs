@@ -73,7 +73,8 @@ pub fn trade_settings(with_network: bool) -> Vec<TradeSetting> {
     knob("map depth", "expected".into(), &|s| s.shadow.map_depth = DepthMode::Expected);
     knob("shadow test", "traced".into(), &|s| s.visibility_kind = VisibilityKind::Traced);
     knob("shadow filter", "depth".into(), &|s| s.shadow.filter = ShadowFilter::Depth);
-    knob("surface depths", "on".into(), &|s| s.shadow.surface_depth = true);
+    knob("surface depths", "off".into(), &|s| s.shadow.surface_depth = false);
+    knob("surface depths", "map too".into(), &|s| s.shadow.map_surface_depth = true);
     knob("shadow fit", "view".into(), &|s| s.shadow.fit = ShadowFit::ViewFrustum);
     for n in [2u32, 3] {
         knob("shadow fit", format!("{n} cascades"), &|s| {

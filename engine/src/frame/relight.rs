@@ -497,7 +497,7 @@ impl Relighter {
             direction: sun.direction,
             depth: shadow.map_depth,
             tile: shadow.tile,
-            surface_depth: shadow.surface_depth,
+            surface_depth: shadow.map_surface_depth,
             receivers: cull.then(|| camera.clone()),
         };
         let reused = self.reuse_shadow_map && self.shadow_map.as_ref().is_some_and(|(k, _)| *k == key);

@@ -111,9 +111,12 @@ impl Default for CompletionSettings {
                 // backward replays every splat over its whole tile: 8-pixel tiles
                 // cut a step by a third (docs/bench/completion.md).
                 tile: 8,
+                // Centre depths, as measured in docs/bench/completion.md: the added
+                // Gaussians start as blobs, whose planes mean nothing yet.
+                surface_depth: false,
                 ..ShadowSettings::default()
             },
-            scene_shadow: ShadowSettings::default(),
+            scene_shadow: ShadowSettings { surface_depth: false, ..ShadowSettings::default() },
             learning_rates: [0.025, 0.025, 0.01, 0.1],
             initial_opacity_logit: -4.0,
             refresh_every: 10,
@@ -464,7 +467,7 @@ pub fn complete_from_views(
         normal: true,
         ..Channels::default()
     };
-    let receiver_settings = SplatSettings { channels, ..SplatSettings::default() };
+    let receiver_settings = SplatSettings { channels, surface_depth: sst.surface_depth, ..SplatSettings::default() };
 
     // The scene as given: its receivers and its own shadows, once per view.
     let gpu = GpuScene::upload(device, scene)?;
@@ -1143,7 +1146,8 @@ pub fn complete_demo(
     let pass = ShadowPass::new(device)?;
     let full = GpuScene::upload(device, &demo.scene)?;
     let channels = Channels { depth: true, median_depth: true, normal: true, ..Channels::default() };
-    let receivers = splatter.render_frame(&full, &camera, &SplatSettings { channels, ..SplatSettings::default() })?;
+    let splat = SplatSettings { channels, surface_depth: st.surface_depth, ..SplatSettings::default() };
+    let receivers = splatter.render_frame(&full, &camera, &splat)?;
     // Occluders may be anywhere in the city's extent (the tower included: what is
     // removed is unknown to the fit, the extent of the place is not).
     let bounds = demo.scene.bounds().ok_or_else(|| Error::invalid("demo scene", "is empty"))?;

@@ -138,7 +138,7 @@ impl ShadowPass {
             tile: settings.tile,
             // The map is depth and alpha only: no colour to evaluate or read.
             rgb: false,
-            surface_depth: settings.surface_depth,
+            surface_depth: settings.map_surface_depth,
             ..SplatSettings::default()
         };
         let mut frame = match mask {

@@ -201,11 +201,18 @@ pub struct ShadowSettings {
     /// How the test reads the map around each receiver.
     pub filter: ShadowFilter,
     /// Surface depths ([`crate::splat::SplatSettings::surface_depth`]) for the
-    /// shadow map's occluders and the receivers: each splat's depth where the
-    /// pixel's (or texel's) ray meets its plane, not its centre's. Receivers
-    /// follow it when rendered with [`ShadowSettings::receiver_splat`]. Not
-    /// differentiated: the shadow backward refuses it.
+    /// receivers: each splat's depth where the pixel's ray meets its plane, not
+    /// its centre's. Receivers follow it when rendered with
+    /// [`ShadowSettings::receiver_splat`]. Differentiated (the splat backward
+    /// takes the slope's gradient back to the Gaussians).
     pub surface_depth: bool,
+    /// Surface depths for the shadow map's occluders too. Off in the presets:
+    /// the map's median splat is the one whose coverage takes T to one half,
+    /// in the order of the splats' centres, so with surface depths one more
+    /// faint splat in front (an added occluder's fringe) can hand the median to
+    /// a splat whose plane lies deeper at that texel, and lighten it; on the
+    /// analytic block it changes no accuracy figure beyond the noise.
+    pub map_surface_depth: bool,
     /// Depth of the shadow map.
     pub map_depth: DepthMode,
     /// Depth of the receivers (the camera G-buffer).
@@ -234,11 +241,12 @@ impl Default for ShadowSettings {
         Self {
             resolution: 2048,
             k: 50.0,
-            bias: 0.3,
+            bias: 0.8,
             slope_bias: 3.0,
             normal_offset: 0.0,
             filter: ShadowFilter::Pcf,
-            surface_depth: false,
+            surface_depth: true,
+            map_surface_depth: false,
             map_depth: DepthMode::Median,
             receiver_depth: DepthMode::Median,
             fit: ShadowFit::SceneBounds,

@@ -32,8 +32,7 @@ pub struct CpuSplat {
     pub wrap_period: f64,
     /// normal.xyz, roughness, albedo.rgb, metallic, ao, visibility.
     pub features: [f64; 10],
-    /// Surface-depth slope ([`surface_slope`], rounded to half precision as
-    /// the kernel stores it); zero for centre depths.
+    /// Surface-depth slope ([`surface_slope`]); zero for centre depths.
     pub depth_slope: [f64; 2],
     /// Whether the camera is orthographic (the slope is then in depth per
     /// pixel, else in relative inverse depth per pixel).
@@ -241,14 +240,9 @@ pub(crate) fn shortest_axis(s: DVec3) -> usize {
 /// orthographic, the depth per pixel (z = z₀ + s·Δ). Limited so that over the
 /// splat's own 3σ footprint (JΣJᵀ before the dilation) the depth moves at most
 /// 1.5× its 3σ extent along the view and, pinhole, over the dilated footprint at
-/// most half of z₀; rounded to half precision as the kernel stores it. Zero for
-/// lenses other than the pinhole and for equirectangular cameras. Twin of `surface_slope` in `splat_preprocess_body.glsl`.
+/// most half of z₀. Zero for lenses other than the pinhole and for
+/// equirectangular cameras. Twin of `surface_slope` in `surface_slope.glsl`.
 pub fn surface_slope(g: &Gaussian64, camera: &Camera) -> [f64; 2] {
-    surface_slope_exact(g, camera).map(|v| half::f16::from_f64(v).to_f64())
-}
-
-/// [`surface_slope`] in f64, not rounded (what finite differences see).
-pub fn surface_slope_exact(g: &Gaussian64, camera: &Camera) -> [f64; 2] {
     SlopeInputs::of(g, camera).map_or([0.0; 2], |inputs| inputs.slope().to_array())
 }
 
@@ -792,11 +786,8 @@ pub(crate) fn blend_pixel(
 pub enum DepthAt {
     /// Each splat's centre depth.
     Centre,
-    /// Where the pixel's ray meets the splat's plane, the slope in f64 (what
-    /// finite differences see).
+    /// Where the pixel's ray meets the splat's plane.
     Surface,
-    /// As `Surface`, the slope rounded to half precision as the kernels store it.
-    SurfaceHalf,
 }
 
 impl DepthAt {
@@ -818,8 +809,7 @@ pub fn preprocess_params(
 ) -> Vec<Option<CpuSplat>> {
     let slope = |g: &Gaussian64| match depth {
         DepthAt::Centre => [0.0; 2],
-        DepthAt::Surface => surface_slope_exact(g, camera),
-        DepthAt::SurfaceHalf => surface_slope(g, camera),
+        DepthAt::Surface => surface_slope(g, camera),
     };
     params
         .iter()

@@ -373,7 +373,8 @@ mod tests {
                 perturb(&mut plus[i], h);
                 let mut minus = params.clone();
                 perturb(&mut minus[i], -h);
-                (loss(&plus, &scene, camera, bg, &wts, depth) - loss(&minus, &scene, camera, bg, &wts, depth)) / (2.0 * h)
+                (loss(&plus, &scene, camera, bg, &wts, depth) - loss(&minus, &scene, camera, bg, &wts, depth))
+                    / (2.0 * h)
             };
             let mut pairs: Vec<(&str, f64, f64)> = Vec::new();
             for k in 0..3 {

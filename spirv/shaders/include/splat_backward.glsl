@@ -21,8 +21,8 @@ const uint SLOPE_AT = 8u + (GRAD_RGB ? 4u : 0u) + (GRAD_FEATURES ? 12u : 0u);
 const uint STRIDE = SLOPE_AT + (SURFACE_DEPTH ? 2u : 0u);
 const uint MAX_STRIDE = 26u;
 
-// The splat's stored slope (splat_types.glsl: colour.w, two halves).
-vec2 stored_slope(vec4 color) { return unpackHalf2x16(floatBitsToUint(color.w)); }
+// The splat's stored slope (splat_types.glsl: conic.w, colour.w).
+vec2 stored_slope(vec4 conic, vec4 color) { return vec2(conic.w, color.w); }
 
 // The splat's depth at offset d = mean − centre: its centre's, or with
 // SURFACE_DEPTH where the ray meets its plane (as the blend's `splat_depth`).

@@ -39,17 +39,18 @@ layout(set = 0, binding = 3) uniform utextureBuffer value_texels;
 // word's top TILE bits are the blocks of its tile the pair's splat reaches.
 layout(set = 0, binding = 4) uniform utextureBuffer key_texels;
 #define SPLAT_COLOR(g) texelFetch(splat_texels, int(4u * (g) + 2u)).rgb
-#define SPLAT_SLOPE_BITS(g) texelFetch(splat_texels, int(4u * (g) + 2u)).w
+#define SPLAT_SLOPE_Y(g) texelFetch(splat_texels, int(4u * (g) + 2u)).w
 #define FEATURE(i) texelFetch(feature_texels, int(i))
 #else
 #define SPLAT_COLOR(g) Splats(frame.splats).v[g].color.rgb
-#define SPLAT_SLOPE_BITS(g) Splats(frame.splats).v[g].color.w
+#define SPLAT_SLOPE_Y(g) Splats(frame.splats).v[g].color.w
 #define FEATURE(i) Features(frame.features).v[i]
 #endif
 
-// The splat's surface-depth slope (zero without SURFACE_DEPTH).
-vec2 splat_slope(uint g) {
-    return SURFACE_DEPTH ? unpackHalf2x16(floatBitsToUint(SPLAT_SLOPE_BITS(g))) : vec2(0.0);
+// The splat's surface-depth slope (zero without SURFACE_DEPTH): x in its
+// conic's w, y in its colour's w (splat_types.glsl).
+vec2 splat_slope(uint g, vec4 conic) {
+    return SURFACE_DEPTH ? vec2(conic.w, SPLAT_SLOPE_Y(g)) : vec2(0.0);
 }
 
 // The splat's depth at a pixel d = mean − centre away: its centre's, or with
@@ -65,8 +66,7 @@ float splat_depth(vec4 head, vec2 slope, vec2 d) {
 // order (centre depths ≥ z0) lie at or behind the host's depth `limit` at
 // every pixel. Surface depths reach at most 1.56× nearer than the centre's:
 // the preprocess limits the plane's relative inverse depth to 0.5 over the
-// dilated 3σ footprint, α ≥ 1/255 reaches 3.33σ (0.555), plus half-precision
-// rounding of the slope. Orthographic surface depths move by an absolute
+// dilated 3σ footprint, α ≥ 1/255 reaches 3.33σ (0.555), plus rounding. Orthographic surface depths move by an absolute
 // amount instead: no stop for them.
 const float SURFACE_NEARER = 1.56;
 bool behind_host(float z0, float limit) {
@@ -170,7 +170,7 @@ bool blend_one(inout Accumulated acc, uint g, vec4 head, vec4 conic, vec2 centre
     // behind the host's depth, so do the rest (`behind_host`).
     if (behind_host(head.z, limit)) return false;
     if (!splat_alpha(head, conic, centre, alpha, gauss, d)) return true;
-    float z = splat_depth(head, splat_slope(g), d);
+    float z = splat_depth(head, splat_slope(g, conic), d);
     if (OCCLUDED && !(z < limit)) return true;
     if (acc.T * (1.0 - alpha) < 1e-4) return false;
     accumulate(acc, alpha, z, splat_contribution(g), g);
@@ -290,7 +290,7 @@ void main() {
         vec4 conic = texelFetch(splat_texels, int(4u * g + 1u));
         j++;
         Contribution c = splat_contribution(g);
-        vec2 slope = splat_slope(g);
+        vec2 slope = splat_slope(g, conic);
         any_live = false;
         [[unroll]] for (uint k = 0u; k < PIXELS; k++) {
             float alpha, gauss;

@@ -175,14 +175,14 @@ void main() {
     }
     color = max(color + 0.5, vec3(0.0));
 
-    float slope_bits = 0.0;
+    vec2 slope = vec2(0.0);
     if (SURFACE_DEPTH && !equirect && frame.camera.lens2.x == 0.0) {
         vec3 axis = s.x <= s.y && s.x <= s.z ? R[0] : (s.y <= s.z ? R[1] : R[2]);
         float extent = 3.0 * sqrt(max(cov_cam[2][2], 0.0));
         vec3 own = vec3(cov2[0][0], cov2[1][0], cov2[1][1]);
-        slope_bits = uintBitsToFloat(packHalf2x16(surface_slope(W * axis, t, k.xy, ortho, extent, own)));
+        slope = surface_slope(W * axis, t, k.xy, ortho, extent, own);
     }
-    Splats(frame.splats).v[i] = Splat(head, vec4(conic, radius), vec4(color, slope_bits), rect);
+    Splats(frame.splats).v[i] = Splat(head, vec4(conic, slope.x), vec4(color, slope.y), rect);
     Uints(frame.tile_counts).v[i] = count;
 
     if (WRITE_FEATURES) {

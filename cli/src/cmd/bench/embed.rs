@@ -21,9 +21,10 @@ pub(crate) struct EmbedBenchArgs {
     /// Frames measured per path and size (medians reported).
     #[arg(long, default_value_t = 5)]
     frames: usize,
-    /// Surface depths (`srug relight --shadow-surface-depth`) for the frames and their shadows.
-    #[arg(long)]
-    surface_depth: bool,
+    /// Surface depths (`srug relight --shadow-surface-depth`) for the frames and
+    /// their shadows; `=false` for centre depths [preset: true].
+    #[arg(long, num_args = 0..=1, default_missing_value = "true", require_equals = true)]
+    surface_depth: Option<bool>,
 }
 
 impl EmbedBenchArgs {
@@ -48,7 +49,11 @@ impl EmbedBenchArgs {
             info.driver,
             setup.gaussians,
             setup.sh_degree,
-            if setup.surface_depth { " with surface depths" } else { "" },
+            match setup.surface_depth {
+                Some(true) => " with surface depths",
+                Some(false) => " with centre depths",
+                None => "",
+            },
             setup.frames
         );
         let bar = spinner("benchmarking");
