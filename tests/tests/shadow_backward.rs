@@ -212,6 +212,30 @@ fn blob_scene() -> (Scene, Camera, Camera) {
     (s, light, camera)
 }
 
+/// The blob scene on the GPU, with its sun and the stages that splat and shade it.
+struct BlobRig {
+    d: Device,
+    scene: Scene,
+    light: Camera,
+    camera: Camera,
+    sun: Sun,
+    bounds: srug::scene::Bounds,
+    gpu_scene: GpuScene,
+    splatter: Splatter,
+    pass: ShadowPass,
+}
+
+fn blob_rig() -> BlobRig {
+    let d = device();
+    let (scene, light, camera) = blob_scene();
+    let sun = Sun::from_azimuth_elevation(250.0, 50.0, [1.0; 3]).unwrap();
+    let bounds = scene.bounds().unwrap();
+    let gpu_scene = GpuScene::upload(&d, &scene).unwrap();
+    let splatter = Splatter::new(&d).unwrap();
+    let pass = ShadowPass::new(&d).unwrap();
+    BlobRig { d, scene, light, camera, sun, bounds, gpu_scene, splatter, pass }
+}
+
 fn add(total: &mut HostGaussianGradients, g: &HostGaussianGradients) {
     if total.means.is_empty() {
         *total = g.clone();
@@ -231,13 +255,7 @@ fn add(total: &mut HostGaussianGradients, g: &HostGaussianGradients) {
 
 #[test]
 fn shadow_gradients_reach_the_gaussians_like_finite_differences() {
-    let d = device();
-    let (scene, light, camera) = blob_scene();
-    let sun = Sun::from_azimuth_elevation(250.0, 50.0, [1.0; 3]).unwrap();
-    let bounds = scene.bounds().unwrap();
-    let gpu_scene = GpuScene::upload(&d, &scene).unwrap();
-    let mut splatter = Splatter::new(&d).unwrap();
-    let mut pass = ShadowPass::new(&d).unwrap();
+    let BlobRig { d, scene, light, camera, sun, bounds, gpu_scene, mut splatter, mut pass } = blob_rig();
     let mut rng = Pcg64Mcg::seed_from_u64(5);
     let pixels = (camera.width * camera.height) as usize;
     let weights: Vec<f64> = (0..pixels).map(|_| rng.random_range(-1.0..1.0)).collect();
@@ -331,13 +349,7 @@ fn shadow_gradients_reach_the_gaussians_like_finite_differences() {
 /// `cpu_shadow_chain_gradients_match_finite_differences_with_surface_depths`).
 #[test]
 fn shadow_gradients_with_surface_depths_match_the_twin() {
-    let d = device();
-    let (scene, light, camera) = blob_scene();
-    let sun = Sun::from_azimuth_elevation(250.0, 50.0, [1.0; 3]).unwrap();
-    let bounds = scene.bounds().unwrap();
-    let gpu_scene = GpuScene::upload(&d, &scene).unwrap();
-    let mut splatter = Splatter::new(&d).unwrap();
-    let mut pass = ShadowPass::new(&d).unwrap();
+    let BlobRig { d, scene, light, camera, sun, bounds, gpu_scene, mut splatter, mut pass } = blob_rig();
     let mut rng = Pcg64Mcg::seed_from_u64(8);
     let pixels = (camera.width * camera.height) as usize;
     let targets: Vec<f64> = (0..pixels).map(|_| rng.random_range(0.0..1.0)).collect();
@@ -636,7 +648,7 @@ fn check_chain(map_depth: DepthMode, receiver_depth: DepthMode, bce: bool, filte
 
 /// The CPU twin's shadow chain (analytic, through both splats) against central
 /// finite differences of the f64 pipeline, for every map depth mode, the BCE
-/// loss and both filters, with centre and with surface depths.
+/// loss and both filters, with centre depths.
 #[test]
 fn cpu_shadow_chain_gradients_match_finite_differences() {
     let (depth, pcf) = (ShadowFilter::Depth, ShadowFilter::Pcf);

@@ -174,18 +174,23 @@ fn cpu_gradients_tiled(
     (0..scene.len()).map(|i| project_backward(&Gaussian64::from_scene(scene, i), camera, &sg[i], true, tile)).collect()
 }
 
-#[test]
-fn gpu_backward_matches_cpu_twin_in_every_channel() {
-    let d = device();
-    let bg = [0.2, 0.4, 0.7];
-    let cameras = [
+/// A pinhole camera, a narrow one (Jacobians clamped) and an orthographic one.
+fn twin_cameras() -> [(&'static str, Camera); 3] {
+    [
         ("pinhole", Camera::look_at(Vec3::new(0.3, -0.2, -3.0), Vec3::ZERO, Vec3::Y, 50.0, 75, 53).unwrap()),
         ("narrow", Camera::look_at(Vec3::new(0.0, 0.0, -3.0), Vec3::ZERO, Vec3::Y, 20.0, 64, 40).unwrap()),
         (
             "orthographic",
             Camera::orthographic(Vec3::new(0.0, 0.0, -3.0), Vec3::Z, Vec3::Y, 2.6, 2.0, 67, 51, 0.01, 10.0).unwrap(),
         ),
-    ];
+    ]
+}
+
+#[test]
+fn gpu_backward_matches_cpu_twin_in_every_channel() {
+    let d = device();
+    let bg = [0.2, 0.4, 0.7];
+    let cameras = twin_cameras();
     for (seed, (name, camera)) in cameras.iter().enumerate() {
         let scene = scene(300, seed as u64);
         let pixels = (camera.width * camera.height) as usize;
@@ -210,14 +215,7 @@ fn gpu_backward_matches_cpu_twin_with_surface_depths() {
     // against central differences in srug::splat::cpu_backward).
     let d = device();
     let bg = [0.2, 0.4, 0.7];
-    let cameras = [
-        ("pinhole", Camera::look_at(Vec3::new(0.3, -0.2, -3.0), Vec3::ZERO, Vec3::Y, 50.0, 75, 53).unwrap()),
-        ("narrow", Camera::look_at(Vec3::new(0.0, 0.0, -3.0), Vec3::ZERO, Vec3::Y, 20.0, 64, 40).unwrap()),
-        (
-            "orthographic",
-            Camera::orthographic(Vec3::new(0.0, 0.0, -3.0), Vec3::Z, Vec3::Y, 2.6, 2.0, 67, 51, 0.01, 10.0).unwrap(),
-        ),
-    ];
+    let cameras = twin_cameras();
     for (seed, (name, camera)) in cameras.iter().enumerate() {
         let scene = scene(300, 20 + seed as u64);
         let pixels = (camera.width * camera.height) as usize;
