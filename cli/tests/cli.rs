@@ -446,6 +446,27 @@ fn relight_renders_stills_time_lapses_and_prefiltered_environments() {
     assert!(shadowed > 0 && shadowed < v.len(), "{shadowed} of {} pixels shadowed", v.len());
     assert!(v.iter().zip(&sun_r).all(|(v, s)| *v > 1e-4 || *s < 1e-3), "sun light where V = 0");
     assert!(!names.iter().any(|n| n.starts_with("indirect")), "no weights: no indirect light");
+    // Surface depths are the presets' for the receivers: `=false` gives centre depths,
+    // `--shadow-map-surface-depth` takes them for the map too; each changes V.
+    let visibility_with = |flags: &[&str]| -> Vec<f32> {
+        let out = dir.path().join("surface.exr");
+        let mut args = vec!["relight", ply, "--out", out.to_str().unwrap(), "--sun-elevation", "35"];
+        args.extend(flags);
+        args.extend(common);
+        let o = srug(&args);
+        assert!(o.status.success(), "{flags:?}: {}", text(&o));
+        let image = exr::prelude::read_all_flat_layers_from_file(&out).unwrap();
+        let c = image.layer_data[0].channel_data.list.iter().find(|c| c.name.to_string() == "visibility.Y").unwrap();
+        c.sample_data.values_as_f32().collect()
+    };
+    let default_v = visibility_with(&[]);
+    assert_eq!(default_v, visibility_with(&["--shadow-surface-depth"]), "surface depths are the default");
+    assert_ne!(default_v, visibility_with(&["--shadow-surface-depth=false"]), "centre depths change V");
+    assert_ne!(default_v, visibility_with(&["--shadow-map-surface-depth"]), "the map's surface depths change V");
+    let mut args = vec!["relight", ply, "--out", exr_out.to_str().unwrap(), "--shadow-surface-depth=maybe"];
+    args.extend(common);
+    let o = srug(&args);
+    assert!(!o.status.success() && text(&o).contains("shadow-surface-depth"), "{}", text(&o));
     // With network weights the indirect light is computed and written.
     let config = srug::indirect::UNetConfig { widths: [8, 8, 16, 16, 32], ..Default::default() };
     let wpath = dir.path().join("unet.safetensors");

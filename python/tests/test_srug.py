@@ -573,6 +573,9 @@ def test_relight_shadow_options_override_the_preset(dev, city):
     np.testing.assert_array_equal(base, same)
     hard = dev.relight(scene, one, sun=(250.0, 30.0), shadow_filter="depth")
     assert not np.array_equal(base, hard)
+    for surface in [dict(surface_depth=False), dict(map_surface_depth=True)]:
+        other = dev.relight(scene, one, sun=(250.0, 30.0), **surface)
+        assert np.isfinite(other).all() and not np.array_equal(base, other), surface
     cascaded = dev.relight(scene, one, sun=(250.0, 30.0), shadow_fit="cascades", shadow_cascades=2)
     assert np.isfinite(cascaded).all() and not np.array_equal(base, cascaded)
     assert np.abs(cascaded - base).mean() < 0.05 * np.abs(base).mean()

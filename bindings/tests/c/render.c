@@ -271,6 +271,12 @@ int main(int argc, char **argv) {
   }
   printf("surface depth: %zu of %zu depths moved\n", moved, pixels);
   REQUIRE(moved * 100 > pixels);
+  /* The map's occluders with surface depths too: another frame, close to the default. */
+  CHECK(srug_renderer_set_map_surface_depth(r, true));
+  double map_diff = rerender_difference(r, scene, image, w, h);
+  printf("map surface depths: mean |map - default| = %.3f of 255\n", map_diff);
+  REQUIRE(map_diff > 0.0 && map_diff < 2.0);
+  CHECK(srug_renderer_set_map_surface_depth(r, false));
   /* A shadow map fitted to the view: the same scene, finer texels, close to the default. */
   CHECK(srug_renderer_set_shadow_fit(r, SRUG_SHADOW_FIT_VIEW));
   double fit_diff = rerender_difference(r, scene, image, w, h);
