@@ -755,9 +755,10 @@ impl Device {
     /// visibility V_e): renders the receivers, splats the shadow map from the
     /// sun and tests every pixel, V = sigmoid(k·(z_s − z + bias)), 1 where no
     /// receiver. The returned object holds V and runs the backward pass.
-    #[pyo3(signature = (scene, camera, sun, resolution = 2048, k = 50.0, bias = 0.3, map_depth = None,
+    #[pyo3(signature = (scene, camera, sun, resolution = 2048, k = 50.0, bias = 0.8, map_depth = None,
                         receiver_depth = None, sun_intensity = std::f32::consts::PI, slope_bias = 3.0,
-                        normal_offset = 0.0, fit = "scene", tile = 16, filter = "pcf"))]
+                        normal_offset = 0.0, fit = "scene", tile = 16, filter = "pcf", surface_depth = true,
+                        map_surface_depth = false))]
     #[allow(clippy::too_many_arguments, reason = "the Python keyword arguments of one call")]
     fn shadow(
         &self,
@@ -776,6 +777,8 @@ impl Device {
         fit: &str,
         tile: u32,
         filter: &str,
+        surface_depth: bool,
+        map_surface_depth: bool,
     ) -> PyResult<ShadowTest> {
         let [camera] = camera.cameras.as_slice() else {
             return Err(invalid(format!("{} cameras", camera.cameras.len()), "the shadow test takes one camera"));
@@ -796,6 +799,7 @@ impl Device {
         settings.fit = srug::shadow::ShadowFit::parse(fit).map_err(py_err)?;
         settings.filter = srug::shadow::ShadowFilter::parse(filter).map_err(py_err)?;
         settings.tile = tile;
+        (settings.surface_depth, settings.map_surface_depth) = (surface_depth, map_surface_depth);
         if let Some(m) = map_depth {
             settings.map_depth = srug::shadow::DepthMode::parse(m).map_err(py_err)?;
         }

@@ -530,7 +530,7 @@ class Device:
         *,
         resolution: int = 2048,
         k: float = 50.0,
-        bias: float = 0.3,
+        bias: float = 0.8,
         map_depth: Optional[str] = None,
         receiver_depth: Optional[str] = None,
         slope_bias: float = 3.0,
@@ -538,6 +538,8 @@ class Device:
         fit: str = "scene",
         tile: int = 16,
         filter: str = "pcf",
+        surface_depth: bool = True,
+        map_surface_depth: bool = False,
     ) -> "ShadowTest":
         """The differentiable sun shadow test for one camera (the paper's editable visibility):
         ``.visibility`` is V = sigmoid(k·(z_s − z + bias)) per pixel, (H, W) float32 (1 where no
@@ -548,9 +550,11 @@ class Device:
         "expected-over-far" (docs/stages.md). ``slope_bias`` adds that many shadow-map texels
         times tan θ (θ: receiver normal to sun) to ``bias``; ``normal_offset`` moves each
         receiver that many texels times sin θ along its normal; the defaults (2048 texels, k 50,
-        bias 0.3 m, slope bias 3, no normal offset, median depths, PCF) are the balanced
-        preset's, as ``srug::shadow::ShadowSettings::default()``; the backward holds the normals
-        they read fixed. ``filter``: "pcf" (V = Σ w_i·sigmoid(k·(z_i − z + bias)) over the four
+        bias 0.8 m, slope bias 3, no normal offset, median depths, PCF, the receivers' surface
+        depths) are the balanced preset's, as ``srug::shadow::ShadowSettings::default()``; the
+        backward holds the normals they read fixed. ``surface_depth``: each receiver's depth where
+        its pixel's ray meets the splat's plane (False: the splats' centre depths);
+        ``map_surface_depth``: for the map's occluders too; both differentiated (docs/stages.md). ``filter``: "pcf" (V = Σ w_i·sigmoid(k·(z_i − z + bias)) over the four
         nearest texels, weighted bilinearly) or "depth" (one sigmoid of the bilinear depth). ``fit``: "scene" or "view" (the map covers the camera's view within the scene's
         bounds). ``tile``: the splat tile of the map and the receivers, 16 or 8 (8 makes the
         backward faster where splats crowd tiles; V is the same)."""
@@ -572,6 +576,8 @@ class Device:
                 fit=str(fit),
                 tile=int(tile),
                 filter=str(filter),
+                surface_depth=bool(surface_depth),
+                map_surface_depth=bool(map_surface_depth),
             )
         )
 

@@ -86,6 +86,8 @@ class Device:
         fit: str = ...,
         tile: int = ...,
         filter: str = ...,
+        surface_depth: bool = ...,
+        map_surface_depth: bool = ...,
     ) -> ShadowTest: ...
 
 class ShadowTest:

@@ -84,7 +84,8 @@ def shadow_visibility(
     parameterisation. The shadow map and the receivers are both these Gaussians: gradients
     reach occluders and receivers alike. ``sh`` (N, K, 3) only sets the scene's colour, which
     V does not depend on (default: grey). ``shadow_options`` are :meth:`srug.Device.shadow`'s
-    (resolution, k, bias, map_depth, receiver_depth, slope_bias, normal_offset, fit, tile); for
+    (resolution, k, bias, map_depth, receiver_depth, slope_bias, normal_offset, fit, tile, filter,
+    surface_depth, map_surface_depth); for
     gradients that reach opacities and shapes use ``map_depth="expected"`` and
     ``receiver_depth="expected"``. ``tile`` defaults to 8 here, not 16: a training step runs the
     backward, which is about twice as fast at 8-pixel tiles (docs/python.md)."""

@@ -362,8 +362,13 @@ def test_shadow_gradients_match_finite_differences(dev, shadow_problem):
     with pytest.raises(srug.Error):
         dev.shadow(scene_of(means, logits), cam, sun=(200.0, -5.0))
     # The geometric bias (slope-scaled, normal offset) changes V; bad values are refused.
-    low = dict(sun=(200.0, 20.0), resolution=512)
+    # A 0.3 m bias, as before the presets' 0.8: this small scene's occluders, 2 m up, leave
+    # the ground about two dozen shadowed pixels under a 20° sun at 0.8 m.
+    low = dict(sun=(200.0, 20.0), resolution=512, bias=0.3)
     plain = dev.shadow(scene_of(means, logits), cam, slope_bias=0.0, **low).visibility
+    # Centre depths (not the preset's surface depths) for the receivers move V.
+    centre = dev.shadow(scene_of(means, logits), cam, slope_bias=0.0, surface_depth=False, **low).visibility
+    assert centre.shape == plain.shape and not np.array_equal(centre, plain)
     sloped = dev.shadow(scene_of(means, logits), cam, slope_bias=3.0, normal_offset=1.0, **low).visibility
     assert sloped.shape == plain.shape and not np.array_equal(sloped, plain)
     assert (sloped < 0.5).sum() <= (plain < 0.5).sum()
