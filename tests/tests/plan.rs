@@ -69,10 +69,15 @@ fn plan_matches_what_runs_and_nothing_unneeded_runs() {
         assert_eq!(map_note.is_some_and(|n| n.contains("shadow-map reuse")), above, "{label}");
         // The shadow map blends depth and alpha, no colour; the camera splat blends colour.
         let kernels = |name: &str| plan.stages.iter().find(|s| s.name == name).map(|s| s.kernels.clone());
+        // The presets' depths: surface depths for the camera (the receivers), centre for the map.
         if let Some(k) = kernels("splat (shadow map)") {
-            assert!(k.contains("alpha") && !k.contains("rgb"), "{k}");
+            assert!(k.contains("alpha") && !k.contains("rgb") && k.contains("centre depths"), "{k}");
         }
-        assert!(kernels("splat (camera)").is_some_and(|k| k.contains("rgb, alpha")), "{label}");
+        let camera = kernels("splat (camera)");
+        assert!(camera.is_some_and(|k| k.contains("rgb, alpha") && k.contains("surface depths")), "{label}");
+        if let Some(k) = kernels("sigmoid shadow test") {
+            assert!(k.contains("filter pcf") && k.contains("bias = 0.8 m + 3 texels"), "{k}");
+        }
         assert!(has("shade lights") && has("shade compose"), "{label}");
         assert_eq!(has("indirect input"), network, "inference iff weights: {label}");
         assert_eq!(plan.stages.iter().any(|s| s.name.contains("U-Net")), network, "{label}");

@@ -104,21 +104,22 @@ fn splat_stage(
     texels: u64,
     (channels, rgb): (Channels, bool),
     blend: BlendVariant,
-    tile: u32,
+    (tile, surface_depth): (u32, bool),
 ) -> PlannedStage {
     let features = if channels.needs_features() { n * FEATURE_BYTES } else { 0 };
     PlannedStage {
         name: name.to_string(),
         kernels: format!(
             "preprocess, scan, keys, radix sort, ranges, blend {blend:?}{} with CHANNELS = {:#011b} [{}], \
-             {tile}×{tile} tiles",
+             {tile}×{tile} tiles, {} depths",
             if blend == BlendVariant::SubgroupLoads {
                 " (texel-buffer reads where the device has the views and the pairs fit them)"
             } else {
                 ""
             },
             channels.blend_bits(rgb),
-            channel_names(channels, rgb).join(", ")
+            channel_names(channels, rgb).join(", "),
+            if surface_depth { "surface" } else { "centre" }
         ),
         bytes: texels * floats_per_pixel(channels, rgb) * 4 + n * SPLAT_BYTES + features,
         note: "; keys and sort scratch grow with the (Gaussian, tile) pairs".into(),
@@ -135,7 +136,9 @@ pub fn plan_frame(scene: &Scene, settings: &PlanSettings<'_>) -> Result<FramePla
     let (width, height) = settings.relight.render_size(settings.width, settings.height);
     let pixels = u64::from(width) * u64::from(height);
     let camera = (d.channels, true);
-    let mut stages = vec![splat_stage("splat (camera)", n, pixels, camera, settings.blend, settings.relight.tile)];
+    // The camera's depths are the shadow's receivers' (Relighter's splat settings).
+    let camera_splat = (settings.relight.tile, settings.relight.shadow.surface_depth);
+    let mut stages = vec![splat_stage("splat (camera)", n, pixels, camera, settings.blend, camera_splat)];
     let mut skipped = Vec::new();
     if !d.shading {
         skipped.push("shading: the scene has no albedo attribute (its plain 3DGS colour is the image)".into());
@@ -153,7 +156,8 @@ pub fn plan_frame(scene: &Scene, settings: &PlanSettings<'_>) -> Result<FramePla
             };
             // Shadow maps blend no colour (ShadowPass::shadow_map_from).
             let map_channels = (depth_channels(st.map_depth), false);
-            let mut map = splat_stage("splat (shadow map)", n, texels, map_channels, settings.blend, st.tile);
+            let map_splat = (st.tile, st.map_surface_depth);
+            let mut map = splat_stage("splat (shadow map)", n, texels, map_channels, settings.blend, map_splat);
             map.note.push_str(
                 "; with shadow-map reuse on (`srug relight`), later frames skip it while the scene, the sun's \
                  direction and the light camera stay the same",
@@ -165,7 +169,13 @@ pub fn plan_frame(scene: &Scene, settings: &PlanSettings<'_>) -> Result<FramePla
                 kernels: if traced {
                     format!("shadow_traced, bias = {}", st.bias)
                 } else {
-                    format!("shadow_test, k = {}, bias = {}", st.k, st.bias)
+                    format!(
+                        "shadow_test, filter {}, k = {}, bias = {} m + {} texels × tan θ",
+                        st.filter.name(),
+                        st.k,
+                        st.bias,
+                        st.slope_bias
+                    )
                 },
                 bytes: pixels * 4,
                 note: String::new(),
