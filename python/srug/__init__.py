@@ -546,7 +546,8 @@ class Device:
         receiver); ``.backward(dl_dv)`` gives dL/d(every Gaussian's mean, log-scale, rotation,
         opacity logit) through the shadow map's occluders and the receivers. ``map_depth`` and
         ``receiver_depth``: "median" (the default, robust at silhouettes; its gradient reaches
-        the means only), "expected" (smooth; reaches opacities and shapes too) or, for the map,
+        the means, and with surface depths the rotations and scales of each plane), "expected"
+        (smooth; reaches opacities too) or, for the map,
         "expected-over-far" (docs/stages.md). ``slope_bias`` adds that many shadow-map texels
         times tan θ (θ: receiver normal to sun) to ``bias``; ``normal_offset`` moves each
         receiver that many texels times sin θ along its normal; the defaults (2048 texels, k 50,
