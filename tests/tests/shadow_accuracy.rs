@@ -84,8 +84,8 @@ fn presets_shadow_the_analytic_block_as_the_truth_does() {
     let (pcf, depth) = (ShadowFilter::Pcf, ShadowFilter::Depth);
     let (receivers, centre, map_too) = ((true, false), (false, false), (true, true));
     let floors = [
-        (BlockSplats::Ideal, Preset::Fast, receivers, scene_fit, pcf, 0.97, 0.016, 0.002, 4.2),
-        (BlockSplats::Ideal, Preset::Fast, centre, scene_fit, pcf, 0.95, 0.025, 0.012, 7.0),
+        (BlockSplats::Ideal, Preset::Fast, receivers, scene_fit, pcf, 0.977, 0.0125, 0.002, 3.5),
+        (BlockSplats::Ideal, Preset::Fast, centre, scene_fit, pcf, 0.955, 0.02, 0.013, 6.6),
         (BlockSplats::Ideal, Preset::Balanced, receivers, scene_fit, pcf, 0.98, 0.0095, 0.001, 3.5),
         (BlockSplats::Ideal, Preset::Balanced, centre, scene_fit, pcf, 0.97, 0.0125, 0.006, 3.6),
         (BlockSplats::Ideal, Preset::Balanced, map_too, scene_fit, pcf, 0.98, 0.0095, 0.001, 3.5),
@@ -93,8 +93,8 @@ fn presets_shadow_the_analytic_block_as_the_truth_does() {
         (BlockSplats::Ideal, Preset::Balanced, receivers, view_fit, pcf, 0.98, 0.0095, 0.001, 3.5),
         (BlockSplats::Ideal, Preset::Balanced, receivers, cascades, pcf, 0.98, 0.0095, 0.001, 3.5),
         (BlockSplats::Ideal, Preset::Reference, receivers, scene_fit, pcf, 0.98, 0.0095, 0.001, 3.5),
-        (BlockSplats::Rough, Preset::Fast, receivers, scene_fit, pcf, 0.96, 0.02, 0.008, 5.6),
-        (BlockSplats::Rough, Preset::Fast, centre, scene_fit, pcf, 0.95, 0.025, 0.012, 7.0),
+        (BlockSplats::Rough, Preset::Fast, receivers, scene_fit, pcf, 0.965, 0.016, 0.009, 4.5),
+        (BlockSplats::Rough, Preset::Fast, centre, scene_fit, pcf, 0.955, 0.02, 0.013, 6.5),
         (BlockSplats::Rough, Preset::Balanced, receivers, scene_fit, pcf, 0.975, 0.011, 0.004, 6.0),
         (BlockSplats::Rough, Preset::Balanced, centre, scene_fit, pcf, 0.97, 0.0125, 0.008, 6.5),
         (BlockSplats::Rough, Preset::Balanced, map_too, scene_fit, pcf, 0.975, 0.011, 0.004, 6.0),
