@@ -25,11 +25,9 @@ const uint MAX_STRIDE = 26u;
 vec2 stored_slope(vec4 conic, vec4 color) { return vec2(conic.w, color.w); }
 
 // The splat's depth at offset d = mean − centre: its centre's, or with
-// SURFACE_DEPTH where the ray meets its plane (as the blend's `splat_depth`).
+// SURFACE_DEPTH where the ray meets its plane (`plane_depth`, as the blend's `splat_depth`).
 float depth_at(float z0, vec2 slope, vec2 d, bool ortho) {
-    if (!SURFACE_DEPTH) return z0;
-    float u = -dot(slope, d);
-    return ortho ? z0 + u : z0 / (1.0 + u);
+    return SURFACE_DEPTH ? plane_depth(z0, slope, d, ortho) : z0;
 }
 
 // Host mirror: engine/src/splat/backward.rs `BackwardUniform` (its layout is checked against this block).

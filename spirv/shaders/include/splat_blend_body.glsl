@@ -54,12 +54,10 @@ vec2 splat_slope(uint g, vec4 conic) {
 }
 
 // The splat's depth at a pixel d = mean − centre away: its centre's, or with
-// SURFACE_DEPTH where the pixel's ray meets its plane. CPU twin:
-// engine/src/splat/cpu.rs `CpuSplat::depth_at`.
+// SURFACE_DEPTH where the pixel's ray meets its plane (`plane_depth`).
 float splat_depth(vec4 head, vec2 slope, vec2 d) {
     if (!SURFACE_DEPTH) return head.z;
-    float s = -dot(slope, d);
-    return frame.camera.translation.w != 0.0 ? head.z + s : head.z / (1.0 + s);
+    return plane_depth(head.z, slope, d, frame.camera.translation.w != 0.0);
 }
 
 // Whether this splat (centre depth z0) and every later one in the tile's

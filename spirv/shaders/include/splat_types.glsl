@@ -18,6 +18,15 @@ layout(buffer_reference, std430, buffer_reference_align = 8) buffer Uvec2s { uve
 layout(buffer_reference, std430, buffer_reference_align = 4) buffer Floats { float v[]; };
 
 
+// The depth where a pixel's ray meets a splat's plane: centre depth z0,
+// surface-depth slope (surface_slope.glsl), offset d = mean − centre. The
+// blend and its backward both call this, so they agree bit for bit. CPU twin:
+// engine/src/splat/cpu.rs `CpuSplat::depth_at`.
+float plane_depth(float z0, vec2 slope, vec2 d, bool ortho) {
+    float u = -dot(slope, d);
+    return ortho ? z0 + u : z0 / (1.0 + u);
+}
+
 // α of a splat at `centre` as the blend computes it: min(0.99, o·exp(−σ));
 // false where the blend skips the splat (σ < 0 or α < 1/255). The blend, its
 // backward and the traced shadow pass all call this, so they agree bit for bit.
