@@ -210,13 +210,12 @@ impl SlopeInputs {
             g.n.x += ds.x * r / self.k.x;
             g.n.y += ds.y * r / self.k.y;
             let dr = ds.x * n.x / self.k.x + ds.y * n.y / self.k.y;
+            // Where n·t is guarded to ±1e-6·z, r is a constant: no gradient.
             if n.dot(self.t).abs() >= 1e-6 * self.t.z {
                 g.t.z += dr / guarded;
                 let d_nt = -dr * self.t.z / (guarded * guarded);
                 g.n += d_nt * self.t;
                 g.t += d_nt * n;
-            } else {
-                // n·t guarded to ±1e-6·z: r is constant.
             }
         }
         g
