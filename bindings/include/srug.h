@@ -123,7 +123,9 @@ typedef struct {
   void *device;
   // A queue family of the device with compute.
   uint32_t queue_family;
-  // The queue of that family srug submits to (see `srug_context_create_from_vulkan`).
+  // The queue of that family srug submits to (see `srug_context_create_from_vulkan`):
+  // below the `queueCount` the host created that family with (Vulkan cannot tell
+  // srug that count; srug checks the family's own `queueCount`).
   uint32_t queue_index;
   // `PFN_vkGetInstanceProcAddr` the host loaded Vulkan with; NULL: the system loader's.
   void *get_instance_proc_addr;

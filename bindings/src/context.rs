@@ -90,7 +90,9 @@ pub struct srug_vulkan_device {
     pub device: *mut c_void,
     /// A queue family of the device with compute.
     pub queue_family: u32,
-    /// The queue of that family srug submits to (see `srug_context_create_from_vulkan`).
+    /// The queue of that family srug submits to (see `srug_context_create_from_vulkan`):
+    /// below the `queueCount` the host created that family with (Vulkan cannot tell
+    /// srug that count; srug checks the family's own `queueCount`).
     pub queue_index: u32,
     /// `PFN_vkGetInstanceProcAddr` the host loaded Vulkan with; NULL: the system loader's.
     pub get_instance_proc_addr: *mut c_void,

@@ -691,6 +691,11 @@ fn bench_unet_prints_its_table() {
     ] {
         assert!(t.contains(want), "missing {want:?} in:\n{t}");
     }
+    // Without --inputs: the device's default path, Winograd F(4×4) on lavapipe (a CPU device).
+    let o = srug(&args);
+    let t = text(&o);
+    assert!(o.status.success(), "{t}");
+    assert!(t.contains("| 37x23 | fp32 | winograd |") && !t.contains("| fp32 | texel |"), "{t}");
     let o = srug(&[&args[..], &["--inputs", "texels"]].concat());
     let t = text(&o);
     assert!(

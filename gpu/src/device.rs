@@ -108,6 +108,8 @@ pub struct RawVulkan {
     /// The queue of that family srug submits to. srug locks it around its own
     /// submissions; the host must not submit to it concurrently (Vulkan's
     /// external synchronization of a queue), or should give srug a queue of its own.
+    /// It must be below the `queueCount` the host created the family with: Vulkan
+    /// has no query for that, so srug checks only the family's own `queueCount`.
     pub queue_index: u32,
     /// The features `device` was created with.
     pub enabled: EnabledFeatures,

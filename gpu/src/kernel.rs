@@ -222,8 +222,16 @@ impl Kernel {
             .name(c"main")
             .specialization_info(&spec);
         let create = [vk::ComputePipelineCreateInfo::default().stage(stage).layout(kernel.layout)];
+        log::trace!("kernel {} {:?}: building its pipeline", info.name, decl.specialization);
+        let started = std::time::Instant::now();
         // SAFETY: module and layout are live; the module is destroyed right after.
         let result = unsafe { d.create_compute_pipelines(vk::PipelineCache::null(), &create, None) };
+        log::debug!(
+            "kernel {} {:?}: pipeline built in {:.1} ms",
+            info.name,
+            decl.specialization,
+            started.elapsed().as_secs_f64() * 1e3
+        );
         // SAFETY: pipelines keep no reference to the module after creation.
         unsafe { d.destroy_shader_module(module, None) };
         kernel.pipeline = result.map_err(|(_, e)| vk_error("vkCreateComputePipelines")(e))?[0];

@@ -84,10 +84,24 @@ fn unet_matches_twin_at_odd_and_tiny_sizes() {
         assert!(peak > 1e-3, "the outputs are all ~0: the check would prove nothing");
     }
     let net = UNet::new(&d, &UNetWeights::random(UNetConfig::default(), 1)).unwrap();
-    assert!(net.texel_inputs(), "lavapipe reads R32F texel buffers, so the texel path is the default");
-    let default = Some(WinogradTile::F4x4);
-    assert_eq!(net.winograd(), default, "Winograd F(4×4) is the default where texel inputs exist (faster on lavapipe)");
+    assert!(net.texel_inputs(), "lavapipe (and every GPU tried) reads R32F texel buffers: a texel path is the default");
+    let default = ConvPath::default_for(d.info().device_type, true);
+    assert_eq!(net.conv_path(), default, "Winograd F(4×4) on CPU devices, direct texel convolution on GPUs");
     assert_no_validation_messages(&d);
+}
+
+#[test]
+fn default_conv_path_follows_the_device_type() {
+    use srug::gpu::ash::vk::PhysicalDeviceType as T;
+    // Winograd where LLVM compiles it (lavapipe); direct texel convolution on GPUs, where
+    // NVIDIA's compiler did not build the Winograd F(4×4) kernel within a minute (docs/bench/unet.md).
+    assert_eq!(ConvPath::default_for(T::CPU, true), ConvPath::Winograd);
+    for gpu in [T::DISCRETE_GPU, T::INTEGRATED_GPU, T::VIRTUAL_GPU, T::OTHER] {
+        assert_eq!(ConvPath::default_for(gpu, true), ConvPath::Texel, "{gpu:?}");
+        assert_eq!(ConvPath::default_for(gpu, false), ConvPath::Address, "{gpu:?}");
+    }
+    assert_eq!(ConvPath::default_for(T::CPU, false), ConvPath::Address);
+    assert!(ConvPath::Winograd.vec4() && ConvPath::Vec4.vec4() && !ConvPath::Texel.vec4() && !ConvPath::Address.vec4());
 }
 
 /// The layers that read four pixels per fetch at `w`×`h`: those whose input
@@ -146,7 +160,13 @@ fn vec4_inputs_match_twin() {
         let buffer = d.upload("input", &input).unwrap();
         let mut net = UNet::with_precision(&d, &weights, precision).unwrap();
         net.set_prefill(Some(NAN));
-        assert!(net.vec4_inputs(), "lavapipe views RGBA texels, so four-pixel fetches are the default");
+        let default = ConvPath::default_for(d.info().device_type, true).vec4();
+        assert_eq!(
+            net.vec4_inputs(),
+            default,
+            "four-pixel fetches by default on CPU devices (RGBA views), not on GPUs"
+        );
+        net.set_vec4_inputs(true).unwrap();
         net.set_winograd(wino).unwrap();
         let out = net.infer(&buffer, w as u32, h as u32).unwrap();
         assert_eq!(out.vec4_layers, expected_vec4_layers(w, h), "{w}x{h}: layers reading four pixels per fetch");

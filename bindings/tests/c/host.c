@@ -96,7 +96,7 @@ int main(void) {
   srug_last_error(message, sizeof message, NULL);
   REQUIRE(strstr(message, "bufferDeviceAddress") != NULL);
   srug_vulkan_device wrong_queue = vulkan;
-  wrong_queue.queue_index = 3;
+  wrong_queue.queue_index = props[family].queueCount; /* one past the family's queues */
   EXPECT(srug_context_create_from_vulkan(&wrong_queue, 0, &ctx), SRUG_ERROR_NO_DEVICE);
   srug_vulkan_device no_device = vulkan;
   no_device.device = NULL;

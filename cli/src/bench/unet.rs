@@ -57,7 +57,16 @@ pub fn unet_bench(
     }
     let mut rows = Vec::new();
     for &(w, h) in sizes {
-        for (&precision, &path) in precisions.iter().flat_map(|p| paths.iter().map(move |t| (p, t))) {
+        // No paths given: each precision's default on this device.
+        let runs: Vec<_> = if paths.is_empty() {
+            precisions
+                .iter()
+                .map(|&p| Ok((p, UNet::with_precision(device, &weights, p)?.conv_path())))
+                .collect::<Result<_>>()?
+        } else {
+            precisions.iter().flat_map(|&p| paths.iter().map(move |&t| (p, t))).collect()
+        };
+        for (precision, path) in runs {
             let mut net = UNet::with_precision(device, &weights, precision)?;
             net.set_texel_inputs(path != ConvPath::Address)?;
             net.set_winograd(path.winograd())?;

@@ -206,10 +206,11 @@ pub fn plan_frame(scene: &Scene, settings: &PlanSettings<'_>) -> Result<FramePla
                 kernels: {
                     let half = if precision == StoragePrecision::Fp16 { "_half" } else { "" };
                     format!(
-                        "unet_pack, unet_winograd_texel{half} ×6 (the stride-1 layers, Winograd F(4×4, 3×3); \
-                         unet_winograd2_texel{half} for F(2×2, 3×3) on request) and \
+                        "unet_pack; on CPU devices (lavapipe) unet_winograd_texel{half} ×6 (the stride-1 layers, \
+                         Winograd F(4×4, 3×3); unet_winograd2_texel{half} for F(2×2, 3×3) on request) and \
                          unet_conv_texel{half} ×4 (stride 2), four pixels per fetch where a level's width is a \
-                         multiple of 4 (unet_conv{half} ×10 by device address where texel views are missing), \
+                         multiple of 4; on GPUs unet_conv_texel{half} ×10, one pixel per fetch \
+                         (unet_conv{half} ×10 by device address where texel views are missing), \
                          unet_upsample_texel{half} ×4 (exactly 2×, from four-pixel texels, where the sizes \
                          and align_corners allow; widths {:?})",
                         config.widths

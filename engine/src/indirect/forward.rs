@@ -206,6 +206,7 @@ impl UNet {
         let texel = texel_formats.into_iter().all(|f| info.texel_formats.contains(f));
         let vec4_formats = if half { &[TexelFormat::Rgba16Float][..] } else { &[] };
         let vec4 = texel && vec4_formats.iter().all(|f| info.texel_formats.contains(f));
+        let default_path = ConvPath::default_for(info.device_type, texel);
         let mut convs = HashMap::new();
         // (texel, vec4): device addresses always; texel views and four-pixel texel views where supported.
         let variants = [(false, false), (texel, false), (texel, vec4)];
@@ -312,13 +313,10 @@ impl UNet {
             arena: None,
             prefill: None,
             texel,
-            vec4,
+            vec4: vec4 && default_path.vec4(),
             winograd: None,
         };
-        // Winograd F(4×4) is the default where it can run (texel inputs): fewer multiplies, faster on lavapipe.
-        if texel {
-            net.set_winograd(Some(WinogradTile::default()))?;
-        }
+        net.set_winograd(default_path.winograd())?;
         Ok(net)
     }
 
@@ -333,9 +331,9 @@ impl UNet {
 
     /// The Winograd transform the stride-1 layers run by
     /// (`unet_winograd_body.glsl`), where their inputs go through texel-buffer
-    /// views, or `None` for direct convolution. F(4×4, 3×3) by default where
-    /// the device has texel views: a quarter of the multiplies, and the faster
-    /// on lavapipe (docs/bench/unet.md). Its kernels are built at the first
+    /// views, or `None` for direct convolution. F(4×4, 3×3) by default on CPU
+    /// devices with texel views, direct convolution on GPUs
+    /// ([`ConvPath::default_for`]). Its kernels are built at the first
     /// inference of a size that needs them.
     pub fn winograd(&self) -> Option<WinogradTile> {
         self.winograd
@@ -457,10 +455,22 @@ impl UNet {
         Ok(())
     }
 
+    /// The conv path this network runs now ([`ConvPath`]; Winograd with
+    /// one-pixel fetches reads as its tile's path).
+    pub fn conv_path(&self) -> ConvPath {
+        match (self.texel, self.winograd, self.vec4) {
+            (false, ..) => ConvPath::Address,
+            (true, Some(WinogradTile::F4x4), _) => ConvPath::Winograd,
+            (true, Some(WinogradTile::F2x2), _) => ConvPath::Winograd2,
+            (true, None, true) => ConvPath::Vec4,
+            (true, None, false) => ConvPath::Texel,
+        }
+    }
+
     /// Whether texel-input layers read four pixels per fetch (RGBA views)
     /// where their input width is a multiple of 4 (`vec4_fits`); other
     /// layers read one pixel per fetch. On by default where the device has
-    /// the formats.
+    /// the formats and the default path reads four ([`ConvPath::default_for`]).
     pub fn vec4_inputs(&self) -> bool {
         self.vec4
     }

@@ -19,6 +19,7 @@
 //! The measured comparison with direct convolution is in docs/bench/unet.md.
 
 use super::ConvWeights;
+use crate::gpu::ash::vk;
 
 /// Which Winograd transform the stride-1 convolutions use.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
@@ -199,7 +200,8 @@ pub enum ConvPath {
     /// Direct convolution, inputs by device address.
     Address,
     /// Winograd F(4×4, 3×3) for the stride-1 layers (texel inputs, four
-    /// pixels per fetch where the width allows), direct for stride 2; the default.
+    /// pixels per fetch where the width allows), direct for stride 2; the
+    /// default on CPU devices ([`ConvPath::default_for`]).
     Winograd,
     /// As [`ConvPath::Winograd`] with F(2×2, 3×3).
     Winograd2,
@@ -215,6 +217,27 @@ impl ConvPath {
             Self::Winograd => "winograd",
             Self::Winograd2 => "winograd2",
         }
+    }
+
+    /// The path a new [`UNet`](super::UNet) takes on a device of `device_type`
+    /// that has (`texel_views`) or lacks the texel-buffer formats the texel
+    /// paths read. On a CPU device (lavapipe) Winograd F(4×4): it does a quarter
+    /// of the multiplies, and LLVM compiles its large unrolled kernels.
+    /// On GPUs direct convolution, one pixel per fetch: the Winograd kernels'
+    /// hundreds of live accumulators per invocation exceed a GPU's registers, and
+    /// NVIDIA's compiler spends minutes on them (docs/bench/unet.md has the
+    /// figures of each path on both). Device addresses where texel views are missing.
+    pub fn default_for(device_type: vk::PhysicalDeviceType, texel_views: bool) -> Self {
+        match (texel_views, device_type) {
+            (false, _) => Self::Address,
+            (true, vk::PhysicalDeviceType::CPU) => Self::Winograd,
+            (true, _) => Self::Texel,
+        }
+    }
+
+    /// Whether the path reads four pixels per texel fetch where a layer's width allows.
+    pub fn vec4(self) -> bool {
+        matches!(self, Self::Vec4 | Self::Winograd | Self::Winograd2)
     }
 
     /// The Winograd transform of the stride-1 layers, if any.

@@ -19,13 +19,13 @@ pub(crate) struct UnetBenchArgs {
     /// Repeats (medians reported).
     #[arg(long, default_value_t = 3)]
     repeats: usize,
-    /// How conv layers run, comma-separated: winograd (the default where the device has
-    /// texel-buffer views: Winograd F(4×4,3×3) for the stride-1 layers, direct convolution for
-    /// stride 2, four pixels per fetch where a layer's width is a multiple of 4), winograd2 (the
-    /// same with Winograd F(2×2,3×3)), vec4 (direct
-    /// convolution for every layer, texel inputs, four pixels per fetch where the width allows),
-    /// texel (the same, one pixel per fetch), address (device addresses, the fallback).
-    #[arg(long, value_delimiter = ',', default_value = "winograd")]
+    /// How conv layers run, comma-separated: winograd (Winograd F(4×4,3×3) for the stride-1
+    /// layers, direct convolution for stride 2, four pixels per fetch where a layer's width is a
+    /// multiple of 4), winograd2 (the same with Winograd F(2×2,3×3)), vec4 (direct convolution
+    /// for every layer, texel inputs, four pixels per fetch where the width allows), texel (the
+    /// same, one pixel per fetch), address (device addresses, the fallback). Default: the
+    /// device's (winograd on a CPU device such as lavapipe, texel on a GPU, address without texel views)
+    #[arg(long, value_delimiter = ',')]
     inputs: Vec<ConvPath>,
 }
 
