@@ -195,6 +195,58 @@ impl Drop for RunOutputs {
     }
 }
 
+/// How many threads encode and write a run's output files.
+#[derive(clap::Args, Clone, Debug, Default)]
+pub struct WriterArgs {
+    /// Threads that encode and write the output files of a batch of cameras while the next
+    /// batch renders (default: as many as the cores the process may use). The files are the
+    /// same bytes whatever the count.
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=256))]
+    pub writers: Option<u32>,
+}
+
+impl WriterArgs {
+    /// The writer threads for a run.
+    pub fn count(&self) -> usize {
+        self.writers.map_or_else(|| std::thread::available_parallelism().map_or(1, usize::from), |n| n as usize)
+    }
+}
+
+/// Runs `write` on every item with up to `writers` threads (items dealt out
+/// in turn); each item's result, in the items' order.
+pub fn write_all<T: Sync>(items: &[T], writers: usize, write: impl Fn(&T) -> Result<()> + Sync) -> Vec<Result<()>> {
+    let writers = writers.clamp(1, items.len().max(1));
+    if writers == 1 {
+        return items.iter().map(&write).collect();
+    }
+    let mut results: Vec<Option<Result<()>>> = (0..items.len()).map(|_| None).collect();
+    std::thread::scope(|scope| {
+        let handles: Vec<_> = (0..writers)
+            .map(|w| {
+                let write = &write;
+                scope.spawn(move || {
+                    items
+                        .iter()
+                        .enumerate()
+                        .skip(w)
+                        .step_by(writers)
+                        .map(|(i, item)| (i, write(item)))
+                        .collect::<Vec<_>>()
+                })
+            })
+            .collect();
+        for handle in handles {
+            match handle.join() {
+                Ok(done) => done.into_iter().for_each(|(i, r)| results[i] = Some(r)),
+                Err(_) => results.iter_mut().filter(|r| r.is_none()).for_each(|r| {
+                    *r = Some(Err(Error::Internal("an output writer panicked".into())));
+                }),
+            }
+        }
+    });
+    results.into_iter().map(|r| r.unwrap_or_else(|| Err(Error::Internal("an output was not written".into())))).collect()
+}
+
 /// Prints a line of a run's log above `bar`, or to stdout where the bar is
 /// hidden (one item, or no terminal): batch logs keep every line.
 pub fn print_line(bar: &indicatif::ProgressBar, line: &str) {
@@ -654,6 +706,31 @@ where
 mod tests {
     #![allow(clippy::unwrap_used, reason = "a failed unwrap is a failed test")]
     use super::*;
+
+    /// Every item written once, each result at its item's place, whatever the writer count.
+    #[test]
+    fn write_all_returns_each_result_in_item_order() {
+        for writers in [1, 2, 3, 8, 40] {
+            let calls = std::sync::atomic::AtomicUsize::new(0);
+            let items: Vec<u32> = (0..20).collect();
+            let results = write_all(&items, writers, |&i| {
+                calls.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                if i % 3 == 0 {
+                    Err(Error::invalid(format!("item {i}"), "fails"))
+                } else {
+                    Ok(())
+                }
+            });
+            assert_eq!(calls.into_inner(), 20, "{writers} writers");
+            for (i, r) in results.iter().enumerate() {
+                match r {
+                    Ok(()) => assert!(i % 3 != 0, "{writers} writers: item {i}"),
+                    Err(e) => assert!(i % 3 == 0 && e.to_string().contains(&format!("item {i}:")), "{writers}: {e}"),
+                }
+            }
+        }
+        assert!(write_all(&[] as &[u32], 4, |_| Ok(())).is_empty());
+    }
 
     /// Results reach the writer in order; a producer error stops the run after
     /// the writer has taken what came before; a writer error stops the producer.

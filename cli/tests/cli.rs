@@ -1036,6 +1036,47 @@ fn outputs_are_byte_identical_whatever_the_thread_count() {
     }
 }
 
+/// `--writers N`: a batch's files encoded and written by N threads are the
+/// same files, logged in camera order, as one writer's.
+#[test]
+fn files_are_the_same_whatever_the_writer_count() {
+    let dir = tempfile::tempdir().unwrap();
+    let demo = dir.path().join("demo");
+    let o = srug(&["demo", "--gaussians", "3000", "--out", demo.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", text(&o));
+    let (ply, cams) = (demo.join("demo_city.ply"), demo.join("cameras.json"));
+    let run = |writers: &str, command: &str, name: &str, extra: &[&str]| -> (Vec<Vec<u8>>, Vec<String>) {
+        let out_dir = dir.path().join(format!("{writers}_{command}_{name}"));
+        std::fs::create_dir_all(&out_dir).unwrap();
+        let out = out_dir.join(name);
+        let mut args = vec![command, ply.to_str().unwrap(), "--cameras", cams.to_str().unwrap()];
+        args.extend(extra);
+        args.extend(["--size", "176x48", "--writers", writers, "--out", out.to_str().unwrap()]);
+        let o = srug(&args);
+        assert!(o.status.success(), "{}", text(&o));
+        let mut files: Vec<_> = std::fs::read_dir(&out_dir).unwrap().map(|e| e.unwrap().path()).collect();
+        files.sort();
+        assert!(files.len() >= 4, "{command}: {} files", files.len());
+        let lines = String::from_utf8_lossy(&o.stdout)
+            .lines()
+            .filter_map(|l| l.split_whitespace().next().map(|p| p.rsplit('/').next().unwrap_or(p).to_string()))
+            .collect();
+        (files.iter().map(|f| std::fs::read(f).unwrap()).collect(), lines)
+    };
+    for (command, name, extra) in [
+        ("render", "a.png", &[][..]),
+        ("render", "a.exr", &["--channels", "rgb,depth"][..]),
+        ("relight", "r.png", &[][..]),
+    ] {
+        let (one, one_log) = run("1", command, name, extra);
+        let (three, three_log) = run("3", command, name, extra);
+        assert!(one == three, "{command} {name}: files differ between 1 and 3 writers");
+        assert_eq!(one_log, three_log, "{command} {name}: the log lists the files in camera order");
+    }
+    let o = srug(&["render", ply.to_str().unwrap(), "--writers", "0", "--out", "x.png"]);
+    assert!(!o.status.success() && text(&o).contains("--writers"), "{}", text(&o));
+}
+
 /// `--panorama W`: each camera becomes a 360° × 180° equirectangular panorama
 /// W × W/2 whose depth is the distance (so range equals depth); a Gaussian
 /// ahead lands at the centre column, one behind at the left and right edges.

@@ -17,8 +17,8 @@ use srug::splat::{cameras_per_batch, Channels, SplatSettings, BATCH_BYTES};
 use srug::{io, Error, Result};
 
 use crate::args::{
-    numbered, output_is_exr, overlapped, print_line, progress_bar, CameraArgs, DeviceArgs, EnvArgs, RunOutputs,
-    ShadeArgs, SunArgs,
+    numbered, output_is_exr, overlapped, print_line, progress_bar, write_all, CameraArgs, DeviceArgs, EnvArgs,
+    RunOutputs, ShadeArgs, SunArgs, WriterArgs,
 };
 
 /// Lighting resources reused across frames.
@@ -163,6 +163,8 @@ pub(super) struct RelightArgs {
     /// Output file: .png (display image) or .exr (linear radiance, L_sun, L_sky, L_ind, sun visibility V); numbered when several frames.
     #[arg(long)]
     pub out: PathBuf,
+    #[command(flatten)]
+    pub writers: WriterArgs,
 }
 
 impl RelightArgs {
@@ -173,7 +175,8 @@ impl RelightArgs {
 }
 
 fn relight(device: &Device, args: &RelightArgs) -> Result<()> {
-    let RelightArgs { scene: scene_path, view, sun, env, shade, indirect, indirect_precision, out } = args;
+    let RelightArgs { scene: scene_path, view, sun, env, shade, indirect, indirect_precision, out, writers } = args;
+    let writers = writers.count();
     let precision = indirect_precision.unwrap_or_else(|| shade.preset.indirect_precision());
     let exr = output_is_exr(out)?;
     let (cams, all_cameras) = view.resolve_numbered()?;
@@ -256,13 +259,21 @@ fn relight(device: &Device, args: &RelightArgs) -> Result<()> {
             Ok(outputs)
         },
         |frames| -> Result<()> {
-            for (target, image, indirect, visibility, line) in frames {
-                write_relit(&target, exr, &image, indirect.as_deref(), visibility.as_deref())?;
+            let results = write_all(&frames, writers, |(target, image, indirect, visibility, _)| {
+                write_relit(target, exr, image, indirect.as_deref(), visibility.as_deref())
+            });
+            let mut first_error = None;
+            // In camera order; every file written is recorded (removed if the run fails).
+            for ((target, _, _, _, line), result) in frames.into_iter().zip(results) {
+                if let Err(e) = result {
+                    first_error.get_or_insert(e);
+                    continue;
+                }
                 written.add(target);
                 print_line(&bar, &line);
                 bar.inc(1);
             }
-            Ok(())
+            first_error.map_or(Ok(()), Err)
         },
     )?;
     bar.finish_and_clear();

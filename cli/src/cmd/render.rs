@@ -14,8 +14,8 @@ use srug::splat::{
 use srug::{Error, Result};
 
 use crate::args::{
-    numbered, output_is_exr, overlapped, print_line, progress_bar, CameraArgs, ChannelList, DeviceArgs, RunOutputs,
-    Vec3Arg,
+    numbered, output_is_exr, overlapped, print_line, progress_bar, write_all, CameraArgs, ChannelList, DeviceArgs,
+    RunOutputs, Vec3Arg, WriterArgs,
 };
 
 /// Arguments of `srug render`.
@@ -61,6 +61,8 @@ pub(super) struct RenderArgs {
     /// rather than at the splat's centre (pinhole cameras; docs/stages.md).
     #[arg(long)]
     surface_depth: bool,
+    #[command(flatten)]
+    writers: WriterArgs,
 }
 
 impl RenderArgs {
@@ -78,6 +80,7 @@ impl RenderArgs {
             tile,
             tile_bounds,
             surface_depth,
+            writers,
         } = self;
         let is_exr = output_is_exr(out)?;
         if !ids.is_empty() && !is_exr {
@@ -123,25 +126,15 @@ impl RenderArgs {
             ProgressBar::hidden()
         };
         let mut written = RunOutputs::default();
-        let mut write_frame = |(target, g, stats, cam): (PathBuf, GBuffer, SplatStats, &Camera)| -> Result<()> {
+        let writers = writers.count();
+        let encode = |(target, g, _, cam): &(PathBuf, GBuffer, SplatStats, &Camera)| -> Result<()> {
             if is_exr {
                 let range = if channels.range { g.ray_distance(cam) } else { None };
                 let extra: Vec<(&str, &[f32], usize)> = range.as_deref().map(|r| ("range", r, 1)).into_iter().collect();
-                g.write_exr_with(&target, &extra, &id_channels)?;
+                g.write_exr_with(target, &extra, &id_channels)
             } else {
-                io::write_png(&target, g.width, g.height, g.rgb_values()?)?;
+                io::write_png(target, g.width, g.height, g.rgb_values()?)
             }
-            written.add(target.clone());
-            bar.inc(1);
-            let line = format!(
-                "{} ({}x{}, {:.1} ms GPU)",
-                target.display(),
-                g.width,
-                g.height,
-                stats.timings.total_seconds() * 1e3
-            );
-            print_line(&bar, &line);
-            Ok(())
         };
         // Cameras in batches (one submission per step for the batch); batch
         // k + 1 splats while batch k is encoded and written.
@@ -161,10 +154,21 @@ impl RenderArgs {
                 Ok(read)
             },
             |frames| -> Result<()> {
-                for frame in frames {
-                    write_frame(frame)?;
+                let results = write_all(&frames, writers, encode);
+                let mut first_error = None;
+                // In camera order; every file written is recorded (removed if the run fails).
+                for ((target, g, stats, _), result) in frames.into_iter().zip(results) {
+                    if let Err(e) = result {
+                        first_error.get_or_insert(e);
+                        continue;
+                    }
+                    let ms = stats.timings.total_seconds() * 1e3;
+                    let line = format!("{} ({}x{}, {ms:.1} ms GPU)", target.display(), g.width, g.height);
+                    written.add(target);
+                    bar.inc(1);
+                    print_line(&bar, &line);
                 }
-                Ok(())
+                first_error.map_or(Ok(()), Err)
             },
         )?;
         bar.finish_and_clear();
