@@ -9,7 +9,7 @@ use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64Mcg;
 use srug::gpu::{Device, MemoryKind};
 use srug::primitives::scan::{exclusive_scan_cpu, Scan};
-use srug::primitives::sort::RadixSort;
+use srug::primitives::sort::{sort_items, RadixSort};
 use srug_tests::{assert_no_validation_messages, device};
 
 fn gpu_scan(d: &Device, scan: &mut Scan, values: &[u32]) -> Vec<u32> {
@@ -65,22 +65,28 @@ fn check_sort(d: &Device, sort: &mut RadixSort, keys: &[[u32; 2]], bits: u32, la
 #[test]
 fn radix_sort_matches_std_sort() {
     let d = device();
-    let mut sort = RadixSort::new(&d).unwrap();
+    let sort = RadixSort::new(&d).unwrap();
     assert!(sort.texel_inputs(), "lavapipe reads RG32UI/R32UI texel buffers, so that path is the default");
-    // Both input paths: texel-buffer views, then device addresses.
-    for texel in [true, false] {
-        sort.set_texel_inputs(texel).unwrap();
-        sort_cases(&d, &mut sort);
+    assert_eq!(sort.items(), sort_items(d.info().device_type), "the device's keys per invocation");
+    // GPUs' 64 keys per invocation and CPU devices' 256 (and an odd count); both input paths.
+    for items in [64, 256, 7] {
+        let mut sort = RadixSort::with_items(&d, items).unwrap();
+        for texel in [true, false] {
+            sort.set_texel_inputs(texel).unwrap();
+            sort_cases(&d, &mut sort);
+        }
     }
+    assert!(RadixSort::with_items(&d, 0).is_err() && RadixSort::with_items(&d, 1 << 17).is_err());
     assert_no_validation_messages(&d);
 }
 
 fn sort_cases(d: &Device, sort: &mut RadixSort) {
-    let texel = sort.texel_inputs();
+    let texel = format!("{} ({} keys per invocation)", sort.texel_inputs(), sort.items());
     let mut rng = Pcg64Mcg::seed_from_u64(2);
     let random =
         |rng: &mut Pcg64Mcg, n: usize| -> Vec<[u32; 2]> { (0..n).map(|_| [rng.random(), rng.random()]).collect() };
-    for n in [0usize, 1, 2, 63, 64, 1023, 1024, 1025, 4097, 100_003] {
+    // Around block edges: 64 × items keys per workgroup (4096 at 64, 16,384 at 256).
+    for n in [0usize, 1, 2, 63, 64, 1023, 1024, 1025, 4095, 4097, 16_383, 16_384, 16_385, 100_003] {
         check_sort(d, sort, &random(&mut rng, n), 64, &format!("random n={n}, texel {texel}"));
     }
     // Only the bits in use: keys with junk above `bits` sort by the low bits alone, stably.

@@ -1,7 +1,7 @@
 //! Stable LSD radix sort of (64-bit key, u32 value) pairs on the GPU.
 //!
 //! Each pass sorts one 4-bit digit in three steps: a histogram per invocation
-//! of its `SORT_ITEMS` consecutive keys (`sort_histogram.comp`), an
+//! of its [`sort_items`] consecutive keys (`sort_histogram.comp`), an
 //! exclusive scan of that digit-major histogram ([`Scan`]), and a stable
 //! scatter (`sort_scatter.comp`). Counts live in registers, never in shared
 //! memory: on CPU implementations (lavapipe) shared-memory accesses indexed
@@ -21,25 +21,34 @@ use std::sync::Arc;
 
 use super::scan::Scan;
 use crate::error::{Error, Result};
+use crate::gpu::ash::vk;
 use crate::gpu::{
     kernels, Binding, BindingKind, Buffer, Device, DeviceAddress, Grid, Kernel, KernelDecl, MemoryKind, Recording,
-    TexelFormat, Texels,
+    SpecValue, TexelFormat, Texels,
 };
 
-/// Keys per invocation (keep in sync with the sort kernels' `ITEMS`).
-pub(crate) const SORT_ITEMS: u64 = 64;
 /// Invocations per workgroup (keep in sync with the sort kernels' `WORKGROUP_SIZE_X`).
 const SORT_WORKGROUP: u64 = 64;
-/// Keys per workgroup (keep in sync with the sort kernels' `SORT_BLOCK`).
-pub(crate) const SORT_BLOCK: u64 = SORT_ITEMS * SORT_WORKGROUP;
 /// Bits per pass (keep in sync with `RADIX` = 16).
 pub(crate) const DIGIT_BITS: u32 = 4;
 const RADIX: u64 = 16;
 
-/// Entries of the digit-major histogram for `count` keys: one column of
-/// `RADIX` counts per invocation of every block.
-fn histogram_len(count: u64) -> u64 {
-    RADIX * count.div_ceil(SORT_BLOCK) * SORT_WORKGROUP
+/// Keys per invocation (the kernels' `ITEMS`, specialization constant 0) on a
+/// device of `device_type`: 256 on CPU devices (lavapipe), where 2 cores need
+/// few invocations and a histogram a quarter the size costs its scan a quarter
+/// (docs/bench/splat.md); 64 on GPUs, which need many invocations.
+pub fn sort_items(device_type: vk::PhysicalDeviceType) -> u64 {
+    if device_type == vk::PhysicalDeviceType::CPU {
+        256
+    } else {
+        64
+    }
+}
+
+/// Entries of the digit-major histogram for `count` keys at `items` keys per
+/// invocation: one column of `RADIX` counts per invocation of every block.
+fn histogram_len(count: u64, items: u64) -> u64 {
+    RADIX * count.div_ceil(items * SORT_WORKGROUP) * SORT_WORKGROUP
 }
 
 /// Push constants of `sort_histogram.comp` and `sort_scatter.comp` (`SortPush`
@@ -81,6 +90,8 @@ pub struct RadixSort {
     texel: Option<(Arc<Kernel>, Arc<Kernel>)>,
     use_texel: bool,
     max_texels: u64,
+    /// Keys per invocation ([`sort_items`]).
+    items: u64,
     scan: Scan,
     keys_tmp: Option<Buffer>,
     values_tmp: Option<Buffer>,
@@ -89,16 +100,28 @@ pub struct RadixSort {
 }
 
 impl RadixSort {
-    /// Builds the kernels.
+    /// Builds the kernels, with the device's [`sort_items`].
     pub fn new(device: &Device) -> Result<Self> {
-        let decl =
-            KernelDecl { bindings: &[], push_constant_size: std::mem::size_of::<SortPush>(), specialization: &[] };
+        Self::with_items(device, sort_items(device.info().device_type))
+    }
+
+    /// Builds the kernels with `items` keys per invocation (1 to 65,536).
+    pub fn with_items(device: &Device, items: u64) -> Result<Self> {
+        if !(1..=65_536).contains(&items) {
+            return Err(Error::invalid(format!("{items} keys per sort invocation"), "is not 1 to 65536"));
+        }
         let info = device.info();
+        let specialization = [(0, SpecValue::U32(items as u32))];
+        let decl = KernelDecl {
+            bindings: &[],
+            push_constant_size: std::mem::size_of::<SortPush>(),
+            specialization: &specialization,
+        };
         let texel = if [TexelFormat::R32Uint, TexelFormat::Rg32Uint].iter().all(|f| info.texel_formats.contains(f)) {
             let views = |n: usize| KernelDecl {
                 bindings: &[BindingKind::UniformTexelBuffer; 2][..n],
                 push_constant_size: std::mem::size_of::<SortPush>(),
-                specialization: &[],
+                specialization: &specialization,
             };
             Some((
                 device.kernel(&kernels::SORT_HISTOGRAM_TEXEL, &views(1))?,
@@ -113,6 +136,7 @@ impl RadixSort {
             use_texel: texel.is_some(),
             texel,
             max_texels: info.max_texel_buffer_elements,
+            items,
             scan: Scan::new(device)?,
             keys_tmp: None,
             values_tmp: None,
@@ -131,11 +155,16 @@ impl RadixSort {
         }
         self.keys_tmp = Some(device.create_buffer("sort keys (ping-pong)", count * 8, MemoryKind::Storage)?);
         self.values_tmp = Some(device.create_buffer("sort values (ping-pong)", count * 4, MemoryKind::Storage)?);
-        let entries = histogram_len(count);
+        let entries = histogram_len(count, self.items);
         self.hist = Some(device.create_buffer("sort histogram", entries * 4, MemoryKind::Storage)?);
         self.scan.reserve(device, entries)?;
         self.capacity = count;
         Ok(())
+    }
+
+    /// Keys per invocation ([`sort_items`] unless made [`RadixSort::with_items`]).
+    pub fn items(&self) -> u64 {
+        self.items
     }
 
     /// Whether the kernels read keys and values through texel-buffer views
@@ -193,7 +222,7 @@ impl RadixSort {
         if count <= 1 || bits == 0 {
             return Ok(());
         }
-        let blocks = count.div_ceil(SORT_BLOCK);
+        let blocks = count.div_ceil(self.items * SORT_WORKGROUP);
         let passes = bits.div_ceil(DIGIT_BITS);
         let mut src = (keys, values);
         let mut dst = (keys_tmp, values_tmp);
@@ -219,7 +248,7 @@ impl RadixSort {
                 Some((histogram, _)) => rec.dispatch(histogram, Grid::Groups(blocks), &[key_view], &push)?,
                 None => rec.dispatch(&self.histogram, Grid::Groups(blocks), &[], &push)?,
             }
-            self.scan.record(rec, hist, histogram_len(count))?;
+            self.scan.record(rec, hist, histogram_len(count, self.items))?;
             match texel {
                 Some((_, scatter)) => rec.dispatch(scatter, Grid::Groups(blocks), &[key_view, value_view], &push)?,
                 None => rec.dispatch(&self.scatter, Grid::Groups(blocks), &[], &push)?,

@@ -17,9 +17,9 @@
 #include "common.glsl"
 #include "address.glsl"
 
-// Keys per invocation. Keep in sync with engine/src/splat/sort.rs `SORT_ITEMS`.
-#define ITEMS 64
-#define SORT_BLOCK (WORKGROUP_SIZE_X * ITEMS)
+// Keys per invocation (engine/src/primitives/sort.rs `sort_items`: more on CPU
+// devices, where fewer, longer invocations shrink the histogram and its scan).
+layout(constant_id = 0) const uint ITEMS = 64u;
 #define RADIX 16
 
 // Keep in sync with engine/src/splat/sort.rs `SortPush`.
