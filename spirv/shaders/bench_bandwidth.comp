@@ -1,7 +1,10 @@
 #version 460
 // Floor probe for memory-bound stages: a buffer read once, front to back,
 // through an RGBA32F texel-buffer view (16 bytes a fetch, as the texel
-// kernels read), each invocation owning ITEMS consecutive texels; with COPY
+// kernels read), each invocation owning ITEMS consecutive texels (the
+// layout CPU implementations vectorize best) or, with INTERLEAVED, every
+// 64th texel of its workgroup's block (neighbouring lanes read neighbouring
+// texels, the layout GPUs coalesce); the host takes the faster; with COPY
 // each texel is also written by device address to the same index of a
 // second buffer. Without COPY each invocation writes the xor of what it read,
 // so the reads cannot be skipped. The bytes moved over the time is the
@@ -14,6 +17,7 @@
 // Keep in sync with cli/src/bench/limits.rs `BANDWIDTH_ITEMS`.
 #define ITEMS 64
 layout(constant_id = 0) const bool COPY = false;
+layout(constant_id = 1) const bool INTERLEAVED = false;
 
 // Keep in sync with cli/src/bench/limits.rs `BandwidthPush`.
 layout(push_constant) uniform BandwidthPush {
@@ -29,11 +33,15 @@ layout(set = 0, binding = 0) uniform textureBuffer source;  // RGBA32F, finite v
 void main() {
     uint me = block_index() * WORKGROUP_SIZE_X + gl_LocalInvocationID.x;
     uint sum = 0u;
-    uint end = min(me * ITEMS + ITEMS, pc.count);
-    for (uint i = me * ITEMS; i < end; i++) {
+    // Texel k of this invocation: me·ITEMS + k, or interleaved block start + k·64 + lane.
+    uint first = INTERLEAVED ? block_index() * WORKGROUP_SIZE_X * ITEMS + gl_LocalInvocationID.x : me * ITEMS;
+    uint step = INTERLEAVED ? WORKGROUP_SIZE_X : 1u;
+    for (uint k = 0u; k < ITEMS; k++) {
+        uint i = first + k * step;
+        if (i >= pc.count) break;
         uvec4 t = floatBitsToUint(texelFetch(source, int(i)));
         if (COPY) Uvec4sOut(pc.out_addr).v[i] = t;
         sum ^= t.x ^ t.y ^ t.z ^ t.w;
     }
-    if (!COPY && me * ITEMS < pc.count) UintsOut(pc.out_addr).v[me] = sum;
+    if (!COPY && first < pc.count) UintsOut(pc.out_addr).v[me] = sum;
 }

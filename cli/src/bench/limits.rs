@@ -458,11 +458,28 @@ srug::gpu::gpu_layout!(BandwidthPush, "BandwidthPush", [out_addr, count, blocks]
 pub const BANDWIDTH_ITEMS: u64 = 64;
 const BANDWIDTH_BLOCK: u64 = BANDWIDTH_ITEMS * 64;
 
+/// How the bandwidth probe's invocations split the buffer.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum BandwidthLayout {
+    /// Each invocation reads `BANDWIDTH_ITEMS` consecutive texels (CPU devices vectorize this best).
+    Runs,
+    /// A workgroup's block is read lane by lane: neighbouring invocations read
+    /// neighbouring texels (GPUs coalesce this).
+    Interleaved,
+}
+
 /// Runs the bandwidth probe once over the first `count` RGBA32F texels of
-/// `source` (finite values): read only (writing one checksum per invocation
-/// into `out`), or with `copy` each texel copied to the same index of `out`.
-/// Returns the GPU seconds.
-pub fn bandwidth_run(device: &Device, copy: bool, source: &Buffer, count: u64, out: &Buffer) -> Result<f64> {
+/// `source` (finite values) in `layout`: read only (writing one checksum per
+/// invocation into `out`), or with `copy` each texel copied to the same index
+/// of `out`. Returns the GPU seconds.
+pub fn bandwidth_run(
+    device: &Device,
+    copy: bool,
+    layout: BandwidthLayout,
+    source: &Buffer,
+    count: u64,
+    out: &Buffer,
+) -> Result<f64> {
     let info = device.info();
     if !info.texel_formats.contains(&TexelFormat::Rgba32Float) {
         return Err(Error::unsupported("this device cannot view buffers as RGBA32F texels"));
@@ -471,7 +488,7 @@ pub fn bandwidth_run(device: &Device, copy: bool, source: &Buffer, count: u64, o
     if count == 0 || count > limit {
         return Err(Error::invalid(format!("bandwidth probe over {count} texels"), format!("needs 1 to {limit}")));
     }
-    let sums = count.div_ceil(BANDWIDTH_ITEMS) * 4;
+    let sums = bandwidth_checksums(count, layout) * 4;
     if source.size() < count * 16 || out.size() < if copy { count * 16 } else { sums } {
         return Err(Error::invalid(format!("bandwidth probe over {count} texels"), "a buffer is too small"));
     }
@@ -480,7 +497,7 @@ pub fn bandwidth_run(device: &Device, copy: bool, source: &Buffer, count: u64, o
         &KernelDecl {
             bindings: &[BindingKind::UniformTexelBuffer],
             push_constant_size: std::mem::size_of::<BandwidthPush>(),
-            specialization: &[(0, SpecValue::Bool(copy))],
+            specialization: &[(0, SpecValue::Bool(copy)), (1, SpecValue::Bool(layout == BandwidthLayout::Interleaved))],
         },
     )?;
     let blocks = count.div_ceil(BANDWIDTH_BLOCK);
@@ -494,9 +511,30 @@ pub fn bandwidth_run(device: &Device, copy: bool, source: &Buffer, count: u64, o
     Ok(t.get("bandwidth").unwrap_or(f64::NAN))
 }
 
-/// CPU twin of `bench_bandwidth.comp` read only: the xor of each invocation's texels' bits.
-pub fn bandwidth_cpu(texels: &[[f32; 4]]) -> Vec<u32> {
-    texels.chunks(BANDWIDTH_ITEMS as usize).map(|c| c.iter().flatten().fold(0, |s, v| s ^ v.to_bits())).collect()
+/// How many checksums the read-only probe writes over `count` texels in
+/// `layout` (one per invocation that reads a texel).
+pub fn bandwidth_checksums(count: u64, layout: BandwidthLayout) -> u64 {
+    match layout {
+        BandwidthLayout::Runs => count.div_ceil(BANDWIDTH_ITEMS),
+        BandwidthLayout::Interleaved => count / BANDWIDTH_BLOCK * 64 + (count % BANDWIDTH_BLOCK).min(64),
+    }
+}
+
+/// CPU twin of `bench_bandwidth.comp` read only: the xor of each invocation's
+/// texels' bits in `layout` (one entry per invocation that reads any texel).
+pub fn bandwidth_cpu(texels: &[[f32; 4]], layout: BandwidthLayout) -> Vec<u32> {
+    let xor = |t: &[f32; 4]| t.iter().fold(0, |s, v| s ^ v.to_bits());
+    let items = BANDWIDTH_ITEMS as usize;
+    match layout {
+        BandwidthLayout::Runs => texels.chunks(items).map(|c| c.iter().map(xor).fold(0, |s, x| s ^ x)).collect(),
+        BandwidthLayout::Interleaved => texels
+            .chunks(BANDWIDTH_BLOCK as usize)
+            .flat_map(|block| {
+                (0..64.min(block.len()))
+                    .map(move |lane| block.iter().skip(lane).step_by(64).map(xor).fold(0, |s, x| s ^ x))
+            })
+            .collect(),
+    }
 }
 
 /// The device's streaming bandwidth (the best of the repeats).
@@ -508,6 +546,8 @@ pub struct MemoryBandwidth {
     pub read: f64,
     /// Bytes moved (read and written) per second, copying once.
     pub copy: f64,
+    /// The layout that read fastest (the copy takes its own best).
+    pub read_layout: BandwidthLayout,
 }
 
 impl MemoryBandwidth {
@@ -519,19 +559,29 @@ impl MemoryBandwidth {
     }
 }
 
-/// Measures the streaming bandwidth over a buffer of `bytes` (rounded to whole texels).
+/// Measures the streaming bandwidth over a buffer of `bytes` (rounded to whole
+/// texels): the best of the repeats and of both layouts.
 pub fn memory_bandwidth(device: &Device, bytes: u64, repeats: usize) -> Result<MemoryBandwidth> {
     let count = (bytes / 16).max(1);
     let texels: Vec<[f32; 4]> = (0..count).map(|i| [i as f32, 1.0, 2.0, 3.0]).collect();
     let source = device.upload("bandwidth source", &texels)?;
     let out = device.create_buffer("bandwidth out", count * 16, MemoryKind::Storage)?;
-    let best = |copy| -> Result<f64> {
+    let best = |copy, layout| -> Result<f64> {
         let runs: Result<Vec<f64>> =
-            (0..repeats.max(1)).map(|_| bandwidth_run(device, copy, &source, count, &out)).collect();
+            (0..repeats.max(1)).map(|_| bandwidth_run(device, copy, layout, &source, count, &out)).collect();
         Ok(runs?.into_iter().fold(f64::INFINITY, f64::min))
     };
-    let (read, copy) = (best(false)?, best(true)?);
-    Ok(MemoryBandwidth { bytes: count * 16, read: (count * 16) as f64 / read, copy: (count * 32) as f64 / copy })
+    let [runs, interleaved] = [BandwidthLayout::Runs, BandwidthLayout::Interleaved];
+    let (read_runs, read_interleaved) = (best(false, runs)?, best(false, interleaved)?);
+    let copy = best(true, runs)?.min(best(true, interleaved)?);
+    let (read, read_layout) =
+        if read_interleaved < read_runs { (read_interleaved, interleaved) } else { (read_runs, runs) };
+    Ok(MemoryBandwidth {
+        bytes: count * 16,
+        read: (count * 16) as f64 / read,
+        copy: (count * 32) as f64 / copy,
+        read_layout,
+    })
 }
 
 #[cfg(test)]
