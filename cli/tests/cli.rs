@@ -2,7 +2,7 @@
 
 #![allow(clippy::unwrap_used, clippy::expect_used, reason = "a failed unwrap is a failed test")]
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
 fn srug(args: &[&str]) -> Output {
@@ -11,6 +11,14 @@ fn srug(args: &[&str]) -> Output {
 
 fn text(o: &Output) -> String {
     format!("{}{}", String::from_utf8_lossy(&o.stdout), String::from_utf8_lossy(&o.stderr))
+}
+
+/// `srug demo` of `gaussians` into `dir`/demo: its scene and cameras files.
+fn demo_files(dir: &Path, gaussians: &str) -> (PathBuf, PathBuf) {
+    let demo = dir.join("demo");
+    let o = srug(&["demo", "--gaussians", gaussians, "--out", demo.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", text(&o));
+    (demo.join("demo_city.ply"), demo.join("cameras.json"))
 }
 
 #[test]
@@ -816,11 +824,7 @@ fn bench_trade_writes_csv_markdown_and_a_plot_with_the_pareto_front() {
 #[test]
 fn relight_presets_and_quality_options() {
     let dir = tempfile::tempdir().unwrap();
-    let demo = dir.path().join("demo");
-    let o = srug(&["demo", "--gaussians", "3000", "--out", demo.to_str().unwrap()]);
-    assert!(o.status.success(), "{}", text(&o));
-    let scene = demo.join("demo_city.ply");
-    let cams = demo.join("cameras.json");
+    let (scene, cams) = demo_files(dir.path(), "3000");
     for (preset, extra) in [
         ("fast", vec![]),
         ("reference", vec![]),
@@ -939,10 +943,7 @@ fn render_takes_colmap_and_nerfstudio_cameras() {
         assert!(o.status.success(), "{}", text(&o));
         assert!(out.is_file());
     }
-    let demo = dir.path().join("demo");
-    let o = srug(&["demo", "--gaussians", "1000", "--out", demo.to_str().unwrap()]);
-    assert!(o.status.success(), "{}", text(&o));
-    let relightable = demo.join("demo_city.ply");
+    let (relightable, _) = demo_files(dir.path(), "1000");
     let out = dir.path().join("r.png");
     let o = srug(&[
         "relight",
@@ -966,10 +967,7 @@ fn render_takes_colmap_and_nerfstudio_cameras() {
 #[test]
 fn shards_split_a_camera_list_without_collisions() {
     let dir = tempfile::tempdir().unwrap();
-    let demo = dir.path().join("demo");
-    let o = srug(&["demo", "--gaussians", "2000", "--out", demo.to_str().unwrap()]);
-    assert!(o.status.success(), "{}", text(&o));
-    let (ply, cams) = (demo.join("demo_city.ply"), demo.join("cameras.json"));
+    let (ply, cams) = demo_files(dir.path(), "2000");
     let run = |sub: &str, extra: &[&str]| {
         let folder = dir.path().join(sub);
         std::fs::create_dir_all(&folder).unwrap();
@@ -1013,10 +1011,7 @@ fn shards_split_a_camera_list_without_collisions() {
 #[test]
 fn outputs_are_byte_identical_whatever_the_thread_count() {
     let dir = tempfile::tempdir().unwrap();
-    let demo = dir.path().join("demo");
-    let o = srug(&["demo", "--gaussians", "3000", "--out", demo.to_str().unwrap()]);
-    assert!(o.status.success(), "{}", text(&o));
-    let (ply, cams) = (demo.join("demo_city.ply"), demo.join("cameras.json"));
+    let (ply, cams) = demo_files(dir.path(), "3000");
     let run = |threads: &str, command: &str, name: &str, extra: &[&str]| -> Vec<u8> {
         let out = dir.path().join(format!("{threads}_{name}"));
         let mut args = vec![command, ply.to_str().unwrap(), "--cameras", cams.to_str().unwrap(), "--index", "1"];
@@ -1041,10 +1036,7 @@ fn outputs_are_byte_identical_whatever_the_thread_count() {
 #[test]
 fn files_are_the_same_whatever_the_writer_count() {
     let dir = tempfile::tempdir().unwrap();
-    let demo = dir.path().join("demo");
-    let o = srug(&["demo", "--gaussians", "3000", "--out", demo.to_str().unwrap()]);
-    assert!(o.status.success(), "{}", text(&o));
-    let (ply, cams) = (demo.join("demo_city.ply"), demo.join("cameras.json"));
+    let (ply, cams) = demo_files(dir.path(), "3000");
     let run = |writers: &str, command: &str, name: &str, extra: &[&str]| -> (Vec<Vec<u8>>, Vec<String>) {
         let out_dir = dir.path().join(format!("{writers}_{command}_{name}"));
         std::fs::create_dir_all(&out_dir).unwrap();
