@@ -273,7 +273,7 @@ pub fn read_ply_ids(path: impl AsRef<Path>, names: &[String]) -> Result<Vec<Vec<
 }
 
 /// Where one PLY property goes in a [`Scene`].
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 enum Dest {
     Mean(usize),
     Normal(usize),
@@ -425,6 +425,71 @@ impl Plan {
         }
     }
 
+    /// Writes property `i` of rows `g0..`, one row per value of `values`:
+    /// where it goes is matched once, not once a value.
+    fn set_column(&self, scene: &mut Scene, i: usize, g0: usize, values: impl Iterator<Item = f32>) {
+        let k = sh_coefficients(self.sh_degree);
+        let m = &mut scene.materials;
+        fn fill<T>(dest: &mut [T], g0: usize, values: impl Iterator<Item = f32>, set: impl Fn(&mut T, f32)) {
+            dest.iter_mut().skip(g0).zip(values).for_each(|(x, v)| set(x, v));
+        }
+        match self.dests[i] {
+            Dest::Mean(a) => fill(&mut scene.means, g0, values, |x, v| x[a] = v),
+            Dest::Normal(a) => {
+                if let Some(n) = &mut scene.normals {
+                    fill(n, g0, values, |x, v| x[a] = v);
+                }
+            }
+            Dest::Sh { channel, coef } => {
+                let first = (g0 * k + coef) * 3 + channel;
+                scene.sh.iter_mut().skip(first).step_by(k * 3).zip(values).for_each(|(x, v)| *x = v);
+            }
+            Dest::Opacity => fill(&mut scene.opacity_logits, g0, values, |x, v| *x = v),
+            Dest::Scale(a) => fill(&mut scene.log_scales, g0, values, |x, v| x[a] = v),
+            Dest::Rot(a) => fill(&mut scene.rotations, g0, values, |x, v| x[a] = v),
+            Dest::Albedo(a) => {
+                if let Some(n) = &mut m.albedo {
+                    fill(n, g0, values, |x, v| x[a] = v);
+                }
+            }
+            d @ (Dest::Roughness | Dest::Metallic | Dest::Ao | Dest::Visibility) => {
+                let slot = match d {
+                    Dest::Roughness => &mut m.roughness,
+                    Dest::Metallic => &mut m.metallic,
+                    Dest::Ao => &mut m.ao,
+                    _ => &mut m.visibility,
+                };
+                if let Some(n) = slot {
+                    fill(n, g0, values, |x, v| *x = v);
+                }
+            }
+            Dest::Ignore => {}
+        }
+    }
+
+    /// Decodes `n` binary rows of `data` (rows of `header.stride` bytes) into
+    /// rows `g0..` of `scene`: property by property over runs of rows that stay
+    /// in cache, each property's type and destination matched once a run.
+    fn set_binary_rows(&self, scene: &mut Scene, header: &Header, data: &[u8], big: bool, g0: usize, n: usize) {
+        const RUN: usize = 512;
+        let stride = header.stride;
+        for (run, rows) in data[..n * stride].chunks(RUN * stride).enumerate() {
+            let g = g0 + run * RUN;
+            for (i, p) in header.properties.iter().enumerate() {
+                if self.dests[i] == Dest::Ignore {
+                    continue;
+                }
+                let fields = rows.chunks_exact(stride).map(|row| &row[p.offset..p.offset + p.ty.size()]);
+                match (p.ty, big) {
+                    (ScalarType::F32, false) => {
+                        self.set_column(scene, i, g, fields.map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])))
+                    }
+                    (ty, _) => self.set_column(scene, i, g, fields.map(|b| ty.decode(b, big))),
+                }
+            }
+        }
+    }
+
     /// Writes row `g`, whose property `i` has the value `value(i)`.
     fn set_row(&self, scene: &mut Scene, g: usize, value: impl Fn(usize) -> f32) {
         let k = sh_coefficients(self.sh_degree);
@@ -502,10 +567,8 @@ pub fn read_ply(path: impl AsRef<Path>) -> Result<Scene> {
         OpenedPly::Whole(scene) => Ok(scene),
         OpenedPly::Rows(mut rows) => {
             let mut scene = rows.plan.empty_scene(rows.header.count);
-            while let Some((first, n)) = rows.next_block(1 << 20)? {
-                for r in 0..n {
-                    rows.set_row(&mut scene, first + r, r);
-                }
+            while let Some((first, n)) = rows.next_block(1 << 20) {
+                rows.read_rows(&mut scene, first, n)?;
             }
             scene.validate(&rows.origin)?;
             Ok(scene)
@@ -541,13 +604,11 @@ pub fn read_ply_blocks(
                 return on_block(&PlyBlock { total, first: 0, gaussians: &rows.plan.empty_scene(0) });
             }
             let mut block = Scene::default();
-            while let Some((first, n)) = rows.next_block(block_bytes)? {
+            while let Some((first, n)) = rows.next_block(block_bytes) {
                 if block.len() != n {
                     block = rows.plan.empty_scene(n);
                 }
-                for r in 0..n {
-                    rows.set_row(&mut block, r, r);
-                }
+                rows.read_rows(&mut block, 0, n)?;
                 block.validate(&rows.origin).map_err(|mut e| {
                     e.row = e.row.map(|r| r + first);
                     e
@@ -581,33 +642,31 @@ struct PlyRows {
 }
 
 impl PlyRows {
-    /// Reads the next block of about `block_bytes`: (its first row, its rows),
-    /// or `None` at the end.
-    fn next_block(&mut self, block_bytes: usize) -> Result<Option<(usize, usize)>> {
-        use std::io::Read;
+    /// The rows of the next block of about `block_bytes`: (its first row, its
+    /// rows), or `None` at the end.
+    fn next_block(&self, block_bytes: usize) -> Option<(usize, usize)> {
         let (count, stride) = (self.header.count, self.header.stride);
-        if self.next >= count {
-            return Ok(None);
-        }
-        let rows = (block_bytes / stride.max(1) + 1).min(count - self.next);
-        self.block.resize(rows * stride, 0);
-        let (first, header, origin, path) = (self.next, &self.header, &self.origin, &self.path);
-        self.reader.read_exact(&mut self.block).map_err(|e| match e.kind() {
-            std::io::ErrorKind::UnexpectedEof => Error::from(truncated(header, first * stride, origin)),
-            _ => Error::io(path)(e),
-        })?;
-        self.next += rows;
-        Ok(Some((first, rows)))
+        (self.next < count).then(|| (self.next, (block_bytes / stride.max(1) + 1).min(count - self.next)))
     }
 
-    /// Writes the current block's row `r` as row `g` of `scene`.
-    fn set_row(&self, scene: &mut Scene, g: usize, r: usize) {
-        let stride = self.header.stride;
-        let row = &self.block[r * stride..(r + 1) * stride];
-        self.plan.set_row(scene, g, |i| {
-            let p = &self.header.properties[i];
-            p.ty.decode(&row[p.offset..p.offset + p.ty.size()], self.big_endian)
-        });
+    /// Reads the next `n` rows into rows `g0..g0 + n` of `scene`, a piece of
+    /// about 256 KiB at a time, each decoded while it is still in cache.
+    fn read_rows(&mut self, scene: &mut Scene, g0: usize, n: usize) -> Result<()> {
+        use std::io::Read;
+        let stride = self.header.stride.max(1);
+        let piece = (256 << 10) / stride + 1;
+        for start in (0..n).step_by(piece) {
+            let rows = piece.min(n - start);
+            self.block.resize(rows * stride, 0);
+            let (first, header, origin, path) = (self.next, &self.header, &self.origin, &self.path);
+            self.reader.read_exact(&mut self.block).map_err(|e| match e.kind() {
+                std::io::ErrorKind::UnexpectedEof => Error::from(truncated(header, first * stride, origin)),
+                _ => Error::io(path)(e),
+            })?;
+            self.plan.set_binary_rows(scene, &self.header, &self.block, self.big_endian, g0 + start, rows);
+            self.next += rows;
+        }
+        Ok(())
     }
 }
 
@@ -671,13 +730,7 @@ pub fn read_ply_bytes(bytes: &[u8], origin: &str) -> Result<Scene, SceneError> {
             check_binary_length(&header, data.len(), origin)?;
             plan = Plan::new(&header, origin)?;
             scene = plan.empty_scene(n);
-            for g in 0..n {
-                let row = &data[g * header.stride..(g + 1) * header.stride];
-                plan.set_row(&mut scene, g, |i| {
-                    let p = &header.properties[i];
-                    p.ty.decode(&row[p.offset..p.offset + p.ty.size()], big)
-                });
-            }
+            plan.set_binary_rows(&mut scene, &header, data, big, 0, n);
         }
         PlyFormat::Ascii => {
             let text = std::str::from_utf8(data).map_err(|_| SceneError::file(origin, "ASCII PLY data is not text"))?;
