@@ -102,6 +102,17 @@ pub struct Timings {
     pub stages: Vec<StageTime>,
 }
 
+impl std::fmt::Display for Timings {
+    /// `name 1.2 ms, name 3.4 ms, ...` in recording order.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        for (i, s) in self.stages.iter().enumerate() {
+            let sep = if i == 0 { "" } else { ", " };
+            write!(f, "{sep}{} {:.1} ms", s.name, s.seconds * 1e3)?;
+        }
+        Ok(())
+    }
+}
+
 impl Timings {
     /// Sum of all stage times.
     pub fn total_seconds(&self) -> f64 {

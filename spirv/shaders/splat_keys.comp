@@ -1,8 +1,9 @@
 #version 460
 // Splatting stage 2b: one (key, value) pair per (Gaussian, tile) it covers,
 // written at the Gaussian's scanned offset. Key = tile above DEPTH_BITS bits
-// of depth key (`pair_key`: the depth's float bits less the near plane's, so
-// the sort orders only bits that vary within [near, far]); value = Gaussian
+// of depth key (`pair_key`: the depth's float bits less the near plane's,
+// less DEPTH_SHIFT low mantissa bits, so the sort orders only bits that vary
+// within [near, far]); value = Gaussian
 // index. The tile ids are also kept in emission order (pair tiles) for the
 // backward pass. With ELLIPSE_TILES only the tiles of `tile_row_span` get
 // pairs, as the preprocess counted them. Columns x ≥ tiles_x (a full
@@ -22,6 +23,8 @@ layout(constant_id = 15) const uint TILE = 16u;
 layout(constant_id = 2) const bool ROW_MASKS = false;
 // Depth key bits (1 to 32; 32 keeps the depth's float bits whole).
 layout(constant_id = 3) const uint DEPTH_BITS = 32u;
+// Low mantissa bits the depth key drops (engine/src/splat/forward.rs `DepthKey`).
+layout(constant_id = 5) const uint DEPTH_SHIFT = 0u;
 // Pairs only for the tiles the frame's tile mask wants, as the preprocess counted.
 layout(constant_id = 4) const bool TILE_MASK = false;
 
@@ -31,7 +34,7 @@ void main() {
     Splat s = Splats(frame.splats).v[i];
     Uints offsets = Uints(frame.tile_counts);
     uint offset = offsets.v[i], end = offsets.v[i + 1u];
-    uint depth_key = floatBitsToUint(s.head.z) - (DEPTH_BITS < 32u ? floatBitsToUint(frame.clip.x) : 0u);
+    uint depth_key = (floatBitsToUint(s.head.z) - (DEPTH_BITS < 32u ? floatBitsToUint(frame.clip.x) : 0u)) >> DEPTH_SHIFT;
     uint tiles = frame.size.z * frame.size.w;
     Uvec2s keys = Uvec2s(frame.keys);
     Uints values = Uints(frame.values);

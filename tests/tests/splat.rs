@@ -15,8 +15,8 @@ use srug::scene::{Camera, Scene};
 use srug::splat::cpu::{preprocess_one, render_cpu, tile_row_span, CpuSplat};
 use srug::splat::Channel;
 use srug::splat::{
-    cameras_per_batch, default_blend_pixels, BlendVariant, Channels, GBuffer, NormalSource, SplatSettings, Splatter,
-    TileBounds, BATCH_BYTES, BLEND_PIXELS, DEFAULT_TILE, FRAMES_PER_SUBMISSION, TILE_SIZES,
+    cameras_per_batch, default_blend_pixels, BlendVariant, Channels, DepthKey, GBuffer, NormalSource, SplatSettings,
+    Splatter, TileBounds, BATCH_BYTES, BLEND_PIXELS, DEFAULT_TILE, FRAMES_PER_SUBMISSION, TILE_SIZES,
 };
 use srug_tests::{assert_no_validation_messages, device, psnr, random_scene, save_comparison, NAN_SENTINEL};
 
@@ -364,8 +364,8 @@ fn row_skipping_blend_is_bit_identical_to_reading_every_splat() {
     // arithmetic in the same order, so any wrongly skipped splat changes
     // some bit. Elongated, rotated splats of every size (random scenes) and
     // the demo street, every pixels-per-lane
-    // layout (8 at 16-pixel tiles is the half-tile one); tiles of 8 and 16
-    // carry masks at these sizes, 32 has no room for them in the key.
+    // layout (8 at 16-pixel tiles is the half-tile one); every tile size
+    // carries masks at these sizes (at most 21 + 10 key bits).
     let d = device();
     if !d.info().subgroup_ballot {
         eprintln!("skipping: the texel blend needs subgroup ballot");
@@ -379,10 +379,15 @@ fn row_skipping_blend_is_bit_identical_to_reading_every_splat() {
     // The random scene has no materials: the channels it has.
     let geometric =
         Channels { depth: true, median_depth: true, normal: true, top_gaussian: true, ..Channels::default() };
-    let mut checked_with_masks = 0;
-    for (name, (scene, cam), channels) in
-        [("street", street, all_settings().channels), ("random", (random, close), geometric)]
-    {
+    // Planes 10⁻³⁰ to 10³⁰ (a 24-bit depth key) and 260 tiles of 32 pixels: no room left.
+    let wide = Camera { near: 1e-30, far: 1e30, ..city.cameras[1].resized(640, 416) };
+    let unbounded = (city.scene.clone(), wide);
+    let (mut checked_with_masks, mut checked_without) = (0, 0);
+    for (name, (scene, cam), channels) in [
+        ("street", street, all_settings().channels),
+        ("random", (random, close), geometric),
+        ("street, planes 1e-30 to 1e30", unbounded, all_settings().channels),
+    ] {
         let gpu_scene = GpuScene::upload(&d, &scene).unwrap();
         for tile in TILE_SIZES {
             let settings = SplatSettings { tile, channels, ..all_settings() };
@@ -396,17 +401,18 @@ fn row_skipping_blend_is_bit_identical_to_reading_every_splat() {
                 let (skipping, stats) = splatter.render(&gpu_scene, &cam, &settings).unwrap();
                 assert_eq!(
                     stats.row_masks,
-                    tile < 32,
-                    "{name} tile {tile}: row masks fit the key below 32-pixel tiles"
+                    stats.key_bits + tile <= 64,
+                    "{name} tile {tile}: row masks where they fit the key"
                 );
                 checked_with_masks += usize::from(stats.row_masks);
+                checked_without += usize::from(!stats.row_masks);
                 let skipping = gbuffer_bits(&skipping.read(&d).unwrap());
                 let differ = everything.iter().zip(&skipping).filter(|(a, b)| a != b).count();
                 assert_eq!(differ, 0, "{name} tile {tile}, {pixels} pixels per invocation: {differ} values differ");
             }
         }
     }
-    assert_eq!(checked_with_masks, 2 * 2 * BLEND_PIXELS.len());
+    assert_eq!((checked_with_masks, checked_without), (8 * BLEND_PIXELS.len(), BLEND_PIXELS.len()));
     splatter.set_blend_pixels(default_blend_pixels(d.info())).unwrap();
     assert_no_validation_messages(&d);
 }
@@ -465,6 +471,102 @@ fn a_batch_of_cameras_renders_the_same_bits_as_one_camera_at_a_time() {
 }
 
 #[test]
+fn depth_keys_order_depths_to_sixteen_mantissa_bits() {
+    let cam = Camera::look_at(Vec3::ZERO, Vec3::Y, Vec3::Z, 60.0, 64, 48).unwrap();
+    let key = DepthKey::of(&cam);
+    assert_eq!((key.bits, key.shift), (21, 7), "the default planes, 0.01 to 10⁴");
+    // Monotone in depth and within its bits from the near plane to the far one.
+    let (mut depth, mut last) = (cam.near, 0u32);
+    while depth < cam.far {
+        let k = key.key(depth);
+        assert!(k >= last && k < 1 << key.bits, "depth {depth}: key {k} after {last}");
+        (depth, last) = (depth * 1.0007, k);
+    }
+    // Depths 2⁻¹⁵ apart (relative) get different keys; 2⁻¹⁹ apart, often the same.
+    for d in [0.02f32, 0.7, 13.0, 420.0, 9000.0] {
+        assert!(key.key(d * (1.0 + 2f32.powi(-15))) > key.key(d), "{d}");
+    }
+    let ties = (0..1000).filter(|i| {
+        let d = 1.0 + *i as f32 * 0.0137;
+        key.key(d) == key.key(d * (1.0 + 2f32.powi(-19)))
+    });
+    assert!(ties.count() > 500);
+    // Planes that are not 0 < near < far < ∞: the float's bits whole.
+    let open = DepthKey::of(&Camera { far: f32::INFINITY, ..cam.clone() });
+    assert_eq!((open.bits, open.shift, open.key(3.5)), (32, 0, 3.5f32.to_bits()));
+}
+
+/// Two overlapping discs nearer each other than the depth key resolves keep
+/// their scene order on the GPU and in the twin: the first one listed is in
+/// front, whichever is nearer.
+#[test]
+fn splats_the_depth_key_cannot_tell_apart_blend_in_scene_order() {
+    let d = device();
+    let mut splatter = Splatter::new(&d).unwrap();
+    let cam = Camera::look_at(Vec3::ZERO, Vec3::Y, Vec3::Z, 60.0, 32, 32).unwrap();
+    let settings = SplatSettings { channels: Channels::default(), ..all_settings() };
+    // 64 float steps apart in the middle of one key's 128.
+    let base = cam.near.to_bits() + ((5.0f32.to_bits() - cam.near.to_bits()) & !127);
+    let (near, far) = (f32::from_bits(base + 32), f32::from_bits(base + 96));
+    assert_eq!(DepthKey::of(&cam).key(near), DepthKey::of(&cam).key(far));
+    let disc = |y: f32, red: bool| {
+        let mut g = one_gaussian([0.0, y, 0.0], -1.0, 8.0);
+        g.sh = if red { vec![2.0, -2.0, -2.0] } else { vec![-2.0, -2.0, 2.0] };
+        g
+    };
+    // Listed first at the farther depth: red, then blue.
+    for red_first in [true, false] {
+        let (mut scene, second) = (disc(far, red_first), disc(near, !red_first));
+        scene.means.extend(second.means);
+        scene.sh.extend(second.sh);
+        scene.opacity_logits.extend(second.opacity_logits);
+        scene.log_scales.extend(second.log_scales);
+        scene.rotations.extend(second.rotations);
+        let g = render_both(&d, &mut splatter, &scene, &cam, &settings, "tied discs");
+        let rgb = g.rgb_values().unwrap();
+        let centre = &rgb[(16 * 32 + 16) * 3..][..3];
+        assert_eq!(centre[0] > centre[2], red_first, "centre {centre:?}");
+    }
+    assert_no_validation_messages(&d);
+}
+
+/// Gaussians centred outside the image whose tails reach into it: the
+/// preprocess's early cull (a bound on the radius from the largest scale)
+/// keeps every one the full projection keeps, on pinhole and orthographic cameras.
+#[test]
+fn splats_centred_off_the_image_that_reach_in_are_kept() {
+    let d = device();
+    let mut splatter = Splatter::new(&d).unwrap();
+    let settings = SplatSettings {
+        channels: Channels { depth: true, median_depth: true, ..Channels::default() },
+        ..all_settings()
+    };
+    let pinhole = Camera::look_at(Vec3::new(0.0, -6.0, 0.0), Vec3::ZERO, Vec3::Z, 50.0, 96, 64).unwrap();
+    let ortho = Camera::orthographic(Vec3::new(0.0, -6.0, 0.0), Vec3::Y, Vec3::Z, 4.0, 3.0, 96, 64, 0.0, 50.0).unwrap();
+    let mut rng = Pcg64Mcg::seed_from_u64(21);
+    for (label, cam) in [("pinhole", pinhole), ("orthographic", ortho)] {
+        let mut scene = random_scene(4000, 1, 77, 12.0);
+        for (i, s) in scene.log_scales.iter_mut().enumerate() {
+            // Flat and elongated up to 2 m, so the largest scale bounds a long tail.
+            *s = [rng.random_range(-4.0..0.7), rng.random_range(-4.0..0.7), if i % 2 == 0 { -5.0 } else { -1.0 }];
+        }
+        // Only those whose centre projects outside the image.
+        let (w, h) = (f64::from(cam.width), f64::from(cam.height));
+        let outside: Vec<bool> = (0..scene.len())
+            .map(|i| {
+                preprocess_one(&scene, i, &cam, NormalSource::Stored, DEFAULT_TILE)
+                    .is_some_and(|s| s.mean.x < 0.0 || s.mean.y < 0.0 || s.mean.x >= w || s.mean.y >= h)
+            })
+            .collect();
+        let scene = scene.select(&outside);
+        let g = render_both(&d, &mut splatter, &scene, &cam, &settings, label);
+        let reached = g.alpha.iter().filter(|a| **a > 0.05).count();
+        assert!(scene.len() > 200 && reached > 100, "{label}: {} splats, {reached} pixels reached", scene.len());
+    }
+    assert_no_validation_messages(&d);
+}
+
+#[test]
 fn random_scenes_match_cpu_twin() {
     let d = device();
     let mut splatter = Splatter::new(&d).unwrap();
@@ -477,10 +579,11 @@ fn random_scenes_match_cpu_twin() {
         let cam = Camera::look_at(Vec3::new(0.0, -6.0, 0.5), Vec3::ZERO, Vec3::Z, 70.0, w, h).unwrap();
         render_both(&d, &mut splatter, &scene, &cam, &settings, &format!("random_{n}"));
         // Near and far planes tight around the scene: the depth key keeps only the bits
-        // between them (23 here, not the float's 32), and splats beyond them are culled.
-        assert_eq!(srug::splat::depth_key_bits(&cam), 28, "the default planes, 0.01 to 10⁴");
+        // between them, to 16 mantissa bits (16 here, 21 at the default planes, not the
+        // float's 32), and splats beyond them are culled.
+        assert_eq!(srug::splat::depth_key_bits(&cam), 21, "the default planes, 0.01 to 10⁴");
         let tight = Camera { near: 4.5, far: 7.5, ..cam };
-        assert_eq!(srug::splat::depth_key_bits(&tight), 23);
+        assert_eq!(srug::splat::depth_key_bits(&tight), 16);
         render_both(&d, &mut splatter, &scene, &tight, &settings, &format!("random_{n}_tight_planes"));
     }
     assert_no_validation_messages(&d);

@@ -49,13 +49,7 @@ fn prefilter(device: &Device, env: &Path, out: &Path, settings: &PrepareSettings
         prepared.levels,
         settings.samples,
         prepared.timings.total_seconds() * 1e3,
-        prepared
-            .timings
-            .stages
-            .iter()
-            .map(|s| format!("{} {:.1} ms", s.name, s.seconds * 1e3))
-            .collect::<Vec<_>>()
-            .join(", "),
+        prepared.timings,
         out.display()
     );
     Ok(())

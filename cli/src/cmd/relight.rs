@@ -380,13 +380,7 @@ pub(crate) fn relight_demo(
     let image = relit.shaded.read(device)?;
     let path = out.join("demo_relit.png");
     write_relit(&path, false, &image, None, None)?;
-    let stages = relit
-        .timings
-        .stages
-        .iter()
-        .map(|s| format!("{} {:.1} ms", s.name, s.seconds * 1e3))
-        .collect::<Vec<_>>()
-        .join(", ");
+    let stages = &relit.timings;
     Ok(format!(
         "relit street (sun azimuth 260°, elevation 50°, procedural sky, sigmoid shadow map 2048): {} ({:.0} ms GPU: {stages})",
         path.display(),

@@ -164,6 +164,7 @@ impl RenderArgs {
                     }
                     let ms = stats.timings.total_seconds() * 1e3;
                     let line = format!("{} ({}x{}, {ms:.1} ms GPU)", target.display(), g.width, g.height);
+                    log::debug!("{}: {}", target.display(), stats.timings);
                     written.add(target);
                     bar.inc(1);
                     print_line(&bar, &line);

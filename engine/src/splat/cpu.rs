@@ -1,8 +1,9 @@
 //! The f64 CPU twin of the splatting pipeline: plain, obvious code with the
 //! same inputs and the same conventions as the kernels, for tests.
 //!
-//! Per-tile order is (f32 depth bits, Gaussian index), which is what the GPU's
-//! stable sort of keys emitted in Gaussian order produces.
+//! Per-tile order is (depth key of the f32 depth, Gaussian index)
+//! ([`super::DepthKey`]), which is what the GPU's stable sort of keys emitted
+//! in Gaussian order produces.
 
 use glam::{DMat3, DVec2, DVec3};
 
@@ -622,12 +623,13 @@ pub(crate) fn tile_lists(splats: &[Option<CpuSplat>], camera: &Camera, tile: u32
     let tiles_x = camera.width.div_ceil(tile) as usize;
     let tiles_y = camera.height.div_ceil(tile) as usize;
     let mut lists: Vec<Vec<(u32, usize)>> = vec![Vec::new(); tiles_x * tiles_y];
+    let depth_key = super::DepthKey::of(camera);
     for (i, s) in splats.iter().enumerate() {
         if let Some(s) = s {
             for ty in s.rect[1]..s.rect[3] {
                 for tx in listed_columns(s, ty, tile, bounds) {
                     let tx = tx as usize % tiles_x;
-                    lists[ty as usize * tiles_x + tx].push(((s.depth as f32).to_bits(), i));
+                    lists[ty as usize * tiles_x + tx].push((depth_key.key(s.depth as f32), i));
                 }
             }
         }

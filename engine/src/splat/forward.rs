@@ -43,17 +43,48 @@ fn sh_degree_used(scene: &GpuScene, settings: &SplatSettings) -> u32 {
     }
 }
 
-/// Bits of the depth key (splat_keys.comp `pair_key`): every splat kept
-/// has near < depth < far, so its depth's float bits less the near plane's
-/// lie in [1, far bits − near bits) and only that many bits need sorting;
-/// 32 (the float bits whole) where the planes are not 0 < near < far < ∞.
-pub fn depth_key_bits(camera: &Camera) -> u32 {
-    let (near, far) = (camera.near, camera.far);
-    if !(near > 0.0 && far > near && far.is_finite()) {
-        return 32;
+/// Mantissa bits the depth key keeps: depths are ordered to a relative
+/// 2⁻¹⁶ (0.15 mm at 10 m), far below any splat's extent; splats closer than
+/// that keep their scene order (the sort is stable). The 7 bits dropped are
+/// two radix passes of 4 bits at the default planes (docs/conventions.md §3).
+pub const DEPTH_KEY_MANTISSA_BITS: u32 = 16;
+
+/// The depth half of a pair's sort key (splat_keys.comp `pair_key`): every
+/// splat kept has near < depth < far, so its depth's float bits less the
+/// near plane's lie in [1, far bits − near bits); shifted right by `shift`
+/// (keeping [`DEPTH_KEY_MANTISSA_BITS`] of the mantissa) they fit `bits`
+/// bits, and only those need sorting. Where the planes are not
+/// 0 < near < far < ∞, the float bits whole (32 bits, no shift).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct DepthKey {
+    /// Bits the sort orders.
+    pub bits: u32,
+    /// Low mantissa bits dropped.
+    pub shift: u32,
+    near_bits: u32,
+}
+
+impl DepthKey {
+    /// The key of `camera`'s planes.
+    pub fn of(camera: &Camera) -> Self {
+        let (near, far) = (camera.near, camera.far);
+        if !(near > 0.0 && far > near && far.is_finite()) {
+            return Self { bits: 32, shift: 0, near_bits: 0 };
+        }
+        let shift = 23 - DEPTH_KEY_MANTISSA_BITS;
+        let span = (far.to_bits() - near.to_bits()) >> shift;
+        Self { bits: (32 - span.leading_zeros()).max(1), shift, near_bits: near.to_bits() }
     }
-    let span = far.to_bits() - near.to_bits();
-    (32 - span.leading_zeros()).max(1)
+
+    /// The key of a splat at `depth` (near < depth < far), as the keys kernel computes it.
+    pub fn key(&self, depth: f32) -> u32 {
+        depth.to_bits().wrapping_sub(self.near_bits) >> self.shift
+    }
+}
+
+/// Bits of the depth key ([`DepthKey::of`]).
+pub fn depth_key_bits(camera: &Camera) -> u32 {
+    DepthKey::of(camera).bits
 }
 
 /// What selects a blend kernel: its channel bits, tile edge, and which
@@ -454,7 +485,8 @@ impl Splatter {
         let (tile, tiles, n) = (settings.tile, pending.tiles, u64::from(pending.frame.counts[0]));
         let max_texels = device.info().max_texel_buffer_elements;
         // Tile ids 0..=tiles (`tiles` marks the keys kernel's padding) above the depth key.
-        let depth_bits = depth_key_bits(view.camera);
+        let depth_key = DepthKey::of(view.camera);
+        let depth_bits = depth_key.bits;
         let key_bits = depth_bits + (64 - tiles.leading_zeros());
         // Texel-buffer reads where the device has RGBA32F/R32UI views and the splats and pairs fit them.
         let texel = self.texel_blend
@@ -469,7 +501,8 @@ impl Splatter {
         let depth_spec = (3, SpecValue::U32(depth_bits));
         let ellipse = SpecValue::Bool(settings.tile_bounds == TileBounds::Ellipse);
         let mask = (4, SpecValue::Bool(view.tile_mask.is_some()));
-        let keys_spec = [(1, ellipse), (2, SpecValue::Bool(row_masks)), depth_spec, mask, tile_spec(tile)[0]];
+        let shift = (5, SpecValue::U32(depth_key.shift));
+        let keys_spec = [(1, ellipse), (2, SpecValue::Bool(row_masks)), depth_spec, mask, shift, tile_spec(tile)[0]];
         Ok(SortPlan {
             keys: device.create_buffer("sort keys", pairs * 8, MemoryKind::Storage)?,
             values: device.create_buffer("sort values", pairs * 4, MemoryKind::Storage)?,

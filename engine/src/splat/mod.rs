@@ -10,8 +10,9 @@
 //!    them: [`Splatter::texel_preprocess`]);
 //! 2. **scan** of per-Gaussian tile counts, then **keys**: one
 //!    `tile << d | depth key` key per (Gaussian, tile) counted, the depth key
-//!    being the depth's float bits less the near plane's, `d` bits wide
-//!    ([`depth_key_bits`]: only the bits that vary between the planes) (for the
+//!    being the depth's float bits less the near plane's, to 16 mantissa
+//!    bits, `d` bits wide ([`DepthKey`]: only the bits that vary between the
+//!    planes) (for the
 //!    texel blend, where the key has room, its top bits also say which blocks
 //!    of the tile, half-tile columns × row pairs, the splat reaches:
 //!    [`SplatStats::row_masks`]);

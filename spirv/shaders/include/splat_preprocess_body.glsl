@@ -75,8 +75,27 @@ void main() {
     float depth = equirect ? length(t) : t.z;
     if (!(depth > near && depth < far)) { cull(i); return; }
 
+    // Cull on the position and the largest scale before reading the rest
+    // (pinhole and orthographic cameras): the radius 3·sqrt(λ) is at most
+    // 3·sqrt(‖J‖²_F·σ_max² + 0.3 + 0.32) + 1 (the dilation, `lambda`'s floor
+    // of 0.1 under its root, the ceil), with 1% and 1 px to spare for f32
+    // rounding; a square of that half-width off the tile grid gets no tile.
+    // NaN or Inf never culls here (the full test below decides).
+    vec3 log_s = vec3(LOG_SCALE(3 * i), LOG_SCALE(3 * i + 1), LOG_SCALE(3 * i + 2));
+    if (!equirect && frame.camera.lens2.x == 0.0) {
+        vec4 k = frame.camera.intrinsics;
+        vec2 m = ortho ? vec2(k.x * t.x + k.z, k.y * t.y + k.w) : vec2(k.x * t.x / t.z + k.z, k.y * t.y / t.z + k.w);
+        vec2 lim = frame.clip.zw;
+        float j2 = ortho ? k.x * k.x + k.y * k.y
+                         : (k.x * k.x * (1.0 + lim.x * lim.x) + k.y * k.y * (1.0 + lim.y * lim.y)) / (t.z * t.z);
+        float sigma = exp(max(max(log_s.x, log_s.y), log_s.z));
+        float bound = 1.01 * (3.0 * sqrt(j2 * sigma * sigma + 0.62) + 1.0) + 1.0;
+        vec2 grid = vec2(frame.size.zw * TILE);
+        if (any(lessThan(m + bound, vec2(0.0))) || any(greaterThanEqual(m - bound, grid))) { cull(i); return; }
+    }
+
     // 3D covariance.
-    vec3 s = exp(vec3(LOG_SCALE(3 * i), LOG_SCALE(3 * i + 1), LOG_SCALE(3 * i + 2)));
+    vec3 s = exp(log_s);
     vec4 q = vec4(ROTATION(4 * i), ROTATION(4 * i + 1), ROTATION(4 * i + 2), ROTATION(4 * i + 3));
     q /= max(max(abs(q.x), abs(q.y)), max(abs(q.z), abs(q.w)));
     q /= length(q);
