@@ -18,12 +18,21 @@ pub enum TexelFormat {
     Rgba32Float,
     /// Four 16-bit floats (`textureBuffer`, widened to a `vec4` per element).
     Rgba16Float,
+    /// Three 32-bit floats (`textureBuffer`, `.xyz`), e.g. a position; optional in Vulkan.
+    Rgb32Float,
 }
 
 impl TexelFormat {
     /// Every format, in the order [`DeviceInfo::texel_formats`](crate::DeviceInfo::texel_formats) lists them.
-    pub const ALL: [Self; 6] =
-        [Self::R32Float, Self::R16Float, Self::R32Uint, Self::Rg32Uint, Self::Rgba32Float, Self::Rgba16Float];
+    pub const ALL: [Self; 7] = [
+        Self::R32Float,
+        Self::R16Float,
+        Self::R32Uint,
+        Self::Rg32Uint,
+        Self::Rgba32Float,
+        Self::Rgba16Float,
+        Self::Rgb32Float,
+    ];
 
     /// The Vulkan format.
     pub fn vk(self) -> vk::Format {
@@ -34,6 +43,7 @@ impl TexelFormat {
             Self::Rg32Uint => vk::Format::R32G32_UINT,
             Self::Rgba32Float => vk::Format::R32G32B32A32_SFLOAT,
             Self::Rgba16Float => vk::Format::R16G16B16A16_SFLOAT,
+            Self::Rgb32Float => vk::Format::R32G32B32_SFLOAT,
         }
     }
 
@@ -43,6 +53,7 @@ impl TexelFormat {
             Self::R32Float | Self::R32Uint => 4,
             Self::R16Float => 2,
             Self::Rg32Uint | Self::Rgba16Float => 8,
+            Self::Rgb32Float => 12,
             Self::Rgba32Float => 16,
         }
     }

@@ -7,7 +7,7 @@
 use glam::Vec3;
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64Mcg;
-use srug::gpu::Device;
+use srug::gpu::{Device, TexelFormat};
 use srug::io::read_ply;
 use srug::scene::activate::GpuScene;
 use srug::scene::demo::{demo_city, DemoOptions};
@@ -414,6 +414,34 @@ fn row_skipping_blend_is_bit_identical_to_reading_every_splat() {
     }
     assert_eq!((checked_with_masks, checked_without), (8 * BLEND_PIXELS.len(), BLEND_PIXELS.len()));
     splatter.set_blend_pixels(default_blend_pixels(d.info())).unwrap();
+    assert_no_validation_messages(&d);
+}
+
+#[test]
+fn texel_preprocess_reads_give_the_bits_of_address_reads_at_every_sh_degree() {
+    // The texel preprocess fetches means and log-scales as RGB32F, rotations
+    // and (degrees 1 and 3) SH coefficients as RGBA32F where the device views
+    // them so; the same values as the address path's float loads, so the same bits.
+    let d = device();
+    let info = d.info();
+    for f in [TexelFormat::R32Float, TexelFormat::Rgb32Float, TexelFormat::Rgba32Float] {
+        assert!(info.texel_formats.contains(&f), "lavapipe views {f:?} buffers");
+    }
+    let mut splatter = Splatter::new(&d).unwrap();
+    let cam = Camera::look_at(Vec3::new(0.0, -6.0, 0.5), Vec3::ZERO, Vec3::Z, 70.0, 120, 80).unwrap();
+    let settings = all_settings();
+    let geometric = Channels { depth: true, median_depth: true, normal: true, ..Channels::default() };
+    for degree in 0..=3 {
+        let scene = GpuScene::upload(&d, &random_scene(3000, degree, 40 + u64::from(degree), 2.0)).unwrap();
+        let settings = SplatSettings { channels: geometric, ..settings.clone() };
+        let mut bits = Vec::new();
+        for texel in [true, false] {
+            splatter.set_texel_preprocess(texel).unwrap();
+            bits.push(gbuffer_bits(&splatter.render(&scene, &cam, &settings).unwrap().0.read(&d).unwrap()));
+        }
+        let differ = bits[0].iter().zip(&bits[1]).filter(|(a, b)| a != b).count();
+        assert_eq!(differ, 0, "SH degree {degree}: {differ} values differ");
+    }
     assert_no_validation_messages(&d);
 }
 

@@ -574,8 +574,29 @@ impl Splatter {
             return Err(Error::Internal("views of one render either all mask their tiles or none does".into()));
         }
         let mask_spec = SpecValue::Bool(masked);
-        let preprocess_spec =
-            [(0, features), (1, ellipse), (2, surface), (3, sh_used), (5, mask_spec), tile_spec(tile)[0]];
+        // One fetch per attribute where the device views them so: means and
+        // log-scales as RGB32F, rotations and (where a Gaussian's fill whole
+        // vec4s) SH coefficients as RGBA32F.
+        let vec4_inputs = texel_preprocess && device.info().texel_formats.contains(&TexelFormat::Rgba32Float);
+        let sh_vec4 = vec4_inputs && crate::scene::sh_coefficients(scene.sh_degree) * 3 % 4 == 0;
+        let vec3_inputs = texel_preprocess && device.info().texel_formats.contains(&TexelFormat::Rgb32Float);
+        let triple = if vec3_inputs { TexelFormat::Rgb32Float } else { TexelFormat::R32Float };
+        let formats = [
+            triple,
+            triple,
+            if vec4_inputs { TexelFormat::Rgba32Float } else { TexelFormat::R32Float },
+            TexelFormat::R32Float,
+            if sh_vec4 { TexelFormat::Rgba32Float } else { TexelFormat::R32Float },
+        ];
+        let mut preprocess_spec =
+            vec![(0, features), (1, ellipse), (2, surface), (3, sh_used), (5, mask_spec), tile_spec(tile)[0]];
+        if texel_preprocess {
+            preprocess_spec.extend([
+                (6, SpecValue::Bool(vec4_inputs)),
+                (7, SpecValue::Bool(sh_vec4)),
+                (8, SpecValue::Bool(vec3_inputs)),
+            ]);
+        }
         let preprocess = if texel_preprocess {
             let mut bindings = vec![BindingKind::UniformBuffer];
             bindings.extend([BindingKind::UniformTexelBuffer; 5]);
@@ -602,13 +623,9 @@ impl Splatter {
                 rec.fill(&p.tile_counts, 0)?;
                 if texel_preprocess {
                     let mut bindings = vec![Binding::Buffer(&p.uniform)];
-                    bindings.extend(scene_inputs.iter().map(|&buffer| {
-                        Binding::Texels(Texels {
-                            buffer,
-                            offset: 0,
-                            elements: buffer.size() / 4,
-                            format: TexelFormat::R32Float,
-                        })
+                    bindings.extend(scene_inputs.iter().zip(formats).map(|(&buffer, format)| {
+                        let elements = buffer.size() / format.bytes();
+                        Binding::Texels(Texels { buffer, offset: 0, elements, format })
                     }));
                     rec.dispatch(preprocess, Grid::Items(n), &bindings, &())?;
                 } else {

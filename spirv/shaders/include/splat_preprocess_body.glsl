@@ -19,12 +19,29 @@ layout(set = 0, binding = 2) uniform textureBuffer log_scale_texels;
 layout(set = 0, binding = 3) uniform textureBuffer rotation_texels;
 layout(set = 0, binding = 4) uniform textureBuffer opacity_texels;
 layout(set = 0, binding = 5) uniform textureBuffer sh_texels;
+// Rotations viewed as RGBA32F (one fetch per Gaussian) and, where the SH
+// coefficients of a Gaussian fill whole vec4s (degrees 1 and 3), the SH too.
+layout(constant_id = 6) const bool ROTATION_VEC4 = false;
+layout(constant_id = 7) const bool SH_VEC4 = false;
+// Means and log-scales viewed as RGB32F (one fetch per Gaussian each).
+layout(constant_id = 8) const bool TRIPLES_VEC3 = false;
+#define MEAN3(i) (TRIPLES_VEC3 ? texelFetch(mean_texels, int(i)).xyz : vec3(MEAN(3 * (i)), MEAN(3 * (i) + 1), MEAN(3 * (i) + 2)))
+#define LOG_SCALE3(i) (TRIPLES_VEC3 ? texelFetch(log_scale_texels, int(i)).xyz \
+                                    : vec3(LOG_SCALE(3 * (i)), LOG_SCALE(3 * (i) + 1), LOG_SCALE(3 * (i) + 2)))
 #define MEAN(k) texelFetch(mean_texels, int(k)).x
 #define LOG_SCALE(k) texelFetch(log_scale_texels, int(k)).x
 #define ROTATION(k) texelFetch(rotation_texels, int(k)).x
+#define ROTATION4(i) texelFetch(rotation_texels, int(i))
 #define OPACITY_LOGIT(k) texelFetch(opacity_texels, int(k)).x
 #define SH(k) texelFetch(sh_texels, int(k)).x
+#define SH4(q) texelFetch(sh_texels, int(q))
 #else
+const bool ROTATION_VEC4 = false;
+const bool SH_VEC4 = false;
+#define ROTATION4(i) vec4(0.0)
+#define SH4(q) vec4(0.0)
+#define MEAN3(i) vec3(MEAN(3 * (i)), MEAN(3 * (i) + 1), MEAN(3 * (i) + 2))
+#define LOG_SCALE3(i) vec3(LOG_SCALE(3 * (i)), LOG_SCALE(3 * (i) + 1), LOG_SCALE(3 * (i) + 2))
 #define MEAN(k) FloatsIn(frame.means).v[k]
 #define LOG_SCALE(k) FloatsIn(frame.log_scales).v[k]
 #define ROTATION(k) FloatsIn(frame.rotations).v[k]
@@ -64,7 +81,7 @@ void cull(uint i) {
 void main() {
     uint i = linear_index();
     if (i >= frame.counts.x) return;
-    vec3 p = vec3(MEAN(3 * i), MEAN(3 * i + 1), MEAN(3 * i + 2));
+    vec3 p = MEAN3(i);
     mat3 W = world_to_camera_rotation(frame.camera);
     vec3 t = W * p + frame.camera.translation.xyz;
     bool ortho = frame.camera.translation.w != 0.0;
@@ -81,7 +98,7 @@ void main() {
     // of 0.1 under its root, the ceil), with 1% and 1 px to spare for f32
     // rounding; a square of that half-width off the tile grid gets no tile.
     // NaN or Inf never culls here (the full test below decides).
-    vec3 log_s = vec3(LOG_SCALE(3 * i), LOG_SCALE(3 * i + 1), LOG_SCALE(3 * i + 2));
+    vec3 log_s = LOG_SCALE3(i);
     if (!equirect && frame.camera.lens2.x == 0.0) {
         vec4 k = frame.camera.intrinsics;
         vec2 m = ortho ? vec2(k.x * t.x + k.z, k.y * t.y + k.w) : vec2(k.x * t.x / t.z + k.z, k.y * t.y / t.z + k.w);
@@ -96,7 +113,8 @@ void main() {
 
     // 3D covariance.
     vec3 s = exp(log_s);
-    vec4 q = vec4(ROTATION(4 * i), ROTATION(4 * i + 1), ROTATION(4 * i + 2), ROTATION(4 * i + 3));
+    vec4 q = ROTATION_VEC4 ? ROTATION4(i)
+                           : vec4(ROTATION(4 * i), ROTATION(4 * i + 1), ROTATION(4 * i + 2), ROTATION(4 * i + 3));
     q /= max(max(abs(q.x), abs(q.y)), max(abs(q.z), abs(q.w)));
     q /= length(q);
     float qw = q.x, qx = q.y, qy = q.z, qz = q.w;
@@ -188,9 +206,24 @@ void main() {
     uint stored = frame.counts.y & 255u;
     uint K = (stored + 1) * (stored + 1);
     vec3 color = vec3(0.0);
-    [[unroll]] for (uint j = 0; j < (SH_USED + 1) * (SH_USED + 1); j++) {
-        uint o = (i * K + j) * 3;
-        color += sh_basis(j, dir) * vec3(SH(o), SH(o + 1), SH(o + 2));
+    const uint USED = (SH_USED + 1) * (SH_USED + 1);
+    if (SH_VEC4) {
+        // The used coefficients' floats in whole vec4s (within the Gaussian's own, K·3 being a multiple of 4).
+        float c[(USED * 3 + 3) / 4 * 4];
+        uint base = i * K * 3 / 4;
+        [[unroll]] for (uint v = 0; v < (USED * 3 + 3) / 4; v++) {
+            vec4 f = SH4(base + v);
+            c[4 * v] = f.x;
+            c[4 * v + 1] = f.y;
+            c[4 * v + 2] = f.z;
+            c[4 * v + 3] = f.w;
+        }
+        [[unroll]] for (uint j = 0; j < USED; j++) color += sh_basis(j, dir) * vec3(c[3 * j], c[3 * j + 1], c[3 * j + 2]);
+    } else {
+        [[unroll]] for (uint j = 0; j < USED; j++) {
+            uint o = (i * K + j) * 3;
+            color += sh_basis(j, dir) * vec3(SH(o), SH(o + 1), SH(o + 2));
+        }
     }
     color = max(color + 0.5, vec3(0.0));
 
