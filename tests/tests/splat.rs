@@ -429,11 +429,10 @@ fn texel_preprocess_reads_give_the_bits_of_address_reads_at_every_sh_degree() {
     }
     let mut splatter = Splatter::new(&d).unwrap();
     let cam = Camera::look_at(Vec3::new(0.0, -6.0, 0.5), Vec3::ZERO, Vec3::Z, 70.0, 120, 80).unwrap();
-    let settings = all_settings();
     let geometric = Channels { depth: true, median_depth: true, normal: true, ..Channels::default() };
+    let settings = SplatSettings { channels: geometric, ..all_settings() };
     for degree in 0..=3 {
         let scene = GpuScene::upload(&d, &random_scene(3000, degree, 40 + u64::from(degree), 2.0)).unwrap();
-        let settings = SplatSettings { channels: geometric, ..settings.clone() };
         let mut bits = Vec::new();
         for texel in [true, false] {
             splatter.set_texel_preprocess(texel).unwrap();
