@@ -20,11 +20,13 @@ pub enum TexelFormat {
     Rgba16Float,
     /// Three 32-bit floats (`textureBuffer`, `.xyz`), e.g. a position; optional in Vulkan.
     Rgb32Float,
+    /// Four 32-bit unsigned integers (`utextureBuffer`, a `uvec4` per element): any 16-byte record's bits.
+    Rgba32Uint,
 }
 
 impl TexelFormat {
     /// Every format, in the order [`DeviceInfo::texel_formats`](crate::DeviceInfo::texel_formats) lists them.
-    pub const ALL: [Self; 7] = [
+    pub const ALL: [Self; 8] = [
         Self::R32Float,
         Self::R16Float,
         Self::R32Uint,
@@ -32,6 +34,7 @@ impl TexelFormat {
         Self::Rgba32Float,
         Self::Rgba16Float,
         Self::Rgb32Float,
+        Self::Rgba32Uint,
     ];
 
     /// The Vulkan format.
@@ -44,6 +47,7 @@ impl TexelFormat {
             Self::Rgba32Float => vk::Format::R32G32B32A32_SFLOAT,
             Self::Rgba16Float => vk::Format::R16G16B16A16_SFLOAT,
             Self::Rgb32Float => vk::Format::R32G32B32_SFLOAT,
+            Self::Rgba32Uint => vk::Format::R32G32B32A32_UINT,
         }
     }
 
@@ -54,7 +58,7 @@ impl TexelFormat {
             Self::R16Float => 2,
             Self::Rg32Uint | Self::Rgba16Float => 8,
             Self::Rgb32Float => 12,
-            Self::Rgba32Float => 16,
+            Self::Rgba32Float | Self::Rgba32Uint => 16,
         }
     }
 }

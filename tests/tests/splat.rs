@@ -421,10 +421,11 @@ fn row_skipping_blend_is_bit_identical_to_reading_every_splat() {
 fn texel_preprocess_reads_give_the_bits_of_address_reads_at_every_sh_degree() {
     // The texel preprocess fetches means and log-scales as RGB32F, rotations
     // and (degrees 1 and 3) SH coefficients as RGBA32F where the device views
-    // them so; the same values as the address path's float loads, so the same bits.
+    // them so, and the keys kernel the splat records as RGBA32UI and their
+    // offsets as R32UI; the same values as the address path's loads, so the same bits.
     let d = device();
     let info = d.info();
-    for f in [TexelFormat::R32Float, TexelFormat::Rgb32Float, TexelFormat::Rgba32Float] {
+    for f in [TexelFormat::R32Float, TexelFormat::Rgb32Float, TexelFormat::Rgba32Float, TexelFormat::Rgba32Uint] {
         assert!(info.texel_formats.contains(&f), "lavapipe views {f:?} buffers");
     }
     let mut splatter = Splatter::new(&d).unwrap();

@@ -206,10 +206,13 @@ impl Splatter {
     }
 
     /// Whether the preprocess reads the Gaussians' means, log-scales,
-    /// rotations, opacity logits and SH coefficients through R32F texel-buffer
-    /// views (where each array fits `maxTexelBufferElements`) rather than by
-    /// device address. On by default where the device has R32F texel buffers;
-    /// the splats are the same.
+    /// rotations, opacity logits and SH coefficients through texel-buffer
+    /// views (where each array fits `maxTexelBufferElements`; one fetch per
+    /// attribute where the device views RGB32F and RGBA32F, else R32F) rather
+    /// than by device address, and the keys kernel reads the splats and their
+    /// tile offsets through RGBA32UI and R32UI views where the device has them.
+    /// On by default where the device has R32F texel buffers; the splats and
+    /// keys are the same.
     pub fn texel_preprocess(&self) -> bool {
         self.texel_preprocess
     }
@@ -503,11 +506,27 @@ impl Splatter {
         let mask = (4, SpecValue::Bool(view.tile_mask.is_some()));
         let shift = (5, SpecValue::U32(depth_key.shift));
         let keys_spec = [(1, ellipse), (2, SpecValue::Bool(row_masks)), depth_spec, mask, shift, tile_spec(tile)[0]];
+        // The keys kernel reads the splats and offsets through texel views where it can.
+        let texel_keys = self.texel_preprocess
+            && [TexelFormat::Rgba32Uint, TexelFormat::R32Uint].iter().all(|f| device.info().texel_formats.contains(f))
+            && 4 * n <= max_texels
+            && n < max_texels;
+        let keys_kernel = if texel_keys {
+            let mut bindings = vec![BindingKind::UniformBuffer];
+            bindings.extend([BindingKind::UniformTexelBuffer; 2]);
+            device.kernel(
+                &kernels::SPLAT_KEYS_TEXEL,
+                &KernelDecl { bindings: &bindings, push_constant_size: 0, specialization: &keys_spec },
+            )?
+        } else {
+            device.kernel(&kernels::SPLAT_KEYS, &KernelDecl::uniform(&keys_spec))?
+        };
         Ok(SortPlan {
             keys: device.create_buffer("sort keys", pairs * 8, MemoryKind::Storage)?,
             values: device.create_buffer("sort values", pairs * 4, MemoryKind::Storage)?,
             pair_tiles: device.create_buffer("pair tiles", pairs * 4, MemoryKind::Storage)?,
-            keys_kernel: device.kernel(&kernels::SPLAT_KEYS, &KernelDecl::uniform(&keys_spec))?,
+            keys_kernel,
+            texel_keys,
             ranges_kernel: device.kernel(&kernels::SPLAT_RANGES, &KernelDecl::uniform(&[depth_spec]))?,
             blend: self.blend_kernel(BlendOptions {
                 bits: settings.channels.blend_bits(settings.rgb),
@@ -669,7 +688,26 @@ impl Splatter {
                 }
                 if s.pairs > 0 {
                     rec.begin_stage("keys");
-                    rec.dispatch(&s.keys_kernel, Grid::Items(n), &[Binding::from(&p.uniform)], &())?;
+                    if s.texel_keys {
+                        let bindings = [
+                            Binding::Buffer(&p.uniform),
+                            Binding::Texels(Texels {
+                                buffer: &p.splats,
+                                offset: 0,
+                                elements: 4 * n,
+                                format: TexelFormat::Rgba32Uint,
+                            }),
+                            Binding::Texels(Texels {
+                                buffer: &p.tile_counts,
+                                offset: 0,
+                                elements: n + 1,
+                                format: TexelFormat::R32Uint,
+                            }),
+                        ];
+                        rec.dispatch(&s.keys_kernel, Grid::Items(n), &bindings, &())?;
+                    } else {
+                        rec.dispatch(&s.keys_kernel, Grid::Items(n), &[Binding::from(&p.uniform)], &())?;
+                    }
                     rec.begin_stage("sort");
                     sort.record(rec, &s.keys, &s.values, s.pairs, s.key_bits)?;
                 }
@@ -822,6 +860,8 @@ struct SortPlan {
     values: Buffer,
     pair_tiles: Buffer,
     keys_kernel: Arc<Kernel>,
+    /// The keys kernel reads through texel views (`splat_keys_texel.comp`).
+    texel_keys: bool,
     ranges_kernel: Arc<Kernel>,
     blend: Arc<Kernel>,
     pairs: u64,
