@@ -4,6 +4,9 @@
 //! - every allocation is named and counted in [`MemoryUsage`](crate::MemoryUsage);
 //! - a dropped buffer is destroyed only after every submission made before the
 //!   drop has finished (see `Shared::retire`), so the GPU never reads freed memory;
+//!   then, up to 256 MiB of them, it is kept (`BufferPool`) for the next buffer
+//!   of its kind and of its size to a quarter less, whose contents are then
+//!   undefined as fresh Vulkan memory's are (no code may rely on zeros);
 //! - storage buffers carry a device address, so kernels can reach buffers larger
 //!   than `maxStorageBufferRange` through `buffer_reference`.
 
@@ -18,7 +21,7 @@ use gpu_allocator::MemoryLocation;
 use crate::device::Device;
 use crate::error::{vk_error, GpuError as Error, Result};
 use crate::format::TexelFormat;
-use crate::shared::{Garbage, Shared};
+use crate::shared::{lock, Garbage, PooledKey, Shared};
 
 /// Bytes moved per staging round trip; bounds host memory for huge buffers.
 const STAGING_CHUNK: u64 = 64 << 20;
@@ -40,6 +43,8 @@ pub struct Buffer {
     pub(crate) raw: vk::Buffer,
     allocation: Option<Allocation>,
     size: u64,
+    /// The Vulkan buffer's own size (≥ `size`; larger for a pooled buffer reused).
+    vk_size: u64,
     name: String,
     address: u64,
     kind: MemoryKind,
@@ -59,6 +64,12 @@ impl Buffer {
     /// Size in bytes as requested (the allocation may be larger).
     pub fn size(&self) -> u64 {
         self.size
+    }
+
+    /// The bytes commands and descriptors cover: the size asked for, at least
+    /// 4 and a multiple of 4 (a reused pooled buffer may be larger).
+    pub(crate) fn used_bytes(&self) -> u64 {
+        self.size.max(4).next_multiple_of(4)
     }
 
     /// The name given at creation.
@@ -98,7 +109,8 @@ impl Buffer {
 impl Drop for Buffer {
     fn drop(&mut self) {
         if let Some(allocation) = self.allocation.take() {
-            self.shared.retire(Garbage::Buffer(self.raw, allocation));
+            let key = PooledKey { kind: self.kind, address: self.address, vk_size: self.vk_size };
+            self.shared.retire(Garbage::Buffer(self.raw, allocation, key));
         }
     }
 }
@@ -121,6 +133,24 @@ impl Device {
             MemoryKind::Upload => (vk::BufferUsageFlags::TRANSFER_SRC, MemoryLocation::CpuToGpu),
             MemoryKind::Readback => (vk::BufferUsageFlags::TRANSFER_DST, MemoryLocation::GpuToCpu),
         };
+        // A freed buffer of this kind and about this size, if one is kept (`BufferPool`).
+        let pooled = lock(&shared.pool).take(kind, vk_size);
+        if let Some(p) = pooled {
+            let bytes = p.allocation.size();
+            let now = shared.current_bytes.fetch_add(bytes, Ordering::Relaxed) + bytes;
+            shared.peak_bytes.fetch_max(now, Ordering::Relaxed);
+            return Ok(Buffer {
+                shared: shared.clone(),
+                raw: p.raw,
+                allocation: Some(p.allocation),
+                size,
+                vk_size: p.key.vk_size,
+                name: name.to_string(),
+                address: p.key.address,
+                kind,
+                id: NEXT_BUFFER_ID.fetch_add(1, Ordering::Relaxed),
+            });
+        }
         let info = vk::BufferCreateInfo::default().size(vk_size).usage(usage).sharing_mode(vk::SharingMode::EXCLUSIVE);
         // SAFETY: valid create info on a live device.
         let raw =
@@ -154,6 +184,7 @@ impl Device {
             raw,
             allocation: Some(allocation),
             size,
+            vk_size,
             name: name.to_string(),
             address,
             kind,

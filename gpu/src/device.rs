@@ -463,7 +463,15 @@ impl Device {
         MemoryUsage {
             current_bytes: self.shared.current_bytes.load(Ordering::Relaxed),
             peak_bytes: self.shared.peak_bytes.load(Ordering::Relaxed),
+            pooled_bytes: lock(&self.shared.pool).bytes,
         }
+    }
+
+    /// Frees the buffers kept for reuse ([`MemoryUsage::pooled_bytes`]) and
+    /// returns how many bytes that released. srug keeps at most 256 MiB of
+    /// them and frees them itself when an allocation finds no memory.
+    pub fn release_pooled_memory(&self) -> u64 {
+        self.shared.drain_pool()
     }
 
     /// Restarts peak counting from the current usage.
@@ -524,6 +532,7 @@ impl Device {
             info: p.info,
             current_bytes: AtomicU64::new(0),
             peak_bytes: AtomicU64::new(0),
+            pool: Mutex::new(Default::default()),
             kernel_cache: Mutex::new(HashMap::new()),
         });
         Self { _cache_owner: Arc::new(CacheOwner(shared.clone())), shared }

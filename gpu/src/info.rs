@@ -89,6 +89,10 @@ pub struct MemoryUsage {
     pub current_bytes: u64,
     /// Most bytes allocated at once since creation or the last [`Device::reset_peak_memory`](crate::Device::reset_peak_memory).
     pub peak_bytes: u64,
+    /// Bytes of freed buffers kept for reuse by later ones of the same kind
+    /// and about the same size (at most 256 MiB; not in `current_bytes`;
+    /// [`Device::release_pooled_memory`](crate::Device::release_pooled_memory) frees them).
+    pub pooled_bytes: u64,
 }
 
 /// A device as listed before choosing one.

@@ -425,7 +425,7 @@ impl<'a> Recording<'a> {
         self.check_device(buffer)?;
         self.before_command();
         // SAFETY: recording state; the buffer is a live TRANSFER_DST buffer of this device.
-        unsafe { self.device.shared.device.cmd_fill_buffer(self.cmd, buffer.raw, 0, vk::WHOLE_SIZE, word) };
+        unsafe { self.device.shared.device.cmd_fill_buffer(self.cmd, buffer.raw, 0, buffer.used_bytes(), word) };
         Ok(())
     }
 
@@ -602,7 +602,7 @@ impl<'a> Recording<'a> {
                 .iter()
                 .map(|b| match b {
                     Binding::Buffer(b) => {
-                        [vk::DescriptorBufferInfo { buffer: b.raw, offset: 0, range: vk::WHOLE_SIZE }]
+                        [vk::DescriptorBufferInfo { buffer: b.raw, offset: 0, range: b.used_bytes() }]
                     }
                     Binding::Texels(_) => [vk::DescriptorBufferInfo::default()],
                 })

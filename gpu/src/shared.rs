@@ -16,6 +16,7 @@ use gpu_allocator::vulkan::{Allocation, AllocationCreateDesc, AllocationScheme, 
 use gpu_allocator::MemoryLocation;
 use srug_spirv::BindingKind;
 
+use crate::buffer::MemoryKind;
 use crate::error::{vk_error, GpuError, Result};
 use crate::info::DeviceInfo;
 
@@ -53,7 +54,8 @@ pub(crate) struct ValidationLog {
 
 /// Something to destroy once the GPU has finished the submission it may be used in.
 pub(crate) enum Garbage {
-    Buffer(vk::Buffer, Allocation),
+    /// A buffer, its memory, and what lets it be reused ([`BufferPool`]).
+    Buffer(vk::Buffer, Allocation, PooledKey),
     Image(vk::Image, Allocation),
     /// An exported image and its dedicated memory (not srug's allocator's).
     ExportedImage(vk::Image, vk::DeviceMemory),
@@ -64,6 +66,58 @@ pub(crate) enum Garbage {
         set_layout: Option<vk::DescriptorSetLayout>,
     },
     Transient(Transient),
+}
+
+/// What a freed buffer can be reused as: its memory kind (usage and
+/// location), its device address (0 for non-storage buffers) and the
+/// Vulkan buffer's size.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct PooledKey {
+    pub(crate) kind: MemoryKind,
+    pub(crate) address: u64,
+    pub(crate) vk_size: u64,
+}
+
+/// A freed buffer kept for reuse.
+pub(crate) struct PooledBuffer {
+    pub(crate) raw: vk::Buffer,
+    pub(crate) allocation: Allocation,
+    pub(crate) key: PooledKey,
+}
+
+/// Buffers the GPU is done with, kept (oldest first) so that the next buffer
+/// of the same kind and about the same size takes one instead of new memory.
+/// On lavapipe device memory is host memory, and gpu-allocator returns an
+/// emptied 256 MiB block (all but the last) to the system: the next batch's
+/// buffers were then faulted in and zeroed page by page by the first kernel
+/// writing them. Contents are undefined, as Vulkan's fresh memory is.
+#[derive(Default)]
+pub(crate) struct BufferPool {
+    pub(crate) items: VecDeque<PooledBuffer>,
+    pub(crate) bytes: u64,
+}
+
+/// Most bytes the pool keeps; a buffer over half of it is never kept.
+pub(crate) const POOL_BYTES: u64 = 256 << 20;
+
+/// A pooled buffer may be up to this much larger than asked for (as a fraction, 1/4).
+const POOL_SLACK_DIVISOR: u64 = 4;
+
+impl BufferPool {
+    /// The smallest pooled buffer of `kind` of `vk_size` bytes up to a quarter more.
+    pub(crate) fn take(&mut self, kind: MemoryKind, vk_size: u64) -> Option<PooledBuffer> {
+        let limit = vk_size + vk_size / POOL_SLACK_DIVISOR;
+        let best = self
+            .items
+            .iter()
+            .enumerate()
+            .filter(|(_, b)| b.key.kind == kind && (vk_size..=limit).contains(&b.key.vk_size))
+            .min_by_key(|(_, b)| b.key.vk_size)
+            .map(|(i, _)| i)?;
+        let item = self.items.remove(best)?;
+        self.bytes -= item.allocation.size();
+        Some(item)
+    }
 }
 
 /// Submissions in flight and resources waiting for them.
@@ -96,6 +150,8 @@ pub(crate) struct Shared {
     pub(crate) info: DeviceInfo,
     pub(crate) current_bytes: AtomicU64,
     pub(crate) peak_bytes: AtomicU64,
+    /// Freed buffers kept for reuse.
+    pub(crate) pool: Mutex<BufferPool>,
     /// Every kernel built through `Device::kernel`, by what makes it that
     /// pipeline. Type-erased so this leaf does not import `kernel`; cleared
     /// when the last `Device` handle drops (`CacheOwner`), which breaks the
@@ -142,7 +198,12 @@ impl Shared {
             linear,
             allocation_scheme: AllocationScheme::GpuAllocatorManaged,
         };
-        let allocation = match lock(&self.allocator).allocate(&desc) {
+        let mut result = lock(&self.allocator).allocate(&desc);
+        // Out of memory with freed buffers still kept: free them and try once more.
+        if result.is_err() && self.drain_pool() > 0 {
+            result = lock(&self.allocator).allocate(&desc);
+        }
+        let allocation = match result {
             Ok(a) => a,
             Err(e) => {
                 discard();
@@ -166,14 +227,27 @@ impl Shared {
     /// Destroys a garbage item now. The caller guarantees the GPU is done with it.
     fn destroy(&self, item: Garbage) {
         match item {
-            Garbage::Buffer(buffer, allocation) => {
-                let size = allocation.size();
-                if let Err(e) = lock(&self.allocator).free(allocation) {
-                    log::error!("freeing GPU memory failed: {e}");
+            Garbage::Buffer(raw, allocation, key) => {
+                self.current_bytes.fetch_sub(allocation.size(), Ordering::Relaxed);
+                if allocation.size() <= POOL_BYTES / 2 {
+                    let evicted = {
+                        let mut pool = lock(&self.pool);
+                        pool.bytes += allocation.size();
+                        pool.items.push_back(PooledBuffer { raw, allocation, key });
+                        let mut evicted = Vec::new();
+                        while pool.bytes > POOL_BYTES {
+                            let Some(old) = pool.items.pop_front() else { break };
+                            pool.bytes -= old.allocation.size();
+                            evicted.push(old);
+                        }
+                        evicted
+                    };
+                    for old in evicted {
+                        self.free_buffer(old.raw, old.allocation);
+                    }
+                } else {
+                    self.free_buffer(raw, allocation);
                 }
-                self.current_bytes.fetch_sub(size, Ordering::Relaxed);
-                // SAFETY: the buffer belongs to this device and no submission uses it any more.
-                unsafe { self.device.destroy_buffer(buffer, None) };
             }
             Garbage::Image(image, allocation) => {
                 let size = allocation.size();
@@ -207,6 +281,30 @@ impl Shared {
             }
             Garbage::Transient(t) => t.destroy(&self.device),
         }
+    }
+
+    /// Frees a buffer's memory and destroys it. The caller guarantees the GPU is done with it.
+    fn free_buffer(&self, raw: vk::Buffer, allocation: Allocation) {
+        if let Err(e) = lock(&self.allocator).free(allocation) {
+            log::error!("freeing GPU memory failed: {e}");
+        }
+        // SAFETY: the buffer belongs to this device and no submission uses it any more.
+        unsafe { self.device.destroy_buffer(raw, None) };
+    }
+
+    /// Frees every pooled buffer; returns the bytes released.
+    pub(crate) fn drain_pool(&self) -> u64 {
+        let items = {
+            let mut pool = lock(&self.pool);
+            pool.bytes = 0;
+            std::mem::take(&mut pool.items)
+        };
+        let mut bytes = 0;
+        for item in items {
+            bytes += item.allocation.size();
+            self.free_buffer(item.raw, item.allocation);
+        }
+        bytes
     }
 
     /// Queues `item` for destruction after every submission made so far.
@@ -291,6 +389,7 @@ impl Drop for Shared {
         for (_, item) in tracker.garbage {
             self.destroy(item);
         }
+        self.drain_pool();
         // SAFETY: the allocator is dropped exactly once, before the device it uses.
         unsafe { ManuallyDrop::drop(&mut *lock(&self.allocator)) };
         // SAFETY: all child objects are gone; destruction order is device, messenger,

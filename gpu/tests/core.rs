@@ -333,6 +333,59 @@ fn memory_accounting_and_deferred_destruction() {
 }
 
 #[test]
+fn freed_buffers_are_pooled_and_taken_by_the_next_of_their_kind_and_size() {
+    let d = device();
+    d.wait_idle().unwrap();
+    d.release_pooled_memory();
+    let n = 1usize << 20;
+    drop(d.create_filled::<f32>("first", n, NAN).unwrap());
+    d.wait_idle().unwrap();
+    let pooled = d.memory_usage().pooled_bytes;
+    assert!(pooled >= 4 * n as u64, "a freed 4 MiB storage buffer is kept: {pooled} bytes pooled");
+
+    // A storage buffer an eighth smaller takes it (a quarter larger at most):
+    // a kernel over its asked-for size, validation on, computes as on fresh memory.
+    let m = n - n / 8;
+    let x: Vec<f32> = (0..m).map(|i| i as f32 * 0.25).collect();
+    let input = d.create_buffer("input", 4 * m as u64, MemoryKind::Storage).unwrap();
+    let taken = pooled - d.memory_usage().pooled_bytes;
+    assert!(taken >= 4 * n as u64, "it took the pooled buffer ({taken} bytes taken)");
+    d.write_buffer(&input, 0, &x).unwrap();
+    let output = d.create_filled::<f32>("output", m, NAN).unwrap();
+    let kernel = affine_kernel(&d, 0).unwrap();
+    let mut rec = d.begin().unwrap();
+    rec.dispatch(
+        &kernel,
+        Grid::Items(m as u64),
+        &[Binding::from(&input), Binding::from(&output)],
+        &AffinePush { a: 2.0, b: 1.0, count: m as u32, pad: 0 },
+    )
+    .unwrap();
+    d.submit(rec).unwrap().wait().unwrap();
+    let y: Vec<f32> = d.read_buffer(&output).unwrap();
+    assert_eq!(y.len(), m);
+    assert_eq!(max_rel_error(&y, &affine_cpu(&x, 2.0, 1.0, 0)), 0.0);
+
+    // Half the size, or another kind, takes nothing; release frees what is kept.
+    d.wait_idle().unwrap();
+    let before = d.memory_usage().pooled_bytes;
+    drop(input);
+    d.wait_idle().unwrap();
+    let kept = d.memory_usage().pooled_bytes;
+    assert!(kept >= before + 4 * m as u64);
+    let small = d.create_buffer("small", 2 * n as u64, MemoryKind::Storage).unwrap();
+    // The only pooled buffer of this size is the storage one.
+    let staging = d.create_buffer("staging", 4 * n as u64, MemoryKind::Upload).unwrap();
+    assert_eq!(d.memory_usage().pooled_bytes, kept, "neither takes the pooled storage buffer");
+    drop((small, staging, output));
+    d.wait_idle().unwrap();
+    let released = d.release_pooled_memory();
+    assert!(released >= kept, "{released} of {kept} bytes released");
+    assert_eq!(d.memory_usage().pooled_bytes, 0);
+    assert_no_validation_messages(&d);
+}
+
+#[test]
 fn device_selection() {
     assert_eq!(DeviceSelection::parse("2"), DeviceSelection::Index(2));
     assert_eq!(DeviceSelection::parse("GPU"), DeviceSelection::Gpu);
