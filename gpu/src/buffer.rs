@@ -109,9 +109,25 @@ impl Buffer {
 impl Drop for Buffer {
     fn drop(&mut self) {
         if let Some(allocation) = self.allocation.take() {
-            let key = PooledKey { kind: self.kind, address: self.address, vk_size: self.vk_size };
+            let key = PooledKey { usage: usage_of(self.kind), address: self.address, vk_size: self.vk_size };
             self.shared.retire(Garbage::Buffer(self.raw, allocation, key));
         }
+    }
+}
+
+/// The usage flags of a buffer of `kind` (each kind has its own).
+fn usage_of(kind: MemoryKind) -> vk::BufferUsageFlags {
+    match kind {
+        MemoryKind::Storage => {
+            vk::BufferUsageFlags::STORAGE_BUFFER
+                | vk::BufferUsageFlags::UNIFORM_BUFFER
+                | vk::BufferUsageFlags::UNIFORM_TEXEL_BUFFER
+                | vk::BufferUsageFlags::TRANSFER_SRC
+                | vk::BufferUsageFlags::TRANSFER_DST
+                | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS
+        }
+        MemoryKind::Upload => vk::BufferUsageFlags::TRANSFER_SRC,
+        MemoryKind::Readback => vk::BufferUsageFlags::TRANSFER_DST,
     }
 }
 
@@ -120,21 +136,14 @@ impl Device {
     pub fn create_buffer(&self, name: &str, size: u64, kind: MemoryKind) -> Result<Buffer> {
         let shared = &self.shared;
         let vk_size = size.max(4).next_multiple_of(4);
-        let (usage, location) = match kind {
-            MemoryKind::Storage => (
-                vk::BufferUsageFlags::STORAGE_BUFFER
-                    | vk::BufferUsageFlags::UNIFORM_BUFFER
-                    | vk::BufferUsageFlags::UNIFORM_TEXEL_BUFFER
-                    | vk::BufferUsageFlags::TRANSFER_SRC
-                    | vk::BufferUsageFlags::TRANSFER_DST
-                    | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS,
-                MemoryLocation::GpuOnly,
-            ),
-            MemoryKind::Upload => (vk::BufferUsageFlags::TRANSFER_SRC, MemoryLocation::CpuToGpu),
-            MemoryKind::Readback => (vk::BufferUsageFlags::TRANSFER_DST, MemoryLocation::GpuToCpu),
+        let usage = usage_of(kind);
+        let location = match kind {
+            MemoryKind::Storage => MemoryLocation::GpuOnly,
+            MemoryKind::Upload => MemoryLocation::CpuToGpu,
+            MemoryKind::Readback => MemoryLocation::GpuToCpu,
         };
         // A freed buffer of this kind and about this size, if one is kept (`BufferPool`).
-        let pooled = lock(&shared.pool).take(kind, vk_size);
+        let pooled = lock(&shared.pool).take(usage, vk_size);
         if let Some(p) = pooled {
             let bytes = p.allocation.size();
             let now = shared.current_bytes.fetch_add(bytes, Ordering::Relaxed) + bytes;

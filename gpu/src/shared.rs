@@ -16,7 +16,6 @@ use gpu_allocator::vulkan::{Allocation, AllocationCreateDesc, AllocationScheme, 
 use gpu_allocator::MemoryLocation;
 use srug_spirv::BindingKind;
 
-use crate::buffer::MemoryKind;
 use crate::error::{vk_error, GpuError, Result};
 use crate::info::DeviceInfo;
 
@@ -68,12 +67,12 @@ pub(crate) enum Garbage {
     Transient(Transient),
 }
 
-/// What a freed buffer can be reused as: its memory kind (usage and
-/// location), its device address (0 for non-storage buffers) and the
-/// Vulkan buffer's size.
+/// What a freed buffer can be reused as: its usage (which says its memory
+/// kind), its device address (0 for non-storage buffers) and the Vulkan
+/// buffer's size.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct PooledKey {
-    pub(crate) kind: MemoryKind,
+    pub(crate) usage: vk::BufferUsageFlags,
     pub(crate) address: u64,
     pub(crate) vk_size: u64,
 }
@@ -104,14 +103,14 @@ pub(crate) const POOL_BYTES: u64 = 256 << 20;
 const POOL_SLACK_DIVISOR: u64 = 4;
 
 impl BufferPool {
-    /// The smallest pooled buffer of `kind` of `vk_size` bytes up to a quarter more.
-    pub(crate) fn take(&mut self, kind: MemoryKind, vk_size: u64) -> Option<PooledBuffer> {
+    /// The smallest pooled buffer of `usage` of `vk_size` bytes up to a quarter more.
+    pub(crate) fn take(&mut self, usage: vk::BufferUsageFlags, vk_size: u64) -> Option<PooledBuffer> {
         let limit = vk_size + vk_size / POOL_SLACK_DIVISOR;
         let best = self
             .items
             .iter()
             .enumerate()
-            .filter(|(_, b)| b.key.kind == kind && (vk_size..=limit).contains(&b.key.vk_size))
+            .filter(|(_, b)| b.key.usage == usage && (vk_size..=limit).contains(&b.key.vk_size))
             .min_by_key(|(_, b)| b.key.vk_size)
             .map(|(i, _)| i)?;
         let item = self.items.remove(best)?;

@@ -338,7 +338,11 @@ class Device:
         return self._native.take_validation_messages()
 
     def memory(self) -> Dict[str, int]:
-        """GPU memory srug holds: ``{"current_bytes": ..., "peak_bytes": ...}``."""
+        """GPU memory srug holds: ``{"current_bytes": ..., "peak_bytes": ..., "pooled_bytes": ...}``.
+
+        ``pooled_bytes``: freed buffers kept (up to 256 MiB) for reuse by later ones of
+        their kind and about their size; not counted in ``current_bytes``.
+        """
         return self._native.memory()
 
     def last_timings(self) -> list:
