@@ -87,6 +87,19 @@ pub fn depth_key_bits(camera: &Camera) -> u32 {
     DepthKey::of(camera).bits
 }
 
+/// A kernel whose binding 0 is the frame uniform and bindings 1..=`views`
+/// texel-buffer views.
+fn texel_view_kernel(
+    device: &Device,
+    info: &'static crate::gpu::KernelInfo,
+    views: usize,
+    specialization: &[(u32, SpecValue)],
+) -> Result<Arc<Kernel>> {
+    let mut bindings = vec![BindingKind::UniformBuffer];
+    bindings.extend(std::iter::repeat_n(BindingKind::UniformTexelBuffer, views));
+    Ok(device.kernel(info, &KernelDecl { bindings: &bindings, push_constant_size: 0, specialization })?)
+}
+
 /// What selects a blend kernel: its channel bits, tile edge, and which
 /// specialization each of its options takes.
 #[derive(Clone, Copy, Debug)]
@@ -293,11 +306,7 @@ impl Splatter {
             spec[1].1 = SpecValue::U32(tile / pixels);
             spec.push((2, SpecValue::U32(pixels)));
             // The frame; splats, features, sorted indices and pair row masks as texel-buffer views.
-            let mut bindings = vec![BindingKind::UniformBuffer];
-            bindings.extend([BindingKind::UniformTexelBuffer; 4]);
-            Ok(self
-                .device
-                .kernel(info, &KernelDecl { bindings: &bindings, push_constant_size: 0, specialization: &spec })?)
+            texel_view_kernel(&self.device, info, 4, &spec)
         } else {
             Ok(self.device.kernel(info, &KernelDecl::uniform(&spec))?)
         }
@@ -512,12 +521,7 @@ impl Splatter {
             && 4 * n <= max_texels
             && n < max_texels;
         let keys_kernel = if texel_keys {
-            let mut bindings = vec![BindingKind::UniformBuffer];
-            bindings.extend([BindingKind::UniformTexelBuffer; 2]);
-            device.kernel(
-                &kernels::SPLAT_KEYS_TEXEL,
-                &KernelDecl { bindings: &bindings, push_constant_size: 0, specialization: &keys_spec },
-            )?
+            texel_view_kernel(device, &kernels::SPLAT_KEYS_TEXEL, 2, &keys_spec)?
         } else {
             device.kernel(&kernels::SPLAT_KEYS, &KernelDecl::uniform(&keys_spec))?
         };
@@ -617,12 +621,7 @@ impl Splatter {
             ]);
         }
         let preprocess = if texel_preprocess {
-            let mut bindings = vec![BindingKind::UniformBuffer];
-            bindings.extend([BindingKind::UniformTexelBuffer; 5]);
-            device.kernel(
-                &kernels::SPLAT_PREPROCESS_TEXEL,
-                &KernelDecl { bindings: &bindings, push_constant_size: 0, specialization: &preprocess_spec },
-            )?
+            texel_view_kernel(&device, &kernels::SPLAT_PREPROCESS_TEXEL, 5, &preprocess_spec)?
         } else {
             device.kernel(&kernels::SPLAT_PREPROCESS, &KernelDecl::uniform(&preprocess_spec))?
         };
