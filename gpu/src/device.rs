@@ -12,7 +12,7 @@ use gpu_allocator::vulkan::{Allocator, AllocatorCreateDesc};
 use crate::error::{vk_error, GpuError as Error, Result};
 use crate::format::TexelFormat;
 use crate::info::{AdapterSummary, DeviceInfo, MemoryUsage};
-use crate::shared::{lock, on_validation_message, Shared, Tracker, ValidationLog};
+use crate::shared::{lock, on_validation_message, pool_limit, BufferPool, Shared, Tracker, ValidationLog};
 
 const VALIDATION_LAYER: &CStr = c"VK_LAYER_KHRONOS_validation";
 
@@ -468,8 +468,9 @@ impl Device {
     }
 
     /// Frees the buffers kept for reuse ([`MemoryUsage::pooled_bytes`]) and
-    /// returns how many bytes that released. srug keeps at most 256 MiB of
-    /// them and frees them itself when an allocation finds no memory.
+    /// returns how many bytes that released. srug keeps at most an eighth of
+    /// the device's largest device-local heap (256 MiB to 4 GiB) of them and
+    /// frees them itself when an allocation finds no memory.
     pub fn release_pooled_memory(&self) -> u64 {
         self.shared.drain_pool()
     }
@@ -517,6 +518,14 @@ struct Parts {
 
 impl Device {
     fn assemble(p: Parts) -> Self {
+        // SAFETY: a valid physical device of this instance.
+        let memory = unsafe { p.instance.get_physical_device_memory_properties(p.physical_device) };
+        let heap = memory.memory_heaps[..memory.memory_heap_count as usize]
+            .iter()
+            .filter(|h| h.flags.contains(vk::MemoryHeapFlags::DEVICE_LOCAL))
+            .map(|h| h.size)
+            .max()
+            .unwrap_or(0);
         let shared = Arc::new(Shared {
             _entry: p.entry,
             instance: p.instance,
@@ -532,7 +541,7 @@ impl Device {
             info: p.info,
             current_bytes: AtomicU64::new(0),
             peak_bytes: AtomicU64::new(0),
-            pool: Mutex::new(Default::default()),
+            pool: Mutex::new(BufferPool::new(pool_limit(heap))),
             kernel_cache: Mutex::new(HashMap::new()),
         });
         Self { _cache_owner: Arc::new(CacheOwner(shared.clone())), shared }

@@ -90,7 +90,8 @@ pub struct MemoryUsage {
     /// Most bytes allocated at once since creation or the last [`Device::reset_peak_memory`](crate::Device::reset_peak_memory).
     pub peak_bytes: u64,
     /// Bytes of freed buffers kept for reuse by later ones of the same kind
-    /// and about the same size (at most 256 MiB; not in `current_bytes`;
+    /// and about the same size (at most an eighth of the largest device-local
+    /// heap, 256 MiB to 4 GiB; not in `current_bytes`;
     /// [`Device::release_pooled_memory`](crate::Device::release_pooled_memory) frees them).
     pub pooled_bytes: u64,
 }

@@ -90,19 +90,29 @@ pub(crate) struct PooledBuffer {
 /// emptied 256 MiB block (all but the last) to the system: the next batch's
 /// buffers were then faulted in and zeroed page by page by the first kernel
 /// writing them. Contents are undefined, as Vulkan's fresh memory is.
-#[derive(Default)]
 pub(crate) struct BufferPool {
     pub(crate) items: VecDeque<PooledBuffer>,
     pub(crate) bytes: u64,
+    /// Most bytes kept ([`pool_limit`]); a buffer over half of it is never kept.
+    pub(crate) limit: u64,
 }
 
-/// Most bytes the pool keeps; a buffer over half of it is never kept.
-pub(crate) const POOL_BYTES: u64 = 256 << 20;
+/// The pool's limit on a device whose largest device-local heap has
+/// `heap_bytes`: an eighth of it, 256 MiB to 4 GiB (a 10M-Gaussian frame's
+/// splat records alone take 640 MB).
+pub(crate) fn pool_limit(heap_bytes: u64) -> u64 {
+    (heap_bytes / 8).clamp(256 << 20, 4 << 30)
+}
 
 /// A pooled buffer may be up to this much larger than asked for (as a fraction, 1/4).
 const POOL_SLACK_DIVISOR: u64 = 4;
 
 impl BufferPool {
+    /// An empty pool keeping at most `limit` bytes.
+    pub(crate) fn new(limit: u64) -> Self {
+        Self { items: VecDeque::new(), bytes: 0, limit }
+    }
+
     /// The smallest pooled buffer of `usage` of `vk_size` bytes up to a quarter more.
     pub(crate) fn take(&mut self, usage: vk::BufferUsageFlags, vk_size: u64) -> Option<PooledBuffer> {
         let limit = vk_size + vk_size / POOL_SLACK_DIVISOR;
@@ -228,13 +238,14 @@ impl Shared {
         match item {
             Garbage::Buffer(raw, allocation, key) => {
                 self.current_bytes.fetch_sub(allocation.size(), Ordering::Relaxed);
-                if allocation.size() <= POOL_BYTES / 2 {
+                let limit = lock(&self.pool).limit;
+                if allocation.size() <= limit / 2 {
                     let evicted = {
                         let mut pool = lock(&self.pool);
                         pool.bytes += allocation.size();
                         pool.items.push_back(PooledBuffer { raw, allocation, key });
                         let mut evicted = Vec::new();
-                        while pool.bytes > POOL_BYTES {
+                        while pool.bytes > pool.limit {
                             let Some(old) = pool.items.pop_front() else { break };
                             pool.bytes -= old.allocation.size();
                             evicted.push(old);
@@ -440,4 +451,18 @@ pub(crate) unsafe extern "system" fn on_validation_message(
         log::debug!("Vulkan: {text}");
     }
     vk::FALSE
+}
+
+#[cfg(test)]
+mod tests {
+    use super::pool_limit;
+
+    #[test]
+    fn the_pool_keeps_an_eighth_of_the_heap_within_its_bounds() {
+        const GIB: u64 = 1 << 30;
+        assert_eq!(pool_limit(0), 256 << 20, "no device-local heap");
+        assert_eq!(pool_limit(GIB), 256 << 20);
+        assert_eq!(pool_limit(24 * GIB), 3 * GIB, "lavapipe on this project's 24 GiB machine");
+        assert_eq!(pool_limit(80 * GIB), 4 * GIB, "an H100");
+    }
 }

@@ -340,7 +340,8 @@ class Device:
     def memory(self) -> Dict[str, int]:
         """GPU memory srug holds: ``{"current_bytes": ..., "peak_bytes": ..., "pooled_bytes": ...}``.
 
-        ``pooled_bytes``: freed buffers kept (up to 256 MiB) for reuse by later ones of
+        ``pooled_bytes``: freed buffers kept (up to an eighth of the device's memory,
+        256 MiB to 4 GiB) for reuse by later ones of
         their kind and about their size; not counted in ``current_bytes``.
         """
         return self._native.memory()

