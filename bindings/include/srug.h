@@ -424,6 +424,16 @@ srug_status srug_context_device_name(const srug_context *ctx,
 // `current` and `peak` each NULL or valid for one write (at least one non-NULL).
 srug_status srug_context_memory(const srug_context *ctx, uint64_t *current, uint64_t *peak);
 
+// Frees the buffers srug keeps for reuse after freeing them (up to an
+// eighth of the device's largest device-local heap, 256 MiB to 4 GiB; srug
+// frees them itself only when one of its own allocations finds no memory):
+// for a host that wants that memory back now. The bytes released go into
+// `released` where it is not NULL.
+//
+// # Safety
+// `ctx` a live context; `released` NULL or valid for one write.
+srug_status srug_context_release_pooled_memory(const srug_context *ctx, uint64_t *released);
+
 // Takes the validation messages collected since the last call: their number
 // into `count`, and the messages (one per line) into `buf` like
 // `srug_last_error` copies text (`buf` may be NULL with `len` 0). Without

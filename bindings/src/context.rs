@@ -242,6 +242,30 @@ pub unsafe extern "C" fn srug_context_memory(
     })
 }
 
+/// Frees the buffers srug keeps for reuse after freeing them (up to an
+/// eighth of the device's largest device-local heap, 256 MiB to 4 GiB; srug
+/// frees them itself only when one of its own allocations finds no memory):
+/// for a host that wants that memory back now. The bytes released go into
+/// `released` where it is not NULL.
+///
+/// # Safety
+/// `ctx` a live context; `released` NULL or valid for one write.
+#[no_mangle]
+pub unsafe extern "C" fn srug_context_release_pooled_memory(
+    ctx: *const srug_context,
+    released: *mut u64,
+) -> srug_status {
+    guard("srug_context_release_pooled_memory", || {
+        let (_, c) = context(ctx)?;
+        let bytes = c.device.release_pooled_memory();
+        if !released.is_null() {
+            // SAFETY: non-null; the caller's contract.
+            unsafe { released.write(bytes) };
+        }
+        Ok(())
+    })
+}
+
 /// Takes the validation messages collected since the last call: their number
 /// into `count`, and the messages (one per line) into `buf` like
 /// `srug_last_error` copies text (`buf` may be NULL with `len` 0). Without
