@@ -238,10 +238,11 @@ impl Shared {
         match item {
             Garbage::Buffer(raw, allocation, key) => {
                 self.current_bytes.fetch_sub(allocation.size(), Ordering::Relaxed);
-                let limit = lock(&self.pool).limit;
-                if allocation.size() <= limit / 2 {
-                    let evicted = {
-                        let mut pool = lock(&self.pool);
+                // Kept (evicting the oldest past the limit) unless over half the limit;
+                // what is freed is freed outside the pool's lock.
+                let freed = {
+                    let mut pool = lock(&self.pool);
+                    if allocation.size() <= pool.limit / 2 {
                         pool.bytes += allocation.size();
                         pool.items.push_back(PooledBuffer { raw, allocation, key });
                         let mut evicted = Vec::new();
@@ -251,12 +252,12 @@ impl Shared {
                             evicted.push(old);
                         }
                         evicted
-                    };
-                    for old in evicted {
-                        self.free_buffer(old.raw, old.allocation);
+                    } else {
+                        vec![PooledBuffer { raw, allocation, key }]
                     }
-                } else {
-                    self.free_buffer(raw, allocation);
+                };
+                for old in freed {
+                    self.free_buffer(old.raw, old.allocation);
                 }
             }
             Garbage::Image(image, allocation) => {
