@@ -1,7 +1,7 @@
 //! The GPU prefix sum and radix sort against the CPU: std's stable sort on
 //! the masked key (so stability is checked through the values), for random
 //! keys, duplicates, all-equal keys, lengths 0, 1, non-multiples of the block,
-//! and more than 16 million keys.
+//! and more than 16 million keys; 4-bit and wide digits.
 
 #![allow(clippy::unwrap_used, clippy::expect_used, reason = "a failed unwrap is a failed test")]
 
@@ -9,7 +9,7 @@ use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64Mcg;
 use srug::gpu::{Device, MemoryKind};
 use srug::primitives::scan::{exclusive_scan_cpu, Scan};
-use srug::primitives::sort::{sort_items, RadixSort};
+use srug::primitives::sort::{sort_items, wide_digits, RadixSort};
 use srug_tests::{assert_no_validation_messages, device};
 
 fn gpu_scan(d: &Device, scan: &mut Scan, values: &[u32]) -> Vec<u32> {
@@ -68,20 +68,29 @@ fn radix_sort_matches_std_sort() {
     let sort = RadixSort::new(&d).unwrap();
     assert!(sort.texel_inputs(), "lavapipe reads RG32UI/R32UI texel buffers, so that path is the default");
     assert_eq!(sort.items(), sort_items(d.info().device_type), "the device's keys per invocation");
-    // GPUs' 64 keys per invocation and CPU devices' 256 (and an odd count); both input paths.
+    assert_eq!(sort.wide_digits(), wide_digits(d.info().device_type), "wide digits by default on CPU devices only");
+    // 4-bit digits: GPUs' 64 keys per invocation and CPU devices' 256 (and an odd count); both input paths.
     for items in [64, 256, 7] {
         let mut sort = RadixSort::with_items(&d, items).unwrap();
+        assert!(!sort.wide_digits(), "with_items sorts 4-bit digits");
         for texel in [true, false] {
             sort.set_texel_inputs(texel).unwrap();
             sort_cases(&d, &mut sort);
         }
     }
+    // Wide digits (11 bits a pass, some straddling the key's two words).
+    let mut sort = RadixSort::new(&d).unwrap();
+    sort.set_wide_digits(true).unwrap();
+    sort_cases(&d, &mut sort);
     assert!(RadixSort::with_items(&d, 0).is_err() && RadixSort::with_items(&d, 1 << 17).is_err());
     assert_no_validation_messages(&d);
 }
 
 fn sort_cases(d: &Device, sort: &mut RadixSort) {
-    let texel = format!("{} ({} keys per invocation)", sort.texel_inputs(), sort.items());
+    let texel = match sort.wide_digits() {
+        true => "true (wide digits)".to_string(),
+        false => format!("{} ({} keys per invocation)", sort.texel_inputs(), sort.items()),
+    };
     let mut rng = Pcg64Mcg::seed_from_u64(2);
     let random =
         |rng: &mut Pcg64Mcg, n: usize| -> Vec<[u32; 2]> { (0..n).map(|_| [rng.random(), rng.random()]).collect() };
@@ -90,7 +99,7 @@ fn sort_cases(d: &Device, sort: &mut RadixSort) {
         check_sort(d, sort, &random(&mut rng, n), 64, &format!("random n={n}, texel {texel}"));
     }
     // Only the bits in use: keys with junk above `bits` sort by the low bits alone, stably.
-    for bits in [1u32, 13, 32, 42] {
+    for bits in [1u32, 13, 31, 32, 33, 42, 43] {
         check_sort(d, sort, &random(&mut rng, 30_001), bits, &format!("bits={bits}, texel {texel}"));
     }
     // Duplicates (stability), all-equal keys, already sorted, reversed.

@@ -1,6 +1,6 @@
 //! Stable LSD radix sort of (64-bit key, u32 value) pairs on the GPU.
 //!
-//! Each pass sorts one 4-bit digit in three steps: a histogram per invocation
+//! Each pass sorts one digit in three steps: a histogram per invocation
 //! of its [`sort_items`] consecutive keys (`sort_histogram.comp`), an
 //! exclusive scan of that digit-major histogram ([`Scan`]), and a stable
 //! scatter (`sort_scatter.comp`). Counts live in registers, never in shared
@@ -15,6 +15,15 @@
 //! both kernels read keys and values through texel-buffer views
 //! (`sort_*_texel.comp`: one vector gather per load on lavapipe, where a
 //! device-address load is a loop over the lanes); outputs are written by address.
+//!
+//! Digits are 4 bits, counted in registers, except with wide digits
+//! ([`wide_digits`], the default on CPU devices): up to 11 bits a pass
+//! (`sort_*_wide_texel.comp`), counted in an array indexed by the digit, over
+//! a few long runs of keys (two workgroups of 8 invocations per CPU thread,
+//! so the digit-major histogram stays small). A GPU would spill such an array; a CPU
+//! lane indexes it cheaply, and the sort makes a third of the passes. The bits
+//! are spread evenly over the passes (31 bits: 11 + 10 + 10), and a digit may
+//! straddle the key's two words.
 
 use bytemuck::{Pod, Zeroable};
 use std::sync::Arc;
@@ -45,10 +54,51 @@ pub fn sort_items(device_type: vk::PhysicalDeviceType) -> u64 {
     }
 }
 
+/// Most bits a wide-digit pass sorts (keep in sync with `RADIX` under
+/// `WIDE_DIGITS` in `sort_common.glsl`).
+pub const WIDE_DIGIT_BITS: u32 = 11;
+/// Invocations per workgroup of the wide-digit kernels (keep in sync with
+/// `WORKGROUP_SIZE_X` under `WIDE_DIGITS` in `sort_common.glsl`): one CPU
+/// SIMD row, so a workgroup is one CPU thread's run of keys.
+const WIDE_WORKGROUP: u64 = 8;
+/// Keys a wide-digit invocation gets at least, where the keys allow (so its
+/// 2^bits counts do not outnumber its keys).
+const WIDE_MIN_ITEMS: u64 = 2048;
+
+/// Whether [`RadixSort::new`] sorts with wide digits on a device of
+/// `device_type`: on CPU devices (lavapipe), where a dynamically indexed
+/// per-invocation array is ordinary memory; not on GPUs, which would spill it.
+pub fn wide_digits(device_type: vk::PhysicalDeviceType) -> bool {
+    device_type == vk::PhysicalDeviceType::CPU
+}
+
 /// Entries of the digit-major histogram for `count` keys at `items` keys per
 /// invocation: one column of `RADIX` counts per invocation of every block.
 fn histogram_len(count: u64, items: u64) -> u64 {
     RADIX * count.div_ceil(items * SORT_WORKGROUP) * SORT_WORKGROUP
+}
+
+/// Workgroups of a wide-digit pass over `count` keys when the device runs
+/// `threads` workgroups at once: two per thread, fewer where the keys are
+/// too few for [`WIDE_MIN_ITEMS`] each. Few long runs of keys keep the
+/// digit-major histogram (2^bits counts per invocation) and its scan small.
+fn wide_blocks(count: u64, threads: u64) -> u64 {
+    count.div_ceil(WIDE_WORKGROUP * WIDE_MIN_ITEMS).clamp(1, 2 * threads.max(1))
+}
+
+/// The passes of a sort on `bits` bits at most `width` bits each, as (shift,
+/// digit bits): as few passes as `width` allows, the bits spread evenly over
+/// them (wider digits first).
+pub(crate) fn digit_passes(bits: u32, width: u32) -> Vec<(u32, u32)> {
+    let passes = bits.div_ceil(width.max(1));
+    let mut shift = 0;
+    (0..passes)
+        .map(|p| {
+            let digit = bits / passes + u32::from(p < bits % passes);
+            shift += digit;
+            (shift - digit, digit)
+        })
+        .collect()
 }
 
 /// Push constants of `sort_histogram.comp` and `sort_scatter.comp` (`SortPush`
@@ -89,6 +139,12 @@ pub struct RadixSort {
     /// where the device cannot view RG32UI/R32UI buffers.
     texel: Option<(Arc<Kernel>, Arc<Kernel>)>,
     use_texel: bool,
+    /// Wide-digit variants (texel inputs only); `None` where `texel` is.
+    wide: Option<(Arc<Kernel>, Arc<Kernel>)>,
+    use_wide: bool,
+    /// Workgroups the device runs at once, for [`wide_blocks`]: on a CPU
+    /// device, this host's hardware threads.
+    threads: u64,
     max_texels: u64,
     /// Keys per invocation ([`sort_items`]).
     items: u64,
@@ -100,9 +156,11 @@ pub struct RadixSort {
 }
 
 impl RadixSort {
-    /// Builds the kernels, with the device's [`sort_items`].
+    /// Builds the kernels, with the device's [`sort_items`] and [`wide_digits`].
     pub fn new(device: &Device) -> Result<Self> {
-        Self::with_items(device, sort_items(device.info().device_type))
+        let mut sort = Self::with_items(device, sort_items(device.info().device_type))?;
+        sort.use_wide = sort.wide.is_some() && wide_digits(device.info().device_type);
+        Ok(sort)
     }
 
     /// Builds the kernels with `items` keys per invocation (1 to 65,536).
@@ -130,11 +188,28 @@ impl RadixSort {
         } else {
             None
         };
+        let wide = match texel {
+            Some(_) => {
+                let views = |n: usize| KernelDecl {
+                    bindings: &[BindingKind::UniformTexelBuffer; 2][..n],
+                    push_constant_size: std::mem::size_of::<SortPush>(),
+                    specialization: &[],
+                };
+                Some((
+                    device.kernel(&kernels::SORT_HISTOGRAM_WIDE_TEXEL, &views(1))?,
+                    device.kernel(&kernels::SORT_SCATTER_WIDE_TEXEL, &views(2))?,
+                ))
+            }
+            None => None,
+        };
         Ok(Self {
             histogram: device.kernel(&kernels::SORT_HISTOGRAM, &decl)?,
             scatter: device.kernel(&kernels::SORT_SCATTER, &decl)?,
             use_texel: texel.is_some(),
             texel,
+            wide,
+            use_wide: false,
+            threads: std::thread::available_parallelism().map_or(1, |n| n.get() as u64),
             max_texels: info.max_texel_buffer_elements,
             items,
             scan: Scan::new(device)?,
@@ -155,7 +230,10 @@ impl RadixSort {
         }
         self.keys_tmp = Some(device.create_buffer("sort keys (ping-pong)", count * 8, MemoryKind::Storage)?);
         self.values_tmp = Some(device.create_buffer("sort values (ping-pong)", count * 4, MemoryKind::Storage)?);
-        let entries = histogram_len(count, self.items);
+        let mut entries = histogram_len(count, self.items);
+        if self.wide.is_some() {
+            entries = entries.max((1 << WIDE_DIGIT_BITS) * wide_blocks(count, self.threads) * WIDE_WORKGROUP);
+        }
         self.hist = Some(device.create_buffer("sort histogram", entries * 4, MemoryKind::Storage)?);
         self.scan.reserve(device, entries)?;
         self.capacity = count;
@@ -181,6 +259,22 @@ impl RadixSort {
             return Err(Error::unsupported("this device cannot read sort keys through uniform texel buffers"));
         }
         self.use_texel = on;
+        Ok(())
+    }
+
+    /// Whether passes sort wide digits ([`wide_digits`]; with texel inputs,
+    /// where the keys fit one view: otherwise 4-bit digits).
+    pub fn wide_digits(&self) -> bool {
+        self.wide.is_some() && self.use_wide
+    }
+
+    /// Chooses wide or 4-bit digits (see [`RadixSort::wide_digits`]); wide
+    /// digits where the device lacks texel inputs are an error.
+    pub fn set_wide_digits(&mut self, on: bool) -> Result<()> {
+        if on && self.wide.is_none() {
+            return Err(Error::unsupported("this device cannot read sort keys through uniform texel buffers"));
+        }
+        self.use_wide = on;
         Ok(())
     }
 
@@ -222,13 +316,16 @@ impl RadixSort {
         if count <= 1 || bits == 0 {
             return Ok(());
         }
-        let blocks = count.div_ceil(self.items * SORT_WORKGROUP);
-        let passes = bits.div_ceil(DIGIT_BITS);
-        let mut src = (keys, values);
-        let mut dst = (keys_tmp, values_tmp);
         // Texel-buffer views where the device has them and the keys fit one view.
         let texel = self.texel.as_ref().filter(|_| self.use_texel && count <= self.max_texels);
-        for pass in 0..passes {
+        let wide = self.wide.as_ref().filter(|_| self.use_wide && texel.is_some());
+        let (blocks, passes) = match wide {
+            Some(_) => (wide_blocks(count, self.threads), digit_passes(bits, WIDE_DIGIT_BITS)),
+            None => (count.div_ceil(self.items * SORT_WORKGROUP), digit_passes(bits, DIGIT_BITS)),
+        };
+        let mut src = (keys, values);
+        let mut dst = (keys_tmp, values_tmp);
+        for &(shift, digit) in &passes {
             let push = SortPush {
                 keys_in: rec.addr(src.0)?,
                 values_in: rec.addr(src.1)?,
@@ -236,29 +333,71 @@ impl RadixSort {
                 values_out: rec.addr(dst.1)?,
                 hist: rec.addr(hist)?,
                 count: count as u32,
-                shift: pass * DIGIT_BITS,
+                shift,
                 blocks: blocks as u32,
-                digit_mask: (1u32 << DIGIT_BITS.min(bits - pass * DIGIT_BITS)) - 1,
+                digit_mask: (1u32 << digit) - 1,
             };
             let view = |buffer: &'a Buffer, format: TexelFormat| {
                 Binding::Texels(Texels { buffer, offset: 0, elements: count, format })
             };
             let (key_view, value_view) = (view(src.0, TexelFormat::Rg32Uint), view(src.1, TexelFormat::R32Uint));
-            match texel {
-                Some((histogram, _)) => rec.dispatch(histogram, Grid::Groups(blocks), &[key_view], &push)?,
-                None => rec.dispatch(&self.histogram, Grid::Groups(blocks), &[], &push)?,
+            let histogram_entries =
+                (1u64 << digit) * blocks * if wide.is_some() { WIDE_WORKGROUP } else { SORT_WORKGROUP };
+            match (wide, texel) {
+                (Some((histogram, _)), _) | (None, Some((histogram, _))) => {
+                    rec.dispatch(histogram, Grid::Groups(blocks), &[key_view], &push)?
+                }
+                (None, None) => rec.dispatch(&self.histogram, Grid::Groups(blocks), &[], &push)?,
             }
-            self.scan.record(rec, hist, histogram_len(count, self.items))?;
-            match texel {
-                Some((_, scatter)) => rec.dispatch(scatter, Grid::Groups(blocks), &[key_view, value_view], &push)?,
-                None => rec.dispatch(&self.scatter, Grid::Groups(blocks), &[], &push)?,
+            self.scan.record(rec, hist, histogram_entries)?;
+            match (wide, texel) {
+                (Some((_, scatter)), _) | (None, Some((_, scatter))) => {
+                    rec.dispatch(scatter, Grid::Groups(blocks), &[key_view, value_view], &push)?
+                }
+                (None, None) => rec.dispatch(&self.scatter, Grid::Groups(blocks), &[], &push)?,
             }
             std::mem::swap(&mut src, &mut dst);
         }
-        if passes % 2 == 1 {
+        if passes.len() % 2 == 1 {
             rec.copy(keys_tmp, 0, keys, 0, count * 8)?;
             rec.copy(values_tmp, 0, values, 0, count * 4)?;
         }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn digit_passes_cover_the_bits_once_in_as_few_even_passes_as_the_width_allows() {
+        assert_eq!(digit_passes(31, 11), [(0, 11), (11, 10), (21, 10)]);
+        assert_eq!(digit_passes(43, 11), [(0, 11), (11, 11), (22, 11), (33, 10)]);
+        assert_eq!(digit_passes(31, 4), [(0, 4), (4, 4), (8, 4), (12, 4), (16, 4), (20, 4), (24, 4), (28, 3)]);
+        assert_eq!(digit_passes(1, 11), [(0, 1)]);
+        assert!(digit_passes(0, 11).is_empty());
+        for bits in 1..=64 {
+            for width in [4, WIDE_DIGIT_BITS] {
+                let passes = digit_passes(bits, width);
+                assert_eq!(passes.len() as u32, bits.div_ceil(width), "{bits} bits at {width}");
+                let mut next = 0;
+                for &(shift, digit) in &passes {
+                    assert!(shift == next && (1..=width).contains(&digit), "{bits} bits at {width}: {passes:?}");
+                    next += digit;
+                }
+                assert_eq!(next, bits);
+            }
+        }
+    }
+
+    #[test]
+    fn wide_passes_give_each_thread_workgroups_and_each_invocation_its_keys() {
+        assert_eq!(wide_blocks(1, 2), 1);
+        assert_eq!(wide_blocks(WIDE_WORKGROUP * WIDE_MIN_ITEMS, 2), 1);
+        assert_eq!(wide_blocks(WIDE_WORKGROUP * WIDE_MIN_ITEMS + 1, 2), 2);
+        assert_eq!(wide_blocks(10_000_000, 2), 4);
+        assert_eq!(wide_blocks(10_000_000, 16), 32);
+        assert_eq!(wide_blocks(10_000_000, 0), 2);
     }
 }

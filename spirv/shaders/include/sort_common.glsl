@@ -4,7 +4,9 @@
 // with TEXEL_INPUT, else by device address.
 //
 // Every invocation owns ITEMS consecutive keys and keeps its own 16 digit
-// counts in registers (unrolled compare-and-add); the histogram is per
+// counts in registers (unrolled compare-and-add), or with WIDE_DIGITS its
+// share of the keys and up to 2048 counts in an array indexed by the digit
+// (cheap where invocations are CPU lanes); the histogram is per
 // invocation, digit-major: hist[digit * invocations + invocation]. Nothing
 // crosses lanes or goes through shared memory: on CPU implementations such
 // as lavapipe every shared-memory or cross-lane access with a lane-dependent
@@ -13,14 +15,29 @@
 #ifndef SRUG_SORT_COMMON_GLSL
 #define SRUG_SORT_COMMON_GLSL
 #extension GL_EXT_control_flow_attributes : require
+#ifdef WIDE_DIGITS
+#define WORKGROUP_SIZE_X 8
+#else
 #define WORKGROUP_SIZE_X 64
+#endif
 #include "common.glsl"
 #include "address.glsl"
 
 // Keys per invocation (engine/src/primitives/sort.rs `sort_items`: more on CPU
 // devices, where fewer, longer invocations shrink the histogram and its scan).
 layout(constant_id = 0) const uint ITEMS = 64u;
+#ifdef WIDE_DIGITS
+// Wide digits (engine/src/primitives/sort.rs `WIDE_DIGIT_BITS`): up to 11
+// bits per pass, the counts in an array indexed by the digit; this pass's
+// radix is digit_mask + 1.
+#define RADIX 2048
+#define PASS_RADIX (pc.digit_mask + 1u)
+#define UNROLL_RADIX
+#else
 #define RADIX 16
+#define PASS_RADIX RADIX
+#define UNROLL_RADIX [[unroll]]
+#endif
 
 // Keep in sync with engine/src/splat/sort.rs `SortPush`.
 layout(push_constant) uniform SortPush {
@@ -32,7 +49,7 @@ layout(push_constant) uniform SortPush {
     uint count;
     uint shift;       // digit = (key >> shift) & digit_mask, over the 64-bit key
     uint blocks;
-    uint digit_mask;  // 15, or fewer bits on the last pass
+    uint digit_mask;  // RADIX - 1, or fewer bits on the last pass
 } pc;
 
 #ifdef TEXEL_INPUT
@@ -50,8 +67,11 @@ layout(set = 0, binding = 1) uniform utextureBuffer values_view;
 #define VALUE(i) UintsIn(pc.values_in).v[i]
 #endif
 
+// The digit at bit `shift` of the 64-bit key; a wide digit may straddle its two words.
 uint digit_of(uvec2 key) {
-    return (pc.shift < 32 ? key.x >> pc.shift : key.y >> (pc.shift - 32)) & pc.digit_mask;
+    uint s = pc.shift;
+    uint bits = s >= 32u ? key.y >> (s - 32u) : (key.x >> s) | (s == 0u ? 0u : key.y << (32u - s));
+    return bits & pc.digit_mask;
 }
 
 // This invocation's index and its histogram column: hist[digit * invocations() + invocation].
@@ -60,6 +80,16 @@ uint invocation() {
 }
 uint invocations() {
     return pc.blocks * WORKGROUP_SIZE_X;
+}
+
+// Keys per invocation: ITEMS, or with wide digits the keys spread evenly over
+// the dispatched invocations (the host picks the number of workgroups).
+uint run_length() {
+#ifdef WIDE_DIGITS
+    return (pc.count + invocations() - 1u) / invocations();
+#else
+    return ITEMS;
+#endif
 }
 
 #endif

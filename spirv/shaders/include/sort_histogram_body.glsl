@@ -4,12 +4,17 @@
 void main() {
     uint me = invocation();
     uint counts[RADIX];
-    [[unroll]] for (uint d = 0; d < RADIX; d++) counts[d] = 0u;
-    uint end = min(me * ITEMS + ITEMS, pc.count);
-    for (uint i = me * ITEMS; i < end; i++) {
+    UNROLL_RADIX for (uint d = 0; d < PASS_RADIX; d++) counts[d] = 0u;
+    uint run = run_length();
+    uint end = min(me * run + run, pc.count);
+    for (uint i = me * run; i < end; i++) {
         uint digit = digit_of(KEY(i));
+#ifdef WIDE_DIGITS
+        counts[digit]++;
+#else
         [[unroll]] for (uint d = 0; d < RADIX; d++) counts[d] += digit == d ? 1u : 0u;
+#endif
     }
     Uints hist = Uints(pc.hist);
-    [[unroll]] for (uint d = 0; d < RADIX; d++) hist.v[d * invocations() + me] = counts[d];
+    UNROLL_RADIX for (uint d = 0; d < PASS_RADIX; d++) hist.v[d * invocations() + me] = counts[d];
 }

@@ -7,11 +7,15 @@ void main() {
     // After the scan: where this invocation's first key of each digit goes.
     uint next[RADIX];
     Uints hist = Uints(pc.hist);
-    [[unroll]] for (uint d = 0; d < RADIX; d++) next[d] = hist.v[d * invocations() + me];
-    uint end = min(me * ITEMS + ITEMS, pc.count);
-    for (uint i = me * ITEMS; i < end; i++) {
+    UNROLL_RADIX for (uint d = 0; d < PASS_RADIX; d++) next[d] = hist.v[d * invocations() + me];
+    uint run = run_length();
+    uint end = min(me * run + run, pc.count);
+    for (uint i = me * run; i < end; i++) {
         uvec2 key = KEY(i);
         uint digit = digit_of(key);
+#ifdef WIDE_DIGITS
+        uint dst = next[digit]++;
+#else
         // next[digit] without a dynamic index (registers only), then advance it.
         uint dst = 0u;
         [[unroll]] for (uint d = 0; d < RADIX; d++) {
@@ -19,6 +23,7 @@ void main() {
             dst = here ? next[d] : dst;
             next[d] += here ? 1u : 0u;
         }
+#endif
         Uvec2sOut(pc.keys_out).v[dst] = key;
         UintsOut(pc.values_out).v[dst] = VALUE(i);
     }
