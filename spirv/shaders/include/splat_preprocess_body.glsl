@@ -1,7 +1,9 @@
 // Body of splat_preprocess*.comp (see their headers). Splatting stage 1, one
 // invocation per Gaussian: activation, culling, EWA projection, conic,
 // radius, SH colour, tile rectangle and count, and (when asked) the
-// per-splat features. Culled Gaussians get a tile count of 0.
+// per-splat features. Culled Gaussians get a tile count of 0 and no splat
+// record: every reader of the records reaches them through a pair, or (the
+// backward pass) only where the tile count is not 0.
 // CPU twin: engine/src/splat/cpu.rs `preprocess_one`.
 #extension GL_EXT_control_flow_attributes : require
 #define WORKGROUP_SIZE_X 64
@@ -75,7 +77,6 @@ bool finite(float x) { return !isnan(x) && !isinf(x); }
 
 void cull(uint i) {
     Uints(frame.tile_counts).v[i] = 0u;
-    Splats(frame.splats).v[i].rect = uvec4(0u);
 }
 
 void main() {
