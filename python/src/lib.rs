@@ -413,6 +413,13 @@ impl Device {
         Ok(d)
     }
 
+    /// Frees the buffers kept for reuse (`memory()["pooled_bytes"]`) and
+    /// returns how many bytes that released: for a host that wants the
+    /// memory back between bursts of work.
+    fn release_pooled_memory(&self) -> PyResult<u64> {
+        Ok(self.gpu()?.release_pooled_memory())
+    }
+
     /// Per-camera GPU stage times of the last render or relight: a list (one per
     /// camera) of lists of (stage name, milliseconds).
     fn last_timings(&self) -> Vec<Vec<(String, f64)>> {

@@ -346,6 +346,14 @@ class Device:
         """
         return self._native.memory()
 
+    def release_pooled_memory(self) -> int:
+        """Frees the buffers kept for reuse (``memory()["pooled_bytes"]``); returns the bytes released.
+
+        srug frees them itself when an allocation finds no memory; call this to hand the
+        memory back sooner (say, to the rest of a host application between bursts of work).
+        """
+        return self._native.release_pooled_memory()
+
     def last_timings(self) -> list:
         """Per camera of the last render or relight: a list of (stage, milliseconds)."""
         return self._native.last_timings()

@@ -177,6 +177,10 @@ def test_progress_timings_and_memory(dev, city):
     memory = dev.memory()
     assert memory["peak_bytes"] >= memory["current_bytes"] > 0
     assert memory["pooled_bytes"] > 0  # the render's working buffers, kept for reuse
+    assert dev.release_pooled_memory() == memory["pooled_bytes"]
+    assert dev.memory()["pooled_bytes"] == 0 and dev.release_pooled_memory() == 0
+    w, h = cams.sizes[0]
+    assert dev.render(scene, cams[:1])["rgb"].shape == (1, h, w, 3), "rendering goes on after the release"
 
     def stop(done, total):
         raise KeyboardInterrupt("stop")
