@@ -80,8 +80,17 @@ fn radix_sort_matches_std_sort() {
     }
     // Wide digits (11 bits a pass, some straddling the key's two words).
     let mut sort = RadixSort::new(&d).unwrap();
-    sort.set_wide_digits(true).unwrap();
+    sort.set_wide_digits(&d, true).unwrap();
     sort_cases(&d, &mut sort);
+    // Turned on after a reserve for 4-bit digits: recording is refused until the next reserve sizes the histogram.
+    let mut sort = RadixSort::with_items(&d, 256).unwrap();
+    sort.reserve(&d, 100_000).unwrap();
+    sort.set_wide_digits(&d, true).unwrap();
+    let keys: Vec<[u32; 2]> = (0..100_000u32).map(|i| [i.wrapping_mul(2_654_435_761), 0]).collect();
+    let (kb, vb) = (d.upload("keys", &keys).unwrap(), d.upload("values", &vec![0u32; keys.len()]).unwrap());
+    let refused = d.run(|rec| sort.record(rec, &kb, &vb, keys.len() as u64, 32));
+    assert!(refused.is_err(), "a wide sort before its reserve must be refused: {refused:?}");
+    check_sort(&d, &mut sort, &keys, 32, "wide after 4-bit reserve");
     assert!(RadixSort::with_items(&d, 0).is_err() && RadixSort::with_items(&d, 1 << 17).is_err());
     assert_no_validation_messages(&d);
 }

@@ -156,10 +156,13 @@ pub struct RadixSort {
 }
 
 impl RadixSort {
-    /// Builds the kernels, with the device's [`sort_items`] and [`wide_digits`].
+    /// Builds the kernels, with the device's [`sort_items`] and [`wide_digits`]
+    /// (where it can read the keys through texel views).
     pub fn new(device: &Device) -> Result<Self> {
         let mut sort = Self::with_items(device, sort_items(device.info().device_type))?;
-        sort.use_wide = sort.wide.is_some() && wide_digits(device.info().device_type);
+        if sort.texel.is_some() && wide_digits(device.info().device_type) {
+            sort.set_wide_digits(device, true)?;
+        }
         Ok(sort)
     }
 
@@ -188,26 +191,12 @@ impl RadixSort {
         } else {
             None
         };
-        let wide = match texel {
-            Some(_) => {
-                let views = |n: usize| KernelDecl {
-                    bindings: &[BindingKind::UniformTexelBuffer; 2][..n],
-                    push_constant_size: std::mem::size_of::<SortPush>(),
-                    specialization: &[],
-                };
-                Some((
-                    device.kernel(&kernels::SORT_HISTOGRAM_WIDE_TEXEL, &views(1))?,
-                    device.kernel(&kernels::SORT_SCATTER_WIDE_TEXEL, &views(2))?,
-                ))
-            }
-            None => None,
-        };
         Ok(Self {
             histogram: device.kernel(&kernels::SORT_HISTOGRAM, &decl)?,
             scatter: device.kernel(&kernels::SORT_SCATTER, &decl)?,
             use_texel: texel.is_some(),
             texel,
-            wide,
+            wide: None,
             use_wide: false,
             threads: std::thread::available_parallelism().map_or(1, |n| n.get() as u64),
             max_texels: info.max_texel_buffer_elements,
@@ -231,7 +220,7 @@ impl RadixSort {
         self.keys_tmp = Some(device.create_buffer("sort keys (ping-pong)", count * 8, MemoryKind::Storage)?);
         self.values_tmp = Some(device.create_buffer("sort values (ping-pong)", count * 4, MemoryKind::Storage)?);
         let mut entries = histogram_len(count, self.items);
-        if self.wide.is_some() {
+        if self.use_wide {
             entries = entries.max((1 << WIDE_DIGIT_BITS) * wide_blocks(count, self.threads) * WIDE_WORKGROUP);
         }
         self.hist = Some(device.create_buffer("sort histogram", entries * 4, MemoryKind::Storage)?);
@@ -265,14 +254,31 @@ impl RadixSort {
     /// Whether passes sort wide digits ([`wide_digits`]; with texel inputs,
     /// where the keys fit one view: otherwise 4-bit digits).
     pub fn wide_digits(&self) -> bool {
-        self.wide.is_some() && self.use_wide
+        self.use_wide
     }
 
-    /// Chooses wide or 4-bit digits (see [`RadixSort::wide_digits`]); wide
-    /// digits where the device lacks texel inputs are an error.
-    pub fn set_wide_digits(&mut self, on: bool) -> Result<()> {
+    /// Chooses wide or 4-bit digits (see [`RadixSort::wide_digits`]), building
+    /// the wide-digit kernels the first time; wide digits where the device
+    /// lacks texel inputs are an error. Call [`RadixSort::reserve`] after
+    /// turning them on: their histogram may need more scratch memory.
+    pub fn set_wide_digits(&mut self, device: &Device, on: bool) -> Result<()> {
         if on && self.wide.is_none() {
-            return Err(Error::unsupported("this device cannot read sort keys through uniform texel buffers"));
+            if self.texel.is_none() {
+                return Err(Error::unsupported("this device cannot read sort keys through uniform texel buffers"));
+            }
+            let views = |n: usize| KernelDecl {
+                bindings: &[BindingKind::UniformTexelBuffer; 2][..n],
+                push_constant_size: std::mem::size_of::<SortPush>(),
+                specialization: &[],
+            };
+            self.wide = Some((
+                device.kernel(&kernels::SORT_HISTOGRAM_WIDE_TEXEL, &views(1))?,
+                device.kernel(&kernels::SORT_SCATTER_WIDE_TEXEL, &views(2))?,
+            ));
+        }
+        if on && !self.use_wide {
+            // The histogram was sized for 4-bit digits: size it again at the next reserve.
+            self.capacity = 0;
         }
         self.use_wide = on;
         Ok(())
