@@ -525,13 +525,21 @@ impl Splatter {
         } else {
             device.kernel(&kernels::SPLAT_KEYS, &KernelDecl::uniform(&keys_spec))?
         };
+        // The ranges kernel reads the sorted keys through an RG32UI view with the keys kernel's texel reads.
+        let texel_ranges =
+            texel_keys && device.info().texel_formats.contains(&TexelFormat::Rg32Uint) && pairs <= max_texels;
         Ok(SortPlan {
             keys: device.create_buffer("sort keys", pairs * 8, MemoryKind::Storage)?,
             values: device.create_buffer("sort values", pairs * 4, MemoryKind::Storage)?,
             pair_tiles: device.create_buffer("pair tiles", pairs * 4, MemoryKind::Storage)?,
             keys_kernel,
             texel_keys,
-            ranges_kernel: device.kernel(&kernels::SPLAT_RANGES, &KernelDecl::uniform(&[depth_spec]))?,
+            ranges_kernel: if texel_ranges {
+                texel_view_kernel(device, &kernels::SPLAT_RANGES_TEXEL, 1, &[depth_spec])?
+            } else {
+                device.kernel(&kernels::SPLAT_RANGES, &KernelDecl::uniform(&[depth_spec]))?
+            },
+            texel_ranges,
             blend: self.blend_kernel(BlendOptions {
                 bits: settings.channels.blend_bits(settings.rgb),
                 tile,
@@ -712,7 +720,11 @@ impl Splatter {
                 }
                 rec.begin_stage("ranges");
                 rec.fill(&p.ranges, 0)?;
-                if s.pairs > 0 {
+                if s.pairs > 0 && s.texel_ranges {
+                    let keys = Texels { buffer: &s.keys, offset: 0, elements: s.pairs, format: TexelFormat::Rg32Uint };
+                    let bindings = [Binding::Buffer(&p.uniform), Binding::Texels(keys)];
+                    rec.dispatch(&s.ranges_kernel, Grid::Items(s.pairs), &bindings, &())?;
+                } else if s.pairs > 0 {
                     rec.dispatch(&s.ranges_kernel, Grid::Items(s.pairs), &[Binding::from(&p.uniform)], &())?;
                 }
                 rec.begin_stage("blend");
@@ -862,6 +874,8 @@ struct SortPlan {
     /// The keys kernel reads through texel views (`splat_keys_texel.comp`).
     texel_keys: bool,
     ranges_kernel: Arc<Kernel>,
+    /// `ranges_kernel` reads the sorted keys through an RG32UI texel view.
+    texel_ranges: bool,
     blend: Arc<Kernel>,
     pairs: u64,
     key_bits: u32,
