@@ -100,6 +100,36 @@ fn texel_view_kernel(
     Ok(device.kernel(info, &KernelDecl { bindings: &bindings, push_constant_size: 0, specialization })?)
 }
 
+/// The texel formats the texel preprocess views the scene's means,
+/// log-scales, rotations, opacity logits and SH coefficients in (arrays of
+/// `bytes` each), or `None` where the device cannot view them all so within
+/// `max_texels` elements: one fetch per attribute where the device views
+/// them so (means and log-scales as RGB32F; rotations and, where a
+/// Gaussian's SH fill whole vec4s, the SH as RGBA32F), R32F otherwise. A
+/// view's limit counts its own elements, so a 10M-Gaussian SH-3 scene (480M
+/// floats of SH) is viewed as 120M RGBA32F texels.
+fn preprocess_view_formats(
+    formats: &[TexelFormat],
+    max_texels: u64,
+    bytes: [u64; 5],
+    sh_degree: u32,
+) -> Option<[TexelFormat; 5]> {
+    if !formats.contains(&TexelFormat::R32Float) {
+        return None;
+    }
+    let or_r32 =
+        |wanted: TexelFormat, ok: bool| if ok && formats.contains(&wanted) { wanted } else { TexelFormat::R32Float };
+    let triple = or_r32(TexelFormat::Rgb32Float, true);
+    let chosen = [
+        triple,
+        triple,
+        or_r32(TexelFormat::Rgba32Float, true),
+        TexelFormat::R32Float,
+        or_r32(TexelFormat::Rgba32Float, crate::scene::sh_coefficients(sh_degree) * 3 % 4 == 0),
+    ];
+    chosen.iter().zip(bytes).all(|(f, b)| b / f.bytes() <= max_texels).then_some(chosen)
+}
+
 /// What selects a blend kernel: its channel bits, tile edge, and which
 /// specialization each of its options takes.
 #[derive(Clone, Copy, Debug)]
@@ -589,11 +619,16 @@ impl Splatter {
         if views.is_empty() {
             return Ok(Vec::new());
         }
-        // The scene arrays the texel preprocess views (binding 1 on), each as R32F.
+        // The scene arrays the texel preprocess views (binding 1 on), each in its format.
         let scene_inputs = [&scene.means, &scene.log_scales, &scene.rotations, &scene.opacity_logits, &scene.sh];
-        let max_texels = device.info().max_texel_buffer_elements;
-        let texel_preprocess =
-            self.texel_preprocess && n > 0 && scene_inputs.iter().all(|b| b.size() / 4 <= max_texels);
+        let formats = preprocess_view_formats(
+            &device.info().texel_formats,
+            device.info().max_texel_buffer_elements,
+            scene_inputs.map(Buffer::size),
+            scene.sh_degree,
+        )
+        .filter(|_| self.texel_preprocess && n > 0);
+        let texel_preprocess = formats.is_some();
         let ellipse = SpecValue::Bool(settings.tile_bounds == TileBounds::Ellipse);
         let surface = SpecValue::Bool(settings.surface_depth);
         let features = SpecValue::Bool(ch.needs_features());
@@ -605,20 +640,10 @@ impl Splatter {
             return Err(Error::Internal("views of one render either all mask their tiles or none does".into()));
         }
         let mask_spec = SpecValue::Bool(masked);
-        // One fetch per attribute where the device views them so: means and
-        // log-scales as RGB32F, rotations and (where a Gaussian's fill whole
-        // vec4s) SH coefficients as RGBA32F.
-        let vec4_inputs = texel_preprocess && device.info().texel_formats.contains(&TexelFormat::Rgba32Float);
-        let sh_vec4 = vec4_inputs && crate::scene::sh_coefficients(scene.sh_degree) * 3 % 4 == 0;
-        let vec3_inputs = texel_preprocess && device.info().texel_formats.contains(&TexelFormat::Rgb32Float);
-        let triple = if vec3_inputs { TexelFormat::Rgb32Float } else { TexelFormat::R32Float };
-        let formats = [
-            triple,
-            triple,
-            if vec4_inputs { TexelFormat::Rgba32Float } else { TexelFormat::R32Float },
-            TexelFormat::R32Float,
-            if sh_vec4 { TexelFormat::Rgba32Float } else { TexelFormat::R32Float },
-        ];
+        let formats = formats.unwrap_or([TexelFormat::R32Float; 5]);
+        let vec3_inputs = texel_preprocess && formats[0] == TexelFormat::Rgb32Float;
+        let vec4_inputs = texel_preprocess && formats[2] == TexelFormat::Rgba32Float;
+        let sh_vec4 = texel_preprocess && formats[4] == TexelFormat::Rgba32Float;
         let mut preprocess_spec =
             vec![(0, features), (1, ellipse), (2, surface), (3, sh_used), (5, mask_spec), tile_spec(tile)[0]];
         if texel_preprocess {
@@ -894,4 +919,31 @@ fn split_timings(timings: Timings, marks: &[usize]) -> Vec<Timings> {
     }
     out.reverse();
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn preprocess_views_count_their_own_elements_against_the_limit() {
+        use TexelFormat::{R32Float as R, Rgb32Float as Rgb, Rgba32Float as Rgba};
+        let all = [R, Rgb, Rgba];
+        let limit = 134_217_728; // lavapipe's maxTexelBufferElements
+                                 // Bytes of a scene of `n` Gaussians at SH degree `d`: means, log-scales, rotations, opacities, SH.
+        let bytes = |n: u64, d: u32| [12 * n, 12 * n, 16 * n, 4 * n, 12 * n * crate::scene::sh_coefficients(d) as u64];
+        // 10M SH 3: 480M floats of SH, 120M RGBA32F texels: viewed.
+        assert_eq!(preprocess_view_formats(&all, limit, bytes(10_000_000, 3), 3), Some([Rgb, Rgb, Rgba, R, Rgba]));
+        // SH 1 fills vec4s too; SH 0 and 2 do not (R32F), and 10M SH 2 (270M floats) exceeds the limit.
+        assert_eq!(preprocess_view_formats(&all, limit, bytes(1000, 1), 1), Some([Rgb, Rgb, Rgba, R, Rgba]));
+        assert_eq!(preprocess_view_formats(&all, limit, bytes(1000, 2), 2), Some([Rgb, Rgb, Rgba, R, R]));
+        assert_eq!(preprocess_view_formats(&all, limit, bytes(10_000_000, 2), 2), None);
+        // 12M SH 3 needs 144M RGBA32F texels: too many.
+        assert_eq!(preprocess_view_formats(&all, limit, bytes(12_000_000, 3), 3), None);
+        // Without vector formats everything is R32F, counted as floats.
+        assert_eq!(preprocess_view_formats(&[R], limit, bytes(1000, 3), 3), Some([R; 5]));
+        assert_eq!(preprocess_view_formats(&[R], limit, bytes(12_000_000, 1), 1), None);
+        // Without R32F, no texel preprocess at all.
+        assert_eq!(preprocess_view_formats(&[Rgb, Rgba], limit, bytes(1000, 3), 3), None);
+    }
 }
