@@ -15,8 +15,9 @@ use srug::scene::{Camera, Scene};
 use srug::splat::cpu::{preprocess_one, render_cpu, tile_row_span, CpuSplat};
 use srug::splat::Channel;
 use srug::splat::{
-    cameras_per_batch, default_blend_pixels, BlendVariant, Channels, DepthKey, GBuffer, NormalSource, SplatSettings,
-    Splatter, TileBounds, BATCH_BYTES, BLEND_PIXELS, DEFAULT_TILE, FRAMES_PER_SUBMISSION, TILE_SIZES,
+    cameras_per_batch, default_blend_pixels, default_pixel_reach, BlendVariant, Channels, DepthKey, GBuffer,
+    NormalSource, SplatSettings, Splatter, TileBounds, BATCH_BYTES, BLEND_PIXELS, DEFAULT_TILE, FRAMES_PER_SUBMISSION,
+    TILE_SIZES,
 };
 use srug_tests::{assert_no_validation_messages, device, psnr, random_scene, save_comparison, NAN_SENTINEL};
 
@@ -307,6 +308,7 @@ fn every_tile_size_matches_cpu_twin_in_every_variant() {
             assert!(splatter.texel_preprocess(), "lavapipe has R32F texel buffers, so they are the default");
             let expected = if d.info().mesa_version().is_some_and(|(major, _)| major >= 25) { 8 } else { 2 };
             assert_eq!(splatter.blend_pixels(), expected, "default pixels per invocation on {}", d.info().driver);
+            assert_eq!(splatter.pixel_reach(), expected == 8, "default per-pixel reach on {}", d.info().driver);
             splatter.set_blend_variant(BlendVariant::SubgroupLoads).unwrap();
             splatter.set_texel_blend(false).unwrap();
             splatter.set_texel_preprocess(false).unwrap();
@@ -360,9 +362,12 @@ fn gbuffer_bits(g: &GBuffer) -> Vec<u32> {
 fn row_skipping_blend_is_bit_identical_to_reading_every_splat() {
     // The texel blend skips a splat for a subgroup whose blocks (half-tile
     // columns × row pairs) its α ≥ 1/255 ellipse misses (block masks in the
-    // keys); the device-address blend reads every splat of the tile. Same
+    // keys), and within a subgroup the pixels outside that ellipse on each
+    // lane's row (`lane_row_reach`, with an upper bound of the log); the
+    // device-address blend reads and evaluates every splat of the tile. Same
     // arithmetic in the same order, so any wrongly skipped splat changes
-    // some bit. Elongated, rotated splats of every size (random scenes) and
+    // some bit. Elongated, rotated splats of every size (random scenes; faint
+    // ones, opacities around 1/255, where the ellipse's r² is near 0) and
     // the demo street, every pixels-per-lane
     // layout (8 at 16-pixel tiles is the half-tile one); every tile size
     // carries masks at these sizes (at most 21 + 10 key bits).
@@ -375,6 +380,11 @@ fn row_skipping_blend_is_bit_identical_to_reading_every_splat() {
     let city = demo_city(&DemoOptions { seed: 7, gaussians: 30_000, sh_degree: 1 }).unwrap();
     let street = (city.scene.clone(), city.cameras[1].resized(203, 77));
     let random = random_scene(6000, 1, 91, 2.0);
+    let mut faint = random.clone();
+    for (i, logit) in faint.opacity_logits.iter_mut().enumerate() {
+        // Opacities 0.0015 to 0.011, either side of 1/255 (logit −5.54).
+        *logit = -6.5 + 2.0 * (i % 101) as f32 / 100.0;
+    }
     let close = Camera::look_at(Vec3::new(0.0, -4.0, 0.3), Vec3::ZERO, Vec3::Z, 80.0, 190, 110).unwrap();
     // The random scene has no materials: the channels it has.
     let geometric =
@@ -385,7 +395,8 @@ fn row_skipping_blend_is_bit_identical_to_reading_every_splat() {
     let (mut checked_with_masks, mut checked_without) = (0, 0);
     for (name, (scene, cam), channels) in [
         ("street", street, all_settings().channels),
-        ("random", (random, close), geometric),
+        ("random", (random, close.clone()), geometric),
+        ("random, faint", (faint, close), geometric),
         ("street, planes 1e-30 to 1e30", unbounded, all_settings().channels),
     ] {
         let gpu_scene = GpuScene::upload(&d, &scene).unwrap();
@@ -396,8 +407,9 @@ fn row_skipping_blend_is_bit_identical_to_reading_every_splat() {
             assert!(!all_stats.row_masks, "{name} tile {tile}: only the texel blend skips rows");
             let everything = gbuffer_bits(&everything.read(&d).unwrap());
             splatter.set_texel_blend(true).unwrap();
-            for pixels in BLEND_PIXELS {
+            for (pixels, reach) in BLEND_PIXELS.into_iter().flat_map(|p| [(p, false), (p, true)]) {
                 splatter.set_blend_pixels(pixels).unwrap();
+                splatter.set_pixel_reach(reach);
                 let (skipping, stats) = splatter.render(&gpu_scene, &cam, &settings).unwrap();
                 assert_eq!(
                     stats.row_masks,
@@ -408,12 +420,16 @@ fn row_skipping_blend_is_bit_identical_to_reading_every_splat() {
                 checked_without += usize::from(!stats.row_masks);
                 let skipping = gbuffer_bits(&skipping.read(&d).unwrap());
                 let differ = everything.iter().zip(&skipping).filter(|(a, b)| a != b).count();
-                assert_eq!(differ, 0, "{name} tile {tile}, {pixels} pixels per invocation: {differ} values differ");
+                assert_eq!(
+                    differ, 0,
+                    "{name} tile {tile}, {pixels} pixels per invocation, pixel reach {reach}: {differ} values differ"
+                );
             }
         }
     }
-    assert_eq!((checked_with_masks, checked_without), (8 * BLEND_PIXELS.len(), BLEND_PIXELS.len()));
+    assert_eq!((checked_with_masks, checked_without), (22 * BLEND_PIXELS.len(), 2 * BLEND_PIXELS.len()));
     splatter.set_blend_pixels(default_blend_pixels(d.info())).unwrap();
+    splatter.set_pixel_reach(default_pixel_reach(d.info()));
     assert_no_validation_messages(&d);
 }
 

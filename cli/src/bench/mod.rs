@@ -131,6 +131,8 @@ pub struct SplatBenchOptions {
     pub blend: Option<BlendVariant>,
     /// Pixels per invocation of the texel-buffer blend (`None`: the default).
     pub blend_pixels: Option<u32>,
+    /// The texel-buffer blend's per-pixel reach test (`None`: the default).
+    pub pixel_reach: Option<bool>,
     /// Tile edge in pixels.
     pub tile: u32,
     /// Which tiles list a splat.
@@ -145,7 +147,7 @@ pub fn splat_bench(
     options: &SplatBenchOptions,
     mut progress: impl FnMut(&str),
 ) -> Result<Vec<SplatBenchRow>> {
-    let SplatBenchOptions { repeats, blend, blend_pixels, tile, tile_bounds } = *options;
+    let SplatBenchOptions { repeats, blend, blend_pixels, pixel_reach, tile, tile_bounds } = *options;
     let settings = SplatSettings { tile, tile_bounds, ..SplatSettings::default() };
     let mut rows = Vec::new();
     let mut splatter = Splatter::new(device)?;
@@ -154,6 +156,9 @@ pub fn splat_bench(
     }
     if let Some(pixels) = blend_pixels {
         splatter.set_blend_pixels(pixels)?;
+    }
+    if let Some(on) = pixel_reach {
+        splatter.set_pixel_reach(on);
     }
     for &n in counts {
         progress(&format!("generating the demo city with {n} Gaussians"));

@@ -205,6 +205,7 @@ pub struct Splatter {
     texel_blend: bool,
     texel_preprocess: bool,
     blend_pixels: u32,
+    pixel_reach: bool,
     scan: Scan,
     sort: RadixSort,
 }
@@ -224,6 +225,7 @@ impl Splatter {
                 .all(|f| device.info().texel_formats.contains(f)),
             texel_preprocess: device.info().texel_formats.contains(&TexelFormat::R32Float),
             blend_pixels: default_blend_pixels(device.info()),
+            pixel_reach: default_pixel_reach(device.info()),
             scan: Scan::new(device)?,
             sort: RadixSort::new(device)?,
         })
@@ -288,6 +290,18 @@ impl Splatter {
         Ok(())
     }
 
+    /// Whether the texel-buffer blend evaluates each splat only at the pixels
+    /// of a lane's row it can reach ([`default_pixel_reach`] says where it is on).
+    pub fn pixel_reach(&self) -> bool {
+        self.pixel_reach
+    }
+
+    /// Turns the texel-buffer blend's per-pixel reach test on or off (see
+    /// [`Splatter::pixel_reach`]); the image does not change, only what is evaluated.
+    pub fn set_pixel_reach(&mut self, on: bool) {
+        self.pixel_reach = on;
+    }
+
     /// The blend variant in use (subgroup loads where the device has subgroup
     /// ballot, else per-pixel loads).
     pub fn blend_variant(&self) -> BlendVariant {
@@ -335,6 +349,9 @@ impl Splatter {
             // PIXELS per invocation along x: TILE / PIXELS invocations across.
             spec[1].1 = SpecValue::U32(tile / pixels);
             spec.push((2, SpecValue::U32(pixels)));
+            if self.pixel_reach {
+                spec.push((7, SpecValue::Bool(true)));
+            }
             // The frame; splats, features, sorted indices and pair row masks as texel-buffer views.
             texel_view_kernel(&self.device, info, 4, &spec)
         } else {

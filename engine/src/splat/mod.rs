@@ -83,6 +83,16 @@ pub fn default_blend_pixels(info: &DeviceInfo) -> u32 {
         _ => DEFAULT_BLEND_PIXELS,
     }
 }
+/// Whether a new [`Splatter`]'s texel-buffer blend evaluates each splat only
+/// at the pixels of a lane's row it can reach (`PIXEL_REACH` in
+/// `splat_blend_body.glsl`): on lavapipe from Mesa 25 on, whose compiled
+/// kernels jump over an `if` no lane of the vector enters, so a pixel column
+/// the splat misses in every lane costs a compare; off elsewhere (Mesa
+/// 22.3's lavapipe runs both sides of every `if`, where the test is extra
+/// work; GPUs not measured). The image is the same either way.
+pub fn default_pixel_reach(info: &DeviceInfo) -> bool {
+    matches!(info.mesa_version(), Some((major, _)) if info.is_lavapipe() && major >= 25)
+}
 /// Bit of the blend's `CHANNELS` specialization constant that blends rgb
 /// (keep in sync with `RGB` in `splat_blend_body.glsl`).
 pub(crate) const RGB_BIT: u32 = 8;

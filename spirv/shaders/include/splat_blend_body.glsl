@@ -19,6 +19,10 @@ layout(constant_id = 4) const bool SURFACE_DEPTH = false;
 layout(constant_id = 5) const bool OCCLUDED = false;
 // The texel blend: each sorted key carries the tile blocks its splat reaches (splat_keys.comp `tile_block_mask`).
 layout(constant_id = 6) const bool ROW_MASKS = false;
+// The texel blend evaluates a splat only at the pixels of each lane's row it
+// can reach (`lane_row_reach`); for drivers that jump over an `if` no lane
+// enters (engine/src/splat/mod.rs `default_pixel_reach`).
+layout(constant_id = 7) const bool PIXEL_REACH = false;
 // Without rgb (shadow maps) no colour is read, blended or stored.
 const bool RGB = (CHANNELS & 256u) != 0u;
 // The index of the splat with the largest weight wᵢ = αᵢ Tᵢ (the first of equal ones), per pixel.
@@ -248,6 +252,51 @@ uint lane_blocks(uint l) {
     return (p.x < TILE / 2u ? 1u << bit : 0u) | (last >= TILE / 2u ? 1u << (TILE / 2u + bit) : 0u);
 }
 
+// An upper bound of log2(x) for finite x > 0, in a few operations: with
+// x = m·2^e, m ∈ [0.5, 1), log2(m) is concave and so lies below its tangent at
+// m = 0.75 (by at most 0.104).
+float log2_upper(float x) {
+    int e;
+    float m = frexp(x, e);
+    return float(e) - 0.4150375 + 1.9235933 * (m - 0.75);
+}
+
+// The pixel centres x ∈ [reach.x, reach.y] of the row at centre y where the
+// splat can reach α ≥ 1/255 (empty where it reaches none): `tile_ellipse`'s
+// widened ellipse, its r² from `log2_upper` (so a little wider still), and
+// 0.01 px more, as `tile_block_mask` (its superset: every pixel the blend
+// would take lies inside). The whole row where Q is too ill-conditioned,
+// where r² is not a number, and for panoramas.
+vec2 lane_row_reach(vec4 head, vec4 conic, float y) {
+    const float INF = 1.0 / 0.0;
+    if (WRAP_X) return vec2(-INF, INF);
+    float a = conic.x, b = conic.y, c = conic.z;
+    float r2 = 2.02 * 0.6931472 * log2_upper(255.0 * head.w) + 0.01;
+    if (!(r2 > 0.0)) return r2 <= 0.0 ? vec2(INF, -INF) : vec2(-INF, INF);
+    float det = a * c - b * b;
+    if (!(det > 1e-4 * a * c)) return vec2(-INF, INF);
+    float dy = head.y - y;
+    float root = sqrt(max(r2 * a - det * dy * dy, 0.0));
+    return vec2(head.x - (-b * dy + root) / a - 0.01, head.x - (-b * dy - root) / a + 0.01);
+}
+
+// Blends splat g into one pixel of a lane (centre `centre`, still `live`)
+// with no branch: `live` turns false once the pixel is done (T·(1−α) < 1e-4,
+// this splat excluded, as `blend_one`).
+void blend_pixel(inout Accumulated acc, inout bool live, float limit, uint g, vec4 head, vec4 conic, vec2 slope,
+                 Contribution c, vec2 centre) {
+    float alpha, gauss;
+    vec2 d;
+    bool hit = all(bvec2(live, splat_alpha(nearest_copy(head, centre), conic, centre, alpha, gauss, d)));
+    float z = splat_depth(head, slope, d);
+    if (OCCLUDED) hit = all(bvec2(hit, z < limit));
+    float next_T = acc.T * (1.0 - alpha);
+    bool stop = all(bvec2(hit, next_T < 1e-4));
+    bool takes = all(bvec2(hit, !stop));
+    live = all(bvec2(live, !stop));
+    accumulate_select(acc, takes, alpha, next_T, z, c, g);
+}
+
 void main() {
     uint tile = block_index();
     uint tiles_x = frame.size.z;
@@ -272,10 +321,10 @@ void main() {
     uint last = min(first + gl_SubgroupSize, gl_WorkGroupSize.x * gl_WorkGroupSize.y) - 1u;
     uint blocks = lane_blocks(gl_LocalInvocationIndex);
     for (uint l = first; l <= last; l++) blocks |= lane_blocks(l);
-    // Straight-line body: lavapipe predicates every branch (both sides of an
-    // `if` always run under a mask, only loop exits jump), so the blending has
-    // no `if` and no `continue`; updates are selects, colour is fetched always.
-    // Skipping splats is a loop of its own for the same reason.
+    // Updates are selects and colour is fetched always: Mesa 22.3's lavapipe
+    // runs both sides of every `if` under a mask (only loop exits jump), so
+    // skipping splats is a loop of its own. From Mesa 25 it jumps over an `if`
+    // no lane of the vector enters, which the per-pixel reach below uses.
     uint j = range.x;
     while (any_live) {
         for (; j < range.y; j++) {
@@ -289,25 +338,26 @@ void main() {
         j++;
         Contribution c = splat_contribution(g);
         vec2 slope = splat_slope(g, conic);
-        any_live = false;
+        // The pixel centres of this lane's row the splat can reach at α ≥ 1/255
+        // (`lane_row_reach`): a pixel outside is not evaluated (the same
+        // result: it would not take the splat), so a pixel column no lane of
+        // the vector reaches costs a compare.
+        vec2 reach = PIXEL_REACH ? lane_row_reach(head, conic, float(base.y) + 0.5) : vec2(0.0);
         [[unroll]] for (uint k = 0u; k < PIXELS; k++) {
-            float alpha, gauss;
-            vec2 d;
             vec2 centre = vec2(base + uvec2(k * STEP, 0u)) + 0.5;
-            bool hit = all(bvec2(live[k], splat_alpha(nearest_copy(head, centre), conic, centre, alpha, gauss, d)));
-            float z = splat_depth(head, slope, d);
-            if (OCCLUDED) hit = all(bvec2(hit, z < limit[k]));
-            float next_T = acc[k].T * (1.0 - alpha);
-            // Done once T·(1−α) < 1e-4, this splat excluded (as blend_one).
-            bool stop = all(bvec2(hit, next_T < 1e-4));
-            bool takes = all(bvec2(hit, !stop));
+            if (PIXEL_REACH) {
+                if (all(bvec3(live[k], centre.x >= reach.x, centre.x <= reach.y))) {
+                    blend_pixel(acc[k], live[k], limit[k], g, head, conic, slope, c, centre);
+                }
+            } else {
+                blend_pixel(acc[k], live[k], limit[k], g, head, conic, slope, c, centre);
+            }
             // Splats come in order of centre depth: once one lies at or behind
             // the host's depth, so do the rest (`behind_host`).
-            bool behind = behind_host(head.z, limit[k]);
-            live[k] = all(bvec3(live[k], !stop, !behind));
-            any_live = any(bvec2(any_live, live[k]));
-            accumulate_select(acc[k], takes, alpha, next_T, z, c, g);
+            live[k] = all(bvec2(live[k], !behind_host(head.z, limit[k])));
         }
+        any_live = false;
+        [[unroll]] for (uint k = 0u; k < PIXELS; k++) any_live = any(bvec2(any_live, live[k]));
     }
     [[unroll]] for (uint k = 0u; k < PIXELS; k++) {
         uvec2 pix = base + uvec2(k * STEP, 0u);

@@ -33,6 +33,10 @@ pub(crate) struct SplatBenchArgs {
     /// Pixels per invocation of the texel-buffer blend: 1, 2, 4 or 8 (default: 8 on lavapipe from Mesa 25, else 2).
     #[arg(long)]
     blend_pixels: Option<u32>,
+    /// Evaluate each splat only at the pixels of a blend lane's row it can reach: true or false
+    /// (default: true on lavapipe from Mesa 25, else false).
+    #[arg(long)]
+    pixel_reach: Option<bool>,
     /// Which tiles list a splat: ellipse (those that can see it at α ≥ 1/255) or rectangle (its 3σ square).
     #[arg(long, default_value = "ellipse")]
     tile_bounds: TileBounds,
@@ -41,7 +45,8 @@ pub(crate) struct SplatBenchArgs {
 impl SplatBenchArgs {
     /// Runs `srug bench splat`.
     pub(crate) fn run(&self, device_args: &DeviceArgs) -> Result<()> {
-        let &Self { ref gaussians, ref sizes, repeats, sort_keys, blend, tile, blend_pixels, tile_bounds } = self;
+        let &Self { ref gaussians, ref sizes, repeats, sort_keys, blend, tile, blend_pixels, pixel_reach, tile_bounds } =
+            self;
         check_tile(tile)?;
         let counts = gaussians;
         let sizes: Vec<(u32, u32)> = sizes.iter().map(|s| s.pair()).collect();
@@ -50,7 +55,7 @@ impl SplatBenchArgs {
         let peak = bench::fma_peak_gflops(&device, 5)?;
         println!("device: {} ({}), measured FMA peak {peak:.1} GFLOP/s\n", info.name, info.driver);
         let bar = spinner("benchmarking");
-        let options = bench::SplatBenchOptions { repeats, blend, blend_pixels, tile, tile_bounds };
+        let options = bench::SplatBenchOptions { repeats, blend, blend_pixels, pixel_reach, tile, tile_bounds };
         let rows = bench::splat_bench(&device, counts, &sizes, &options, |m| bar.set_message(m.to_string()))?;
         bar.set_message("sorting");
         let sort = bench::sort_bench(&device, sort_keys, 32 + 11, repeats)?;
