@@ -313,29 +313,46 @@ void main() {
         limit[k] = live[k] ? occluder_z(pix) : 0.0;
         any_live = any_live || live[k];
     }
-    // The tile blocks this invocation's subgroup covers (assuming subgroups
-    // of consecutive invocations, as implementations form them; its own are
-    // always in, so a wrong guess costs speed, never pixels): a splat whose
-    // block mask (ROW_MASKS) misses them is skipped.
-    uint first = gl_SubgroupID * gl_SubgroupSize;
-    uint last = min(first + gl_SubgroupSize, gl_WorkGroupSize.x * gl_WorkGroupSize.y) - 1u;
-    uint blocks = lane_blocks(gl_LocalInvocationIndex);
-    for (uint l = first; l <= last; l++) blocks |= lane_blocks(l);
+    // The tile blocks this invocation's subgroup covers, exactly (a ballot
+    // per block: its lanes need not be consecutive invocations): a splat
+    // whose block mask (ROW_MASKS) misses them is skipped.
+    uint own_blocks = lane_blocks(gl_LocalInvocationIndex);
+    uint blocks = 0u;
+    for (uint b = 0u; b < TILE; b++) {
+        if (subgroupBallot(((own_blocks >> b) & 1u) != 0u) != uvec4(0u)) blocks |= 1u << b;
+    }
+    // Lanes (of the first 32) that take part in the key windows below, and how many.
+    uint lanes = subgroupBallot(true).x;
+    uint lane = gl_SubgroupInvocationID;
+    bool windowed = lane < 32u && ((lanes >> min(lane, 31u)) & 1u) != 0u;
+    uint rank = windowed ? bitCount(lanes & ((1u << lane) - 1u)) : 0u;
+    uint width = bitCount(lanes);
     // Updates are selects and colour is fetched always: Mesa 22.3's lavapipe
     // runs both sides of every `if` under a mask (only loop exits jump), so
-    // skipping splats is a loop of its own. From Mesa 25 it jumps over an `if`
-    // no lane of the vector enters, which the per-pixel reach below uses.
-    uint j = range.x;
-    while (any_live) {
-        for (; j < range.y; j++) {
-            if (!ROW_MASKS || ((texelFetch(key_texels, int(2u * j + 1u)).x >> (32u - TILE)) & blocks) != 0u) break;
+    // finding the next wanted splat is a loop of its own. From Mesa 25 it
+    // jumps over an `if` no lane of the vector enters, which the per-pixel
+    // reach below uses. Keys are tested a window at a time, one per lane (one
+    // gather for the window, not one per key); `window` holds the lanes whose
+    // keys the subgroup wants, in key order. Every lane stays in the loop
+    // until all are done, so each window is whole.
+    uint next = range.x, window_start = range.x, window = 0u;
+    while (subgroupBallot(any_live) != uvec4(0u)) {
+        while (window == 0u && next < range.y) {
+            uint key = next + rank;
+            bool want = windowed && key < range.y
+                && (!ROW_MASKS || ((texelFetch(key_texels, int(2u * key + 1u)).x >> (32u - TILE)) & blocks) != 0u);
+            window = subgroupBallot(want).x;
+            window_start = next;
+            next += width;
         }
-        if (j >= range.y) break;
+        if (window == 0u) break;
+        uint first_lane = uint(findLSB(window));
+        window &= window - 1u;
+        uint j = window_start + bitCount(lanes & ((1u << first_lane) - 1u));
         // Every lane fetches the same texels: one vector gather each, no election or broadcast.
         uint g = texelFetch(value_texels, int(j)).x;
         vec4 head = texelFetch(splat_texels, int(4u * g));
         vec4 conic = texelFetch(splat_texels, int(4u * g + 1u));
-        j++;
         Contribution c = splat_contribution(g);
         vec2 slope = splat_slope(g, conic);
         // The pixel centres of this lane's row the splat can reach at α ≥ 1/255
