@@ -3,8 +3,9 @@
 // device addresses: every lane fetches the tile's next sorted index (binding
 // 3, R32UI) and that splat's position and conic (binding 1, RGBA32F, 4
 // texels per splat) itself, so no election or broadcast is needed; colour
-// and features come the same way (bindings 1 and 2). On lavapipe each fetch is one vector gather, where a
-// device-address load is a loop over the lanes. Replaces the subgroup-load
+// and features come the same way (bindings 1 and 2). On lavapipe each fetch
+// is one vector gather, where a device-address load is a loop over the
+// lanes. Replaces the subgroup-load
 // blend where the splats and pairs fit maxTexelBufferElements. Each invocation
 // blends PIXELS pixels (constant_id 2) of its tile row, so one set of fetches
 // serves them all (at TILE / 2, a lane shades half a row and a subgroup one
