@@ -307,6 +307,7 @@ fn relit_outputs(
         }
         _ => None,
     };
+    log::debug!("{}: {}", target.display(), relit.timings);
     let line = format!(
         "{} camera {} {label}: {:.0} ms GPU{}",
         target.display(),
