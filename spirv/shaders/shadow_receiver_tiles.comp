@@ -1,13 +1,14 @@
 #version 460
 // The shadow-map tiles a camera's receivers look up, one invocation per
 // receiver pixel: its world point (as the shadow test finds it, bias offsets
-// included) projected into light space marks the tile under it and the eight
-// around it (the test's bilinear taps stay within one texel), so a map
-// splatted only in the marked tiles (`Splatter::render_frame_in_tiles`) gives
-// every receiver the visibility the whole map gives. Tiles are u32 flags,
-// zeroed by the host first; several cameras may mark one mask. Receivers
-// outside the uniform's camera-depth range mark nothing (a cascade serves its
-// slice of the view only).
+// included) projected into light space marks the tile under it, and
+// shadow_tile_dilate.comp then wants that tile and the eight around it (the
+// test's bilinear taps stay within one texel), so a map splatted only in the
+// wanted tiles (`Splatter::render_frame_in_tiles`) gives every receiver the
+// visibility the whole map gives. Marks are u32 flags, zeroed by the host
+// first; several cameras may mark one mask. Receivers outside the uniform's
+// camera-depth range mark nothing (a cascade serves its slice of the view
+// only).
 #define WORKGROUP_SIZE_X 64
 #include "common.glsl"
 #include "shadow.glsl"
@@ -27,13 +28,7 @@ void main() {
     int tile = int(shadow.modes.w);
     ivec2 tiles = ivec2(int(shadow.modes.z), (int(shadow.size.w) + tile - 1) / tile);
     ivec2 t = ivec2(floor(l.xy / float(tile)));
-    Uints mask = Uints(shadow.tile_mask);
-    for (int dy = -1; dy <= 1; dy++) {
-        for (int dx = -1; dx <= 1; dx++) {
-            ivec2 c = t + ivec2(dx, dy);
-            if (all(greaterThanEqual(c, ivec2(0))) && all(lessThan(c, tiles))) {
-                atomicOr(mask.v[uint(c.y * tiles.x + c.x)], 1u);
-            }
-        }
+    if (all(greaterThanEqual(t, ivec2(0))) && all(lessThan(t, tiles))) {
+        atomicOr(Uints(shadow.tile_mask).v[uint(t.y * tiles.x + t.x)], 1u);
     }
 }

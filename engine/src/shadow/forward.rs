@@ -27,6 +27,7 @@ pub struct ShadowPass {
     pub(super) gather: Arc<Kernel>,
     pub(super) sort: RadixSort,
     pub(super) receiver_tiles: Arc<Kernel>,
+    pub(super) tile_dilate: Arc<Kernel>,
     pub(super) cascade_blend: Arc<Kernel>,
 }
 
@@ -75,6 +76,14 @@ impl ShadowPass {
             )?,
             sort: RadixSort::new(device)?,
             receiver_tiles: device.kernel(&kernels::SHADOW_RECEIVER_TILES, &decl)?,
+            tile_dilate: device.kernel(
+                &kernels::SHADOW_TILE_DILATE,
+                &KernelDecl {
+                    bindings: &[],
+                    push_constant_size: std::mem::size_of::<TileDilatePush>(),
+                    specialization: &[],
+                },
+            )?,
             cascade_blend: device.kernel(
                 &kernels::SHADOW_CASCADE_BLEND,
                 &KernelDecl {
@@ -187,11 +196,10 @@ impl ShadowPass {
         let device = &self.device;
         let tile = settings.tile;
         let tiles = (camera.width.div_ceil(tile), camera.height.div_ceil(tile));
-        let mask = device.create_buffer(
-            "shadow tile mask",
-            u64::from(tiles.0) * u64::from(tiles.1) * 4,
-            MemoryKind::Storage,
-        )?;
+        let mask_bytes = u64::from(tiles.0) * u64::from(tiles.1) * 4;
+        // The tiles under the receivers' points, then those and their neighbours.
+        let centres = device.create_buffer("shadow receiver tiles", mask_bytes, MemoryKind::Storage)?;
+        let mask = device.create_buffer("shadow tile mask", mask_bytes, MemoryKind::Storage)?;
         let uniforms = receivers
             .iter()
             .map(|(g, c)| {
@@ -206,12 +214,19 @@ impl ShadowPass {
             })
             .collect::<Result<Vec<_>>>()?;
         let marked = device.run(|rec| -> Result<()> {
-            rec.fill(&mask, 0)?;
+            rec.fill(&centres, 0)?;
             rec.begin_stage("shadow map receiver tiles");
             for (u, inputs, buffer, pixels) in &uniforms {
-                u.record_receiver_tiles(rec, buffer, inputs, &mask)?;
+                u.record_receiver_tiles(rec, buffer, inputs, &centres)?;
                 rec.dispatch(&self.receiver_tiles, Grid::Items(*pixels), &[Binding::from(buffer)], &())?;
             }
+            let push = TileDilatePush {
+                centres: rec.addr(&centres)?,
+                wanted: rec.addr(&mask)?,
+                tiles_x: tiles.0,
+                tiles_y: tiles.1,
+            };
+            rec.dispatch(&self.tile_dilate, Grid::Items(u64::from(tiles.0) * u64::from(tiles.1)), &[], &push)?;
             rec.end_stage();
             Ok(())
         })?;

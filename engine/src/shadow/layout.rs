@@ -134,6 +134,17 @@ crate::gpu::gpu_layout!(
     [visibility01, visibility23, blended, count, pixels, far, blend_start]
 );
 
+/// `TileDilatePush` in `shadow_tile_dilate.comp` (its layout is checked against it).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+pub(crate) struct TileDilatePush {
+    pub(super) centres: DeviceAddress,
+    pub(super) wanted: DeviceAddress,
+    pub(super) tiles_x: u32,
+    pub(super) tiles_y: u32,
+}
+crate::gpu::gpu_layout!(TileDilatePush, "TileDilatePush", [centres, wanted, tiles_x, tiles_y]);
+
 /// The buffers the shadow kernels read: the receiver's and the map's depth
 /// channels the settings select, the receiver's alpha, and the map itself.
 pub(crate) struct ShadowInputs<'a> {
@@ -250,5 +261,6 @@ mod layout_tests {
         assert!(backward.as_ref().is_ok_and(|n| *n >= 2), "{backward:?}");
         assert_eq!(check_layout::<BinsPush>(&[&kernels::SHADOW_BINS]), Ok(1));
         assert_eq!(check_layout::<super::CascadePush>(&[&kernels::SHADOW_CASCADE_BLEND]), Ok(1));
+        assert_eq!(check_layout::<super::TileDilatePush>(&[&kernels::SHADOW_TILE_DILATE]), Ok(1));
     }
 }
