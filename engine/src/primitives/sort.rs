@@ -32,8 +32,8 @@ use super::scan::Scan;
 use crate::error::{Error, Result};
 use crate::gpu::ash::vk;
 use crate::gpu::{
-    kernels, Binding, BindingKind, Buffer, Device, DeviceAddress, Grid, Kernel, KernelDecl, MemoryKind, Recording,
-    SpecValue, TexelFormat, Texels,
+    kernels, Binding, BindingKind, Buffer, Device, DeviceAddress, DeviceInfo, Grid, Kernel, KernelDecl, MemoryKind,
+    Recording, SpecValue, TexelFormat, Texels,
 };
 
 /// Invocations per workgroup (keep in sync with the sort kernels' `WORKGROUP_SIZE_X`).
@@ -65,11 +65,20 @@ const WIDE_WORKGROUP: u64 = 8;
 /// 2^bits counts do not outnumber its keys).
 const WIDE_MIN_ITEMS: u64 = 2048;
 
-/// Whether [`RadixSort::new`] sorts with wide digits on a device of
-/// `device_type`: on CPU devices (lavapipe), where a dynamically indexed
-/// per-invocation array is ordinary memory; not on GPUs, which would spill it.
-pub fn wide_digits(device_type: vk::PhysicalDeviceType) -> bool {
-    device_type == vk::PhysicalDeviceType::CPU
+/// Whether [`RadixSort::new`] sorts with wide digits on `info`'s device: on
+/// CPU devices (lavapipe), where a dynamically indexed per-invocation array
+/// is ordinary memory; not on GPUs, which would spill it, and not on
+/// lavapipe before Mesa 25 ([`wide_digits_supported`]).
+pub fn wide_digits(info: &DeviceInfo) -> bool {
+    info.device_type == vk::PhysicalDeviceType::CPU && wide_digits_supported(info)
+}
+
+/// Whether [`RadixSort::set_wide_digits`] may turn wide digits on: not on
+/// lavapipe before Mesa 25, whose compiled wide kernels crash the process
+/// (a segmentation fault inside the driver's code) on a few million keys
+/// (Mesa 22.3.6: 4M keys crash, 1M do not; Mesa 25.0.7 sorts 16.8M).
+pub fn wide_digits_supported(info: &DeviceInfo) -> bool {
+    !(info.is_lavapipe() && info.mesa_version().is_some_and(|(major, _)| major < 25))
 }
 
 /// Entries of the digit-major histogram for `count` keys at `items` keys per
@@ -160,7 +169,7 @@ impl RadixSort {
     /// (where it can read the keys through texel views).
     pub fn new(device: &Device) -> Result<Self> {
         let mut sort = Self::with_items(device, sort_items(device.info().device_type))?;
-        if sort.texel.is_some() && wide_digits(device.info().device_type) {
+        if sort.texel.is_some() && wide_digits(device.info()) {
             sort.set_wide_digits(device, true)?;
         }
         Ok(sort)
@@ -259,9 +268,15 @@ impl RadixSort {
 
     /// Chooses wide or 4-bit digits (see [`RadixSort::wide_digits`]), building
     /// the wide-digit kernels the first time; wide digits where the device
-    /// lacks texel inputs are an error. Call [`RadixSort::reserve`] after
+    /// lacks texel inputs or where [`wide_digits_supported`] says no are an
+    /// error. Call [`RadixSort::reserve`] after
     /// turning them on: their histogram may need more scratch memory.
     pub fn set_wide_digits(&mut self, device: &Device, on: bool) -> Result<()> {
+        if on && !wide_digits_supported(device.info()) {
+            return Err(Error::unsupported(
+                "wide sort digits on lavapipe before Mesa 25 (they crash it on a few million keys): 4-bit digits",
+            ));
+        }
         if on && self.wide.is_none() {
             if self.texel.is_none() {
                 return Err(Error::unsupported("this device cannot read sort keys through uniform texel buffers"));
