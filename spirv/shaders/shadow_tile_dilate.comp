@@ -3,8 +3,8 @@
 // one invocation per map tile, wanted where it or one of its eight
 // neighbours holds a receiver's light-space point (shadow_receiver_tiles.comp
 // marks those, one atomic per receiver; the test's bilinear taps reach at
-// most one texel from the point, so within those nine tiles). Several masks'
-// marks may share one `centres`; `wanted` is overwritten.
+// most one texel from the point, so within those nine tiles). Several
+// cameras may mark one `centres`; every tile of `wanted` is written.
 #define WORKGROUP_SIZE_X 64
 #include "common.glsl"
 #include "address.glsl"
