@@ -59,9 +59,10 @@ bool tile_wanted(uint tile) {
 // ill-conditioned: whole rows), the half-height and y_side.
 struct TileEllipse { float r2, a, b, det, y_max, y_side; };
 
-TileEllipse tile_ellipse(vec4 head, vec3 conic) {
+// `tile_ellipse` with a given r² (a larger one gives a larger ellipse).
+TileEllipse tile_ellipse_of(float r2, vec3 conic) {
     TileEllipse e;
-    e.r2 = 2.02 * log(255.0 * head.w) + 0.01;
+    e.r2 = r2;
     e.a = conic.x;
     e.b = conic.y;
     float c = conic.z;
@@ -70,6 +71,11 @@ TileEllipse tile_ellipse(vec4 head, vec3 conic) {
     e.y_max = sqrt(e.r2 * e.a / e.det);
     e.y_side = e.b * sqrt(e.r2 / (c * e.det));
     return e;
+}
+
+// The splat's ellipse of α ≥ 1/255: r² = 2·ln(255·o), widened by 1% and 0.01.
+TileEllipse tile_ellipse(vec4 head, vec3 conic) {
+    return tile_ellipse_of(2.02 * log(255.0 * head.w) + 0.01, conic);
 }
 
 // Tiles of tile row `ty` whose square can see the splat at α ≥ 1/255, as
@@ -100,6 +106,14 @@ uvec2 tile_row_span(TileEllipse e, vec2 mean, uvec4 rect, uint ty, uint tile) {
     return uvec2(x0, x1);
 }
 
+// The pixel-centre x range [x.x, x.y] where the row at dy = mean.y − centre
+// y meets the ellipse of `e` (det > 0), widened by 0.01 px: d = mean − centre
+// spans dx ∈ (−b·dy ± sqrt(r²a − det·dy²)) / a there.
+vec2 ellipse_row_span(TileEllipse e, vec2 mean, float dy) {
+    float root = sqrt(max(e.r2 * e.a - e.det * dy * dy, 0.0));
+    return vec2(mean.x - (-e.b * dy + root) / e.a - 0.01, mean.x - (-e.b * dy - root) / e.a + 0.01);
+}
+
 // Which blocks of tile (tx, ty) the splat reaches at α ≥ 1/255: the tile
 // is cut into two halves of tile/2 columns and pairs of rows, bit
 // h·(tile/2) + r/2 for half h and row r (`tile` bits, `tile` ≤ 32); a block
@@ -123,12 +137,9 @@ uint tile_block_mask(TileEllipse e, vec2 mean, uint tx, uint ty, uint tile, bool
         bool left = true, right = true;
         if (check_x) {
             // d = mean − centre; at this row's dy the ellipse spans dx ∈ (−b·dy ± sqrt(r²a − det·dy²)) / a.
-            float dy = mean.y - (origin.y + float(r) + 0.5);
-            float root = sqrt(max(e.r2 * e.a - e.det * dy * dy, 0.0));
-            float x_lo = mean.x - (-e.b * dy + root) / e.a - 0.01;
-            float x_hi = mean.x - (-e.b * dy - root) / e.a + 0.01;
-            left = x_hi >= origin.x + 0.5 && x_lo <= split - 0.5;
-            right = x_hi >= split + 0.5 && x_lo <= origin.x + float(tile) - 0.5;
+            vec2 x = ellipse_row_span(e, mean, mean.y - (origin.y + float(r) + 0.5));
+            left = x.y >= origin.x + 0.5 && x.x <= split - 0.5;
+            right = x.y >= split + 0.5 && x.x <= origin.x + float(tile) - 0.5;
         }
         uint bit = r / 2u;
         mask |= (left ? 1u << bit : 0u) | (right ? 1u << (half_cols + bit) : 0u);

@@ -264,20 +264,16 @@ float log2_upper(float x) {
 // The pixel centres x ∈ [reach.x, reach.y] of the row at centre y where the
 // splat can reach α ≥ 1/255 (empty where it reaches none): `tile_ellipse`'s
 // widened ellipse, its r² from `log2_upper` (so a little wider still), and
-// 0.01 px more, as `tile_block_mask` (its superset: every pixel the blend
-// would take lies inside). The whole row where Q is too ill-conditioned,
+// 0.01 px more (`ellipse_row_span`, as `tile_block_mask`: every pixel the
+// blend would take lies inside). The whole row where Q is too ill-conditioned,
 // where r² is not a number, and for panoramas.
 vec2 lane_row_reach(vec4 head, vec4 conic, float y) {
     const float INF = 1.0 / 0.0;
     if (WRAP_X) return vec2(-INF, INF);
-    float a = conic.x, b = conic.y, c = conic.z;
-    float r2 = 2.02 * 0.6931472 * log2_upper(255.0 * head.w) + 0.01;
-    if (!(r2 > 0.0)) return r2 <= 0.0 ? vec2(INF, -INF) : vec2(-INF, INF);
-    float det = a * c - b * b;
-    if (!(det > 1e-4 * a * c)) return vec2(-INF, INF);
-    float dy = head.y - y;
-    float root = sqrt(max(r2 * a - det * dy * dy, 0.0));
-    return vec2(head.x - (-b * dy + root) / a - 0.01, head.x - (-b * dy - root) / a + 0.01);
+    TileEllipse e = tile_ellipse_of(2.02 * 0.6931472 * log2_upper(255.0 * head.w) + 0.01, conic.xyz);
+    if (!(e.r2 > 0.0)) return e.r2 <= 0.0 ? vec2(INF, -INF) : vec2(-INF, INF);
+    if (!(e.det > 0.0)) return vec2(-INF, INF);
+    return ellipse_row_span(e, head.xy, head.y - y);
 }
 
 // Blends splat g into one pixel of a lane (centre `centre`, still `live`)
