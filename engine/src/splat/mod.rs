@@ -40,6 +40,7 @@ pub use forward::*;
 pub(crate) use layout::*;
 
 use crate::error::{Error, Result};
+use crate::gpu::ash::vk;
 use crate::gpu::{Buffer, Device, DeviceInfo, SpecValue};
 
 /// The default tile edge in pixels ([`SplatSettings::tile`]).
@@ -70,16 +71,19 @@ pub(crate) fn tile_spec(tile: u32) -> [(u32, SpecValue); 2] {
 /// Pixels per invocation the texel-buffer blend accepts ([`Splatter::set_blend_pixels`]):
 /// each divides every tile edge of [`TILE_SIZES`].
 pub const BLEND_PIXELS: [u32; 4] = [1, 2, 4, 8];
-/// The pixels per invocation of the texel-buffer blend on drivers not measured otherwise.
+/// The pixels per invocation of the texel-buffer blend on CPU devices not measured otherwise.
 pub const DEFAULT_BLEND_PIXELS: u32 = 2;
 
 /// The pixels per invocation a new [`Splatter`] uses on `info`'s device:
 /// 8 on lavapipe from Mesa 25 on, where sharing each fetch and each loop
-/// step over eight pixels is fastest, else [`DEFAULT_BLEND_PIXELS`] (chosen
-/// by `srug bench splat --blend-pixels`; docs/bench/splat.md, docs/bench/mesa.md).
+/// step over eight pixels is fastest; 1 on GPUs, where a tile's pixels are
+/// its invocations and more of them run at once (measured on an NVIDIA
+/// H200); else [`DEFAULT_BLEND_PIXELS`] (chosen by `srug bench splat
+/// --blend-pixels`; docs/bench/splat.md, docs/bench/mesa.md, docs/bench/gpu.md).
 pub fn default_blend_pixels(info: &DeviceInfo) -> u32 {
     match info.mesa_version() {
         Some((major, _)) if info.is_lavapipe() && major >= 25 => 8,
+        _ if info.device_type != vk::PhysicalDeviceType::CPU => 1,
         _ => DEFAULT_BLEND_PIXELS,
     }
 }

@@ -30,7 +30,7 @@ pub(crate) struct SplatBenchArgs {
     /// Tile edge in pixels: 8, 16 or 32.
     #[arg(long, default_value_t = DEFAULT_TILE)]
     tile: u32,
-    /// Pixels per invocation of the texel-buffer blend: 1, 2, 4 or 8 (default: 8 on lavapipe from Mesa 25, else 2).
+    /// Pixels per invocation of the texel-buffer blend: 1, 2, 4 or 8 (default: 8 on lavapipe from Mesa 25, 1 on GPUs, else 2).
     #[arg(long)]
     blend_pixels: Option<u32>,
     /// Evaluate each splat only at the pixels of a blend lane's row it can reach: true or false
