@@ -747,13 +747,17 @@ impl<'a> Recording<'a> {
 }
 
 /// Workgroup grid for `count` invocations of `width`-wide workgroups: x first,
-/// then rows in y. `None` when even that exceeds `limits`.
+/// then as few rows in y as `limits` allow, the rows as even as whole groups
+/// make them, so past `limits[0]` groups the grid has fewer than one group
+/// per row to spare. A spare group is a launch that finds no item, and on a
+/// CPU device each launch costs time: full rows of `limits[0]` would leave
+/// most of the last row spare. `None` when even that exceeds `limits`.
 pub fn grid_1d(count: u64, width: u32, limits: [u32; 3]) -> Option<[u32; 3]> {
     let groups = count.div_ceil(u64::from(width.max(1)));
     if groups == 0 {
         return Some([0, 1, 1]);
     }
-    let gx = groups.min(u64::from(limits[0]));
-    let gy = groups.div_ceil(gx);
+    let gy = groups.div_ceil(u64::from(limits[0].max(1)));
+    let gx = groups.div_ceil(gy);
     (gy <= u64::from(limits[1])).then_some([gx as u32, gy as u32, 1])
 }

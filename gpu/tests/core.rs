@@ -416,11 +416,14 @@ fn grid_1d_covers_every_invocation() {
     let limits = [65_535, 65_535, 65_535];
     assert_eq!(gpu::grid_1d(0, 64, limits), Some([0, 1, 1]));
     assert_eq!(gpu::grid_1d(1, 64, limits), Some([1, 1, 1]));
-    assert_eq!(gpu::grid_1d(64 * 65_535 + 1, 64, limits), Some([65_535, 2, 1]));
-    for count in [1u64, 63, 64, 65, 10_000_000, 1 << 32] {
+    assert_eq!(gpu::grid_1d(64 * 65_535, 64, limits), Some([65_535, 1, 1]));
+    assert_eq!(gpu::grid_1d(64 * 65_535 + 1, 64, limits), Some([32_768, 2, 1]));
+    // Past one row the rows are even: under one spare group per row.
+    for count in [1u64, 63, 64, 65, 10_000_000, 64 * 65_535 * 3 + 1, 1 << 32] {
         let [x, y, _] = gpu::grid_1d(count, 64, limits).unwrap();
-        let covered = u64::from(x) * u64::from(y) * 64;
-        assert!(covered >= count && covered - count < u64::from(x) * 64, "{count}: {x}x{y}");
+        let (groups, covered) = (count.div_ceil(64), u64::from(x) * u64::from(y));
+        assert!(x <= limits[0] && y <= limits[1], "{count}: {x}x{y}");
+        assert!(covered >= groups && covered - groups < u64::from(y), "{count}: {x}x{y}");
     }
     assert_eq!(gpu::grid_1d(u64::MAX / 2, 64, limits), None);
 }
