@@ -59,19 +59,52 @@ fn a_map_splatted_only_where_receivers_look_gives_them_the_same_visibility() {
                     assert!(a.iter().any(|v| *v < 0.5), "{label}: the view has shadow");
                 }
             }
-            // Every texel of the culled map is the whole map's, or empty.
+            // Every texel of a wanted tile is the whole map's, or empty; the
+            // others were not splatted, and read_depth gives them empty.
+            let wanted: Vec<u32> = d.read_buffer(culled.wanted_tiles.as_ref().unwrap()).unwrap();
+            let (w, tile) = (culled.camera.width as usize, settings.tile as usize);
+            let tile_of = |i: usize| (i / w / tile) * w.div_ceil(tile) + (i % w) / tile;
             let (wa, ca) = (read(&d, &whole.frame.gbuffer.alpha), read(&d, &culled.frame.gbuffer.alpha));
             let depth = |m: &srug::shadow::ShadowMap| read(&d, m.frame.gbuffer.get(Channel::MedianDepth).unwrap());
             let (wd, cd) = (depth(&whole), depth(&culled));
+            let (wz, cz) =
+                (whole.read_depth(&d, settings.min_alpha).unwrap(), culled.read_depth(&d, settings.min_alpha).unwrap());
+            let empty = settings.map_depth.empty_depth(culled.camera.far);
             let mut kept = 0;
             for i in 0..wa.len() {
+                if wanted[tile_of(i)] == 0 {
+                    assert_eq!(cz[i], empty, "{label}: texel {i} of a tile not splatted");
+                    continue;
+                }
                 let same = wa[i].to_bits() == ca[i].to_bits() && wd[i].to_bits() == cd[i].to_bits();
                 assert!(same || (ca[i] == 0.0 && cd[i] == 0.0), "{label}: texel {i}");
+                assert!(cz[i].to_bits() == wz[i].to_bits() || cz[i] == empty, "{label}: depth of texel {i}");
                 kept += usize::from(same && wa[i] > 0.0);
             }
             assert!(kept > 0, "{label}: no covered texel kept");
+            assert!(wanted.contains(&0), "{label}: every map tile wanted: nothing culled");
         }
     }
+
+    // The splat in tiles leaves the other tiles' pixels as they were (a NaN
+    // prefill here) and writes every pixel of the wanted ones as the whole render.
+    let camera = cameras[0].clone();
+    let settings = srug::splat::SplatSettings { prefill: Some(srug_tests::NAN_SENTINEL), ..Default::default() };
+    let tiles_x = camera.width.div_ceil(settings.tile) as usize;
+    let tiles = tiles_x * camera.height.div_ceil(settings.tile) as usize;
+    let wanted: Vec<u32> = (0..tiles).map(|t| u32::from(t % 3 != 1)).collect();
+    let mask = d.upload("tile mask", &wanted).unwrap();
+    let full = read(&d, &splatter.render_frame(&scene, &camera, &settings).unwrap().gbuffer.alpha);
+    let part = read(&d, &splatter.render_frame_in_tiles(&scene, &camera, &settings, &mask).unwrap().gbuffer.alpha);
+    let (w, tile) = (camera.width as usize, settings.tile as usize);
+    for (i, (f, p)) in full.iter().zip(&part).enumerate() {
+        if wanted[(i / w / tile) * tiles_x + (i % w) / tile] == 0 {
+            assert!(p.is_nan(), "pixel {i} of a tile not wanted was written");
+        } else {
+            assert!(p.to_bits() == f.to_bits() || (*p == 0.0 && !f.is_nan()), "pixel {i}: {p} against {f}");
+        }
+    }
+    assert!(full.iter().zip(&part).any(|(f, p)| *f > 0.0 && f.to_bits() == p.to_bits()), "no covered pixel kept");
 
     // Through the relighter: the same relit frame with the whole map (kept:
     // reuse on), with culling asked for, and culled by itself (reuse off).

@@ -157,7 +157,7 @@ impl ShadowPass {
         for stage in &mut frame.stats.timings.stages {
             stage.name = format!("shadow map {}", stage.name);
         }
-        Ok(ShadowMap { camera, sun: *sun, depth: settings.map_depth, frame })
+        Ok(ShadowMap { camera, sun: *sun, depth: settings.map_depth, frame, wanted_tiles: None })
     }
 
     /// The shadow map from light camera `camera` (as [`ShadowPass::shadow_map`]
@@ -166,7 +166,8 @@ impl ShadowPass {
     /// [`ShadowPass::visibility`]) look up, and around them: casters elsewhere
     /// cost nothing, and every one of those receivers gets exactly the
     /// visibility the whole map gives (off-screen casters included: the
-    /// culling is in light space). The map serves only those receivers.
+    /// culling is in light space). The map serves only those receivers: its
+    /// G-buffer is written in those tiles alone ([`ShadowMap::wanted_tiles`]).
     pub fn shadow_map_for_receivers(
         &self,
         splatter: &mut Splatter,
@@ -234,6 +235,7 @@ impl ShadowPass {
         let mut stages = marked.stages;
         stages.append(&mut map.frame.stats.timings.stages);
         map.frame.stats.timings.stages = stages;
+        map.wanted_tiles = Some(mask);
         Ok(map)
     }
 

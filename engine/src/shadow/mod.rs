@@ -40,7 +40,7 @@ use glam::Vec3;
 
 pub use self::sun::{solar_position, sun_path, SolarPosition, Sun, UtcTime};
 use crate::error::{Error, Result};
-use crate::gpu::Device;
+use crate::gpu::{Buffer, Device};
 use crate::scene::{Bounds, Camera, Projection};
 use crate::splat::{Channels, SplatFrame, SplatSettings};
 
@@ -76,7 +76,7 @@ impl DepthMode {
 
     /// The depth a texel with nothing in it reads as, for a light camera whose
     /// far plane is `far`: `far` (median, expected), `2·far` (expected over far).
-    pub(crate) fn empty_depth(self, far: f32) -> f32 {
+    pub fn empty_depth(self, far: f32) -> f32 {
         match self {
             Self::ExpectedOverFar => 2.0 * far,
             Self::Median | Self::Expected => far,
@@ -496,6 +496,11 @@ pub struct ShadowMap {
     pub depth: DepthMode,
     /// The light-space splat (G-buffers: alpha plus the depth channel).
     pub frame: SplatFrame,
+    /// For a map splatted only where receivers look
+    /// ([`ShadowPass::shadow_map_for_receivers`]): one u32 per map tile
+    /// (`ShadowSettings::tile`, row-major), non-zero where the map was
+    /// splatted. Elsewhere `frame`'s G-buffer was not written.
+    pub wanted_tiles: Option<Buffer>,
 }
 
 impl ShadowMap {
@@ -504,9 +509,24 @@ impl ShadowMap {
         texel_size(&self.camera)
     }
 
-    /// The texels' depth z_s on the host (empty texels: `DepthMode::empty_depth`).
+    /// The texels' depth z_s on the host (empty texels, and those of tiles a
+    /// culled map did not splat: `DepthMode::empty_depth`).
     pub fn read_depth(&self, device: &Device, min_alpha: f32) -> Result<Vec<f32>> {
         let g = self.frame.gbuffer.read(device)?;
-        Ok(cpu::resolve_depths(self.depth, &g, min_alpha, self.depth.empty_depth(self.camera.far)))
+        let empty = self.depth.empty_depth(self.camera.far);
+        let mut depths = cpu::resolve_depths(self.depth, &g, min_alpha, empty);
+        if let Some(mask) = &self.wanted_tiles {
+            let wanted: Vec<u32> = device.read_buffer(mask)?;
+            let tile = self.frame.tile.max(1) as usize;
+            let width = self.camera.width as usize;
+            let tiles_x = width.div_ceil(tile);
+            for (p, z) in depths.iter_mut().enumerate() {
+                let t = (p / width / tile) * tiles_x + (p % width) / tile;
+                if wanted.get(t).is_none_or(|w| *w == 0) {
+                    *z = empty;
+                }
+            }
+        }
+        Ok(depths)
     }
 }

@@ -407,10 +407,12 @@ impl Splatter {
 
     /// Renders only the tiles `tile_mask` wants (one u32 per tile of
     /// `camera` at `settings.tile`, row-major, non-zero: wanted): splats get
-    /// pairs only there, so elsewhere the frame is empty, and in the wanted
-    /// tiles it is [`Splatter::render_frame`]'s, bit for bit (the same splats
-    /// in the same order). A shadow map needs only the tiles its receivers
-    /// look up (`ShadowSettings::cull_to_receivers`).
+    /// pairs only there, and only their pixels are written, which in the
+    /// wanted tiles are [`Splatter::render_frame`]'s, bit for bit (the same
+    /// splats in the same order). The other tiles' pixels are not written:
+    /// they hold whatever the G-buffer's buffers held (`settings.prefill`
+    /// where set). A shadow map needs only the tiles its receivers look up
+    /// (`ShadowSettings::cull_to_receivers`).
     pub fn render_frame_in_tiles(
         &mut self,
         scene: &GpuScene,

@@ -295,6 +295,7 @@ void blend_pixel(inout Accumulated acc, inout bool live, float limit, uint g, ve
 
 void main() {
     uint tile = block_index();
+    if (!tile_blended(tile)) return;
     uint tiles_x = frame.size.z;
     uvec2 base = uvec2(tile % tiles_x, tile / tiles_x) * TILE + lane_pixel(gl_LocalInvocationIndex);
     uvec2 range = Uvec2s(frame.ranges).v[tile];
@@ -380,6 +381,7 @@ void main() {
 #else
 void main() {
     uint tile = block_index();
+    if (!tile_blended(tile)) return;
     uint tiles_x = frame.size.z;
     uint local = gl_LocalInvocationIndex;
     uvec2 pix = uvec2(tile % tiles_x, tile / tiles_x) * TILE + gl_LocalInvocationID.xy;
