@@ -231,6 +231,8 @@ fn bench_splat_prints_its_tables() {
         "1",
         "--sort-keys",
         "5000",
+        "--floor-pairs",
+        "6000",
     ]);
     let t = text(&o);
     assert!(o.status.success(), "{t}");
@@ -245,7 +247,7 @@ fn bench_splat_prints_its_tables() {
         "sort_unstable",
         "ceiling % |",
         "blend ceiling",
-        "pair-move floor, 5000 pairs",
+        "pair-move floor, 6000 pairs",
         "memory bandwidth (",
         "MiB read once through an RGBA32F texel view",
         "preprocess % of floor | sort % of floor | blend % of ceiling |",

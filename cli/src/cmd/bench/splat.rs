@@ -24,6 +24,10 @@ pub(crate) struct SplatBenchArgs {
     /// Keys for the sort comparison.
     #[arg(long, default_value_t = 4_000_000)]
     sort_keys: usize,
+    /// Pairs the pair-move floor is measured at ("sort % of floor" scales it to each row's pairs;
+    /// apart from --sort-keys, so a quick run with few sort keys keeps the column comparable).
+    #[arg(long, default_value_t = 4_000_000)]
+    floor_pairs: u64,
     /// Blend variant: per-pixel, subgroup or batched (default: subgroup where supported).
     #[arg(long, value_parser = BlendVariant::parse)]
     blend: Option<BlendVariant>,
@@ -45,8 +49,18 @@ pub(crate) struct SplatBenchArgs {
 impl SplatBenchArgs {
     /// Runs `srug bench splat`.
     pub(crate) fn run(&self, device_args: &DeviceArgs) -> Result<()> {
-        let &Self { ref gaussians, ref sizes, repeats, sort_keys, blend, tile, blend_pixels, pixel_reach, tile_bounds } =
-            self;
+        let &Self {
+            ref gaussians,
+            ref sizes,
+            repeats,
+            sort_keys,
+            floor_pairs,
+            blend,
+            tile,
+            blend_pixels,
+            pixel_reach,
+            tile_bounds,
+        } = self;
         check_tile(tile)?;
         let counts = gaussians;
         let sizes: Vec<(u32, u32)> = sizes.iter().map(|s| s.pair()).collect();
@@ -61,7 +75,7 @@ impl SplatBenchArgs {
         let sort = bench::sort_bench(&device, sort_keys, 32 + 11, repeats)?;
         bar.set_message("measuring the blend ceiling, the pair-move floor and the memory bandwidth");
         let ceiling = bench::limits::blend_ceiling(&device, repeats)?;
-        let floor = bench::limits::pair_move_floor(&device, sort_keys as u64, repeats)?;
+        let floor = bench::limits::pair_move_floor(&device, floor_pairs, repeats)?;
         // 64 MiB on CPU devices; on GPUs four times that, past their last-level caches.
         let cpu = device.info().device_type == srug::gpu::ash::vk::PhysicalDeviceType::CPU;
         let bandwidth = bench::limits::memory_bandwidth(&device, if cpu { 64 << 20 } else { 256 << 20 }, repeats)?;
