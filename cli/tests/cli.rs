@@ -254,6 +254,25 @@ fn bench_splat_prints_its_tables() {
     ] {
         assert!(t.contains(want), "missing {want:?} in:\n{t}");
     }
+    // A floor measured on one pair (all launch, scaled to thousands) is far above the sort:
+    // the column passes 100 and the bench says what that means.
+    let o = srug(&[
+        "bench",
+        "splat",
+        "--gaussians",
+        "2000",
+        "--sizes",
+        "64x32",
+        "--repeats",
+        "1",
+        "--sort-keys",
+        "5000",
+        "--floor-pairs",
+        "1",
+    ]);
+    let t = text(&o);
+    assert!(o.status.success(), "{t}");
+    assert!(t.contains("note: sort % of floor above 100 in some rows"), "{t}");
 }
 
 /// Malformed values are refused by the argument parser before anything runs:
