@@ -220,20 +220,11 @@ fn bad_input_fails_with_a_clear_message() {
 
 #[test]
 fn bench_splat_prints_its_tables() {
-    let o = srug(&[
-        "bench",
-        "splat",
-        "--gaussians",
-        "2000",
-        "--sizes",
-        "64x32,48x16",
-        "--repeats",
-        "1",
-        "--sort-keys",
-        "5000",
-        "--floor-pairs",
-        "6000",
-    ]);
+    let bench = |sizes: &str, floor_pairs: &str| {
+        let args = ["--gaussians", "2000", "--sizes", sizes, "--repeats", "1", "--sort-keys", "5000"];
+        srug(&[&["bench", "splat"][..], &args, &["--floor-pairs", floor_pairs]].concat())
+    };
+    let o = bench("64x32,48x16", "6000");
     let t = text(&o);
     assert!(o.status.success(), "{t}");
     assert!(t.contains("measured FMA peak"), "{t}");
@@ -256,20 +247,7 @@ fn bench_splat_prints_its_tables() {
     }
     // A floor measured on one pair (all launch, scaled to thousands) is far above the sort:
     // the column passes 100 and the bench says what that means.
-    let o = srug(&[
-        "bench",
-        "splat",
-        "--gaussians",
-        "2000",
-        "--sizes",
-        "64x32",
-        "--repeats",
-        "1",
-        "--sort-keys",
-        "5000",
-        "--floor-pairs",
-        "1",
-    ]);
+    let o = bench("64x32", "1");
     let t = text(&o);
     assert!(o.status.success(), "{t}");
     assert!(t.contains("note: sort % of floor above 100 in some rows"), "{t}");
