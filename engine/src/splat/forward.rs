@@ -146,6 +146,8 @@ struct BlendOptions {
     occluded: bool,
     /// Row masks in the keys (texel blend only).
     row_masks: bool,
+    /// Only the tiles of the frame's tile mask are blended.
+    tile_mask: bool,
 }
 
 /// One rendered frame with the per-frame buffers later stages walk again:
@@ -319,7 +321,7 @@ impl Splatter {
 
     /// The blend kernel for `options`, from the device's kernel cache.
     fn blend_kernel(&self, options: BlendOptions) -> Result<Arc<Kernel>> {
-        let BlendOptions { bits, tile, texel, wrap_x, surface, occluded, row_masks } = options;
+        let BlendOptions { bits, tile, texel, wrap_x, surface, occluded, row_masks, tile_mask } = options;
         let pixels = if texel { self.blend_pixels } else { 1 };
         let info = match (self.blend_variant, texel) {
             (BlendVariant::PerPixel, _) => &kernels::SPLAT_BLEND_PORTABLE,
@@ -344,6 +346,9 @@ impl Splatter {
         }
         if row_masks {
             spec.push((6, SpecValue::Bool(true)));
+        }
+        if tile_mask {
+            spec.push((8, SpecValue::Bool(true)));
         }
         if texel {
             // PIXELS per invocation along x: TILE / PIXELS invocations across.
@@ -597,6 +602,7 @@ impl Splatter {
                 surface: settings.surface_depth,
                 occluded: view.occluder.is_some(),
                 row_masks,
+                tile_mask: view.tile_mask.is_some(),
             })?,
             pairs,
             key_bits,

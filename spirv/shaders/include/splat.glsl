@@ -54,13 +54,6 @@ bool tile_wanted(uint tile) {
     return UintsIn(frame.tile_mask).v[tile] != 0u;
 }
 
-// Whether the blend writes tile `tile`: every tile, or with a tile mask
-// (frame.tile_mask non-zero) only the wanted ones; the others' pixels are
-// left as the G-buffer held them (`Splatter::render_frame_in_tiles`).
-bool tile_blended(uint tile) {
-    return frame.tile_mask.x + frame.tile_mask.y == 0u || tile_wanted(tile);
-}
-
 // The per-splat part of `tile_row_span`, computed once per splat: r² (≤ 0:
 // the splat reaches no pixel), the conic's a and b, det Q (0 where too
 // ill-conditioned: whole rows), the half-height and y_side.

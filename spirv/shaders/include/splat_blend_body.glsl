@@ -23,6 +23,10 @@ layout(constant_id = 6) const bool ROW_MASKS = false;
 // can reach (`lane_row_reach`); for drivers that jump over an `if` no lane
 // enters (engine/src/splat/mod.rs `default_pixel_reach`).
 layout(constant_id = 7) const bool PIXEL_REACH = false;
+// Blend only the tiles the frame's tile mask wants (`tile_wanted`), as the
+// keys kernel listed; the others' pixels are left unwritten. A constant, so
+// frames without a mask carry no test.
+layout(constant_id = 8) const bool TILE_MASK = false;
 // Without rgb (shadow maps) no colour is read, blended or stored.
 const bool RGB = (CHANNELS & 256u) != 0u;
 // The index of the splat with the largest weight wᵢ = αᵢ Tᵢ (the first of equal ones), per pixel.
@@ -295,7 +299,7 @@ void blend_pixel(inout Accumulated acc, inout bool live, float limit, uint g, ve
 
 void main() {
     uint tile = block_index();
-    if (!tile_blended(tile)) return;
+    if (TILE_MASK && !tile_wanted(tile)) return;
     uint tiles_x = frame.size.z;
     uvec2 base = uvec2(tile % tiles_x, tile / tiles_x) * TILE + lane_pixel(gl_LocalInvocationIndex);
     uvec2 range = Uvec2s(frame.ranges).v[tile];
@@ -381,7 +385,7 @@ void main() {
 #else
 void main() {
     uint tile = block_index();
-    if (!tile_blended(tile)) return;
+    if (TILE_MASK && !tile_wanted(tile)) return;
     uint tiles_x = frame.size.z;
     uint local = gl_LocalInvocationIndex;
     uvec2 pix = uvec2(tile % tiles_x, tile / tiles_x) * TILE + gl_LocalInvocationID.xy;
