@@ -22,6 +22,11 @@ fn read(d: &Device, b: &srug::gpu::Buffer) -> Vec<f32> {
     d.read_buffer(b).unwrap()
 }
 
+/// The row-major tile, of `tile`-pixel tiles, holding pixel `i` of an image `width` pixels wide.
+fn tile_of(i: usize, width: usize, tile: usize) -> usize {
+    (i / width / tile) * width.div_ceil(tile) + (i % width) / tile
+}
+
 #[test]
 fn a_map_splatted_only_where_receivers_look_gives_them_the_same_visibility() {
     let d = device();
@@ -63,7 +68,6 @@ fn a_map_splatted_only_where_receivers_look_gives_them_the_same_visibility() {
             // others were not splatted, and read_depth gives them empty.
             let wanted: Vec<u32> = d.read_buffer(culled.wanted_tiles.as_ref().unwrap()).unwrap();
             let (w, tile) = (culled.camera.width as usize, settings.tile as usize);
-            let tile_of = |i: usize| (i / w / tile) * w.div_ceil(tile) + (i % w) / tile;
             let (wa, ca) = (read(&d, &whole.frame.gbuffer.alpha), read(&d, &culled.frame.gbuffer.alpha));
             let depth = |m: &srug::shadow::ShadowMap| read(&d, m.frame.gbuffer.get(Channel::MedianDepth).unwrap());
             let (wd, cd) = (depth(&whole), depth(&culled));
@@ -72,7 +76,7 @@ fn a_map_splatted_only_where_receivers_look_gives_them_the_same_visibility() {
             let empty = settings.map_depth.empty_depth(culled.camera.far);
             let mut kept = 0;
             for i in 0..wa.len() {
-                if wanted[tile_of(i)] == 0 {
+                if wanted[tile_of(i, w, tile)] == 0 {
                     assert_eq!(cz[i], empty, "{label}: texel {i} of a tile not splatted");
                     continue;
                 }
@@ -98,7 +102,7 @@ fn a_map_splatted_only_where_receivers_look_gives_them_the_same_visibility() {
     let part = read(&d, &splatter.render_frame_in_tiles(&scene, &camera, &settings, &mask).unwrap().gbuffer.alpha);
     let (w, tile) = (camera.width as usize, settings.tile as usize);
     for (i, (f, p)) in full.iter().zip(&part).enumerate() {
-        if wanted[(i / w / tile) * tiles_x + (i % w) / tile] == 0 {
+        if wanted[tile_of(i, w, tile)] == 0 {
             assert!(p.is_nan(), "pixel {i} of a tile not wanted was written");
         } else {
             assert!(p.to_bits() == f.to_bits() || (*p == 0.0 && !f.is_nan()), "pixel {i}: {p} against {f}");
