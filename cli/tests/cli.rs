@@ -220,14 +220,24 @@ fn bad_input_fails_with_a_clear_message() {
 
 #[test]
 fn bench_splat_prints_its_tables() {
-    let bench = |sizes: &str, floor_pairs: &str| {
+    let bench = |sizes: &str, floor_pairs: &str, sh_degree: &str| {
         let args = ["--gaussians", "2000", "--sizes", sizes, "--repeats", "1", "--sort-keys", "5000"];
-        srug(&[&["bench", "splat"][..], &args, &["--floor-pairs", floor_pairs]].concat())
+        srug(&[&["bench", "splat"][..], &args, &["--floor-pairs", floor_pairs, "--sh-degree", sh_degree]].concat())
     };
-    let o = bench("64x32,48x16", "6000");
+    // The "scene MiB" of the first row.
+    let scene_mib = |t: &str| -> f64 {
+        let cells = |l: &str| l.split('|').map(|c| c.trim().to_string()).collect::<Vec<_>>();
+        let header = t.lines().find(|l| l.starts_with("| Gaussians |")).map(cells).unwrap_or_default();
+        let row = t.lines().find(|l| l.starts_with("| 2000 | 64x32 |")).map(cells).unwrap_or_default();
+        let column = header.iter().position(|c| c == "scene MiB").unwrap_or_else(|| panic!("no scene MiB:\n{t}"));
+        row.get(column).and_then(|c| c.parse().ok()).unwrap_or_else(|| panic!("no 64x32 row:\n{t}"))
+    };
+    let o = bench("64x32,48x16", "6000", "1");
     let t = text(&o);
     assert!(o.status.success(), "{t}");
+    let sh1_mib = scene_mib(&t);
     assert!(t.contains("measured FMA peak"), "{t}");
+    assert!(t.contains("the demo city (seed 7) at SH degree 1"), "{t}");
     for want in [
         "| 2000 | 64x32 |",
         "| 2000 | 48x16 |",
@@ -247,14 +257,19 @@ fn bench_splat_prints_its_tables() {
     }
     // A floor measured on one pair (all launch, scaled to thousands) is far above the sort:
     // the column passes 100 and the bench says what that means.
-    let o = bench("64x32", "1");
+    let o = bench("64x32", "1", "3");
     let t = text(&o);
     assert!(o.status.success(), "{t}");
     assert!(t.contains("note: sort % of floor above 100 in some rows"), "{t}");
+    // SH degree 3: 48 coefficients a Gaussian where degree 1 holds 12, 144 bytes more each.
+    assert!(t.contains("the demo city (seed 7) at SH degree 3"), "{t}");
+    let grown = scene_mib(&t) - sh1_mib;
+    assert!((grown - 2000.0 * 144.0 / 1048576.0).abs() < 0.11, "{sh1_mib} -> {} MiB", scene_mib(&t));
+    let o = bench("64x32", "6000", "4");
+    assert_eq!(o.status.code(), Some(1), "{}", text(&o));
+    assert!(text(&o).contains("--sh-degree 4: is not 0 to 3"), "{}", text(&o));
 }
 
-/// Malformed values are refused by the argument parser before anything runs:
-/// exit status 2, the flag and the reason named, no panic.
 /// `srug bench batch` runs srug render and relight to PNG and EXR and the in-process
 /// renders for each count, and prints a row of positive rates per count.
 #[test]
@@ -296,6 +311,8 @@ fn bench_embed_prints_its_table() {
     assert!(!o.status.success() && text(&o).contains("--frames"), "{}", text(&o));
 }
 
+/// Malformed values are refused by the argument parser before anything runs:
+/// exit status 2, the flag and the reason named, no panic.
 #[test]
 fn malformed_values_are_usage_errors() {
     let cases: &[(&[&str], &[&str])] = &[

@@ -127,6 +127,8 @@ fn median(mut v: Vec<f64>) -> f64 {
 pub struct SplatBenchOptions {
     /// Repeats per setting (medians are reported).
     pub repeats: usize,
+    /// SH degree of the demo city.
+    pub sh_degree: u32,
     /// Blend variant (`None`: the device's default).
     pub blend: Option<BlendVariant>,
     /// Pixels per invocation of the texel-buffer blend (`None`: the default).
@@ -147,7 +149,7 @@ pub fn splat_bench(
     options: &SplatBenchOptions,
     mut progress: impl FnMut(&str),
 ) -> Result<Vec<SplatBenchRow>> {
-    let SplatBenchOptions { repeats, blend, blend_pixels, pixel_reach, tile, tile_bounds } = *options;
+    let SplatBenchOptions { repeats, sh_degree, blend, blend_pixels, pixel_reach, tile, tile_bounds } = *options;
     let settings = SplatSettings { tile, tile_bounds, ..SplatSettings::default() };
     let mut rows = Vec::new();
     let mut splatter = Splatter::new(device)?;
@@ -162,7 +164,7 @@ pub fn splat_bench(
     }
     for &n in counts {
         progress(&format!("generating the demo city with {n} Gaussians"));
-        let city = demo_city(&DemoOptions { seed: 7, gaussians: n, sh_degree: 1 })?;
+        let city = demo_city(&DemoOptions { seed: 7, gaussians: n, sh_degree })?;
         let scene = GpuScene::upload(device, &city.scene)?;
         for &(w, h) in sizes {
             progress(&format!("{n} Gaussians at {w}x{h}"));
@@ -188,8 +190,8 @@ pub fn splat_bench(
                     srug::splat::cpu::preprocess_one(&city.scene, i, &cam, NormalSource::default(), tile).is_some()
                 })
                 .count() as u64;
-            // Means, then log-scales, rotation, opacity and SH at the degree used (1 here).
-            let (position, rest) = (12u64, 12 + 16 + 4 + 4 * 3 * 4);
+            // Means, then log-scales, rotation, opacity and SH at the degree used.
+            let (position, rest) = (12u64, 12 + 16 + 4 + 4 * 3 * u64::from((sh_degree + 1) * (sh_degree + 1)));
             // The 64-byte splat record and a 32-bit tile count.
             let (record, count) = (64u64, 4u64);
             rows.push(SplatBenchRow {

@@ -21,6 +21,9 @@ pub(crate) struct SplatBenchArgs {
     /// Repeats per setting (medians are reported).
     #[arg(long, default_value_t = 3)]
     repeats: usize,
+    /// SH degree of the demo city (0 to 3): what the preprocess reads and evaluates.
+    #[arg(long, default_value_t = 1)]
+    sh_degree: u32,
     /// Keys for the sort comparison.
     #[arg(long, default_value_t = 4_000_000)]
     sort_keys: usize,
@@ -53,6 +56,7 @@ impl SplatBenchArgs {
             ref gaussians,
             ref sizes,
             repeats,
+            sh_degree,
             sort_keys,
             floor_pairs,
             blend,
@@ -62,14 +66,19 @@ impl SplatBenchArgs {
             tile_bounds,
         } = self;
         check_tile(tile)?;
+        if sh_degree > 3 {
+            return Err(srug::Error::invalid(format!("--sh-degree {sh_degree}"), "is not 0 to 3"));
+        }
         let counts = gaussians;
         let sizes: Vec<(u32, u32)> = sizes.iter().map(|s| s.pair()).collect();
         let device = device_args.open()?;
         let info = device.info();
         let peak = bench::fma_peak_gflops(&device, 5)?;
-        println!("device: {} ({}), measured FMA peak {peak:.1} GFLOP/s\n", info.name, info.driver);
+        println!("device: {} ({}), measured FMA peak {peak:.1} GFLOP/s", info.name, info.driver);
+        println!("scene: the demo city (seed 7) at SH degree {sh_degree}, its first street camera\n");
         let bar = spinner("benchmarking");
-        let options = bench::SplatBenchOptions { repeats, blend, blend_pixels, pixel_reach, tile, tile_bounds };
+        let options =
+            bench::SplatBenchOptions { repeats, sh_degree, blend, blend_pixels, pixel_reach, tile, tile_bounds };
         let rows = bench::splat_bench(&device, counts, &sizes, &options, |m| bar.set_message(m.to_string()))?;
         bar.set_message("sorting");
         let sort = bench::sort_bench(&device, sort_keys, 32 + 11, repeats)?;
