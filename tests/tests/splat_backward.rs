@@ -371,6 +371,17 @@ fn backward_refuses_mismatched_inputs() {
     };
     let e = splatter.backward(&frame, &other, &ok, false).err().unwrap().to_string();
     assert!(e.contains("another scene"), "{e}");
+    // `Splatter::render` drops its frame and so writes no pair tiles: the same image, bit for
+    // bit; a frame without them is refused, naming what is missing.
+    let (rendered, _) = splatter.render(&gpu_scene, &camera, &SplatSettings::default()).unwrap();
+    let (rendered, kept) = (rendered.read(&d).unwrap(), frame.gbuffer.read(&d).unwrap());
+    let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+    assert_eq!(bits(&rendered.alpha), bits(&kept.alpha));
+    assert_eq!(rendered.rgb.as_deref().map(bits), kept.rgb.as_deref().map(bits));
+    let mut bare = splatter.render_frame(&gpu_scene, &camera, &SplatSettings::default()).unwrap();
+    assert!(bare.pair_tiles.take().is_some(), "render_frame keeps the pair tiles");
+    let e = splatter.backward(&bare, &gpu_scene, &ok, false).err().unwrap().to_string();
+    assert!(e.contains("pair tiles"), "{e}");
     let normal = d.create_filled::<f32>("n", 3 * 32 * 32, 0).unwrap();
     let features =
         BlendGrads { channels: PerChannel::default().with(Channel::Normal, normal), ..BlendGrads::default() };

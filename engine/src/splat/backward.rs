@@ -196,6 +196,9 @@ impl Splatter {
         if frame.scene_means != scene.means.id() || frame.gaussians != scene.count as u64 {
             return Err(Error::invalid("splat frame", "was rendered from another scene"));
         }
+        let Some(pair_tiles) = frame.pair_tiles.as_ref() else {
+            return Err(Error::invalid("splat frame", "keeps no pair tiles (render it with Splatter::render_frame)"));
+        };
         let pixels = u64::from(frame.camera.width) * u64::from(frame.camera.height);
         for (b, k, name) in grads.buffers() {
             if b.size() < k * pixels * 4 {
@@ -280,7 +283,7 @@ impl Splatter {
                 tile_counts: &frame.pair_offsets,
                 keys: None,
                 values: Some(&frame.sorted_gaussians),
-                pair_tiles: Some(&frame.pair_tiles),
+                pair_tiles: Some(pair_tiles),
                 ranges: &frame.ranges,
                 out: &frame.gbuffer,
                 occluder: None,

@@ -169,7 +169,10 @@ pub struct SplatFrame {
     /// Tile id of each unsorted pair: each Gaussian's pairs from its offset on,
     /// in increasing tile order (the keys kernel's padding last, with id = tiles).
     /// The backward pass finds a pair's gradient record by searching these.
-    pub pair_tiles: Buffer,
+    /// Every frame a `render_frame*` or `render_frames` call returns has them;
+    /// [`Splatter::render`] and [`Splatter::render_batch`], whose frames nobody
+    /// differentiates, write none.
+    pub pair_tiles: Option<Buffer>,
     /// Per-tile [start, end) into the sorted pairs, `uvec2` per tile.
     pub ranges: Buffer,
     /// Per-splat features (normal, materials) when any feature channel was rendered.
@@ -371,8 +374,8 @@ impl Splatter {
         camera: &Camera,
         settings: &SplatSettings,
     ) -> Result<(GpuGBuffer, SplatStats)> {
-        let frame = self.render_frame(scene, camera, settings)?;
-        Ok((frame.gbuffer, frame.stats))
+        let frame = self.render_batch(scene, std::slice::from_ref(camera), settings)?.pop();
+        frame.ok_or_else(|| Error::Internal("a one-camera render returned no frame".into()))
     }
 
     /// Renders like [`Splatter::render`] and keeps the per-frame buffers.
@@ -436,7 +439,7 @@ impl Splatter {
         if camera.wrap_period().is_some() {
             return Err(Error::invalid("tile mask", "needs a camera whose tiles do not wrap (not a full panorama)"));
         }
-        let view = View { camera, occluder: None, tile_mask: Some(tile_mask) };
+        let view = View { camera, occluder: None, tile_mask: Some(tile_mask), pair_tiles: true };
         let mut frames = self.render_views(scene, &[view], settings)?;
         frames.pop().ok_or_else(|| Error::Internal("a one-camera render returned no frame".into()))
     }
@@ -448,7 +451,8 @@ impl Splatter {
         settings: &SplatSettings,
         occluder: Option<(&Buffer, HostDepth)>,
     ) -> Result<SplatFrame> {
-        let mut frames = self.render_views(scene, &[View { camera, occluder, tile_mask: None }], settings)?;
+        let view = View { camera, occluder, tile_mask: None, pair_tiles: true };
+        let mut frames = self.render_views(scene, &[view], settings)?;
         frames.pop().ok_or_else(|| Error::Internal("a one-camera render returned no frame".into()))
     }
 
@@ -465,8 +469,19 @@ impl Splatter {
         cameras: &[Camera],
         settings: &SplatSettings,
     ) -> Result<Vec<SplatFrame>> {
+        self.render_cameras(scene, cameras, settings, true)
+    }
+
+    /// [`Splatter::render_frames`], keeping the pair tiles or not ([`View::pair_tiles`]).
+    fn render_cameras(
+        &mut self,
+        scene: &GpuScene,
+        cameras: &[Camera],
+        settings: &SplatSettings,
+        pair_tiles: bool,
+    ) -> Result<Vec<SplatFrame>> {
         let views: Vec<View<'_>> =
-            cameras.iter().map(|camera| View { camera, occluder: None, tile_mask: None }).collect();
+            cameras.iter().map(|camera| View { camera, occluder: None, tile_mask: None, pair_tiles }).collect();
         let mut frames = Vec::with_capacity(cameras.len());
         for group in views.chunks(FRAMES_PER_SUBMISSION) {
             frames.extend(self.render_views(scene, group, settings)?);
@@ -482,7 +497,9 @@ impl Splatter {
         cameras: &[Camera],
         settings: &SplatSettings,
     ) -> Result<Vec<(GpuGBuffer, SplatStats)>> {
-        Ok(self.render_frames(scene, cameras, settings)?.into_iter().map(|f| (f.gbuffer, f.stats)).collect())
+        // The frames are dropped: nothing will differentiate them, so no pair tiles.
+        let frames = self.render_cameras(scene, cameras, settings, false)?;
+        Ok(frames.into_iter().map(|f| (f.gbuffer, f.stats)).collect())
     }
 
     /// Everything [`Splatter::render_views`] needs to know about one view
@@ -568,7 +585,15 @@ impl Splatter {
         let ellipse = SpecValue::Bool(settings.tile_bounds == TileBounds::Ellipse);
         let mask = (4, SpecValue::Bool(view.tile_mask.is_some()));
         let shift = (5, SpecValue::U32(depth_key.shift));
-        let keys_spec = [(1, ellipse), (2, SpecValue::Bool(row_masks)), depth_spec, mask, shift, tile_spec(tile)[0]];
+        let keys_spec = [
+            (1, ellipse),
+            (2, SpecValue::Bool(row_masks)),
+            depth_spec,
+            mask,
+            shift,
+            (6, SpecValue::Bool(view.pair_tiles)),
+            tile_spec(tile)[0],
+        ];
         // The keys kernel reads the splats and offsets through texel views where it can.
         let texel_keys = self.texel_preprocess
             && [TexelFormat::Rgba32Uint, TexelFormat::R32Uint].iter().all(|f| device.info().texel_formats.contains(f))
@@ -585,7 +610,11 @@ impl Splatter {
         Ok(SortPlan {
             keys: device.create_buffer("sort keys", pairs * 8, MemoryKind::Storage)?,
             values: device.create_buffer("sort values", pairs * 4, MemoryKind::Storage)?,
-            pair_tiles: device.create_buffer("pair tiles", pairs * 4, MemoryKind::Storage)?,
+            pair_tiles: if view.pair_tiles {
+                Some(device.create_buffer("pair tiles", pairs * 4, MemoryKind::Storage)?)
+            } else {
+                None
+            },
             keys_kernel,
             texel_keys,
             ranges_kernel: if texel_ranges {
@@ -815,7 +844,7 @@ impl Splatter {
                 + p.tile_counts.size()
                 + s.keys.size()
                 + s.values.size()
-                + s.pair_tiles.size()
+                + s.pair_tiles.as_ref().map_or(0, Buffer::size)
                 + p.ranges.size()
                 + scratch;
             frames.push(SplatFrame {
@@ -881,6 +910,8 @@ struct View<'a> {
     occluder: Option<(&'a Buffer, HostDepth)>,
     /// One u32 per tile, non-zero where pairs are wanted; `None`: every tile.
     tile_mask: Option<&'a Buffer>,
+    /// Whether the frame keeps its pairs' tile ids ([`SplatFrame::pair_tiles`]).
+    pair_tiles: bool,
 }
 
 /// A view's buffers before its pairs are counted.
@@ -906,7 +937,7 @@ impl PendingView {
             tile_counts: &self.tile_counts,
             keys: sort.map(|s| &s.keys),
             values: sort.map(|s| &s.values),
-            pair_tiles: sort.map(|s| &s.pair_tiles),
+            pair_tiles: sort.and_then(|s| s.pair_tiles.as_ref()),
             ranges: &self.ranges,
             out: &self.out,
             occluder: view.occluder.map(|(b, _)| b),
@@ -919,7 +950,8 @@ impl PendingView {
 struct SortPlan {
     keys: Buffer,
     values: Buffer,
-    pair_tiles: Buffer,
+    /// `None` where the view keeps none ([`View::pair_tiles`]).
+    pair_tiles: Option<Buffer>,
     keys_kernel: Arc<Kernel>,
     /// The keys kernel reads through texel views (`splat_keys_texel.comp`).
     texel_keys: bool,

@@ -13,6 +13,9 @@ layout(constant_id = 3) const uint DEPTH_BITS = 32u;
 layout(constant_id = 5) const uint DEPTH_SHIFT = 0u;
 // Pairs only for the tiles the frame's tile mask wants, as the preprocess counted.
 layout(constant_id = 4) const bool TILE_MASK = false;
+// Each unsorted pair's tile id (frame.pair_tiles), which only the backward
+// pass reads: off for frames that are never differentiated (`Splatter::render`).
+layout(constant_id = 6) const bool PAIR_TILES = true;
 
 #ifdef TEXEL_SPLATS
 // Each splat's record as 4 RGBA32UI texels (head, conic, colour, rect: its
@@ -58,13 +61,13 @@ void main() {
             uint blocks = ROW_MASKS ? tile_block_mask(e, head.xy, x, y, TILE, check_x) << (32u - TILE) : 0u;
             keys.v[offset] = pair_key(tile, depth_key, DEPTH_BITS, blocks);
             values.v[offset] = i;
-            pair_tiles.v[offset] = tile;
+            if (PAIR_TILES) pair_tiles.v[offset] = tile;
             offset++;
         }
     }
     for (; offset < end; offset++) {
         keys.v[offset] = pair_key(tiles, DEPTH_BITS >= 32u ? ~0u : (1u << DEPTH_BITS) - 1u, DEPTH_BITS, 0u);
         values.v[offset] = i;
-        pair_tiles.v[offset] = tiles;
+        if (PAIR_TILES) pair_tiles.v[offset] = tiles;
     }
 }
