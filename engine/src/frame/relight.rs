@@ -161,7 +161,12 @@ impl Relighter {
     pub fn new(device: &Device) -> Result<Self> {
         Ok(Self {
             splatter: Splatter::new(device)?,
-            shadows: ShadowPass::new(device)?,
+            // Its maps are never differentiated: no pair tiles.
+            shadows: {
+                let mut shadows = ShadowPass::new(device)?;
+                shadows.set_map_pair_tiles(false);
+                shadows
+            },
             shader: Shader::new(device)?,
             network: None,
             reuse_shadow_map: false,

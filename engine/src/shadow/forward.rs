@@ -29,6 +29,8 @@ pub struct ShadowPass {
     pub(super) receiver_tiles: Arc<Kernel>,
     pub(super) tile_dilate: Arc<Kernel>,
     pub(super) cascade_blend: Arc<Kernel>,
+    /// Whether maps keep their pairs' tile ids ([`ShadowPass::set_map_pair_tiles`]).
+    pub(super) map_pair_tiles: bool,
 }
 
 /// Which visibility [`ShadowPass::visibility`] computes.
@@ -92,7 +94,15 @@ impl ShadowPass {
                     specialization: &[],
                 },
             )?,
+            map_pair_tiles: true,
         })
+    }
+
+    /// Whether the maps this pass splats keep their pairs' tile ids
+    /// ([`crate::splat::SplatFrame::pair_tiles`]; on by default), which only the backward pass
+    /// reads: the relighter, which never differentiates its maps, turns them off.
+    pub(crate) fn set_map_pair_tiles(&mut self, on: bool) {
+        self.map_pair_tiles = on;
     }
 
     /// Splats the scene from the sun; `None` when the sun is at or below the
@@ -150,10 +160,7 @@ impl ShadowPass {
             surface_depth: settings.map_surface_depth,
             ..SplatSettings::default()
         };
-        let mut frame = match mask {
-            Some(m) => splatter.render_frame_in_tiles(scene, &camera, &splat, m)?,
-            None => splatter.render_frame(scene, &camera, &splat)?,
-        };
+        let mut frame = splatter.render_frame_for(scene, &camera, &splat, mask, self.map_pair_tiles)?;
         for stage in &mut frame.stats.timings.stages {
             stage.name = format!("shadow map {}", stage.name);
         }

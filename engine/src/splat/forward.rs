@@ -170,8 +170,8 @@ pub struct SplatFrame {
     /// in increasing tile order (the keys kernel's padding last, with id = tiles).
     /// The backward pass finds a pair's gradient record by searching these.
     /// Every frame a `render_frame*` or `render_frames` call returns has them;
-    /// [`Splatter::render`] and [`Splatter::render_batch`], whose frames nobody
-    /// differentiates, write none.
+    /// [`Splatter::render`] and [`Splatter::render_batch`] (and the relighter's
+    /// shadow maps), whose frames nobody differentiates, write none.
     pub pair_tiles: Option<Buffer>,
     /// Per-tile [start, end) into the sorted pairs, `uvec2` per tile.
     pub ranges: Buffer,
@@ -428,6 +428,24 @@ impl Splatter {
         settings: &SplatSettings,
         tile_mask: &Buffer,
     ) -> Result<SplatFrame> {
+        self.render_frame_for(scene, camera, settings, Some(tile_mask), true)
+    }
+
+    /// [`Splatter::render_frame`], or with a tile mask [`Splatter::render_frame_in_tiles`],
+    /// keeping the pairs' tile ids or not ([`SplatFrame::pair_tiles`]).
+    pub(crate) fn render_frame_for(
+        &mut self,
+        scene: &GpuScene,
+        camera: &Camera,
+        settings: &SplatSettings,
+        tile_mask: Option<&Buffer>,
+        pair_tiles: bool,
+    ) -> Result<SplatFrame> {
+        let Some(tile_mask) = tile_mask else {
+            let view = View { camera, occluder: None, tile_mask: None, pair_tiles };
+            let frame = self.render_views(scene, &[view], settings)?.pop();
+            return frame.ok_or_else(|| Error::Internal("a one-camera render returned no frame".into()));
+        };
         let tile = u64::from(settings.tile.max(1));
         let tiles = u64::from(camera.width).div_ceil(tile) * u64::from(camera.height).div_ceil(tile);
         if tile_mask.size() < tiles * 4 {
@@ -439,7 +457,7 @@ impl Splatter {
         if camera.wrap_period().is_some() {
             return Err(Error::invalid("tile mask", "needs a camera whose tiles do not wrap (not a full panorama)"));
         }
-        let view = View { camera, occluder: None, tile_mask: Some(tile_mask), pair_tiles: true };
+        let view = View { camera, occluder: None, tile_mask: Some(tile_mask), pair_tiles };
         let mut frames = self.render_views(scene, &[view], settings)?;
         frames.pop().ok_or_else(|| Error::Internal("a one-camera render returned no frame".into()))
     }
