@@ -374,8 +374,10 @@ impl Splatter {
         camera: &Camera,
         settings: &SplatSettings,
     ) -> Result<(GpuGBuffer, SplatStats)> {
-        let frame = self.render_batch(scene, std::slice::from_ref(camera), settings)?.pop();
-        frame.ok_or_else(|| Error::Internal("a one-camera render returned no frame".into()))
+        // The frame is dropped: nothing will differentiate it, so no pair tiles.
+        let frame =
+            self.render_view(scene, View { camera, occluder: None, tile_mask: None, pair_tiles: false }, settings)?;
+        Ok((frame.gbuffer, frame.stats))
     }
 
     /// Renders like [`Splatter::render`] and keeps the per-frame buffers.
@@ -442,9 +444,7 @@ impl Splatter {
         pair_tiles: bool,
     ) -> Result<SplatFrame> {
         let Some(tile_mask) = tile_mask else {
-            let view = View { camera, occluder: None, tile_mask: None, pair_tiles };
-            let frame = self.render_views(scene, &[view], settings)?.pop();
-            return frame.ok_or_else(|| Error::Internal("a one-camera render returned no frame".into()));
+            return self.render_view(scene, View { camera, occluder: None, tile_mask: None, pair_tiles }, settings);
         };
         let tile = u64::from(settings.tile.max(1));
         let tiles = u64::from(camera.width).div_ceil(tile) * u64::from(camera.height).div_ceil(tile);
@@ -457,9 +457,7 @@ impl Splatter {
         if camera.wrap_period().is_some() {
             return Err(Error::invalid("tile mask", "needs a camera whose tiles do not wrap (not a full panorama)"));
         }
-        let view = View { camera, occluder: None, tile_mask: Some(tile_mask), pair_tiles };
-        let mut frames = self.render_views(scene, &[view], settings)?;
-        frames.pop().ok_or_else(|| Error::Internal("a one-camera render returned no frame".into()))
+        self.render_view(scene, View { camera, occluder: None, tile_mask: Some(tile_mask), pair_tiles }, settings)
     }
 
     fn render_frame_with(
@@ -469,9 +467,13 @@ impl Splatter {
         settings: &SplatSettings,
         occluder: Option<(&Buffer, HostDepth)>,
     ) -> Result<SplatFrame> {
-        let view = View { camera, occluder, tile_mask: None, pair_tiles: true };
-        let mut frames = self.render_views(scene, &[view], settings)?;
-        frames.pop().ok_or_else(|| Error::Internal("a one-camera render returned no frame".into()))
+        self.render_view(scene, View { camera, occluder, tile_mask: None, pair_tiles: true }, settings)
+    }
+
+    /// One view's frame ([`Splatter::render_views`] of just it).
+    fn render_view(&mut self, scene: &GpuScene, view: View<'_>, settings: &SplatSettings) -> Result<SplatFrame> {
+        let frame = self.render_views(scene, &[view], settings)?.pop();
+        frame.ok_or_else(|| Error::Internal("a one-camera render returned no frame".into()))
     }
 
     /// Renders `scene` from each of `cameras` with the same settings: the
