@@ -1229,6 +1229,8 @@ fn a_host_depth_hides_the_splats_behind_it_as_the_twin_does() {
             splatter.set_blend_variant(variant).unwrap();
             let settings = SplatSettings { surface_depth: surface, ..settings };
             let frame = splatter.render_frame_occluded(&scene, &camera, &settings, &depth, *convention).unwrap();
+            // Never differentiated (the backward pass refuses it, below): no pair tiles.
+            assert!(frame.pair_tiles.is_none());
             let gpu = frame.gbuffer.read(&d).unwrap();
             let cpu = render_cpu_occluded(&city.scene, &camera, &settings, &values, *convention);
             compare_with(&gpu, &cpu, &format!("occluded_{convention:?}_{variant:?}_surface{surface}"), true);

@@ -169,9 +169,11 @@ pub struct SplatFrame {
     /// Tile id of each unsorted pair: each Gaussian's pairs from its offset on,
     /// in increasing tile order (the keys kernel's padding last, with id = tiles).
     /// The backward pass finds a pair's gradient record by searching these.
-    /// Every frame a `render_frame*` or `render_frames` call returns has them;
-    /// [`Splatter::render`] and [`Splatter::render_batch`] (and the relighter's
-    /// shadow maps), whose frames nobody differentiates, write none.
+    /// Frames from [`Splatter::render_frame`], [`Splatter::render_frame_in_tiles`]
+    /// and [`Splatter::render_frames`] have them; [`Splatter::render`],
+    /// [`Splatter::render_batch`], [`Splatter::render_frame_occluded`] (whose
+    /// frames the backward pass refuses) and the relighter's shadow maps,
+    /// none of which is differentiated, write none.
     pub pair_tiles: Option<Buffer>,
     /// Per-tile [start, end) into the sorted pairs, `uvec2` per tile.
     pub ranges: Buffer,
@@ -467,7 +469,9 @@ impl Splatter {
         settings: &SplatSettings,
         occluder: Option<(&Buffer, HostDepth)>,
     ) -> Result<SplatFrame> {
-        self.render_view(scene, View { camera, occluder, tile_mask: None, pair_tiles: true }, settings)
+        // The backward pass refuses frames hidden behind a host's depth: they need no pair tiles.
+        let pair_tiles = occluder.is_none();
+        self.render_view(scene, View { camera, occluder, tile_mask: None, pair_tiles }, settings)
     }
 
     /// One view's frame ([`Splatter::render_views`] of just it).
