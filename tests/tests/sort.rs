@@ -37,50 +37,19 @@ fn exclusive_scan_matches_cpu() {
     assert_no_validation_messages(&d);
 }
 
-/// Sorts on the GPU; returns (keys, values). With `odd_input`, the pairs are
-/// put where [`RadixSort::odd_input`] says (the output buffers hold a sentinel
-/// then) and sorted from there.
-fn gpu_sort(
-    d: &Device,
-    sort: &mut RadixSort,
-    keys: &[[u32; 2]],
-    bits: u32,
-    odd_input: bool,
-) -> (Vec<[u32; 2]>, Vec<u32>) {
+/// Sorts on the GPU; returns (keys, values).
+fn gpu_sort(d: &Device, sort: &mut RadixSort, keys: &[[u32; 2]], bits: u32) -> (Vec<[u32; 2]>, Vec<u32>) {
     let n = keys.len();
     let values: Vec<u32> = (0..n as u32).collect();
     let kb = d.upload("keys", keys).unwrap();
     let vb = d.upload("values", &values).unwrap();
     sort.reserve(d, n as u64).unwrap();
-    if !odd_input {
-        d.run(|rec| sort.record(rec, &kb, &vb, n as u64, bits)).unwrap();
-        return (d.read_buffer(&kb).unwrap(), d.read_buffer(&vb).unwrap());
-    }
-    let (ko, vo) = (
-        d.create_filled::<[u32; 2]>("keys out", n, 0xdead).unwrap(),
-        d.create_filled::<u32>("values out", n, 0xdead).unwrap(),
-    );
-    let sort = &*sort;
-    d.run(|rec| {
-        let input = sort.odd_input(n as u64, bits);
-        let (into_keys, into_values) = input.unwrap_or((&ko, &vo));
-        if n > 0 {
-            rec.copy(&kb, 0, into_keys, 0, 8 * n as u64)?;
-            rec.copy(&vb, 0, into_values, 0, 4 * n as u64)?;
-        }
-        sort.record_from(rec, input, &ko, &vo, n as u64, bits)
-    })
-    .unwrap();
-    (d.read_buffer(&ko).unwrap(), d.read_buffer(&vo).unwrap())
+    d.run(|rec| sort.record(rec, &kb, &vb, n as u64, bits)).unwrap();
+    (d.read_buffer(&kb).unwrap(), d.read_buffer(&vb).unwrap())
 }
 
 fn check_sort(d: &Device, sort: &mut RadixSort, keys: &[[u32; 2]], bits: u32, label: &str) {
-    check_sort_from(d, sort, keys, bits, false, label);
-    check_sort_from(d, sort, keys, bits, true, &format!("{label}, from odd_input"));
-}
-
-fn check_sort_from(d: &Device, sort: &mut RadixSort, keys: &[[u32; 2]], bits: u32, odd_input: bool, label: &str) {
-    let (got_keys, got_values) = gpu_sort(d, sort, keys, bits, odd_input);
+    let (got_keys, got_values) = gpu_sort(d, sort, keys, bits);
     let mask = if bits >= 64 { u64::MAX } else { (1u64 << bits) - 1 };
     let key64 = |k: [u32; 2]| (u64::from(k[1]) << 32 | u64::from(k[0])) & mask;
     let mut want: Vec<u32> = (0..keys.len() as u32).collect();
@@ -164,10 +133,6 @@ fn sort_cases(d: &Device, sort: &mut RadixSort) {
     let splat: Vec<[u32; 2]> =
         (0..60_000).map(|_| [rng.random_range(0.01f32..500.0).to_bits(), rng.random_range(0..1320)]).collect();
     check_sort(d, sort, &splat, 32 + 11, &format!("tile|depth keys, texel {texel}"));
-    // The odd-input cases are not vacuous: 33 bits take an odd number of passes at 4 and at
-    // 11 bits a digit (9, 3), 64 bits an even one (16, 6).
-    sort.reserve(d, 1000).unwrap();
-    assert!(sort.odd_input(1000, 33).is_some() && sort.odd_input(1000, 64).is_none(), "texel {texel}");
 }
 
 #[test]

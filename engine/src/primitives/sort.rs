@@ -24,11 +24,6 @@
 //! lane indexes it cheaply, and the sort makes a third of the passes. The bits
 //! are spread evenly over the passes (31 bits: 11 + 10 + 10), and a digit may
 //! straddle the key's two words.
-//!
-//! Passes alternate between the caller's buffers and the sort's scratch, so
-//! after an odd number the result is copied back, unless the caller wrote its
-//! pairs where [`RadixSort::odd_input`] said (the scratch) and sorts with
-//! [`RadixSort::record_from`]: then the last pass writes the caller's buffers.
 
 use bytemuck::{Pod, Zeroable};
 use std::sync::Arc;
@@ -321,51 +316,6 @@ impl RadixSort {
         count: u64,
         bits: u32,
     ) -> Result<()> {
-        self.record_from(rec, None, keys, values, count, bits)
-    }
-
-    /// The passes a sort of `count` pairs on `bits` bits makes, as (shift,
-    /// digit bits), with its workgroups and kernels: texel-buffer views where
-    /// the device has them and the keys fit one view, wide digits where on.
-    #[allow(clippy::type_complexity, reason = "the plan's parts, used together once")]
-    fn plan(
-        &self,
-        count: u64,
-        bits: u32,
-    ) -> (Option<&(Arc<Kernel>, Arc<Kernel>)>, Option<&(Arc<Kernel>, Arc<Kernel>)>, u64, Vec<(u32, u32)>) {
-        let texel = self.texel.as_ref().filter(|_| self.use_texel && count <= self.max_texels);
-        let wide = self.wide.as_ref().filter(|_| self.use_wide && texel.is_some());
-        let (blocks, passes) = match wide {
-            Some(_) => (wide_blocks(count, self.threads), digit_passes(bits, WIDE_DIGIT_BITS)),
-            None => (count.div_ceil(self.items * SORT_WORKGROUP), digit_passes(bits, DIGIT_BITS)),
-        };
-        (texel, wide, blocks, passes)
-    }
-
-    /// Where to put `count` pairs before a sort on `bits` bits
-    /// ([`RadixSort::record_from`]) so that its last pass writes the caller's
-    /// buffers with no copy after it: this sort's scratch (keys, values) where
-    /// it makes an odd number of passes; `None`: the caller's own buffers.
-    /// Reserve first.
-    pub fn odd_input(&self, count: u64, bits: u32) -> Option<(&Buffer, &Buffer)> {
-        if count <= 1 || bits == 0 || bits > 64 || count > self.capacity || self.plan(count, bits).3.len() % 2 == 0 {
-            return None;
-        }
-        Some((self.keys_tmp.as_ref()?, self.values_tmp.as_ref()?))
-    }
-
-    /// [`RadixSort::record`], with the pairs read from `input` (see
-    /// [`RadixSort::odd_input`]; `None`: from `keys` and `values`) and the
-    /// result left in `keys` and `values`.
-    pub fn record_from<'a>(
-        &'a self,
-        rec: &mut Recording<'a>,
-        input: Option<(&'a Buffer, &'a Buffer)>,
-        keys: &'a Buffer,
-        values: &'a Buffer,
-        count: u64,
-        bits: u32,
-    ) -> Result<()> {
         let (Some(keys_tmp), Some(values_tmp), Some(hist)) = (&self.keys_tmp, &self.values_tmp, &self.hist) else {
             return if count == 0 {
                 Ok(())
@@ -384,18 +334,19 @@ impl RadixSort {
                 ),
             ));
         }
-        if let Some((k, v)) = input {
-            if k.size() < count * 8 || v.size() < count * 4 {
-                return Err(Error::invalid(format!("sort input of {count} pairs"), "exceeds its buffers"));
-            }
+        if count <= 1 || bits == 0 {
+            return Ok(());
         }
-        let caller = (keys, values);
-        // Each pass writes the other of the caller's buffers and the scratch.
-        let mut src = input.unwrap_or(caller);
-        let (texel, wide, blocks, passes) =
-            if count <= 1 || bits == 0 { (None, None, 0, Vec::new()) } else { self.plan(count, bits) };
+        // Texel-buffer views where the device has them and the keys fit one view.
+        let texel = self.texel.as_ref().filter(|_| self.use_texel && count <= self.max_texels);
+        let wide = self.wide.as_ref().filter(|_| self.use_wide && texel.is_some());
+        let (blocks, passes) = match wide {
+            Some(_) => (wide_blocks(count, self.threads), digit_passes(bits, WIDE_DIGIT_BITS)),
+            None => (count.div_ceil(self.items * SORT_WORKGROUP), digit_passes(bits, DIGIT_BITS)),
+        };
+        let mut src = (keys, values);
+        let mut dst = (keys_tmp, values_tmp);
         for &(shift, digit) in &passes {
-            let dst = if std::ptr::eq(src.0, keys) { (keys_tmp, values_tmp) } else { caller };
             let push = SortPush {
                 keys_in: rec.addr(src.0)?,
                 values_in: rec.addr(src.1)?,
@@ -426,11 +377,11 @@ impl RadixSort {
                 }
                 (None, None) => rec.dispatch(&self.scatter, Grid::Groups(blocks), &[], &push)?,
             }
-            src = dst;
+            std::mem::swap(&mut src, &mut dst);
         }
-        if !std::ptr::eq(src.0, keys) && count > 0 {
-            rec.copy(src.0, 0, keys, 0, count * 8)?;
-            rec.copy(src.1, 0, values, 0, count * 4)?;
+        if passes.len() % 2 == 1 {
+            rec.copy(keys_tmp, 0, keys, 0, count * 8)?;
+            rec.copy(values_tmp, 0, values, 0, count * 4)?;
         }
         Ok(())
     }

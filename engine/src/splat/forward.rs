@@ -785,15 +785,7 @@ impl Splatter {
         let phase2 = device.run(|rec| -> Result<()> {
             for ((p, s), view) in pending.iter().zip(&plans).zip(views) {
                 phase2_marks.push(rec.stages_begun());
-                // The keys kernel writes the pairs where the sort's last pass then
-                // lands in the frame's buffers, with no copy after it
-                // (`RadixSort::odd_input`); the uniform points there until the sort is done.
-                let input = sort.odd_input(s.pairs, s.key_bits);
-                let mut buffers = p.buffers(scene, view, Some(s));
-                if let Some((keys, values)) = input {
-                    (buffers.keys, buffers.values) = (Some(keys), Some(values));
-                }
-                p.frame.record(rec, &p.uniform, &buffers)?;
+                p.frame.record(rec, &p.uniform, &p.buffers(scene, view, Some(s)))?;
                 if let Some(word) = settings.prefill {
                     for b in [&p.out.alpha]
                         .into_iter()
@@ -827,10 +819,7 @@ impl Splatter {
                         rec.dispatch(&s.keys_kernel, Grid::Items(n), &[Binding::from(&p.uniform)], &())?;
                     }
                     rec.begin_stage("sort");
-                    sort.record_from(rec, input, &s.keys, &s.values, s.pairs, s.key_bits)?;
-                }
-                if input.is_some() {
-                    p.frame.record(rec, &p.uniform, &p.buffers(scene, view, Some(s)))?;
+                    sort.record(rec, &s.keys, &s.values, s.pairs, s.key_bits)?;
                 }
                 rec.begin_stage("ranges");
                 rec.fill(&p.ranges, 0)?;
