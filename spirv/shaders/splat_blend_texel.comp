@@ -15,7 +15,10 @@
 // where splats are small against it): a ballot over each window of keys
 // names the wanted ones, so skipped splats cost a share of one fetch, not
 // four and the pixel arithmetic. With PIXEL_REACH (constant_id 7) a lane
-// evaluates a splat only at the pixels of its row the splat can reach.
+// evaluates a splat only at the pixels of its row the splat can reach. With
+// WINDOW_FETCH (constant_id 9) each lane instead fetches one wanted splat of
+// the key window and the subgroup broadcasts them one at a time: one fetch
+// per window, not per splat, where a fetch is a function call.
 // CPU twin: engine/src/splat/cpu.rs `render_cpu`.
 #extension GL_EXT_control_flow_attributes : require
 #extension GL_KHR_shader_subgroup_basic : require

@@ -16,9 +16,9 @@ use srug::scene::{Camera, Scene};
 use srug::splat::cpu::{preprocess_one, render_cpu, tile_row_span, CpuSplat};
 use srug::splat::Channel;
 use srug::splat::{
-    cameras_per_batch, default_blend_pixels, default_pixel_reach, BlendVariant, Channels, DepthKey, GBuffer,
-    NormalSource, SplatSettings, Splatter, TileBounds, BATCH_BYTES, BLEND_PIXELS, DEFAULT_TILE, FRAMES_PER_SUBMISSION,
-    TILE_SIZES,
+    cameras_per_batch, default_blend_pixels, default_pixel_reach, default_window_fetch, BlendVariant, Channels,
+    DepthKey, GBuffer, NormalSource, SplatSettings, Splatter, TileBounds, BATCH_BYTES, BLEND_PIXELS, DEFAULT_TILE,
+    FRAMES_PER_SUBMISSION, TILE_SIZES,
 };
 use srug_tests::{assert_no_validation_messages, device, psnr, random_scene, save_comparison, NAN_SENTINEL};
 
@@ -318,6 +318,7 @@ fn every_tile_size_matches_cpu_twin_in_every_variant() {
             };
             assert_eq!(splatter.blend_pixels(), expected, "default pixels per invocation on {}", d.info().driver);
             assert_eq!(splatter.pixel_reach(), mesa_25, "default per-pixel reach on {}", d.info().driver);
+            assert_eq!(splatter.window_fetch(), mesa_25, "default per-window fetch on {}", d.info().driver);
             splatter.set_blend_variant(BlendVariant::SubgroupLoads).unwrap();
             splatter.set_texel_blend(false).unwrap();
             splatter.set_texel_preprocess(false).unwrap();
@@ -379,7 +380,10 @@ fn row_skipping_blend_is_bit_identical_to_reading_every_splat() {
     // ones, opacities around 1/255, where the ellipse's r² is near 0) and
     // the demo street, every pixels-per-lane
     // layout (8 at 16-pixel tiles is the half-tile one); every tile size
-    // carries masks at these sizes (at most 21 + 10 key bits).
+    // carries masks at these sizes (at most 21 + 10 key bits). Each with
+    // and without the per-window fetch (lanes fetch a window's wanted
+    // splats, the subgroup broadcasts them), also with surface depths
+    // (their slope rides in the colour texel) with and without rgb.
     let d = device();
     if !d.info().subgroup_ballot {
         eprintln!("skipping: the texel blend needs subgroup ballot");
@@ -402,23 +406,30 @@ fn row_skipping_blend_is_bit_identical_to_reading_every_splat() {
     let wide = Camera { near: 1e-30, far: 1e30, ..city.cameras[1].resized(640, 416) };
     let unbounded = (city.scene.clone(), wide);
     let (mut checked_with_masks, mut checked_without) = (0, 0);
-    for (name, (scene, cam), channels) in [
-        ("street", street, all_settings().channels),
-        ("random", (random, close.clone()), geometric),
-        ("random, faint", (faint, close), geometric),
-        ("street, planes 1e-30 to 1e30", unbounded, all_settings().channels),
+    let all = all_settings();
+    let surface = SplatSettings { surface_depth: true, ..all };
+    let surface_no_rgb = SplatSettings { rgb: false, ..surface };
+    for (name, (scene, cam), base) in [
+        ("street", street.clone(), all),
+        ("street, surface depths", street.clone(), surface),
+        ("street, surface depths, no rgb", street, surface_no_rgb),
+        ("random", (random, close.clone()), SplatSettings { channels: geometric, ..all }),
+        ("random, faint", (faint, close), SplatSettings { channels: geometric, ..all }),
+        ("street, planes 1e-30 to 1e30", unbounded, all),
     ] {
         let gpu_scene = GpuScene::upload(&d, &scene).unwrap();
         for tile in TILE_SIZES {
-            let settings = SplatSettings { tile, channels, ..all_settings() };
+            let settings = SplatSettings { tile, ..base };
             splatter.set_texel_blend(false).unwrap();
             let (everything, all_stats) = splatter.render(&gpu_scene, &cam, &settings).unwrap();
             assert!(!all_stats.row_masks, "{name} tile {tile}: only the texel blend skips rows");
             let everything = gbuffer_bits(&everything.read(&d).unwrap());
             splatter.set_texel_blend(true).unwrap();
-            for (pixels, reach) in BLEND_PIXELS.into_iter().flat_map(|p| [(p, false), (p, true)]) {
+            let layouts = BLEND_PIXELS.into_iter().flat_map(|p| [(p, false), (p, true)]);
+            for ((pixels, reach), window) in layouts.flat_map(|l| [(l, false), (l, true)]) {
                 splatter.set_blend_pixels(pixels).unwrap();
                 splatter.set_pixel_reach(reach);
+                splatter.set_window_fetch(window);
                 let (skipping, stats) = splatter.render(&gpu_scene, &cam, &settings).unwrap();
                 assert_eq!(
                     stats.row_masks,
@@ -431,14 +442,17 @@ fn row_skipping_blend_is_bit_identical_to_reading_every_splat() {
                 let differ = everything.iter().zip(&skipping).filter(|(a, b)| a != b).count();
                 assert_eq!(
                     differ, 0,
-                    "{name} tile {tile}, {pixels} pixels per invocation, pixel reach {reach}: {differ} values differ"
+                    "{name} tile {tile}, {pixels} pixels per invocation, pixel reach {reach}, window fetch {window}: \
+                     {differ} values differ"
                 );
             }
         }
     }
-    assert_eq!((checked_with_masks, checked_without), (22 * BLEND_PIXELS.len(), 2 * BLEND_PIXELS.len()));
+    // Six scenes at three tile sizes, four blend settings per layout; only the planes 1e-30 to 1e30 at 32-pixel tiles leave no room.
+    assert_eq!((checked_with_masks, checked_without), (68 * BLEND_PIXELS.len(), 4 * BLEND_PIXELS.len()));
     splatter.set_blend_pixels(default_blend_pixels(d.info())).unwrap();
     splatter.set_pixel_reach(default_pixel_reach(d.info()));
+    splatter.set_window_fetch(default_window_fetch(d.info()));
     assert_no_validation_messages(&d);
 }
 

@@ -135,6 +135,8 @@ pub struct SplatBenchOptions {
     pub blend_pixels: Option<u32>,
     /// The texel-buffer blend's per-pixel reach test (`None`: the default).
     pub pixel_reach: Option<bool>,
+    /// The texel-buffer blend's per-window fetch (`None`: the default).
+    pub window_fetch: Option<bool>,
     /// Tile edge in pixels.
     pub tile: u32,
     /// Which tiles list a splat.
@@ -149,7 +151,8 @@ pub fn splat_bench(
     options: &SplatBenchOptions,
     mut progress: impl FnMut(&str),
 ) -> Result<Vec<SplatBenchRow>> {
-    let SplatBenchOptions { repeats, sh_degree, blend, blend_pixels, pixel_reach, tile, tile_bounds } = *options;
+    let SplatBenchOptions { repeats, sh_degree, blend, blend_pixels, pixel_reach, window_fetch, tile, tile_bounds } =
+        *options;
     let settings = SplatSettings { tile, tile_bounds, ..SplatSettings::default() };
     let mut rows = Vec::new();
     let mut splatter = Splatter::new(device)?;
@@ -161,6 +164,9 @@ pub fn splat_bench(
     }
     if let Some(on) = pixel_reach {
         splatter.set_pixel_reach(on);
+    }
+    if let Some(on) = window_fetch {
+        splatter.set_window_fetch(on);
     }
     for &n in counts {
         progress(&format!("generating the demo city with {n} Gaussians"));

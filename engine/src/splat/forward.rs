@@ -213,6 +213,7 @@ pub struct Splatter {
     texel_preprocess: bool,
     blend_pixels: u32,
     pixel_reach: bool,
+    window_fetch: bool,
     scan: Scan,
     sort: RadixSort,
 }
@@ -233,6 +234,7 @@ impl Splatter {
             texel_preprocess: device.info().texel_formats.contains(&TexelFormat::R32Float),
             blend_pixels: default_blend_pixels(device.info()),
             pixel_reach: default_pixel_reach(device.info()),
+            window_fetch: default_window_fetch(device.info()),
             scan: Scan::new(device)?,
             sort: RadixSort::new(device)?,
         })
@@ -309,6 +311,18 @@ impl Splatter {
         self.pixel_reach = on;
     }
 
+    /// Whether the texel-buffer blend fetches each key window's wanted splats
+    /// once, one per lane ([`default_window_fetch`] says where it is on).
+    pub fn window_fetch(&self) -> bool {
+        self.window_fetch
+    }
+
+    /// Turns the texel-buffer blend's per-window fetch on or off (see
+    /// [`Splatter::window_fetch`]); the image does not change, only how splats are read.
+    pub fn set_window_fetch(&mut self, on: bool) {
+        self.window_fetch = on;
+    }
+
     /// The blend variant in use (subgroup loads where the device has subgroup
     /// ballot, else per-pixel loads).
     pub fn blend_variant(&self) -> BlendVariant {
@@ -361,6 +375,9 @@ impl Splatter {
             spec.push((2, SpecValue::U32(pixels)));
             if self.pixel_reach {
                 spec.push((7, SpecValue::Bool(true)));
+            }
+            if self.window_fetch {
+                spec.push((9, SpecValue::Bool(true)));
             }
             // The frame; splats, features, sorted indices and pair row masks as texel-buffer views.
             texel_view_kernel(&self.device, info, 4, &spec)

@@ -97,6 +97,18 @@ pub fn default_blend_pixels(info: &DeviceInfo) -> u32 {
 pub fn default_pixel_reach(info: &DeviceInfo) -> bool {
     matches!(info.mesa_version(), Some((major, _)) if info.is_lavapipe() && major >= 25)
 }
+/// Whether a new [`Splatter`]'s texel-buffer blend fetches each key window's
+/// wanted splats once, one per lane, and broadcasts them splat by splat
+/// (`WINDOW_FETCH` in `splat_blend_body.glsl`) instead of every lane fetching
+/// each splat: on lavapipe from Mesa 25 on, whose texel fetch is a call to
+/// an out-of-line function that saves and restores the caller's vector
+/// registers, and which jumps over the fetch in windows it does not start;
+/// off elsewhere (Mesa 22.3's lavapipe runs both sides of every `if`, so it
+/// would fetch and broadcast every step; GPUs not measured). The image is
+/// the same either way.
+pub fn default_window_fetch(info: &DeviceInfo) -> bool {
+    matches!(info.mesa_version(), Some((major, _)) if info.is_lavapipe() && major >= 25)
+}
 /// Bit of the blend's `CHANNELS` specialization constant that blends rgb
 /// (keep in sync with `RGB` in `splat_blend_body.glsl`).
 pub(crate) const RGB_BIT: u32 = 8;

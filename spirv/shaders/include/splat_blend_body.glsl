@@ -27,6 +27,13 @@ layout(constant_id = 7) const bool PIXEL_REACH = false;
 // keys kernel listed; the others' pixels are left unwritten. A constant, so
 // frames without a mask carry no test.
 layout(constant_id = 8) const bool TILE_MASK = false;
+// The texel blend fetches each key window's wanted splats once, a splat per
+// lane, and broadcasts them splat by splat, where every lane would otherwise
+// fetch each splat itself: for drivers whose texel fetch is a call (lavapipe
+// from Mesa 25 compiles it as an out-of-line function, saving and restoring
+// the caller's vector registers around it) and that jump over an `if` no lane
+// enters (engine/src/splat/mod.rs `default_window_fetch`).
+layout(constant_id = 9) const bool WINDOW_FETCH = false;
 // Without rgb (shadow maps) no colour is read, blended or stored.
 const bool RGB = (CHANNELS & 256u) != 0u;
 // The index of the splat with the largest weight wᵢ = αᵢ Tᵢ (the first of equal ones), per pixel.
@@ -288,7 +295,9 @@ void blend_pixel(inout Accumulated acc, inout bool live, float limit, uint g, ve
     float alpha, gauss;
     vec2 d;
     bool hit = all(bvec2(live, splat_alpha(nearest_copy(head, centre), conic, centre, alpha, gauss, d)));
-    float z = splat_depth(head, slope, d);
+    // A surface depth away from the splat can be infinite (the ray parallel
+    // to its plane), and its weight 0 would make it NaN: 0 where it misses.
+    float z = mix(0.0, splat_depth(head, slope, d), hit);
     if (OCCLUDED) hit = all(bvec2(hit, z < limit));
     float next_T = acc.T * (1.0 - alpha);
     bool stop = all(bvec2(hit, next_T < 1e-4));
@@ -337,25 +346,62 @@ void main() {
     // keys the subgroup wants, in key order. Every lane stays in the loop
     // until all are done, so each window is whole.
     uint next = range.x, window_start = range.x, window = 0u;
+    // WINDOW_FETCH: each lane's wanted splat of the current window.
+    uint lane_g = 0u;
+    vec4 lane_head = vec4(0.0), lane_conic = vec4(0.0), lane_color = vec4(0.0);
+    Contribution lane_c = Contribution(vec3(0.0), vec4(0.0), vec4(0.0), vec4(0.0));
     while (subgroupBallot(any_live) != uvec4(0u)) {
-        while (window == 0u && next < range.y) {
-            uint key = next + rank;
-            bool want = windowed && key < range.y
-                && (!ROW_MASKS || ((texelFetch(key_texels, int(2u * key + 1u)).x >> (32u - TILE)) & blocks) != 0u);
-            window = subgroupBallot(want).x;
-            window_start = next;
-            next += width;
+        if (!WINDOW_FETCH || window == 0u) {
+            while (window == 0u && next < range.y) {
+                uint key = next + rank;
+                bool want = windowed && key < range.y
+                    && (!ROW_MASKS || ((texelFetch(key_texels, int(2u * key + 1u)).x >> (32u - TILE)) & blocks) != 0u);
+                window = subgroupBallot(want).x;
+                window_start = next;
+                next += width;
+            }
+            if (window == 0u) break;
+            if (WINDOW_FETCH) {
+                // One fetch per window serves every wanted key of it: lane
+                // `l` holds the splat of key window_start + rank(l).
+                lane_g = texelFetch(value_texels, int(min(window_start + rank, range.y - 1u))).x;
+                lane_head = texelFetch(splat_texels, int(4u * lane_g));
+                lane_conic = texelFetch(splat_texels, int(4u * lane_g + 1u));
+                if (RGB || SURFACE_DEPTH) lane_color = texelFetch(splat_texels, int(4u * lane_g + 2u));
+                if (FEATURES) {
+                    lane_c.f0 = FEATURE(3u * lane_g);
+                    lane_c.f1 = FEATURE(3u * lane_g + 1u);
+                    lane_c.f2 = FEATURE(3u * lane_g + 2u);
+                }
+            }
         }
-        if (window == 0u) break;
         uint first_lane = uint(findLSB(window));
         window &= window - 1u;
-        uint j = window_start + bitCount(lanes & ((1u << first_lane) - 1u));
-        // Every lane fetches the same texels: one vector gather each, no election or broadcast.
-        uint g = texelFetch(value_texels, int(j)).x;
-        vec4 head = texelFetch(splat_texels, int(4u * g));
-        vec4 conic = texelFetch(splat_texels, int(4u * g + 1u));
-        Contribution c = splat_contribution(g);
-        vec2 slope = splat_slope(g, conic);
+        uint g;
+        vec4 head, conic;
+        Contribution c;
+        vec2 slope;
+        if (WINDOW_FETCH) {
+            g = subgroupBroadcast(lane_g, first_lane);
+            head = subgroupBroadcast(lane_head, first_lane);
+            conic = subgroupBroadcast(lane_conic, first_lane);
+            vec4 color = (RGB || SURFACE_DEPTH) ? subgroupBroadcast(lane_color, first_lane) : vec4(0.0);
+            c = Contribution(color.rgb, vec4(0.0), vec4(0.0), vec4(0.0));
+            if (FEATURES) {
+                c.f0 = subgroupBroadcast(lane_c.f0, first_lane);
+                c.f1 = subgroupBroadcast(lane_c.f1, first_lane);
+                c.f2 = subgroupBroadcast(lane_c.f2, first_lane);
+            }
+            slope = SURFACE_DEPTH ? vec2(conic.w, color.w) : vec2(0.0);
+        } else {
+            uint j = window_start + bitCount(lanes & ((1u << first_lane) - 1u));
+            // Every lane fetches the same texels: one vector gather each, no election or broadcast.
+            g = texelFetch(value_texels, int(j)).x;
+            head = texelFetch(splat_texels, int(4u * g));
+            conic = texelFetch(splat_texels, int(4u * g + 1u));
+            c = splat_contribution(g);
+            slope = splat_slope(g, conic);
+        }
         // The pixel centres of this lane's row the splat can reach at α ≥ 1/255
         // (`lane_row_reach`): a pixel outside is not evaluated (the same
         // result: it would not take the splat), so a pixel column no lane of

@@ -44,6 +44,10 @@ pub(crate) struct SplatBenchArgs {
     /// (default: true on lavapipe from Mesa 25, else false).
     #[arg(long)]
     pixel_reach: Option<bool>,
+    /// Fetch each key window's wanted splats once, one per blend lane, and broadcast them: true or
+    /// false (default: true on lavapipe from Mesa 25, else false).
+    #[arg(long)]
+    window_fetch: Option<bool>,
     /// Which tiles list a splat: ellipse (those that can see it at α ≥ 1/255) or rectangle (its 3σ square).
     #[arg(long, default_value = "ellipse")]
     tile_bounds: TileBounds,
@@ -63,6 +67,7 @@ impl SplatBenchArgs {
             tile,
             blend_pixels,
             pixel_reach,
+            window_fetch,
             tile_bounds,
         } = self;
         check_tile(tile)?;
@@ -77,8 +82,16 @@ impl SplatBenchArgs {
         println!("device: {} ({}), measured FMA peak {peak:.1} GFLOP/s", info.name, info.driver);
         println!("scene: the demo city (seed 7) at SH degree {sh_degree}, its first street camera\n");
         let bar = spinner("benchmarking");
-        let options =
-            bench::SplatBenchOptions { repeats, sh_degree, blend, blend_pixels, pixel_reach, tile, tile_bounds };
+        let options = bench::SplatBenchOptions {
+            repeats,
+            sh_degree,
+            blend,
+            blend_pixels,
+            pixel_reach,
+            window_fetch,
+            tile,
+            tile_bounds,
+        };
         let rows = bench::splat_bench(&device, counts, &sizes, &options, |m| bar.set_message(m.to_string()))?;
         bar.set_message("sorting");
         let sort = bench::sort_bench(&device, sort_keys, 32 + 11, repeats)?;
