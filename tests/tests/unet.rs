@@ -111,6 +111,59 @@ fn unet_matches_twin_at_odd_and_tiny_sizes() {
 }
 
 #[test]
+fn shared_winograd_weight_fetches_give_the_same_bits() {
+    // Each lane of a subgroup fetches its share of a weight block and the
+    // subgroup broadcasts them (the default on lavapipe from Mesa 25): the
+    // same weights in the same sums, so the same output bit for bit, at both
+    // tiles and precisions, also where a layer's edge is partial (37×23).
+    let d = device();
+    let info = d.info();
+    let mesa_25 = info.is_lavapipe() && info.mesa_version().is_some_and(|(major, _)| major >= 25);
+    let config = UNetConfig { widths: [8, 16, 32, 64, 128], ..UNetConfig::default() };
+    let channels = config.in_channels;
+    let weights = UNetWeights::random(config, 5);
+    let (w, h) = (37u32, 23u32);
+    let mut rng = Pcg64Mcg::seed_from_u64(11);
+    let input: Vec<f32> = (0..channels * 37 * 23).map(|_| rng.random_range(-1.0..1.0f32)).collect();
+    let buffer = d.upload("input", &input).unwrap();
+    let mut tiles = vec![WinogradTile::F2x2];
+    if tests_winograd_4x4(&d) {
+        tiles.push(WinogradTile::F4x4);
+    }
+    if !(info.subgroup_ballot && 64 % info.subgroup_size == 0) {
+        eprintln!("skipping: subgroup size {} or no subgroup broadcast", info.subgroup_size);
+        return;
+    }
+    for precision in [StoragePrecision::Fp32, StoragePrecision::Fp16] {
+        if precision == StoragePrecision::Fp16 && !info.storage_16bit {
+            continue;
+        }
+        for &tile in &tiles {
+            let mut net = UNet::with_precision(&d, &weights, precision).unwrap();
+            let expected = if mesa_25 { info.subgroup_size } else { 0 };
+            assert_eq!(net.winograd_weight_lanes(), expected, "default on {}", info.driver);
+            net.set_prefill(Some(NAN));
+            net.set_winograd(Some(tile)).unwrap();
+            let mut outputs = Vec::new();
+            for on in [false, true] {
+                net.set_winograd_shared_weights(on).unwrap();
+                assert_eq!(net.winograd_weight_lanes(), if on { info.subgroup_size } else { 0 });
+                let out = net.infer(&buffer, w, h).unwrap();
+                outputs.push(d.read_buffer::<f32>(&out.output).unwrap());
+            }
+            assert!(outputs[0].iter().all(|v| v.is_finite()) && outputs[0].iter().any(|v| v.abs() > 1e-3));
+            let bits = |o: &[f32]| o.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+            assert_eq!(
+                bits(&outputs[0]),
+                bits(&outputs[1]),
+                "{tile:?} {precision:?}: shared weight fetches changed the output"
+            );
+        }
+    }
+    assert_no_validation_messages(&d);
+}
+
+#[test]
 fn default_conv_path_follows_the_device_type() {
     use srug::gpu::ash::vk::PhysicalDeviceType as T;
     // Winograd where LLVM compiles it (lavapipe); direct texel convolution on GPUs, where

@@ -51,10 +51,12 @@ pub struct UNet {
     /// Texel inputs read four pixels per fetch where a layer's width allows.
     vec4: bool,
     winograd: Option<WinogradTile>,
+    /// Lanes that share the Winograd weights' fetches (0: none; [`UNet::winograd_weight_lanes`]).
+    weight_lanes: u32,
 }
 
 /// A Winograd kernel variant: tile, activation code, fp16 output, output channel block, four-pixel inputs.
-type WinogradKey = (WinogradTile, u32, bool, usize, bool);
+type WinogradKey = (WinogradTile, u32, bool, usize, bool, u32);
 
 /// How activations are stored between layers; arithmetic is fp32 either way.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
@@ -315,6 +317,7 @@ impl UNet {
             texel,
             vec4: vec4 && default_path.vec4(),
             winograd: None,
+            weight_lanes: winograd::weight_lanes(device.info()),
         };
         net.set_winograd(default_path.winograd())?;
         Ok(net)
@@ -322,11 +325,36 @@ impl UNet {
 
     /// The Winograd kernel variant of layer `i` ([`WinogradKey`]): activation
     /// (none for the last) and fp16 output (not for the last).
-    fn winograd_key(config: &UNetConfig, tile: WinogradTile, i: usize, half: bool, vec4: bool) -> WinogradKey {
-        let all = layers(config);
+    fn winograd_key(&self, tile: WinogradTile, i: usize, half: bool, vec4: bool) -> WinogradKey {
+        let all = layers(&self.config);
         let last = i + 1 == all.len();
         let co = all[i].2;
-        (tile, if last { 0 } else { config.activation.code() }, half && !last, channel_block(co, true), vec4)
+        let act = if last { 0 } else { self.config.activation.code() };
+        (tile, act, half && !last, channel_block(co, true), vec4, self.weight_lanes)
+    }
+
+    /// Lanes of a subgroup that fetch the Winograd kernels' weights side by
+    /// side and broadcast them (the weights are the same in every lane), or 0
+    /// where every lane fetches every weight: the subgroup size on lavapipe
+    /// from Mesa 25, whose texel fetch is a call, else 0 (see
+    /// `winograd::weight_lanes`). The output does not change.
+    pub fn winograd_weight_lanes(&self) -> u32 {
+        self.weight_lanes
+    }
+
+    /// Shares the Winograd weights' fetches across each subgroup (`true`:
+    /// its size, which needs subgroup broadcast and whole subgroups in 64
+    /// invocations) or not (see [`UNet::winograd_weight_lanes`]).
+    pub fn set_winograd_shared_weights(&mut self, on: bool) -> Result<()> {
+        let info = self.device.info();
+        let size = info.subgroup_size;
+        if on && !(info.subgroup_ballot && size > 1 && 64 % size == 0) {
+            return Err(Error::unsupported(format!(
+                "sharing Winograd weight fetches needs subgroup broadcast and a subgroup size dividing 64 (this device: {size})"
+            )));
+        }
+        self.weight_lanes = if on { size } else { 0 };
+        Ok(())
     }
 
     /// The Winograd transform the stride-1 layers run by
@@ -383,17 +411,18 @@ impl UNet {
         let s = level_sizes(width, height);
         for (i, (_, _, _, stride)) in layers(&self.config).iter().enumerate() {
             let vec4 = self.vec4 && vec4_fits(s[input_level(i)].0);
-            let key = Self::winograd_key(&self.config, tile, i, half, vec4);
+            let key = self.winograd_key(tile, i, half, vec4);
             if *stride != 1 || self.winograd_kernels.contains_key(&key) {
                 continue;
             }
-            let (_, act, half_out, block, _) = key;
+            let (_, act, half_out, block, _, lanes) = key;
             let mut spec = vec![
                 (1, SpecValue::U32(act)),
                 (2, SpecValue::U32(tile.tiles_per_invocation() as u32)),
                 (3, SpecValue::U32(block as u32)),
                 (4, SpecValue::U32(tile.channels_per_step() as u32)),
                 (5, SpecValue::Bool(vec4)),
+                (6, SpecValue::U32(lanes)),
             ];
             if half {
                 spec.push((11, SpecValue::Bool(half_out)));
@@ -616,7 +645,7 @@ impl UNet {
         let weights = &self.weights;
         let winograd = |i: usize, vec4: bool| -> Option<(WinogradTile, &Kernel, &Buffer)> {
             let (tile, weights) = self.winograd_weights.as_ref().filter(|(t, _)| Some(*t) == self.winograd)?;
-            let k = self.winograd_kernels.get(&Self::winograd_key(&c, *tile, i, half, vec4))?;
+            let k = self.winograd_kernels.get(&self.winograd_key(*tile, i, half, vec4))?;
             Some((*tile, k, weights.get(i)?.as_ref()?))
         };
         let upsample = &self.upsample;

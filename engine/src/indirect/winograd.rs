@@ -20,6 +20,7 @@
 
 use super::ConvWeights;
 use crate::gpu::ash::vk;
+use crate::gpu::DeviceInfo;
 
 /// Which Winograd transform the stride-1 convolutions use.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
@@ -160,6 +161,24 @@ fn sandwich(l: &[f64], x: &[f64], r: &[f64], n: usize) -> Vec<f64> {
     let (lr, rr) = (l.len() / n, r.len() / n);
     let lx: Vec<f64> = (0..lr * n).map(|at| (0..n).map(|k| l[(at / n) * n + k] * x[k * n + at % n]).sum()).collect();
     (0..lr * rr).map(|at| (0..n).map(|k| lx[(at / rr) * n + k] * r[(at % rr) * n + k]).sum()).collect()
+}
+
+/// Lanes of a subgroup that fetch a weight block's texels side by side and
+/// broadcast them (`WEIGHT_LANES` in `unet_winograd_body.glsl`), or 0 for
+/// every lane fetching every texel. Every lane of a workgroup reads the same
+/// weights (its output block); on lavapipe from Mesa 25, whose texel fetch is
+/// a call around which the kernel saves and restores its vector registers,
+/// one call then serves a subgroup's worth of texels (docs/bench/unet.md).
+/// Needs subgroup broadcast and whole subgroups in the kernel's 64
+/// invocations; elsewhere (Mesa 22.3 fetches inline, GPUs not measured) 0.
+pub(crate) fn weight_lanes(info: &DeviceInfo) -> u32 {
+    let mesa_25 = matches!(info.mesa_version(), Some((major, _)) if info.is_lavapipe() && major >= 25);
+    let size = info.subgroup_size;
+    if mesa_25 && info.subgroup_ballot && size > 1 && 64 % size == 0 {
+        size
+    } else {
+        0
+    }
 }
 
 /// Texels (RGBA32F) of a layer's packed Winograd weights: output channels

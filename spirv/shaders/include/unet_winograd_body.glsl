@@ -8,6 +8,8 @@
 #define E (WT + 2)
 #define EE (E * E)
 #extension GL_EXT_control_flow_attributes : require
+#extension GL_KHR_shader_subgroup_basic : require
+#extension GL_KHR_shader_subgroup_ballot : require
 #define WORKGROUP_SIZE_X 64
 #include "common.glsl"
 #include "address.glsl"
@@ -28,6 +30,14 @@ layout(constant_id = 4) const uint CH = 2;
 // input width to be a multiple of 4, so every row segment starts one pixel
 // before a texel boundary.
 layout(constant_id = 5) const bool VEC4 = false;
+// The subgroup's size where its lanes fetch a weight block's texels side by
+// side and broadcast them (0: every lane fetches every texel). The weights
+// are the same in every lane (the workgroup's output block); where a texel
+// fetch is a call (lavapipe from Mesa 25) this is 1/WEIGHT_LANES of the
+// calls (engine/src/indirect/winograd.rs `weight_lanes`).
+layout(constant_id = 6) const uint WEIGHT_LANES = 0u;
+#define WEIGHT_STEP max(WEIGHT_LANES, 1u)
+#define WEIGHT_ROUNDS ((EE + WEIGHT_STEP - 1u) / WEIGHT_STEP)
 
 // U = G·g·Gᵀ per (output block of 4, input channel, k = E·row + column) as
 // one RGBA32F texel (4 output channels), output blocks padded to a multiple
@@ -103,7 +113,18 @@ layout(push_constant) uniform ConvPush {
             }                                                                      \
             [[unroll]] for (uint q = 0u; q < Q; ++q) {                             \
                 int wb = int(((ob * Q + q) * cin + (OFFSET) + ch) * EE);           \
-                [[unroll]] for (uint k = 0u; k < EE; ++k) wt[c][k * Q + q] = texelFetch(weight_texels, wb + int(k)); \
+                if (WEIGHT_LANES > 0u) {                                                   \
+                    vec4 lane_wt[EE];                                                      \
+                    [[unroll]] for (uint r = 0u; r < WEIGHT_ROUNDS; ++r) {                 \
+                        uint at = min(r * WEIGHT_LANES + gl_SubgroupInvocationID, EE - 1u); \
+                        lane_wt[r] = texelFetch(weight_texels, wb + int(at));              \
+                    }                                                                      \
+                    [[unroll]] for (uint k = 0u; k < EE; ++k) {                            \
+                        wt[c][k * Q + q] = subgroupBroadcast(lane_wt[k / WEIGHT_STEP], k % WEIGHT_STEP); \
+                    }                                                                      \
+                } else {                                                                   \
+                    [[unroll]] for (uint k = 0u; k < EE; ++k) wt[c][k * Q + q] = texelFetch(weight_texels, wb + int(k)); \
+                }                                                                          \
             }                                                                      \
         }                                                                          \
         [[unroll]] for (uint t = 0u; t < TT; ++t) {                                \
