@@ -268,6 +268,11 @@ fn bench_splat_prints_its_tables() {
     let o = bench("64x32", "6000", "4");
     assert_eq!(o.status.code(), Some(1), "{}", text(&o));
     assert!(text(&o).contains("--sh-degree 4: is not 0 to 3"), "{}", text(&o));
+    // The A/B switches: the blend's per-window fetch and the texel reads off.
+    let args = ["--gaussians", "2000", "--sizes", "64x32", "--repeats", "1", "--sort-keys", "5000"];
+    let off = ["--floor-pairs", "6000", "--window-fetch", "false", "--texel-preprocess", "false"];
+    let o = srug(&[&["bench", "splat"][..], &args, &off].concat());
+    assert!(o.status.success() && text(&o).contains("| 2000 | 64x32 |"), "{}", text(&o));
 }
 
 /// `srug bench batch` runs srug render and relight to PNG and EXR and the in-process

@@ -137,6 +137,8 @@ pub struct SplatBenchOptions {
     pub pixel_reach: Option<bool>,
     /// The texel-buffer blend's per-window fetch (`None`: the default).
     pub window_fetch: Option<bool>,
+    /// Texel-buffer reads in the preprocess and keys kernels (`None`: the default).
+    pub texel_preprocess: Option<bool>,
     /// Tile edge in pixels.
     pub tile: u32,
     /// Which tiles list a splat.
@@ -151,8 +153,17 @@ pub fn splat_bench(
     options: &SplatBenchOptions,
     mut progress: impl FnMut(&str),
 ) -> Result<Vec<SplatBenchRow>> {
-    let SplatBenchOptions { repeats, sh_degree, blend, blend_pixels, pixel_reach, window_fetch, tile, tile_bounds } =
-        *options;
+    let SplatBenchOptions {
+        repeats,
+        sh_degree,
+        blend,
+        blend_pixels,
+        pixel_reach,
+        window_fetch,
+        texel_preprocess,
+        tile,
+        tile_bounds,
+    } = *options;
     let settings = SplatSettings { tile, tile_bounds, ..SplatSettings::default() };
     let mut rows = Vec::new();
     let mut splatter = Splatter::new(device)?;
@@ -167,6 +178,9 @@ pub fn splat_bench(
     }
     if let Some(on) = window_fetch {
         splatter.set_window_fetch(on);
+    }
+    if let Some(on) = texel_preprocess {
+        splatter.set_texel_preprocess(on)?;
     }
     for &n in counts {
         progress(&format!("generating the demo city with {n} Gaussians"));

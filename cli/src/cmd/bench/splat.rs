@@ -48,6 +48,10 @@ pub(crate) struct SplatBenchArgs {
     /// false (default: true on lavapipe from Mesa 25, else false).
     #[arg(long)]
     window_fetch: Option<bool>,
+    /// Read the scene (preprocess) and the splat records (keys) through texel-buffer views: true
+    /// or false (default: true where the device views R32F texels).
+    #[arg(long)]
+    texel_preprocess: Option<bool>,
     /// Which tiles list a splat: ellipse (those that can see it at α ≥ 1/255) or rectangle (its 3σ square).
     #[arg(long, default_value = "ellipse")]
     tile_bounds: TileBounds,
@@ -68,6 +72,7 @@ impl SplatBenchArgs {
             blend_pixels,
             pixel_reach,
             window_fetch,
+            texel_preprocess,
             tile_bounds,
         } = self;
         check_tile(tile)?;
@@ -89,6 +94,7 @@ impl SplatBenchArgs {
             blend_pixels,
             pixel_reach,
             window_fetch,
+            texel_preprocess,
             tile,
             tile_bounds,
         };
