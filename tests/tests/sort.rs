@@ -113,8 +113,9 @@ fn sort_cases(d: &Device, sort: &mut RadixSort) {
     let mut rng = Pcg64Mcg::seed_from_u64(2);
     let random =
         |rng: &mut Pcg64Mcg, n: usize| -> Vec<[u32; 2]> { (0..n).map(|_| [rng.random(), rng.random()]).collect() };
-    // Around block edges: 64 × items keys per workgroup (4096 at 64, 16,384 at 256).
-    for n in [0usize, 1, 2, 63, 64, 1023, 1024, 1025, 4095, 4097, 16_383, 16_384, 16_385, 100_003] {
+    // Around block edges: 64 × items keys per workgroup (4096 at 64, 16,384 at 256); below and
+    // past four keys (wide passes read keys two and values four per texel, the rest one by one).
+    for n in [0usize, 1, 2, 3, 5, 6, 7, 63, 64, 1023, 1024, 1025, 4095, 4097, 16_383, 16_384, 16_385, 100_003] {
         check_sort(d, sort, &random(&mut rng, n), 64, &format!("random n={n}, texel {texel}"));
     }
     // Only the bits in use: keys with junk above `bits` sort by the low bits alone, stably.

@@ -278,17 +278,20 @@ impl RadixSort {
             ));
         }
         if on && self.wide.is_none() {
-            if self.texel.is_none() {
-                return Err(Error::unsupported("this device cannot read sort keys through uniform texel buffers"));
+            if self.texel.is_none() || !device.info().texel_formats.contains(&TexelFormat::Rgba32Uint) {
+                return Err(Error::unsupported(
+                    "this device cannot read sort keys through RG32UI, R32UI and RGBA32UI uniform texel buffers",
+                ));
             }
+            // Keys (RG32UI) and, in the scatter, values (R32UI); then the same two and four per RGBA32UI texel.
             let views = |n: usize| KernelDecl {
-                bindings: &[BindingKind::UniformTexelBuffer; 2][..n],
+                bindings: &[BindingKind::UniformTexelBuffer; 4][..n],
                 push_constant_size: std::mem::size_of::<SortPush>(),
                 specialization: &[],
             };
             self.wide = Some((
-                device.kernel(&kernels::SORT_HISTOGRAM_WIDE_TEXEL, &views(1))?,
-                device.kernel(&kernels::SORT_SCATTER_WIDE_TEXEL, &views(2))?,
+                device.kernel(&kernels::SORT_HISTOGRAM_WIDE_TEXEL, &views(2))?,
+                device.kernel(&kernels::SORT_SCATTER_WIDE_TEXEL, &views(4))?,
             ));
         }
         if on && !self.use_wide {
@@ -358,21 +361,31 @@ impl RadixSort {
                 blocks: blocks as u32,
                 digit_mask: (1u32 << digit) - 1,
             };
-            let view = |buffer: &'a Buffer, format: TexelFormat| {
-                Binding::Texels(Texels { buffer, offset: 0, elements: count, format })
+            let view = |buffer: &'a Buffer, elements: u64, format: TexelFormat| {
+                Binding::Texels(Texels { buffer, offset: 0, elements, format })
             };
-            let (key_view, value_view) = (view(src.0, TexelFormat::Rg32Uint), view(src.1, TexelFormat::R32Uint));
+            let (key_view, value_view) =
+                (view(src.0, count, TexelFormat::Rg32Uint), view(src.1, count, TexelFormat::R32Uint));
+            // Wide passes: keys two and values four per RGBA32UI texel (whole texels only; below
+            // four keys the kernel reads no value quad, and the R32UI view stands in).
+            let key_pairs = view(src.0, count / 2, TexelFormat::Rgba32Uint);
+            let value_quads = if count >= 4 { view(src.1, count / 4, TexelFormat::Rgba32Uint) } else { value_view };
             let histogram_entries =
                 (1u64 << digit) * blocks * if wide.is_some() { WIDE_WORKGROUP } else { SORT_WORKGROUP };
             match (wide, texel) {
-                (Some((histogram, _)), _) | (None, Some((histogram, _))) => {
-                    rec.dispatch(histogram, Grid::Groups(blocks), &[key_view], &push)?
+                (Some((histogram, _)), _) => {
+                    rec.dispatch(histogram, Grid::Groups(blocks), &[key_view, key_pairs], &push)?
                 }
+                (None, Some((histogram, _))) => rec.dispatch(histogram, Grid::Groups(blocks), &[key_view], &push)?,
                 (None, None) => rec.dispatch(&self.histogram, Grid::Groups(blocks), &[], &push)?,
             }
             self.scan.record(rec, hist, histogram_entries)?;
             match (wide, texel) {
-                (Some((_, scatter)), _) | (None, Some((_, scatter))) => {
+                (Some((_, scatter)), _) => {
+                    let views = [key_view, value_view, key_pairs, value_quads];
+                    rec.dispatch(scatter, Grid::Groups(blocks), &views, &push)?
+                }
+                (None, Some((_, scatter))) => {
                     rec.dispatch(scatter, Grid::Groups(blocks), &[key_view, value_view], &push)?
                 }
                 (None, None) => rec.dispatch(&self.scatter, Grid::Groups(blocks), &[], &push)?,

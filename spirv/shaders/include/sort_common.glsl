@@ -62,6 +62,18 @@ layout(set = 0, binding = 0) uniform utextureBuffer keys_view;
 layout(set = 0, binding = 1) uniform utextureBuffer values_view;
 #define VALUE(i) texelFetch(values_view, int(min(i, pc.count - 1u))).x
 #endif
+#ifdef WIDE_DIGITS
+// The same keys two per RGBA32UI texel (keys 2t and 2t + 1) and, in the
+// scatter, values four per texel: on lavapipe from Mesa 25 every fetch is a
+// call, so a run's keys are read two and four at a time (its start is a
+// multiple of 4, `run_length`), the last few through the views above.
+#ifdef SORT_VALUES
+layout(set = 0, binding = 2) uniform utextureBuffer key_pairs_view;
+layout(set = 0, binding = 3) uniform utextureBuffer value_quads_view;
+#else
+layout(set = 0, binding = 1) uniform utextureBuffer key_pairs_view;
+#endif
+#endif
 #else
 #define KEY(i) Uvec2sIn(pc.keys_in).v[i]
 #define VALUE(i) UintsIn(pc.values_in).v[i]
@@ -86,7 +98,8 @@ uint invocations() {
 // the dispatched invocations (the host picks the number of workgroups).
 uint run_length() {
 #ifdef WIDE_DIGITS
-    return (pc.count + invocations() - 1u) / invocations();
+    // A multiple of 4: every run starts on a texel of key_pairs_view and value_quads_view.
+    return ((pc.count + invocations() - 1u) / invocations() + 3u) & ~3u;
 #else
     return ITEMS;
 #endif

@@ -10,6 +10,26 @@ void main() {
     UNROLL_RADIX for (uint d = 0; d < PASS_RADIX; d++) next[d] = hist.v[d * invocations() + me];
     uint run = run_length();
     uint end = min(me * run + run, pc.count);
+#if defined(WIDE_DIGITS) && defined(TEXEL_INPUT)
+    uint i = me * run;
+    for (; i + 3u < end; i += 4u) {
+        uvec4 k01 = texelFetch(key_pairs_view, int(i / 2u));
+        uvec4 k23 = texelFetch(key_pairs_view, int(i / 2u + 1u));
+        uvec4 v = texelFetch(value_quads_view, int(i / 4u));
+        uvec2 k[4] = uvec2[4](k01.xy, k01.zw, k23.xy, k23.zw);
+        [[unroll]] for (uint j = 0u; j < 4u; j++) {
+            uint dst = next[digit_of(k[j])]++;
+            Uvec2sOut(pc.keys_out).v[dst] = k[j];
+            UintsOut(pc.values_out).v[dst] = v[j];
+        }
+    }
+    for (; i < end; i++) {
+        uvec2 key = KEY(i);
+        uint dst = next[digit_of(key)]++;
+        Uvec2sOut(pc.keys_out).v[dst] = key;
+        UintsOut(pc.values_out).v[dst] = VALUE(i);
+    }
+#else
     for (uint i = me * run; i < end; i++) {
         uvec2 key = KEY(i);
         uint digit = digit_of(key);
@@ -27,4 +47,5 @@ void main() {
         Uvec2sOut(pc.keys_out).v[dst] = key;
         UintsOut(pc.values_out).v[dst] = VALUE(i);
     }
+#endif
 }
