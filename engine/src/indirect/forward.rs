@@ -55,7 +55,8 @@ pub struct UNet {
     weight_lanes: u32,
 }
 
-/// A Winograd kernel variant: tile, activation code, fp16 output, output channel block, four-pixel inputs.
+/// A Winograd kernel variant: tile, activation code, fp16 output, output channel block, four-pixel
+/// inputs, lanes sharing weight fetches.
 type WinogradKey = (WinogradTile, u32, bool, usize, bool, u32);
 
 /// How activations are stored between layers; arithmetic is fp32 either way.
@@ -348,7 +349,7 @@ impl UNet {
     pub fn set_winograd_shared_weights(&mut self, on: bool) -> Result<()> {
         let info = self.device.info();
         let size = info.subgroup_size;
-        if on && !(info.subgroup_ballot && size > 1 && 64 % size == 0) {
+        if on && !winograd::weight_sharing_supported(info) {
             return Err(Error::unsupported(format!(
                 "sharing Winograd weight fetches needs subgroup broadcast and a subgroup size dividing 64 (this device: {size})"
             )));

@@ -173,12 +173,18 @@ fn sandwich(l: &[f64], x: &[f64], r: &[f64], n: usize) -> Vec<f64> {
 /// invocations; elsewhere (Mesa 22.3 fetches inline, GPUs not measured) 0.
 pub(crate) fn weight_lanes(info: &DeviceInfo) -> u32 {
     let mesa_25 = matches!(info.mesa_version(), Some((major, _)) if info.is_lavapipe() && major >= 25);
-    let size = info.subgroup_size;
-    if mesa_25 && info.subgroup_ballot && size > 1 && 64 % size == 0 {
-        size
+    if mesa_25 && weight_sharing_supported(info) {
+        info.subgroup_size
     } else {
         0
     }
+}
+
+/// Whether the Winograd kernels can share weight fetches on `info`'s device:
+/// subgroup broadcast, and subgroups that fill the kernel's 64 invocations.
+pub(crate) fn weight_sharing_supported(info: &DeviceInfo) -> bool {
+    let size = info.subgroup_size;
+    info.subgroup_ballot && size > 1 && 64 % size == 0
 }
 
 /// Texels (RGBA32F) of a layer's packed Winograd weights: output channels
