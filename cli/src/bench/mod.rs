@@ -122,6 +122,52 @@ fn median(mut v: Vec<f64>) -> f64 {
     v.get(v.len() / 2).copied().unwrap_or(f64::NAN)
 }
 
+/// The splatter's kernel choices a benchmark can override (`None`: the
+/// device's default), for A/B runs of one choice at a time.
+#[derive(clap::Args, Clone, Copy, Debug, Default)]
+pub struct SplatterChoices {
+    /// Blend variant: per-pixel, subgroup or batched (default: subgroup where supported).
+    #[arg(long, value_parser = BlendVariant::parse)]
+    pub blend: Option<BlendVariant>,
+    /// Pixels per invocation of the texel-buffer blend: 1, 2, 4 or 8 (default: 8 on lavapipe from Mesa 25, 1 on GPUs, else 2).
+    #[arg(long)]
+    pub blend_pixels: Option<u32>,
+    /// Evaluate each splat only at the pixels of a blend lane's row it can reach: true or false
+    /// (default: true on lavapipe from Mesa 25, else false).
+    #[arg(long)]
+    pub pixel_reach: Option<bool>,
+    /// Fetch each key window's wanted splats once, one per blend lane, and broadcast them: true or
+    /// false (default: true on lavapipe from Mesa 25, else false).
+    #[arg(long)]
+    pub window_fetch: Option<bool>,
+    /// Read the scene (preprocess) and the splat records (keys) through texel-buffer views: true
+    /// or false (default: true where the device views R32F texels).
+    #[arg(long)]
+    pub texel_preprocess: Option<bool>,
+}
+
+impl SplatterChoices {
+    /// Makes the choices given on `splatter`.
+    pub fn apply(&self, splatter: &mut Splatter) -> Result<()> {
+        if let Some(variant) = self.blend {
+            splatter.set_blend_variant(variant)?;
+        }
+        if let Some(pixels) = self.blend_pixels {
+            splatter.set_blend_pixels(pixels)?;
+        }
+        if let Some(on) = self.pixel_reach {
+            splatter.set_pixel_reach(on);
+        }
+        if let Some(on) = self.window_fetch {
+            splatter.set_window_fetch(on);
+        }
+        if let Some(on) = self.texel_preprocess {
+            splatter.set_texel_preprocess(on)?;
+        }
+        Ok(())
+    }
+}
+
 /// How [`splat_bench`] renders.
 #[derive(Clone, Copy, Debug)]
 pub struct SplatBenchOptions {
@@ -129,16 +175,8 @@ pub struct SplatBenchOptions {
     pub repeats: usize,
     /// SH degree of the demo city.
     pub sh_degree: u32,
-    /// Blend variant (`None`: the device's default).
-    pub blend: Option<BlendVariant>,
-    /// Pixels per invocation of the texel-buffer blend (`None`: the default).
-    pub blend_pixels: Option<u32>,
-    /// The texel-buffer blend's per-pixel reach test (`None`: the default).
-    pub pixel_reach: Option<bool>,
-    /// The texel-buffer blend's per-window fetch (`None`: the default).
-    pub window_fetch: Option<bool>,
-    /// Texel-buffer reads in the preprocess and keys kernels (`None`: the default).
-    pub texel_preprocess: Option<bool>,
+    /// Kernel choices overridden.
+    pub choices: SplatterChoices,
     /// Tile edge in pixels.
     pub tile: u32,
     /// Which tiles list a splat.
@@ -153,35 +191,11 @@ pub fn splat_bench(
     options: &SplatBenchOptions,
     mut progress: impl FnMut(&str),
 ) -> Result<Vec<SplatBenchRow>> {
-    let SplatBenchOptions {
-        repeats,
-        sh_degree,
-        blend,
-        blend_pixels,
-        pixel_reach,
-        window_fetch,
-        texel_preprocess,
-        tile,
-        tile_bounds,
-    } = *options;
+    let SplatBenchOptions { repeats, sh_degree, choices, tile, tile_bounds } = *options;
     let settings = SplatSettings { tile, tile_bounds, ..SplatSettings::default() };
     let mut rows = Vec::new();
     let mut splatter = Splatter::new(device)?;
-    if let Some(variant) = blend {
-        splatter.set_blend_variant(variant)?;
-    }
-    if let Some(pixels) = blend_pixels {
-        splatter.set_blend_pixels(pixels)?;
-    }
-    if let Some(on) = pixel_reach {
-        splatter.set_pixel_reach(on);
-    }
-    if let Some(on) = window_fetch {
-        splatter.set_window_fetch(on);
-    }
-    if let Some(on) = texel_preprocess {
-        splatter.set_texel_preprocess(on)?;
-    }
+    choices.apply(&mut splatter)?;
     for &n in counts {
         progress(&format!("generating the demo city with {n} Gaussians"));
         let city = demo_city(&DemoOptions { seed: 7, gaussians: n, sh_degree })?;

@@ -3,7 +3,7 @@
 //! blend's arithmetic ceiling, the pair-move floor of a sort pass, the memory
 //! bandwidth), with each stage's share of its own floor.
 
-use srug::splat::{check_tile, BlendVariant, TileBounds, DEFAULT_TILE};
+use srug::splat::{check_tile, TileBounds, DEFAULT_TILE};
 use srug::Result;
 
 use crate::args::{spinner, DeviceArgs, Size};
@@ -31,27 +31,12 @@ pub(crate) struct SplatBenchArgs {
     /// apart from --sort-keys, so a quick run with few sort keys keeps the column comparable).
     #[arg(long, default_value_t = 4_000_000)]
     floor_pairs: u64,
-    /// Blend variant: per-pixel, subgroup or batched (default: subgroup where supported).
-    #[arg(long, value_parser = BlendVariant::parse)]
-    blend: Option<BlendVariant>,
     /// Tile edge in pixels: 8, 16 or 32.
     #[arg(long, default_value_t = DEFAULT_TILE)]
     tile: u32,
-    /// Pixels per invocation of the texel-buffer blend: 1, 2, 4 or 8 (default: 8 on lavapipe from Mesa 25, 1 on GPUs, else 2).
-    #[arg(long)]
-    blend_pixels: Option<u32>,
-    /// Evaluate each splat only at the pixels of a blend lane's row it can reach: true or false
-    /// (default: true on lavapipe from Mesa 25, else false).
-    #[arg(long)]
-    pixel_reach: Option<bool>,
-    /// Fetch each key window's wanted splats once, one per blend lane, and broadcast them: true or
-    /// false (default: true on lavapipe from Mesa 25, else false).
-    #[arg(long)]
-    window_fetch: Option<bool>,
-    /// Read the scene (preprocess) and the splat records (keys) through texel-buffer views: true
-    /// or false (default: true where the device views R32F texels).
-    #[arg(long)]
-    texel_preprocess: Option<bool>,
+    /// The splatter's kernel choices (each defaults to the device's).
+    #[command(flatten)]
+    choices: bench::SplatterChoices,
     /// Which tiles list a splat: ellipse (those that can see it at α ≥ 1/255) or rectangle (its 3σ square).
     #[arg(long, default_value = "ellipse")]
     tile_bounds: TileBounds,
@@ -60,21 +45,8 @@ pub(crate) struct SplatBenchArgs {
 impl SplatBenchArgs {
     /// Runs `srug bench splat`.
     pub(crate) fn run(&self, device_args: &DeviceArgs) -> Result<()> {
-        let &Self {
-            ref gaussians,
-            ref sizes,
-            repeats,
-            sh_degree,
-            sort_keys,
-            floor_pairs,
-            blend,
-            tile,
-            blend_pixels,
-            pixel_reach,
-            window_fetch,
-            texel_preprocess,
-            tile_bounds,
-        } = self;
+        let &Self { ref gaussians, ref sizes, repeats, sh_degree, sort_keys, floor_pairs, tile, choices, tile_bounds } =
+            self;
         check_tile(tile)?;
         if sh_degree > 3 {
             return Err(srug::Error::invalid(format!("--sh-degree {sh_degree}"), "is not 0 to 3"));
@@ -87,17 +59,7 @@ impl SplatBenchArgs {
         println!("device: {} ({}), measured FMA peak {peak:.1} GFLOP/s", info.name, info.driver);
         println!("scene: the demo city (seed 7) at SH degree {sh_degree}, its first street camera\n");
         let bar = spinner("benchmarking");
-        let options = bench::SplatBenchOptions {
-            repeats,
-            sh_degree,
-            blend,
-            blend_pixels,
-            pixel_reach,
-            window_fetch,
-            texel_preprocess,
-            tile,
-            tile_bounds,
-        };
+        let options = bench::SplatBenchOptions { repeats, sh_degree, choices, tile, tile_bounds };
         let rows = bench::splat_bench(&device, counts, &sizes, &options, |m| bar.set_message(m.to_string()))?;
         bar.set_message("sorting");
         let sort = bench::sort_bench(&device, sort_keys, 32 + 11, repeats)?;
