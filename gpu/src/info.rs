@@ -71,6 +71,12 @@ impl DeviceInfo {
     pub fn mesa_version(&self) -> Option<(u32, u32)> {
         mesa_version_of(&self.driver)
     }
+
+    /// Whether the device is lavapipe from Mesa `major` on: the kernels'
+    /// CPU-only choices (which fetches are calls, which `if`s jump) follow it.
+    pub fn is_lavapipe_from(&self, major: u32) -> bool {
+        self.is_lavapipe() && self.mesa_version().is_some_and(|(m, _)| m >= major)
+    }
 }
 
 /// The (major, minor) after "Mesa " in a driver string.

@@ -172,8 +172,7 @@ fn sandwich(l: &[f64], x: &[f64], r: &[f64], n: usize) -> Vec<f64> {
 /// Needs subgroup broadcast and whole subgroups in the kernel's 64
 /// invocations; elsewhere (Mesa 22.3 fetches inline, GPUs not measured) 0.
 pub(crate) fn weight_lanes(info: &DeviceInfo) -> u32 {
-    let mesa_25 = matches!(info.mesa_version(), Some((major, _)) if info.is_lavapipe() && major >= 25);
-    if mesa_25 && weight_sharing_supported(info) {
+    if info.is_lavapipe_from(25) && weight_sharing_supported(info) {
         info.subgroup_size
     } else {
         0

@@ -81,10 +81,12 @@ pub const DEFAULT_BLEND_PIXELS: u32 = 2;
 /// H200); else [`DEFAULT_BLEND_PIXELS`] (chosen by `srug bench splat
 /// --blend-pixels`; docs/bench/splat.md, docs/bench/mesa.md, docs/bench/gpu.md).
 pub fn default_blend_pixels(info: &DeviceInfo) -> u32 {
-    match info.mesa_version() {
-        Some((major, _)) if info.is_lavapipe() && major >= 25 => 8,
-        _ if info.device_type != vk::PhysicalDeviceType::CPU => 1,
-        _ => DEFAULT_BLEND_PIXELS,
+    if info.is_lavapipe_from(25) {
+        8
+    } else if info.device_type != vk::PhysicalDeviceType::CPU {
+        1
+    } else {
+        DEFAULT_BLEND_PIXELS
     }
 }
 /// Whether a new [`Splatter`]'s texel-buffer blend evaluates each splat only
@@ -95,7 +97,7 @@ pub fn default_blend_pixels(info: &DeviceInfo) -> u32 {
 /// 22.3's lavapipe runs both sides of every `if`, where the test is extra
 /// work; GPUs not measured). The image is the same either way.
 pub fn default_pixel_reach(info: &DeviceInfo) -> bool {
-    matches!(info.mesa_version(), Some((major, _)) if info.is_lavapipe() && major >= 25)
+    info.is_lavapipe_from(25)
 }
 /// Whether a new [`Splatter`]'s texel-buffer blend fetches each key window's
 /// wanted splats once, one per lane, and broadcasts them splat by splat
@@ -107,7 +109,7 @@ pub fn default_pixel_reach(info: &DeviceInfo) -> bool {
 /// would fetch and broadcast every step; GPUs not measured). The image is
 /// the same either way.
 pub fn default_window_fetch(info: &DeviceInfo) -> bool {
-    matches!(info.mesa_version(), Some((major, _)) if info.is_lavapipe() && major >= 25)
+    info.is_lavapipe_from(25)
 }
 /// Bit of the blend's `CHANNELS` specialization constant that blends rgb
 /// (keep in sync with `RGB` in `splat_blend_body.glsl`).
