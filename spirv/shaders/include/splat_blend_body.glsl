@@ -20,7 +20,7 @@ layout(constant_id = 5) const bool OCCLUDED = false;
 // The texel blend: each sorted key carries the tile blocks its splat reaches (splat_keys.comp `tile_block_mask`).
 layout(constant_id = 6) const bool ROW_MASKS = false;
 // The texel blend evaluates a splat only at the pixels of each lane's row it
-// can reach (`lane_row_reach`); for drivers that jump over an `if` no lane
+// can reach (`row_span`); for drivers that jump over an `if` no lane
 // enters (engine/src/splat/mod.rs `default_pixel_reach`).
 layout(constant_id = 7) const bool PIXEL_REACH = false;
 // Blend only the tiles the frame's tile mask wants (`tile_wanted`), as the
@@ -272,19 +272,33 @@ float log2_upper(float x) {
     return float(e) - 0.4150375 + 1.9235933 * (m - 0.75);
 }
 
-// The pixel centres x ∈ [reach.x, reach.y] of the row at centre y where the
-// splat can reach α ≥ 1/255 (empty where it reaches none): `tile_ellipse`'s
-// widened ellipse, its r² from `log2_upper` (so a little wider still), and
-// 0.01 px more (`ellipse_row_span`, as `tile_block_mask`: every pixel the
-// blend would take lies inside). The whole row where Q is too ill-conditioned,
-// where r² is not a number, and for panoramas.
-vec2 lane_row_reach(vec4 head, vec4 conic, float y) {
+// A splat's reach along pixel rows, as three numbers so that a row's span
+// costs one square root (`row_span`): `tile_ellipse`'s widened ellipse, its
+// r² from `log2_upper` (so a little wider still), has its centre at
+// x = mean.x + slope·dy on the row dy = mean.y − y below the mean, and half
+// width sqrt(max(q − r·dy², 0)) there (`ellipse_row_span`'s root / a). Every
+// pixel the blend would take lies inside the span, widened by 0.01 px as
+// `tile_block_mask`'s. A NaN slope reaches no pixel; q = ∞ every pixel of
+// every row: where Q is too ill-conditioned, where r² is not a number, and
+// for panoramas. With WINDOW_FETCH each lane computes it once for its own
+// splat of the window, not every lane for every splat.
+vec3 row_reach_of(vec4 head, vec4 conic) {
     const float INF = 1.0 / 0.0;
-    if (WRAP_X) return vec2(-INF, INF);
+    const vec3 EVERY_ROW = vec3(0.0, INF, 0.0);
+    if (WRAP_X) return EVERY_ROW;
     TileEllipse e = tile_ellipse_of(2.02 * 0.6931472 * log2_upper(255.0 * head.w) + 0.01, conic.xyz);
-    if (!(e.r2 > 0.0)) return e.r2 <= 0.0 ? vec2(INF, -INF) : vec2(-INF, INF);
-    if (!(e.det > 0.0)) return vec2(-INF, INF);
-    return ellipse_row_span(e, head.xy, head.y - y);
+    if (!(e.r2 > 0.0)) return e.r2 <= 0.0 ? vec3(uintBitsToFloat(0x7fc00000u), 0.0, 0.0) : EVERY_ROW;
+    if (!(e.det > 0.0)) return EVERY_ROW;
+    return vec3(e.b / e.a, e.r2 / e.a, (e.det / e.a) / e.a);
+}
+
+// The pixel centres x ∈ [span.x, span.y] of the row at centre y that a
+// splat (its `row_reach_of`) can reach at α ≥ 1/255 (empty where none).
+vec2 row_span(vec3 reach, vec4 head, float y) {
+    float dy = head.y - y;
+    float mid = head.x + reach.x * dy;
+    float half_width = sqrt(max(reach.y - reach.z * dy * dy, 0.0));
+    return vec2(mid - half_width - 0.01, mid + half_width + 0.01);
 }
 
 // Blends splat g into one pixel of a lane (centre `centre`, still `live`)
@@ -349,9 +363,15 @@ void main() {
     // WINDOW_FETCH: each lane's wanted splat of the current window.
     uint lane_g = 0u;
     vec4 lane_head = vec4(0.0), lane_conic = vec4(0.0), lane_color = vec4(0.0);
+    vec3 lane_reach = vec3(0.0);
     Contribution lane_c = Contribution(vec3(0.0), vec4(0.0), vec4(0.0), vec4(0.0));
-    while (subgroupBallot(any_live) != uvec4(0u)) {
-        if (!WINDOW_FETCH || window == 0u) {
+    while (true) {
+        // With WINDOW_FETCH whether any pixel is still live is asked once a
+        // window (a ballot is a loop over the lanes on lavapipe): a subgroup
+        // whose pixels are all done finishes its window without pixel work.
+        bool window_done = !WINDOW_FETCH || window == 0u;
+        if (window_done && subgroupBallot(any_live) == uvec4(0u)) break;
+        if (window_done) {
             while (window == 0u && next < range.y) {
                 uint key = next + rank;
                 bool want = windowed && key < range.y
@@ -368,6 +388,7 @@ void main() {
                 lane_head = texelFetch(splat_texels, int(4u * lane_g));
                 lane_conic = texelFetch(splat_texels, int(4u * lane_g + 1u));
                 if (RGB || SURFACE_DEPTH) lane_color = texelFetch(splat_texels, int(4u * lane_g + 2u));
+                if (PIXEL_REACH) lane_reach = row_reach_of(lane_head, lane_conic);
                 if (FEATURES) {
                     lane_c.f0 = FEATURE(3u * lane_g);
                     lane_c.f1 = FEATURE(3u * lane_g + 1u);
@@ -381,6 +402,7 @@ void main() {
         vec4 head, conic;
         Contribution c;
         vec2 slope;
+        vec3 reach_of = vec3(0.0);
         if (WINDOW_FETCH) {
             g = subgroupBroadcast(lane_g, first_lane);
             head = subgroupBroadcast(lane_head, first_lane);
@@ -393,6 +415,7 @@ void main() {
                 c.f2 = subgroupBroadcast(lane_c.f2, first_lane);
             }
             slope = SURFACE_DEPTH ? vec2(conic.w, color.w) : vec2(0.0);
+            if (PIXEL_REACH) reach_of = subgroupBroadcast(lane_reach, first_lane);
         } else {
             uint j = window_start + bitCount(lanes & ((1u << first_lane) - 1u));
             // Every lane fetches the same texels: one vector gather each, no election or broadcast.
@@ -401,12 +424,13 @@ void main() {
             conic = texelFetch(splat_texels, int(4u * g + 1u));
             c = splat_contribution(g);
             slope = splat_slope(g, conic);
+            if (PIXEL_REACH) reach_of = row_reach_of(head, conic);
         }
         // The pixel centres of this lane's row the splat can reach at α ≥ 1/255
-        // (`lane_row_reach`): a pixel outside is not evaluated (the same
-        // result: it would not take the splat), so a pixel column no lane of
-        // the vector reaches costs a compare.
-        vec2 reach = PIXEL_REACH ? lane_row_reach(head, conic, float(base.y) + 0.5) : vec2(0.0);
+        // (`row_span`): a pixel outside is not evaluated (the same result: it
+        // would not take the splat), so a pixel column no lane of the vector
+        // reaches costs a compare.
+        vec2 reach = PIXEL_REACH ? row_span(reach_of, head, float(base.y) + 0.5) : vec2(0.0);
         [[unroll]] for (uint k = 0u; k < PIXELS; k++) {
             vec2 centre = vec2(base + uvec2(k * STEP, 0u)) + 0.5;
             if (PIXEL_REACH) {
