@@ -111,25 +111,27 @@ fn unet_matches_twin_at_odd_and_tiny_sizes() {
 }
 
 #[test]
-fn shared_winograd_weight_fetches_give_the_same_bits() {
+fn shared_weight_fetches_give_the_same_bits() {
     // Each lane of a subgroup fetches its share of a weight block and the
     // subgroup broadcasts them (the default on lavapipe from Mesa 25): the
-    // same weights in the same sums, so the same output bit for bit, at both
-    // tiles and precisions, also where a layer's edge is partial (37×23).
+    // same weights in the same sums, so the same output bit for bit, for the
+    // Winograd kernels at both tiles and the direct texel kernels with one
+    // and four pixels per fetch, at both precisions, also where a layer's
+    // edge is partial (37×23; 40×24 has layers four pixels per fetch can read).
     let d = device();
     let info = d.info();
     let mesa_25 = info.is_lavapipe() && info.mesa_version().is_some_and(|(major, _)| major >= 25);
     let config = UNetConfig { widths: [8, 16, 32, 64, 128], ..UNetConfig::default() };
     let channels = config.in_channels;
     let weights = UNetWeights::random(config, 5);
-    let (w, h) = (37u32, 23u32);
     let mut rng = Pcg64Mcg::seed_from_u64(11);
-    let input: Vec<f32> = (0..channels * 37 * 23).map(|_| rng.random_range(-1.0..1.0f32)).collect();
-    let buffer = d.upload("input", &input).unwrap();
-    let mut tiles = vec![WinogradTile::F2x2];
+    let mut tiles = vec![Some(WinogradTile::F2x2)];
     if tests_winograd_4x4(&d) {
-        tiles.push(WinogradTile::F4x4);
+        tiles.push(Some(WinogradTile::F4x4));
     }
+    // Direct convolution of every layer (no Winograd), one pixel per fetch, then four.
+    let paths: Vec<(Option<WinogradTile>, bool)> =
+        tiles.into_iter().map(|t| (t, true)).chain([(None, false), (None, true)]).collect();
     if !(info.subgroup_ballot && 64 % info.subgroup_size == 0) {
         eprintln!("skipping: subgroup size {} or no subgroup broadcast", info.subgroup_size);
         return;
@@ -138,26 +140,38 @@ fn shared_winograd_weight_fetches_give_the_same_bits() {
         if precision == StoragePrecision::Fp16 && !info.storage_16bit {
             continue;
         }
-        for &tile in &tiles {
-            let mut net = UNet::with_precision(&d, &weights, precision).unwrap();
-            let expected = if mesa_25 { info.subgroup_size } else { 0 };
-            assert_eq!(net.winograd_weight_lanes(), expected, "default on {}", info.driver);
-            net.set_prefill(Some(NAN));
-            net.set_winograd(Some(tile)).unwrap();
-            let mut outputs = Vec::new();
-            for on in [false, true] {
-                net.set_winograd_shared_weights(on).unwrap();
-                assert_eq!(net.winograd_weight_lanes(), if on { info.subgroup_size } else { 0 });
-                let out = net.infer(&buffer, w, h).unwrap();
-                outputs.push(d.read_buffer::<f32>(&out.output).unwrap());
+        let mut net = UNet::with_precision(&d, &weights, precision).unwrap();
+        let expected = if mesa_25 { info.subgroup_size } else { 0 };
+        assert_eq!(net.weight_fetch_lanes(), expected, "default on {}", info.driver);
+        net.set_prefill(Some(NAN));
+        for &(tile, vec4) in &paths {
+            net.set_winograd(tile).unwrap();
+            if vec4 && net.set_vec4_inputs(true).is_err() {
+                continue;
             }
-            assert!(outputs[0].iter().all(|v| v.is_finite()) && outputs[0].iter().any(|v| v.abs() > 1e-3));
-            let bits = |o: &[f32]| o.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
-            assert_eq!(
-                bits(&outputs[0]),
-                bits(&outputs[1]),
-                "{tile:?} {precision:?}: shared weight fetches changed the output"
-            );
+            net.set_vec4_inputs(vec4).unwrap();
+            if tile.is_none() {
+                assert_eq!(net.conv_path(), if vec4 { ConvPath::Vec4 } else { ConvPath::Texel });
+            }
+            for (w, h) in [(37u32, 23u32), (40, 24)] {
+                let input: Vec<f32> =
+                    (0..channels * (w * h) as usize).map(|_| rng.random_range(-1.0..1.0f32)).collect();
+                let buffer = d.upload("input", &input).unwrap();
+                let mut outputs = Vec::new();
+                for on in [false, true] {
+                    net.set_shared_weight_fetches(on).unwrap();
+                    assert_eq!(net.weight_fetch_lanes(), if on { info.subgroup_size } else { 0 });
+                    let out = net.infer(&buffer, w, h).unwrap();
+                    outputs.push(d.read_buffer::<f32>(&out.output).unwrap());
+                }
+                assert!(outputs[0].iter().all(|v| v.is_finite()) && outputs[0].iter().any(|v| v.abs() > 1e-3));
+                let bits = |o: &[f32]| o.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+                assert_eq!(
+                    bits(&outputs[0]),
+                    bits(&outputs[1]),
+                    "{tile:?} vec4 {vec4} {precision:?} {w}x{h}: shared weight fetches changed the output"
+                );
+            }
         }
     }
     assert_no_validation_messages(&d);

@@ -51,7 +51,7 @@ pub struct UNet {
     /// Texel inputs read four pixels per fetch where a layer's width allows.
     vec4: bool,
     winograd: Option<WinogradTile>,
-    /// Lanes that share the Winograd weights' fetches (0: none; [`UNet::winograd_weight_lanes`]).
+    /// Lanes that share the texel conv and Winograd weights' fetches (0: none; [`UNet::weight_fetch_lanes`]).
     weight_lanes: u32,
 }
 
@@ -90,8 +90,9 @@ impl StoragePrecision {
 }
 
 /// A conv kernel variant: stride, activation, output block, input and output
-/// in fp16, pixel block, inputs through texel-buffer views.
-type ConvKey = (u32, u32, u32, bool, bool, u32, bool, bool);
+/// in fp16, pixel block, inputs through texel-buffer views, four pixels per
+/// fetch, lanes sharing weight fetches (texel kernels).
+type ConvKey = (u32, u32, u32, bool, bool, u32, bool, bool, u32);
 
 /// One layer's weights on the GPU: a buffer per pass (a uniform buffer for
 /// device-address kernels, one RGBA32F texel view for texel kernels), the bias.
@@ -210,51 +211,11 @@ impl UNet {
         let vec4_formats = if half { &[TexelFormat::Rgba16Float][..] } else { &[] };
         let vec4 = texel && vec4_formats.iter().all(|f| info.texel_formats.contains(f));
         let default_path = ConvPath::default_for(info.device_type, texel);
+        let weight_lanes = super::weight_lanes(info);
         let mut convs = HashMap::new();
         // (texel, vec4): device addresses always; texel views and four-pixel texel views where supported.
         let variants = [(false, false), (texel, false), (texel, vec4)];
-        let keys = variants.iter().flat_map(|&v| (0..expected.len()).map(move |i| (i, v)));
-        for key in keys.map(|(i, (t, v))| Self::conv_key(&config, i, half, t, v)) {
-            if let std::collections::hash_map::Entry::Vacant(e) = convs.entry(key) {
-                let texel = key.6;
-                let mut spec = vec![
-                    (0, SpecValue::U32(key.0)),
-                    (1, SpecValue::U32(key.1)),
-                    (2, SpecValue::U32(key.2)),
-                    (3, SpecValue::U32(key.5)),
-                ];
-                if half && !texel {
-                    spec.push((10, SpecValue::Bool(key.3)));
-                }
-                if half {
-                    spec.push((11, SpecValue::Bool(key.4)));
-                }
-                if texel {
-                    spec.push((4, SpecValue::Bool(key.7)));
-                }
-                let module = match (texel, half) {
-                    (false, false) => &kernels::UNET_CONV,
-                    (false, true) => &kernels::UNET_CONV_HALF,
-                    (true, false) => &kernels::UNET_CONV_TEXEL,
-                    (true, true) => &kernels::UNET_CONV_TEXEL_HALF,
-                };
-                // Texel kernels: weights, bias, input A, input B; address kernels: weights, bias.
-                let weights = if texel { BindingKind::UniformTexelBuffer } else { BindingKind::UniformBuffer };
-                let views = [BindingKind::UniformTexelBuffer; 2];
-                let all: Vec<BindingKind> = [weights, BindingKind::StorageBuffer { read_only: true }]
-                    .into_iter()
-                    .chain(views.into_iter().take(if texel { 2 } else { 0 }))
-                    .collect();
-                e.insert(device.kernel(
-                    module,
-                    &KernelDecl {
-                        bindings: &all,
-                        push_constant_size: std::mem::size_of::<ConvPush>(),
-                        specialization: &spec,
-                    },
-                )?);
-            }
-        }
+        Self::build_convs(device, &config, half, &variants, weight_lanes, &mut convs)?;
         // One and four output pixels per invocation (`FOUR`, constant_id 0).
         let resize = |module: &'static srug_gpu::KernelInfo, bindings: &[BindingKind]| -> Result<[Arc<Kernel>; 2]> {
             let kernel = |four: bool| {
@@ -318,7 +279,7 @@ impl UNet {
             texel,
             vec4: vec4 && default_path.vec4(),
             winograd: None,
-            weight_lanes: winograd::weight_lanes(device.info()),
+            weight_lanes,
         };
         net.set_winograd(default_path.winograd())?;
         Ok(net)
@@ -334,27 +295,34 @@ impl UNet {
         (tile, act, half && !last, channel_block(co, true), vec4, self.weight_lanes)
     }
 
-    /// Lanes of a subgroup that fetch the Winograd kernels' weights side by
-    /// side and broadcast them (the weights are the same in every lane), or 0
-    /// where every lane fetches every weight: the subgroup size on lavapipe
-    /// from Mesa 25, whose texel fetch is a call, else 0 (see
-    /// `winograd::weight_lanes`). The output does not change.
-    pub fn winograd_weight_lanes(&self) -> u32 {
+    /// Lanes of a subgroup that fetch the texel conv and Winograd kernels'
+    /// weights side by side and broadcast them (the weights are the same in
+    /// every lane), or 0 where every lane fetches every weight: the subgroup
+    /// size on lavapipe from Mesa 25, whose texel fetch is a call, else 0 (see
+    /// `indirect::weight_lanes`). The output does not change.
+    pub fn weight_fetch_lanes(&self) -> u32 {
         self.weight_lanes
     }
 
-    /// Shares the Winograd weights' fetches across each subgroup (`true`:
-    /// its size, which needs subgroup broadcast and whole subgroups in 64
-    /// invocations) or not (see [`UNet::winograd_weight_lanes`]).
-    pub fn set_winograd_shared_weights(&mut self, on: bool) -> Result<()> {
+    /// Shares the weight fetches of the texel conv and Winograd kernels
+    /// across each subgroup (`true`: its size, which needs subgroup broadcast
+    /// and whole subgroups in 64 invocations) or not (see
+    /// [`UNet::weight_fetch_lanes`]); builds the conv kernels that needs.
+    pub fn set_shared_weight_fetches(&mut self, on: bool) -> Result<()> {
         let info = self.device.info();
         let size = info.subgroup_size;
-        if on && !winograd::weight_sharing_supported(info) {
+        if on && !super::weight_sharing_supported(info) {
             return Err(Error::unsupported(format!(
-                "sharing Winograd weight fetches needs subgroup broadcast and a subgroup size dividing 64 (this device: {size})"
+                "sharing U-Net weight fetches needs subgroup broadcast and a subgroup size dividing 64 (this device: {size})"
             )));
         }
-        self.weight_lanes = if on { size } else { 0 };
+        let lanes = if on { size } else { 0 };
+        let mut texel_variants: Vec<(bool, bool)> = self.convs.keys().filter(|k| k.6).map(|k| (k.6, k.7)).collect();
+        texel_variants.sort_unstable();
+        texel_variants.dedup();
+        let half = self.precision == StoragePrecision::Fp16;
+        Self::build_convs(&self.device, &self.config, half, &texel_variants, lanes, &mut self.convs)?;
+        self.weight_lanes = lanes;
         Ok(())
     }
 
@@ -448,9 +416,66 @@ impl UNet {
         Ok(())
     }
 
+    /// Builds the conv kernels of every layer for each (texel, vec4) input
+    /// variant with `lanes` sharing the texel kernels' weight fetches
+    /// ([`UNet::weight_fetch_lanes`]), those not in `convs` yet.
+    fn build_convs(
+        device: &Device,
+        config: &UNetConfig,
+        half: bool,
+        variants: &[(bool, bool)],
+        lanes: u32,
+        convs: &mut HashMap<ConvKey, Arc<Kernel>>,
+    ) -> Result<()> {
+        let keys = variants.iter().flat_map(|&v| (0..layers(config).len()).map(move |i| (i, v)));
+        for key in keys.map(|(i, (t, v))| Self::conv_key(config, i, half, t, v, lanes)) {
+            if let std::collections::hash_map::Entry::Vacant(e) = convs.entry(key) {
+                let texel = key.6;
+                let mut spec = vec![
+                    (0, SpecValue::U32(key.0)),
+                    (1, SpecValue::U32(key.1)),
+                    (2, SpecValue::U32(key.2)),
+                    (3, SpecValue::U32(key.5)),
+                ];
+                if half && !texel {
+                    spec.push((10, SpecValue::Bool(key.3)));
+                }
+                if half {
+                    spec.push((11, SpecValue::Bool(key.4)));
+                }
+                if texel {
+                    spec.push((4, SpecValue::Bool(key.7)));
+                    spec.push((6, SpecValue::U32(key.8)));
+                }
+                let module = match (texel, half) {
+                    (false, false) => &kernels::UNET_CONV,
+                    (false, true) => &kernels::UNET_CONV_HALF,
+                    (true, false) => &kernels::UNET_CONV_TEXEL,
+                    (true, true) => &kernels::UNET_CONV_TEXEL_HALF,
+                };
+                // Texel kernels: weights, bias, input A, input B; address kernels: weights, bias.
+                let weights = if texel { BindingKind::UniformTexelBuffer } else { BindingKind::UniformBuffer };
+                let views = [BindingKind::UniformTexelBuffer; 2];
+                let all: Vec<BindingKind> = [weights, BindingKind::StorageBuffer { read_only: true }]
+                    .into_iter()
+                    .chain(views.into_iter().take(if texel { 2 } else { 0 }))
+                    .collect();
+                e.insert(device.kernel(
+                    module,
+                    &KernelDecl {
+                        bindings: &all,
+                        push_constant_size: std::mem::size_of::<ConvPush>(),
+                        specialization: &spec,
+                    },
+                )?);
+            }
+        }
+        Ok(())
+    }
+
     /// The kernel variant of layer `i`: its stride, activation (none for the
     /// last), output block, and fp16 input (not for the first) and output (not for the last).
-    fn conv_key(config: &UNetConfig, i: usize, half: bool, texel: bool, vec4: bool) -> ConvKey {
+    fn conv_key(config: &UNetConfig, i: usize, half: bool, texel: bool, vec4: bool, lanes: u32) -> ConvKey {
         let l = layers(config);
         let (_, _, co, stride) = l[i];
         let last = i + 1 == l.len();
@@ -464,6 +489,7 @@ impl UNet {
             if vec4 { vec4_pixel_block(co) } else { pixel_block(co, texel) } as u32,
             texel,
             vec4,
+            if texel { lanes } else { 0 },
         )
     }
 
@@ -638,7 +664,7 @@ impl UNet {
         let convs = &self.convs;
         let kernel = |i: usize, texel: bool, vec4: bool| {
             convs
-                .get(&Self::conv_key(&c, i, half, texel, vec4))
+                .get(&Self::conv_key(&c, i, half, texel, vec4, self.weight_lanes))
                 .ok_or_else(|| Error::Internal("a U-Net kernel variant was not built".into()))
         };
         let max_groups = self.device.info().max_workgroup_count;

@@ -20,7 +20,6 @@
 
 use super::ConvWeights;
 use crate::gpu::ash::vk;
-use crate::gpu::DeviceInfo;
 
 /// Which Winograd transform the stride-1 convolutions use.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
@@ -161,29 +160,6 @@ fn sandwich(l: &[f64], x: &[f64], r: &[f64], n: usize) -> Vec<f64> {
     let (lr, rr) = (l.len() / n, r.len() / n);
     let lx: Vec<f64> = (0..lr * n).map(|at| (0..n).map(|k| l[(at / n) * n + k] * x[k * n + at % n]).sum()).collect();
     (0..lr * rr).map(|at| (0..n).map(|k| lx[(at / rr) * n + k] * r[(at % rr) * n + k]).sum()).collect()
-}
-
-/// Lanes of a subgroup that fetch a weight block's texels side by side and
-/// broadcast them (`WEIGHT_LANES` in `unet_winograd_body.glsl`), or 0 for
-/// every lane fetching every texel. Every lane of a workgroup reads the same
-/// weights (its output block); on lavapipe from Mesa 25, whose texel fetch is
-/// a call around which the kernel saves and restores its vector registers,
-/// one call then serves a subgroup's worth of texels (docs/bench/unet.md).
-/// Needs subgroup broadcast and whole subgroups in the kernel's 64
-/// invocations; elsewhere (Mesa 22.3 fetches inline, GPUs not measured) 0.
-pub(crate) fn weight_lanes(info: &DeviceInfo) -> u32 {
-    if info.is_lavapipe_from(25) && weight_sharing_supported(info) {
-        info.subgroup_size
-    } else {
-        0
-    }
-}
-
-/// Whether the Winograd kernels can share weight fetches on `info`'s device:
-/// subgroup broadcast, and subgroups that fill the kernel's 64 invocations.
-pub(crate) fn weight_sharing_supported(info: &DeviceInfo) -> bool {
-    let size = info.subgroup_size;
-    info.subgroup_ballot && size > 1 && 64 % size == 0
 }
 
 /// Texels (RGBA32F) of a layer's packed Winograd weights: output channels

@@ -1,6 +1,10 @@
 // The body of unet_conv.comp, unet_conv_half.comp, unet_conv_texel.comp and
 // unet_conv_texel_half.comp (see there).
 #extension GL_EXT_control_flow_attributes : require
+#ifdef TEXEL_INPUT
+#extension GL_KHR_shader_subgroup_basic : require
+#extension GL_KHR_shader_subgroup_ballot : require
+#endif
 #define WORKGROUP_SIZE_X 64
 #include "common.glsl"
 #include "address.glsl"
@@ -17,6 +21,14 @@ layout(constant_id = 2) const uint OCB = 8;
 layout(constant_id = 3) const uint PX = 1;
 
 #ifdef TEXEL_INPUT
+// The subgroup's size where its lanes fetch a channel's weight texels side
+// by side and broadcast them (0: every lane fetches every texel): the
+// weights are the same in every lane (the workgroup's output block), and
+// where a texel fetch is a call (lavapipe from Mesa 25) this is
+// 1/WEIGHT_LANES of the calls (engine/src/indirect/winograd.rs `weight_lanes`).
+layout(constant_id = 6) const uint WEIGHT_LANES = 0u;
+#define WEIGHT_STEP max(WEIGHT_LANES, 1u)
+#define WEIGHT_ROUNDS ((9u * Q + WEIGHT_STEP - 1u) / WEIGHT_STEP)
 // The layer's weights, [oc/OCB][ic][9][OCB] as RGBA32F texels (every input
 // channel: one pass): a vec4 texelFetch costs lavapipe a quarter of a vec4
 // uniform-buffer load at an index it cannot prove uniform (32 scalar loads).
@@ -69,7 +81,7 @@ layout(push_constant) uniform ConvPush {
     {                                                                              \
         uint wbase = ((ob * chunk + (ic - pc.ic0)) * 9u) * Q;                      \
         vec4 wt[36]; /* [ky·3 + kx][q], Q ≤ 4 */                                   \
-        [[unroll]] for (uint t = 0u; t < 9u * Q; ++t) wt[t] = WEIGHTS(wbase + t);  \
+        LOAD_WEIGHTS                                                               \
         float rows[3][33]; /* SPAN ≤ 33: PX ≤ 16, STRIDE ≤ 2 */                  \
         [[unroll]] for (int ky = 0; ky < 3; ++ky) {                                \
             int iy = oy * int(STRIDE) + ky - 1;                                    \
@@ -83,6 +95,23 @@ layout(push_constant) uniform ConvPush {
             }                                                                      \
         }                                                                          \
     }
+
+// The channel's 9·Q weight texels into wt: with WEIGHT_LANES each lane
+// fetches its share and the subgroup broadcasts them.
+#if defined(TEXEL_INPUT)
+#define LOAD_WEIGHTS                                                               \
+    if (WEIGHT_LANES > 0u) {                                                       \
+        vec4 lane_wt[36];                                                          \
+        [[unroll]] for (uint r = 0u; r < WEIGHT_ROUNDS; ++r) {                     \
+            lane_wt[r] = WEIGHTS(wbase + min(r * WEIGHT_LANES + gl_SubgroupInvocationID, 9u * Q - 1u)); \
+        }                                                                          \
+        [[unroll]] for (uint t = 0u; t < 9u * Q; ++t) wt[t] = subgroupBroadcast(lane_wt[t / WEIGHT_STEP], t % WEIGHT_STEP); \
+    } else {                                                                       \
+        [[unroll]] for (uint t = 0u; t < 9u * Q; ++t) wt[t] = WEIGHTS(wbase + t);  \
+    }
+#else
+#define LOAD_WEIGHTS [[unroll]] for (uint t = 0u; t < 9u * Q; ++t) wt[t] = WEIGHTS(wbase + t);
+#endif
 
 #ifdef TEXEL_INPUT
 // One fetch per tap from an R32F/R16F view (BASE: the channel plane's first element).
