@@ -106,12 +106,22 @@ uvec2 tile_row_span(TileEllipse e, vec2 mean, uvec4 rect, uint ty, uint tile) {
     return uvec2(x0, x1);
 }
 
+// The rows of the ellipse of `e` (det > 0) as three numbers (slope, q, r), so
+// that a row's span costs one square root and no division
+// (`ellipse_row_span`): at dy = mean.y − centre y, d = mean − centre spans
+// dx ∈ (−b·dy ± sqrt(r²a − det·dy²)) / a, a run centred on
+// x = mean.x + slope·dy of half width sqrt(max(q − r·dy², 0)).
+vec3 ellipse_rows(TileEllipse e) {
+    return vec3(e.b / e.a, e.r2 / e.a, (e.det / e.a) / e.a);
+}
+
 // The pixel-centre x range [x.x, x.y] where the row at dy = mean.y − centre
-// y meets the ellipse of `e` (det > 0), widened by 0.01 px: d = mean − centre
-// spans dx ∈ (−b·dy ± sqrt(r²a − det·dy²)) / a there.
-vec2 ellipse_row_span(TileEllipse e, vec2 mean, float dy) {
-    float root = sqrt(max(e.r2 * e.a - e.det * dy * dy, 0.0));
-    return vec2(mean.x - (-e.b * dy + root) / e.a - 0.01, mean.x - (-e.b * dy - root) / e.a + 0.01);
+// y meets the ellipse (`rows` from `ellipse_rows`), widened by 0.01 px
+// (empty where `rows` has a NaN slope).
+vec2 ellipse_row_span(vec3 rows, vec2 mean, float dy) {
+    float mid = mean.x + rows.x * dy;
+    float half_width = sqrt(max(rows.y - rows.z * dy * dy, 0.0));
+    return vec2(mid - half_width - 0.01, mid + half_width + 0.01);
 }
 
 // Which blocks of tile (tx, ty) the splat reaches at α ≥ 1/255: the tile
@@ -132,12 +142,13 @@ uint tile_block_mask(TileEllipse e, vec2 mean, uint tx, uint ty, uint tile, bool
     uint r0 = uint(max(lo, 0.0)), r1 = uint(min(hi, float(tile) - 1.0));
     uint half_cols = tile / 2u;
     float split = origin.x + float(half_cols);
+    vec3 rows = ellipse_rows(e);
     uint mask = 0u;
     for (uint r = r0; r <= r1; r++) {
         bool left = true, right = true;
         if (check_x) {
             // d = mean − centre; at this row's dy the ellipse spans dx ∈ (−b·dy ± sqrt(r²a − det·dy²)) / a.
-            vec2 x = ellipse_row_span(e, mean, mean.y - (origin.y + float(r) + 0.5));
+            vec2 x = ellipse_row_span(rows, mean, mean.y - (origin.y + float(r) + 0.5));
             left = x.y >= origin.x + 0.5 && x.x <= split - 0.5;
             right = x.y >= split + 0.5 && x.x <= origin.x + float(tile) - 0.5;
         }

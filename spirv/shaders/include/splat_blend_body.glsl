@@ -272,16 +272,14 @@ float log2_upper(float x) {
     return float(e) - 0.4150375 + 1.9235933 * (m - 0.75);
 }
 
-// A splat's reach along pixel rows, as three numbers so that a row's span
+// A splat's reach along pixel rows (`ellipse_rows`), so that a row's span
 // costs one square root (`row_span`): `tile_ellipse`'s widened ellipse, its
-// r² from `log2_upper` (so a little wider still), has its centre at
-// x = mean.x + slope·dy on the row dy = mean.y − y below the mean, and half
-// width sqrt(max(q − r·dy², 0)) there (`ellipse_row_span`'s root / a). Every
-// pixel the blend would take lies inside the span, widened by 0.01 px as
-// `tile_block_mask`'s. A NaN slope reaches no pixel; q = ∞ every pixel of
-// every row: where Q is too ill-conditioned, where r² is not a number, and
-// for panoramas. With WINDOW_FETCH each lane computes it once for its own
-// splat of the window, not every lane for every splat.
+// r² from `log2_upper` (so a little wider still). Every pixel the blend would
+// take lies inside the span, widened by 0.01 px as `tile_block_mask`'s. A NaN
+// slope reaches no pixel; q = ∞ every pixel of every row: where Q is too
+// ill-conditioned, where r² is not a number, and for panoramas. With
+// WINDOW_FETCH each lane computes it once for its own splat of the window,
+// not every lane for every splat.
 vec3 row_reach_of(vec4 head, vec4 conic) {
     const float INF = 1.0 / 0.0;
     const vec3 EVERY_ROW = vec3(0.0, INF, 0.0);
@@ -289,16 +287,13 @@ vec3 row_reach_of(vec4 head, vec4 conic) {
     TileEllipse e = tile_ellipse_of(2.02 * 0.6931472 * log2_upper(255.0 * head.w) + 0.01, conic.xyz);
     if (!(e.r2 > 0.0)) return e.r2 <= 0.0 ? vec3(uintBitsToFloat(0x7fc00000u), 0.0, 0.0) : EVERY_ROW;
     if (!(e.det > 0.0)) return EVERY_ROW;
-    return vec3(e.b / e.a, e.r2 / e.a, (e.det / e.a) / e.a);
+    return ellipse_rows(e);
 }
 
 // The pixel centres x ∈ [span.x, span.y] of the row at centre y that a
 // splat (its `row_reach_of`) can reach at α ≥ 1/255 (empty where none).
 vec2 row_span(vec3 reach, vec4 head, float y) {
-    float dy = head.y - y;
-    float mid = head.x + reach.x * dy;
-    float half_width = sqrt(max(reach.y - reach.z * dy * dy, 0.0));
-    return vec2(mid - half_width - 0.01, mid + half_width + 0.01);
+    return ellipse_row_span(reach, head.xy, head.y - y);
 }
 
 // Blends splat g into one pixel of a lane (centre `centre`, still `live`)
