@@ -4,6 +4,9 @@
 
 void main() {
     uint me = invocation();
+    // Each key goes out as one 64-bit word: on lavapipe one scatter
+    // instruction, where a uvec2 is two.
+    Uint64sOut keys_out = Uint64sOut(pc.keys_out);
     // After the scan: where this invocation's first key of each digit goes.
     uint next[RADIX];
     Uints hist = Uints(pc.hist);
@@ -19,14 +22,14 @@ void main() {
         uvec2 k[4] = uvec2[4](k01.xy, k01.zw, k23.xy, k23.zw);
         [[unroll]] for (uint j = 0u; j < 4u; j++) {
             uint dst = next[digit_of(k[j])]++;
-            Uvec2sOut(pc.keys_out).v[dst] = k[j];
+            keys_out.v[dst] = packUint2x32(k[j]);
             UintsOut(pc.values_out).v[dst] = v[j];
         }
     }
     for (; i < end; i++) {
         uvec2 key = KEY(i);
         uint dst = next[digit_of(key)]++;
-        Uvec2sOut(pc.keys_out).v[dst] = key;
+        keys_out.v[dst] = packUint2x32(key);
         UintsOut(pc.values_out).v[dst] = VALUE(i);
     }
 #else
@@ -44,7 +47,7 @@ void main() {
             next[d] += here ? 1u : 0u;
         }
 #endif
-        Uvec2sOut(pc.keys_out).v[dst] = key;
+        keys_out.v[dst] = packUint2x32(key);
         UintsOut(pc.values_out).v[dst] = VALUE(i);
     }
 #endif
