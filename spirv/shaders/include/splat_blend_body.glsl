@@ -360,13 +360,8 @@ void main() {
     vec4 lane_head = vec4(0.0), lane_conic = vec4(0.0), lane_color = vec4(0.0);
     vec3 lane_reach = vec3(0.0);
     Contribution lane_c = Contribution(vec3(0.0), vec4(0.0), vec4(0.0), vec4(0.0));
-    while (true) {
-        // With WINDOW_FETCH whether any pixel is still live is asked once a
-        // window (a ballot is a loop over the lanes on lavapipe): a subgroup
-        // whose pixels are all done finishes its window without pixel work.
-        bool window_done = !WINDOW_FETCH || window == 0u;
-        if (window_done && subgroupBallot(any_live) == uvec4(0u)) break;
-        if (window_done) {
+    while (subgroupBallot(any_live) != uvec4(0u)) {
+        if (!WINDOW_FETCH || window == 0u) {
             while (window == 0u && next < range.y) {
                 uint key = next + rank;
                 bool want = windowed && key < range.y
