@@ -709,6 +709,8 @@ fn describe(
             && subgroup
                 .supported_operations
                 .contains(vk::SubgroupFeatureFlags::BASIC | vk::SubgroupFeatureFlags::BALLOT),
+        subgroup_shuffle: subgroup.supported_stages.contains(vk::ShaderStageFlags::COMPUTE)
+            && subgroup.supported_operations.contains(vk::SubgroupFeatureFlags::SHUFFLE),
         timestamp_period_ns: f64::from(limits.timestamp_period),
         timestamp_valid_bits: if limits.timestamp_compute_and_graphics == vk::TRUE { family_timestamps } else { 0 },
         shader_float16: enabled.shader_float16,

@@ -34,6 +34,8 @@ pub struct DeviceInfo {
     pub subgroup_size: u32,
     /// Subgroup ballot operations (elect, broadcast) in compute shaders.
     pub subgroup_ballot: bool,
+    /// Subgroup shuffle operations in compute shaders.
+    pub subgroup_shuffle: bool,
     /// Nanoseconds per timestamp tick.
     pub timestamp_period_ns: f64,
     /// Valid bits of a timestamp on the compute queue; 0 when unsupported.

@@ -17,11 +17,13 @@
 // four and the pixel arithmetic. With PIXEL_REACH (constant_id 7) a lane
 // evaluates a splat only at the pixels of its row the splat can reach. With
 // WINDOW_FETCH (constant_id 9) each lane instead fetches one wanted splat of
-// the key window and the subgroup broadcasts them one at a time: one fetch
+// the key window and the subgroup hands them out one at a time (a shuffle
+// from the lane that holds each): one fetch
 // per window, not per splat, where a fetch is a function call.
 // CPU twin: engine/src/splat/cpu.rs `render_cpu`.
 #extension GL_EXT_control_flow_attributes : require
 #extension GL_KHR_shader_subgroup_basic : require
 #extension GL_KHR_shader_subgroup_ballot : require
+#extension GL_KHR_shader_subgroup_shuffle : require
 #define TEXEL_SPLATS
 #include "splat_blend_body.glsl"

@@ -87,6 +87,13 @@ pub fn depth_key_bits(camera: &Camera) -> u32 {
     DepthKey::of(camera).bits
 }
 
+/// Whether `info`'s device can run the texel blend (`splat_blend_texel.comp`):
+/// RGBA32F and R32UI texel-buffer views, and subgroup shuffles.
+fn texel_blend_supported(info: &DeviceInfo) -> bool {
+    info.subgroup_shuffle
+        && [TexelFormat::Rgba32Float, TexelFormat::R32Uint].iter().all(|f| info.texel_formats.contains(f))
+}
+
 /// A kernel whose binding 0 is the frame uniform and bindings 1..=`views`
 /// texel-buffer views.
 fn texel_view_kernel(
@@ -228,9 +235,7 @@ impl Splatter {
             } else {
                 BlendVariant::PerPixel
             },
-            texel_blend: [TexelFormat::Rgba32Float, TexelFormat::R32Uint]
-                .iter()
-                .all(|f| device.info().texel_formats.contains(f)),
+            texel_blend: texel_blend_supported(device.info()),
             texel_preprocess: device.info().texel_formats.contains(&TexelFormat::R32Float),
             blend_pixels: default_blend_pixels(device.info()),
             pixel_reach: default_pixel_reach(device.info()),
@@ -243,17 +248,21 @@ impl Splatter {
     /// Whether the subgroup-load blend reads each contribution's colour and
     /// features through texel-buffer views (where the splats fit
     /// `maxTexelBufferElements`) rather than by device address. On by default
-    /// where the device has RGBA32F texel buffers; the image is the same.
+    /// where the device has RGBA32F and R32UI texel buffers and subgroup
+    /// shuffles (the window fetch hands each splat from its lane by shuffle);
+    /// the image is the same.
     pub fn texel_blend(&self) -> bool {
         self.texel_blend
     }
 
     /// Chooses how the subgroup-load blend reads colour and features (see
-    /// [`Splatter::texel_blend`]); on where the device lacks the views is an error.
+    /// [`Splatter::texel_blend`]); on where the device lacks the views or
+    /// subgroup shuffles is an error.
     pub fn set_texel_blend(&mut self, on: bool) -> Result<()> {
-        let formats = [TexelFormat::Rgba32Float, TexelFormat::R32Uint];
-        if on && !formats.iter().all(|f| self.device.info().texel_formats.contains(f)) {
-            return Err(Error::unsupported("this device cannot read splats through RGBA32F/R32UI texel buffers"));
+        if on && !texel_blend_supported(self.device.info()) {
+            return Err(Error::unsupported(
+                "the texel blend needs RGBA32F/R32UI texel buffers and subgroup shuffles in compute shaders",
+            ));
         }
         self.texel_blend = on;
         Ok(())

@@ -28,7 +28,7 @@ layout(constant_id = 7) const bool PIXEL_REACH = false;
 // frames without a mask carry no test.
 layout(constant_id = 8) const bool TILE_MASK = false;
 // The texel blend fetches each key window's wanted splats once, a splat per
-// lane, and broadcasts them splat by splat, where every lane would otherwise
+// lane, and shuffles them to every lane splat by splat, where every lane would otherwise
 // fetch each splat itself: for drivers whose texel fetch is a call (lavapipe
 // from Mesa 25 compiles it as an out-of-line function, saving and restoring
 // the caller's vector registers around it) and that jump over an `if` no lane
@@ -394,18 +394,20 @@ void main() {
         vec2 slope;
         vec3 reach_of = vec3(0.0);
         if (WINDOW_FETCH) {
-            g = subgroupBroadcast(lane_g, first_lane);
-            head = subgroupBroadcast(lane_head, first_lane);
-            conic = subgroupBroadcast(lane_conic, first_lane);
-            vec4 color = (RGB || SURFACE_DEPTH) ? subgroupBroadcast(lane_color, first_lane) : vec4(0.0);
+            // A shuffle from the (uniform) first lane, not a broadcast: on
+            // lavapipe from Mesa 25 the shuffle is the faster of the two.
+            g = subgroupShuffle(lane_g, first_lane);
+            head = subgroupShuffle(lane_head, first_lane);
+            conic = subgroupShuffle(lane_conic, first_lane);
+            vec4 color = (RGB || SURFACE_DEPTH) ? subgroupShuffle(lane_color, first_lane) : vec4(0.0);
             c = Contribution(color.rgb, vec4(0.0), vec4(0.0), vec4(0.0));
             if (FEATURES) {
-                c.f0 = subgroupBroadcast(lane_c.f0, first_lane);
-                c.f1 = subgroupBroadcast(lane_c.f1, first_lane);
-                c.f2 = subgroupBroadcast(lane_c.f2, first_lane);
+                c.f0 = subgroupShuffle(lane_c.f0, first_lane);
+                c.f1 = subgroupShuffle(lane_c.f1, first_lane);
+                c.f2 = subgroupShuffle(lane_c.f2, first_lane);
             }
             slope = SURFACE_DEPTH ? vec2(conic.w, color.w) : vec2(0.0);
-            if (PIXEL_REACH) reach_of = subgroupBroadcast(lane_reach, first_lane);
+            if (PIXEL_REACH) reach_of = subgroupShuffle(lane_reach, first_lane);
         } else {
             uint j = window_start + bitCount(lanes & ((1u << first_lane) - 1u));
             // Every lane fetches the same texels: one vector gather each, no election or broadcast.
