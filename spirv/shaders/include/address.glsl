@@ -27,4 +27,12 @@ uint64_t element_address(uvec2 base, uint index, uint stride) {
 layout(buffer_reference, std430, buffer_reference_align = 8) readonly buffer Uvec2sIn { uvec2 v[]; };
 layout(buffer_reference, std430, buffer_reference_align = 8) writeonly buffer Uvec2sOut { uvec2 v[]; };
 
+// Pairs of 32-bit words written as one 64-bit word each (low word first, as a
+// uvec2 lies in memory; needs shaderInt64, which srug requires): lavapipe
+// stores a per-lane uvec2 as two scattered stores, a 64-bit word as one.
+#ifdef SRUG_WORDS_64
+#extension GL_EXT_shader_explicit_arithmetic_types_int64 : require
+layout(buffer_reference, std430, buffer_reference_align = 8) writeonly buffer Uint64sOut { uint64_t v[]; };
+#endif
+
 #endif

@@ -20,11 +20,9 @@
 #else
 #define WORKGROUP_SIZE_X 64
 #endif
+#define SRUG_WORDS_64
 #include "common.glsl"
 #include "address.glsl"
-#extension GL_EXT_shader_explicit_arithmetic_types_int64 : require
-// Keys written as 64-bit words (low word first, as a uvec2 lies in memory).
-layout(buffer_reference, std430, buffer_reference_align = 8) writeonly buffer Uint64sOut { uint64_t v[]; };
 
 // Keys per invocation (engine/src/primitives/sort.rs `sort_items`: more on CPU
 // devices, where fewer, longer invocations shrink the histogram and its scan).

@@ -1,5 +1,6 @@
 // Body of splat_keys.comp and splat_keys_texel.comp (see their headers).
 #define WORKGROUP_SIZE_X 64
+#define SRUG_WORDS_64
 #include "common.glsl"
 #include "splat.glsl"
 
@@ -45,7 +46,8 @@ void main() {
     uvec4 rect = SPLAT_RECT(i);
     uint depth_key = (floatBitsToUint(head.z) - (DEPTH_BITS < 32u ? floatBitsToUint(frame.clip.x) : 0u)) >> DEPTH_SHIFT;
     uint tiles = frame.size.z * frame.size.w;
-    Uvec2s keys = Uvec2s(frame.keys);
+    // Each key as one 64-bit word (`Uint64sOut`).
+    Uint64sOut keys = Uint64sOut(frame.keys);
     Uints values = Uints(frame.values);
     Uints pair_tiles = Uints(frame.pair_tiles);
     TileEllipse e = tile_ellipse(head, conic);
@@ -59,14 +61,14 @@ void main() {
             uint tile = y * frame.size.z + (x < frame.size.z ? x : x - frame.size.z);
             if (TILE_MASK && !tile_wanted(tile)) continue;
             uint blocks = ROW_MASKS ? tile_block_mask(e, head.xy, x, y, TILE, check_x) << (32u - TILE) : 0u;
-            keys.v[offset] = pair_key(tile, depth_key, DEPTH_BITS, blocks);
+            keys.v[offset] = packUint2x32(pair_key(tile, depth_key, DEPTH_BITS, blocks));
             values.v[offset] = i;
             if (PAIR_TILES) pair_tiles.v[offset] = tile;
             offset++;
         }
     }
     for (; offset < end; offset++) {
-        keys.v[offset] = pair_key(tiles, DEPTH_BITS >= 32u ? ~0u : (1u << DEPTH_BITS) - 1u, DEPTH_BITS, 0u);
+        keys.v[offset] = packUint2x32(pair_key(tiles, DEPTH_BITS >= 32u ? ~0u : (1u << DEPTH_BITS) - 1u, DEPTH_BITS, 0u));
         values.v[offset] = i;
         if (PAIR_TILES) pair_tiles.v[offset] = tiles;
     }
