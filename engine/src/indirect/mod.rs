@@ -39,12 +39,13 @@ use crate::gpu::DeviceInfo;
 
 /// Lanes of a subgroup that fetch a weight block's texels side by side and
 /// broadcast them (`WEIGHT_LANES` in `unet_conv_body.glsl`'s texel kernels
-/// and `unet_winograd_body.glsl`), or 0 for every lane fetching every texel. Every lane of a workgroup reads the same
-/// weights (its output block); on lavapipe from Mesa 25, whose texel fetch is
-/// a call around which the kernel saves and restores its vector registers,
-/// one call then serves a subgroup's worth of texels (docs/bench/unet.md).
-/// Needs subgroup broadcast and whole subgroups in the kernel's 64
-/// invocations; elsewhere (Mesa 22.3 fetches inline, GPUs not measured) 0.
+/// and `unet_winograd_body.glsl`), or 0 for every lane fetching every texel.
+/// Every lane of a workgroup reads the same weights (its output block); on
+/// lavapipe from Mesa 25, whose texel fetch is a call around which the kernel
+/// saves and restores its vector registers, one call then serves a
+/// subgroup's worth of texels (docs/bench/unet.md). Needs subgroup broadcast
+/// and whole subgroups in the kernels' 64 invocations; elsewhere (Mesa 22.3
+/// fetches inline, GPUs not measured) 0.
 pub(crate) fn weight_lanes(info: &DeviceInfo) -> u32 {
     if info.is_lavapipe_from(25) && weight_sharing_supported(info) {
         info.subgroup_size

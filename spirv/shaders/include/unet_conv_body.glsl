@@ -25,7 +25,7 @@ layout(constant_id = 3) const uint PX = 1;
 // by side and broadcast them (0: every lane fetches every texel): the
 // weights are the same in every lane (the workgroup's output block), and
 // where a texel fetch is a call (lavapipe from Mesa 25) this is
-// 1/WEIGHT_LANES of the calls (engine/src/indirect/winograd.rs `weight_lanes`).
+// 1/WEIGHT_LANES of the calls (engine/src/indirect/mod.rs `weight_lanes`).
 layout(constant_id = 6) const uint WEIGHT_LANES = 0u;
 #define WEIGHT_STEP max(WEIGHT_LANES, 1u)
 #define WEIGHT_ROUNDS ((9u * Q + WEIGHT_STEP - 1u) / WEIGHT_STEP)

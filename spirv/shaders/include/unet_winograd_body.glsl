@@ -34,7 +34,7 @@ layout(constant_id = 5) const bool VEC4 = false;
 // side and broadcast them (0: every lane fetches every texel). The weights
 // are the same in every lane (the workgroup's output block); where a texel
 // fetch is a call (lavapipe from Mesa 25) this is 1/WEIGHT_LANES of the
-// calls (engine/src/indirect/winograd.rs `weight_lanes`).
+// calls (engine/src/indirect/mod.rs `weight_lanes`).
 layout(constant_id = 6) const uint WEIGHT_LANES = 0u;
 #define WEIGHT_STEP max(WEIGHT_LANES, 1u)
 #define WEIGHT_ROUNDS ((EE + WEIGHT_STEP - 1u) / WEIGHT_STEP)
