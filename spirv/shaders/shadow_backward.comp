@@ -41,10 +41,10 @@ float log_sigmoid(float x) {
 void main() {
     uint p = linear_index();
     if (p >= sbw.counts.x) return;
-    vec3 world;
+    vec3 from_camera;
     float bias;
-    bool valid = receiver_point(p, world, bias);
-    vec3 l = valid ? light_coords(world) : vec3(0.0);
+    bool valid = receiver_point(p, from_camera, bias);
+    vec3 l = valid ? light_coords(from_camera) : vec3(0.0);
     valid = valid && inside_map(l.xy);
     // A negative BCE target marks a pixel the loss ignores.
     if (LOSS != 0u) valid = valid && FloatsIn(sbw.upstream).v[p] >= 0.0;

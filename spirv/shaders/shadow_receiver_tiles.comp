@@ -20,10 +20,10 @@ void main() {
     float z;
     if (!resolve_depth(shadow.modes.y, shadow.receiver_depth, shadow.receiver_alpha, p, z)) return;
     if (z < shadow.receiver_range.x || z > shadow.receiver_range.y) return;
-    vec3 world;
+    vec3 from_camera;
     float bias;
-    if (!receiver_point(p, world, bias)) return;
-    vec3 l = light_coords(world);
+    if (!receiver_point(p, from_camera, bias)) return;
+    vec3 l = light_coords(from_camera);
     if (!inside_map(l.xy)) return;
     int tile = int(shadow.modes.w);
     ivec2 tiles = ivec2(int(shadow.modes.z), (int(shadow.size.w) + tile - 1) / tile);

@@ -14,10 +14,10 @@ void main() {
     uint p = linear_index();
     if (p >= shadow.size.x * shadow.size.y) return;
     float v = 1.0;
-    vec3 world;
+    vec3 from_camera;
     float bias;
-    if (receiver_point(p, world, bias)) {
-        vec3 l = light_coords(world);
+    if (receiver_point(p, from_camera, bias)) {
+        vec3 l = light_coords(from_camera);
         if (inside_map(l.xy)) {
             ivec2 t[4];
             vec4 w;

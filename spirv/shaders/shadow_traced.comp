@@ -16,10 +16,10 @@ void main() {
     uint p = linear_index();
     if (p >= shadow.size.x * shadow.size.y) return;
     float T = 1.0;
-    vec3 world;
+    vec3 from_camera;
     float bias;
-    if (receiver_point(p, world, bias)) {
-        vec3 l = light_coords(world);
+    if (receiver_point(p, from_camera, bias)) {
+        vec3 l = light_coords(from_camera);
         if (inside_map(l.xy)) {
             uvec2 tile = uvec2(l.xy) / shadow.modes.w;  // the map's tile edge
             uvec2 range = Uvec2s(shadow.ranges).v[tile.y * shadow.modes.z + tile.x];

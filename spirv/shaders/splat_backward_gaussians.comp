@@ -54,8 +54,8 @@ void main() {
         FloatsIn means = FloatsIn(frame.means);
         vec3 p = vec3(means.v[3 * i], means.v[3 * i + 1], means.v[3 * i + 2]);
         mat3 W = world_to_camera_rotation(frame.camera);
-        vec3 t = W * p + frame.camera.translation.xyz;
-        bool ortho = frame.camera.translation.w != 0.0;
+        vec3 t = W * (p - frame.camera.position.xyz);
+        bool ortho = frame.camera.position.w != 0.0;
         FloatsIn ls = FloatsIn(frame.log_scales);
         FloatsIn rot = FloatsIn(frame.rotations);
         vec3 s = exp(vec3(ls.v[3 * i], ls.v[3 * i + 1], ls.v[3 * i + 2]));

@@ -76,7 +76,7 @@ void main() {
     // Replay the forward blend: where it stopped, the final T and the median
     // splat (with surface depths, a later half-opaque splat nearer at the pixel
     // takes the median over, as the blend's `accumulate_select`).
-    bool ortho = frame.camera.translation.w != 0.0;
+    bool ortho = frame.camera.position.w != 0.0;
     float T = 1.0, median_z = 0.0;
     uint end = range.x, median_j = 0xffffffffu;
     if (inside) {

@@ -257,6 +257,45 @@ fn shadows_agree_with_the_demo_exact_visibility() {
     assert_no_validation_messages(&s.d);
 }
 
+/// The shadow test far from the world's origin matches its twin as it does
+/// near it: receivers are rebuilt relative to their camera and taken to the
+/// light through the two cameras' difference, so no coordinate of 1e5 m
+/// enters a sum that cancels. Rebuilding world points and projecting them as
+/// rotation · point + translation instead put V 2.7e-2 off the twin here
+/// before the change (tolerance 5e-4, as near the origin).
+#[test]
+fn far_from_the_origin_the_shadow_test_matches_cpu_twin() {
+    let d = device();
+    let mut demo = demo_city(&DemoOptions { gaussians: 30_000, ..DemoOptions::default() }).unwrap();
+    let offset = Vec3::new(1.0e5, -7.0e4, 30.0);
+    for m in &mut demo.scene.means {
+        *m = (Vec3::from(*m) + offset).to_array();
+    }
+    let gpu_scene = GpuScene::upload(&d, &demo.scene).unwrap();
+    let mut s = Setup { splatter: Splatter::new(&d).unwrap(), pass: ShadowPass::new(&d).unwrap(), demo, gpu_scene, d };
+    let camera = s.demo.cameras[0].resized(176, 48);
+    let camera = Camera { position: camera.position + offset, ..camera };
+    let sun = Sun::from_azimuth_elevation(150.0, 40.0, [1.0; 3]).unwrap();
+    for (fit, slope_bias, normal_offset) in [(ShadowFit::SceneBounds, 0.0, 0.0), (ShadowFit::ViewFrustum, 0.5, 2.0)] {
+        let st =
+            ShadowSettings { fit, k: 4.0, slope_bias, normal_offset, filter: ShadowFilter::Depth, ..settings(384) };
+        let (g, host) = receiver(&mut s, &camera, Channels { normal: st.geometric_bias(), ..Channels::default() });
+        let map = shadow_map(&mut s, &sun, &st, Some(&camera));
+        let map_host = DepthImage::from_gbuffer(&map.frame.gbuffer.read(&s.d).unwrap());
+        let host = DepthImage::from_gbuffer(&host);
+        let (v, _) = s.pass.visibility(&map, &g, &camera, &st, VisibilityKind::Sigmoid).unwrap();
+        let gpu: Vec<f32> = s.d.read_buffer(&v).unwrap();
+        let cpu = sigmoid_visibility_cpu(&map.camera, &map_host, &camera, &host, &st);
+        let label = format!("shadow_far_{fit:?}");
+        let err = max_diff(&label, &camera, &gpu, &cpu, 5e-4);
+        let partial = gpu.iter().filter(|v| (0.01..0.99).contains(*v)).count();
+        let shadowed = gpu.iter().filter(|v| **v < 0.5).count();
+        eprintln!("{label}: sigmoid max error {err:.2e} ({partial} pixels in transition, {shadowed} shadowed)");
+        assert!(partial > 50 && shadowed > 50, "{label}: too few pixels test the sigmoid's transition");
+    }
+    assert_no_validation_messages(&s.d);
+}
+
 #[test]
 fn light_camera_covers_the_scene_and_the_frustum_fit_is_tighter() {
     let demo = demo_city(&DemoOptions { gaussians: 5_000, ..DemoOptions::default() }).unwrap();

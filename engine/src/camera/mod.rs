@@ -103,8 +103,10 @@ pub(crate) struct WorldToCameraBlock {
     pub(crate) rot0: [f32; 4],
     pub(crate) rot1: [f32; 4],
     pub(crate) rot2: [f32; 4],
-    /// The world-to-camera translation; `w`: 0 pinhole, 1 orthographic.
-    pub(crate) translation: [f32; 4],
+    /// The camera's position in the world (shaders take a point to
+    /// rotation · (point − position), which keeps its precision far from the
+    /// origin); `w`: 0 pinhole, 1 orthographic.
+    pub(crate) position: [f32; 4],
     /// fx, fy, cx, cy (orthographic: pixels per unit x, y, cx, cy).
     pub(crate) intrinsics: [f32; 4],
     /// Lens coefficients k1..k4 (fisheye: its k1..k4).
@@ -234,7 +236,6 @@ impl Camera {
             Projection::Pinhole { fx, fy, cx, cy } => ([fx, fy, cx, cy], 0.0),
             Projection::Orthographic { sx, sy, cx, cy } => ([sx, sy, cx, cy], 1.0),
         };
-        let t = -(w * self.position);
         let p = self.position;
         let [rot0, rot1, rot2] = rows(r);
         let [lens0, lens1, lens3] = self.lens.gpu_coefficients3();
@@ -256,7 +257,7 @@ impl Camera {
             rot0,
             rot1,
             rot2,
-            translation: [t.x, t.y, t.z, kind],
+            position: [p.x, p.y, p.z, kind],
             intrinsics,
             lens0,
             lens1,
@@ -327,11 +328,6 @@ impl Camera {
                     ),
                 ));
             }
-        }
-        let p = self.packed();
-        let t = p.to_camera.translation;
-        if !t.iter().all(|v| v.is_finite()) {
-            return Err(Error::invalid(format!("{name}: position {}", self.position), "overflows f32 when packed"));
         }
         Ok(())
     }
@@ -563,8 +559,8 @@ mod tests {
         }
     }
 
-    /// The packed rows are the two rotations, and the translation takes the
-    /// camera centre to the origin.
+    /// The packed rows are the two rotations, and both directions carry the
+    /// camera's position as it is.
     #[test]
     fn packed_camera_is_consistent() {
         let c = Camera::look_at(Vec3::new(3.0, -4.0, 1.5), Vec3::new(0.5, 2.0, 0.0), Vec3::Z, 70.0, 64, 32).unwrap();
@@ -577,15 +573,9 @@ mod tests {
             }
         }
         let row = |r: [f32; 4]| Vec3::new(r[0], r[1], r[2]);
-        let t = row(v.translation);
-        let moved = Vec3::new(
-            row(to_camera[0]).dot(c.position),
-            row(to_camera[1]).dot(c.position),
-            row(to_camera[2]).dot(c.position),
-        ) + t;
-        assert!(moved.length() < 1e-5, "{moved}");
-        assert_eq!((v.translation[3], w.position[3]), (0.0, 0.0));
+        assert_eq!((v.position[3], w.position[3]), (0.0, 0.0));
         assert_eq!(row(w.position), c.position);
+        assert_eq!(row(v.position), c.position);
         assert_eq!(v.intrinsics, w.intrinsics);
         assert_eq!(v.intrinsics[2..], [32.0, 16.0]);
     }

@@ -64,7 +64,7 @@ crate::gpu::gpu_layout!(
         camera.rot0,
         camera.rot1,
         camera.rot2,
-        camera.translation,
+        camera.position,
         camera.intrinsics,
         camera.lens0,
         camera.lens1,
@@ -206,8 +206,7 @@ pub(super) fn camera_frame(camera: &Camera, frame: &mut FrameUniform) -> Result<
     frame.eye = [eye[0], eye[1], eye[2], 0.0];
     let view = camera.rotation.z_axis;
     frame.view_dir = [view.x, view.y, view.z, 0.0];
-    let valid =
-        frame.camera.translation.iter().chain(&frame.camera.intrinsics).chain(&frame.clip).all(|v| v.is_finite());
+    let valid = frame.camera.position.iter().chain(&frame.camera.intrinsics).chain(&frame.clip).all(|v| v.is_finite());
     if !valid || camera.near.partial_cmp(&camera.far) != Some(std::cmp::Ordering::Less) {
         return Err(Error::invalid("camera", "has non-finite or inverted parameters"));
     }

@@ -19,12 +19,14 @@ struct CameraToWorld {
     vec4 lens3;
 };
 
-// For projecting points: world-to-camera rotation and translation.
+// For projecting points: world-to-camera rotation and the camera's position
+// (a point goes to rotation · (point − position), never rotation · point +
+// translation, whose two large terms cancel for a scene far from the origin).
 struct WorldToCamera {
     vec4 rot0;         // world-to-camera rotation, rows
     vec4 rot1;
     vec4 rot2;
-    vec4 translation;  // world-to-camera translation; w: 0 pinhole, 1 orthographic
+    vec4 position;     // the camera's position in the world; w: 0 pinhole, 1 orthographic
     vec4 intrinsics;   // fx, fy, cx, cy (orthographic: pixels per unit x, y, cx, cy)
     vec4 lens0;        // k1..k4 (radial-tangential and fisheye)
     vec4 lens1;        // k5, k6, p1, p2 (radial-tangential)
@@ -380,11 +382,12 @@ vec3 camera_ray(CameraToWorld c, vec2 px) {
     return camera_vector_to_world(c, v);
 }
 
-// World point seen at pixel px at camera depth z.
-vec3 camera_unproject(CameraToWorld c, vec2 px, float z) {
+// The world point seen at pixel px at camera depth z, less the camera's
+// position: small numbers however far the scene lies from the origin.
+vec3 camera_unproject_from_camera(CameraToWorld c, vec2 px, float z) {
     vec4 k = c.intrinsics;
     vec3 v = c.position.w == 0.0 ? camera_pixel_direction(c, px) * z : vec3((px - k.zw) / k.xy, z);
-    return camera_vector_to_world(c, v) + c.position.xyz;
+    return camera_vector_to_world(c, v);
 }
 
 #endif

@@ -11,7 +11,7 @@ layout(std140, set = 0, binding = 0) uniform Shadow {
     vec4 light_rot0;   // world-to-light rotation, rows
     vec4 light_rot1;
     vec4 light_rot2;
-    vec4 light_t;      // world-to-light translation; w: far plane
+    vec4 light_position;  // the light camera's position in the world; w: far plane
     vec4 light_intr;   // texels per unit x, y, cx, cy
     uvec4 size;        // camera width, height, map width, height
     vec4 params;       // k, bias, minimum alpha of a surface, depth of an empty texel
@@ -46,36 +46,40 @@ bool resolve_depth(uint mode, uvec2 depth_addr, uvec2 alpha_addr, uint p, out fl
     return a >= shadow.params.z;
 }
 
-// World point seen at receiver pixel p and its depth bias; false where there
+// The point seen at receiver pixel p, as world − the receivers' camera
+// position (`light_coords` takes it so), and its depth bias; false where there
 // is no surface. With a geometric bias (geometry.xy ≠ 0) and a normal n (faced
 // toward the camera) at angle θ to the sun, the point moves n·normal offset·sin θ
 // and the bias grows by slope bias·min(tan θ, largest tan θ).
-bool receiver_point(uint p, out vec3 world, out float bias) {
+bool receiver_point(uint p, out vec3 from_camera, out float bias) {
     float z;
-    world = vec3(0.0);
+    from_camera = vec3(0.0);
     bias = shadow.params.y;
     if (!resolve_depth(shadow.modes.y, shadow.receiver_depth, shadow.receiver_alpha, p, z)) return false;
-    world = camera_unproject(shadow.camera, pixel_centre(p, shadow.size.x), z);
+    from_camera = camera_unproject_from_camera(shadow.camera, pixel_centre(p, shadow.size.x), z);
     if (shadow.geometry.x != 0.0 || shadow.geometry.y != 0.0) {
         FloatsIn normals = FloatsIn(shadow.receiver_normal);
         vec3 n = vec3(normals.v[3u * p], normals.v[3u * p + 1u], normals.v[3u * p + 2u]);
         float len = length(n);
         if (len > 1e-12) {
             n /= len;
-            if (dot(n, world - shadow.camera.position.xyz) > 0.0) n = -n;
+            if (dot(n, from_camera) > 0.0) n = -n;
             float c = clamp(-dot(n, shadow.light_rot2.xyz), 0.0, 1.0);
             float s = sqrt(max(1.0 - c * c, 0.0));
-            world += n * (shadow.geometry.y * s);
+            from_camera += n * (shadow.geometry.y * s);
             bias += shadow.geometry.x * min(s / max(c, 1e-6), shadow.geometry.z);
         }
     }
     return true;
 }
 
-// Light-space texel coordinates (centres at +0.5) and depth of a world point.
-vec3 light_coords(vec3 world) {
-    vec3 t = vec3(dot(shadow.light_rot0.xyz, world), dot(shadow.light_rot1.xyz, world),
-                  dot(shadow.light_rot2.xyz, world)) + shadow.light_t.xyz;
+// Light-space texel coordinates (centres at +0.5) and depth of a point given
+// as world − the receivers' camera position (`receiver_point`): the two
+// positions' difference is small where both are far from the origin, so no
+// large coordinate enters the rotation.
+vec3 light_coords(vec3 from_camera) {
+    vec3 d = from_camera + (shadow.camera.position.xyz - shadow.light_position.xyz);
+    vec3 t = vec3(dot(shadow.light_rot0.xyz, d), dot(shadow.light_rot1.xyz, d), dot(shadow.light_rot2.xyz, d));
     vec4 k = shadow.light_intr;
     return vec3(k.xy * t.xy + k.zw, t.z);
 }

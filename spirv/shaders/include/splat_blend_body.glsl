@@ -72,7 +72,7 @@ vec2 splat_slope(uint g, vec4 conic) {
 // SURFACE_DEPTH where the pixel's ray meets its plane (`plane_depth`).
 float splat_depth(vec4 head, vec2 slope, vec2 d) {
     if (!SURFACE_DEPTH) return head.z;
-    return plane_depth(head.z, slope, d, frame.camera.translation.w != 0.0);
+    return plane_depth(head.z, slope, d, frame.camera.position.w != 0.0);
 }
 
 // Whether this splat (centre depth z0) and every later one in the tile's
@@ -85,7 +85,7 @@ const float SURFACE_NEARER = 1.56;
 bool behind_host(float z0, float limit) {
     if (!OCCLUDED) return false;
     if (!SURFACE_DEPTH) return !(z0 < limit);
-    return frame.camera.translation.w == 0.0 && !(z0 < SURFACE_NEARER * limit);
+    return frame.camera.position.w == 0.0 && !(z0 < SURFACE_NEARER * limit);
 }
 
 // The host's camera depth at pixel `pix` (infinity where it has nothing, or

@@ -84,8 +84,8 @@ void main() {
     if (i >= frame.counts.x) return;
     vec3 p = MEAN3(i);
     mat3 W = world_to_camera_rotation(frame.camera);
-    vec3 t = W * p + frame.camera.translation.xyz;
-    bool ortho = frame.camera.translation.w != 0.0;
+    vec3 t = W * (p - frame.camera.position.xyz);
+    bool ortho = frame.camera.position.w != 0.0;
     // Equirectangular cameras see all around: depth is the distance, and a
     // full panorama (clip.z: its width) wraps at its left and right edges.
     bool equirect = frame.camera.lens2.x == 9.0;
