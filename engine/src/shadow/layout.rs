@@ -22,7 +22,7 @@ pub(crate) struct ShadowUniform {
     pub(super) light_rot0: [f32; 4],
     pub(super) light_rot1: [f32; 4],
     pub(super) light_rot2: [f32; 4],
-    pub(super) light_position: [f32; 4],
+    pub(super) camera_in_light: [f32; 4],
     pub(super) light_intr: [f32; 4],
     pub(super) size: [u32; 4],
     pub(super) params: [f32; 4],
@@ -56,7 +56,7 @@ crate::gpu::gpu_layout!(
         light_rot0,
         light_rot1,
         light_rot2,
-        light_position,
+        camera_in_light,
         light_intr,
         size,
         params,
@@ -203,7 +203,9 @@ pub(super) fn receiver_uniform<'a>(
     u.camera = camera.packed().to_world;
     let packed = light.packed().to_camera;
     [u.light_rot0, u.light_rot1, u.light_rot2] = [packed.rot0, packed.rot1, packed.rot2];
-    u.light_position = [packed.position[0], packed.position[1], packed.position[2], light.far];
+    // The receivers' camera in light space, in f64 and rounded once (`light_coords` in shadow.glsl).
+    let c = light.rotation.as_dmat3().transpose() * (camera.position.as_dvec3() - light.position.as_dvec3());
+    u.camera_in_light = [c.x as f32, c.y as f32, c.z as f32, light.far];
     u.light_intr = packed.intrinsics;
     u.size = [camera.width, camera.height, light.width, light.height];
     u.params = [settings.k, settings.bias, settings.min_alpha, depth.empty_depth(light.far)];

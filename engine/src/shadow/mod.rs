@@ -359,7 +359,13 @@ impl LightFrame {
             return Err(Error::invalid(format!("scene bounds {lo}..{hi}"), "are not a box"));
         }
         let diagonal = (hi - lo).length();
-        let pad = 0.02 * diagonal + 1e-3 * (lo.abs().max(hi.abs()).max_element() + 1.0);
+        // 2% of the size for the splats reaching past their centres, and 0.1% of the
+        // distance from the origin, but of no more of it than the scene's size (0.1% of
+        // 1e5 m spread a map over 100 m of empty space each side): beyond that, a few f32
+        // steps, so the box still holds the bounds once rounded.
+        let far = lo.abs().max(hi.abs()).max_element();
+        let near = far.min(diagonal);
+        let pad = 0.02 * diagonal + 1e-3 * (near + 1.0) + 8.0 * f32::EPSILON * (far - near);
         let (lo, hi) = (lo - pad, hi + pad);
         let centre = 0.5 * (lo + hi);
         let towards = -sun.direction;

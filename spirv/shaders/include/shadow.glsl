@@ -11,7 +11,7 @@ layout(std140, set = 0, binding = 0) uniform Shadow {
     vec4 light_rot0;   // world-to-light rotation, rows
     vec4 light_rot1;
     vec4 light_rot2;
-    vec4 light_position;  // the light camera's position in the world; w: far plane
+    vec4 camera_in_light;  // the receivers' camera in light space (world-to-light rotation · (its position − the light's)); w: far plane
     vec4 light_intr;   // texels per unit x, y, cx, cy
     uvec4 size;        // camera width, height, map width, height
     vec4 params;       // k, bias, minimum alpha of a surface, depth of an empty texel
@@ -74,12 +74,12 @@ bool receiver_point(uint p, out vec3 from_camera, out float bias) {
 }
 
 // Light-space texel coordinates (centres at +0.5) and depth of a point given
-// as world − the receivers' camera position (`receiver_point`): the two
-// positions' difference is small where both are far from the origin, so no
-// large coordinate enters the rotation.
+// as world − the receivers' camera position (`receiver_point`), through the
+// camera's own light-space position (the host's, in f64): no world coordinate,
+// however far from the origin, enters the sum.
 vec3 light_coords(vec3 from_camera) {
-    vec3 d = from_camera + (shadow.camera.position.xyz - shadow.light_position.xyz);
-    vec3 t = vec3(dot(shadow.light_rot0.xyz, d), dot(shadow.light_rot1.xyz, d), dot(shadow.light_rot2.xyz, d));
+    vec3 t = vec3(dot(shadow.light_rot0.xyz, from_camera), dot(shadow.light_rot1.xyz, from_camera),
+                  dot(shadow.light_rot2.xyz, from_camera)) + shadow.camera_in_light.xyz;
     vec4 k = shadow.light_intr;
     return vec3(k.xy * t.xy + k.zw, t.z);
 }
