@@ -67,6 +67,18 @@ fn shadow_map(s: &mut Setup, sun: &Sun, st: &ShadowSettings, view: Option<&Camer
     s.pass.shadow_map(&mut s.splatter, &s.gpu_scene, &bounds, sun, st, view).unwrap().expect("the sun is up")
 }
 
+/// The sigmoid test's V on the GPU and its f64 twin's on the same map and
+/// receivers (`camera`'s, normals rendered where `st` needs them).
+fn sigmoid_and_twin(s: &mut Setup, camera: &Camera, sun: &Sun, st: &ShadowSettings) -> (Vec<f32>, Vec<f64>) {
+    let (g, host) = receiver(s, camera, Channels { normal: st.geometric_bias(), ..Channels::default() });
+    let map = shadow_map(s, sun, st, Some(camera));
+    let map_host = DepthImage::from_gbuffer(&map.frame.gbuffer.read(&s.d).unwrap());
+    let host = DepthImage::from_gbuffer(&host);
+    let (v, _) = s.pass.visibility(&map, &g, camera, st, VisibilityKind::Sigmoid).unwrap();
+    let gpu: Vec<f32> = s.d.read_buffer(&v).unwrap();
+    (gpu, sigmoid_visibility_cpu(&map.camera, &map_host, camera, &host, st))
+}
+
 fn max_diff(label: &str, camera: &Camera, gpu: &[f32], cpu: &[f64], tol: f64) -> f64 {
     assert!(gpu.iter().all(|v| v.is_finite() && (0.0..=1.0).contains(v)), "{label}: non-finite or out-of-range V");
     let cpu32: Vec<f32> = cpu.iter().map(|v| *v as f32).collect();
@@ -164,13 +176,7 @@ fn sigmoid_test_and_traced_reference_match_cpu_twin() {
             _ => Camera { lens, ..camera.clone() },
         };
         let st = ShadowSettings { fit: ShadowFit::ViewFrustum, k: 4.0, ..settings(384) };
-        let (g, host) = receiver(&mut s, &cam, Channels::default());
-        let map = shadow_map(&mut s, &sun, &st, Some(&cam));
-        let map_host = DepthImage::from_gbuffer(&map.frame.gbuffer.read(&s.d).unwrap());
-        let host = DepthImage::from_gbuffer(&host);
-        let (v, _) = s.pass.visibility(&map, &g, &cam, &st, VisibilityKind::Sigmoid).unwrap();
-        let gpu: Vec<f32> = s.d.read_buffer(&v).unwrap();
-        let cpu = sigmoid_visibility_cpu(&map.camera, &map_host, &cam, &host, &st);
+        let (gpu, cpu) = sigmoid_and_twin(&mut s, &cam, &sun, &st);
         // As above, plus the lens's f32 Newton inversion.
         let err = max_diff(&format!("shadow_lens_{lens:?}"), &cam, &gpu, &cpu, 5e-4);
         let partial = gpu.iter().filter(|v| (0.01..0.99).contains(*v)).count();
@@ -279,13 +285,7 @@ fn far_from_the_origin_the_shadow_test_matches_cpu_twin() {
     for (fit, slope_bias, normal_offset) in [(ShadowFit::SceneBounds, 0.0, 0.0), (ShadowFit::ViewFrustum, 0.5, 2.0)] {
         let st =
             ShadowSettings { fit, k: 4.0, slope_bias, normal_offset, filter: ShadowFilter::Depth, ..settings(384) };
-        let (g, host) = receiver(&mut s, &camera, Channels { normal: st.geometric_bias(), ..Channels::default() });
-        let map = shadow_map(&mut s, &sun, &st, Some(&camera));
-        let map_host = DepthImage::from_gbuffer(&map.frame.gbuffer.read(&s.d).unwrap());
-        let host = DepthImage::from_gbuffer(&host);
-        let (v, _) = s.pass.visibility(&map, &g, &camera, &st, VisibilityKind::Sigmoid).unwrap();
-        let gpu: Vec<f32> = s.d.read_buffer(&v).unwrap();
-        let cpu = sigmoid_visibility_cpu(&map.camera, &map_host, &camera, &host, &st);
+        let (gpu, cpu) = sigmoid_and_twin(&mut s, &camera, &sun, &st);
         let label = format!("shadow_far_{fit:?}");
         let err = max_diff(&label, &camera, &gpu, &cpu, 5e-4);
         let partial = gpu.iter().filter(|v| (0.01..0.99).contains(*v)).count();
