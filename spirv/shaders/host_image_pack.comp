@@ -88,8 +88,12 @@ void main() {
         float splat = z > 0.0 ? stored_depth(z) : empty_depth();
         if (composite) {
             float host = FloatsIn(pack.host).v[p];
-            // The host's value stays bit for bit unless a splat is nearer.
-            splat = (z > 0.0 && z < camera_z(host)) ? splat : host;
+            float host_z = camera_z(host);
+            // The host's value stays bit for bit unless a splat is nearer, and a nearer
+            // splat's stored value never lies behind the host's (storing can round across it).
+            bool nearer = z > 0.0 && z < host_z;
+            if (nearer && !isinf(host_z)) splat = uint(pack.depth.x) == 2u ? max(splat, host) : min(splat, host);
+            splat = nearer ? splat : host;
         }
         FloatsOut(pack.out_texels).v[p] = splat;
         return;

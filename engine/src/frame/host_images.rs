@@ -432,6 +432,11 @@ pub fn pack_cpu(
                 let splat = if z > 0.0 { stored(z) } else { empty };
                 let value = match h {
                     Some(h) if !(z > 0.0 && z < depth.camera_z(h[0])) => h[0],
+                    // A nearer splat never stores a value behind the host's.
+                    Some(h) if depth.camera_z(h[0]).is_finite() => match depth {
+                        HostDepth::ReversedZ { .. } => splat.max(h[0]),
+                        HostDepth::CameraZ | HostDepth::Vulkan { .. } => splat.min(h[0]),
+                    },
                     _ => splat,
                 };
                 return [value, 0.0, 0.0, 0.0];
