@@ -385,8 +385,7 @@ pub unsafe extern "C" fn srug_renderer_set_camera_matrices(
             let flip = Mat3::from_diagonal(Vec3::new(1.0, -1.0, -1.0));
             let world_to_cv = flip * Mat3::from_mat4(view);
             let rotation = world_to_cv.transpose();
-            // The centre in f64, rounded once: the shaders take it as it is (far from the origin too).
-            let position = (-(rotation.as_dmat3() * (flip.as_dmat3() * view.w_axis.truncate().as_dvec3()))).as_vec3();
+            let position = srug::camera::centre_of(rotation, flip * view.w_axis.truncate());
             set_camera(r, rotation, position, Projection::Pinhole { fx, fy, cx, cy }, near, far)
         })
     })

@@ -1244,8 +1244,7 @@ impl Cameras {
                     "is not [[fx, 0, cx], [0, fy, cy], [0, 0, 1]] (skew is not supported)",
                 ));
             }
-            // Row-major world-to-camera [R | t]: the camera-to-world rotation is Rᵀ, the centre
-            // −Rᵀt (in f64, rounded once: the shaders take the centre as it is).
+            // Row-major world-to-camera [R | t]: the camera-to-world rotation is Rᵀ, the centre −Rᵀt.
             let r = Mat3::from_cols_array(&[m[0], m[1], m[2], m[4], m[5], m[6], m[8], m[9], m[10]]);
             let t = Vec3::new(m[3], m[7], m[11]);
             let camera = Camera {
@@ -1253,7 +1252,7 @@ impl Cameras {
                 width,
                 height,
                 rotation: r,
-                position: (-(r.as_dmat3() * t.as_dvec3())).as_vec3(),
+                position: srug::camera::centre_of(r, t),
                 projection: Projection::Pinhole { fx: kk[0], fy: kk[4], cx: kk[2], cy: kk[5] },
                 near,
                 far,

@@ -58,6 +58,13 @@ pub fn random_scene(n: usize, sh_degree: u32, seed: u64, spread: f32) -> Scene {
     s
 }
 
+/// Moves every mean of `scene` by `offset` (a scene far from the world's origin).
+pub fn move_scene(scene: &mut Scene, offset: glam::Vec3) {
+    for m in &mut scene.means {
+        *m = (glam::Vec3::from(*m) + offset).to_array();
+    }
+}
+
 /// The scene the committed format fixtures (tests/data/formats) are made
 /// from: 400 SH-3 Gaussians of [`random_scene`] with a few extremes (centres
 /// 1500 m out, near-transparent and near-opaque, tiny and large scales).

@@ -18,7 +18,7 @@ use srug::shadow::{
 };
 use srug::splat::Channel;
 use srug::splat::{Channels, GBuffer, SplatSettings, Splatter};
-use srug_tests::{assert_no_validation_messages, device, save_comparison};
+use srug_tests::{assert_no_validation_messages, device, move_scene, save_comparison};
 
 const NAN: u32 = srug_tests::NAN_SENTINEL;
 
@@ -266,17 +266,16 @@ fn shadows_agree_with_the_demo_exact_visibility() {
 /// The shadow test far from the world's origin matches its twin as it does
 /// near it: receivers are rebuilt relative to their camera and taken to the
 /// light through that camera's light-space position (the host's, in f64), so
-/// no coordinate of 1e5 m enters a sum that cancels. Rebuilding world points and projecting them as
-/// rotation · point + translation instead put V 2.7e-2 off the twin here
-/// before the change (tolerance 5e-4, as near the origin).
+/// no coordinate of 1e5 m enters a sum that cancels. Rebuilding world points
+/// and projecting them as rotation · point + translation instead put V
+/// 2.7e-2 off the twin here before the change (tolerance 5e-4, as near the
+/// origin).
 #[test]
 fn far_from_the_origin_the_shadow_test_matches_cpu_twin() {
     let d = device();
     let mut demo = demo_city(&DemoOptions { gaussians: 30_000, ..DemoOptions::default() }).unwrap();
     let offset = Vec3::new(1.0e5, -7.0e4, 30.0);
-    for m in &mut demo.scene.means {
-        *m = (Vec3::from(*m) + offset).to_array();
-    }
+    move_scene(&mut demo.scene, offset);
     let gpu_scene = GpuScene::upload(&d, &demo.scene).unwrap();
     let mut s = Setup { splatter: Splatter::new(&d).unwrap(), pass: ShadowPass::new(&d).unwrap(), demo, gpu_scene, d };
     let camera = s.demo.cameras[0].resized(176, 48);

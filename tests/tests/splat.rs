@@ -20,7 +20,9 @@ use srug::splat::{
     DepthKey, GBuffer, NormalSource, SplatSettings, Splatter, TileBounds, BATCH_BYTES, BLEND_PIXELS, DEFAULT_TILE,
     FRAMES_PER_SUBMISSION, TILE_SIZES,
 };
-use srug_tests::{assert_no_validation_messages, device, psnr, random_scene, save_comparison, NAN_SENTINEL};
+use srug_tests::{
+    assert_no_validation_messages, device, move_scene, psnr, random_scene, save_comparison, NAN_SENTINEL,
+};
 
 const NAN: u32 = NAN_SENTINEL;
 /// rgb must agree with the CPU twin to this PSNR (peak 1).
@@ -804,9 +806,7 @@ fn far_from_the_origin_matches_cpu_twin() {
     let city = demo_city(&DemoOptions { seed: 7, gaussians: 20_000, sh_degree: 1 }).unwrap();
     let offset = Vec3::new(1.0e5, -7.0e4, 30.0);
     let mut scene = city.scene.clone();
-    for m in &mut scene.means {
-        *m = (Vec3::from(*m) + offset).to_array();
-    }
+    move_scene(&mut scene, offset);
     let street = city.cameras[1].resized(352, 96);
     let street = Camera { position: street.position + offset, ..street };
     let above = Camera::orthographic(

@@ -17,7 +17,7 @@ use srug::splat::cpu_backward::{blend_backward_cpu, project_backward, GaussianGr
 use srug::splat::Channel;
 use srug::splat::PerChannel;
 use srug::splat::{Channels, NormalSource, SplatSettings, Splatter, TileBounds, DEFAULT_TILE, TILE_SIZES};
-use srug_tests::{assert_no_validation_messages, device};
+use srug_tests::{assert_no_validation_messages, device, move_scene};
 
 fn scene(n: usize, seed: u64) -> Scene {
     let mut rng = Pcg64Mcg::seed_from_u64(seed);
@@ -217,9 +217,7 @@ fn gpu_backward_matches_cpu_twin_far_from_the_origin() {
     let bg = [0.2, 0.4, 0.7];
     let offset = Vec3::new(1.0e5, -7.0e4, 30.0);
     let mut scene = scene(300, 0);
-    for m in &mut scene.means {
-        *m = (Vec3::from(*m) + offset).to_array();
-    }
+    move_scene(&mut scene, offset);
     let [(_, camera), ..] = twin_cameras();
     let camera = Camera { position: camera.position + offset, ..camera };
     let (host, grads) = random_grads(&d, (camera.width * camera.height) as usize, 100);

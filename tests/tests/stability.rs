@@ -31,7 +31,7 @@ use srug::shadow::cpu::{sigmoid_visibility_cpu, DepthImage};
 use srug::shadow::{ShadowPass, ShadowSettings, Sun, VisibilityKind};
 use srug::splat::cpu::render_cpu;
 use srug::splat::SplatSettings;
-use srug_tests::{assert_no_validation_messages, device, psnr, save_comparison, NAN_SENTINEL};
+use srug_tests::{assert_no_validation_messages, device, move_scene, psnr, save_comparison, NAN_SENTINEL};
 
 const NAN: u32 = NAN_SENTINEL;
 
@@ -375,9 +375,7 @@ fn a_scene_far_from_the_origin_renders_like_one_at_it() {
     // Urban scenes in world coordinates: 1e5 units out, f32 positions keep ~8 mm.
     let offset = Vec3::new(1e5, -1e5, 0.0);
     let mut far = scene.clone();
-    for m in &mut far.means {
-        *m = (Vec3::from_array(*m) + offset).to_array();
-    }
+    move_scene(&mut far, offset);
     let mut cam = camera.clone();
     cam.position += offset;
     let far_image = run(&mut rig, &case("1e5_from_origin", far, &cam));

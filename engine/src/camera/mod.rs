@@ -490,6 +490,13 @@ impl Camera {
     }
 }
 
+/// The centre −Rᵀ·t of a world-to-camera transform [R | t], given Rᵀ (the
+/// camera-to-world rotation), in f64 and rounded once: the shaders take a
+/// camera's centre as it is, so its rounding is all a far scene sees.
+pub fn centre_of(camera_to_world: Mat3, translation: Vec3) -> Vec3 {
+    (-(camera_to_world.as_dmat3() * translation.as_dvec3())).as_vec3()
+}
+
 /// Camera-to-world rotation for OpenCV axes looking from `eye` at `target`.
 pub fn look_rotation(eye: Vec3, target: Vec3, up: Vec3) -> Result<Mat3> {
     let what = || format!("look-at from {eye} to {target} with up {up}");
@@ -557,6 +564,23 @@ mod tests {
             assert!((angle - degrees).abs() < 1e-6, "{degrees}°: direction {d:?} is {angle}° off axis");
             assert_eq!(cam.ray_length_per_depth(px).is_some(), degrees < 90.0);
         }
+    }
+
+    /// A centre recovered from world-to-camera translations 1e5 m out is
+    /// −Rᵀt rounded once to f32: f32 arithmetic misses it by steps of 8 mm
+    /// there, which the shaders, taking the centre as it is, would show.
+    #[test]
+    fn centres_from_translations_are_rounded_once() {
+        let mut rounded_once = 0;
+        for i in 0..50 {
+            let eye = Vec3::new(1.0e5 + 0.37 * i as f32, -7.0e4 - 0.11 * i as f32, 31.5);
+            let r = look_rotation(eye, eye + Vec3::new(0.3, 0.9 - 0.01 * i as f32, -0.1), Vec3::Z).unwrap();
+            let t = (-(r.transpose().as_dmat3() * eye.as_dvec3())).as_vec3();
+            let centre = centre_of(r, t);
+            let exact = -(r.as_dmat3() * t.as_dvec3());
+            rounded_once += usize::from(centre == exact.as_vec3());
+        }
+        assert_eq!(rounded_once, 50, "centres not −Rᵀt rounded once");
     }
 
     /// The packed rows are the two rotations, and both directions carry the
