@@ -320,7 +320,7 @@ fn every_tile_size_matches_cpu_twin_in_every_variant() {
             };
             assert_eq!(splatter.blend_pixels(), expected, "default pixels per invocation on {}", d.info().driver);
             assert_eq!(splatter.pixel_reach(), mesa_25, "default per-pixel reach on {}", d.info().driver);
-            assert_eq!(splatter.window_fetch(), mesa_25, "default per-window fetch on {}", d.info().driver);
+            assert_eq!(splatter.window_fetch(), mesa_25 || gpu, "default per-window fetch on {}", d.info().driver);
             splatter.set_blend_variant(BlendVariant::SubgroupLoads).unwrap();
             splatter.set_texel_blend(false).unwrap();
             splatter.set_texel_preprocess(false).unwrap();

@@ -136,8 +136,8 @@ pub struct SplatterChoices {
     /// (default: true on lavapipe from Mesa 25, else false).
     #[arg(long)]
     pub pixel_reach: Option<bool>,
-    /// Fetch each key window's wanted splats once, one per blend lane, and broadcast them: true or
-    /// false (default: true on lavapipe from Mesa 25, else false).
+    /// Fetch each key window's wanted splats once, one per blend lane, and hand them out: true or
+    /// false (default: true on lavapipe from Mesa 25 and on GPUs, else false).
     #[arg(long)]
     pub window_fetch: Option<bool>,
     /// Read the scene (preprocess) and the splat records (keys) through texel-buffer views: true

@@ -100,16 +100,18 @@ pub fn default_pixel_reach(info: &DeviceInfo) -> bool {
     info.is_lavapipe_from(25)
 }
 /// Whether a new [`Splatter`]'s texel-buffer blend fetches each key window's
-/// wanted splats once, one per lane, and broadcasts them splat by splat
+/// wanted splats once, one per lane, and hands them out splat by splat
 /// (`WINDOW_FETCH` in `splat_blend_body.glsl`) instead of every lane fetching
 /// each splat: on lavapipe from Mesa 25 on, whose texel fetch is a call to
 /// an out-of-line function that saves and restores the caller's vector
 /// registers, and which jumps over the fetch in windows it does not start;
-/// off elsewhere (Mesa 22.3's lavapipe runs both sides of every `if`, so it
-/// would fetch and broadcast every step; GPUs not measured). The image is
-/// the same either way.
+/// and on GPUs, where a lane's fetches of the next index and then its splat
+/// are a chain of memory latencies that one fetch per window overlaps across
+/// the subgroup (measured on an NVIDIA H200). Off on other CPU devices
+/// (Mesa 22.3's lavapipe runs both sides of every `if`, so it would fetch
+/// and hand out every step). The image is the same either way.
 pub fn default_window_fetch(info: &DeviceInfo) -> bool {
-    info.is_lavapipe_from(25)
+    info.is_lavapipe_from(25) || info.device_type != vk::PhysicalDeviceType::CPU
 }
 /// Bit of the blend's `CHANNELS` specialization constant that blends rgb
 /// (keep in sync with `RGB` in `splat_blend_body.glsl`).
