@@ -16,9 +16,9 @@ use srug::scene::{Camera, Scene};
 use srug::splat::cpu::{preprocess_one, render_cpu, tile_row_span, CpuSplat};
 use srug::splat::Channel;
 use srug::splat::{
-    cameras_per_batch, default_blend_pixels, default_pixel_reach, default_window_fetch, BlendVariant, Channels,
-    DepthKey, GBuffer, NormalSource, SplatSettings, Splatter, TileBounds, BATCH_BYTES, BLEND_PIXELS, DEFAULT_TILE,
-    FRAMES_PER_SUBMISSION, TILE_SIZES,
+    cameras_per_batch, default_blend_pixels, default_pixel_reach, default_two_splats_per_step, default_window_fetch,
+    BlendVariant, Channels, DepthKey, GBuffer, NormalSource, SplatSettings, Splatter, TileBounds, BATCH_BYTES,
+    BLEND_PIXELS, DEFAULT_TILE, FRAMES_PER_SUBMISSION, TILE_SIZES,
 };
 use srug_tests::{
     assert_no_validation_messages, device, move_scene, psnr, random_scene, save_comparison, NAN_SENTINEL,
@@ -321,6 +321,7 @@ fn every_tile_size_matches_cpu_twin_in_every_variant() {
             assert_eq!(splatter.blend_pixels(), expected, "default pixels per invocation on {}", d.info().driver);
             assert_eq!(splatter.pixel_reach(), mesa_25, "default per-pixel reach on {}", d.info().driver);
             assert_eq!(splatter.window_fetch(), mesa_25 || gpu, "default per-window fetch on {}", d.info().driver);
+            assert_eq!(splatter.two_splats_per_step(), gpu, "default two splats a step on {}", d.info().driver);
             splatter.set_blend_variant(BlendVariant::SubgroupLoads).unwrap();
             splatter.set_texel_blend(false).unwrap();
             splatter.set_texel_preprocess(false).unwrap();
@@ -384,7 +385,8 @@ fn row_skipping_blend_is_bit_identical_to_reading_every_splat() {
     // layout (8 at 16-pixel tiles is the half-tile one); every tile size
     // carries masks at these sizes (at most 21 + 10 key bits). Each with
     // and without the per-window fetch (lanes fetch a window's wanted
-    // splats, the subgroup broadcasts them), also with surface depths
+    // splats, the subgroup hands them out), and with it two splats a loop
+    // step, also with surface depths
     // (their slope rides in the colour texel) with and without rgb.
     let d = device();
     if !d.info().subgroup_ballot {
@@ -428,10 +430,13 @@ fn row_skipping_blend_is_bit_identical_to_reading_every_splat() {
             let everything = gbuffer_bits(&everything.read(&d).unwrap());
             splatter.set_texel_blend(true).unwrap();
             let layouts = BLEND_PIXELS.into_iter().flat_map(|p| [(p, false), (p, true)]);
-            for ((pixels, reach), window) in layouts.flat_map(|l| [(l, false), (l, true)]) {
+            // Window fetch off, on, and on with two splats a step.
+            let fetches = [(false, false), (true, false), (true, true)];
+            for ((pixels, reach), (window, two)) in layouts.flat_map(|l| fetches.map(|f| (l, f))) {
                 splatter.set_blend_pixels(pixels).unwrap();
                 splatter.set_pixel_reach(reach);
                 splatter.set_window_fetch(window);
+                splatter.set_two_splats_per_step(two);
                 let (skipping, stats) = splatter.render(&gpu_scene, &cam, &settings).unwrap();
                 assert_eq!(
                     stats.row_masks,
@@ -444,17 +449,18 @@ fn row_skipping_blend_is_bit_identical_to_reading_every_splat() {
                 let differ = everything.iter().zip(&skipping).filter(|(a, b)| a != b).count();
                 assert_eq!(
                     differ, 0,
-                    "{name} tile {tile}, {pixels} pixels per invocation, pixel reach {reach}, window fetch {window}: \
-                     {differ} values differ"
+                    "{name} tile {tile}, {pixels} pixels per invocation, pixel reach {reach}, window fetch {window}, \
+                     two splats a step {two}: {differ} values differ"
                 );
             }
         }
     }
-    // Six scenes at three tile sizes, four blend settings per layout; only the planes 1e-30 to 1e30 at 32-pixel tiles leave no room.
-    assert_eq!((checked_with_masks, checked_without), (68 * BLEND_PIXELS.len(), 4 * BLEND_PIXELS.len()));
+    // Six scenes at three tile sizes, six blend settings per layout; only the planes 1e-30 to 1e30 at 32-pixel tiles leave no room.
+    assert_eq!((checked_with_masks, checked_without), (102 * BLEND_PIXELS.len(), 6 * BLEND_PIXELS.len()));
     splatter.set_blend_pixels(default_blend_pixels(d.info())).unwrap();
     splatter.set_pixel_reach(default_pixel_reach(d.info()));
     splatter.set_window_fetch(default_window_fetch(d.info()));
+    splatter.set_two_splats_per_step(default_two_splats_per_step(d.info()));
     assert_no_validation_messages(&d);
 }
 

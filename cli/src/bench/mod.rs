@@ -140,6 +140,10 @@ pub struct SplatterChoices {
     /// false (default: true on lavapipe from Mesa 25 and on GPUs, else false).
     #[arg(long)]
     pub window_fetch: Option<bool>,
+    /// With the window fetch, take a window's next two splats each blend step: true or false
+    /// (default: true on GPUs, else false).
+    #[arg(long)]
+    pub two_splats_per_step: Option<bool>,
     /// Read the scene (preprocess) and the splat records (keys) through texel-buffer views: true
     /// or false (default: true where the device views R32F texels).
     #[arg(long)]
@@ -160,6 +164,9 @@ impl SplatterChoices {
         }
         if let Some(on) = self.window_fetch {
             splatter.set_window_fetch(on);
+        }
+        if let Some(on) = self.two_splats_per_step {
+            splatter.set_two_splats_per_step(on);
         }
         if let Some(on) = self.texel_preprocess {
             splatter.set_texel_preprocess(on)?;

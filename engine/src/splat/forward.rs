@@ -221,6 +221,7 @@ pub struct Splatter {
     blend_pixels: u32,
     pixel_reach: bool,
     window_fetch: bool,
+    two_splats_per_step: bool,
     scan: Scan,
     sort: RadixSort,
 }
@@ -240,6 +241,7 @@ impl Splatter {
             blend_pixels: default_blend_pixels(device.info()),
             pixel_reach: default_pixel_reach(device.info()),
             window_fetch: default_window_fetch(device.info()),
+            two_splats_per_step: default_two_splats_per_step(device.info()),
             scan: Scan::new(device)?,
             sort: RadixSort::new(device)?,
         })
@@ -332,6 +334,21 @@ impl Splatter {
         self.window_fetch = on;
     }
 
+    /// Whether each step of the window-fetch blend takes a window's next two
+    /// splats (their reads and exponentials independent of each other, then
+    /// accumulated in order) rather than one ([`default_two_splats_per_step`]
+    /// says where it is on).
+    pub fn two_splats_per_step(&self) -> bool {
+        self.two_splats_per_step
+    }
+
+    /// Turns two splats per blend step on or off (see
+    /// [`Splatter::two_splats_per_step`]; it takes effect with the window
+    /// fetch); the image does not change.
+    pub fn set_two_splats_per_step(&mut self, on: bool) {
+        self.two_splats_per_step = on;
+    }
+
     /// The blend variant in use (subgroup loads where the device has subgroup
     /// ballot, else per-pixel loads).
     pub fn blend_variant(&self) -> BlendVariant {
@@ -387,6 +404,9 @@ impl Splatter {
             }
             if self.window_fetch {
                 spec.push((9, SpecValue::Bool(true)));
+                if self.two_splats_per_step {
+                    spec.push((10, SpecValue::Bool(true)));
+                }
             }
             // The frame; splats, features, sorted indices and pair row masks as texel-buffer views.
             texel_view_kernel(&self.device, info, 4, &spec)

@@ -113,6 +113,15 @@ pub fn default_pixel_reach(info: &DeviceInfo) -> bool {
 pub fn default_window_fetch(info: &DeviceInfo) -> bool {
     info.is_lavapipe_from(25) || info.device_type != vk::PhysicalDeviceType::CPU
 }
+/// Whether a new [`Splatter`]'s window-fetch blend takes a window's next two
+/// splats each loop step (`TWO_SPLATS` in `splat_blend_body.glsl`): on GPUs,
+/// where a subgroup's step is a chain of latencies that the second splat's
+/// independent reads and exponential overlap (measured on an NVIDIA H200);
+/// off on CPU devices, where lavapipe gained nothing from it. The image is
+/// the same either way.
+pub fn default_two_splats_per_step(info: &DeviceInfo) -> bool {
+    info.device_type != vk::PhysicalDeviceType::CPU
+}
 /// Bit of the blend's `CHANNELS` specialization constant that blends rgb
 /// (keep in sync with `RGB` in `splat_blend_body.glsl`).
 pub(crate) const RGB_BIT: u32 = 8;

@@ -34,6 +34,10 @@ layout(constant_id = 8) const bool TILE_MASK = false;
 // the caller's vector registers around it) and that jump over an `if` no lane
 // enters (engine/src/splat/mod.rs `default_window_fetch`).
 layout(constant_id = 9) const bool WINDOW_FETCH = false;
+// With WINDOW_FETCH, each loop step takes the window's next two splats
+// (their reads and exponentials independent, accumulated in order), so the
+// step's liveness ballot and loop test serve two splats.
+layout(constant_id = 10) const bool TWO_SPLATS = false;
 // Without rgb (shadow maps) no colour is read, blended or stored.
 const bool RGB = (CHANNELS & 256u) != 0u;
 // The index of the splat with the largest weight wᵢ = αᵢ Tᵢ (the first of equal ones), per pixel.
@@ -388,11 +392,15 @@ void main() {
         }
         uint first_lane = uint(findLSB(window));
         window &= window - 1u;
-        uint g;
-        vec4 head, conic;
-        Contribution c;
-        vec2 slope;
-        vec3 reach_of = vec3(0.0);
+        // TWO_SPLATS: the window's next wanted splat too, where it has one.
+        bool second = WINDOW_FETCH && TWO_SPLATS && window != 0u;
+        uint second_lane = second ? uint(findLSB(window)) : first_lane;
+        if (second) window &= window - 1u;
+        uint g, g2 = 0u;
+        vec4 head, conic, head2 = vec4(0.0), conic2 = vec4(0.0);
+        Contribution c, c2 = Contribution(vec3(0.0), vec4(0.0), vec4(0.0), vec4(0.0));
+        vec2 slope, slope2 = vec2(0.0);
+        vec3 reach_of = vec3(0.0), reach_of2 = vec3(0.0);
         if (WINDOW_FETCH) {
             // A shuffle from the (uniform) first lane, not a broadcast: on
             // lavapipe from Mesa 25 the shuffle is the faster of the two.
@@ -408,6 +416,20 @@ void main() {
             }
             slope = SURFACE_DEPTH ? vec2(conic.w, color.w) : vec2(0.0);
             if (PIXEL_REACH) reach_of = subgroupShuffle(lane_reach, first_lane);
+            if (TWO_SPLATS) {
+                g2 = subgroupShuffle(lane_g, second_lane);
+                head2 = subgroupShuffle(lane_head, second_lane);
+                conic2 = subgroupShuffle(lane_conic, second_lane);
+                vec4 color2 = (RGB || SURFACE_DEPTH) ? subgroupShuffle(lane_color, second_lane) : vec4(0.0);
+                c2 = Contribution(color2.rgb, vec4(0.0), vec4(0.0), vec4(0.0));
+                if (FEATURES) {
+                    c2.f0 = subgroupShuffle(lane_c.f0, second_lane);
+                    c2.f1 = subgroupShuffle(lane_c.f1, second_lane);
+                    c2.f2 = subgroupShuffle(lane_c.f2, second_lane);
+                }
+                slope2 = SURFACE_DEPTH ? vec2(conic2.w, color2.w) : vec2(0.0);
+                if (PIXEL_REACH) reach_of2 = subgroupShuffle(lane_reach, second_lane);
+            }
         } else {
             uint j = window_start + bitCount(lanes & ((1u << first_lane) - 1u));
             // Every lane fetches the same texels: one vector gather each, no election or broadcast.
@@ -423,6 +445,7 @@ void main() {
         // would not take the splat), so a pixel column no lane of the vector
         // reaches costs a compare.
         vec2 reach = PIXEL_REACH ? row_span(reach_of, head, float(base.y) + 0.5) : vec2(0.0);
+        vec2 reach2 = PIXEL_REACH && TWO_SPLATS ? row_span(reach_of2, head2, float(base.y) + 0.5) : vec2(0.0);
         [[unroll]] for (uint k = 0u; k < PIXELS; k++) {
             vec2 centre = vec2(base + uvec2(k * STEP, 0u)) + 0.5;
             if (PIXEL_REACH) {
@@ -435,6 +458,18 @@ void main() {
             // Splats come in order of centre depth: once one lies at or behind
             // the host's depth, so do the rest (`behind_host`).
             live[k] = all(bvec2(live[k], !behind_host(head.z, limit[k])));
+            if (TWO_SPLATS) {
+                bool live2 = all(bvec2(live[k], second));
+                if (PIXEL_REACH) {
+                    if (all(bvec3(live2, centre.x >= reach2.x, centre.x <= reach2.y))) {
+                        blend_pixel(acc[k], live2, limit[k], g2, head2, conic2, slope2, c2, centre);
+                    }
+                } else {
+                    blend_pixel(acc[k], live2, limit[k], g2, head2, conic2, slope2, c2, centre);
+                }
+                live2 = all(bvec2(live2, !behind_host(head2.z, limit[k])));
+                live[k] = second ? live2 : live[k];
+            }
         }
         any_live = false;
         [[unroll]] for (uint k = 0u; k < PIXELS; k++) any_live = any(bvec2(any_live, live[k]));
