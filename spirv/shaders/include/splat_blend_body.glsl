@@ -319,6 +319,67 @@ void blend_pixel(inout Accumulated acc, inout bool live, float limit, uint g, ve
     accumulate_select(acc, takes, alpha, next_T, z, c, g);
 }
 
+// A splat as a blend step takes it: its index, head, conic, colour texel
+// (rgb, and the surface slope's y in w), features and row reach; members
+// the kernel's constants do not use stay zero.
+struct StepSplat {
+    uint g;
+    vec4 head, conic, color, f0, f1, f2;
+    vec3 reach_of;
+};
+
+// The splat of the tile list's entry `index`.
+StepSplat fetch_step_splat(uint index) {
+    StepSplat s = StepSplat(0u, vec4(0.0), vec4(0.0), vec4(0.0), vec4(0.0), vec4(0.0), vec4(0.0), vec3(0.0));
+    s.g = texelFetch(value_texels, int(index)).x;
+    s.head = texelFetch(splat_texels, int(4u * s.g));
+    s.conic = texelFetch(splat_texels, int(4u * s.g + 1u));
+    if (RGB || SURFACE_DEPTH) s.color = texelFetch(splat_texels, int(4u * s.g + 2u));
+    if (FEATURES) {
+        s.f0 = FEATURE(3u * s.g);
+        s.f1 = FEATURE(3u * s.g + 1u);
+        s.f2 = FEATURE(3u * s.g + 2u);
+    }
+    if (PIXEL_REACH) s.reach_of = row_reach_of(s.head, s.conic);
+    return s;
+}
+
+// Lane `from`'s splat, in every lane: a shuffle from a uniform lane, not a
+// broadcast (on lavapipe from Mesa 25 the shuffle is the faster of the two).
+StepSplat shuffled(StepSplat s, uint from) {
+    StepSplat t = s;
+    t.g = subgroupShuffle(s.g, from);
+    t.head = subgroupShuffle(s.head, from);
+    t.conic = subgroupShuffle(s.conic, from);
+    if (RGB || SURFACE_DEPTH) t.color = subgroupShuffle(s.color, from);
+    if (FEATURES) {
+        t.f0 = subgroupShuffle(s.f0, from);
+        t.f1 = subgroupShuffle(s.f1, from);
+        t.f2 = subgroupShuffle(s.f2, from);
+    }
+    if (PIXEL_REACH) t.reach_of = subgroupShuffle(s.reach_of, from);
+    return t;
+}
+
+// Blends step splat `s` into one pixel of a lane (centre `centre`, at the
+// row span `reach`): with PIXEL_REACH a pixel outside the span is not
+// evaluated (the same result: it would not take the splat), so a pixel
+// column no lane of the vector reaches costs a compare. Splats come in order
+// of centre depth: once one lies at or behind the host's depth, so do the
+// rest (`behind_host`).
+void blend_step(inout Accumulated acc, inout bool live, float limit, StepSplat s, vec2 reach, vec2 centre) {
+    Contribution c = Contribution(s.color.rgb, s.f0, s.f1, s.f2);
+    vec2 slope = SURFACE_DEPTH ? vec2(s.conic.w, s.color.w) : vec2(0.0);
+    if (PIXEL_REACH) {
+        if (all(bvec3(live, centre.x >= reach.x, centre.x <= reach.y))) {
+            blend_pixel(acc, live, limit, s.g, s.head, s.conic, slope, c, centre);
+        }
+    } else {
+        blend_pixel(acc, live, limit, s.g, s.head, s.conic, slope, c, centre);
+    }
+    live = all(bvec2(live, !behind_host(s.head.z, limit)));
+}
+
 void main() {
     uint tile = block_index();
     if (TILE_MASK && !tile_wanted(tile)) return;
@@ -360,10 +421,7 @@ void main() {
     // until all are done, so each window is whole.
     uint next = range.x, window_start = range.x, window = 0u;
     // WINDOW_FETCH: each lane's wanted splat of the current window.
-    uint lane_g = 0u;
-    vec4 lane_head = vec4(0.0), lane_conic = vec4(0.0), lane_color = vec4(0.0);
-    vec3 lane_reach = vec3(0.0);
-    Contribution lane_c = Contribution(vec3(0.0), vec4(0.0), vec4(0.0), vec4(0.0));
+    StepSplat lane_splat = StepSplat(0u, vec4(0.0), vec4(0.0), vec4(0.0), vec4(0.0), vec4(0.0), vec4(0.0), vec3(0.0));
     while (subgroupBallot(any_live) != uvec4(0u)) {
         if (!WINDOW_FETCH || window == 0u) {
             while (window == 0u && next < range.y) {
@@ -378,16 +436,7 @@ void main() {
             if (WINDOW_FETCH) {
                 // One fetch per window serves every wanted key of it: lane
                 // `l` holds the splat of key window_start + rank(l).
-                lane_g = texelFetch(value_texels, int(min(window_start + rank, range.y - 1u))).x;
-                lane_head = texelFetch(splat_texels, int(4u * lane_g));
-                lane_conic = texelFetch(splat_texels, int(4u * lane_g + 1u));
-                if (RGB || SURFACE_DEPTH) lane_color = texelFetch(splat_texels, int(4u * lane_g + 2u));
-                if (PIXEL_REACH) lane_reach = row_reach_of(lane_head, lane_conic);
-                if (FEATURES) {
-                    lane_c.f0 = FEATURE(3u * lane_g);
-                    lane_c.f1 = FEATURE(3u * lane_g + 1u);
-                    lane_c.f2 = FEATURE(3u * lane_g + 2u);
-                }
+                lane_splat = fetch_step_splat(min(window_start + rank, range.y - 1u));
             }
         }
         uint first_lane = uint(findLSB(window));
@@ -396,78 +445,21 @@ void main() {
         bool second = WINDOW_FETCH && TWO_SPLATS && window != 0u;
         uint second_lane = second ? uint(findLSB(window)) : first_lane;
         if (second) window &= window - 1u;
-        uint g, g2 = 0u;
-        vec4 head, conic, head2 = vec4(0.0), conic2 = vec4(0.0);
-        Contribution c, c2 = Contribution(vec3(0.0), vec4(0.0), vec4(0.0), vec4(0.0));
-        vec2 slope, slope2 = vec2(0.0);
-        vec3 reach_of = vec3(0.0), reach_of2 = vec3(0.0);
-        if (WINDOW_FETCH) {
-            // A shuffle from the (uniform) first lane, not a broadcast: on
-            // lavapipe from Mesa 25 the shuffle is the faster of the two.
-            g = subgroupShuffle(lane_g, first_lane);
-            head = subgroupShuffle(lane_head, first_lane);
-            conic = subgroupShuffle(lane_conic, first_lane);
-            vec4 color = (RGB || SURFACE_DEPTH) ? subgroupShuffle(lane_color, first_lane) : vec4(0.0);
-            c = Contribution(color.rgb, vec4(0.0), vec4(0.0), vec4(0.0));
-            if (FEATURES) {
-                c.f0 = subgroupShuffle(lane_c.f0, first_lane);
-                c.f1 = subgroupShuffle(lane_c.f1, first_lane);
-                c.f2 = subgroupShuffle(lane_c.f2, first_lane);
-            }
-            slope = SURFACE_DEPTH ? vec2(conic.w, color.w) : vec2(0.0);
-            if (PIXEL_REACH) reach_of = subgroupShuffle(lane_reach, first_lane);
-            if (TWO_SPLATS) {
-                g2 = subgroupShuffle(lane_g, second_lane);
-                head2 = subgroupShuffle(lane_head, second_lane);
-                conic2 = subgroupShuffle(lane_conic, second_lane);
-                vec4 color2 = (RGB || SURFACE_DEPTH) ? subgroupShuffle(lane_color, second_lane) : vec4(0.0);
-                c2 = Contribution(color2.rgb, vec4(0.0), vec4(0.0), vec4(0.0));
-                if (FEATURES) {
-                    c2.f0 = subgroupShuffle(lane_c.f0, second_lane);
-                    c2.f1 = subgroupShuffle(lane_c.f1, second_lane);
-                    c2.f2 = subgroupShuffle(lane_c.f2, second_lane);
-                }
-                slope2 = SURFACE_DEPTH ? vec2(conic2.w, color2.w) : vec2(0.0);
-                if (PIXEL_REACH) reach_of2 = subgroupShuffle(lane_reach, second_lane);
-            }
-        } else {
-            uint j = window_start + bitCount(lanes & ((1u << first_lane) - 1u));
-            // Every lane fetches the same texels: one vector gather each, no election or broadcast.
-            g = texelFetch(value_texels, int(j)).x;
-            head = texelFetch(splat_texels, int(4u * g));
-            conic = texelFetch(splat_texels, int(4u * g + 1u));
-            c = splat_contribution(g);
-            slope = splat_slope(g, conic);
-            if (PIXEL_REACH) reach_of = row_reach_of(head, conic);
-        }
-        // The pixel centres of this lane's row the splat can reach at α ≥ 1/255
-        // (`row_span`): a pixel outside is not evaluated (the same result: it
-        // would not take the splat), so a pixel column no lane of the vector
-        // reaches costs a compare.
-        vec2 reach = PIXEL_REACH ? row_span(reach_of, head, float(base.y) + 0.5) : vec2(0.0);
-        vec2 reach2 = PIXEL_REACH && TWO_SPLATS ? row_span(reach_of2, head2, float(base.y) + 0.5) : vec2(0.0);
+        // Every lane fetches the same texels without the window fetch: one
+        // vector gather each, no election or broadcast.
+        StepSplat s1 = WINDOW_FETCH ? shuffled(lane_splat, first_lane)
+                                    : fetch_step_splat(window_start + bitCount(lanes & ((1u << first_lane) - 1u)));
+        StepSplat s2 = s1;
+        if (TWO_SPLATS) s2 = shuffled(lane_splat, second_lane);
+        float row = float(base.y) + 0.5;
+        vec2 reach1 = PIXEL_REACH ? row_span(s1.reach_of, s1.head, row) : vec2(0.0);
+        vec2 reach2 = PIXEL_REACH && TWO_SPLATS ? row_span(s2.reach_of, s2.head, row) : vec2(0.0);
         [[unroll]] for (uint k = 0u; k < PIXELS; k++) {
             vec2 centre = vec2(base + uvec2(k * STEP, 0u)) + 0.5;
-            if (PIXEL_REACH) {
-                if (all(bvec3(live[k], centre.x >= reach.x, centre.x <= reach.y))) {
-                    blend_pixel(acc[k], live[k], limit[k], g, head, conic, slope, c, centre);
-                }
-            } else {
-                blend_pixel(acc[k], live[k], limit[k], g, head, conic, slope, c, centre);
-            }
-            // Splats come in order of centre depth: once one lies at or behind
-            // the host's depth, so do the rest (`behind_host`).
-            live[k] = all(bvec2(live[k], !behind_host(head.z, limit[k])));
+            blend_step(acc[k], live[k], limit[k], s1, reach1, centre);
             if (TWO_SPLATS) {
                 bool live2 = all(bvec2(live[k], second));
-                if (PIXEL_REACH) {
-                    if (all(bvec3(live2, centre.x >= reach2.x, centre.x <= reach2.y))) {
-                        blend_pixel(acc[k], live2, limit[k], g2, head2, conic2, slope2, c2, centre);
-                    }
-                } else {
-                    blend_pixel(acc[k], live2, limit[k], g2, head2, conic2, slope2, c2, centre);
-                }
-                live2 = all(bvec2(live2, !behind_host(head2.z, limit[k])));
+                blend_step(acc[k], live2, limit[k], s2, reach2, centre);
                 live[k] = second ? live2 : live[k];
             }
         }
