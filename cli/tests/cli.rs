@@ -247,6 +247,7 @@ fn bench_splat_prints_its_tables() {
         "GPU",
         "sort_unstable",
         "ceiling % |",
+        "| longest walk |",
         "blend ceiling",
         "pair-move floor, 6000 pairs",
         "memory bandwidth (",

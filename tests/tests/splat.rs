@@ -13,7 +13,7 @@ use srug::io::read_ply;
 use srug::scene::activate::GpuScene;
 use srug::scene::demo::{demo_city, DemoOptions};
 use srug::scene::{Camera, Scene};
-use srug::splat::cpu::{preprocess_one, render_cpu, tile_row_span, CpuSplat};
+use srug::splat::cpu::{blend_work, preprocess_one, render_cpu, tile_row_span, CpuSplat};
 use srug::splat::Channel;
 use srug::splat::{
     cameras_per_batch, default_blend_pixels, default_pixel_reach, default_two_splats_per_step, default_window_fetch,
@@ -1316,4 +1316,27 @@ fn a_host_depth_hides_the_splats_behind_it_as_the_twin_does() {
         assert!(e.to_string().contains("need 0 < near < far"), "{e}");
     }
     assert_no_validation_messages(&d);
+}
+
+#[test]
+fn blend_work_counts_the_longest_walk() {
+    // Ten splats at one place, 50 m across at 10 m from the camera: every
+    // pixel sees α = 0.99 (the clamp) from each. T falls to 0.01, then 1e-4
+    // (still ≥ 1e-4: taken), and the third would take it below 1e-4: it
+    // ends the walk, so every pixel reads three. Faint ones (opacity 0.018)
+    // never end it: every pixel reads all ten.
+    let mut scene = random_scene(10, 0, 5, 1.0);
+    scene.means = vec![[0.0; 3]; 10];
+    for (l, r) in scene.log_scales.iter_mut().zip(&mut scene.rotations) {
+        *l = [50f32.ln(); 3];
+        *r = [1.0, 0.0, 0.0, 0.0];
+    }
+    scene.opacity_logits = vec![12.0; 10];
+    let camera = Camera::look_at(Vec3::new(0.0, -10.0, 0.0), Vec3::ZERO, Vec3::Z, 60.0, 40, 24).unwrap();
+    let work = blend_work(&scene, &camera, 16, TileBounds::Ellipse);
+    let pixels = 40 * 24;
+    assert_eq!((work.longest_walk, work.evaluated, work.contributed), (3, 3 * pixels, 2 * pixels), "{work:?}");
+    scene.opacity_logits = vec![-4.0; 10];
+    let work = blend_work(&scene, &camera, 16, TileBounds::Ellipse);
+    assert_eq!((work.longest_walk, work.evaluated, work.contributed), (10, 10 * pixels, 10 * pixels), "{work:?}");
 }

@@ -90,6 +90,10 @@ pub struct SplatBenchRow {
     pub blend_evaluations: u64,
     /// Pairs that contributed to a pixel.
     pub blend_contributions: u64,
+    /// The most splats one pixel reads before it is done (the CPU twin's
+    /// replay): each tile's list is walked by one workgroup, so a blend takes
+    /// at least this many steps however many tiles run at once.
+    pub longest_walk: u64,
     /// Gaussians the preprocess keeps (counted by the CPU twin).
     pub visible: u64,
     /// Key bits the sort sorted.
@@ -224,8 +228,7 @@ pub fn splat_bench(
             }
             let Some((gbuffer_bytes, stats)) = last else { continue };
             progress(&format!("{n} Gaussians at {w}x{h}: counting blend work on the CPU"));
-            let (blend_evaluations, blend_contributions) =
-                srug::splat::cpu::blend_work(&city.scene, &cam, tile, tile_bounds);
+            let work = srug::splat::cpu::blend_work(&city.scene, &cam, tile, tile_bounds);
             let visible = (0..city.scene.len())
                 .filter(|&i| {
                     srug::splat::cpu::preprocess_one(&city.scene, i, &cam, NormalSource::default(), tile).is_some()
@@ -244,8 +247,9 @@ pub fn splat_bench(
                 working_bytes: stats.working_bytes,
                 scene_bytes: city.scene.gpu_bytes(),
                 gbuffer_bytes,
-                blend_evaluations,
-                blend_contributions,
+                blend_evaluations: work.evaluated,
+                blend_contributions: work.contributed,
+                longest_walk: work.longest_walk,
                 visible,
                 key_bits: stats.key_bits,
                 preprocess_read_bytes: n as u64 * position + visible * rest,

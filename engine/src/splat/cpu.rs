@@ -654,31 +654,47 @@ impl TileLists {
     }
 }
 
-/// Work the blend does, counted by replaying it: (pixel, splat) pairs
-/// evaluated, and those that contributed. For benchmarks' flop accounting.
-pub fn blend_work(scene: &Scene, camera: &Camera, tile: u32, bounds: TileBounds) -> (u64, u64) {
+/// Work the blend does, counted by replaying it on the CPU twin.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct BlendWork {
+    /// (pixel, splat) pairs evaluated: every list entry a pixel reads, the
+    /// one that ends it included.
+    pub evaluated: u64,
+    /// Pairs that contributed.
+    pub contributed: u64,
+    /// The most list entries one pixel reads before it is done. A tile's
+    /// list is walked in order by one workgroup, so however many run at
+    /// once, a blend takes at least this many steps.
+    pub longest_walk: u64,
+}
+
+/// Work the blend does (see [`BlendWork`]), for benchmarks' flop accounting.
+pub fn blend_work(scene: &Scene, camera: &Camera, tile: u32, bounds: TileBounds) -> BlendWork {
     let splats: Vec<Option<CpuSplat>> =
         (0..scene.len()).map(|i| preprocess_one(scene, i, camera, NormalSource::ShortestAxis, tile)).collect();
     let lists = tile_lists(&splats, camera, tile, bounds);
-    let (mut evaluated, mut contributed) = (0u64, 0u64);
+    let mut work = BlendWork::default();
     for y in 0..camera.height as usize {
         for x in 0..camera.width as usize {
             let centre = DVec2::new(x as f64 + 0.5, y as f64 + 0.5);
             let mut t = 1.0f64;
+            let mut walk = 0u64;
             for &(_, i) in lists.at(x, y) {
                 let Some(s) = &splats[i] else { continue };
-                evaluated += 1;
+                walk += 1;
                 let Some(alpha) = splat_alpha(s, centre) else { continue };
                 let next = t * (1.0 - alpha);
                 if next < 1e-4 {
                     break;
                 }
-                contributed += 1;
+                work.contributed += 1;
                 t = next;
             }
+            work.evaluated += walk;
+            work.longest_walk = work.longest_walk.max(walk);
         }
     }
-    (evaluated, contributed)
+    work
 }
 
 /// Values blended per splat: rgb, depth, then the ten features (normal.xyz,
