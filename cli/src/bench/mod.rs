@@ -91,8 +91,8 @@ pub struct SplatBenchRow {
     /// Pairs that contributed to a pixel.
     pub blend_contributions: u64,
     /// The most splats one pixel reads before it is done (the CPU twin's
-    /// replay): each tile's list is walked by one workgroup, so a blend takes
-    /// at least this many steps however many tiles run at once.
+    /// replay): each tile's list is walked by one workgroup, so a blend lasts
+    /// at least as long as one walk that far, however many tiles run at once.
     pub longest_walk: u64,
     /// Gaussians the preprocess keeps (counted by the CPU twin).
     pub visible: u64,

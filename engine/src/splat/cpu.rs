@@ -664,7 +664,7 @@ pub struct BlendWork {
     pub contributed: u64,
     /// The most list entries one pixel reads before it is done. A tile's
     /// list is walked in order by one workgroup, so however many run at
-    /// once, a blend takes at least this many steps.
+    /// once, a blend lasts at least as long as one walk that far.
     pub longest_walk: u64,
 }
 

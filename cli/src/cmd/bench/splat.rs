@@ -141,7 +141,7 @@ impl SplatBenchArgs {
             bandwidth.copy * 1e-9
         );
         println!(
-            "\nblend flops: {} per evaluated pair + {} per contributing pair (exp not counted); pairs counted by replaying the blend on the CPU twin; \"longest walk\" is the most splats one pixel reads before it is done in that replay: one workgroup walks each tile's list, so where the device runs every tile at once (a GPU) the blend lasts at least that many steps",
+            "\nblend flops: {} per evaluated pair + {} per contributing pair (exp not counted); pairs counted by replaying the blend on the CPU twin; \"longest walk\" is the most splats one pixel reads before it is done in that replay: one workgroup walks each tile's list, so where the device runs every tile at once (a GPU) the blend lasts at least as long as one walk that far",
             bench::BLEND_FLOPS_PER_EVALUATION,
             bench::BLEND_FLOPS_PER_CONTRIBUTION
         );
