@@ -18,7 +18,7 @@ use srug::splat::Channel;
 use srug::splat::{
     cameras_per_batch, default_blend_pixels, default_pixel_reach, default_two_splats_per_step, default_window_fetch,
     BlendVariant, Channels, DepthKey, GBuffer, NormalSource, SplatSettings, Splatter, TileBounds, BATCH_BYTES,
-    BLEND_PIXELS, DEFAULT_TILE, FRAMES_PER_SUBMISSION, TILE_SIZES,
+    BLEND_PIXELS, DEFAULT_CHUNK_LENGTH, DEFAULT_TILE, FRAMES_PER_SUBMISSION, MAX_CHUNK_LENGTH, TILE_SIZES,
 };
 use srug_tests::{
     assert_no_validation_messages, device, move_scene, psnr, random_scene, save_comparison, NAN_SENTINEL,
@@ -322,6 +322,8 @@ fn every_tile_size_matches_cpu_twin_in_every_variant() {
             assert_eq!(splatter.pixel_reach(), mesa_25, "default per-pixel reach on {}", d.info().driver);
             assert_eq!(splatter.window_fetch(), mesa_25 || gpu, "default per-window fetch on {}", d.info().driver);
             assert_eq!(splatter.two_splats_per_step(), gpu, "default two splats a step on {}", d.info().driver);
+            let chunk = if gpu { DEFAULT_CHUNK_LENGTH } else { 0 };
+            assert_eq!(splatter.chunk_length(), chunk, "default split-blend chunk length on {}", d.info().driver);
             splatter.set_blend_variant(BlendVariant::SubgroupLoads).unwrap();
             splatter.set_texel_blend(false).unwrap();
             splatter.set_texel_preprocess(false).unwrap();
@@ -394,6 +396,8 @@ fn row_skipping_blend_is_bit_identical_to_reading_every_splat() {
         return;
     }
     let mut splatter = Splatter::new(&d).unwrap();
+    // Whole lists: the split blend's chunks round differently (its own test below).
+    splatter.set_chunk_length(0).unwrap();
     let city = demo_city(&DemoOptions { seed: 7, gaussians: 30_000, sh_degree: 1 }).unwrap();
     let street = (city.scene.clone(), city.cameras[1].resized(203, 77));
     let random = random_scene(6000, 1, 91, 2.0);
@@ -461,6 +465,90 @@ fn row_skipping_blend_is_bit_identical_to_reading_every_splat() {
     splatter.set_pixel_reach(default_pixel_reach(d.info()));
     splatter.set_window_fetch(default_window_fetch(d.info()));
     splatter.set_two_splats_per_step(default_two_splats_per_step(d.info()));
+    assert_no_validation_messages(&d);
+}
+
+/// Every channel of `split` within `tolerance` (relative to the channel's
+/// largest value) of `whole`, but at 1 pixel in 1000 (a pixel whose
+/// transmittance lands on the 1e-4 stop or a median crossing on T = 0.5
+/// can go either way when the product is rounded in another order); top
+/// Gaussians equal there too.
+fn assert_close_to(split: &GBuffer, whole: &GBuffer, tolerance: f64, label: &str) {
+    for ((name, a, _), (_, b, _)) in split.channels().into_iter().zip(whole.channels()) {
+        assert!(a.iter().all(|v| v.is_finite()), "{label}: {name} has non-finite values (unwritten sentinel?)");
+        let scale = b.iter().fold(1.0f64, |m, v| m.max(f64::from(v.abs())));
+        let bad = a.iter().zip(b).filter(|(x, y)| (f64::from(**x) - f64::from(**y)).abs() > tolerance * scale).count();
+        assert!(
+            bad * 1000 <= a.len(),
+            "{label}: {name}: {bad} of {} values differ by more than {tolerance:e}",
+            a.len()
+        );
+    }
+    if let (Some(a), Some(b)) = (&split.top_gaussian, &whole.top_gaussian) {
+        let bad = a.iter().zip(b).filter(|(x, y)| x != y).count();
+        assert!(bad * 1000 <= a.len(), "{label}: top Gaussian differs at {bad} of {} pixels", a.len());
+    }
+}
+
+#[test]
+fn split_tile_lists_blend_as_one_walk_does() {
+    // The split blend cuts each tile list longer than twice the chunk length
+    // into chunks walked by workgroups of their own: a transmittance pass, a
+    // blend of each chunk from the earlier chunks' product, a merge in list
+    // order. Short chunks here (the default splits only on GPUs, at 4096) so
+    // that most tiles split, walks cross many chunks, pixels stop (T < 1e-4)
+    // in one chunk and the median crosses T = 0.5 in another; every channel,
+    // surface depths (whose median a later chunk can move), every tile size,
+    // pixels-per-lane layout and fetch. Against the CPU twin at its
+    // tolerances, and against the whole-list blend, which rounds the same
+    // products in another order, at 1e-5.
+    let d = device();
+    if !d.info().subgroup_ballot {
+        eprintln!("skipping: the split blend is the texel blend's, which needs subgroup ballot");
+        return;
+    }
+    const CHUNK: u32 = 24;
+    let mut splatter = Splatter::new(&d).unwrap();
+    let city = demo_city(&DemoOptions { seed: 7, gaussians: 30_000, sh_degree: 1 }).unwrap();
+    let street = city.cameras[1].resized(203, 77);
+    let random = random_scene(6000, 1, 91, 2.0);
+    let close = Camera::look_at(Vec3::new(0.0, -4.0, 0.3), Vec3::ZERO, Vec3::Z, 80.0, 190, 110).unwrap();
+    let geometric =
+        Channels { depth: true, median_depth: true, normal: true, top_gaussian: true, ..Channels::default() };
+    let all = all_settings();
+    let surface = SplatSettings { surface_depth: true, ..all };
+    let mut checked = 0;
+    for (name, scene, cam, base) in [
+        ("street", &city.scene, &street, all),
+        ("street, surface depths", &city.scene, &street, surface),
+        ("random", &random, &close, SplatSettings { channels: geometric, ..all }),
+    ] {
+        let gpu_scene = GpuScene::upload(&d, scene).unwrap();
+        for tile in TILE_SIZES {
+            let settings = SplatSettings { tile, ..base };
+            let work = blend_work(scene, cam, tile, settings.tile_bounds);
+            assert!(work.longest_walk > 4 * u64::from(CHUNK), "{name} tile {tile}: walks of {work:?} split little");
+            let cpu = render_cpu(scene, cam, &settings);
+            splatter.set_chunk_length(0).unwrap();
+            let whole = splatter.render(&gpu_scene, cam, &settings).unwrap().0.read(&d).unwrap();
+            splatter.set_chunk_length(CHUNK).unwrap();
+            let layouts = [(1, false, false), (default_blend_pixels(d.info()), true, false), (8, true, true)];
+            for (pixels, window, two) in layouts {
+                splatter.set_blend_pixels(pixels).unwrap();
+                splatter.set_window_fetch(window);
+                splatter.set_two_splats_per_step(two);
+                let label = format!("{name} tile {tile}, {pixels} pixels, window fetch {window}, two splats {two}");
+                let split = splatter.render(&gpu_scene, cam, &settings).unwrap().0.read(&d).unwrap();
+                compare(&split, &cpu, &label);
+                assert_close_to(&split, &whole, 1e-5, &label);
+                checked += 1;
+            }
+        }
+    }
+    assert_eq!(checked, 3 * TILE_SIZES.len() * 3);
+    let text = splatter.set_chunk_length(MAX_CHUNK_LENGTH + 1).err().map(|e| e.to_string()).unwrap_or_default();
+    assert!(text.contains("chunk length 1073741825: exceeds"), "{text:?}");
+    splatter.set_blend_pixels(default_blend_pixels(d.info())).unwrap();
     assert_no_validation_messages(&d);
 }
 

@@ -148,6 +148,10 @@ pub struct SplatterChoices {
     /// (default: true on GPUs, else false).
     #[arg(long)]
     pub two_splats_per_step: Option<bool>,
+    /// Split tile lists longer than twice this many entries into chunks of this many, each
+    /// blended by a workgroup of its own; 0 splits none (default: 4096 on GPUs, else 0).
+    #[arg(long)]
+    pub chunk_length: Option<u32>,
     /// Read the scene (preprocess) and the splat records (keys) through texel-buffer views: true
     /// or false (default: true where the device views R32F texels).
     #[arg(long)]
@@ -171,6 +175,9 @@ impl SplatterChoices {
         }
         if let Some(on) = self.two_splats_per_step {
             splatter.set_two_splats_per_step(on);
+        }
+        if let Some(entries) = self.chunk_length {
+            splatter.set_chunk_length(entries)?;
         }
         if let Some(on) = self.texel_preprocess {
             splatter.set_texel_preprocess(on)?;

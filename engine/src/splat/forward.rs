@@ -102,9 +102,46 @@ fn texel_view_kernel(
     views: usize,
     specialization: &[(u32, SpecValue)],
 ) -> Result<Arc<Kernel>> {
+    texel_view_kernel_pushing(device, info, views, 0, specialization)
+}
+
+/// [`texel_view_kernel`] with `push_constant_size` bytes of push constants.
+fn texel_view_kernel_pushing(
+    device: &Device,
+    info: &'static crate::gpu::KernelInfo,
+    views: usize,
+    push_constant_size: usize,
+    specialization: &[(u32, SpecValue)],
+) -> Result<Arc<Kernel>> {
     let mut bindings = vec![BindingKind::UniformBuffer];
     bindings.extend(std::iter::repeat_n(BindingKind::UniformTexelBuffer, views));
-    Ok(device.kernel(info, &KernelDecl { bindings: &bindings, push_constant_size: 0, specialization })?)
+    Ok(device.kernel(info, &KernelDecl { bindings: &bindings, push_constant_size, specialization })?)
+}
+
+/// The split blend's share of GPU memory at most ([`Splatter::set_chunk_length`]):
+/// where a view's chunks would need more, they are made longer.
+const CHUNK_MEMORY: u64 = 256 << 20;
+/// Floats per chunk and tile pixel: the transmittance, then the partial
+/// sums (`PARTIAL_FLOATS` in `splat_blend_body.glsl`).
+const CHUNK_FLOATS: u64 = 1 + 19;
+
+/// The chunk length and the most chunk slots a view of `pairs` pairs over
+/// `tiles` tiles of `tile` pixels needs at `chunk_length` (`list_chunks`: a
+/// split list holds more than 2·length entries, so at most
+/// pairs / (2·length + 1) lists split, each into at most entries / length + 1
+/// chunks), the length doubled until the chunks fit [`CHUNK_MEMORY`]; `None`
+/// where no list can be split.
+fn chunk_slots(pairs: u64, tiles: u64, tile: u32, chunk_length: u32) -> Option<(u32, u64)> {
+    let slot_bytes = u64::from(tile * tile) * CHUNK_FLOATS * 4;
+    let mut length = u64::from(chunk_length);
+    while length > 0 && length <= u64::from(MAX_CHUNK_LENGTH) && pairs > 2 * length {
+        let slots = pairs.div_ceil(length) + tiles.min(pairs / (2 * length + 1));
+        if slots * slot_bytes <= CHUNK_MEMORY {
+            return Some((length as u32, slots));
+        }
+        length *= 2;
+    }
+    None
 }
 
 /// The texel formats the texel preprocess views the scene's means,
@@ -155,6 +192,11 @@ struct BlendOptions {
     row_masks: bool,
     /// Only the tiles of the frame's tile mask are blended.
     tile_mask: bool,
+    /// The split blend's pass (`CHUNK_PASS`: 0 whole lists, 1 chunk
+    /// transmittance, 2 chunk blend, 3 merge; texel blend only).
+    chunk_pass: u32,
+    /// Entries per chunk; 0: no list is split.
+    chunk_length: u32,
 }
 
 /// One rendered frame with the per-frame buffers later stages walk again:
@@ -222,6 +264,7 @@ pub struct Splatter {
     pixel_reach: bool,
     window_fetch: bool,
     two_splats_per_step: bool,
+    chunk_length: u32,
     scan: Scan,
     sort: RadixSort,
 }
@@ -242,6 +285,7 @@ impl Splatter {
             pixel_reach: default_pixel_reach(device.info()),
             window_fetch: default_window_fetch(device.info()),
             two_splats_per_step: default_two_splats_per_step(device.info()),
+            chunk_length: default_chunk_length(device.info()),
             scan: Scan::new(device)?,
             sort: RadixSort::new(device)?,
         })
@@ -349,6 +393,30 @@ impl Splatter {
         self.two_splats_per_step = on;
     }
 
+    /// Entries per chunk of the split blend (0: no list is split;
+    /// [`default_chunk_length`]): the texel blend cuts a tile's list longer
+    /// than twice this into chunks of this many entries, each walked by a
+    /// workgroup of its own, then adds the chunks up in order (frames in
+    /// front of a host's depth are not split). Where a view's chunks would
+    /// take more than 256 MiB, its chunks are made longer.
+    pub fn chunk_length(&self) -> u32 {
+        self.chunk_length
+    }
+
+    /// Sets the split blend's chunk length (see [`Splatter::chunk_length`]);
+    /// 0 splits no list. The image is the same to rounding: each chunk
+    /// starts from the transmittance the ones before it leave.
+    pub fn set_chunk_length(&mut self, entries: u32) -> Result<()> {
+        if entries > MAX_CHUNK_LENGTH {
+            return Err(Error::invalid(
+                format!("chunk length {entries}"),
+                format!("exceeds the {MAX_CHUNK_LENGTH} entries a chunk may hold"),
+            ));
+        }
+        self.chunk_length = entries;
+        Ok(())
+    }
+
     /// The blend variant in use (subgroup loads where the device has subgroup
     /// ballot, else per-pixel loads).
     pub fn blend_variant(&self) -> BlendVariant {
@@ -366,7 +434,20 @@ impl Splatter {
 
     /// The blend kernel for `options`, from the device's kernel cache.
     fn blend_kernel(&self, options: BlendOptions) -> Result<Arc<Kernel>> {
-        let BlendOptions { bits, tile, texel, wrap_x, surface, occluded, row_masks, tile_mask } = options;
+        let BlendOptions {
+            bits,
+            tile,
+            texel,
+            wrap_x,
+            surface,
+            occluded,
+            row_masks,
+            tile_mask,
+            chunk_pass,
+            chunk_length,
+        } = options;
+        // The transmittance pass blends nothing and needs no depth.
+        let (bits, surface) = if chunk_pass == 1 { (0, false) } else { (bits, surface) };
         let pixels = if texel { self.blend_pixels } else { 1 };
         let info = match (self.blend_variant, texel) {
             (BlendVariant::PerPixel, _) => &kernels::SPLAT_BLEND_PORTABLE,
@@ -408,8 +489,16 @@ impl Splatter {
                     spec.push((10, SpecValue::Bool(true)));
                 }
             }
-            // The frame; splats, features, sorted indices and pair row masks as texel-buffer views.
-            texel_view_kernel(&self.device, info, 4, &spec)
+            if chunk_pass != 0 {
+                spec.push((11, SpecValue::U32(chunk_pass)));
+            }
+            if chunk_length != 0 {
+                spec.push((12, SpecValue::U32(chunk_length)));
+            }
+            // The frame; splats, features, sorted indices and pair row masks as
+            // texel-buffer views; the split blend's buffers as push constants.
+            let push = std::mem::size_of::<ChunkPush>();
+            texel_view_kernel_pushing(&self.device, info, 4, push, &spec)
         } else {
             Ok(self.device.kernel(info, &KernelDecl::uniform(&spec))?)
         }
@@ -677,6 +766,47 @@ impl Splatter {
         // The ranges kernel reads the sorted keys through an RG32UI view with the keys kernel's texel reads.
         let texel_ranges =
             texel_keys && device.info().texel_formats.contains(&TexelFormat::Rg32Uint) && pairs <= max_texels;
+        let blend = |chunk_pass, chunk_length| BlendOptions {
+            bits: settings.channels.blend_bits(settings.rgb),
+            tile,
+            texel,
+            wrap_x: view.camera.wrap_period().is_some(),
+            surface: settings.surface_depth,
+            occluded: view.occluder.is_some(),
+            row_masks,
+            tile_mask: view.tile_mask.is_some(),
+            chunk_pass,
+            chunk_length,
+        };
+        // The split blend: texel blends not in front of a host's depth, where a list can split.
+        let chunks = match chunk_slots(pairs, tiles, tile, self.chunk_length) {
+            Some((length, slots)) if texel && view.occluder.is_none() => {
+                let pixels = u64::from(tile * tile);
+                let floats = |name, count: u64| device.create_buffer(name, count * 4, MemoryKind::Storage);
+                Some(ChunkPlan {
+                    length,
+                    slots,
+                    first_slots: floats("chunk slots", tiles + 1)?,
+                    transmittance: floats("chunk transmittance", slots * pixels)?,
+                    partials: floats("chunk partials", slots * pixels * (CHUNK_FLOATS - 1))?,
+                    counts: device.kernel(
+                        &kernels::SPLAT_CHUNK_COUNTS,
+                        &KernelDecl {
+                            bindings: &[BindingKind::UniformBuffer],
+                            push_constant_size: std::mem::size_of::<ChunkCountPush>(),
+                            specialization: &[(0, SpecValue::U32(length))],
+                        },
+                    )?,
+                    passes: [
+                        self.blend_kernel(blend(1, length))?,
+                        self.blend_kernel(blend(2, length))?,
+                        self.blend_kernel(blend(3, length))?,
+                    ],
+                })
+            }
+            _ => None,
+        };
+        let chunk_length = chunks.as_ref().map_or(0, |c| c.length);
         Ok(SortPlan {
             keys: device.create_buffer("sort keys", pairs * 8, MemoryKind::Storage)?,
             values: device.create_buffer("sort values", pairs * 4, MemoryKind::Storage)?,
@@ -693,16 +823,8 @@ impl Splatter {
                 device.kernel(&kernels::SPLAT_RANGES, &KernelDecl::uniform(&[depth_spec]))?
             },
             texel_ranges,
-            blend: self.blend_kernel(BlendOptions {
-                bits: settings.channels.blend_bits(settings.rgb),
-                tile,
-                texel,
-                wrap_x: view.camera.wrap_period().is_some(),
-                surface: settings.surface_depth,
-                occluded: view.occluder.is_some(),
-                row_masks,
-                tile_mask: view.tile_mask.is_some(),
-            })?,
+            blend: self.blend_kernel(blend(0, chunk_length))?,
+            chunks,
             pairs,
             key_bits,
             texel,
@@ -826,7 +948,12 @@ impl Splatter {
             })
             .collect::<Result<Vec<_>>>()?;
         self.sort.reserve(&device, plans.iter().map(|s| s.pairs).max().unwrap_or(0))?;
-        let sort = &self.sort;
+        // The split blend scans each view's chunk counts.
+        if let Some(tiles) = plans.iter().zip(&pending).filter(|(s, _)| s.chunks.is_some()).map(|(_, p)| p.tiles).max()
+        {
+            self.scan.reserve(&device, tiles + 1)?;
+        }
+        let (sort, scan) = (&self.sort, &self.scan);
         let mut phase2_marks = Vec::with_capacity(views.len());
         let phase2 = device.run(|rec| -> Result<()> {
             for ((p, s), view) in pending.iter().zip(&plans).zip(views) {
@@ -877,6 +1004,21 @@ impl Splatter {
                     rec.dispatch(&s.ranges_kernel, Grid::Items(s.pairs), &[Binding::from(&p.uniform)], &())?;
                 }
                 rec.begin_stage("blend");
+                let chunk_push = match &s.chunks {
+                    Some(c) => ChunkPush {
+                        slots: rec.addr(&c.first_slots)?,
+                        transmittance: rec.addr(&c.transmittance)?,
+                        partials: rec.addr(&c.partials)?,
+                    },
+                    None => ChunkPush::zeroed(),
+                };
+                if let Some(c) = &s.chunks {
+                    // Each tile's chunk count, scanned into its first slot.
+                    rec.fill(&c.first_slots, 0)?;
+                    let push = ChunkCountPush { counts: chunk_push.slots };
+                    rec.dispatch(&c.counts, Grid::Items(p.tiles), &[Binding::from(&p.uniform)], &push)?;
+                    scan.record(rec, &c.first_slots, p.tiles + 1)?;
+                }
                 if s.texel {
                     let view = |buffer, elements| {
                         Binding::Texels(Texels { buffer, offset: 0, elements, format: TexelFormat::Rgba32Float })
@@ -893,7 +1035,13 @@ impl Splatter {
                         uints(&s.values, s.pairs),
                         uints(&s.keys, 2 * s.pairs),
                     ];
-                    rec.dispatch(&s.blend, Grid::Groups(p.tiles), &bindings, &())?;
+                    rec.dispatch(&s.blend, Grid::Groups(p.tiles), &bindings, &chunk_push)?;
+                    if let Some(c) = &s.chunks {
+                        let [transmittance, chunk_blend, merge] = &c.passes;
+                        rec.dispatch(transmittance, Grid::Groups(c.slots), &bindings, &chunk_push)?;
+                        rec.dispatch(chunk_blend, Grid::Groups(c.slots), &bindings, &chunk_push)?;
+                        rec.dispatch(merge, Grid::Groups(p.tiles), &bindings, &chunk_push)?;
+                    }
                 } else {
                     rec.dispatch(&s.blend, Grid::Groups(p.tiles), &[Binding::from(&p.uniform)], &())?;
                 }
@@ -915,6 +1063,7 @@ impl Splatter {
                 + s.keys.size()
                 + s.values.size()
                 + s.pair_tiles.as_ref().map_or(0, Buffer::size)
+                + s.chunks.as_ref().map_or(0, |c| c.first_slots.size() + c.transmittance.size() + c.partials.size())
                 + p.ranges.size()
                 + scratch;
             frames.push(SplatFrame {
@@ -1029,10 +1178,30 @@ struct SortPlan {
     /// `ranges_kernel` reads the sorted keys through an RG32UI texel view.
     texel_ranges: bool,
     blend: Arc<Kernel>,
+    /// The split blend, where a list of this view is long enough.
+    chunks: Option<ChunkPlan>,
     pairs: u64,
     key_bits: u32,
     texel: bool,
     row_masks: bool,
+}
+
+/// A view's split blend (`CHUNK_PASS` in `splat_blend_body.glsl`).
+struct ChunkPlan {
+    /// Entries per chunk.
+    length: u32,
+    /// Chunk slots at most: the workgroups of passes 1 and 2.
+    slots: u64,
+    /// Each tile's first slot (then the total): its `list_chunks`, scanned.
+    first_slots: Buffer,
+    /// Per slot and tile pixel, the chunk's transmittance product.
+    transmittance: Buffer,
+    /// Per slot, partial sum and tile pixel, the chunk's blend.
+    partials: Buffer,
+    /// `splat_chunk_counts.comp`.
+    counts: Arc<Kernel>,
+    /// The blend's passes 1 (transmittance), 2 (chunk blend) and 3 (merge).
+    passes: [Arc<Kernel>; 3],
 }
 
 /// Splits one submission's stage timings at `marks` (the stage count when
@@ -1051,6 +1220,41 @@ fn split_timings(timings: Timings, marks: &[usize]) -> Vec<Timings> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn chunk_slots_hold_every_split_list_within_the_memory_cap() {
+        assert_eq!((list_chunks(48, 24), list_chunks(49, 24), list_chunks(72, 24), list_chunks(73, 24)), (0, 3, 3, 4));
+        assert_eq!((list_chunks(u32::MAX, 0), list_chunks(0, 24)), (0, 0));
+        // No list can split: no plan.
+        assert_eq!(chunk_slots(48, 10, 16, 24), None);
+        assert_eq!(chunk_slots(1_000_000, 528, 16, 0), None);
+        // Lists of many shapes (pairs spread over the tiles, a few long ones): the
+        // chunks they split into never exceed the slots planned.
+        let mut state = 12345u64;
+        let mut next = |m: u64| {
+            state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            (state >> 33) % m
+        };
+        for _ in 0..200 {
+            let tiles = 1 + next(3000);
+            let length = [1, 7, 24, 4096][next(4) as usize];
+            let lists: Vec<u64> =
+                (0..tiles).map(|_| if next(10) == 0 { next(200_000) } else { next(3 * length + 2) }).collect();
+            let pairs: u64 = lists.iter().sum();
+            let chunks: u64 = lists.iter().map(|&n| u64::from(list_chunks(n as u32, length as u32))).sum();
+            match chunk_slots(pairs, tiles, 16, length as u32) {
+                Some((l, slots)) => {
+                    let at_l: u64 = lists.iter().map(|&n| u64::from(list_chunks(n as u32, l))).sum();
+                    assert!(at_l <= slots, "{tiles} tiles, length {l}: {at_l} chunks in {slots} slots");
+                    assert!(slots * 256 * CHUNK_FLOATS * 4 <= CHUNK_MEMORY);
+                }
+                None => assert_eq!(chunks, 0, "{tiles} tiles, {pairs} pairs at {length}: lists split but no plan"),
+            }
+        }
+        // 30M pairs at 16 entries a chunk would need 37 GiB: the chunks grow until they fit.
+        let grown = chunk_slots(30_000_000, 100_000, 32, 16);
+        assert!(grown.is_some_and(|(l, slots)| l > 16 && slots * 1024 * CHUNK_FLOATS * 4 <= CHUNK_MEMORY), "{grown:?}");
+    }
 
     #[test]
     fn preprocess_views_count_their_own_elements_against_the_limit() {

@@ -213,10 +213,31 @@ pub(super) fn camera_frame(camera: &Camera, frame: &mut FrameUniform) -> Result<
     Ok(())
 }
 
+/// The split blend's push constants (`ChunkPush` in `splat_blend_body.glsl`;
+/// checked by `check_layout`): each tile's first chunk slot (scanned
+/// `list_chunks`, then the total), the chunks' transmittance per pixel and
+/// their partial sums. Zero where no list is split.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+pub(crate) struct ChunkPush {
+    pub slots: DeviceAddress,
+    pub transmittance: DeviceAddress,
+    pub partials: DeviceAddress,
+}
+crate::gpu::gpu_layout!(ChunkPush, "ChunkPush", [slots, transmittance, partials]);
+
+/// `splat_chunk_counts.comp`'s push constants: where each tile's chunk count goes.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+pub(crate) struct ChunkCountPush {
+    pub counts: DeviceAddress,
+}
+crate::gpu::gpu_layout!(ChunkCountPush, "ChunkCountPush", [counts]);
+
 #[cfg(test)]
 mod layout_tests {
     use super::backward::BackwardUniform;
-    use super::FrameUniform;
+    use super::{ChunkCountPush, ChunkPush, FrameUniform};
     use crate::gpu::{check_layout, kernels};
 
     /// The host structs match the GLSL blocks of every kernel that declares them.
@@ -226,5 +247,9 @@ mod layout_tests {
         assert!(frame.as_ref().is_ok_and(|n| *n >= 6), "{frame:?}");
         let backward = check_layout::<BackwardUniform>(kernels::ALL);
         assert!(backward.as_ref().is_ok_and(|n| *n == 2), "{backward:?}");
+        let chunks = check_layout::<ChunkPush>(kernels::ALL);
+        assert!(chunks.as_ref().is_ok_and(|n| *n >= 1), "{chunks:?}");
+        let counts = check_layout::<ChunkCountPush>(kernels::ALL);
+        assert!(counts.as_ref().is_ok_and(|n| *n == 1), "{counts:?}");
     }
 }

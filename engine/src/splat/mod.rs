@@ -122,6 +122,35 @@ pub fn default_window_fetch(info: &DeviceInfo) -> bool {
 pub fn default_two_splats_per_step(info: &DeviceInfo) -> bool {
     info.device_type != vk::PhysicalDeviceType::CPU
 }
+/// The chunk length a new [`Splatter`] splits long tile lists at
+/// ([`Splatter::set_chunk_length`]; 0: none): on GPUs, where one workgroup
+/// walks each tile's list and the longest walk bounds the blend; 0 on CPU
+/// devices, where every core is busy with other tiles anyway and splitting
+/// only adds passes. The image is the same to rounding.
+pub fn default_chunk_length(info: &DeviceInfo) -> u32 {
+    if info.device_type == vk::PhysicalDeviceType::CPU {
+        0
+    } else {
+        DEFAULT_CHUNK_LENGTH
+    }
+}
+/// The chunk length of [`default_chunk_length`] on GPUs.
+pub const DEFAULT_CHUNK_LENGTH: u32 = 4096;
+/// The longest chunk [`Splatter::set_chunk_length`] accepts (`list_chunks`'
+/// 2·length fits 32 bits).
+pub const MAX_CHUNK_LENGTH: u32 = 1 << 30;
+
+/// The chunks the split blend cuts a tile list of `entries` pairs into
+/// (`list_chunks` in `splat.glsl`): none where it holds at most
+/// 2·`chunk_length` or `chunk_length` is 0, else ⌈entries / chunk_length⌉.
+pub fn list_chunks(entries: u32, chunk_length: u32) -> u32 {
+    if chunk_length == 0 || entries <= 2 * chunk_length {
+        0
+    } else {
+        entries.div_ceil(chunk_length)
+    }
+}
+
 /// Bit of the blend's `CHANNELS` specialization constant that blends rgb
 /// (keep in sync with `RGB` in `splat_blend_body.glsl`).
 pub(crate) const RGB_BIT: u32 = 8;

@@ -49,6 +49,15 @@ layout(std140, set = 0, binding = 0) uniform Frame {
     uvec2 tile_mask;        // uint per tile, non-zero where pairs are wanted (TILE_MASK)
 } frame;
 
+// The chunks a tile's list (`range` of the sorted pairs) splits into for
+// the split blend (splat_blend_body.glsl `CHUNK_PASS`): none where it holds
+// at most 2·chunk_length entries or chunk_length is 0, else
+// ceil(length / chunk_length). Host mirror: engine/src/splat/mod.rs `list_chunks`.
+uint list_chunks(uvec2 range, uint chunk_length) {
+    uint n = range.y - range.x;
+    return chunk_length == 0u || n <= 2u * chunk_length ? 0u : (n - 1u) / chunk_length + 1u;
+}
+
 // Whether tile `tile` gets pairs (every tile without a mask).
 bool tile_wanted(uint tile) {
     return UintsIn(frame.tile_mask).v[tile] != 0u;

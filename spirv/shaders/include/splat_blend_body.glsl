@@ -38,6 +38,18 @@ layout(constant_id = 9) const bool WINDOW_FETCH = false;
 // (their reads and exponentials independent, accumulated in order), so the
 // step's liveness ballot and loop test serve two splats.
 layout(constant_id = 10) const bool TWO_SPLATS = false;
+// The split blend (texel blend only): a tile's list longer than
+// 2·CHUNK_LENGTH (`list_chunks`) is cut into chunks of CHUNK_LENGTH entries,
+// each walked by a workgroup of its own, so no pixel's walk is longer than
+// the chunk. Pass 0 blends the other tiles whole; pass 1 takes each chunk's
+// transmittance product per pixel (every splat that reaches the pixel, no
+// stop but below 1e-4, where the pixel is surely done); pass 2 blends each
+// chunk from its incoming transmittance (the earlier chunks' products) with
+// the one-pass rules, so its weights, stop, median crossing and top weight
+// are the one-pass ones; pass 3 adds each split tile's chunks up in order
+// (engine/src/splat/forward.rs `ChunkPlan`). CHUNK_LENGTH 0: no list is split.
+layout(constant_id = 11) const uint CHUNK_PASS = 0u;
+layout(constant_id = 12) const uint CHUNK_LENGTH = 0u;
 // Without rgb (shadow maps) no colour is read, blended or stored.
 const bool RGB = (CHANNELS & 256u) != 0u;
 // The index of the splat with the largest weight wᵢ = αᵢ Tᵢ (the first of equal ones), per pixel.
@@ -254,6 +266,81 @@ layout(constant_id = 2) const uint PIXELS = 1u;
 const bool HALVES = 2u * PIXELS == TILE;
 const uint STEP = HALVES ? 1u : TILE / PIXELS;
 
+// The split blend's buffers (CHUNK_PASS 1-3), by device address: each
+// tile's first chunk slot (`list_chunks` scanned; then the total), and per
+// chunk slot and tile pixel its transmittance product (pass 1) and its
+// partial sums (pass 2, PARTIAL_FLOATS each: `store_partial`).
+layout(push_constant) uniform ChunkPush {
+    uvec2 slots;
+    uvec2 transmittance;
+    uvec2 partials;
+} chunks;
+const uint PARTIAL_FLOATS = 19u;
+const uint PARTIAL_TOP_G = 17u;
+const uint PARTIAL_START_T = 18u;
+
+// Where field `field` of tile pixel `px` of chunk slot `slot` lies in the partials.
+uint partial_index(uint slot, uint field, uint px) {
+    return (slot * PARTIAL_FLOATS + field) * TILE_PIXELS + px;
+}
+
+// Pass 2's result for one pixel: what its chunk accumulated from the
+// incoming transmittance `start_T` (which pass 3 needs to know whether the
+// pixel was done before the chunk, and whose median the chunk gives).
+void store_partial(uint slot, uint px, Accumulated acc, float start_T) {
+    float f[PARTIAL_FLOATS] = float[](acc.T, acc.rgb.r, acc.rgb.g, acc.rgb.b, acc.depth, acc.median, acc.normal.x,
+        acc.normal.y, acc.normal.z, acc.albedo.r, acc.albedo.g, acc.albedo.b, acc.rough, acc.metal, acc.ao, acc.vis,
+        acc.top_w, 0.0, start_T);
+    FloatsOut o = FloatsOut(chunks.partials);
+    [[unroll]] for (uint i = 0u; i < PARTIAL_FLOATS; i++) {
+        if (i != PARTIAL_TOP_G) o.v[partial_index(slot, i, px)] = f[i];
+    }
+    UintsOut(chunks.partials).v[partial_index(slot, PARTIAL_TOP_G, px)] = acc.top_g;
+}
+
+// Pass 3: tile pixel `px`'s chunks (slots first..first + count) added up in
+// list order as one walk over the whole list would have: sums add, T is the
+// last live chunk's, the median the crossing chunk's unless a later one
+// found a nearer half-opaque splat (`accumulate_select`), the top Gaussian
+// the first of the largest weights.
+Accumulated merged_chunks(uint first, uint count, uint px) {
+    Accumulated acc = Accumulated(1.0, vec3(0.0), 0.0, 0.0, vec3(0.0), vec3(0.0), 0.0, 0.0, 0.0, 0.0, 0.0, NO_GAUSSIAN);
+    FloatsIn f = FloatsIn(chunks.partials);
+    for (uint c = 0u; c < count; c++) {
+        uint s = first + c;
+        float start_T = f.v[partial_index(s, PARTIAL_START_T, px)];
+        // Done before this chunk, so before every later one too.
+        if (!(start_T >= 1e-4)) break;
+        acc.T = f.v[partial_index(s, 0u, px)];
+        if (RGB) {
+            acc.rgb += vec3(f.v[partial_index(s, 1u, px)], f.v[partial_index(s, 2u, px)], f.v[partial_index(s, 3u, px)]);
+        }
+        if ((CHANNELS & 1u) != 0u) acc.depth += f.v[partial_index(s, 4u, px)];
+        if ((CHANNELS & 2u) != 0u) {
+            float m = f.v[partial_index(s, 5u, px)];
+            acc.median = start_T > 0.5 ? m : min(acc.median, m);
+        }
+        if (FEATURES) {
+            acc.normal += vec3(f.v[partial_index(s, 6u, px)], f.v[partial_index(s, 7u, px)],
+                               f.v[partial_index(s, 8u, px)]);
+            acc.albedo += vec3(f.v[partial_index(s, 9u, px)], f.v[partial_index(s, 10u, px)],
+                               f.v[partial_index(s, 11u, px)]);
+            acc.rough += f.v[partial_index(s, 12u, px)];
+            acc.metal += f.v[partial_index(s, 13u, px)];
+            acc.ao += f.v[partial_index(s, 14u, px)];
+            acc.vis += f.v[partial_index(s, 15u, px)];
+        }
+        if (TOP) {
+            float w = f.v[partial_index(s, 16u, px)];
+            if (w > acc.top_w) {
+                acc.top_w = w;
+                acc.top_g = UintsIn(chunks.partials).v[partial_index(s, PARTIAL_TOP_G, px)];
+            }
+        }
+    }
+    return acc;
+}
+
 // Invocation l's first pixel within the tile.
 uvec2 lane_pixel(uint l) {
     return HALVES ? uvec2((l / TILE) * PIXELS, l % TILE) : uvec2(l % gl_WorkGroupSize.x, l / gl_WorkGroupSize.x);
@@ -314,7 +401,9 @@ void blend_pixel(inout Accumulated acc, inout bool live, float limit, uint g, ve
     if (OCCLUDED) hit = all(bvec2(hit, z < limit));
     float next_T = acc.T * (1.0 - alpha);
     bool stop = all(bvec2(hit, next_T < 1e-4));
-    bool takes = all(bvec2(hit, !stop));
+    // The split blend's transmittance pass multiplies every splat in: a
+    // product below 1e-4 says the pixel is done, whichever splat stopped it.
+    bool takes = all(bvec2(hit, CHUNK_PASS == 1u || !stop));
     live = all(bvec2(live, !stop));
     accumulate_select(acc, takes, alpha, next_T, z, c, g);
 }
@@ -381,20 +470,69 @@ void blend_step(inout Accumulated acc, inout bool live, float limit, StepSplat s
 }
 
 void main() {
-    uint tile = block_index();
-    if (TILE_MASK && !tile_wanted(tile)) return;
+    // Split-blend passes 1 and 2 run a workgroup per chunk slot, the others
+    // one per tile: pass 0 blends the tiles whose lists are not split, pass 3
+    // merges those that are.
+    uint tile, slot = 0u, first_slot = 0u;
+    uvec2 range;
+    if (CHUNK_PASS == 1u || CHUNK_PASS == 2u) {
+        slot = block_index();
+        UintsIn first = UintsIn(chunks.slots);
+        uint tiles = frame.size.z * frame.size.w;
+        if (slot >= first.v[tiles]) return;
+        // The tile holding the slot: the last whose first slot is at or before it.
+        uint lo = 0u, hi = tiles;
+        while (hi - lo > 1u) {
+            uint mid = (lo + hi) / 2u;
+            if (first.v[mid] <= slot) lo = mid; else hi = mid;
+        }
+        tile = lo;
+        first_slot = first.v[tile];
+        range = Uvec2s(frame.ranges).v[tile];
+        range.x += (slot - first_slot) * CHUNK_LENGTH;
+        range.y = min(range.y, range.x + CHUNK_LENGTH);
+    } else {
+        tile = block_index();
+        if (TILE_MASK && !tile_wanted(tile)) return;
+        range = Uvec2s(frame.ranges).v[tile];
+        bool split = list_chunks(range, CHUNK_LENGTH) != 0u;
+        if (CHUNK_PASS == 0u ? split : !split) return;
+    }
     uint tiles_x = frame.size.z;
-    uvec2 base = uvec2(tile % tiles_x, tile / tiles_x) * TILE + lane_pixel(gl_LocalInvocationIndex);
-    uvec2 range = Uvec2s(frame.ranges).v[tile];
+    uvec2 in_tile = lane_pixel(gl_LocalInvocationIndex);
+    uvec2 base = uvec2(tile % tiles_x, tile / tiles_x) * TILE + in_tile;
+    if (CHUNK_PASS == 3u) {
+        uint first = UintsIn(chunks.slots).v[tile];
+        uint count = UintsIn(chunks.slots).v[tile + 1u] - first;
+        [[unroll]] for (uint k = 0u; k < PIXELS; k++) {
+            uvec2 pix = base + uvec2(k * STEP, 0u);
+            uint px = in_tile.y * TILE + in_tile.x + k * STEP;
+            if (pix.x < frame.size.x && pix.y < frame.size.y) store_pixel(pix, merged_chunks(first, count, px));
+        }
+        return;
+    }
     Accumulated acc[PIXELS];
     bool live[PIXELS];
     float limit[PIXELS];
+    float start_T[PIXELS];
     bool any_live = false;
     [[unroll]] for (uint k = 0u; k < PIXELS; k++) {
         acc[k] = Accumulated(1.0, vec3(0.0), 0.0, 0.0, vec3(0.0), vec3(0.0), 0.0, 0.0, 0.0, 0.0, 0.0, NO_GAUSSIAN);
         uvec2 pix = base + uvec2(k * STEP, 0u);
         live[k] = pix.x < frame.size.x && pix.y < frame.size.y;
         limit[k] = live[k] ? occluder_z(pix) : 0.0;
+        start_T[k] = 1.0;
+        if (CHUNK_PASS == 2u) {
+            // The incoming transmittance, the earlier chunks' products: below
+            // 1e-4 the one-pass walk stopped before this chunk.
+            uint px = in_tile.y * TILE + in_tile.x + k * STEP;
+            FloatsIn products = FloatsIn(chunks.transmittance);
+            for (uint s = first_slot; s < slot; s++) start_T[k] *= products.v[s * TILE_PIXELS + px];
+            acc[k].T = start_T[k];
+            live[k] = all(bvec2(live[k], start_T[k] >= 1e-4));
+            // Past the crossing only a nearer half-opaque splat sets the median (pass 3 takes the least).
+            if (start_T[k] <= 0.5) acc[k].median = 1.0 / 0.0;
+        }
         any_live = any_live || live[k];
     }
     // The tile blocks this invocation's subgroup covers, exactly (a ballot
@@ -468,7 +606,11 @@ void main() {
     }
     [[unroll]] for (uint k = 0u; k < PIXELS; k++) {
         uvec2 pix = base + uvec2(k * STEP, 0u);
-        if (pix.x < frame.size.x && pix.y < frame.size.y) store_pixel(pix, acc[k]);
+        uint px = in_tile.y * TILE + in_tile.x + k * STEP;
+        if (pix.x >= frame.size.x || pix.y >= frame.size.y) continue;
+        if (CHUNK_PASS == 0u) store_pixel(pix, acc[k]);
+        if (CHUNK_PASS == 1u) FloatsOut(chunks.transmittance).v[slot * TILE_PIXELS + px] = acc[k].T;
+        if (CHUNK_PASS == 2u) store_partial(slot, px, acc[k], start_T[k]);
     }
 }
 #else
