@@ -149,7 +149,7 @@ pub struct SplatterChoices {
     #[arg(long)]
     pub two_splats_per_step: Option<bool>,
     /// Split tile lists longer than twice this many entries into chunks of this many, each
-    /// blended by a workgroup of its own; 0 splits none (default: 4096 on GPUs, else 0).
+    /// blended by a workgroup of its own; 0 splits none (default: 1024 on GPUs, else 0).
     #[arg(long)]
     pub chunk_length: Option<u32>,
     /// Read the scene (preprocess) and the splat records (keys) through texel-buffer views: true

@@ -135,7 +135,7 @@ pub fn default_chunk_length(info: &DeviceInfo) -> u32 {
     }
 }
 /// The chunk length of [`default_chunk_length`] on GPUs.
-pub const DEFAULT_CHUNK_LENGTH: u32 = 4096;
+pub const DEFAULT_CHUNK_LENGTH: u32 = 1024;
 /// The longest chunk [`Splatter::set_chunk_length`] accepts (`list_chunks`'
 /// 2·length fits 32 bits).
 pub const MAX_CHUNK_LENGTH: u32 = 1 << 30;
