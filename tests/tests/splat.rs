@@ -501,7 +501,8 @@ fn split_tile_lists_blend_as_one_walk_does() {
     // order. Short chunks here (the default splits only on GPUs, at 1024) so
     // that most tiles split, walks cross many chunks, pixels stop (T < 1e-4)
     // in one chunk and the median crosses T = 0.5 in another; every channel,
-    // surface depths (whose median a later chunk can move), every tile size,
+    // surface depths (whose median a later chunk can move), no colour, a
+    // panorama, every tile size,
     // pixels-per-lane layout and fetch. Against the CPU twin at its
     // tolerances, and against the whole-list blend, which rounds the same
     // products in another order, at 1e-5.
@@ -520,10 +521,14 @@ fn split_tile_lists_blend_as_one_walk_does() {
         Channels { depth: true, median_depth: true, normal: true, top_gaussian: true, ..Channels::default() };
     let all = all_settings();
     let surface = SplatSettings { surface_depth: true, ..all };
+    // A full panorama (its lists wrap at the seam) and a frame without colour (the shadow maps').
+    let panorama = lens_cameras(&city).into_iter().find(|(name, _)| *name == "equirectangular").unwrap().1;
     let mut checked = 0;
     for (name, scene, cam, base) in [
         ("street", &city.scene, &street, all),
         ("street, surface depths", &city.scene, &street, surface),
+        ("street, no rgb", &city.scene, &street, SplatSettings { rgb: false, ..all }),
+        ("panorama", &city.scene, &panorama, all),
         ("random", &random, &close, SplatSettings { channels: geometric, ..all }),
     ] {
         let gpu_scene = GpuScene::upload(&d, scene).unwrap();
@@ -548,7 +553,7 @@ fn split_tile_lists_blend_as_one_walk_does() {
             }
         }
     }
-    assert_eq!(checked, 3 * TILE_SIZES.len() * 3);
+    assert_eq!(checked, 5 * TILE_SIZES.len() * 3);
     let text = splatter.set_chunk_length(MAX_CHUNK_LENGTH + 1).err().map(|e| e.to_string()).unwrap_or_default();
     assert!(text.contains("chunk length 1073741825: exceeds"), "{text:?}");
     splatter.set_blend_pixels(default_blend_pixels(d.info())).unwrap();
