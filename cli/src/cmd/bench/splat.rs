@@ -3,7 +3,7 @@
 //! blend's arithmetic ceiling, the pair-move floor of a sort pass, the memory
 //! bandwidth), with each stage's share of its own floor.
 
-use srug::splat::{check_tile, TileBounds, DEFAULT_TILE};
+use srug::splat::{check_tile, default_chunk_length, TileBounds, DEFAULT_TILE};
 use srug::Result;
 
 use crate::args::{spinner, DeviceArgs, Size};
@@ -141,9 +141,13 @@ impl SplatBenchArgs {
             bandwidth.copy * 1e-9
         );
         println!(
-            "\nblend flops: {} per evaluated pair + {} per contributing pair (exp not counted); pairs counted by replaying the blend on the CPU twin; \"longest walk\" is the most splats one pixel reads before it is done in that replay: one workgroup walks each tile's list, so where the device runs every tile at once (a GPU) the blend lasts at least as long as one walk that far",
+            "\nblend flops: {} per evaluated pair + {} per contributing pair (exp not counted); pairs counted by replaying the blend on the CPU twin; \"longest walk\" is the most splats one pixel reads before it is done in that replay: one workgroup walks each tile's list, so where the device runs every tile at once (a GPU) the blend lasts at least as long as one walk that far, {}",
             bench::BLEND_FLOPS_PER_EVALUATION,
-            bench::BLEND_FLOPS_PER_CONTRIBUTION
+            bench::BLEND_FLOPS_PER_CONTRIBUTION,
+            match choices.chunk_length.unwrap_or_else(|| default_chunk_length(info)) {
+                0 => "and no list was split (--chunk-length 0)".to_string(),
+                n => format!("unless the list is split: here the texel blend walked lists longer than {} entries in chunks of {n} (more where they would take over 256 MiB; --chunk-length)", 2 * u64::from(n)),
+            }
         );
         println!(
             "sort, {} keys on {} bits: GPU {:.1} M keys/s, CPU sort_unstable {:.1} M keys/s (ratio {:.2})",
