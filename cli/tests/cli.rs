@@ -247,7 +247,7 @@ fn bench_splat_prints_its_tables() {
         "GPU",
         "sort_unstable",
         "ceiling % |",
-        "| longest walk |",
+        "| longest walk | split chunks |",
         "blend ceiling",
         "pair-move floor, 6000 pairs",
         "memory bandwidth (",
@@ -256,6 +256,8 @@ fn bench_splat_prints_its_tables() {
     ] {
         assert!(t.contains(want), "missing {want:?} in:\n{t}");
     }
+    // The split blend's setting: the default splits no list on CPU devices, lists over 2048 entries on GPUs.
+    assert!(t.contains("and no list was split (--chunk-length 0)") || t.contains("in chunks of 1024"), "{t}");
     // A floor measured on one pair (all launch, scaled to thousands) is far above the sort:
     // the column passes 100 and the bench says what that means.
     let o = bench("64x32", "1", "3");

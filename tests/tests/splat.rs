@@ -537,7 +537,9 @@ fn split_tile_lists_blend_as_one_walk_does() {
             assert!(work.longest_walk > 4 * u64::from(CHUNK), "{name} tile {tile}: walks of {work:?} split little");
             let cpu = render_cpu(scene, cam, &settings);
             splatter.set_chunk_length(0).unwrap();
-            let whole = splatter.render(&gpu_scene, cam, &settings).unwrap().0.read(&d).unwrap();
+            let (whole, stats) = splatter.render(&gpu_scene, cam, &settings).unwrap();
+            assert_eq!(stats.chunks, 0, "{name} tile {tile}: chunk length 0 splits nothing");
+            let whole = whole.read(&d).unwrap();
             splatter.set_chunk_length(CHUNK).unwrap();
             let layouts = [(1, false, false), (default_blend_pixels(d.info()), true, false), (8, true, true)];
             for (pixels, window, two) in layouts {
@@ -545,7 +547,10 @@ fn split_tile_lists_blend_as_one_walk_does() {
                 splatter.set_window_fetch(window);
                 splatter.set_two_splats_per_step(two);
                 let label = format!("{name} tile {tile}, {pixels} pixels, window fetch {window}, two splats {two}");
-                let split = splatter.render(&gpu_scene, cam, &settings).unwrap().0.read(&d).unwrap();
+                let (split, stats) = splatter.render(&gpu_scene, cam, &settings).unwrap();
+                // At least the chunks of the longest walk's list.
+                assert!(stats.chunks >= work.longest_walk / u64::from(CHUNK), "{label}: {} chunks", stats.chunks);
+                let split = split.read(&d).unwrap();
                 compare(&split, &cpu, &label);
                 assert_close_to(&split, &whole, 1e-5, &label);
                 checked += 1;

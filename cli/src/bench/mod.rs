@@ -94,6 +94,8 @@ pub struct SplatBenchRow {
     /// replay): each tile's list is walked by one workgroup, so a blend lasts
     /// at least as long as one walk that far, however many tiles run at once.
     pub longest_walk: u64,
+    /// Chunks the split blend walked (0: no list split; `SplatStats::chunks`).
+    pub chunks: u64,
     /// Gaussians the preprocess keeps (counted by the CPU twin).
     pub visible: u64,
     /// Key bits the sort sorted.
@@ -257,6 +259,7 @@ pub fn splat_bench(
                 blend_evaluations: work.evaluated,
                 blend_contributions: work.contributed,
                 longest_walk: work.longest_walk,
+                chunks: stats.chunks,
                 visible,
                 key_bits: stats.key_bits,
                 preprocess_read_bytes: n as u64 * position + visible * rest,

@@ -31,6 +31,8 @@ pub struct SplatStats {
     /// columns × row pairs) they cannot reach (the texel blend, where each
     /// key has room for the mask).
     pub row_masks: bool,
+    /// Chunks the split blend cut the tile lists into ([`Splatter::chunk_length`]; 0: no list split).
+    pub chunks: u64,
 }
 
 /// The SH degree the colour uses: the settings' cap on the scene's, and 0
@@ -954,9 +956,12 @@ impl Splatter {
             self.scan.reserve(&device, tiles + 1)?;
         }
         let (sort, scan) = (&self.sort, &self.scan);
+        // Each view's chunk count (the split blend's), read back with the frame.
+        let chunk_counts = device.create_buffer("chunk counts", 4 * views.len() as u64, MemoryKind::Readback)?;
         let mut phase2_marks = Vec::with_capacity(views.len());
         let phase2 = device.run(|rec| -> Result<()> {
-            for ((p, s), view) in pending.iter().zip(&plans).zip(views) {
+            rec.fill(&chunk_counts, 0)?;
+            for (i, ((p, s), view)) in pending.iter().zip(&plans).zip(views).enumerate() {
                 phase2_marks.push(rec.stages_begun());
                 p.frame.record(rec, &p.uniform, &p.buffers(scene, view, Some(s)))?;
                 if let Some(word) = settings.prefill {
@@ -1018,6 +1023,7 @@ impl Splatter {
                     let push = ChunkCountPush { counts: chunk_push.slots };
                     rec.dispatch(&c.counts, Grid::Items(p.tiles), &[Binding::from(&p.uniform)], &push)?;
                     scan.record(rec, &c.first_slots, p.tiles + 1)?;
+                    rec.copy(&c.first_slots, 4 * p.tiles, &chunk_counts, 4 * i as u64, 4)?;
                 }
                 if s.texel {
                     let view = |buffer, elements| {
@@ -1050,11 +1056,13 @@ impl Splatter {
             Ok(())
         })?;
 
+        let chunks: Vec<u32> = device.read_mapped(&chunk_counts)?;
         let phase1 = split_timings(phase1, &phase1_marks);
         let phase2 = split_timings(phase2, &phase2_marks);
         let scratch = self.sort.scratch_bytes() + self.scan.scratch_bytes();
         let mut frames = Vec::with_capacity(views.len());
-        for ((((p, s), view), mut timings), later) in pending.into_iter().zip(plans).zip(views).zip(phase1).zip(phase2)
+        for (((((p, s), view), mut timings), later), chunks) in
+            pending.into_iter().zip(plans).zip(views).zip(phase1).zip(phase2).zip(chunks)
         {
             timings.stages.extend(later.stages);
             let working_bytes = p.splats.size()
@@ -1074,6 +1082,7 @@ impl Splatter {
                     key_bits: s.key_bits,
                     working_bytes,
                     row_masks: s.row_masks,
+                    chunks: u64::from(chunks),
                 },
                 camera: p.camera,
                 splats: p.splats,

@@ -73,11 +73,11 @@ impl SplatBenchArgs {
         let stage_names: Vec<String> =
             rows.first().map(|r| r.stages.iter().map(|s| s.0.clone()).collect()).unwrap_or_default();
         println!(
-            "| Gaussians | size | {} | total ms | pairs | working MiB | scene MiB | G-buffer MiB | blend evals (M) | longest walk | blend GFLOP/s | % of FMA peak | ceiling % | preprocess % of floor | sort % of floor | blend % of ceiling |",
+            "| Gaussians | size | {} | total ms | pairs | working MiB | scene MiB | G-buffer MiB | blend evals (M) | longest walk | split chunks | blend GFLOP/s | % of FMA peak | ceiling % | preprocess % of floor | sort % of floor | blend % of ceiling |",
             stage_names.join(" ms | ") + " ms"
         );
         println!(
-            "|---:|---|{}---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
+            "|---:|---|{}---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
             "---:|".repeat(stage_names.len())
         );
         // Columns over 100%: a stage beat the floor measured for it.
@@ -104,7 +104,7 @@ impl SplatBenchArgs {
                 }
             }
             println!(
-                "| {} | {}x{} | {} | {:.1} | {} | {:.1} | {:.1} | {:.1} | {:.1} | {} | {:.2} | {:.1} | {:.1} | {:.0} | {:.0} | {:.0} |",
+                "| {} | {}x{} | {} | {:.1} | {} | {:.1} | {:.1} | {:.1} | {:.1} | {} | {} | {:.2} | {:.1} | {:.1} | {:.0} | {:.0} | {:.0} |",
                 r.gaussians,
                 r.width,
                 r.height,
@@ -116,6 +116,7 @@ impl SplatBenchArgs {
                 mib(r.gbuffer_bytes),
                 r.blend_evaluations as f64 * 1e-6,
                 r.longest_walk,
+                r.chunks,
                 r.blend_gflops(),
                 r.blend_gflops() / peak * 100.0,
                 blend_ceiling / peak * 100.0,
