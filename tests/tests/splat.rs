@@ -613,18 +613,26 @@ fn a_batch_of_cameras_renders_the_same_bits_as_one_camera_at_a_time() {
         })
         .collect();
     let settings = all_settings();
-    let batch = splatter.render_frames(&gpu_scene, &cameras, &settings).unwrap();
-    assert_eq!(batch.len(), count);
-    for (i, (frame, cam)) in batch.iter().zip(&cameras).enumerate() {
-        let alone = splatter.render_frame(&gpu_scene, cam, &settings).unwrap();
-        assert_eq!((frame.gbuffer.width, frame.gbuffer.height), (cam.width, cam.height), "camera {i}");
-        assert_eq!(frame.stats.pairs, alone.stats.pairs, "camera {i}: pairs");
-        assert!(frame.stats.pairs > 0, "camera {i} sees the street");
-        let (a, b) = (gbuffer_bits(&frame.gbuffer.read(&d).unwrap()), gbuffer_bits(&alone.gbuffer.read(&d).unwrap()));
-        assert!(a == b, "camera {i}: the batched frame differs from the one rendered alone");
-        let stages: Vec<&str> = frame.stats.timings.stages.iter().map(|s| s.name.as_str()).collect();
-        for stage in ["preprocess", "scan", "keys", "sort", "ranges", "blend"] {
-            assert_eq!(stages.iter().filter(|s| **s == stage).count(), 1, "camera {i}: {stage} in {stages:?}");
+    // Also with the split blend's chunks short (its scratch is shared by the batch's views).
+    for chunk_length in [splatter.chunk_length(), 16] {
+        splatter.set_chunk_length(chunk_length).unwrap();
+        let batch = splatter.render_frames(&gpu_scene, &cameras, &settings).unwrap();
+        assert_eq!(batch.len(), count);
+        for (i, (frame, cam)) in batch.iter().zip(&cameras).enumerate() {
+            let label = format!("camera {i}, chunk length {chunk_length}");
+            let alone = splatter.render_frame(&gpu_scene, cam, &settings).unwrap();
+            assert_eq!((frame.gbuffer.width, frame.gbuffer.height), (cam.width, cam.height), "{label}");
+            assert_eq!(frame.stats.pairs, alone.stats.pairs, "{label}: pairs");
+            assert!(frame.stats.pairs > 0, "{label} sees the street");
+            assert_eq!(frame.stats.chunks, alone.stats.chunks, "{label}: chunks");
+            assert!(chunk_length != 16 || frame.stats.chunks > 0, "{label}: no list split");
+            let (a, b) =
+                (gbuffer_bits(&frame.gbuffer.read(&d).unwrap()), gbuffer_bits(&alone.gbuffer.read(&d).unwrap()));
+            assert!(a == b, "{label}: the batched frame differs from the one rendered alone");
+            let stages: Vec<&str> = frame.stats.timings.stages.iter().map(|s| s.name.as_str()).collect();
+            for stage in ["preprocess", "scan", "keys", "sort", "ranges", "blend"] {
+                assert_eq!(stages.iter().filter(|s| **s == stage).count(), 1, "{label}: {stage} in {stages:?}");
+            }
         }
     }
     // Batch sizes from the memory budget: a street frame of 200k Gaussians at

@@ -25,7 +25,7 @@ pub struct SplatStats {
     pub pairs: u64,
     /// Key bits sorted.
     pub key_bits: u32,
-    /// GPU bytes of per-frame working memory (splats, features, keys, sort scratch, ranges).
+    /// GPU bytes of per-frame working memory (splats, features, keys, ranges, and the sort's and split blend's scratch, which a batch's frames share).
     pub working_bytes: u64,
     /// Whether the blend skipped splats for the blocks of a tile (half-tile
     /// columns × row pairs) they cannot reach (the texel blend, where each
@@ -267,6 +267,7 @@ pub struct Splatter {
     window_fetch: bool,
     two_splats_per_step: bool,
     chunk_length: u32,
+    chunk_scratch: ChunkScratch,
     scan: Scan,
     sort: RadixSort,
 }
@@ -288,6 +289,7 @@ impl Splatter {
             window_fetch: default_window_fetch(device.info()),
             two_splats_per_step: default_two_splats_per_step(device.info()),
             chunk_length: default_chunk_length(device.info()),
+            chunk_scratch: ChunkScratch::default(),
             scan: Scan::new(device)?,
             sort: RadixSort::new(device)?,
         })
@@ -782,30 +784,24 @@ impl Splatter {
         };
         // The split blend: texel blends not in front of a host's depth, where a list can split.
         let chunks = match chunk_slots(pairs, tiles, tile, self.chunk_length) {
-            Some((length, slots)) if texel && view.occluder.is_none() => {
-                let pixels = u64::from(tile * tile);
-                let floats = |name, count: u64| device.create_buffer(name, count * 4, MemoryKind::Storage);
-                Some(ChunkPlan {
-                    length,
-                    slots,
-                    first_slots: floats("chunk slots", tiles + 1)?,
-                    transmittance: floats("chunk transmittance", slots * pixels)?,
-                    partials: floats("chunk partials", slots * pixels * (CHUNK_FLOATS - 1))?,
-                    counts: device.kernel(
-                        &kernels::SPLAT_CHUNK_COUNTS,
-                        &KernelDecl {
-                            bindings: &[BindingKind::UniformBuffer],
-                            push_constant_size: std::mem::size_of::<ChunkCountPush>(),
-                            specialization: &[(0, SpecValue::U32(length))],
-                        },
-                    )?,
-                    passes: [
-                        self.blend_kernel(blend(1, length))?,
-                        self.blend_kernel(blend(2, length))?,
-                        self.blend_kernel(blend(3, length))?,
-                    ],
-                })
-            }
+            Some((length, slots)) if texel && view.occluder.is_none() => Some(ChunkPlan {
+                length,
+                slots,
+                pixels: u64::from(tile * tile),
+                counts: device.kernel(
+                    &kernels::SPLAT_CHUNK_COUNTS,
+                    &KernelDecl {
+                        bindings: &[BindingKind::UniformBuffer],
+                        push_constant_size: std::mem::size_of::<ChunkCountPush>(),
+                        specialization: &[(0, SpecValue::U32(length))],
+                    },
+                )?,
+                passes: [
+                    self.blend_kernel(blend(1, length))?,
+                    self.blend_kernel(blend(2, length))?,
+                    self.blend_kernel(blend(3, length))?,
+                ],
+            }),
             _ => None,
         };
         let chunk_length = chunks.as_ref().map_or(0, |c| c.length);
@@ -950,12 +946,12 @@ impl Splatter {
             })
             .collect::<Result<Vec<_>>>()?;
         self.sort.reserve(&device, plans.iter().map(|s| s.pairs).max().unwrap_or(0))?;
-        // The split blend scans each view's chunk counts.
-        if let Some(tiles) = plans.iter().zip(&pending).filter(|(s, _)| s.chunks.is_some()).map(|(_, p)| p.tiles).max()
-        {
-            self.scan.reserve(&device, tiles + 1)?;
+        // The split blend scans each view's chunk counts into its scratch, shared by the views.
+        for (c, p) in plans.iter().zip(&pending).filter_map(|(s, p)| s.chunks.as_ref().map(|c| (c, p))) {
+            self.scan.reserve(&device, p.tiles + 1)?;
+            self.chunk_scratch.reserve(&device, p.tiles, c.slots, c.pixels)?;
         }
-        let (sort, scan) = (&self.sort, &self.scan);
+        let (sort, scan, chunk_scratch) = (&self.sort, &self.scan, &self.chunk_scratch);
         // Each view's chunk count (the split blend's), read back with the frame.
         let chunk_counts = device.create_buffer("chunk counts", 4 * views.len() as u64, MemoryKind::Readback)?;
         let mut phase2_marks = Vec::with_capacity(views.len());
@@ -1009,21 +1005,28 @@ impl Splatter {
                     rec.dispatch(&s.ranges_kernel, Grid::Items(s.pairs), &[Binding::from(&p.uniform)], &())?;
                 }
                 rec.begin_stage("blend");
-                let chunk_push = match &s.chunks {
-                    Some(c) => ChunkPush {
-                        slots: rec.addr(&c.first_slots)?,
-                        transmittance: rec.addr(&c.transmittance)?,
-                        partials: rec.addr(&c.partials)?,
+                let scratch = match (&chunk_scratch.first_slots, &chunk_scratch.transmittance, &chunk_scratch.partials)
+                {
+                    (Some(f), Some(t), Some(p)) if s.chunks.is_some() => Some((f, t, p)),
+                    _ => None,
+                };
+                let chunk_push = match scratch {
+                    Some((first_slots, transmittance, partials)) => ChunkPush {
+                        slots: rec.addr(first_slots)?,
+                        transmittance: rec.addr(transmittance)?,
+                        partials: rec.addr(partials)?,
                     },
                     None => ChunkPush::zeroed(),
                 };
-                if let Some(c) = &s.chunks {
+                if let (Some(c), Some((first_slots, _, _))) = (&s.chunks, scratch) {
                     // Each tile's chunk count, scanned into its first slot.
-                    rec.fill(&c.first_slots, 0)?;
+                    rec.fill(first_slots, 0)?;
                     let push = ChunkCountPush { counts: chunk_push.slots };
                     rec.dispatch(&c.counts, Grid::Items(p.tiles), &[Binding::from(&p.uniform)], &push)?;
-                    scan.record(rec, &c.first_slots, p.tiles + 1)?;
-                    rec.copy(&c.first_slots, 4 * p.tiles, &chunk_counts, 4 * i as u64, 4)?;
+                    scan.record(rec, first_slots, p.tiles + 1)?;
+                    rec.copy(first_slots, 4 * p.tiles, &chunk_counts, 4 * i as u64, 4)?;
+                } else if s.chunks.is_some() {
+                    return Err(Error::Internal("the split blend's scratch was not reserved".into()));
                 }
                 if s.texel {
                     let view = |buffer, elements| {
@@ -1059,7 +1062,7 @@ impl Splatter {
         let chunks: Vec<u32> = device.read_mapped(&chunk_counts)?;
         let phase1 = split_timings(phase1, &phase1_marks);
         let phase2 = split_timings(phase2, &phase2_marks);
-        let scratch = self.sort.scratch_bytes() + self.scan.scratch_bytes();
+        let scratch = self.sort.scratch_bytes() + self.scan.scratch_bytes() + self.chunk_scratch.bytes();
         let mut frames = Vec::with_capacity(views.len());
         for (((((p, s), view), mut timings), later), chunks) in
             pending.into_iter().zip(plans).zip(views).zip(phase1).zip(phase2).zip(chunks)
@@ -1071,7 +1074,6 @@ impl Splatter {
                 + s.keys.size()
                 + s.values.size()
                 + s.pair_tiles.as_ref().map_or(0, Buffer::size)
-                + s.chunks.as_ref().map_or(0, |c| c.first_slots.size() + c.transmittance.size() + c.partials.size())
                 + p.ranges.size()
                 + scratch;
             frames.push(SplatFrame {
@@ -1195,18 +1197,49 @@ struct SortPlan {
     row_masks: bool,
 }
 
+/// The split blend's scratch memory, shared by every view of a call (their
+/// blends run one after another), grown to the largest.
+#[derive(Default)]
+struct ChunkScratch {
+    /// Each tile's first slot (then the total): its `list_chunks`, scanned.
+    first_slots: Option<Buffer>,
+    /// Per slot and tile pixel, the chunk's transmittance product.
+    transmittance: Option<Buffer>,
+    /// Per slot, partial sum and tile pixel, the chunk's blend.
+    partials: Option<Buffer>,
+}
+
+impl ChunkScratch {
+    /// Makes sure the buffers fit `tiles` tiles and `slots` slots of `pixels` pixels.
+    fn reserve(&mut self, device: &Device, tiles: u64, slots: u64, pixels: u64) -> Result<()> {
+        let grow = |b: &mut Option<Buffer>, name: &str, floats: u64| -> Result<()> {
+            if b.as_ref().is_none_or(|b| b.size() < floats * 4) {
+                *b = Some(device.create_buffer(name, floats * 4, MemoryKind::Storage)?);
+            }
+            Ok(())
+        };
+        grow(&mut self.first_slots, "chunk slots", tiles + 1)?;
+        grow(&mut self.transmittance, "chunk transmittance", slots * pixels)?;
+        grow(&mut self.partials, "chunk partials", slots * pixels * (CHUNK_FLOATS - 1))
+    }
+
+    /// GPU bytes held.
+    fn bytes(&self) -> u64 {
+        [&self.first_slots, &self.transmittance, &self.partials]
+            .iter()
+            .filter_map(|b| b.as_ref().map(Buffer::size))
+            .sum()
+    }
+}
+
 /// A view's split blend (`CHUNK_PASS` in `splat_blend_body.glsl`).
 struct ChunkPlan {
     /// Entries per chunk.
     length: u32,
     /// Chunk slots at most: the workgroups of passes 1 and 2.
     slots: u64,
-    /// Each tile's first slot (then the total): its `list_chunks`, scanned.
-    first_slots: Buffer,
-    /// Per slot and tile pixel, the chunk's transmittance product.
-    transmittance: Buffer,
-    /// Per slot, partial sum and tile pixel, the chunk's blend.
-    partials: Buffer,
+    /// Pixels of a tile.
+    pixels: u64,
     /// `splat_chunk_counts.comp`.
     counts: Arc<Kernel>,
     /// The blend's passes 1 (transmittance), 2 (chunk blend) and 3 (merge).
