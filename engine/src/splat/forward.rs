@@ -25,7 +25,8 @@ pub struct SplatStats {
     pub pairs: u64,
     /// Key bits sorted.
     pub key_bits: u32,
-    /// GPU bytes of per-frame working memory (splats, features, keys, ranges, and the sort's and split blend's scratch, which a batch's frames share).
+    /// GPU bytes of per-frame working memory (splats, features, keys, ranges,
+    /// and the sort's and split blend's scratch, which a batch's frames share).
     pub working_bytes: u64,
     /// Whether the blend skipped splats for the blocks of a tile (half-tile
     /// columns × row pairs) they cannot reach (the texel blend, where each
