@@ -522,6 +522,22 @@ fn split_tile_lists_blend_as_one_walk_does() {
     let surface = SplatSettings { surface_depth: true, ..all };
     // A full panorama (its lists wrap at the seam) and a frame without colour (the shadow maps').
     let panorama = lens_cameras(&city).into_iter().find(|(name, _)| *name == "equirectangular").unwrap().1;
+    // 3000 splats stacked nearly on one spot: opaque ones (α 0.99: pixels done in the first
+    // chunk, every later chunk skipped) and faint ones (α 0.005: done around the 1800th, deep in
+    // the list; fringe pixels never).
+    let stack = |logit: f32| {
+        let mut scene = one_gaussian([0.0, 0.0, 0.0], -1.5, logit);
+        for i in 1..3000 {
+            let g = one_gaussian([0.2 * (i as f32 * 0.37).sin(), 0.001 * i as f32, 0.0], -1.5, logit);
+            scene.means.extend(&g.means);
+            scene.log_scales.extend(&g.log_scales);
+            scene.rotations.extend(&g.rotations);
+            scene.opacity_logits.extend(&g.opacity_logits);
+            scene.sh.extend(&g.sh);
+        }
+        scene
+    };
+    let (opaque, faint) = (stack(8.0), stack((0.005f32 / 0.995).ln()));
     let mut checked = 0;
     for (name, scene, cam, base) in [
         ("street", &city.scene, &street, all),
@@ -529,6 +545,8 @@ fn split_tile_lists_blend_as_one_walk_does() {
         ("street, no rgb", &city.scene, &street, SplatSettings { rgb: false, ..all }),
         ("panorama", &city.scene, &panorama, all),
         ("random", &random, &close, SplatSettings { channels: geometric, ..all }),
+        ("opaque stack", &opaque, &close, SplatSettings { channels: geometric, ..all }),
+        ("faint stack", &faint, &close, SplatSettings { channels: geometric, ..all }),
     ] {
         let gpu_scene = GpuScene::upload(&d, scene).unwrap();
         for tile in TILE_SIZES {
@@ -557,7 +575,7 @@ fn split_tile_lists_blend_as_one_walk_does() {
             }
         }
     }
-    assert_eq!(checked, 5 * TILE_SIZES.len() * 3);
+    assert_eq!(checked, 7 * TILE_SIZES.len() * 3);
     let text = splatter.set_chunk_length(MAX_CHUNK_LENGTH + 1).err().map(|e| e.to_string()).unwrap_or_default();
     assert!(text.contains("chunk length 1073741825: exceeds"), "{text:?}");
     splatter.set_blend_pixels(default_blend_pixels(d.info())).unwrap();
