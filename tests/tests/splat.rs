@@ -502,9 +502,10 @@ fn split_tile_lists_blend_as_one_walk_does() {
     // that most tiles split, walks cross many chunks, pixels stop (T < 1e-4)
     // in one chunk and the median crosses T = 0.5 in another; every channel,
     // surface depths (whose median a later chunk can move), no colour, a
-    // panorama, every tile size, pixels-per-lane layout and fetch. Against
-    // the CPU twin at its tolerances, and against the whole-list blend, which
-    // rounds the same products in another order, at 1e-5.
+    // panorama, stacks of opaque and of faint splats, every tile size,
+    // pixels-per-lane layout and fetch. Against the CPU twin at its
+    // tolerances, and against the whole-list blend, which rounds the same
+    // products in another order, at 1e-5; the frame's chunk count too.
     let d = device();
     if !d.info().subgroup_ballot {
         eprintln!("skipping: the split blend is the texel blend's, which needs subgroup ballot");

@@ -953,11 +953,17 @@ impl Splatter {
             self.chunk_scratch.reserve(&device, p.tiles, c.slots, c.pixels)?;
         }
         let (sort, scan, chunk_scratch) = (&self.sort, &self.scan, &self.chunk_scratch);
-        // Each view's chunk count (the split blend's), read back with the frame.
-        let chunk_counts = device.create_buffer("chunk counts", 4 * views.len() as u64, MemoryKind::Readback)?;
+        // Each view's chunk count (the split blend's), read back with the frame where any view splits.
+        let chunk_counts = plans
+            .iter()
+            .any(|s| s.chunks.is_some())
+            .then(|| device.create_buffer("chunk counts", 4 * views.len() as u64, MemoryKind::Readback))
+            .transpose()?;
         let mut phase2_marks = Vec::with_capacity(views.len());
         let phase2 = device.run(|rec| -> Result<()> {
-            rec.fill(&chunk_counts, 0)?;
+            if let Some(counts) = &chunk_counts {
+                rec.fill(counts, 0)?;
+            }
             for (i, ((p, s), view)) in pending.iter().zip(&plans).zip(views).enumerate() {
                 phase2_marks.push(rec.stages_begun());
                 p.frame.record(rec, &p.uniform, &p.buffers(scene, view, Some(s)))?;
@@ -1019,13 +1025,13 @@ impl Splatter {
                     },
                     None => ChunkPush::zeroed(),
                 };
-                if let (Some(c), Some((first_slots, _, _))) = (&s.chunks, scratch) {
+                if let (Some(c), Some((first_slots, _, _)), Some(counts)) = (&s.chunks, scratch, &chunk_counts) {
                     // Each tile's chunk count, scanned into its first slot.
                     rec.fill(first_slots, 0)?;
                     let push = ChunkCountPush { counts: chunk_push.slots };
                     rec.dispatch(&c.counts, Grid::Items(p.tiles), &[Binding::from(&p.uniform)], &push)?;
                     scan.record(rec, first_slots, p.tiles + 1)?;
-                    rec.copy(first_slots, 4 * p.tiles, &chunk_counts, 4 * i as u64, 4)?;
+                    rec.copy(first_slots, 4 * p.tiles, counts, 4 * i as u64, 4)?;
                 } else if s.chunks.is_some() {
                     return Err(Error::Internal("the split blend's scratch was not reserved".into()));
                 }
@@ -1060,7 +1066,10 @@ impl Splatter {
             Ok(())
         })?;
 
-        let chunks: Vec<u32> = device.read_mapped(&chunk_counts)?;
+        let chunks: Vec<u32> = match &chunk_counts {
+            Some(counts) => device.read_mapped(counts)?,
+            None => vec![0; views.len()],
+        };
         let phase1 = split_timings(phase1, &phase1_marks);
         let phase2 = split_timings(phase2, &phase2_marks);
         let scratch = self.sort.scratch_bytes() + self.scan.scratch_bytes() + self.chunk_scratch.bytes();
