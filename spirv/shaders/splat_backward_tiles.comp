@@ -44,6 +44,8 @@ float grad_in(uvec2 addr, uint i) { return FloatsIn(addr).v[i]; }
 
 void main() {
     uint tile = block_index();
+    // Grids past 65,535 workgroups may hold a few spare ones (`grid_1d`): the whole workgroup leaves.
+    if (tile >= frame.size.z * frame.size.w) return;
     uint tiles_x = frame.size.z;
     uint local = gl_LocalInvocationIndex;
     uvec2 tile_xy = uvec2(tile % tiles_x, tile / tiles_x);

@@ -493,6 +493,8 @@ void main() {
         range.y = min(range.y, range.x + CHUNK_LENGTH);
     } else {
         tile = block_index();
+        // Grids past 65,535 workgroups may hold a few spare ones (`grid_1d`).
+        if (tile >= frame.size.z * frame.size.w) return;
         if (TILE_MASK && !tile_wanted(tile)) return;
         range = Uvec2s(frame.ranges).v[tile];
         bool split = list_chunks(range, CHUNK_LENGTH) != 0u;
@@ -616,6 +618,8 @@ void main() {
 #else
 void main() {
     uint tile = block_index();
+    // Grids past 65,535 workgroups may hold a few spare ones (`grid_1d`).
+    if (tile >= frame.size.z * frame.size.w) return;
     if (TILE_MASK && !tile_wanted(tile)) return;
     uint tiles_x = frame.size.z;
     uint local = gl_LocalInvocationIndex;
