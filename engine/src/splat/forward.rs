@@ -1012,28 +1012,22 @@ impl Splatter {
                     rec.dispatch(&s.ranges_kernel, Grid::Items(s.pairs), &[Binding::from(&p.uniform)], &())?;
                 }
                 rec.begin_stage("blend");
-                let scratch = match (&chunk_scratch.first_slots, &chunk_scratch.transmittance, &chunk_scratch.partials)
-                {
-                    (Some(f), Some(t), Some(p)) if s.chunks.is_some() => Some((f, t, p)),
-                    _ => None,
-                };
-                let chunk_push = match scratch {
-                    Some((first_slots, transmittance, partials)) => ChunkPush {
+                let mut chunk_push = ChunkPush::zeroed();
+                if let Some(c) = &s.chunks {
+                    let unreserved = || Error::Internal("the split blend's scratch was not reserved".into());
+                    let (first_slots, transmittance, partials) = chunk_scratch.buffers().ok_or_else(unreserved)?;
+                    let counts = chunk_counts.as_ref().ok_or_else(unreserved)?;
+                    chunk_push = ChunkPush {
                         slots: rec.addr(first_slots)?,
                         transmittance: rec.addr(transmittance)?,
                         partials: rec.addr(partials)?,
-                    },
-                    None => ChunkPush::zeroed(),
-                };
-                if let (Some(c), Some((first_slots, _, _)), Some(counts)) = (&s.chunks, scratch, &chunk_counts) {
+                    };
                     // Each tile's chunk count, scanned into its first slot.
                     rec.fill(first_slots, 0)?;
                     let push = ChunkCountPush { counts: chunk_push.slots };
                     rec.dispatch(&c.counts, Grid::Items(p.tiles), &[Binding::from(&p.uniform)], &push)?;
                     scan.record(rec, first_slots, p.tiles + 1)?;
                     rec.copy(first_slots, 4 * p.tiles, counts, 4 * i as u64, 4)?;
-                } else if s.chunks.is_some() {
-                    return Err(Error::Internal("the split blend's scratch was not reserved".into()));
                 }
                 if s.texel {
                     let view = |buffer, elements| {
@@ -1231,6 +1225,11 @@ impl ChunkScratch {
         grow(&mut self.first_slots, "chunk slots", tiles + 1)?;
         grow(&mut self.transmittance, "chunk transmittance", slots * pixels)?;
         grow(&mut self.partials, "chunk partials", slots * pixels * (CHUNK_FLOATS - 1))
+    }
+
+    /// The first slots, transmittance and partials, once reserved.
+    fn buffers(&self) -> Option<(&Buffer, &Buffer, &Buffer)> {
+        Some((self.first_slots.as_ref()?, self.transmittance.as_ref()?, self.partials.as_ref()?))
     }
 
     /// GPU bytes held.
