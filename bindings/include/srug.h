@@ -730,6 +730,12 @@ srug_status srug_renderer_set_surface_depth(srug_renderer *renderer, bool on);
 // the presets: docs/stages.md says why).
 srug_status srug_renderer_set_map_surface_depth(srug_renderer *renderer, bool on);
 
+// Coverage a shadow-map texel's occluders must reach for it to cast shadow
+// (median map depths), strictly between 0 and 1 (the presets: 0.6). At 0.5
+// each splat's half-coverage outline casts, so shadows come out wider than
+// their casters; more draws them in (docs/conventions.md, "Shadows").
+srug_status srug_renderer_set_map_coverage(srug_renderer *renderer, float coverage);
+
 // Applies a quality preset by name: `"fast"`, `"balanced"` (the default) or
 // `"reference"` (docs/bench/trade.md measures them). It sets the shadow map
 // (resolution, k, bias, depth modes, sigmoid or traced test), the SH degree

@@ -864,6 +864,23 @@ pub extern "C" fn srug_renderer_set_map_surface_depth(renderer: *mut srug_render
     })
 }
 
+/// Coverage a shadow-map texel's occluders must reach for it to cast shadow
+/// (median map depths), strictly between 0 and 1 (the presets: 0.6). At 0.5
+/// each splat's half-coverage outline casts, so shadows come out wider than
+/// their casters; more draws them in (docs/conventions.md, "Shadows").
+#[no_mangle]
+pub extern "C" fn srug_renderer_set_map_coverage(renderer: *mut srug_renderer, coverage: f32) -> srug_status {
+    guard("srug_renderer_set_map_coverage", || {
+        with_renderer(renderer, |r| {
+            let mut s = r.settings.shadow;
+            s.map_coverage = coverage;
+            s.validate()?;
+            r.settings.shadow = s;
+            Ok(())
+        })
+    })
+}
+
 /// Applies a quality preset by name: `"fast"`, `"balanced"` (the default) or
 /// `"reference"` (docs/bench/trade.md measures them). It sets the shadow map
 /// (resolution, k, bias, depth modes, sigmoid or traced test), the SH degree

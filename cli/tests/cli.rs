@@ -139,6 +139,18 @@ fn demo_generates_writes_and_checks_the_gpu() {
     ]);
     assert!(o.status.success(), "{}", text(&o));
     assert_eq!(image::open(&png_out).unwrap().width(), 64);
+    // The median depth read at another coverage; out of (0, 1) refused, nothing written.
+    let exr_out = dir.path().join("median.exr");
+    let median_at = |coverage: &str| {
+        let e = exr_out.to_str().unwrap();
+        let args = ["render", p, "--eye", "-40,-2,1.6", "--target", "0,0,1", "--size", "64x32", "--out", e];
+        srug(&[&args[..], &["--channels", "median_depth", "--median-coverage", coverage]].concat())
+    };
+    let o = median_at("1");
+    assert!(!o.status.success() && text(&o).contains("median coverage 1: must lie strictly"), "{}", text(&o));
+    assert!(!exr_out.exists(), "nothing written");
+    let o = median_at("0.7");
+    assert!(o.status.success() && exr_out.is_file(), "{}", text(&o));
 
     // `info` on what the demo wrote.
     let o = srug(&["info", ply.to_str().unwrap()]);
@@ -496,6 +508,15 @@ fn relight_renders_stills_time_lapses_and_prefiltered_environments() {
     assert_eq!(default_v, visibility_with(&["--shadow-surface-depth"]), "surface depths are the default");
     assert_ne!(default_v, visibility_with(&["--shadow-surface-depth=false"]), "centre depths change V");
     assert_ne!(default_v, visibility_with(&["--shadow-map-surface-depth"]), "the map's surface depths change V");
+    // The map read at one half's coverage casts from more of each splat's outline: more shadow.
+    let half = visibility_with(&["--shadow-map-coverage", "0.5"]);
+    let dark = |v: &[f32]| v.iter().filter(|x| **x < 0.5).count();
+    assert!(half != default_v && dark(&half) >= dark(&default_v), "map coverage 0.5 keeps V or lightens it");
+    let mut args = vec!["relight", ply, "--out", exr_out.to_str().unwrap(), "--shadow-map-coverage", "1.5"];
+    args.extend(common);
+    let o = srug(&args);
+    let message = text(&o);
+    assert!(!o.status.success() && message.contains("shadow map coverage 1.5: must lie strictly"), "{message}");
     let mut args = vec!["relight", ply, "--out", exr_out.to_str().unwrap(), "--shadow-surface-depth=maybe"];
     args.extend(common);
     let o = srug(&args);

@@ -123,6 +123,7 @@ struct ShadowOptions {
     test: Option<String>,
     filter: Option<String>,
     cascades: Option<u32>,
+    map_coverage: Option<f32>,
 }
 
 impl ShadowOptions {
@@ -135,6 +136,7 @@ impl ShadowOptions {
         s.slope_bias = self.slope_bias.unwrap_or(s.slope_bias);
         s.normal_offset = self.normal_offset.unwrap_or(s.normal_offset);
         s.cascades = self.cascades.unwrap_or(s.cascades);
+        s.map_coverage = self.map_coverage.unwrap_or(s.map_coverage);
         if let Some(d) = &self.receiver_depth {
             s.receiver_depth = srug::shadow::DepthMode::parse(d).map_err(py_err)?;
         }
@@ -447,7 +449,7 @@ impl Device {
     /// (N, H, W) for one-float ones, uint32 for "top_gaussian".
     #[pyo3(signature = (scene, cameras, channels, background = (0.0, 0.0, 0.0), sh_degree = None, tile = 16, progress = None,
                         surface_depth = false, host_depth = None, depth_convention = "camera_z", near = 0.0,
-                        far = 0.0))]
+                        far = 0.0, median_coverage = 0.5))]
     #[allow(clippy::too_many_arguments, reason = "the Python keyword arguments of one call")]
     fn render<'py>(
         &self,
@@ -464,6 +466,7 @@ impl Device {
         depth_convention: &str,
         near: f32,
         far: f32,
+        median_coverage: f32,
     ) -> PyResult<Bound<'py, PyDict>> {
         let device = self.gpu()?;
         let cams = &cameras.cameras;
@@ -486,6 +489,7 @@ impl Device {
             sh_degree,
             tile,
             surface_depth,
+            median_coverage,
             ..SplatSettings::default()
         };
         let (n, p) = (cams.len(), (w as usize) * (h as usize));
@@ -591,7 +595,7 @@ impl Device {
                         shadow_cull = false, shadow_resolution = None, shadow_k = None, shadow_bias = None,
                         shadow_slope_bias = None, shadow_normal_offset = None, receiver_depth = None,
                         shadow_test = None, shadow_filter = None, shadow_cascades = None,
-                        map_surface_depth = None))]
+                        map_surface_depth = None, map_coverage = None))]
     #[allow(clippy::too_many_arguments, reason = "the Python keyword arguments of one call")]
     fn relight<'py>(
         &self,
@@ -625,6 +629,7 @@ impl Device {
         shadow_filter: Option<String>,
         shadow_cascades: Option<u32>,
         map_surface_depth: Option<bool>,
+        map_coverage: Option<f32>,
     ) -> PyResult<Bound<'py, PyDict>> {
         let shadow = ShadowOptions {
             resolution: shadow_resolution,
@@ -636,6 +641,7 @@ impl Device {
             test: shadow_test,
             filter: shadow_filter,
             cascades: shadow_cascades,
+            map_coverage,
         };
         let device = self.gpu()?;
         let cams = &cameras.cameras;
@@ -767,7 +773,7 @@ impl Device {
     #[pyo3(signature = (scene, camera, sun, resolution = 2048, k = 50.0, bias = 0.8, map_depth = None,
                         receiver_depth = None, sun_intensity = std::f32::consts::PI, slope_bias = 3.0,
                         normal_offset = 0.0, fit = "scene", tile = 16, filter = "pcf", surface_depth = true,
-                        map_surface_depth = false))]
+                        map_surface_depth = false, map_coverage = None))]
     #[allow(clippy::too_many_arguments, reason = "the Python keyword arguments of one call")]
     fn shadow(
         &self,
@@ -788,6 +794,7 @@ impl Device {
         filter: &str,
         surface_depth: bool,
         map_surface_depth: bool,
+        map_coverage: Option<f32>,
     ) -> PyResult<ShadowTest> {
         let [camera] = camera.cameras.as_slice() else {
             return Err(invalid(format!("{} cameras", camera.cameras.len()), "the shadow test takes one camera"));
@@ -809,6 +816,7 @@ impl Device {
         settings.filter = srug::shadow::ShadowFilter::parse(filter).map_err(py_err)?;
         settings.tile = tile;
         (settings.surface_depth, settings.map_surface_depth) = (surface_depth, map_surface_depth);
+        settings.map_coverage = map_coverage.unwrap_or(settings.map_coverage);
         if let Some(m) = map_depth {
             settings.map_depth = srug::shadow::DepthMode::parse(m).map_err(py_err)?;
         }

@@ -376,6 +376,7 @@ class Device:
         depth_convention: str = "camera_z",
         near: float = 0.0,
         far: float = 0.0,
+        median_coverage: float = 0.5,
     ) -> Dict[str, np.ndarray]:
         """Splats every camera into G-buffer channels, stacked over the cameras.
 
@@ -395,6 +396,9 @@ class Device:
         (``"reversed_z"``, 0: nothing; ``far`` may be inf), with ``near`` and
         ``far``: splats behind it are hidden per pixel, so with a black
         background ``rgb + (1 - alpha) * yours`` composites the two.
+        ``median_coverage``: the coverage 1 − T at which median_depth reads a
+        pixel's depth, strictly between 0 and 1 (0.5: the median; 0 where
+        coverage never gets there).
         """
         if isinstance(channels, str):
             channels = [channels]
@@ -416,6 +420,7 @@ class Device:
             depth_convention=str(depth_convention),
             near=float(near),
             far=float(far),
+            median_coverage=float(median_coverage),
         )
 
     def relight(
@@ -454,6 +459,7 @@ class Device:
         shadow_filter: Optional[str] = None,
         shadow_cascades: Optional[int] = None,
         map_surface_depth: Optional[bool] = None,
+        map_coverage: Optional[float] = None,
     ) -> Any:
         """Relights every camera: (N, H, W, 3) float32.
 
@@ -486,8 +492,10 @@ class Device:
         ``shadow_normal_offset`` (map texels), ``receiver_depth`` ("median" or
         "expected"), ``shadow_test`` ("sigmoid" or "traced"), ``shadow_filter``
         ("pcf": the four nearest texels' tests weighted bilinearly, or "depth":
-        one test of the bilinear depth): override the preset's (None keeps it),
-        as ``srug relight``'s options of those names.
+        one test of the bilinear depth), ``map_coverage`` (the coverage a map
+        texel's occluders must reach to cast shadow, strictly between 0 and 1;
+        the presets: fast 0.6, else 0.55): override the preset's (None keeps
+        it), as ``srug relight``'s options of those names.
         """
         if background is not None:
             background = tuple(float(v) for v in background)
@@ -532,6 +540,7 @@ class Device:
             shadow_filter=None if shadow_filter is None else str(shadow_filter),
             shadow_cascades=None if shadow_cascades is None else int(shadow_cascades),
             map_surface_depth=None if map_surface_depth is None else bool(map_surface_depth),
+            map_coverage=None if map_coverage is None else float(map_coverage),
         )
         return (out[output], out["alpha"]) if return_alpha else out[output]
 
@@ -553,6 +562,7 @@ class Device:
         filter: str = "pcf",
         surface_depth: bool = True,
         map_surface_depth: bool = False,
+        map_coverage: Optional[float] = None,
     ) -> "ShadowTest":
         """The differentiable sun shadow test for one camera (the paper's editable visibility):
         ``.visibility`` is V = sigmoid(k·(z_s − z + bias)) per pixel, (H, W) float32 (1 where no
@@ -568,7 +578,9 @@ class Device:
         depths) are the balanced preset's, as ``srug::shadow::ShadowSettings::default()``; the
         backward holds the normals they read fixed. ``surface_depth``: each receiver's depth where
         its pixel's ray meets the splat's plane (False: the splats' centre depths);
-        ``map_surface_depth``: for the map's occluders too; both differentiated (docs/stages.md). ``filter``: "pcf" (V = Σ w_i·sigmoid(k·(z_i − z + bias)) over the four
+        ``map_surface_depth``: for the map's occluders too; both differentiated (docs/stages.md).
+        ``map_coverage``: the coverage a map texel's occluders must reach for it to hold an
+        occluder depth (median map depths; None: the balanced preset's 0.55). ``filter``: "pcf" (V = Σ w_i·sigmoid(k·(z_i − z + bias)) over the four
         nearest texels, weighted bilinearly) or "depth" (one sigmoid of the bilinear depth). ``fit``: "scene" or "view" (the map covers the camera's view within the scene's
         bounds). ``tile``: the splat tile of the map and the receivers, 16 or 8 (8 makes the
         backward faster where splats crowd tiles; V is the same)."""
@@ -592,6 +604,7 @@ class Device:
                 filter=str(filter),
                 surface_depth=bool(surface_depth),
                 map_surface_depth=bool(map_surface_depth),
+                map_coverage=None if map_coverage is None else float(map_coverage),
             )
         )
 

@@ -37,6 +37,7 @@ class Device:
         depth_convention: str = ...,
         near: float = ...,
         far: float = ...,
+        median_coverage: float = ...,
     ) -> Dict[str, np.ndarray]: ...
     def relight(
         self,
@@ -69,6 +70,7 @@ class Device:
         shadow_filter: Optional[str] = ...,
         shadow_cascades: Optional[int] = ...,
         map_surface_depth: Optional[bool] = ...,
+        map_coverage: Optional[float] = ...,
     ) -> Dict[str, np.ndarray]: ...
 
     def shadow(
@@ -89,6 +91,7 @@ class Device:
         filter: str = ...,
         surface_depth: bool = ...,
         map_surface_depth: bool = ...,
+        map_coverage: Optional[float] = ...,
     ) -> ShadowTest: ...
 
 class ShadowTest:

@@ -374,6 +374,9 @@ def test_shadow_gradients_match_finite_differences(dev, shadow_problem):
     # Centre depths (not the preset's surface depths) for the receivers move V.
     centre = dev.shadow(scene_of(means, logits), cam, slope_bias=0.0, surface_depth=False, **low).visibility
     assert centre.shape == plain.shape and not np.array_equal(centre, plain)
+    # A map read at one half's coverage casts from more of each splat's outline: no less shadow.
+    half = dev.shadow(scene_of(means, logits), cam, slope_bias=0.0, map_coverage=0.5, **low).visibility
+    assert not np.array_equal(half, plain) and (half < 0.5).sum() >= (plain < 0.5).sum()
     sloped = dev.shadow(scene_of(means, logits), cam, slope_bias=3.0, normal_offset=1.0, **low).visibility
     assert sloped.shape == plain.shape and not np.array_equal(sloped, plain)
     assert (sloped < 0.5).sum() <= (plain < 0.5).sum()
@@ -444,6 +447,13 @@ def test_surface_depth_moves_depths_only(dev, city):
     assert np.array_equal(centre["rgb"], surface["rgb"]) and np.array_equal(centre["alpha"], surface["alpha"])
     moved = np.abs(centre["median_depth"] - surface["median_depth"]) > 1e-3
     assert 0.01 < moved.mean(), moved.mean()
+    # The median read where coverage reaches 0.7: fewer pixels hold one, the others' depths only.
+    deeper = dev.render(scene, cam, channels=names, median_coverage=0.7)
+    assert np.array_equal(centre["rgb"], deeper["rgb"]) and np.array_equal(centre["depth"], deeper["depth"])
+    assert (deeper["median_depth"] > 0).sum() < (centre["median_depth"] > 0).sum()
+    with pytest.raises(srug.Error) as e:
+        dev.render(scene, cam, channels=names, median_coverage=0.0)
+    assert "median coverage 0: must lie strictly between 0 and 1" in str(e.value)
     lit = dev.relight(scene, cam, sun=(260.0, 50.0))
     assert lit.shape == (1, 48, 176, 3) and np.isfinite(lit).all()
     # The presets' surface depths are the default: True changes nothing, False does.
@@ -583,7 +593,7 @@ def test_relight_shadow_options_override_the_preset(dev, city):
     np.testing.assert_array_equal(base, same)
     hard = dev.relight(scene, one, sun=(250.0, 30.0), shadow_filter="depth")
     assert not np.array_equal(base, hard)
-    for surface in [dict(surface_depth=False), dict(map_surface_depth=True)]:
+    for surface in [dict(surface_depth=False), dict(map_surface_depth=True), dict(map_coverage=0.5)]:
         other = dev.relight(scene, one, sun=(250.0, 30.0), **surface)
         assert np.isfinite(other).all() and not np.array_equal(base, other), surface
     cascaded = dev.relight(scene, one, sun=(250.0, 30.0), shadow_fit="cascades", shadow_cascades=2)
@@ -599,6 +609,7 @@ def test_relight_shadow_options_override_the_preset(dev, city):
         ({"receiver_depth": "deepest"}, "depth mode"),
         ({"shadow_k": -1.0}, "sharpness"),
         ({"shadow_filter": "soft"}, "shadow filter"),
+        ({"map_coverage": 1.0}, "shadow map coverage 1: must lie strictly between 0 and 1"),
         ({"shadow_fit": "cascades", "shadow_cascades": 9}, "cascades"),
     ]:
         with pytest.raises(srug.Error) as e:

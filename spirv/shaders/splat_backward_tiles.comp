@@ -22,6 +22,8 @@
 // Splats per barrier, set by the host so every pixel's terms for a batch fit
 // shared memory (BATCH × STRIDE × TILE_PIXELS floats) and BATCH × STRIDE ≤ TILE_PIXELS.
 layout(constant_id = 1) const uint BATCH = 3;
+// The transmittance at which the forward blend read the median depth (splat_blend_body.glsl `MEDIAN_T`).
+layout(constant_id = 3) const float MEDIAN_T = 0.5;
 // Every pixel's terms per (splat of the batch, component); summed in pixel
 // order by one invocation per (splat, component): deterministic and cheap
 // (on lavapipe a subgroupAdd costs ~100 ns, a shared load ~1 ns).
@@ -99,7 +101,8 @@ void main() {
             float next_T = T * (1.0 - alpha);
             if (next_T < 1e-4) break;
             float z = depth_at(head.z, stored_slope(conic, color), d, ortho);
-            if ((T > 0.5 && next_T <= 0.5) || (SURFACE_DEPTH && T <= 0.5 && alpha >= 0.5 && z < median_z)) {
+            if ((T > MEDIAN_T && next_T <= MEDIAN_T) ||
+                (SURFACE_DEPTH && T <= MEDIAN_T && alpha >= 1.0 - MEDIAN_T && z < median_z)) {
                 median_j = j;
                 median_z = z;
             }

@@ -17,10 +17,10 @@ use srug::shadow::backward::GpuVisibilityLoss;
 use srug::shadow::cpu::{sigmoid_backward_cpu, sigmoid_visibility_cpu, DepthImage, VisibilityLoss};
 use srug::shadow::{light_camera, DepthMode, ShadowFilter, ShadowFit, ShadowPass, ShadowSettings, Sun};
 use srug::splat::backward::HostGaussianGradients;
-use srug::splat::cpu::{render_blends, DepthAt, Gaussian64};
+use srug::splat::cpu::{render_blends, CpuSplat, DepthAt, Gaussian64, MedianRule, PixelBlend};
 use srug::splat::cpu_backward::{blend_backward_cpu, project_backward, GaussianGrad};
 use srug::splat::Channel;
-use srug::splat::{Channels, NormalSource, SplatFrame, SplatSettings, Splatter, DEFAULT_TILE};
+use srug::splat::{Channels, NormalSource, SplatFrame, SplatSettings, Splatter, DEFAULT_MEDIAN_COVERAGE, DEFAULT_TILE};
 use srug_tests::{assert_no_validation_messages, device, save_comparison};
 
 fn read(d: &Device, b: Option<&Buffer>) -> Vec<f64> {
@@ -514,10 +514,22 @@ struct Chain {
 }
 
 impl Chain {
+    /// The map's (light's) camera and median rule, or the receivers'.
+    fn view(&self, map: bool) -> (&Camera, MedianRule) {
+        if map {
+            (&self.light, MedianRule::new(self.depth, self.settings.map_coverage))
+        } else {
+            (&self.camera, MedianRule::new(self.depth, DEFAULT_MEDIAN_COVERAGE))
+        }
+    }
+
+    fn blends(&self, params: &[Gaussian64], map: bool) -> (Vec<Option<CpuSplat>>, Vec<PixelBlend>) {
+        let (cam, rule) = self.view(map);
+        render_blends(params, &self.scene, cam, NormalSource::ShortestAxis, DEFAULT_TILE, self.depth, rule.coverage)
+    }
+
     fn images(&self, params: &[Gaussian64]) -> (DepthImage, DepthImage) {
-        let blends =
-            |cam| render_blends(params, &self.scene, cam, NormalSource::ShortestAxis, DEFAULT_TILE, self.depth).1;
-        let (lb, cb) = (blends(&self.light), blends(&self.camera));
+        let (lb, cb) = (self.blends(params, true).1, self.blends(params, false).1);
         (
             DepthImage::from_blends(self.light.width, self.light.height, &lb),
             DepthImage::from_blends(self.camera.width, self.camera.height, &cb),
@@ -541,10 +553,10 @@ impl Chain {
         let (map, rec) = self.images(params);
         let g = sigmoid_backward_cpu(&self.light, &map, &self.camera, &rec, &self.settings, loss);
         let mut out = vec![GaussianGrad::default(); params.len()];
-        for (cam, pg) in [(&self.light, &g.map), (&self.camera, &g.receiver)] {
-            let (splats, _) =
-                render_blends(params, &self.scene, cam, NormalSource::ShortestAxis, DEFAULT_TILE, self.depth);
-            let sg = blend_backward_cpu(&splats, cam, [0.0; 3], pg, DEFAULT_TILE, self.depth.is_surface());
+        for (map, pg) in [(true, &g.map), (false, &g.receiver)] {
+            let (cam, rule) = self.view(map);
+            let (splats, _) = self.blends(params, map);
+            let sg = blend_backward_cpu(&splats, cam, [0.0; 3], pg, DEFAULT_TILE, rule);
             for (i, p) in params.iter().enumerate() {
                 let d = project_backward(p, cam, &sg[i], false, DEFAULT_TILE);
                 let o = &mut out[i];

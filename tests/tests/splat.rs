@@ -18,7 +18,8 @@ use srug::splat::Channel;
 use srug::splat::{
     cameras_per_batch, default_blend_pixels, default_pixel_reach, default_two_splats_per_step, default_window_fetch,
     BlendVariant, Channels, DepthKey, GBuffer, NormalSource, SplatSettings, Splatter, TileBounds, BATCH_BYTES,
-    BLEND_PIXELS, DEFAULT_CHUNK_LENGTH, DEFAULT_TILE, FRAMES_PER_SUBMISSION, MAX_CHUNK_LENGTH, TILE_SIZES,
+    BLEND_PIXELS, DEFAULT_CHUNK_LENGTH, DEFAULT_MEDIAN_COVERAGE, DEFAULT_TILE, FRAMES_PER_SUBMISSION, MAX_CHUNK_LENGTH,
+    TILE_SIZES,
 };
 use srug_tests::{
     assert_no_validation_messages, device, move_scene, psnr, random_scene, save_comparison, NAN_SENTINEL,
@@ -117,6 +118,7 @@ fn all_settings() -> SplatSettings {
         tile: DEFAULT_TILE,
         tile_bounds: TileBounds::default(),
         surface_depth: false,
+        median_coverage: DEFAULT_MEDIAN_COVERAGE,
     }
 }
 
@@ -544,6 +546,7 @@ fn split_tile_lists_blend_as_one_walk_does() {
         ("street", &city.scene, &street, all),
         ("street, surface depths", &city.scene, &street, surface),
         ("street, no rgb", &city.scene, &street, SplatSettings { rgb: false, ..all }),
+        ("street, median at 0.7", &city.scene, &street, SplatSettings { median_coverage: 0.7, ..surface }),
         ("panorama", &city.scene, &panorama, all),
         ("random", &random, &close, SplatSettings { channels: geometric, ..all }),
         ("opaque stack", &opaque, &close, SplatSettings { channels: geometric, ..all }),
@@ -576,7 +579,7 @@ fn split_tile_lists_blend_as_one_walk_does() {
             }
         }
     }
-    assert_eq!(checked, 7 * TILE_SIZES.len() * 3);
+    assert_eq!(checked, 8 * TILE_SIZES.len() * 3);
     let text = splatter.set_chunk_length(MAX_CHUNK_LENGTH + 1).err().map(|e| e.to_string()).unwrap_or_default();
     assert!(text.contains("chunk length 1073741825: exceeds"), "{text:?}");
     splatter.set_blend_pixels(default_blend_pixels(d.info())).unwrap();
@@ -1366,6 +1369,56 @@ fn surface_depth_matches_cpu_twin_and_lies_on_the_surfaces() {
         errors[1],
         errors[0]
     );
+    assert_no_validation_messages(&d);
+}
+
+#[test]
+fn a_median_read_at_another_coverage_matches_cpu_twin() {
+    // The median depth channel read where coverage 1 − T reaches 0.3 or 0.7
+    // (shadow maps read theirs at more than one half), centre and surface
+    // depths, through a pinhole camera and the sun's light camera, in every
+    // blend variant; against the twin, and not the one-half median's image.
+    let d = device();
+    let mut splatter = Splatter::new(&d).unwrap();
+    let city = demo_city(&DemoOptions { seed: 7, gaussians: 40_000, sh_degree: 1 }).unwrap();
+    let gpu_scene = GpuScene::upload(&d, &city.scene).unwrap();
+    let sun = srug::shadow::Sun::from_azimuth_elevation(150.0, 40.0, [1.0; 3]).unwrap();
+    let bounds = city.scene.bounds().unwrap();
+    let light = srug::shadow::light_camera(&bounds, &sun, 256, srug::shadow::ShadowFit::SceneBounds, None).unwrap();
+    let cameras = [("pinhole", city.cameras[1].resized(352, 96)), ("orthographic", light)];
+    let base = SplatSettings {
+        channels: Channels { depth: true, median_depth: true, top_gaussian: true, ..Channels::default() },
+        prefill: Some(NAN),
+        ..SplatSettings::default()
+    };
+    let chosen = splatter.blend_variant();
+    let covered = |g: &GBuffer| g.get(Channel::MedianDepth).unwrap().iter().filter(|z| **z > 0.0).count();
+    for (name, camera) in &cameras {
+        for surface_depth in [false, true] {
+            let half = SplatSettings { surface_depth, ..base };
+            let (g, _) = splatter.render(&gpu_scene, camera, &half).unwrap();
+            let half_covered = covered(&g.read(&d).unwrap());
+            for coverage in [0.3, 0.7] {
+                let settings = SplatSettings { median_coverage: coverage, ..half };
+                for variant in blend_variants(&d) {
+                    splatter.set_blend_variant(variant).unwrap();
+                    let label = format!("median_{coverage}_{name}_surface_{surface_depth}_{variant:?}");
+                    let gpu = render_both(&d, &mut splatter, &city.scene, camera, &settings, &label);
+                    // Less coverage needed, more pixels hold a median depth; more, fewer.
+                    let n = covered(&gpu);
+                    let expected = if coverage < 0.5 { n > half_covered } else { n < half_covered };
+                    assert!(expected, "{label}: {n} pixels hold a median against {half_covered} at one half");
+                }
+            }
+        }
+    }
+    for bad in [0.0, 1.0, f32::NAN, -0.2] {
+        let settings = SplatSettings { median_coverage: bad, ..base };
+        let text = splatter.render(&gpu_scene, &cameras[0].1, &settings).err().map(|e| e.to_string());
+        let text = text.unwrap_or_default();
+        assert!(text.contains(&format!("median coverage {bad}: must lie strictly between 0 and 1")), "{text:?}");
+    }
+    splatter.set_blend_variant(chosen).unwrap();
     assert_no_validation_messages(&d);
 }
 

@@ -12,12 +12,19 @@ use srug::gpu::{Device, MemoryKind};
 use srug::scene::activate::GpuScene;
 use srug::scene::{Camera, Materials, Scene};
 use srug::splat::backward::{BlendGrads, HostGaussianGradients};
-use srug::splat::cpu::{preprocess_params, render_blends, DepthAt, Gaussian64};
+use srug::splat::cpu::{preprocess_params, render_blends, DepthAt, Gaussian64, MedianRule};
 use srug::splat::cpu_backward::{blend_backward_cpu, project_backward, GaussianGrad, PixelGrads};
 use srug::splat::Channel;
 use srug::splat::PerChannel;
-use srug::splat::{Channels, NormalSource, SplatSettings, Splatter, TileBounds, DEFAULT_TILE, TILE_SIZES};
+use srug::splat::{
+    Channels, NormalSource, SplatSettings, Splatter, TileBounds, DEFAULT_MEDIAN_COVERAGE, DEFAULT_TILE, TILE_SIZES,
+};
 use srug_tests::{assert_no_validation_messages, device, move_scene};
+
+/// Centre depths, the median at one half.
+const CENTRE: MedianRule = MedianRule { surface_depth: false, coverage: DEFAULT_MEDIAN_COVERAGE };
+/// Surface depths, the median at one half.
+const SURFACE: MedianRule = MedianRule { surface_depth: true, coverage: DEFAULT_MEDIAN_COVERAGE };
 
 fn scene(n: usize, seed: u64) -> Scene {
     let mut rng = Pcg64Mcg::seed_from_u64(seed);
@@ -83,7 +90,7 @@ fn gpu_gradients(
     bg: [f32; 3],
     grads: &BlendGrads,
 ) -> HostGaussianGradients {
-    gpu_gradients_tiled(d, scene, camera, bg, grads, DEFAULT_TILE, false).unwrap()
+    gpu_gradients_tiled(d, scene, camera, bg, grads, DEFAULT_TILE, CENTRE).unwrap()
 }
 
 fn gpu_gradients_tiled(
@@ -93,12 +100,18 @@ fn gpu_gradients_tiled(
     bg: [f32; 3],
     grads: &BlendGrads,
     tile: u32,
-    surface_depth: bool,
+    rule: MedianRule,
 ) -> srug::Result<HostGaussianGradients> {
     let mut splatter = Splatter::new(d).unwrap();
     let gpu_scene = GpuScene::upload(d, scene).unwrap();
-    let settings =
-        SplatSettings { background: bg, channels: Channels::ALL, tile, surface_depth, ..SplatSettings::default() };
+    let settings = SplatSettings {
+        background: bg,
+        channels: Channels::ALL,
+        tile,
+        surface_depth: rule.surface_depth,
+        median_coverage: rule.coverage,
+        ..SplatSettings::default()
+    };
     let frame = splatter.render_frame(&gpu_scene, camera, &settings).unwrap();
     let out = splatter.backward(&frame, &gpu_scene, grads, true)?;
     Ok(out.read(d).unwrap())
@@ -156,7 +169,7 @@ fn compare(label: &str, gpu: &HostGaussianGradients, cpu: &[GaussianGrad], tol: 
 }
 
 fn cpu_gradients(scene: &Scene, camera: &Camera, bg: [f32; 3], host: &PixelGrads) -> Vec<GaussianGrad> {
-    cpu_gradients_tiled(scene, camera, bg, host, DEFAULT_TILE, DepthAt::Centre)
+    cpu_gradients_tiled(scene, camera, bg, host, DEFAULT_TILE, CENTRE)
 }
 
 /// The twin's gradients.
@@ -166,11 +179,11 @@ fn cpu_gradients_tiled(
     bg: [f32; 3],
     host: &PixelGrads,
     tile: u32,
-    depth: DepthAt,
+    rule: MedianRule,
 ) -> Vec<GaussianGrad> {
     let params: Vec<Gaussian64> = (0..scene.len()).map(|i| Gaussian64::from_scene(scene, i)).collect();
-    let splats = preprocess_params(&params, scene, camera, NormalSource::ShortestAxis, tile, depth);
-    let sg = blend_backward_cpu(&splats, camera, bg.map(f64::from), host, tile, depth.is_surface());
+    let splats = preprocess_params(&params, scene, camera, NormalSource::ShortestAxis, tile, rule.depth());
+    let sg = blend_backward_cpu(&splats, camera, bg.map(f64::from), host, tile, rule);
     (0..scene.len()).map(|i| project_backward(&Gaussian64::from_scene(scene, i), camera, &sg[i], true, tile)).collect()
 }
 
@@ -240,13 +253,21 @@ fn gpu_backward_matches_cpu_twin_with_surface_depths() {
         let scene = scene(300, 20 + seed as u64);
         let pixels = (camera.width * camera.height) as usize;
         let (host, grads) = random_grads(&d, pixels, 120 + seed as u64);
-        let gpu = gpu_gradients_tiled(&d, &scene, camera, bg, &grads, DEFAULT_TILE, true).unwrap();
-        let cpu = cpu_gradients_tiled(&scene, camera, bg, &host, DEFAULT_TILE, DepthAt::Surface);
+        let gpu = gpu_gradients_tiled(&d, &scene, camera, bg, &grads, DEFAULT_TILE, SURFACE).unwrap();
+        let cpu = cpu_gradients_tiled(&scene, camera, bg, &host, DEFAULT_TILE, SURFACE);
         compare(&format!("{name}, surface depths"), &gpu, &cpu, 1e-3);
         // The slope's share is not negligible: without it the twin differs.
-        let centre = cpu_gradients_tiled(&scene, camera, bg, &host, DEFAULT_TILE, DepthAt::Centre);
+        let centre = cpu_gradients_tiled(&scene, camera, bg, &host, DEFAULT_TILE, CENTRE);
         let moved = cpu.iter().zip(&centre).filter(|(a, b)| (a.rotation[1] - b.rotation[1]).abs() > 1e-3).count();
         assert!(moved >= 30, "{name}: only {moved} quaternion gradients changed with surface depths");
+        // The median read at 70% coverage (as shadow maps read theirs past one half):
+        // its gradient goes to other splats, as the twin's.
+        let deeper = MedianRule { coverage: 0.7, ..SURFACE };
+        let gpu = gpu_gradients_tiled(&d, &scene, camera, bg, &grads, DEFAULT_TILE, deeper).unwrap();
+        let cpu_deeper = cpu_gradients_tiled(&scene, camera, bg, &host, DEFAULT_TILE, deeper);
+        compare(&format!("{name}, surface depths, median at 0.7"), &gpu, &cpu_deeper, 1e-3);
+        let moved = cpu_deeper.iter().zip(&cpu).filter(|(a, b)| (a.mean - b.mean).length() > 1e-3).count();
+        assert!(moved >= 10, "{name}: only {moved} mean gradients changed with the median at 0.7");
     }
     assert_no_validation_messages(&d);
 }
@@ -301,10 +322,10 @@ fn gpu_backward_matches_cpu_twin_at_every_tile_size() {
     for tile in TILE_SIZES {
         // Every pixel's terms of a batch of at least one splat: 24 floats per pixel with every channel.
         let needed = tile * tile * 24 * 4 + 64;
-        match gpu_gradients_tiled(&d, &scene, &camera, bg, &grads, tile, false) {
+        match gpu_gradients_tiled(&d, &scene, &camera, bg, &grads, tile, CENTRE) {
             Ok(gpu) => {
                 assert!(needed <= d.info().max_shared_memory, "tile {tile} ran with too little shared memory");
-                let cpu = cpu_gradients_tiled(&scene, &camera, bg, &host, tile, DepthAt::Centre);
+                let cpu = cpu_gradients_tiled(&scene, &camera, bg, &host, tile, CENTRE);
                 compare(&format!("tile {tile}"), &gpu, &cpu, 1e-3);
                 ran += 1;
             }
@@ -333,7 +354,15 @@ fn gpu_backward_matches_central_finite_differences() {
     let gpu = gpu_gradients(&d, &scene, &camera, bg, &grads);
     let params: Vec<Gaussian64> = (0..scene.len()).map(|i| Gaussian64::from_scene(&scene, i)).collect();
     let loss = |p: &[Gaussian64]| -> f64 {
-        let (_, blends) = render_blends(p, &scene, &camera, NormalSource::ShortestAxis, DEFAULT_TILE, DepthAt::Centre);
+        let (_, blends) = render_blends(
+            p,
+            &scene,
+            &camera,
+            NormalSource::ShortestAxis,
+            DEFAULT_TILE,
+            DepthAt::Centre,
+            DEFAULT_MEDIAN_COVERAGE,
+        );
         let mut total = 0.0;
         for (px, b) in blends.iter().enumerate() {
             for (k, (v, w)) in b.values.iter().zip(&host.values[px]).enumerate() {

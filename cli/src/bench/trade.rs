@@ -75,6 +75,9 @@ pub fn trade_settings(with_network: bool) -> Vec<TradeSetting> {
     knob("shadow filter", "depth".into(), &|s| s.shadow.filter = ShadowFilter::Depth);
     knob("surface depths", "off".into(), &|s| s.shadow.surface_depth = false);
     knob("surface depths", "map too".into(), &|s| s.shadow.map_surface_depth = true);
+    for c in [0.5f32, 0.6, 0.65] {
+        knob("shadow map coverage", c.to_string(), &|s| s.shadow.map_coverage = c);
+    }
     knob("shadow fit", "view".into(), &|s| s.shadow.fit = ShadowFit::ViewFrustum);
     for n in [2u32, 3] {
         knob("shadow fit", format!("{n} cascades"), &|s| {

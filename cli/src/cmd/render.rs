@@ -9,7 +9,7 @@ use srug::scene::activate;
 use srug::scene::Camera;
 use srug::splat::{
     cameras_per_batch, Channels, GBuffer, NormalSource, SplatSettings, SplatStats, Splatter, TileBounds, BATCH_BYTES,
-    DEFAULT_TILE,
+    DEFAULT_MEDIAN_COVERAGE, DEFAULT_TILE,
 };
 use srug::{Error, Result};
 
@@ -61,6 +61,10 @@ pub(super) struct RenderArgs {
     /// rather than at the splat's centre (pinhole cameras; docs/stages.md).
     #[arg(long)]
     surface_depth: bool,
+    /// Coverage 1 − T at which the median_depth channel reads a pixel's depth,
+    /// strictly between 0 and 1 (0.5: the median).
+    #[arg(long, default_value_t = DEFAULT_MEDIAN_COVERAGE)]
+    median_coverage: f32,
     #[command(flatten)]
     writers: WriterArgs,
 }
@@ -80,6 +84,7 @@ impl RenderArgs {
             tile,
             tile_bounds,
             surface_depth,
+            median_coverage,
             writers,
         } = self;
         let is_exr = output_is_exr(out)?;
@@ -119,6 +124,7 @@ impl RenderArgs {
             tile_bounds: *tile_bounds,
             rgb,
             surface_depth: *surface_depth,
+            median_coverage: *median_coverage,
         };
         let bar = if cams.len() > 1 {
             progress_bar(cams.len() as u64, "{bar:40} {pos}/{len} cameras [{elapsed} < {eta}]")

@@ -158,6 +158,9 @@ pub fn plan_frame(scene: &Scene, settings: &PlanSettings<'_>) -> Result<FramePla
             let map_channels = (depth_channels(st.map_depth), false);
             let map_splat = (st.tile, st.map_surface_depth);
             let mut map = splat_stage("splat (shadow map)", n, texels, map_channels, settings.blend, map_splat);
+            if st.map_depth == crate::shadow::DepthMode::Median {
+                map.note.push_str(&format!("; occluder depths where coverage reaches {}", st.map_coverage));
+            }
             map.note.push_str(
                 "; with shadow-map reuse on (`srug relight`), later frames skip it while the scene, the sun's \
                  direction and the light camera stay the same",

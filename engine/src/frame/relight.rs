@@ -152,6 +152,7 @@ struct ShadowMapKey {
     depth: DepthMode,
     tile: u32,
     surface_depth: bool,
+    coverage: f32,
     /// The receivers' camera, where the map is splatted only for them.
     receivers: Option<Camera>,
 }
@@ -503,6 +504,7 @@ impl Relighter {
             depth: shadow.map_depth,
             tile: shadow.tile,
             surface_depth: shadow.map_surface_depth,
+            coverage: shadow.map_coverage,
             receivers: cull.then(|| camera.clone()),
         };
         let reused = self.reuse_shadow_map && self.shadow_map.as_ref().is_some_and(|(k, _)| *k == key);

@@ -158,6 +158,7 @@ impl ShadowPass {
             // The map is depth and alpha only: no colour to evaluate or read.
             rgb: false,
             surface_depth: settings.map_surface_depth,
+            median_coverage: settings.map_coverage,
             ..SplatSettings::default()
         };
         let mut frame = splatter.render_frame_for(scene, &camera, &splat, mask, self.map_pair_tiles)?;

@@ -213,6 +213,13 @@ pub struct ShadowSettings {
     /// a splat whose plane lies deeper at that texel, and lighten it; on the
     /// analytic block it changes no accuracy figure beyond the noise.
     pub map_surface_depth: bool,
+    /// Coverage a shadow-map texel's occluders must reach for it to hold an
+    /// occluder depth, with [`DepthMode::Median`] maps: the map's
+    /// [`SplatSettings::median_coverage`]. At one half a splat's outline out
+    /// to where its coverage is 50% casts shadow, so cast shadows are wider
+    /// than their casters; more coverage draws the map's outlines inside
+    /// (docs/conventions.md, "Shadows"). Strictly between 0 and 1.
+    pub map_coverage: f32,
     /// Depth of the shadow map.
     pub map_depth: DepthMode,
     /// Depth of the receivers (the camera G-buffer).
@@ -236,6 +243,9 @@ pub struct ShadowSettings {
     pub cull_to_receivers: bool,
 }
 
+/// [`ShadowSettings::map_coverage`] by default (the balanced and reference presets').
+pub const DEFAULT_MAP_COVERAGE: f32 = 0.55;
+
 impl Default for ShadowSettings {
     fn default() -> Self {
         Self {
@@ -247,6 +257,7 @@ impl Default for ShadowSettings {
             filter: ShadowFilter::Pcf,
             surface_depth: true,
             map_surface_depth: false,
+            map_coverage: DEFAULT_MAP_COVERAGE,
             map_depth: DepthMode::Median,
             receiver_depth: DepthMode::Median,
             fit: ShadowFit::SceneBounds,
@@ -263,6 +274,7 @@ impl ShadowSettings {
     /// Checks the values.
     pub fn validate(&self) -> Result<()> {
         crate::splat::check_tile(self.tile)?;
+        crate::splat::check_median_coverage("shadow map coverage", self.map_coverage)?;
         let rules: [(bool, String, &str); 8] = [
             (
                 (16..=16384).contains(&self.resolution),

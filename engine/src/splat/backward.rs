@@ -242,7 +242,12 @@ impl Splatter {
             }
             let [x, y] = super::tile_spec(tile);
             let surface = (2, SpecValue::Bool(frame.surface_depth));
-            let spec = [(0, SpecValue::U32(bits)), surface, (1, SpecValue::U32(batch)), x, y];
+            let mut spec = vec![(0, SpecValue::U32(bits)), surface, (1, SpecValue::U32(batch)), x, y];
+            let gaussians_spec = spec[..2].to_vec();
+            // The transmittance at which the forward blend read the median.
+            if frame.median_coverage != super::DEFAULT_MEDIAN_COVERAGE {
+                spec.push((3, SpecValue::F32(1.0 - frame.median_coverage)));
+            }
             let with_spec = KernelDecl {
                 bindings: &[BindingKind::UniformBuffer, BindingKind::UniformBuffer],
                 push_constant_size: 0,
@@ -252,7 +257,7 @@ impl Splatter {
                 tiles: device.kernel(&kernels::SPLAT_BACKWARD_TILES, &with_spec)?,
                 gaussians: device.kernel(
                     &kernels::SPLAT_BACKWARD_GAUSSIANS,
-                    &KernelDecl { specialization: &spec[..2], ..with_spec },
+                    &KernelDecl { specialization: &gaussians_spec, ..with_spec },
                 )?,
             }
         };

@@ -728,7 +728,8 @@ pub struct PixelBlend {
     pub values: [f64; VALUES],
     /// Final transmittance.
     pub t_final: f64,
-    /// Depth where T first falls to 0.5 (0 where it never does).
+    /// Depth where T first falls to 1 − the median coverage ([`MedianRule`];
+    /// 0 where it never does).
     pub median: f64,
     /// The splat giving the median depth.
     pub median_index: Option<usize>,
@@ -740,6 +741,46 @@ pub struct PixelBlend {
     pub contributions: Vec<Contribution>,
 }
 
+/// Which splat gives a pixel's median depth (the blend kernel's
+/// `accumulate_select`): the one whose coverage takes T to 1 − `coverage` or
+/// below, or, with surface depths, a later one at least `coverage` opaque
+/// lying nearer at the pixel.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MedianRule {
+    /// Surface depths (a later splat can be nearer at a pixel).
+    pub surface_depth: bool,
+    /// [`crate::splat::SplatSettings::median_coverage`].
+    pub coverage: f32,
+}
+
+impl MedianRule {
+    /// The rule for `depth` at `coverage`.
+    pub fn new(depth: DepthAt, coverage: f32) -> Self {
+        Self { surface_depth: depth.is_surface(), coverage }
+    }
+
+    /// The depths the rule's splats have.
+    pub fn depth(self) -> DepthAt {
+        if self.surface_depth {
+            DepthAt::Surface
+        } else {
+            DepthAt::Centre
+        }
+    }
+
+    /// The transmittance the median is read at, rounded as the kernel's
+    /// (an f32 specialization constant, 1 − coverage).
+    fn transmittance(self) -> f64 {
+        f64::from(1.0 - self.coverage)
+    }
+
+    /// The opacity a later, nearer splat needs to take the median over (the
+    /// kernel's 1 − its transmittance, in f32).
+    fn opaque(self) -> f64 {
+        f64::from(1.0 - (1.0 - self.coverage))
+    }
+}
+
 /// Blends the splats of `list` (blend order) at pixel centre `centre`,
 /// skipping those whose depth there is not in front of `limit` (a host's depth).
 pub(crate) fn blend_pixel(
@@ -747,8 +788,9 @@ pub(crate) fn blend_pixel(
     splats: &[Option<CpuSplat>],
     centre: DVec2,
     limit: f64,
-    surface_depth: bool,
+    rule: MedianRule,
 ) -> PixelBlend {
+    let (median_t, opaque) = (rule.transmittance(), rule.opaque());
     let mut out = PixelBlend {
         values: [0.0; VALUES],
         t_final: 1.0,
@@ -777,13 +819,13 @@ pub(crate) fn blend_pixel(
         for (acc, x) in out.values.iter_mut().zip(values) {
             *acc += w * x;
         }
-        if t > 0.5 && next <= 0.5 {
+        if t > median_t && next <= median_t {
             out.median = depth;
             out.median_index = Some(i);
         }
         // With surface depths a later splat (in centre order) can be nearer at this
-        // pixel: a half-opaque one there is the surface the ray meets first.
-        if surface_depth && t <= 0.5 && alpha >= 0.5 && depth < out.median {
+        // pixel: one opaque enough there is the surface the ray meets first.
+        if rule.surface_depth && t <= median_t && alpha >= opaque && depth < out.median {
             out.median = depth;
             out.median_index = Some(i);
         }
@@ -838,7 +880,8 @@ pub fn preprocess_params(
 }
 
 /// Stages 1–5 in f64 for geometry `params` (colour and materials from
-/// `scene`): the projected splats and every pixel's blend, row-major.
+/// `scene`): the projected splats and every pixel's blend, row-major, the
+/// median read at `median_coverage` ([`MedianRule`]).
 pub fn render_blends(
     params: &[Gaussian64],
     scene: &Scene,
@@ -846,7 +889,9 @@ pub fn render_blends(
     normal_source: NormalSource,
     tile: u32,
     depth: DepthAt,
+    median_coverage: f32,
 ) -> (Vec<Option<CpuSplat>>, Vec<PixelBlend>) {
+    let rule = MedianRule::new(depth, median_coverage);
     let splats = preprocess_params(params, scene, camera, normal_source, tile, depth);
     let lists = tile_lists(&splats, camera, tile, TileBounds::default());
     let w = camera.width as usize;
@@ -854,7 +899,7 @@ pub fn render_blends(
         .map(|p| {
             let (x, y) = (p % w, p / w);
             let centre = DVec2::new(x as f64 + 0.5, y as f64 + 0.5);
-            blend_pixel(lists.at(x, y), &splats, centre, f64::INFINITY, depth.is_surface())
+            blend_pixel(lists.at(x, y), &splats, centre, f64::INFINITY, rule)
         })
         .collect();
     (splats, blends)
@@ -902,6 +947,7 @@ fn render_cpu_with(
         }
     }
     let lists = tile_lists(&splats, camera, settings.tile, settings.tile_bounds);
+    let rule = MedianRule { surface_depth: settings.surface_depth, coverage: settings.median_coverage };
     let ch = settings.channels;
     let p = w * h;
     let opt = |on: bool, k: usize| on.then(|| vec![0.0f32; k * p]);
@@ -920,7 +966,7 @@ fn render_cpu_with(
             let limit =
                 occluder.and_then(|(d, c)| d.get(px).map(|v| c.camera_z(f64::from(*v)))).unwrap_or(f64::INFINITY);
             let centre = DVec2::new(x as f64 + 0.5, y as f64 + 0.5);
-            let b = blend_pixel(lists.at(x, y), &splats, centre, limit, settings.surface_depth);
+            let b = blend_pixel(lists.at(x, y), &splats, centre, limit, rule);
             if let Some(rgb) = &mut g.rgb {
                 for (c, out) in rgb[3 * px..3 * px + 3].iter_mut().enumerate() {
                     *out = (b.values[c] + b.t_final * bg[c]) as f32;

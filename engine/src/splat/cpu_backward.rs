@@ -14,7 +14,7 @@ use glam::{DMat2, DMat3, DVec2, DVec3};
 
 use super::cpu::{
     blend_pixel, mean_and_jacobian, project, shortest_axis, splat_alpha, splat_values, tile_lists, CpuSplat,
-    Gaussian64, SlopeInputs, VALUES,
+    Gaussian64, MedianRule, SlopeInputs, VALUES,
 };
 use crate::scene::{Camera, Projection};
 
@@ -60,15 +60,15 @@ pub struct GaussianGrad {
 }
 
 /// Backward of the blend for every pixel of `camera`'s image, given the
-/// projected splats (from the forward twin, with their slopes when
-/// `surface_depth`) and the background.
+/// projected splats (from the forward twin, with their slopes for surface
+/// depths), the background and the forward's median rule.
 pub fn blend_backward_cpu(
     splats: &[Option<CpuSplat>],
     camera: &Camera,
     background: [f64; 3],
     grads: &PixelGrads,
     tile: u32,
-    surface_depth: bool,
+    rule: MedianRule,
 ) -> Vec<SplatGrad> {
     let lists = tile_lists(splats, camera, tile, crate::splat::TileBounds::default());
     let (w, h) = (camera.width as usize, camera.height as usize);
@@ -77,7 +77,7 @@ pub fn blend_backward_cpu(
         for x in 0..w {
             let p = y * w + x;
             let centre = DVec2::new(x as f64 + 0.5, y as f64 + 0.5);
-            let b = blend_pixel(lists.at(x, y), splats, centre, f64::INFINITY, surface_depth);
+            let b = blend_pixel(lists.at(x, y), splats, centre, f64::INFINITY, rule);
             let dv = &grads.values[p];
             // dL/dα terms shared by every contributor: the alpha output and the background.
             let bg_term = grads.alpha[p] - (0..3).map(|c| background[c] * dv[c]).sum::<f64>();
@@ -97,7 +97,7 @@ pub fn blend_backward_cpu(
                 }
                 let median = if b.median_index == Some(c.index) { grads.median[p] } else { 0.0 };
                 let d_z = c.alpha * c.t_before * dv[3] + median;
-                if surface_depth {
+                if rule.surface_depth {
                     add_surface_depth_gradient(g, s, centre, d_z);
                 } else {
                     g.values[3] += d_z;
@@ -303,7 +303,7 @@ mod tests {
     use super::*;
     use crate::scene::Scene;
     use crate::splat::cpu::{preprocess_params, render_blends, DepthAt};
-    use crate::splat::{NormalSource, DEFAULT_TILE};
+    use crate::splat::{NormalSource, DEFAULT_MEDIAN_COVERAGE, DEFAULT_TILE};
 
     /// A few overlapping Gaussians in front of the camera, with normals from rotation.
     fn scene(rng: &mut Pcg64Mcg, n: usize) -> Scene {
@@ -334,9 +334,11 @@ mod tests {
         camera: &Camera,
         bg: [f64; 3],
         wts: &PixelGrads,
-        depth: DepthAt,
+        rule: (DepthAt, f32),
     ) -> f64 {
-        let (_, blends) = render_blends(params, scene, camera, NormalSource::ShortestAxis, DEFAULT_TILE, depth);
+        let (depth, coverage) = rule;
+        let (_, blends) =
+            render_blends(params, scene, camera, NormalSource::ShortestAxis, DEFAULT_TILE, depth, coverage);
         let mut total = 0.0;
         for (p, b) in blends.iter().enumerate() {
             let mut v = b.values;
@@ -350,6 +352,11 @@ mod tests {
     }
 
     fn check(camera: &Camera, seed: u64, depth: DepthAt) {
+        check_at(camera, seed, depth, DEFAULT_MEDIAN_COVERAGE);
+    }
+
+    /// As `check`, the median read at `coverage`.
+    fn check_at(camera: &Camera, seed: u64, depth: DepthAt, coverage: f32) {
         let mut rng = Pcg64Mcg::seed_from_u64(seed);
         let scene = scene(&mut rng, 12);
         let params: Vec<Gaussian64> = (0..scene.len()).map(|i| Gaussian64::from_scene(&scene, i)).collect();
@@ -361,7 +368,8 @@ mod tests {
         };
         let bg = [0.2, 0.5, 0.9];
         let splats = preprocess_params(&params, &scene, camera, NormalSource::ShortestAxis, DEFAULT_TILE, depth);
-        let splat_grads = blend_backward_cpu(&splats, camera, bg, &wts, DEFAULT_TILE, depth.is_surface());
+        let rule = MedianRule::new(depth, coverage);
+        let splat_grads = blend_backward_cpu(&splats, camera, bg, &wts, DEFAULT_TILE, rule);
         let mut worst = 0.0f64;
         let mut significant = 0;
         for (i, g) in params.iter().enumerate() {
@@ -373,8 +381,8 @@ mod tests {
                 perturb(&mut plus[i], h);
                 let mut minus = params.clone();
                 perturb(&mut minus[i], -h);
-                (loss(&plus, &scene, camera, bg, &wts, depth) - loss(&minus, &scene, camera, bg, &wts, depth))
-                    / (2.0 * h)
+                let rule = (depth, coverage);
+                (loss(&plus, &scene, camera, bg, &wts, rule) - loss(&minus, &scene, camera, bg, &wts, rule)) / (2.0 * h)
             };
             let mut pairs: Vec<(&str, f64, f64)> = Vec::new();
             for k in 0..3 {
@@ -428,6 +436,17 @@ mod tests {
         let camera =
             Camera::orthographic(Vec3::new(0.0, 0.0, -3.0), Vec3::Z, Vec3::Y, 2.6, 2.0, 36, 28, 0.01, 10.0).unwrap();
         check(&camera, 4, DepthAt::Centre);
+    }
+
+    /// A median read at more coverage (shadow maps' `map_coverage`) moves its gradient to another splat.
+    #[test]
+    fn gradients_of_a_median_at_more_coverage_match_finite_differences() {
+        let camera =
+            Camera::orthographic(Vec3::new(0.0, 0.0, -3.0), Vec3::Z, Vec3::Y, 2.6, 2.0, 36, 28, 0.01, 10.0).unwrap();
+        check_at(&camera, 4, DepthAt::Centre, 0.6);
+        check_at(&camera, 4, DepthAt::Surface, 0.7);
+        let camera = Camera::look_at(Vec3::new(0.3, -0.2, -3.0), Vec3::ZERO, Vec3::Y, 50.0, 40, 28).unwrap();
+        check_at(&camera, 3, DepthAt::Surface, 0.6);
     }
 
     #[test]

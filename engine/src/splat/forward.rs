@@ -200,6 +200,8 @@ struct BlendOptions {
     chunk_pass: u32,
     /// Entries per chunk; 0: no list is split.
     chunk_length: u32,
+    /// [`SplatSettings::median_coverage`].
+    median_coverage: f32,
 }
 
 /// One rendered frame with the per-frame buffers later stages walk again:
@@ -245,6 +247,8 @@ pub struct SplatFrame {
     pub tile: u32,
     /// Whether its depths are surface depths ([`SplatSettings::surface_depth`]).
     pub surface_depth: bool,
+    /// Its median depth's coverage ([`SplatSettings::median_coverage`]).
+    pub median_coverage: f32,
     /// Whether a host's depth hid splats ([`Splatter::render_frame_occluded`]).
     pub occluded: bool,
 }
@@ -450,6 +454,7 @@ impl Splatter {
             tile_mask,
             chunk_pass,
             chunk_length,
+            median_coverage,
         } = options;
         // The transmittance pass blends nothing and needs no depth.
         let (bits, surface) = if chunk_pass == 1 { (0, false) } else { (bits, surface) };
@@ -474,6 +479,9 @@ impl Splatter {
         }
         if occluded {
             spec.push((5, SpecValue::Bool(true)));
+        }
+        if median_coverage != DEFAULT_MEDIAN_COVERAGE {
+            spec.push((13, SpecValue::F32(1.0 - median_coverage)));
         }
         if row_masks {
             spec.push((6, SpecValue::Bool(true)));
@@ -782,6 +790,7 @@ impl Splatter {
             tile_mask: view.tile_mask.is_some(),
             chunk_pass,
             chunk_length,
+            median_coverage: settings.median_coverage,
         };
         // The split blend: texel blends not in front of a host's depth, where a list can split.
         let chunks = match chunk_slots(pairs, tiles, tile, self.chunk_length) {
@@ -857,6 +866,7 @@ impl Splatter {
         }
         let tile = settings.tile;
         check_tile(tile)?;
+        check_median_coverage("median coverage", settings.median_coverage)?;
         let n = scene.count as u64;
         if n >= u64::from(u32::MAX) {
             return Err(Error::invalid(format!("scene of {n} Gaussians"), "exceeds the 2³² − 1 the kernels index"));
@@ -1103,6 +1113,7 @@ impl Splatter {
                 gaussians: n,
                 tile,
                 surface_depth: settings.surface_depth,
+                median_coverage: settings.median_coverage,
                 occluded: view.occluder.is_some(),
             });
         }

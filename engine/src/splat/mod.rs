@@ -261,6 +261,25 @@ pub struct SplatSettings {
     /// lenses keep centre depths). Off: the centre depth, as 3DGS. The splat
     /// backward pass refuses frames rendered with it (not differentiated yet).
     pub surface_depth: bool,
+    /// Coverage 1 − T at which the median depth channel reads a pixel's
+    /// depth: the depth of the splat that takes T to 1 − this or below (with
+    /// surface depths, or a later splat at least this opaque that lies
+    /// nearer there); 0 where T never gets there. 0.5 (the default) is the
+    /// median; more keeps only what covers a pixel more surely (shadow maps,
+    /// [`crate::shadow::ShadowSettings::map_coverage`]). Strictly between 0 and 1.
+    pub median_coverage: f32,
+}
+
+/// The coverage at which the median depth is read by default (the median).
+pub const DEFAULT_MEDIAN_COVERAGE: f32 = 0.5;
+
+/// Checks a [`SplatSettings::median_coverage`] (`what` names the setting in the message).
+pub(crate) fn check_median_coverage(what: &str, coverage: f32) -> Result<()> {
+    if coverage > 0.0 && coverage < 1.0 {
+        Ok(())
+    } else {
+        Err(Error::invalid(format!("{what} {coverage}"), "must lie strictly between 0 and 1"))
+    }
 }
 
 impl Default for SplatSettings {
@@ -275,6 +294,7 @@ impl Default for SplatSettings {
             tile_bounds: TileBounds::default(),
             rgb: true,
             surface_depth: false,
+            median_coverage: DEFAULT_MEDIAN_COVERAGE,
         }
     }
 }

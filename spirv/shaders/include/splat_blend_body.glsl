@@ -50,6 +50,11 @@ layout(constant_id = 10) const bool TWO_SPLATS = false;
 // (engine/src/splat/forward.rs `ChunkPlan`). CHUNK_LENGTH 0: no list is split.
 layout(constant_id = 11) const uint CHUNK_PASS = 0u;
 layout(constant_id = 12) const uint CHUNK_LENGTH = 0u;
+// The median depth is read where T first falls to MEDIAN_T, the coverage
+// 1 − MEDIAN_T (engine/src/splat/mod.rs `SplatSettings::median_coverage`;
+// 0.5: the median); with surface depths a later splat at least that opaque
+// and nearer takes it over.
+layout(constant_id = 13) const float MEDIAN_T = 0.5;
 // Without rgb (shadow maps) no colour is read, blended or stored.
 const bool RGB = (CHANNELS & 256u) != 0u;
 // The index of the splat with the largest weight wᵢ = αᵢ Tᵢ (the first of equal ones), per pixel.
@@ -157,11 +162,11 @@ void accumulate_select(inout Accumulated acc, bool takes, float alpha, float nex
     }
     if (RGB) acc.rgb += w * c.color;
     if ((CHANNELS & 1u) != 0u) acc.depth += w * z;
-    if ((CHANNELS & 2u) != 0u) acc.median = mix(acc.median, z, all(bvec3(takes, acc.T > 0.5, next_T <= 0.5)));
+    if ((CHANNELS & 2u) != 0u) acc.median = mix(acc.median, z, all(bvec3(takes, acc.T > MEDIAN_T, next_T <= MEDIAN_T)));
     // With surface depths a later splat (in centre order) can be nearer at this pixel:
-    // a half-opaque one there is the surface the ray meets first.
+    // one opaque enough there is the surface the ray meets first.
     if ((CHANNELS & 2u) != 0u && SURFACE_DEPTH) {
-        acc.median = mix(acc.median, z, all(bvec4(takes, acc.T <= 0.5, alpha >= 0.5, z < acc.median)));
+        acc.median = mix(acc.median, z, all(bvec4(takes, acc.T <= MEDIAN_T, alpha >= 1.0 - MEDIAN_T, z < acc.median)));
     }
     if (FEATURES) {
         acc.normal += w * c.f0.xyz;
@@ -301,7 +306,7 @@ void store_partial(uint slot, uint px, Accumulated acc, float start_T) {
 // Pass 3: tile pixel `px`'s chunks (slots first..first + count) added up in
 // list order as one walk over the whole list would have: sums add, T is the
 // last live chunk's, the median the crossing chunk's unless a later one
-// found a nearer half-opaque splat (`accumulate_select`), the top Gaussian
+// found a nearer, opaque enough splat (`accumulate_select`), the top Gaussian
 // the first of the largest weights.
 Accumulated merged_chunks(uint first, uint count, uint px) {
     Accumulated acc = Accumulated(1.0, vec3(0.0), 0.0, 0.0, vec3(0.0), vec3(0.0), 0.0, 0.0, 0.0, 0.0, 0.0, NO_GAUSSIAN);
@@ -318,7 +323,7 @@ Accumulated merged_chunks(uint first, uint count, uint px) {
         if ((CHANNELS & 1u) != 0u) acc.depth += f.v[partial_index(s, 4u, px)];
         if ((CHANNELS & 2u) != 0u) {
             float m = f.v[partial_index(s, 5u, px)];
-            acc.median = start_T > 0.5 ? m : min(acc.median, m);
+            acc.median = start_T > MEDIAN_T ? m : min(acc.median, m);
         }
         if (FEATURES) {
             acc.normal += vec3(f.v[partial_index(s, 6u, px)], f.v[partial_index(s, 7u, px)],
@@ -532,8 +537,8 @@ void main() {
             for (uint s = first_slot; s < slot; s++) start_T[k] *= products.v[s * TILE_PIXELS + px];
             acc[k].T = start_T[k];
             live[k] = all(bvec2(live[k], start_T[k] >= 1e-4));
-            // Past the crossing only a nearer half-opaque splat sets the median (pass 3 takes the least).
-            if (start_T[k] <= 0.5) acc[k].median = 1.0 / 0.0;
+            // Past the crossing only a nearer, opaque enough splat sets the median (pass 3 takes the least).
+            if (start_T[k] <= MEDIAN_T) acc[k].median = 1.0 / 0.0;
         }
         any_live = any_live || live[k];
     }
