@@ -730,11 +730,14 @@ srug_status srug_renderer_set_surface_depth(srug_renderer *renderer, bool on);
 // the presets: docs/stages.md says why).
 srug_status srug_renderer_set_map_surface_depth(srug_renderer *renderer, bool on);
 
-// Coverage a shadow-map texel's occluders must reach for it to cast shadow
-// (median map depths), strictly between 0 and 1 (the presets: 0.6). At 0.5
-// each splat's half-coverage outline casts, so shadows come out wider than
-// their casters; more draws them in (docs/conventions.md, "Shadows").
-srug_status srug_renderer_set_map_coverage(srug_renderer *renderer, float coverage);
+// The coverages the shadow test reads its depths at (median depths), each
+// strictly between 0 and 1 (the presets: 0.6 and 0.45): `map` for a
+// shadow-map texel to hold an occluder (at 0.5 each splat's half-coverage
+// outline casts, so shadows come out wider than their casters; more draws
+// them in), `receivers` for a pixel to receive (below 0.5 a wall whose
+// splats leave gaps still receives where the camera sees through them; the
+// median depth channel read back follows it). docs/stages.md, "Map coverage".
+srug_status srug_renderer_set_shadow_coverage(srug_renderer *renderer, float map, float receivers);
 
 // Applies a quality preset by name: `"fast"`, `"balanced"` (the default) or
 // `"reference"` (docs/bench/trade.md measures them). It sets the shadow map

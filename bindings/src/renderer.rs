@@ -864,16 +864,23 @@ pub extern "C" fn srug_renderer_set_map_surface_depth(renderer: *mut srug_render
     })
 }
 
-/// Coverage a shadow-map texel's occluders must reach for it to cast shadow
-/// (median map depths), strictly between 0 and 1 (the presets: 0.6). At 0.5
-/// each splat's half-coverage outline casts, so shadows come out wider than
-/// their casters; more draws them in (docs/conventions.md, "Shadows").
+/// The coverages the shadow test reads its depths at (median depths), each
+/// strictly between 0 and 1 (the presets: 0.6 and 0.45): `map` for a
+/// shadow-map texel to hold an occluder (at 0.5 each splat's half-coverage
+/// outline casts, so shadows come out wider than their casters; more draws
+/// them in), `receivers` for a pixel to receive (below 0.5 a wall whose
+/// splats leave gaps still receives where the camera sees through them; the
+/// median depth channel read back follows it). docs/stages.md, "Map coverage".
 #[no_mangle]
-pub extern "C" fn srug_renderer_set_map_coverage(renderer: *mut srug_renderer, coverage: f32) -> srug_status {
-    guard("srug_renderer_set_map_coverage", || {
+pub extern "C" fn srug_renderer_set_shadow_coverage(
+    renderer: *mut srug_renderer,
+    map: f32,
+    receivers: f32,
+) -> srug_status {
+    guard("srug_renderer_set_shadow_coverage", || {
         with_renderer(renderer, |r| {
             let mut s = r.settings.shadow;
-            s.map_coverage = coverage;
+            (s.map_coverage, s.receiver_coverage) = (map, receivers);
             s.validate()?;
             r.settings.shadow = s;
             Ok(())

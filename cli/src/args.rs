@@ -607,6 +607,12 @@ pub struct ShadeArgs {
     /// in [preset: 0.6].
     #[arg(long)]
     pub shadow_map_coverage: Option<f32>,
+    /// Coverage a pixel's splats must reach for it to receive shadow (median
+    /// receiver depths; the median_depth channel written follows it), strictly
+    /// between 0 and 1: below 0.5 a wall with gaps between its splats still
+    /// receives, where the camera sees through to what lies behind [preset: 0.45].
+    #[arg(long)]
+    pub shadow_receiver_coverage: Option<f32>,
     /// Receiver depth for the shadow test: median or expected [preset: median].
     #[arg(long, value_parser = DepthMode::parse)]
     pub receiver_depth: Option<DepthMode>,
@@ -652,6 +658,7 @@ impl ShadeArgs {
         sh.surface_depth = self.shadow_surface_depth.unwrap_or(sh.surface_depth);
         sh.map_surface_depth = self.shadow_map_surface_depth.unwrap_or(sh.map_surface_depth);
         sh.map_coverage = self.shadow_map_coverage.unwrap_or(sh.map_coverage);
+        sh.receiver_coverage = self.shadow_receiver_coverage.unwrap_or(sh.receiver_coverage);
         sh.cull_to_receivers |= self.shadow_cull;
         sh.receiver_depth = self.receiver_depth.unwrap_or(sh.receiver_depth);
         s.visibility_kind = self.shadow_test.unwrap_or(s.visibility_kind);

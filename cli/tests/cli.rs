@@ -512,6 +512,8 @@ fn relight_renders_stills_time_lapses_and_prefiltered_environments() {
     let half = visibility_with(&["--shadow-map-coverage", "0.5"]);
     let dark = |v: &[f32]| v.iter().filter(|x| **x < 0.5).count();
     assert!(half != default_v && dark(&half) >= dark(&default_v), "map coverage 0.5 keeps V or lightens it");
+    let receivers = visibility_with(&["--shadow-receiver-coverage", "0.5"]);
+    assert_ne!(default_v, receivers, "the receivers' coverage changes V");
     let mut args = vec!["relight", ply, "--out", exr_out.to_str().unwrap(), "--shadow-map-coverage", "1.5"];
     args.extend(common);
     let o = srug(&args);

@@ -124,6 +124,7 @@ struct ShadowOptions {
     filter: Option<String>,
     cascades: Option<u32>,
     map_coverage: Option<f32>,
+    receiver_coverage: Option<f32>,
 }
 
 impl ShadowOptions {
@@ -137,6 +138,7 @@ impl ShadowOptions {
         s.normal_offset = self.normal_offset.unwrap_or(s.normal_offset);
         s.cascades = self.cascades.unwrap_or(s.cascades);
         s.map_coverage = self.map_coverage.unwrap_or(s.map_coverage);
+        s.receiver_coverage = self.receiver_coverage.unwrap_or(s.receiver_coverage);
         if let Some(d) = &self.receiver_depth {
             s.receiver_depth = srug::shadow::DepthMode::parse(d).map_err(py_err)?;
         }
@@ -595,7 +597,7 @@ impl Device {
                         shadow_cull = false, shadow_resolution = None, shadow_k = None, shadow_bias = None,
                         shadow_slope_bias = None, shadow_normal_offset = None, receiver_depth = None,
                         shadow_test = None, shadow_filter = None, shadow_cascades = None,
-                        map_surface_depth = None, map_coverage = None))]
+                        map_surface_depth = None, map_coverage = None, receiver_coverage = None))]
     #[allow(clippy::too_many_arguments, reason = "the Python keyword arguments of one call")]
     fn relight<'py>(
         &self,
@@ -630,6 +632,7 @@ impl Device {
         shadow_cascades: Option<u32>,
         map_surface_depth: Option<bool>,
         map_coverage: Option<f32>,
+        receiver_coverage: Option<f32>,
     ) -> PyResult<Bound<'py, PyDict>> {
         let shadow = ShadowOptions {
             resolution: shadow_resolution,
@@ -642,6 +645,7 @@ impl Device {
             filter: shadow_filter,
             cascades: shadow_cascades,
             map_coverage,
+            receiver_coverage,
         };
         let device = self.gpu()?;
         let cams = &cameras.cameras;
@@ -773,7 +777,7 @@ impl Device {
     #[pyo3(signature = (scene, camera, sun, resolution = 2048, k = 50.0, bias = 0.8, map_depth = None,
                         receiver_depth = None, sun_intensity = std::f32::consts::PI, slope_bias = 3.0,
                         normal_offset = 0.0, fit = "scene", tile = 16, filter = "pcf", surface_depth = true,
-                        map_surface_depth = false, map_coverage = None))]
+                        map_surface_depth = false, map_coverage = None, receiver_coverage = None))]
     #[allow(clippy::too_many_arguments, reason = "the Python keyword arguments of one call")]
     fn shadow(
         &self,
@@ -795,6 +799,7 @@ impl Device {
         surface_depth: bool,
         map_surface_depth: bool,
         map_coverage: Option<f32>,
+        receiver_coverage: Option<f32>,
     ) -> PyResult<ShadowTest> {
         let [camera] = camera.cameras.as_slice() else {
             return Err(invalid(format!("{} cameras", camera.cameras.len()), "the shadow test takes one camera"));
@@ -817,6 +822,7 @@ impl Device {
         settings.tile = tile;
         (settings.surface_depth, settings.map_surface_depth) = (surface_depth, map_surface_depth);
         settings.map_coverage = map_coverage.unwrap_or(settings.map_coverage);
+        settings.receiver_coverage = receiver_coverage.unwrap_or(settings.receiver_coverage);
         if let Some(m) = map_depth {
             settings.map_depth = srug::shadow::DepthMode::parse(m).map_err(py_err)?;
         }

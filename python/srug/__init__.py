@@ -460,6 +460,7 @@ class Device:
         shadow_cascades: Optional[int] = None,
         map_surface_depth: Optional[bool] = None,
         map_coverage: Optional[float] = None,
+        receiver_coverage: Optional[float] = None,
     ) -> Any:
         """Relights every camera: (N, H, W, 3) float32.
 
@@ -494,8 +495,9 @@ class Device:
         ("pcf": the four nearest texels' tests weighted bilinearly, or "depth":
         one test of the bilinear depth), ``map_coverage`` (the coverage a map
         texel's occluders must reach to cast shadow, strictly between 0 and 1;
-        the presets: fast 0.6, else 0.55): override the preset's (None keeps
-        it), as ``srug relight``'s options of those names.
+        the presets' 0.6), ``receiver_coverage`` (the coverage a pixel's splats
+        must reach to receive; the presets' 0.45): override the preset's (None
+        keeps it), as ``srug relight``'s options of those names.
         """
         if background is not None:
             background = tuple(float(v) for v in background)
@@ -541,6 +543,7 @@ class Device:
             shadow_cascades=None if shadow_cascades is None else int(shadow_cascades),
             map_surface_depth=None if map_surface_depth is None else bool(map_surface_depth),
             map_coverage=None if map_coverage is None else float(map_coverage),
+            receiver_coverage=None if receiver_coverage is None else float(receiver_coverage),
         )
         return (out[output], out["alpha"]) if return_alpha else out[output]
 
@@ -563,6 +566,7 @@ class Device:
         surface_depth: bool = True,
         map_surface_depth: bool = False,
         map_coverage: Optional[float] = None,
+        receiver_coverage: Optional[float] = None,
     ) -> "ShadowTest":
         """The differentiable sun shadow test for one camera (the paper's editable visibility):
         ``.visibility`` is V = sigmoid(k·(z_s − z + bias)) per pixel, (H, W) float32 (1 where no
@@ -580,7 +584,8 @@ class Device:
         its pixel's ray meets the splat's plane (False: the splats' centre depths);
         ``map_surface_depth``: for the map's occluders too; both differentiated (docs/stages.md).
         ``map_coverage``: the coverage a map texel's occluders must reach for it to hold an
-        occluder depth (median map depths; None: the balanced preset's 0.55). ``filter``: "pcf" (V = Σ w_i·sigmoid(k·(z_i − z + bias)) over the four
+        occluder depth, ``receiver_coverage``: a pixel's splats for it to receive (median
+        depths; None: the balanced preset's 0.6 and 0.45). ``filter``: "pcf" (V = Σ w_i·sigmoid(k·(z_i − z + bias)) over the four
         nearest texels, weighted bilinearly) or "depth" (one sigmoid of the bilinear depth). ``fit``: "scene" or "view" (the map covers the camera's view within the scene's
         bounds). ``tile``: the splat tile of the map and the receivers, 16 or 8 (8 makes the
         backward faster where splats crowd tiles; V is the same)."""
@@ -605,6 +610,7 @@ class Device:
                 surface_depth=bool(surface_depth),
                 map_surface_depth=bool(map_surface_depth),
                 map_coverage=None if map_coverage is None else float(map_coverage),
+                receiver_coverage=None if receiver_coverage is None else float(receiver_coverage),
             )
         )
 

@@ -71,6 +71,7 @@ class Device:
         shadow_cascades: Optional[int] = ...,
         map_surface_depth: Optional[bool] = ...,
         map_coverage: Optional[float] = ...,
+        receiver_coverage: Optional[float] = ...,
     ) -> Dict[str, np.ndarray]: ...
 
     def shadow(
@@ -92,6 +93,7 @@ class Device:
         surface_depth: bool = ...,
         map_surface_depth: bool = ...,
         map_coverage: Optional[float] = ...,
+        receiver_coverage: Optional[float] = ...,
     ) -> ShadowTest: ...
 
 class ShadowTest:

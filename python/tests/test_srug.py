@@ -377,6 +377,10 @@ def test_shadow_gradients_match_finite_differences(dev, shadow_problem):
     # A map read at one half's coverage casts from more of each splat's outline: no less shadow.
     half = dev.shadow(scene_of(means, logits), cam, slope_bias=0.0, map_coverage=0.5, **low).visibility
     assert not np.array_equal(half, plain) and (half < 0.5).sum() >= (plain < 0.5).sum()
+    # Receivers from one half's coverage (the preset's 0.45): fewer pixels receive; V changes.
+    fewer = dev.shadow(scene_of(means, logits), cam, slope_bias=0.0, receiver_coverage=0.5, **low)
+    assert not np.array_equal(fewer.visibility, plain)
+    assert all(np.isfinite(a).all() for a in fewer.backward(weights).values())
     sloped = dev.shadow(scene_of(means, logits), cam, slope_bias=3.0, normal_offset=1.0, **low).visibility
     assert sloped.shape == plain.shape and not np.array_equal(sloped, plain)
     assert (sloped < 0.5).sum() <= (plain < 0.5).sum()
@@ -593,7 +597,8 @@ def test_relight_shadow_options_override_the_preset(dev, city):
     np.testing.assert_array_equal(base, same)
     hard = dev.relight(scene, one, sun=(250.0, 30.0), shadow_filter="depth")
     assert not np.array_equal(base, hard)
-    for surface in [dict(surface_depth=False), dict(map_surface_depth=True), dict(map_coverage=0.5)]:
+    for surface in [dict(surface_depth=False), dict(map_surface_depth=True), dict(map_coverage=0.5),
+                    dict(receiver_coverage=0.5)]:
         other = dev.relight(scene, one, sun=(250.0, 30.0), **surface)
         assert np.isfinite(other).all() and not np.array_equal(base, other), surface
     cascaded = dev.relight(scene, one, sun=(250.0, 30.0), shadow_fit="cascades", shadow_cascades=2)
@@ -610,6 +615,7 @@ def test_relight_shadow_options_override_the_preset(dev, city):
         ({"shadow_k": -1.0}, "sharpness"),
         ({"shadow_filter": "soft"}, "shadow filter"),
         ({"map_coverage": 1.0}, "shadow map coverage 1: must lie strictly between 0 and 1"),
+        ({"receiver_coverage": 0.0}, "shadow receiver coverage 0: must lie strictly between 0 and 1"),
         ({"shadow_fit": "cascades", "shadow_cascades": 9}, "cascades"),
     ]:
         with pytest.raises(srug.Error) as e:

@@ -283,16 +283,16 @@ int main(int argc, char **argv) {
   printf("map surface depths: mean |map - default| = %.3f of 255\n", map_diff);
   REQUIRE(map_diff > 0.0 && map_diff < 2.0);
   CHECK(srug_renderer_set_map_surface_depth(r, false));
-  /* The map's occluders where coverage passes one half (the presets': 0.55): its
-     outlines, and so the shadows, a little wider; out of (0, 1) refused, the setting kept. */
-  CHECK(srug_renderer_set_map_coverage(r, 0.5f));
+  /* The map and the receivers read at one half's coverage (the presets': 0.6 and 0.45):
+     shadows a little wider, fewer receivers; out of (0, 1) refused, the setting kept. */
+  CHECK(srug_renderer_set_shadow_coverage(r, 0.5f, 0.5f));
   double coverage_diff = rerender_difference(r, scene, image, w, h);
-  printf("map coverage 0.5: mean |0.5 - default| = %.3f of 255\n", coverage_diff);
+  printf("shadow coverage 0.5, 0.5: mean |0.5 - default| = %.3f of 255\n", coverage_diff);
   REQUIRE(coverage_diff > 0.0 && coverage_diff < 2.0);
-  EXPECT(srug_renderer_set_map_coverage(r, 1.0f), SRUG_ERROR_INVALID_ARGUMENT);
-  EXPECT(srug_renderer_set_map_coverage(r, NAN), SRUG_ERROR_INVALID_ARGUMENT);
+  EXPECT(srug_renderer_set_shadow_coverage(r, 1.0f, 0.45f), SRUG_ERROR_INVALID_ARGUMENT);
+  EXPECT(srug_renderer_set_shadow_coverage(r, 0.6f, NAN), SRUG_ERROR_INVALID_ARGUMENT);
   REQUIRE(rerender_difference(r, scene, image, w, h) == coverage_diff);
-  CHECK(srug_renderer_set_map_coverage(r, 0.55f));
+  CHECK(srug_renderer_set_shadow_coverage(r, 0.6f, 0.45f));
   /* A shadow map fitted to the view: the same scene, finer texels, close to the default. */
   CHECK(srug_renderer_set_shadow_fit(r, SRUG_SHADOW_FIT_VIEW));
   double fit_diff = rerender_difference(r, scene, image, w, h);

@@ -363,6 +363,7 @@ pub(crate) fn relight_demo(
         shadow_surface_depth: None,
         shadow_map_surface_depth: None,
         shadow_map_coverage: None,
+        shadow_receiver_coverage: None,
         shadow_fit: None,
         shadow_cascades: None,
         shadow_cull: false,

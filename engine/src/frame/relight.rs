@@ -74,6 +74,7 @@ impl FramePlan {
             tile: settings.tile,
             // The shadow test's receivers are these pixels: their depths follow its definition.
             surface_depth: settings.shadow.surface_depth,
+            median_coverage: settings.shadow.receiver_coverage,
             ..SplatSettings::default()
         };
         Ok(Self { decisions, shade, splat })

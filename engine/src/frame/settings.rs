@@ -84,9 +84,10 @@ impl RelightSettings {
         // surface depths with percentage-closer filtering, a slope bias of 3 texels
         // (the fast preset's acne on steep receivers) and 0.8 m, where rough splats'
         // off-plane jitter stops costing edge accuracy and contact leaks barely rise.
-        // The map holds an occluder where coverage passes 0.55, not one half: less
-        // false shadow beside every caster for a little edge accuracy on rough
-        // splats (more coverage breaks low-sun shadows on them into specks).
+        // The map holds an occluder where coverage passes 0.6, not one half (less
+        // false shadow beside every caster; more breaks low-sun shadows on rough
+        // splats into specks), and a receiver holds a surface from 0.45 (a gappy
+        // wall still receives, where the camera would see specks behind it).
         let mut s = RelightSettings::default();
         match preset {
             Preset::Fast => {
@@ -94,9 +95,6 @@ impl RelightSettings {
                 // 1.83 → 1.41% (rough), edges 3.9 → 3.2 and 5.3 → 4.0 px, for one larger
                 // map per sun (docs/bench/shadow.md).
                 s.shadow.resolution = 1024;
-                // Its texels are twice as wide: more coverage draws its outlines
-                // in further (docs/bench/shadow.md, "Map coverage").
-                s.shadow.map_coverage = 0.6;
                 s.sh_degree = Some(0);
                 s.render_scale = 0.5;
             }

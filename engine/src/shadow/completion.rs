@@ -467,7 +467,7 @@ pub fn complete_from_views(
         normal: true,
         ..Channels::default()
     };
-    let receiver_settings = SplatSettings { channels, surface_depth: sst.surface_depth, ..SplatSettings::default() };
+    let receiver_settings = SplatSettings { channels, ..sst.receiver_splat() };
 
     // The scene as given: its receivers and its own shadows, once per view.
     let gpu = GpuScene::upload(device, scene)?;
@@ -1146,7 +1146,7 @@ pub fn complete_demo(
     let pass = ShadowPass::new(device)?;
     let full = GpuScene::upload(device, &demo.scene)?;
     let channels = Channels { depth: true, median_depth: true, normal: true, ..Channels::default() };
-    let splat = SplatSettings { channels, surface_depth: st.surface_depth, ..SplatSettings::default() };
+    let splat = SplatSettings { channels, ..st.receiver_splat() };
     let receivers = splatter.render_frame(&full, &camera, &splat)?;
     // Occluders may be anywhere in the city's extent (the tower included: what is
     // removed is unknown to the fit, the extent of the place is not).

@@ -220,6 +220,14 @@ pub struct ShadowSettings {
     /// than their casters; more coverage draws the map's outlines inside
     /// (docs/conventions.md, "Shadows"). Strictly between 0 and 1.
     pub map_coverage: f32,
+    /// Coverage a receiver pixel's splats must reach for it to hold a
+    /// surface, with [`DepthMode::Median`] receivers: the camera frame's
+    /// [`SplatSettings::median_coverage`] (its median depth channel follows
+    /// it). Below one half a wall whose splats leave gaps (trained scenes'
+    /// do) still receives where the camera sees through them to what lies
+    /// behind, which would otherwise catch light or shadow as specks.
+    /// Strictly between 0 and 1.
+    pub receiver_coverage: f32,
     /// Depth of the shadow map.
     pub map_depth: DepthMode,
     /// Depth of the receivers (the camera G-buffer).
@@ -243,8 +251,11 @@ pub struct ShadowSettings {
     pub cull_to_receivers: bool,
 }
 
-/// [`ShadowSettings::map_coverage`] by default (the balanced and reference presets').
-pub const DEFAULT_MAP_COVERAGE: f32 = 0.55;
+/// [`ShadowSettings::map_coverage`] by default (and in every preset).
+pub const DEFAULT_MAP_COVERAGE: f32 = 0.6;
+
+/// [`ShadowSettings::receiver_coverage`] by default (and in every preset).
+pub const DEFAULT_RECEIVER_COVERAGE: f32 = 0.45;
 
 impl Default for ShadowSettings {
     fn default() -> Self {
@@ -258,6 +269,7 @@ impl Default for ShadowSettings {
             surface_depth: true,
             map_surface_depth: false,
             map_coverage: DEFAULT_MAP_COVERAGE,
+            receiver_coverage: DEFAULT_RECEIVER_COVERAGE,
             map_depth: DepthMode::Median,
             receiver_depth: DepthMode::Median,
             fit: ShadowFit::SceneBounds,
@@ -275,6 +287,7 @@ impl ShadowSettings {
     pub fn validate(&self) -> Result<()> {
         crate::splat::check_tile(self.tile)?;
         crate::splat::check_median_coverage("shadow map coverage", self.map_coverage)?;
+        crate::splat::check_median_coverage("shadow receiver coverage", self.receiver_coverage)?;
         let rules: [(bool, String, &str); 8] = [
             (
                 (16..=16384).contains(&self.resolution),
@@ -325,11 +338,12 @@ impl ShadowSettings {
     }
 
     /// The splat settings of a receiver (camera) render for these settings:
-    /// [`ShadowSettings::receiver_channels`] and the surface depth.
+    /// [`ShadowSettings::receiver_channels`], the surface depth and the receiver coverage.
     pub fn receiver_splat(&self) -> SplatSettings {
         SplatSettings {
             channels: self.receiver_channels(),
             surface_depth: self.surface_depth,
+            median_coverage: self.receiver_coverage,
             ..SplatSettings::default()
         }
     }
