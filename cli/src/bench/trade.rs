@@ -75,8 +75,11 @@ pub fn trade_settings(with_network: bool) -> Vec<TradeSetting> {
     knob("shadow filter", "depth".into(), &|s| s.shadow.filter = ShadowFilter::Depth);
     knob("surface depths", "off".into(), &|s| s.shadow.surface_depth = false);
     knob("surface depths", "map too".into(), &|s| s.shadow.map_surface_depth = true);
-    for c in [0.5f32, 0.6, 0.65] {
+    for c in [0.5f32, 0.55, 0.65] {
         knob("shadow map coverage", c.to_string(), &|s| s.shadow.map_coverage = c);
+    }
+    for c in [0.35f32, 0.4, 0.5] {
+        knob("shadow receiver coverage", c.to_string(), &|s| s.shadow.receiver_coverage = c);
     }
     knob("shadow fit", "view".into(), &|s| s.shadow.fit = ShadowFit::ViewFrustum);
     for n in [2u32, 3] {
