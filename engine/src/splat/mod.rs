@@ -259,7 +259,7 @@ pub struct SplatSettings {
     /// limited to its 3σ extent along the view, instead of its centre's depth;
     /// both depth channels follow. Pinhole and orthographic cameras (other
     /// lenses keep centre depths). Off: the centre depth, as 3DGS. The splat
-    /// backward pass refuses frames rendered with it (not differentiated yet).
+    /// backward pass differentiates it (through each splat's centre and slope).
     pub surface_depth: bool,
     /// Coverage 1 − T at which the median depth channel reads a pixel's
     /// depth: the depth of the splat that takes T to 1 − this or below (with
