@@ -6,7 +6,7 @@
 // on lavapipe barriers cost more than they save). CHANNELS picks what else is
 // blended besides rgb and alpha, so unrequested channels cost nothing.
 // Blended channels other than rgb are Σ wᵢ xᵢ with wᵢ = αᵢ Tᵢ (premultiplied
-// by alpha); median depth is the depth where T first falls to 0.5 or below.
+// by alpha); median depth is the depth where T first falls to MEDIAN_T (0.5 unless asked) or below.
 // CPU twin: engine/src/splat/cpu.rs `render_cpu`.
 // This variant loads each splat once per subgroup (needs subgroup ballot);
 // splat_blend_portable.comp loads per invocation, for devices without it.

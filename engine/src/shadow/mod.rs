@@ -47,7 +47,9 @@ use crate::splat::{Channels, SplatFrame, SplatSettings};
 /// Which depth a G-buffer gives for shadows.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 pub enum DepthMode {
-    /// Depth where transmittance first falls to 0.5: robust at silhouettes.
+    /// Depth where transmittance first falls to 1 − the map's or the
+    /// receivers' coverage ([`ShadowSettings::map_coverage`],
+    /// [`ShadowSettings::receiver_coverage`]): robust at silhouettes.
     #[default]
     Median,
     /// Alpha-normalised blended depth Σwz / Σw: smooth, differentiable, but

@@ -10,7 +10,7 @@ use crate::error::{Error, Result};
 pub enum Channel {
     /// Expected depth Σ wᵢ zᵢ.
     Depth,
-    /// Depth where transmittance first falls to 0.5.
+    /// Depth where transmittance first falls to 0.5 (1 − [`crate::splat::SplatSettings::median_coverage`]).
     MedianDepth,
     /// World-space normal.
     Normal,
@@ -147,7 +147,7 @@ impl<T> FromIterator<(Channel, T)> for PerChannel<T> {
 pub struct Channels {
     /// Expected depth Σ wᵢ zᵢ.
     pub depth: bool,
-    /// Depth where transmittance first falls to 0.5.
+    /// Depth where transmittance first falls to 0.5 (1 − [`crate::splat::SplatSettings::median_coverage`]).
     pub median_depth: bool,
     /// World-space normal Σ wᵢ nᵢ.
     pub normal: bool,

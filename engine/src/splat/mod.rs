@@ -395,7 +395,7 @@ pub struct GBuffer {
     /// The optional channels kept ([`Channels`]): planar, 3 floats per
     /// pixel for normal and albedo, else 1. Blended values are Σ wᵢ xᵢ
     /// (divide by alpha for the mean); median depth is the depth where T
-    /// first falls to 0.5 (0 where it never does).
+    /// first falls to 1 − [`SplatSettings::median_coverage`] (0 where it never does).
     pub channels: PerChannel<Vec<f32>>,
     /// Per pixel, the index of the Gaussian with the largest blend weight
     /// (`u32::MAX` where none contributes), when [`Channels::top_gaussian`]
