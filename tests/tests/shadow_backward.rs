@@ -530,7 +530,7 @@ impl Chain {
 
     fn blends(&self, params: &[Gaussian64], map: bool) -> (Vec<Option<CpuSplat>>, Vec<PixelBlend>) {
         let (cam, rule) = self.view(map);
-        render_blends(params, &self.scene, cam, NormalSource::ShortestAxis, DEFAULT_TILE, self.depth, rule.coverage)
+        render_blends(params, &self.scene, cam, NormalSource::ShortestAxis, DEFAULT_TILE, rule)
     }
 
     fn images(&self, params: &[Gaussian64]) -> (DepthImage, DepthImage) {

@@ -12,7 +12,7 @@ use srug::gpu::{Device, MemoryKind};
 use srug::scene::activate::GpuScene;
 use srug::scene::{Camera, Materials, Scene};
 use srug::splat::backward::{BlendGrads, HostGaussianGradients};
-use srug::splat::cpu::{preprocess_params, render_blends, DepthAt, Gaussian64, MedianRule};
+use srug::splat::cpu::{preprocess_params, render_blends, Gaussian64, MedianRule};
 use srug::splat::cpu_backward::{blend_backward_cpu, project_backward, GaussianGrad, PixelGrads};
 use srug::splat::Channel;
 use srug::splat::PerChannel;
@@ -354,15 +354,7 @@ fn gpu_backward_matches_central_finite_differences() {
     let gpu = gpu_gradients(&d, &scene, &camera, bg, &grads);
     let params: Vec<Gaussian64> = (0..scene.len()).map(|i| Gaussian64::from_scene(&scene, i)).collect();
     let loss = |p: &[Gaussian64]| -> f64 {
-        let (_, blends) = render_blends(
-            p,
-            &scene,
-            &camera,
-            NormalSource::ShortestAxis,
-            DEFAULT_TILE,
-            DepthAt::Centre,
-            DEFAULT_MEDIAN_COVERAGE,
-        );
+        let (_, blends) = render_blends(p, &scene, &camera, NormalSource::ShortestAxis, DEFAULT_TILE, CENTRE);
         let mut total = 0.0;
         for (px, b) in blends.iter().enumerate() {
             for (k, (v, w)) in b.values.iter().zip(&host.values[px]).enumerate() {

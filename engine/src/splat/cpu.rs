@@ -880,19 +880,17 @@ pub fn preprocess_params(
 }
 
 /// Stages 1–5 in f64 for geometry `params` (colour and materials from
-/// `scene`): the projected splats and every pixel's blend, row-major, the
-/// median read at `median_coverage` ([`MedianRule`]).
+/// `scene`): the projected splats (with the depths `rule` asks for) and
+/// every pixel's blend, row-major, its median picked by `rule`.
 pub fn render_blends(
     params: &[Gaussian64],
     scene: &Scene,
     camera: &Camera,
     normal_source: NormalSource,
     tile: u32,
-    depth: DepthAt,
-    median_coverage: f32,
+    rule: MedianRule,
 ) -> (Vec<Option<CpuSplat>>, Vec<PixelBlend>) {
-    let rule = MedianRule::new(depth, median_coverage);
-    let splats = preprocess_params(params, scene, camera, normal_source, tile, depth);
+    let splats = preprocess_params(params, scene, camera, normal_source, tile, rule.depth());
     let lists = tile_lists(&splats, camera, tile, TileBounds::default());
     let w = camera.width as usize;
     let blends = (0..w * camera.height as usize)

@@ -334,11 +334,9 @@ mod tests {
         camera: &Camera,
         bg: [f64; 3],
         wts: &PixelGrads,
-        rule: (DepthAt, f32),
+        rule: MedianRule,
     ) -> f64 {
-        let (depth, coverage) = rule;
-        let (_, blends) =
-            render_blends(params, scene, camera, NormalSource::ShortestAxis, DEFAULT_TILE, depth, coverage);
+        let (_, blends) = render_blends(params, scene, camera, NormalSource::ShortestAxis, DEFAULT_TILE, rule);
         let mut total = 0.0;
         for (p, b) in blends.iter().enumerate() {
             let mut v = b.values;
@@ -381,7 +379,6 @@ mod tests {
                 perturb(&mut plus[i], h);
                 let mut minus = params.clone();
                 perturb(&mut minus[i], -h);
-                let rule = (depth, coverage);
                 (loss(&plus, &scene, camera, bg, &wts, rule) - loss(&minus, &scene, camera, bg, &wts, rule)) / (2.0 * h)
             };
             let mut pairs: Vec<(&str, f64, f64)> = Vec::new();
