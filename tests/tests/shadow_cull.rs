@@ -27,6 +27,9 @@ fn tile_of(i: usize, width: usize, tile: usize) -> usize {
     (i / width / tile) * width.div_ceil(tile) + (i % width) / tile
 }
 
+/// A split-blend chunk length short enough to split this test's map lists.
+const SHORT_CHUNKS: u32 = 16;
+
 #[test]
 fn a_map_splatted_only_where_receivers_look_gives_them_the_same_visibility() {
     let d = device();
@@ -43,7 +46,7 @@ fn a_map_splatted_only_where_receivers_look_gives_them_the_same_visibility() {
     for (settings, chunk_length) in [
         (ShadowSettings { resolution: 512, ..ShadowSettings::default() }, default_chunks),
         (ShadowSettings { resolution: 512, normal_offset: 3.0, tile: 8, ..ShadowSettings::default() }, default_chunks),
-        (ShadowSettings { resolution: 512, ..ShadowSettings::default() }, 16),
+        (ShadowSettings { resolution: 512, ..ShadowSettings::default() }, SHORT_CHUNKS),
     ] {
         splatter.set_chunk_length(chunk_length).unwrap();
         let receivers: Vec<_> = cameras
@@ -63,8 +66,14 @@ fn a_map_splatted_only_where_receivers_look_gives_them_the_same_visibility() {
                 settings.tile
             );
             assert!(culled.frame.stats.pairs < whole.frame.stats.pairs, "{label}: no pairs saved");
-            let split = |chunks: u64| if chunk_length == 0 { chunks == 0 } else { chunks > 0 };
-            assert!(split(culled.frame.stats.chunks) && split(whole.frame.stats.chunks), "{label}: split lists?");
+            // Short chunks split this scene's lists; the device's default may split
+            // none of them (on GPUs: 1024 entries, lists past 2048), or is off.
+            let chunks = [culled.frame.stats.chunks, whole.frame.stats.chunks];
+            if chunk_length == 0 {
+                assert_eq!(chunks, [0, 0], "{label}: lists split with splitting off");
+            } else if chunk_length == SHORT_CHUNKS {
+                assert!(chunks.iter().all(|&c| c > 0), "{label}: lists not split: {chunks:?}");
+            }
             println!("{label}: {} of {} map pairs", culled.frame.stats.pairs, whole.frame.stats.pairs);
             for (g, camera) in chosen {
                 for kind in [VisibilityKind::Sigmoid, VisibilityKind::Traced] {
