@@ -9,7 +9,9 @@ use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64Mcg;
 use srug::gpu::{Device, MemoryKind};
 use srug::primitives::scan::{exclusive_scan_cpu, Scan};
-use srug::primitives::sort::{sort_items, wide_digits, wide_digits_supported, RadixSort};
+use srug::primitives::sort::{
+    block_digits_supported, default_sort_digits, sort_items, wide_digits, wide_digits_supported, RadixSort, SortDigits,
+};
 use srug_tests::{assert_no_validation_messages, device};
 
 fn gpu_scan(d: &Device, scan: &mut Scan, values: &[u32]) -> Vec<u32> {
@@ -80,6 +82,32 @@ fn radix_sort_matches_std_sort() {
             sort_cases(&d, &mut sort);
         }
     }
+    // Block digits (8 bits a pass, ranked per block of 1024 keys in shared memory; GPUs'
+    // default): lavapipe's subgroups of 8 give a workgroup the most subgroups they allow.
+    let cpu = d.info().device_type == srug::gpu::ash::vk::PhysicalDeviceType::CPU;
+    let want = match (wide_digits(d.info()), !cpu && block_digits_supported(d.info())) {
+        (true, _) => SortDigits::Wide,
+        (false, true) => SortDigits::Block,
+        (false, false) => SortDigits::Four,
+    };
+    assert_eq!(default_sort_digits(d.info()), want, "wide on CPU devices where they can, block on GPUs, else 4 bits");
+    assert_eq!(RadixSort::new(&d).unwrap().digits(), want);
+    assert!(block_digits_supported(d.info()), "lavapipe and the lent GPUs: ballots, subgroups of 8 or 32, 32 KiB");
+    let mut sort = RadixSort::with_items(&d, 64).unwrap();
+    sort.set_digits(&d, SortDigits::Block).unwrap();
+    assert_eq!(sort.digits(), SortDigits::Block);
+    sort_cases(&d, &mut sort);
+    let block = sort.block_keys() as usize;
+    assert!(block == 1024 || block == 2048, "128 invocations × 8 or 16 keys: {block}");
+    // Whole blocks only, and one key past them; digits all alike within each block (every run one digit).
+    for n in [2 * block, 3 * block + 1] {
+        let keys: Vec<[u32; 2]> =
+            (0..n as u32).map(|i| [(i / block as u32).wrapping_mul(0x0101_0101), i % 5]).collect();
+        check_sort(&d, &mut sort, &keys, 35, &format!("block digits, {n} keys in runs"));
+    }
+    assert_eq!(SortDigits::parse("block").unwrap(), SortDigits::Block);
+    let refused = SortDigits::parse("16").err().map(|e| e.to_string()).unwrap_or_default();
+    assert!(refused.contains("\"16\"") && refused.contains("block"), "{refused}");
     // Wide digits (11 bits a pass, some straddling the key's two words); refused
     // where they crash the driver (lavapipe before Mesa 25), with a message.
     let mut sort = RadixSort::new(&d).unwrap();
@@ -106,9 +134,10 @@ fn radix_sort_matches_std_sort() {
 }
 
 fn sort_cases(d: &Device, sort: &mut RadixSort) {
-    let texel = match sort.wide_digits() {
-        true => "true (wide digits)".to_string(),
-        false => format!("{} ({} keys per invocation)", sort.texel_inputs(), sort.items()),
+    let texel = match sort.digits() {
+        SortDigits::Wide => "true (wide digits)".to_string(),
+        SortDigits::Block => "false (block digits)".to_string(),
+        SortDigits::Four => format!("{} ({} keys per invocation)", sort.texel_inputs(), sort.items()),
     };
     let mut rng = Pcg64Mcg::seed_from_u64(2);
     let random =

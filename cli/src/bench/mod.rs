@@ -20,7 +20,7 @@ use bytemuck::{Pod, Zeroable};
 
 use srug::error::Result;
 use srug::gpu::{kernels, Device, DeviceAddress, Grid, KernelDecl, MemoryKind};
-use srug::primitives::sort::RadixSort;
+use srug::primitives::sort::{RadixSort, SortDigits};
 use srug::scene::activate::GpuScene;
 use srug::scene::demo::{demo_city, DemoOptions};
 use srug::splat::{BlendVariant, NormalSource, SplatSettings, Splatter, TileBounds};
@@ -158,6 +158,10 @@ pub struct SplatterChoices {
     /// or false (default: true where the device views R32F texels).
     #[arg(long)]
     pub texel_preprocess: Option<bool>,
+    /// Digits of the pairs' radix sort (and of the sort comparison): 4, block or wide (default:
+    /// wide on lavapipe from Mesa 25, block on GPUs, else 4).
+    #[arg(long, value_parser = SortDigits::parse)]
+    pub sort_digits: Option<SortDigits>,
 }
 
 impl SplatterChoices {
@@ -183,6 +187,9 @@ impl SplatterChoices {
         }
         if let Some(on) = self.texel_preprocess {
             splatter.set_texel_preprocess(on)?;
+        }
+        if let Some(digits) = self.sort_digits {
+            splatter.set_sort_digits(digits)?;
         }
         Ok(())
     }
@@ -284,7 +291,14 @@ pub struct SortBench {
 }
 
 /// Sorts `n` random splat-like keys on `bits` bits on the GPU and with `sort_unstable`.
-pub fn sort_bench(device: &Device, n: usize, bits: u32, repeats: usize) -> Result<SortBench> {
+/// `digits` overrides the device's default sort digits.
+pub fn sort_bench(
+    device: &Device,
+    n: usize,
+    bits: u32,
+    repeats: usize,
+    digits: Option<SortDigits>,
+) -> Result<SortBench> {
     let mut state = 0x9e37_79b9_7f4a_7c15u64;
     let mut next = || {
         state ^= state << 13;
@@ -299,6 +313,9 @@ pub fn sort_bench(device: &Device, n: usize, bits: u32, repeats: usize) -> Resul
     let kb = device.upload("bench keys", &keys)?;
     let vb = device.upload("bench values", &values)?;
     let mut sort = RadixSort::new(device)?;
+    if let Some(digits) = digits {
+        sort.set_digits(device, digits)?;
+    }
     sort.reserve(device, n as u64)?;
     let mut gpu = Vec::new();
     let mut cpu = Vec::new();

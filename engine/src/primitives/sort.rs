@@ -24,6 +24,15 @@
 //! lane indexes it cheaply, and the sort makes a third of the passes. The bits
 //! are spread evenly over the passes (31 bits: 11 + 10 + 10), and a digit may
 //! straddle the key's two words.
+//!
+//! With block digits ([`block_digits`], the default on GPUs), up to 8 bits
+//! a pass (`sort_*_block.comp`): each workgroup of 128 invocations counts a
+//! block of 128 × [`block_items`] keys in shared memory, and after the scan ranks
+//! them stably by digit (ballots on the digit's bits within a subgroup,
+//! counts across subgroups in shared memory), stages them in digit order
+//! and writes each digit's run with neighbouring invocations on
+//! neighbouring addresses: the stores a GPU coalesces, where a 4-bit
+//! invocation's run scatters every key alone.
 
 use bytemuck::{Pod, Zeroable};
 use std::sync::Arc;
@@ -64,6 +73,91 @@ const WIDE_WORKGROUP: u64 = 8;
 /// Keys a wide-digit invocation gets at least, where the keys allow (so its
 /// 2^bits counts do not outnumber its keys).
 const WIDE_MIN_ITEMS: u64 = 2048;
+
+/// Most bits a block-digit pass sorts (keep in sync with `RADIX` under
+/// `BLOCK_DIGITS` in `sort_common.glsl`).
+pub const BLOCK_DIGIT_BITS: u32 = 8;
+/// Invocations per workgroup of the block-digit kernels (keep in sync with
+/// `WORKGROUP_SIZE_X` under `BLOCK_DIGITS` in `sort_common.glsl`).
+const BLOCK_WORKGROUP: u64 = 128;
+
+/// Shared memory the block-digit scatter declares at `items` keys per
+/// invocation, bytes (`sort_scatter_block.comp`: 16 subgroups' counts of 256
+/// digits, three digit tables, the block's keys and values).
+const fn block_shared_bytes(items: u32) -> u32 {
+    16 * 256 * 4 + 3 * 256 * 4 + BLOCK_WORKGROUP as u32 * items * 12
+}
+
+/// Keys per invocation of the block-digit kernels on `info`'s device
+/// (`BLOCK_ITEMS`, specialization constant 1): 16 where the scatter's
+/// shared memory fits them (longer runs of each digit per block, so wider
+/// stores), else 8.
+pub fn block_items(info: &DeviceInfo) -> u32 {
+    if info.max_shared_memory >= block_shared_bytes(16) {
+        16
+    } else {
+        8
+    }
+}
+
+/// How many bits a radix pass sorts and how ([`RadixSort::set_digits`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SortDigits {
+    /// 4 bits, counted in registers per invocation: any device.
+    Four,
+    /// Up to 8 bits, ranked per workgroup block in shared memory and written
+    /// digit run by digit run ([`block_digits_supported`]).
+    Block,
+    /// Up to 11 bits, counted per long run of keys in an array indexed by
+    /// the digit: CPU devices ([`wide_digits_supported`]; texel inputs).
+    Wide,
+}
+
+impl SortDigits {
+    /// Parses `4`, `block` or `wide`.
+    pub fn parse(text: &str) -> Result<Self> {
+        match text {
+            "4" => Ok(Self::Four),
+            "block" => Ok(Self::Block),
+            "wide" => Ok(Self::Wide),
+            other => Err(Error::invalid(format!("sort digits \"{other}\""), "is not 4, block or wide")),
+        }
+    }
+
+    /// The name [`SortDigits::parse`] reads.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Four => "4",
+            Self::Block => "block",
+            Self::Wide => "wide",
+        }
+    }
+}
+
+/// The digits [`RadixSort::new`] sorts with on `info`'s device: wide on CPU
+/// devices where [`wide_digits`] says so, block digits on other devices
+/// where [`block_digits_supported`], else 4 bits.
+pub fn default_sort_digits(info: &DeviceInfo) -> SortDigits {
+    if wide_digits(info) {
+        SortDigits::Wide
+    } else if info.device_type != vk::PhysicalDeviceType::CPU && block_digits_supported(info) {
+        SortDigits::Block
+    } else {
+        SortDigits::Four
+    }
+}
+
+/// Whether block digits can run on `info`'s device: subgroup ballots, a
+/// subgroup size from 8 to 128 that divides the workgroup's 128 invocations
+/// (so a workgroup holds at most the 16 subgroups the scatter keeps counts
+/// for), and room for the scatter's shared memory.
+pub fn block_digits_supported(info: &DeviceInfo) -> bool {
+    let size = info.subgroup_size;
+    info.subgroup_ballot
+        && (8..=128).contains(&size)
+        && 128 % size == 0
+        && info.max_shared_memory >= block_shared_bytes(8)
+}
 
 /// Whether [`RadixSort::new`] sorts with wide digits on `info`'s device: on
 /// CPU devices (lavapipe), where a dynamically indexed per-invocation array
@@ -148,9 +242,13 @@ pub struct RadixSort {
     /// where the device cannot view RG32UI/R32UI buffers.
     texel: Option<(Arc<Kernel>, Arc<Kernel>)>,
     use_texel: bool,
-    /// Wide-digit variants (texel inputs only); `None` where `texel` is.
+    /// Wide-digit variants (texel inputs only); `None` until first chosen.
     wide: Option<(Arc<Kernel>, Arc<Kernel>)>,
-    use_wide: bool,
+    /// Block-digit variants; `None` until first chosen.
+    block: Option<(Arc<Kernel>, Arc<Kernel>)>,
+    /// Keys a block-digit workgroup ranks ([`block_items`] per invocation).
+    block_keys: u64,
+    digits: SortDigits,
     /// Workgroups the device runs at once, for [`wide_blocks`]: on a CPU
     /// device, this host's hardware threads.
     threads: u64,
@@ -165,12 +263,14 @@ pub struct RadixSort {
 }
 
 impl RadixSort {
-    /// Builds the kernels, with the device's [`sort_items`] and [`wide_digits`]
-    /// (where it can read the keys through texel views).
+    /// Builds the kernels, with the device's [`sort_items`] and
+    /// [`default_sort_digits`] (wide digits where it can also read the keys
+    /// through texel views).
     pub fn new(device: &Device) -> Result<Self> {
         let mut sort = Self::with_items(device, sort_items(device.info().device_type))?;
-        if sort.texel.is_some() && wide_digits(device.info()) {
-            sort.set_wide_digits(device, true)?;
+        match default_sort_digits(device.info()) {
+            SortDigits::Wide if sort.texel.is_none() => {}
+            digits => sort.set_digits(device, digits)?,
         }
         Ok(sort)
     }
@@ -206,7 +306,9 @@ impl RadixSort {
             use_texel: texel.is_some(),
             texel,
             wide: None,
-            use_wide: false,
+            block: None,
+            block_keys: BLOCK_WORKGROUP * 8,
+            digits: SortDigits::Four,
             threads: std::thread::available_parallelism().map_or(1, |n| n.get() as u64),
             max_texels: info.max_texel_buffer_elements,
             items,
@@ -229,8 +331,12 @@ impl RadixSort {
         self.keys_tmp = Some(device.create_buffer("sort keys (ping-pong)", count * 8, MemoryKind::Storage)?);
         self.values_tmp = Some(device.create_buffer("sort values (ping-pong)", count * 4, MemoryKind::Storage)?);
         let mut entries = histogram_len(count, self.items);
-        if self.use_wide {
-            entries = entries.max((1 << WIDE_DIGIT_BITS) * wide_blocks(count, self.threads) * WIDE_WORKGROUP);
+        match self.digits {
+            SortDigits::Wide => {
+                entries = entries.max((1 << WIDE_DIGIT_BITS) * wide_blocks(count, self.threads) * WIDE_WORKGROUP)
+            }
+            SortDigits::Block => entries = entries.max((1 << BLOCK_DIGIT_BITS) * count.div_ceil(self.block_keys)),
+            SortDigits::Four => {}
         }
         self.hist = Some(device.create_buffer("sort histogram", entries * 4, MemoryKind::Storage)?);
         self.scan.reserve(device, entries)?;
@@ -260,45 +366,86 @@ impl RadixSort {
         Ok(())
     }
 
-    /// Whether passes sort wide digits ([`wide_digits`]; with texel inputs,
-    /// where the keys fit one view: otherwise 4-bit digits).
-    pub fn wide_digits(&self) -> bool {
-        self.use_wide
+    /// The digits passes sort ([`RadixSort::set_digits`]; wide digits only
+    /// with texel inputs, where the keys fit one view: otherwise 4 bits).
+    pub fn digits(&self) -> SortDigits {
+        self.digits
     }
 
-    /// Chooses wide or 4-bit digits (see [`RadixSort::wide_digits`]), building
-    /// the wide-digit kernels the first time; wide digits where the device
-    /// lacks texel inputs or where [`wide_digits_supported`] says no are an
-    /// error. Call [`RadixSort::reserve`] after
-    /// turning them on: their histogram may need more scratch memory.
+    /// Keys each block-digit workgroup ranks (128 invocations × [`block_items`]).
+    pub fn block_keys(&self) -> u64 {
+        self.block_keys
+    }
+
+    /// Whether passes sort wide digits ([`RadixSort::digits`]).
+    pub fn wide_digits(&self) -> bool {
+        self.digits == SortDigits::Wide
+    }
+
+    /// Chooses wide or 4-bit digits ([`RadixSort::set_digits`]).
     pub fn set_wide_digits(&mut self, device: &Device, on: bool) -> Result<()> {
-        if on && !wide_digits_supported(device.info()) {
-            return Err(Error::unsupported(
-                "wide sort digits on lavapipe before Mesa 25 (they crash it on a few million keys): 4-bit digits",
-            ));
-        }
-        if on && self.wide.is_none() {
-            if self.texel.is_none() || !device.info().texel_formats.contains(&TexelFormat::Rgba32Uint) {
-                return Err(Error::unsupported(
-                    "this device cannot read sort keys through RG32UI, R32UI and RGBA32UI uniform texel buffers",
-                ));
+        self.set_digits(device, if on { SortDigits::Wide } else { SortDigits::Four })
+    }
+
+    /// Chooses the digits passes sort, building their kernels the first
+    /// time; digits the device cannot run are an error: wide digits without
+    /// RG32UI, R32UI and RGBA32UI texel inputs or where
+    /// [`wide_digits_supported`] says no, block digits where
+    /// [`block_digits_supported`] says no. Call [`RadixSort::reserve`] after
+    /// a change: the histogram may need more scratch memory.
+    pub fn set_digits(&mut self, device: &Device, digits: SortDigits) -> Result<()> {
+        match digits {
+            SortDigits::Wide => {
+                if !wide_digits_supported(device.info()) {
+                    return Err(Error::unsupported(
+                        "wide sort digits on lavapipe before Mesa 25 (they crash it on a few million keys): 4-bit digits",
+                    ));
+                }
+                if self.wide.is_none() {
+                    if self.texel.is_none() || !device.info().texel_formats.contains(&TexelFormat::Rgba32Uint) {
+                        return Err(Error::unsupported(
+                            "this device cannot read sort keys through RG32UI, R32UI and RGBA32UI uniform texel buffers",
+                        ));
+                    }
+                    // Keys (RG32UI) and, in the scatter, values (R32UI); then the same two and four per RGBA32UI texel.
+                    let views = |n: usize| KernelDecl {
+                        bindings: &[BindingKind::UniformTexelBuffer; 4][..n],
+                        push_constant_size: std::mem::size_of::<SortPush>(),
+                        specialization: &[],
+                    };
+                    self.wide = Some((
+                        device.kernel(&kernels::SORT_HISTOGRAM_WIDE_TEXEL, &views(2))?,
+                        device.kernel(&kernels::SORT_SCATTER_WIDE_TEXEL, &views(4))?,
+                    ));
+                }
             }
-            // Keys (RG32UI) and, in the scatter, values (R32UI); then the same two and four per RGBA32UI texel.
-            let views = |n: usize| KernelDecl {
-                bindings: &[BindingKind::UniformTexelBuffer; 4][..n],
-                push_constant_size: std::mem::size_of::<SortPush>(),
-                specialization: &[],
-            };
-            self.wide = Some((
-                device.kernel(&kernels::SORT_HISTOGRAM_WIDE_TEXEL, &views(2))?,
-                device.kernel(&kernels::SORT_SCATTER_WIDE_TEXEL, &views(4))?,
-            ));
+            SortDigits::Block => {
+                if !block_digits_supported(device.info()) {
+                    return Err(Error::unsupported(format!(
+                        "block sort digits need subgroup ballots, a subgroup size from 8 to 128 dividing 128 \
+                         (this device: {}) and {} bytes of shared memory",
+                        device.info().subgroup_size,
+                        block_shared_bytes(8)
+                    )));
+                }
+                if self.block.is_none() {
+                    let items = block_items(device.info());
+                    let specialization = [(1, SpecValue::U32(items))];
+                    let decl = KernelDecl::push::<SortPush>(&specialization);
+                    self.block = Some((
+                        device.kernel(&kernels::SORT_HISTOGRAM_BLOCK, &decl)?,
+                        device.kernel(&kernels::SORT_SCATTER_BLOCK, &decl)?,
+                    ));
+                    self.block_keys = BLOCK_WORKGROUP * u64::from(items);
+                }
+            }
+            SortDigits::Four => {}
         }
-        if on && !self.use_wide {
-            // The histogram was sized for 4-bit digits: size it again at the next reserve.
+        if digits != self.digits {
+            // The histogram was sized for the other digits: size it again at the next reserve.
             self.capacity = 0;
         }
-        self.use_wide = on;
+        self.digits = digits;
         Ok(())
     }
 
@@ -342,10 +489,12 @@ impl RadixSort {
         }
         // Texel-buffer views where the device has them and the keys fit one view.
         let texel = self.texel.as_ref().filter(|_| self.use_texel && count <= self.max_texels);
-        let wide = self.wide.as_ref().filter(|_| self.use_wide && texel.is_some());
-        let (blocks, passes) = match wide {
-            Some(_) => (wide_blocks(count, self.threads), digit_passes(bits, WIDE_DIGIT_BITS)),
-            None => (count.div_ceil(self.items * SORT_WORKGROUP), digit_passes(bits, DIGIT_BITS)),
+        let wide = self.wide.as_ref().filter(|_| self.digits == SortDigits::Wide && texel.is_some());
+        let block = self.block.as_ref().filter(|_| self.digits == SortDigits::Block);
+        let (blocks, passes) = match (wide, block) {
+            (Some(_), _) => (wide_blocks(count, self.threads), digit_passes(bits, WIDE_DIGIT_BITS)),
+            (None, Some(_)) => (count.div_ceil(self.block_keys), digit_passes(bits, BLOCK_DIGIT_BITS)),
+            (None, None) => (count.div_ceil(self.items * SORT_WORKGROUP), digit_passes(bits, DIGIT_BITS)),
         };
         let mut src = (keys, values);
         let mut dst = (keys_tmp, values_tmp);
@@ -370,8 +519,19 @@ impl RadixSort {
             // four keys the kernel reads no value quad, and the R32UI view stands in).
             let key_pairs = view(src.0, count / 2, TexelFormat::Rgba32Uint);
             let value_quads = if count >= 4 { view(src.1, count / 4, TexelFormat::Rgba32Uint) } else { value_view };
-            let histogram_entries =
-                (1u64 << digit) * blocks * if wide.is_some() { WIDE_WORKGROUP } else { SORT_WORKGROUP };
+            let columns = match (wide, block) {
+                (Some(_), _) => blocks * WIDE_WORKGROUP,
+                (None, Some(_)) => blocks,
+                (None, None) => blocks * SORT_WORKGROUP,
+            };
+            let histogram_entries = (1u64 << digit) * columns;
+            if let Some((histogram, scatter)) = block {
+                rec.dispatch(histogram, Grid::Groups(blocks), &[], &push)?;
+                self.scan.record(rec, hist, histogram_entries)?;
+                rec.dispatch(scatter, Grid::Groups(blocks), &[], &push)?;
+                std::mem::swap(&mut src, &mut dst);
+                continue;
+            }
             match (wide, texel) {
                 (Some((histogram, _)), _) => {
                     rec.dispatch(histogram, Grid::Groups(blocks), &[key_view, key_pairs], &push)?

@@ -12,7 +12,7 @@ use crate::gpu::{
     Texels, Timings,
 };
 use crate::primitives::scan::Scan;
-use crate::primitives::sort::RadixSort;
+use crate::primitives::sort::{RadixSort, SortDigits};
 use crate::scene::activate::GpuScene;
 use crate::scene::Camera;
 
@@ -343,6 +343,18 @@ impl Splatter {
         }
         self.texel_preprocess = on;
         Ok(())
+    }
+
+    /// The digits the pairs' radix sort passes take
+    /// ([`crate::primitives::sort::default_sort_digits`] unless set).
+    pub fn sort_digits(&self) -> SortDigits {
+        self.sort.digits()
+    }
+
+    /// Chooses the sort's digits ([`RadixSort::set_digits`]); the order is
+    /// the same, a stable sort on the same keys.
+    pub fn set_sort_digits(&mut self, digits: SortDigits) -> Result<()> {
+        self.sort.set_digits(&self.device, digits)
     }
 
     /// Pixels each invocation of the texel-buffer blend shades ([`BLEND_PIXELS`]).

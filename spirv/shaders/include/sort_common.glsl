@@ -15,8 +15,16 @@
 #ifndef SRUG_SORT_COMMON_GLSL
 #define SRUG_SORT_COMMON_GLSL
 #extension GL_EXT_control_flow_attributes : require
-#ifdef WIDE_DIGITS
+#if defined(WIDE_DIGITS)
 #define WORKGROUP_SIZE_X 8
+#elif defined(BLOCK_DIGITS)
+// Block digits (sort_*_block.comp): a workgroup ranks BLOCK_KEYS keys in
+// shared memory and writes each digit's run of them together.
+#define WORKGROUP_SIZE_X 128
+// Keys per invocation (engine/src/primitives/sort.rs `block_items`: as many
+// as the scatter's shared memory allows).
+layout(constant_id = 1) const uint BLOCK_ITEMS = 8u;
+#define BLOCK_KEYS (WORKGROUP_SIZE_X * BLOCK_ITEMS)
 #else
 #define WORKGROUP_SIZE_X 64
 #endif
@@ -34,6 +42,10 @@ layout(constant_id = 0) const uint ITEMS = 64u;
 #define RADIX 2048
 #define PASS_RADIX (pc.digit_mask + 1u)
 #define UNROLL_RADIX
+#elif defined(BLOCK_DIGITS)
+// Block digits (engine/src/primitives/sort.rs `BLOCK_DIGIT_BITS`): up to 8 bits a pass.
+#define RADIX 256
+#define PASS_RADIX (pc.digit_mask + 1u)
 #else
 #define RADIX 16
 #define PASS_RADIX RADIX
