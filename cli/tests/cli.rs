@@ -288,6 +288,12 @@ fn bench_splat_prints_its_tables() {
     let off = ["--floor-pairs", "6000", "--window-fetch", "false", "--texel-preprocess", "false"];
     let o = srug(&[&["bench", "splat"][..], &args, &off].concat());
     assert!(o.status.success() && text(&o).contains("| 2000 | 64x32 |"), "{}", text(&o));
+    // The sort's digits, named in the sort's line.
+    for digits in ["4", "block"] {
+        let o = srug(&[&["bench", "splat"][..], &args, &["--floor-pairs", "6000", "--sort-digits", digits]].concat());
+        let t = text(&o);
+        assert!(o.status.success() && t.contains(&format!("on 43 bits ({digits} digits)")), "{t}");
+    }
 }
 
 /// `srug bench batch` runs srug render and relight to PNG and EXR and the in-process
@@ -338,6 +344,7 @@ fn malformed_values_are_usage_errors() {
     let cases: &[(&[&str], &[&str])] = &[
         (&["bench", "splat", "--sizes", "64by32"], &["--sizes", "size \"64by32\": is not WxH"]),
         (&["bench", "splat", "--gaussians", "10,x"], &["--gaussians", "x"]),
+        (&["bench", "splat", "--sort-digits", "16"], &["--sort-digits", "sort digits \"16\": is not 4, block or wide"]),
         (&["bench", "shadow", "--ks", "5,fast"], &["--ks", "fast"]),
         (&["bench", "unet", "--inputs", "texels"], &["--inputs", "conv path \"texels\": is not winograd"]),
         (&["render", "a.ply", "--eye", "1,2", "--size", "8x8", "--out", "x.png"], &["--eye", "three"]),
