@@ -25,7 +25,7 @@
 //! are spread evenly over the passes (31 bits: 11 + 10 + 10), and a digit may
 //! straddle the key's two words.
 //!
-//! With block digits ([`block_digits`], the default on GPUs), up to 8 bits
+//! With block digits ([`SortDigits::Block`], [`default_sort_digits`] on GPUs), up to 8 bits
 //! a pass (`sort_*_block.comp`): each workgroup of 128 invocations counts a
 //! block of 128 × [`block_items`] keys in shared memory, and after the scan ranks
 //! them stably by digit (ballots on the digit's bits within a subgroup,
