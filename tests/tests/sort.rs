@@ -82,8 +82,8 @@ fn radix_sort_matches_std_sort() {
             sort_cases(&d, &mut sort);
         }
     }
-    // Block digits (8 bits a pass, ranked per block of 1024 keys in shared memory; GPUs'
-    // default): lavapipe's subgroups of 8 give a workgroup the most subgroups they allow.
+    // Block digits (8 bits a pass, ranked per block of 128 × 8 or 16 keys in shared memory;
+    // GPUs' default): lavapipe's subgroups of 8 give a workgroup the most subgroups they allow.
     let cpu = d.info().device_type == srug::gpu::ash::vk::PhysicalDeviceType::CPU;
     let want = match (wide_digits(d.info()), !cpu && block_digits_supported(d.info())) {
         (true, _) => SortDigits::Wide,
