@@ -162,6 +162,8 @@ struct Reflected {
     push_size: u32,
     push_block: Option<Block>,
     specs: Vec<Spec>,
+    /// Reads `gl_SubgroupID` or `gl_NumSubgroups`.
+    full_subgroups: bool,
 }
 
 fn lit(op: &Operand) -> Option<u32> {
@@ -390,7 +392,11 @@ fn reflect(module: &Module) -> Result<Reflected, String> {
         }
     }
     specs.sort_by_key(|s| s.id);
-    Ok(Reflected { local_size, local_size_ids, bindings, push_size, push_block, specs })
+    let full_subgroups = module.annotations.iter().any(|inst| {
+        inst.class.opcode == Op::Decorate
+            && matches!(inst.operands.get(2), Some(Operand::BuiltIn(BuiltIn::SubgroupId | BuiltIn::NumSubgroups)))
+    });
+    Ok(Reflected { local_size, local_size_ids, bindings, push_size, push_block, specs, full_subgroups })
 }
 
 fn strip_arrays(mut t: u32, defs: &HashMap<u32, &Instruction>) -> u32 {
@@ -490,12 +496,13 @@ fn write_kernel(out: &mut String, ident: &str, stem: &str, words: &[u32], info: 
     let _ = writeln!(out, "    /// Kernel `shaders/{stem}.comp`.");
     let _ = writeln!(
         out,
-        "    pub const {ident}: KernelInfo = KernelInfo {{ name: {stem:?}, words: &{ident}_WORDS, workgroup_size: {:?}, workgroup_size_ids: {:?}, bindings: &[{}], push_constant_size: {}, push_constant_block: {}, spec_constants: &[{}] }};",
+        "    pub const {ident}: KernelInfo = KernelInfo {{ name: {stem:?}, words: &{ident}_WORDS, workgroup_size: {:?}, workgroup_size_ids: {:?}, bindings: &[{}], push_constant_size: {}, push_constant_block: {}, spec_constants: &[{}], full_subgroups: {} }};",
         info.local_size,
         info.local_size_ids,
         bindings.join(", "),
         info.push_size,
         block(&info.push_block),
-        specs.join(", ")
+        specs.join(", "),
+        info.full_subgroups
     );
 }

@@ -44,6 +44,11 @@
 // `srug_vulkan_device::enabled_features` bit: `storageBuffer16BitAccess`.
 #define SRUG_VULKAN_FEATURE_STORAGE_BUFFER_16BIT_ACCESS 16
 
+// `srug_vulkan_device::enabled_features` bit: `computeFullSubgroups`
+// (`VK_EXT_subgroup_size_control` or Vulkan 1.3), which GPUs' sort block
+// digits need (without it srug sorts with 4-bit digits).
+#define SRUG_VULKAN_FEATURE_COMPUTE_FULL_SUBGROUPS 32
+
 // What a call did. Zero is success; every other value comes with a message
 // from [`srug_last_error`].
 enum srug_status

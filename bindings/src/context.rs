@@ -77,6 +77,10 @@ pub const SRUG_VULKAN_FEATURE_SHADER_INT16: u32 = 4;
 pub const SRUG_VULKAN_FEATURE_SHADER_FLOAT16: u32 = 8;
 /// `srug_vulkan_device::enabled_features` bit: `storageBuffer16BitAccess`.
 pub const SRUG_VULKAN_FEATURE_STORAGE_BUFFER_16BIT_ACCESS: u32 = 16;
+/// `srug_vulkan_device::enabled_features` bit: `computeFullSubgroups`
+/// (`VK_EXT_subgroup_size_control` or Vulkan 1.3), which GPUs' sort block
+/// digits need (without it srug sorts with 4-bit digits).
+pub const SRUG_VULKAN_FEATURE_COMPUTE_FULL_SUBGROUPS: u32 = 32;
 
 /// A host application's Vulkan device for `srug_context_create_from_vulkan`
 /// (handles as `void *`, so this header needs no `vulkan.h`).
@@ -137,7 +141,7 @@ pub unsafe extern "C" fn srug_context_create_from_vulkan(
                 return Err(Failure::new(srug_status::SRUG_ERROR_NULL_POINTER, format!("vulkan->{name} is NULL")));
             }
         }
-        let known = 31;
+        let known = 63;
         if v.enabled_features & !known != 0 {
             return Err(invalid(format!("unknown feature bits {:#x}", v.enabled_features & !known)));
         }
@@ -169,6 +173,7 @@ pub unsafe extern "C" fn srug_context_create_from_vulkan(
                 shader_int16: bit(SRUG_VULKAN_FEATURE_SHADER_INT16),
                 shader_float16: bit(SRUG_VULKAN_FEATURE_SHADER_FLOAT16),
                 storage_buffer_16bit_access: bit(SRUG_VULKAN_FEATURE_STORAGE_BUFFER_16BIT_ACCESS),
+                compute_full_subgroups: bit(SRUG_VULKAN_FEATURE_COMPUTE_FULL_SUBGROUPS),
             },
             validation_messages: flags & SRUG_CONTEXT_VALIDATION != 0,
         };

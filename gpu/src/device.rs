@@ -74,8 +74,9 @@ pub struct DeviceOptions {
 }
 /// The device features srug uses, as enabled on a device (Vulkan cannot
 /// report what a device was created with, so a host passing its own device
-/// says). srug needs `buffer_device_address` and `shader_int64`; the others
-/// enable fp16 paths of the U-Net where present.
+/// says). srug needs `buffer_device_address` and `shader_int64`; the 16-bit
+/// ones enable fp16 paths of the U-Net where present, and
+/// `compute_full_subgroups` the sort's block digits.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct EnabledFeatures {
     /// `VkPhysicalDeviceVulkan12Features::bufferDeviceAddress` (required).
@@ -88,6 +89,10 @@ pub struct EnabledFeatures {
     pub shader_float16: bool,
     /// `VkPhysicalDeviceVulkan11Features::storageBuffer16BitAccess`.
     pub storage_buffer_16bit_access: bool,
+    /// `computeFullSubgroups` (`VK_EXT_subgroup_size_control`, core in
+    /// Vulkan 1.3): kernels that place invocations by `gl_SubgroupID` are
+    /// built with `REQUIRE_FULL_SUBGROUPS`.
+    pub compute_full_subgroups: bool,
 }
 
 /// A host application's Vulkan objects for [`Device::from_raw`]. The host
@@ -229,6 +234,7 @@ impl Device {
             (enabled.shader_int16, supported.shader_int16, "shaderInt16"),
             (enabled.shader_float16, supported.shader_float16, "shaderFloat16"),
             (enabled.storage_buffer_16bit_access, supported.storage_buffer_16bit_access, "storageBuffer16BitAccess"),
+            (enabled.compute_full_subgroups, supported.compute_full_subgroups, "computeFullSubgroups"),
         ];
         if let Some((_, _, name)) = required.iter().chain(&claimed).find(|(on, can, _)| *on && !can) {
             return Err(Error::NoDevice(format!("the host says it enabled {name}, which the device does not support")));
@@ -649,12 +655,27 @@ fn compute_family(instance: &ash::Instance, physical: vk::PhysicalDevice) -> Res
         .ok_or_else(|| Error::NoDevice("the device has no compute queue".into()))
 }
 
+/// Whether `physical` offers `VK_EXT_subgroup_size_control` (srug's
+/// instance is Vulkan 1.2, so the extension's structures are how it reaches
+/// `computeFullSubgroups` and `maxSubgroupSize`).
+fn has_subgroup_size_control(instance: &ash::Instance, physical: vk::PhysicalDevice) -> bool {
+    // SAFETY: valid physical device.
+    let extensions = unsafe { instance.enumerate_device_extension_properties(physical) }.unwrap_or_default();
+    extensions.iter().any(|e| e.extension_name_as_c_str() == Ok(ash::ext::subgroup_size_control::NAME))
+}
+
 /// What `physical` supports of the features srug uses.
 fn supported_features(instance: &ash::Instance, physical: vk::PhysicalDevice) -> EnabledFeatures {
     let mut f11 = vk::PhysicalDeviceVulkan11Features::default();
     let mut f12 = vk::PhysicalDeviceVulkan12Features::default();
+    let mut size_control = vk::PhysicalDeviceSubgroupSizeControlFeatures::default();
     let mut features = vk::PhysicalDeviceFeatures2::default().push_next(&mut f11).push_next(&mut f12);
-    // SAFETY: valid physical device and feature chain.
+    let size_control_known = has_subgroup_size_control(instance, physical);
+    if size_control_known {
+        features = features.push_next(&mut size_control);
+    }
+    // SAFETY: valid physical device and feature chain (the extension's
+    // structure only where the device offers the extension).
     unsafe { instance.get_physical_device_features2(physical, &mut features) };
     let base = features.features;
     EnabledFeatures {
@@ -663,6 +684,7 @@ fn supported_features(instance: &ash::Instance, physical: vk::PhysicalDevice) ->
         shader_int16: base.shader_int16 == vk::TRUE,
         shader_float16: f12.shader_float16 == vk::TRUE,
         storage_buffer_16bit_access: f11.storage_buffer16_bit_access == vk::TRUE,
+        compute_full_subgroups: size_control_known && size_control.compute_full_subgroups == vk::TRUE,
     }
 }
 
@@ -682,9 +704,15 @@ fn describe(
     let mut driver = vk::PhysicalDeviceDriverProperties::default();
     let mut subgroup = vk::PhysicalDeviceSubgroupProperties::default();
     let mut ids = vk::PhysicalDeviceIDProperties::default();
+    let mut size_control = vk::PhysicalDeviceSubgroupSizeControlProperties::default();
     let mut props2 =
         vk::PhysicalDeviceProperties2::default().push_next(&mut driver).push_next(&mut subgroup).push_next(&mut ids);
-    // SAFETY: valid physical device and property chain.
+    let size_control_known = has_subgroup_size_control(instance, physical);
+    if size_control_known {
+        props2 = props2.push_next(&mut size_control);
+    }
+    // SAFETY: valid physical device and property chain (the extension's
+    // structure only where the device offers the extension).
     unsafe { instance.get_physical_device_properties2(physical, &mut props2) };
     let props = props2.properties;
     let limits = props.limits;
@@ -705,6 +733,12 @@ fn describe(
         max_workgroup_size: limits.max_compute_work_group_size,
         max_workgroup_invocations: limits.max_compute_work_group_invocations,
         subgroup_size: subgroup.subgroup_size,
+        max_subgroup_size: if size_control_known {
+            size_control.max_subgroup_size.max(subgroup.subgroup_size)
+        } else {
+            subgroup.subgroup_size
+        },
+        full_subgroups: enabled.compute_full_subgroups,
         subgroup_ballot: subgroup.supported_stages.contains(vk::ShaderStageFlags::COMPUTE)
             && subgroup
                 .supported_operations
@@ -769,6 +803,9 @@ fn make_device(
     if exports.semaphore_fd {
         extensions.push(ash::khr::external_semaphore_fd::NAME.as_ptr());
     }
+    if supported.compute_full_subgroups {
+        extensions.push(ash::ext::subgroup_size_control::NAME.as_ptr());
+    }
     let priorities = [1.0f32];
     let queue_info = [vk::DeviceQueueCreateInfo::default().queue_family_index(family).queue_priorities(&priorities)];
     let mut en11 = vk::PhysicalDeviceVulkan11Features::default()
@@ -776,14 +813,18 @@ fn make_device(
     let mut en12 = vk::PhysicalDeviceVulkan12Features::default()
         .buffer_device_address(true)
         .shader_float16(supported.shader_float16);
+    let mut en_size_control = vk::PhysicalDeviceSubgroupSizeControlFeatures::default().compute_full_subgroups(true);
     let en_base =
         vk::PhysicalDeviceFeatures::default().shader_int64(supported.shader_int64).shader_int16(supported.shader_int16);
-    let create = vk::DeviceCreateInfo::default()
+    let mut create = vk::DeviceCreateInfo::default()
         .queue_create_infos(&queue_info)
         .enabled_extension_names(&extensions)
         .enabled_features(&en_base)
         .push_next(&mut en11)
         .push_next(&mut en12);
+    if supported.compute_full_subgroups {
+        create = create.push_next(&mut en_size_control);
+    }
     // SAFETY: features were checked as supported; pointers refer to locals.
     let device = unsafe { instance.create_device(physical, &create, None) }.map_err(vk_error("vkCreateDevice"))?;
     // SAFETY: queue 0 of the family requested above.

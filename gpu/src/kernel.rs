@@ -132,6 +132,32 @@ pub fn specialized_workgroup_size(info: &KernelInfo, decl: &KernelDecl<'_>) -> R
     Ok(size)
 }
 
+/// The stage flags a kernel is built with: `REQUIRE_FULL_SUBGROUPS` for
+/// kernels that read their subgroup's index ([`KernelInfo::full_subgroups`]),
+/// which needs the device's `computeFullSubgroups` and a workgroup width that
+/// `maxSubgroupSize` divides; an error names what is missing.
+pub fn full_subgroup_flags(
+    info: &KernelInfo,
+    workgroup_size: [u32; 3],
+    device: &crate::DeviceInfo,
+) -> Result<vk::PipelineShaderStageCreateFlags, String> {
+    if !info.full_subgroups {
+        return Ok(vk::PipelineShaderStageCreateFlags::empty());
+    }
+    if !device.full_subgroups {
+        return Err("it places invocations by subgroup index, which needs computeFullSubgroups \
+                    (VK_EXT_subgroup_size_control or Vulkan 1.3) enabled on the device"
+            .into());
+    }
+    if device.max_subgroup_size == 0 || workgroup_size[0] % device.max_subgroup_size != 0 {
+        return Err(format!(
+            "full subgroups need a workgroup width that maxSubgroupSize {} divides; it is {}",
+            device.max_subgroup_size, workgroup_size[0]
+        ));
+    }
+    Ok(vk::PipelineShaderStageCreateFlags::REQUIRE_FULL_SUBGROUPS)
+}
+
 impl Kernel {
     /// Builds the pipeline for `info` with the variant `decl.specialization` picks.
     pub fn new(device: &Device, info: &'static KernelInfo, decl: &KernelDecl<'_>) -> Result<Self> {
@@ -151,6 +177,8 @@ impl Kernel {
                 ),
             });
         }
+        let stage_flags = full_subgroup_flags(info, workgroup_size, limits)
+            .map_err(|message| Error::Kernel { kernel: info.name, message })?;
         let shared = &device.shared;
         let d = &shared.device;
         let descriptor_types: Vec<vk::DescriptorType> = info
@@ -217,6 +245,7 @@ impl Kernel {
         let data: Vec<u32> = decl.specialization.iter().map(|(_, v)| v.bits()).collect();
         let spec = vk::SpecializationInfo::default().map_entries(&entries).data(bytemuck::cast_slice(&data));
         let stage = vk::PipelineShaderStageCreateInfo::default()
+            .flags(stage_flags)
             .stage(vk::ShaderStageFlags::COMPUTE)
             .module(module)
             .name(c"main")

@@ -68,7 +68,7 @@ pub use format::TexelFormat;
 pub use host_image::{HostBuffer, HostImage, HostImageAccess, HostImageFormat};
 pub use image::DeviceImage;
 pub use info::{AdapterSummary, DeviceInfo, MemoryUsage};
-pub use kernel::{check_decl, specialized_workgroup_size, Kernel, KernelDecl, SpecValue};
+pub use kernel::{check_decl, full_subgroup_flags, specialized_workgroup_size, Kernel, KernelDecl, SpecValue};
 pub use layout::{check_block, check_layout, DeviceAddress, GpuLayout};
 pub use recording::{grid_1d, Binding, Grid, Recording, StageTime, Submission, Timings};
 pub use srug_spirv::{kernels, BindingInfo, BindingKind, BlockInfo, KernelInfo, MemberInfo, SpecConstantInfo};

@@ -5,10 +5,11 @@
 
 #![allow(clippy::unwrap_used, clippy::expect_used, reason = "a failed unwrap is a failed test")]
 
+use srug_gpu::ash::vk;
 use srug_gpu::selftest::{self, affine_cpu, affine_kernel, AffineAddressedPush, AffinePush, AFFINE_BINDINGS};
 use srug_gpu::{
-    self as gpu, kernels, specialized_workgroup_size, Binding, BindingKind, Device, DeviceOptions, DeviceSelection,
-    GpuError as Error, Grid, Kernel, KernelDecl, MemoryKind, SpecValue, TexelFormat, Texels,
+    self as gpu, full_subgroup_flags, kernels, specialized_workgroup_size, Binding, BindingKind, Device, DeviceOptions,
+    DeviceSelection, GpuError as Error, Grid, Kernel, KernelDecl, MemoryKind, SpecValue, TexelFormat, Texels,
 };
 
 /// A device with validation on (device choice from `SRUG_DEVICE`, else automatic).
@@ -151,6 +152,29 @@ fn declarations_are_checked_against_spirv() {
         assert!(k.bindings.iter().all(|b| b.set == 0), "{}", k.name);
         assert!(!k.words.is_empty() && k.words[0] == 0x0723_0203, "{}: not SPIR-V", k.name);
     }
+    // Full subgroups: read from the SPIR-V (the subgroup's index), built with
+    // REQUIRE_FULL_SUBGROUPS only where the device enabled computeFullSubgroups
+    // and maxSubgroupSize divides the workgroup's width; refused by name elsewhere.
+    let reading: Vec<&str> = kernels::ALL.iter().filter(|k| k.full_subgroups).map(|k| k.name).collect();
+    assert_eq!(reading, ["sort_scatter_block"], "the kernels that read gl_SubgroupID");
+    let scatter = &kernels::SORT_SCATTER_BLOCK;
+    assert!(d.info().full_subgroups || !d.info().is_lavapipe(), "srug enables computeFullSubgroups where offered");
+    assert_eq!(
+        full_subgroup_flags(&kernels::CORE_AFFINE, [64, 1, 1], d.info()),
+        Ok(vk::PipelineShaderStageCreateFlags::empty())
+    );
+    let mut lacking = d.info().clone();
+    lacking.full_subgroups = false;
+    let e = full_subgroup_flags(scatter, [128, 1, 1], &lacking).unwrap_err();
+    assert!(e.contains("computeFullSubgroups"), "{e}");
+    let mut wide = d.info().clone();
+    (wide.full_subgroups, wide.max_subgroup_size) = (true, 64);
+    let e = full_subgroup_flags(scatter, [96, 1, 1], &wide).unwrap_err();
+    assert!(e.contains("maxSubgroupSize 64") && e.contains("96"), "{e}");
+    assert_eq!(
+        full_subgroup_flags(scatter, [128, 1, 1], &wide),
+        Ok(vk::PipelineShaderStageCreateFlags::REQUIRE_FULL_SUBGROUPS)
+    );
     assert_eq!(kernels::CORE_AFFINE.spec_constants[0].name, "MODE");
     assert_eq!(kernels::CORE_AFFINE.push_constant_size, 16);
     assert_eq!(kernels::CORE_AFFINE.workgroup_size_ids, [None; 3]);

@@ -89,6 +89,11 @@ pub struct KernelInfo {
     pub push_constant_block: BlockInfo,
     /// Specialization constants, sorted by id.
     pub spec_constants: &'static [SpecConstantInfo],
+    /// Whether the kernel reads `gl_SubgroupID` or `gl_NumSubgroups`: where
+    /// an invocation works depends on which subgroup holds it, which Vulkan
+    /// pins down only for pipelines built with `REQUIRE_FULL_SUBGROUPS`
+    /// (the kernel cache does so for these).
+    pub full_subgroups: bool,
 }
 
 include!(concat!(env!("OUT_DIR"), "/kernels.rs"));

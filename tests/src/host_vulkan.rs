@@ -60,6 +60,12 @@ pub struct Host {
 /// messenger) and device (queue family with compute; `bufferDeviceAddress`
 /// as asked, `shaderInt64`, `timelineSemaphore`).
 pub fn host(enable_bda: bool) -> Host {
+    host_with(enable_bda, false)
+}
+
+/// [`host`], with `computeFullSubgroups` (`VK_EXT_subgroup_size_control`)
+/// enabled on the device too where `full_subgroups` asks.
+pub fn host_with(enable_bda: bool, full_subgroups: bool) -> Host {
     // SAFETY: loading the system loader.
     let entry = unsafe { ash::Entry::load() }.unwrap();
     let layers = [c"VK_LAYER_KHRONOS_validation".as_ptr()];
@@ -93,19 +99,28 @@ pub fn host(enable_bda: bool) -> Host {
     let mut v12 =
         vk::PhysicalDeviceVulkan12Features::default().buffer_device_address(enable_bda).timeline_semaphore(true);
     let base = vk::PhysicalDeviceFeatures::default().shader_int64(true);
-    let create =
+    let mut size_control = vk::PhysicalDeviceSubgroupSizeControlFeatures::default().compute_full_subgroups(true);
+    let mut create =
         vk::DeviceCreateInfo::default().queue_create_infos(&queues).enabled_features(&base).push_next(&mut v12);
     // Memory srug exports is imported through this extension (lavapipe offers it).
     // SAFETY: valid physical device.
     let offered = unsafe { instance.enumerate_device_extension_properties(physical) }.unwrap();
     let fd = ash::khr::external_memory_fd::NAME;
-    let extensions: Vec<_> =
+    let mut extensions: Vec<_> =
         offered.iter().filter(|e| e.extension_name_as_c_str() == Ok(fd)).map(|_| fd.as_ptr()).collect();
+    if full_subgroups {
+        extensions.push(ash::ext::subgroup_size_control::NAME.as_ptr());
+        create = create.push_next(&mut size_control);
+    }
     let create = create.enabled_extension_names(&extensions);
     // SAFETY: valid create info; lavapipe supports these features.
     let device = unsafe { instance.create_device(physical, &create, None) }.unwrap();
-    let enabled =
-        EnabledFeatures { buffer_device_address: enable_bda, shader_int64: true, ..EnabledFeatures::default() };
+    let enabled = EnabledFeatures {
+        buffer_device_address: enable_bda,
+        shader_int64: true,
+        compute_full_subgroups: full_subgroups,
+        ..EnabledFeatures::default()
+    };
     Host { entry, instance, messenger, heard, physical, device, family, enabled }
 }
 

@@ -4,15 +4,17 @@
 //! after srug is dropped the host's device is still the host's, working, with
 //! nothing of srug's left on it (the host's own messenger hears no validation
 //! message, leaks at vkDestroyDevice included). Missing features and wrong
-//! queues are refused with their names.
+//! queues are refused with their names; a device without full subgroups
+//! sorts without block digits, which refuse it by name.
 
 #![allow(clippy::unwrap_used, clippy::expect_used, reason = "a failed unwrap is a failed test")]
 
 use srug::gpu::{Device, EnabledFeatures, RawVulkan};
+use srug::primitives::sort::{block_digits_supported, default_sort_digits, RadixSort, SortDigits};
 use srug::scene::activate::GpuScene;
 use srug::scene::demo::{demo_city, DemoOptions};
 use srug::splat::{Channels, SplatSettings, Splatter};
-use srug_tests::host_vulkan::host;
+use srug_tests::host_vulkan::{host, host_with};
 use srug_tests::{assert_no_validation_messages, device};
 
 #[test]
@@ -77,4 +79,46 @@ fn a_host_device_without_what_srug_needs_is_refused_by_name() {
     assert!(e.contains("shaderInt64"), "{e}");
     let heard = h.finish();
     assert!(heard.is_empty(), "the host's messenger heard: {heard:?}");
+}
+
+/// Block sort digits place keys by subgroup index, which Vulkan fixes only
+/// for pipelines built with full subgroups: on a host device without
+/// `computeFullSubgroups` they are refused by name (and never the default),
+/// on one with it they sort, with no validation message either way (the
+/// layer checks the pipeline's `REQUIRE_FULL_SUBGROUPS` against the feature
+/// and the workgroup width).
+#[test]
+fn block_sort_digits_need_full_subgroups_on_a_host_device() {
+    let keys: Vec<[u32; 2]> = (0..5000u32).map(|i| [i.wrapping_mul(2_654_435_761) >> 4, 0]).collect();
+    let mut want: Vec<u32> = (0..keys.len() as u32).collect();
+    want.sort_by_key(|&i| keys[i as usize][0]); // std's stable sort
+    for full in [false, true] {
+        let h = host_with(true, full);
+        {
+            // SAFETY: the host's handles belong together and outlive srug's device.
+            let shared = unsafe { Device::from_raw(h.raw()) }.unwrap();
+            assert_eq!(shared.info().full_subgroups, full, "as the host enabled it");
+            assert!(shared.info().max_subgroup_size >= shared.info().subgroup_size);
+            assert_eq!(block_digits_supported(shared.info()), full, "block digits only with full subgroups");
+            let mut sort = RadixSort::with_items(&shared, 64).unwrap();
+            let chosen = sort.set_digits(&shared, SortDigits::Block);
+            if full {
+                chosen.unwrap();
+                sort.reserve(&shared, keys.len() as u64).unwrap();
+                let kb = shared.upload("keys", &keys).unwrap();
+                let values: Vec<u32> = (0..keys.len() as u32).collect();
+                let vb = shared.upload("values", &values).unwrap();
+                shared.run(|rec| sort.record(rec, &kb, &vb, keys.len() as u64, 28)).unwrap();
+                let got: Vec<u32> = shared.read_buffer(&vb).unwrap();
+                assert_eq!(got, want, "block digits on the host's device: the stable order");
+            } else {
+                let e = chosen.err().map(|e| e.to_string()).unwrap_or_default();
+                assert!(e.contains("computeFullSubgroups enabled (here: no)"), "{e}");
+                assert_ne!(default_sort_digits(shared.info()), SortDigits::Block);
+            }
+            assert_no_validation_messages(&shared);
+        }
+        let heard = h.finish();
+        assert!(heard.is_empty(), "the host's messenger heard: {heard:?}");
+    }
 }
