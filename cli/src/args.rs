@@ -558,7 +558,7 @@ pub struct ShadeArgs {
     /// Background r,g,b instead of the environment.
     #[arg(long)]
     pub background: Option<Vec3Arg>,
-    /// Shadow-map resolution [preset: fast 512, balanced 2048, reference 4096].
+    /// Shadow-map resolution [preset: fast 1024, balanced 2048, reference 4096].
     #[arg(long)]
     pub shadow_resolution: Option<u32>,
     /// What the shadow map covers: scene (the whole scene's bounds), view (the
@@ -578,7 +578,7 @@ pub struct ShadeArgs {
     #[arg(long)]
     pub shadow_k: Option<f32>,
     /// Shadow depth bias, metres; at least the splats' extent along the light, or lit
-    /// surfaces shadow themselves [preset: 0.3].
+    /// surfaces shadow themselves [preset: 0.8].
     #[arg(long, allow_negative_numbers = true)]
     pub shadow_bias: Option<f32>,
     /// Slope-scaled shadow bias in shadow-map texels, times tan θ of the

@@ -1353,3 +1353,67 @@ fn shadow_fit_completes_a_scene_from_masks_on_disk() {
     assert_eq!((fixed.len(), &fixed.means), (n, &relightable.means));
     assert_ne!(fixed.materials.visibility, relightable.materials.visibility);
 }
+
+/// Every `[preset: …]` claim in `srug relight --help` is what the presets set
+/// (the help is written by hand; the presets move with measurements).
+#[test]
+fn relight_help_states_the_presets_values() {
+    use clap::CommandFactory;
+    use srug::frame::{Preset, RelightSettings};
+    use srug::indirect::StoragePrecision;
+    use srug::shadow::{DepthMode, ShadowFit, VisibilityKind};
+    let command = srug_cli::Cli::command();
+    let relight = command.find_subcommand("relight").unwrap();
+    let help = |id: &str| {
+        let arg = relight.get_arguments().find(|a| a.get_id() == id).unwrap_or_else(|| panic!("no argument {id}"));
+        arg.get_help().map(ToString::to_string).unwrap_or_default()
+    };
+    let [fast, balanced, reference] = Preset::ALL.map(RelightSettings::preset);
+    // A value every preset shares, as the help writes it.
+    let shared = |get: &dyn Fn(&RelightSettings) -> String| {
+        let value = get(&balanced);
+        assert_eq!((get(&fast), get(&reference)), (value.clone(), value.clone()), "one value for every preset");
+        value
+    };
+    assert_eq!((balanced.sh_degree, reference.sh_degree), (None, None));
+    assert_eq!((balanced.render_scale, reference.render_scale), (0.0, 0.0), "0: full size");
+    assert_eq!(balanced.visibility_kind, fast.visibility_kind);
+    let precision = |p: Preset| if p.indirect_precision() == StoragePrecision::Fp16 { "fp16" } else { "fp32" };
+    assert_eq!(precision(Preset::Balanced), precision(Preset::Reference));
+    let fit = ["scene", "view", "cascades"].into_iter().find(|n| ShadowFit::parse(n).ok() == Some(balanced.shadow.fit));
+    let depth =
+        ["median", "expected"].into_iter().find(|n| DepthMode::parse(n).ok() == Some(balanced.shadow.receiver_depth));
+    let test = |k: VisibilityKind| if k == VisibilityKind::Traced { "traced" } else { "sigmoid" };
+    let claims = [
+        (
+            "shadow_resolution",
+            format!(
+                "fast {}, balanced {}, reference {}",
+                fast.shadow.resolution, balanced.shadow.resolution, reference.shadow.resolution
+            ),
+        ),
+        ("shadow_k", shared(&|s| s.shadow.k.to_string())),
+        ("shadow_bias", shared(&|s| s.shadow.bias.to_string())),
+        ("shadow_slope_bias", shared(&|s| s.shadow.slope_bias.to_string())),
+        ("shadow_normal_offset", shared(&|s| s.shadow.normal_offset.to_string())),
+        ("shadow_filter", shared(&|s| s.shadow.filter.name().to_string())),
+        ("shadow_surface_depth", shared(&|s| s.shadow.surface_depth.to_string())),
+        ("shadow_map_surface_depth", shared(&|s| s.shadow.map_surface_depth.to_string())),
+        ("shadow_map_coverage", shared(&|s| s.shadow.map_coverage.to_string())),
+        ("shadow_receiver_coverage", shared(&|s| s.shadow.receiver_coverage.to_string())),
+        ("shadow_fit", fit.unwrap().to_string()),
+        ("receiver_depth", depth.unwrap().to_string()),
+        ("tile", shared(&|s| s.tile.to_string())),
+        (
+            "shadow_test",
+            format!("reference {}, else {}", test(reference.visibility_kind), test(balanced.visibility_kind)),
+        ),
+        ("sh_degree", format!("fast {}, else the scene's", fast.sh_degree.unwrap())),
+        ("render_scale", format!("fast {}, else 1", fast.render_scale)),
+        ("indirect_precision", format!("fast {}, else {}", precision(Preset::Fast), precision(Preset::Balanced))),
+    ];
+    for (id, value) in claims {
+        let text = help(id);
+        assert!(text.contains(&format!("[preset: {value}]")), "--{id} says {text:?}; the presets set {value}");
+    }
+}
