@@ -17,9 +17,11 @@
 
 // Subgroups a workgroup may hold: WORKGROUP_SIZE_X / 8.
 #define MAX_SUBGROUPS 16u
-// One round's count of each digit in each subgroup.
+// Each subgroup's count of each digit in the round that last wrote it, that
+// round + 1 in the bits above 16 (two barriers a round, no clearing).
 shared uint round_counts[MAX_SUBGROUPS * RADIX];
-// Keys of each digit ranked in the rounds before; then each digit's first place in the block.
+// Keys of each digit ranked in the rounds before (the rounds' leaders add to
+// it atomically); then each digit's first place in the block.
 shared uint ranked[RADIX];
 shared uint block_start[RADIX];
 // Where the block's first key of each digit goes (the scanned histogram).
@@ -38,6 +40,9 @@ void main() {
         ranked[d] = 0u;
         out_start[d] = d < PASS_RADIX ? hist.v[d * pc.blocks + block] : 0u;
     }
+    // Tag 0, no round's: an entry counts only in the round whose tag it holds.
+    for (uint e = t; e < gl_NumSubgroups * RADIX; e += WORKGROUP_SIZE_X) round_counts[e] = 0u;
+    barrier();
     uvec2 keys[BLOCK_ITEMS];
     uint values[BLOCK_ITEMS];
     uint digits[BLOCK_ITEMS];
@@ -56,21 +61,22 @@ void main() {
             peers &= bit ? with_bit : ~with_bit;
         }
         uint below = subgroupBallotBitCount(peers & gl_SubgroupLtMask);
-        barrier();  // the last round's reads of round_counts and ranked are done
-        for (uint e = t; e < gl_NumSubgroups * RADIX; e += WORKGROUP_SIZE_X) round_counts[e] = 0u;
-        barrier();
-        if (valid && below == 0u) round_counts[gl_SubgroupID * RADIX + d] = subgroupBallotBitCount(peers);
-        barrier();
+        // One leader per digit and subgroup writes the subgroup's count,
+        // tagged with the round (r + 1 above the count's 16 bits), so an entry
+        // of an earlier round reads as no key and nothing needs clearing.
+        bool leader = valid && below == 0u;
+        uint count = subgroupBallotBitCount(peers);
+        if (leader) round_counts[gl_SubgroupID * RADIX + d] = (r + 1u) << 16 | count;
+        barrier();  // this round's counts and the last round's `ranked` are written
         uint rank = ranked[d] + below;
-        for (uint s = 0u; s < gl_SubgroupID; s++) rank += round_counts[s * RADIX + d];
+        for (uint s = 0u; s < gl_SubgroupID; s++) {
+            uint tagged = round_counts[s * RADIX + d];
+            rank += tagged >> 16 == r + 1u ? tagged & 0xffffu : 0u;
+        }
         digits[r] = valid ? d : RADIX;
         ranks[r] = rank;
-        barrier();  // every rank read `ranked` before it grows
-        for (uint e = t; e < RADIX; e += WORKGROUP_SIZE_X) {
-            uint add = 0u;
-            for (uint s = 0u; s < gl_NumSubgroups; s++) add += round_counts[s * RADIX + e];
-            ranked[e] += add;
-        }
+        barrier();  // every rank read `ranked` and the counts before they change
+        if (leader) atomicAdd(ranked[d], count);
     }
     barrier();
     // Exclusive scan of the block's digit counts (two digits an invocation).
