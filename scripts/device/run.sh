@@ -7,7 +7,9 @@
 # Test binaries find their sources through the paths they were built at, so
 # the repository is linked there. TEST_LIMIT: seconds for all tests (300);
 # TESTS: an extended regex picking test binaries by name (all); C_PROGRAMS=0 leaves
-# the C programs out; BENCHES: which `srug bench` commands run after them (embed batch splat unet).
+# the C programs out; BENCHES: which `srug bench` commands run after them (embed batch splat unet);
+# COMMANDS: `srug` argument lists separated by `;`, run last, each into $OUT/command_N.txt
+# (e.g. COMMANDS='bench splat --sort-digits 4; bench splat --sort-digits block').
 set -u
 root=$(pwd)
 b=/tmp/srug-device
@@ -52,3 +54,12 @@ export SRUG_VALIDATION=1
 for f in /tmp/srug_t_*.log; do echo "######## $f"; cat "$f"; done > "$out/tests.log"
 unset SRUG_VALIDATION
 for bench in ${BENCHES-embed batch splat unet}; do timeout 90 "$b/srug" bench "$bench" > "$out/bench_$bench.txt" 2>&1; done
+IFS=';' read -ra commands <<< "${COMMANDS-}"
+n=0
+for c in "${commands[@]}"; do
+  [ -n "${c// /}" ] || continue
+  n=$((n + 1))
+  # Word splitting of $c is the point: one srug argument list each.
+  # shellcheck disable=SC2086
+  { echo "\$ srug ${c# }"; timeout 300 "$b/srug" $c; echo "rc=$?"; } > "$out/command_$n.txt" 2>&1
+done
