@@ -159,7 +159,7 @@ pub struct SplatterChoices {
     #[arg(long)]
     pub texel_preprocess: Option<bool>,
     /// Digits of the pairs' radix sort (and of the sort comparison): 4, block or wide (default:
-    /// wide on lavapipe from Mesa 25, block on GPUs, else 4).
+    /// wide on lavapipe from Mesa 25, block on GPUs with computeFullSubgroups, else 4).
     #[arg(long, value_parser = SortDigits::parse)]
     pub sort_digits: Option<SortDigits>,
 }
