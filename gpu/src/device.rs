@@ -656,8 +656,8 @@ fn compute_family(instance: &ash::Instance, physical: vk::PhysicalDevice) -> Res
 }
 
 /// Whether `physical` offers `VK_EXT_subgroup_size_control` (srug's
-/// instance is Vulkan 1.2, so the extension's structures are how it reaches
-/// `computeFullSubgroups` and `maxSubgroupSize`).
+/// instance is Vulkan 1.2, so the extension's structure is how it reaches
+/// `computeFullSubgroups`).
 fn has_subgroup_size_control(instance: &ash::Instance, physical: vk::PhysicalDevice) -> bool {
     // SAFETY: valid physical device.
     let extensions = unsafe { instance.enumerate_device_extension_properties(physical) }.unwrap_or_default();
@@ -704,15 +704,9 @@ fn describe(
     let mut driver = vk::PhysicalDeviceDriverProperties::default();
     let mut subgroup = vk::PhysicalDeviceSubgroupProperties::default();
     let mut ids = vk::PhysicalDeviceIDProperties::default();
-    let mut size_control = vk::PhysicalDeviceSubgroupSizeControlProperties::default();
     let mut props2 =
         vk::PhysicalDeviceProperties2::default().push_next(&mut driver).push_next(&mut subgroup).push_next(&mut ids);
-    let size_control_known = has_subgroup_size_control(instance, physical);
-    if size_control_known {
-        props2 = props2.push_next(&mut size_control);
-    }
-    // SAFETY: valid physical device and property chain (the extension's
-    // structure only where the device offers the extension).
+    // SAFETY: valid physical device and property chain.
     unsafe { instance.get_physical_device_properties2(physical, &mut props2) };
     let props = props2.properties;
     let limits = props.limits;
@@ -733,11 +727,6 @@ fn describe(
         max_workgroup_size: limits.max_compute_work_group_size,
         max_workgroup_invocations: limits.max_compute_work_group_invocations,
         subgroup_size: subgroup.subgroup_size,
-        max_subgroup_size: if size_control_known {
-            size_control.max_subgroup_size.max(subgroup.subgroup_size)
-        } else {
-            subgroup.subgroup_size
-        },
         full_subgroups: enabled.compute_full_subgroups,
         subgroup_ballot: subgroup.supported_stages.contains(vk::ShaderStageFlags::COMPUTE)
             && subgroup

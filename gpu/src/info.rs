@@ -32,10 +32,6 @@ pub struct DeviceInfo {
     pub max_workgroup_invocations: u32,
     /// Subgroup size (8 on lavapipe; never assume 32).
     pub subgroup_size: u32,
-    /// `maxSubgroupSize` (`VK_EXT_subgroup_size_control`; the subgroup size
-    /// where the device lacks it): a kernel built with full subgroups needs a
-    /// workgroup width that it divides.
-    pub max_subgroup_size: u32,
     /// Whether `computeFullSubgroups` is enabled on the device: kernels that
     /// place invocations by `gl_SubgroupID` can be built with every subgroup
     /// full (`REQUIRE_FULL_SUBGROUPS`), which Vulkan promises only so.

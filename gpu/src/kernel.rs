@@ -135,7 +135,9 @@ pub fn specialized_workgroup_size(info: &KernelInfo, decl: &KernelDecl<'_>) -> R
 /// The stage flags a kernel is built with: `REQUIRE_FULL_SUBGROUPS` for
 /// kernels that read their subgroup's index ([`KernelInfo::full_subgroups`]),
 /// which needs the device's `computeFullSubgroups` and a workgroup width that
-/// `maxSubgroupSize` divides; an error names what is missing.
+/// the subgroup size divides (without `ALLOW_VARYING_SUBGROUP_SIZE`, which
+/// srug never sets, the subgroup size is the device's `subgroupSize`); an
+/// error names what is missing.
 pub fn full_subgroup_flags(
     info: &KernelInfo,
     workgroup_size: [u32; 3],
@@ -149,10 +151,10 @@ pub fn full_subgroup_flags(
                     (VK_EXT_subgroup_size_control or Vulkan 1.3) enabled on the device"
             .into());
     }
-    if device.max_subgroup_size == 0 || workgroup_size[0] % device.max_subgroup_size != 0 {
+    if device.subgroup_size == 0 || workgroup_size[0] % device.subgroup_size != 0 {
         return Err(format!(
-            "full subgroups need a workgroup width that maxSubgroupSize {} divides; it is {}",
-            device.max_subgroup_size, workgroup_size[0]
+            "full subgroups need a workgroup width that the subgroup size {} divides; it is {}",
+            device.subgroup_size, workgroup_size[0]
         ));
     }
     Ok(vk::PipelineShaderStageCreateFlags::REQUIRE_FULL_SUBGROUPS)

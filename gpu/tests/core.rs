@@ -154,7 +154,7 @@ fn declarations_are_checked_against_spirv() {
     }
     // Full subgroups: read from the SPIR-V (the subgroup's index), built with
     // REQUIRE_FULL_SUBGROUPS only where the device enabled computeFullSubgroups
-    // and maxSubgroupSize divides the workgroup's width; refused by name elsewhere.
+    // and the subgroup size divides the workgroup's width; refused by name elsewhere.
     let reading: Vec<&str> = kernels::ALL.iter().filter(|k| k.full_subgroups).map(|k| k.name).collect();
     assert_eq!(reading, ["sort_scatter_block"], "the kernels that read gl_SubgroupID");
     let scatter = &kernels::SORT_SCATTER_BLOCK;
@@ -168,9 +168,9 @@ fn declarations_are_checked_against_spirv() {
     let e = full_subgroup_flags(scatter, [128, 1, 1], &lacking).unwrap_err();
     assert!(e.contains("computeFullSubgroups"), "{e}");
     let mut wide = d.info().clone();
-    (wide.full_subgroups, wide.max_subgroup_size) = (true, 64);
+    (wide.full_subgroups, wide.subgroup_size) = (true, 64);
     let e = full_subgroup_flags(scatter, [96, 1, 1], &wide).unwrap_err();
-    assert!(e.contains("maxSubgroupSize 64") && e.contains("96"), "{e}");
+    assert!(e.contains("subgroup size 64") && e.contains("96"), "{e}");
     assert_eq!(
         full_subgroup_flags(scatter, [128, 1, 1], &wide),
         Ok(vk::PipelineShaderStageCreateFlags::REQUIRE_FULL_SUBGROUPS)

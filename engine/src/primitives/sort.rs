@@ -150,17 +150,14 @@ pub fn default_sort_digits(info: &DeviceInfo) -> SortDigits {
 /// Whether block digits can run on `info`'s device: subgroup ballots, a
 /// subgroup size from 8 to 128 that divides the workgroup's 128 invocations
 /// (so a workgroup holds at most the 16 subgroups the scatter keeps counts
-/// for), full subgroups (`computeFullSubgroups` enabled, and a
-/// `maxSubgroupSize` dividing 128: the scatter places keys by subgroup
-/// index), and room for the scatter's shared memory.
+/// for), full subgroups (`computeFullSubgroups` enabled: the scatter places
+/// keys by subgroup index), and room for the scatter's shared memory.
 pub fn block_digits_supported(info: &DeviceInfo) -> bool {
     let size = info.subgroup_size;
     info.subgroup_ballot
         && (8..=128).contains(&size)
         && 128 % size == 0
         && info.full_subgroups
-        && info.max_subgroup_size != 0
-        && BLOCK_WORKGROUP as u32 % info.max_subgroup_size == 0
         && info.max_shared_memory >= block_shared_bytes(8)
 }
 
@@ -429,11 +426,10 @@ impl RadixSort {
                     let info = device.info();
                     return Err(Error::unsupported(format!(
                         "block sort digits need subgroup ballots, a subgroup size from 8 to 128 dividing 128 \
-                         (this device: {}), computeFullSubgroups enabled (here: {}) with a maxSubgroupSize \
-                         dividing 128 (here: {}) and {} bytes of shared memory",
+                         (this device: {}), computeFullSubgroups enabled (here: {}) and {} bytes of shared \
+                         memory",
                         info.subgroup_size,
                         if info.full_subgroups { "yes" } else { "no" },
-                        info.max_subgroup_size,
                         block_shared_bytes(8)
                     )));
                 }
