@@ -8,7 +8,8 @@
 // is its subgroup's index times the subgroup size plus its lane, so the
 // order is stable whatever the mapping of invocations to subgroups; the host
 // runs it only where subgroups hold at least 8 invocations and divide the
-// workgroup (MAX_SUBGROUPS). CPU reference: std sort (tests/tests/sort.rs).
+// workgroup (MAX_SUBGROUPS), and builds it with full subgroups (it reads
+// gl_SubgroupID). CPU reference: std sort (tests/tests/sort.rs).
 #extension GL_KHR_shader_subgroup_basic : require
 #extension GL_KHR_shader_subgroup_ballot : require
 #define BLOCK_DIGITS
