@@ -95,6 +95,12 @@ int main(void) {
   char message[1024] = {0};
   srug_last_error(message, sizeof message, NULL);
   REQUIRE(strstr(message, "bufferDeviceAddress") != NULL);
+  /* A feature bit past SRUG_VULKAN_FEATURE_COMPUTE_FULL_SUBGROUPS (the last one) is refused by value. */
+  srug_vulkan_device unknown = vulkan;
+  unknown.enabled_features |= SRUG_VULKAN_FEATURE_COMPUTE_FULL_SUBGROUPS << 1;
+  EXPECT(srug_context_create_from_vulkan(&unknown, 0, &ctx), SRUG_ERROR_INVALID_ARGUMENT);
+  srug_last_error(message, sizeof message, NULL);
+  REQUIRE(strstr(message, "unknown feature bits 0x40") != NULL);
   srug_vulkan_device wrong_queue = vulkan;
   wrong_queue.queue_index = props[family].queueCount; /* one past the family's queues */
   EXPECT(srug_context_create_from_vulkan(&wrong_queue, 0, &ctx), SRUG_ERROR_NO_DEVICE);
