@@ -63,8 +63,9 @@ pub fn host(enable_bda: bool) -> Host {
     host_with(enable_bda, false)
 }
 
-/// [`host`], with `computeFullSubgroups` (`VK_EXT_subgroup_size_control`)
-/// enabled on the device too where `full_subgroups` asks.
+/// [`host`], with `computeFullSubgroups` (`VK_EXT_subgroup_size_control`,
+/// which lavapipe and NVIDIA's driver offer) enabled on the device too where
+/// `full_subgroups` asks.
 pub fn host_with(enable_bda: bool, full_subgroups: bool) -> Host {
     // SAFETY: loading the system loader.
     let entry = unsafe { ash::Entry::load() }.unwrap();

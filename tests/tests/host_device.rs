@@ -84,9 +84,10 @@ fn a_host_device_without_what_srug_needs_is_refused_by_name() {
 /// Block sort digits place keys by subgroup index, which Vulkan fixes only
 /// for pipelines built with full subgroups: on a host device without
 /// `computeFullSubgroups` they are refused by name (and never the default),
-/// on one with it they sort, with no validation message either way (the
-/// layer checks the pipeline's `REQUIRE_FULL_SUBGROUPS` against the feature
-/// and the workgroup width).
+/// on one with it they sort, with no validation message either way. (The
+/// layer reports the flag without the feature on srug's own device,
+/// VUID-VkPipelineShaderStageCreateInfo-flags-02785, but was seen silent on a
+/// host's; the refusal here is srug's own check.)
 #[test]
 fn block_sort_digits_need_full_subgroups_on_a_host_device() {
     let keys: Vec<[u32; 2]> = (0..5000u32).map(|i| [i.wrapping_mul(2_654_435_761) >> 4, 0]).collect();
