@@ -155,8 +155,8 @@ pub fn default_sort_digits(info: &DeviceInfo) -> SortDigits {
 pub fn block_digits_supported(info: &DeviceInfo) -> bool {
     let size = info.subgroup_size;
     info.subgroup_ballot
-        && (8..=128).contains(&size)
-        && 128 % size == 0
+        && (8..=BLOCK_WORKGROUP as u32).contains(&size)
+        && BLOCK_WORKGROUP as u32 % size == 0
         && info.full_subgroups
         && info.max_shared_memory >= block_shared_bytes(8)
 }
@@ -524,37 +524,26 @@ impl RadixSort {
             // four keys the kernel reads no value quad, and the R32UI view stands in).
             let key_pairs = view(src.0, count / 2, TexelFormat::Rgba32Uint);
             let value_quads = if count >= 4 { view(src.1, count / 4, TexelFormat::Rgba32Uint) } else { value_view };
-            let columns = match (wide, block) {
-                (Some(_), _) => blocks * WIDE_WORKGROUP,
-                (None, Some(_)) => blocks,
-                (None, None) => blocks * SORT_WORKGROUP,
+            let wide_histogram_views = [key_view, key_pairs];
+            let wide_scatter_views = [key_view, value_view, key_pairs, value_quads];
+            let texel_views = [key_view, value_view];
+            // Each pass: its histogram kernel and views, its scatter kernel and
+            // views, and the histogram's columns per block of keys.
+            let (histogram, histogram_views, scatter, scatter_views, columns): (
+                &Kernel,
+                &[Binding<'a>],
+                &Kernel,
+                &[Binding<'a>],
+                u64,
+            ) = match (block, wide, texel) {
+                (Some((h, s)), _, _) => (&**h, &[], &**s, &[], 1),
+                (None, Some((h, s)), _) => (&**h, &wide_histogram_views, &**s, &wide_scatter_views, WIDE_WORKGROUP),
+                (None, None, Some((h, s))) => (&**h, &texel_views[..1], &**s, &texel_views, SORT_WORKGROUP),
+                (None, None, None) => (&*self.histogram, &[], &*self.scatter, &[], SORT_WORKGROUP),
             };
-            let histogram_entries = (1u64 << digit) * columns;
-            if let Some((histogram, scatter)) = block {
-                rec.dispatch(histogram, Grid::Groups(blocks), &[], &push)?;
-                self.scan.record(rec, hist, histogram_entries)?;
-                rec.dispatch(scatter, Grid::Groups(blocks), &[], &push)?;
-                std::mem::swap(&mut src, &mut dst);
-                continue;
-            }
-            match (wide, texel) {
-                (Some((histogram, _)), _) => {
-                    rec.dispatch(histogram, Grid::Groups(blocks), &[key_view, key_pairs], &push)?
-                }
-                (None, Some((histogram, _))) => rec.dispatch(histogram, Grid::Groups(blocks), &[key_view], &push)?,
-                (None, None) => rec.dispatch(&self.histogram, Grid::Groups(blocks), &[], &push)?,
-            }
-            self.scan.record(rec, hist, histogram_entries)?;
-            match (wide, texel) {
-                (Some((_, scatter)), _) => {
-                    let views = [key_view, value_view, key_pairs, value_quads];
-                    rec.dispatch(scatter, Grid::Groups(blocks), &views, &push)?
-                }
-                (None, Some((_, scatter))) => {
-                    rec.dispatch(scatter, Grid::Groups(blocks), &[key_view, value_view], &push)?
-                }
-                (None, None) => rec.dispatch(&self.scatter, Grid::Groups(blocks), &[], &push)?,
-            }
+            rec.dispatch(histogram, Grid::Groups(blocks), histogram_views, &push)?;
+            self.scan.record(rec, hist, (1u64 << digit) * blocks * columns)?;
+            rec.dispatch(scatter, Grid::Groups(blocks), scatter_views, &push)?;
             std::mem::swap(&mut src, &mut dst);
         }
         if passes.len() % 2 == 1 {
