@@ -284,6 +284,8 @@ pub struct SortBench {
     pub keys: usize,
     /// Key bits sorted.
     pub bits: u32,
+    /// The digits the GPU sort took ([`RadixSort::digits`]).
+    pub digits: SortDigits,
     /// GPU keys per second (median).
     pub gpu_keys_per_second: f64,
     /// CPU `sort_unstable` keys per second (median), on 64-bit (key, value) words.
@@ -333,5 +335,6 @@ pub fn sort_bench(
         cpu.push(n as f64 / started.elapsed().as_secs_f64());
         std::hint::black_box(&pairs);
     }
-    Ok(SortBench { keys: n, bits, gpu_keys_per_second: median(gpu), cpu_keys_per_second: median(cpu) })
+    let digits = sort.digits();
+    Ok(SortBench { keys: n, bits, digits, gpu_keys_per_second: median(gpu), cpu_keys_per_second: median(cpu) })
 }

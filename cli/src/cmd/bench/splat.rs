@@ -3,7 +3,6 @@
 //! blend's arithmetic ceiling, the pair-move floor of a sort pass, the memory
 //! bandwidth), with each stage's share of its own floor.
 
-use srug::primitives::sort::default_sort_digits;
 use srug::splat::{check_tile, default_chunk_length, TileBounds, DEFAULT_TILE};
 use srug::Result;
 
@@ -64,7 +63,6 @@ impl SplatBenchArgs {
         let rows = bench::splat_bench(&device, counts, &sizes, &options, |m| bar.set_message(m.to_string()))?;
         bar.set_message("sorting");
         let sort = bench::sort_bench(&device, sort_keys, 32 + 11, repeats, choices.sort_digits)?;
-        let digits = choices.sort_digits.unwrap_or_else(|| default_sort_digits(info));
         bar.set_message("measuring the blend ceiling, the pair-move floor and the memory bandwidth");
         let ceiling = bench::limits::blend_ceiling(&device, repeats)?;
         let floor = bench::limits::pair_move_floor(&device, floor_pairs, repeats)?;
@@ -156,7 +154,7 @@ impl SplatBenchArgs {
             "sort, {} keys on {} bits ({} digits): GPU {:.1} M keys/s, CPU sort_unstable {:.1} M keys/s (ratio {:.2})",
             sort.keys,
             sort.bits,
-            digits.name(),
+            sort.digits.name(),
             sort.gpu_keys_per_second * 1e-6,
             sort.cpu_keys_per_second * 1e-6,
             sort.gpu_keys_per_second / sort.cpu_keys_per_second
