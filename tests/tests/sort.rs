@@ -1,7 +1,8 @@
 //! The GPU prefix sum and radix sort against the CPU: std's stable sort on
 //! the masked key (so stability is checked through the values), for random
 //! keys, duplicates, all-equal keys, lengths 0, 1, non-multiples of the block,
-//! and more than 16 million keys; 4-bit and wide digits.
+//! and more than 16 million keys; 4-bit and wide digits; pairs packed into
+//! one word a pass where the caller allows ([`PairPacking`]).
 
 #![allow(clippy::unwrap_used, clippy::expect_used, reason = "a failed unwrap is a failed test")]
 
@@ -10,7 +11,8 @@ use rand_pcg::Pcg64Mcg;
 use srug::gpu::{Device, MemoryKind};
 use srug::primitives::scan::{exclusive_scan_cpu, Scan};
 use srug::primitives::sort::{
-    block_digits_supported, default_sort_digits, sort_items, wide_digits, wide_digits_supported, RadixSort, SortDigits,
+    block_digits_supported, default_sort_digits, sort_items, wide_digits, wide_digits_supported, PairPacking,
+    RadixSort, SortDigits, WIDE_DIGIT_BITS,
 };
 use srug_tests::{assert_no_validation_messages, device};
 
@@ -176,4 +178,132 @@ fn radix_sort_more_than_16_million_keys() {
     sort.set_texel_inputs(false).unwrap();
     check_sort(&d, &mut sort, &keys, 40, "16M+ (device addresses)");
     assert_no_validation_messages(&d);
+}
+
+/// Sorts `keys` and `values` with `packing`; checks them against std's stable
+/// sort on the low `bits` bits, every key and value carried along, and the
+/// keys' first digit zeroed exactly when the sort packed (`want_packed`).
+fn check_packed_sort(
+    d: &Device,
+    sort: &mut RadixSort,
+    (keys, values): (&[[u32; 2]], &[u32]),
+    bits: u32,
+    packing: PairPacking,
+    want_packed: bool,
+    label: &str,
+) {
+    let n = keys.len();
+    let kb = d.upload("keys", keys).unwrap();
+    let vb = d.upload("values", values).unwrap();
+    sort.reserve(d, n as u64).unwrap();
+    d.run(|rec| sort.record_with(rec, &kb, &vb, n as u64, bits, Some(packing))).unwrap();
+    let (got_keys, got_values): (Vec<[u32; 2]>, Vec<u32>) = (d.read_buffer(&kb).unwrap(), d.read_buffer(&vb).unwrap());
+    let key64 = |k: [u32; 2]| u64::from(k[1]) << 32 | u64::from(k[0]);
+    let mut order: Vec<usize> = (0..n).collect();
+    order.sort_by_key(|&i| key64(keys[i]) & ((1u64 << bits) - 1)); // std's stable sort
+                                                                   // The first digit: passes as few as the width allows, the bits spread evenly (wider first).
+    let width = match sort.digits() {
+        SortDigits::Wide => WIDE_DIGIT_BITS,
+        SortDigits::Block => 8,
+        SortDigits::Four => 4,
+    };
+    let first_digit = bits.div_ceil(bits.div_ceil(width));
+    let zeroed = if want_packed { (1u64 << first_digit) - 1 } else { 0 };
+    for (at, &i) in order.iter().enumerate() {
+        let want = (key64(keys[i]) & !zeroed, values[i]);
+        let got = (key64(got_keys[at]), got_values[at]);
+        assert_eq!(got, want, "{label}: pair {at} of {n} (from {i}), packed: {want_packed}");
+    }
+}
+
+#[test]
+fn packed_radix_sort_matches_std_sort() {
+    let d = device();
+    let mut rng = Pcg64Mcg::seed_from_u64(4);
+    // Keys of `bits` random sort bits and `high` random top bits, zero between; values of `value_bits` bits.
+    let mut pairs = |n: usize, bits: u32, high: u32, value_bits: u32| -> (Vec<[u32; 2]>, Vec<u32>) {
+        let sort_mask = (1u64 << bits) - 1;
+        let high_mask = if high == 0 { 0 } else { u64::MAX << (64 - high) };
+        let value_mask = if value_bits == 32 { u32::MAX } else { (1u32 << value_bits) - 1 };
+        // Few distinct sort keys in half the cases, so stability shows.
+        let spread = if n % 2 == 0 { sort_mask } else { 7 };
+        (0..n)
+            .map(|_| {
+                let key = (rng.random::<u64>() & sort_mask & spread) | (rng.random::<u64>() & high_mask);
+                ([key as u32, (key >> 32) as u32], rng.random::<u32>() & value_mask)
+            })
+            .unzip()
+    };
+    let mut sorts: Vec<(String, RadixSort)> = Vec::new();
+    for (items, texel) in [(256, true), (64, false)] {
+        let mut sort = RadixSort::with_items(&d, items).unwrap();
+        sort.set_texel_inputs(texel).unwrap();
+        sorts.push((format!("4-bit digits, texel {texel}"), sort));
+    }
+    if wide_digits_supported(d.info()) {
+        let mut sort = RadixSort::new(&d).unwrap();
+        sort.set_digits(&d, SortDigits::Wide).unwrap();
+        sorts.push(("wide digits".into(), sort));
+    }
+    let mut block = RadixSort::with_items(&d, 64).unwrap();
+    block.set_digits(&d, SortDigits::Block).unwrap();
+    sorts.push(("block digits (never packed)".into(), block));
+    for (name, sort) in &mut sorts {
+        assert!(!sort.packing(), "{name}: packing is off until asked for");
+        sort.set_packing(&d, true).unwrap();
+        assert!(sort.packing());
+        let width = if sort.digits() == SortDigits::Wide { WIDE_DIGIT_BITS } else { 4 };
+        // (bits, high bits, value bits): the splat frame's 31 and 33 bits with 16-bit row masks
+        // and 20- or 24-bit splat indices, whole 32-bit values, a key reaching bit 63, two passes.
+        for (bits, high, value_bits) in [(31, 16, 20), (33, 16, 24), (31, 0, 32), (48, 16, 4), (2 * width, 32, 1)] {
+            let packing = PairPacking { unused_low_bits: bits, value_bits, high_bits: high };
+            let first_digit = bits.div_ceil(bits.div_ceil(width));
+            let packable =
+                bits.div_ceil(width) >= 2 && sort.digits() != SortDigits::Block && packing.fits(bits, first_digit);
+            for n in [0usize, 1, 2, 3, 5, 1025, 30_001, 100_004] {
+                let label = format!("{name}, {n} pairs on {bits} bits, {high} high, {value_bits}-bit values");
+                let (keys, values) = pairs(n, bits, high, value_bits);
+                check_packed_sort(&d, sort, (&keys, &values), bits, packing, packable && n > 1, &label);
+            }
+        }
+        // Where the packing does not fit (the first digit is read after the sort; the word
+        // would need 65 bits), or one pass sorts everything, the pairs move whole.
+        let (keys, values) = pairs(20_000, 31, 16, 24);
+        let low_read = PairPacking { unused_low_bits: 3, value_bits: 24, high_bits: 16 };
+        check_packed_sort(&d, sort, (&keys, &values), 31, low_read, false, &format!("{name}, low bits read"));
+        let (keys, values) = pairs(20_000, 31, 16, 32);
+        let too_wide = PairPacking { unused_low_bits: 31, value_bits: 32, high_bits: 16 };
+        check_packed_sort(&d, sort, (&keys, &values), 31, too_wide, false, &format!("{name}, 65-bit words"));
+        let (keys, values) = pairs(20_000, width, 16, 24);
+        let one_pass = PairPacking { unused_low_bits: width, value_bits: 24, high_bits: 16 };
+        check_packed_sort(&d, sort, (&keys, &values), width, one_pass, false, &format!("{name}, one pass"));
+        // Off again: whole pairs.
+        sort.set_packing(&d, false).unwrap();
+        let (keys, values) = pairs(20_000, 31, 16, 20);
+        let fits = PairPacking { unused_low_bits: 31, value_bits: 20, high_bits: 16 };
+        check_packed_sort(&d, sort, (&keys, &values), 31, fits, false, &format!("{name}, packing off"));
+    }
+    // Turned on after a reserve: recording is refused until the next reserve sizes the scratch.
+    let mut sort = RadixSort::with_items(&d, 256).unwrap();
+    sort.reserve(&d, 1000).unwrap();
+    sort.set_packing(&d, true).unwrap();
+    let (kb, vb) = (d.upload("keys", &[[0u32; 2]; 1000]).unwrap(), d.upload("values", &[0u32; 1000]).unwrap());
+    let packing = PairPacking { unused_low_bits: 31, value_bits: 10, high_bits: 0 };
+    let refused = d.run(|rec| sort.record_with(rec, &kb, &vb, 1000, 31, Some(packing)));
+    assert!(refused.is_err(), "a packed sort before its reserve must be refused: {refused:?}");
+    assert_no_validation_messages(&d);
+}
+
+#[test]
+fn pair_packing_fits_only_words_of_64_bits_that_drop_unread_bits() {
+    let splat = PairPacking { unused_low_bits: 21, value_bits: 24, high_bits: 16 };
+    assert!(splat.fits(31, 11) && splat.fits(33, 11));
+    assert!(!splat.fits(31, 4), "27 + 24 + 16 bits");
+    assert!(PairPacking { value_bits: 20, ..splat }.fits(31, 4), "27 + 20 + 16 bits");
+    assert!(!splat.fits(31, 22), "the first digit reaches bits read after the sort");
+    assert!(!splat.fits(40, 11), "29 + 24 + 16 bits");
+    assert!(!splat.fits(11, 11), "nothing left to sort after the first digit");
+    assert!(!splat.fits(49, 4), "the sort bits overlap the kept top bits");
+    assert!(PairPacking { unused_low_bits: 64, value_bits: 32, high_bits: 0 }.fits(43, 11));
+    assert!(!PairPacking { unused_low_bits: 64, value_bits: 33, high_bits: 0 }.fits(20, 10), "values over 32 bits");
 }

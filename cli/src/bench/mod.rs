@@ -162,6 +162,11 @@ pub struct SplatterChoices {
     /// wide on lavapipe from Mesa 25, block on GPUs with computeFullSubgroups, else 4).
     #[arg(long, value_parser = SortDigits::parse)]
     pub sort_digits: Option<SortDigits>,
+    /// Move each pair as one 64-bit word in every pass of the frames' sort but the last (its
+    /// depth bits above the first digit, tile id, splat index and row mask): true or false
+    /// (default: true; block digits never pack).
+    #[arg(long)]
+    pub sort_packing: Option<bool>,
 }
 
 impl SplatterChoices {
@@ -190,6 +195,9 @@ impl SplatterChoices {
         }
         if let Some(digits) = self.sort_digits {
             splatter.set_sort_digits(digits)?;
+        }
+        if let Some(on) = self.sort_packing {
+            splatter.set_sort_packing(on)?;
         }
         Ok(())
     }

@@ -33,6 +33,15 @@
 //! and writes each digit's run with neighbouring invocations on
 //! neighbouring addresses: the stores a GPU coalesces, where a 4-bit
 //! invocation's run scatters every key alone.
+//!
+//! Packed passes ([`RadixSort::set_packing`], [`RadixSort::record_with`]):
+//! once the first pass has sorted its digit, nothing needs those bits again,
+//! so where the caller does not read them after the sort ([`PairPacking`])
+//! the first pass writes each pair as one 64-bit word: the key's remaining
+//! sort bits, the value above them and the key's top bits in place. The
+//! middle passes move words (one store a pair where a key and a value are
+//! two), the last unpacks into the caller's buffers, so no copy back is
+//! needed at any pass count. Block digits never pack.
 
 use bytemuck::{Pod, Zeroable};
 use std::sync::Arc;
@@ -41,8 +50,8 @@ use super::scan::Scan;
 use crate::error::{Error, Result};
 use crate::gpu::ash::vk;
 use crate::gpu::{
-    kernels, Binding, BindingKind, Buffer, Device, DeviceAddress, DeviceInfo, Grid, Kernel, KernelDecl, MemoryKind,
-    Recording, SpecValue, TexelFormat, Texels,
+    kernels, Binding, BindingKind, Buffer, Device, DeviceAddress, DeviceInfo, Grid, Kernel, KernelDecl, KernelInfo,
+    MemoryKind, Recording, SpecValue, TexelFormat, Texels,
 };
 
 /// Invocations per workgroup (keep in sync with the sort kernels' `WORKGROUP_SIZE_X`).
@@ -229,12 +238,83 @@ pub(crate) struct SortPush {
     pub blocks: u32,
     /// Mask of this pass's digit: 15, or fewer bits on the last pass.
     pub digit_mask: u32,
+    /// Packed passes: the first digit's bits, which the words drop.
+    pub pack_drop: u32,
+    /// Packed passes: the sort bits a word keeps above the first digit.
+    pub pack_field: u32,
+    /// Packed passes: the key's top bits a word keeps in place.
+    pub pack_high: u32,
+    /// Padding.
+    pub pack_pad: u32,
 }
 crate::gpu::gpu_layout!(
     SortPush,
     "SortPush",
-    [keys_in, values_in, keys_out, values_out, hist, count, shift, blocks, digit_mask]
+    [
+        keys_in, values_in, keys_out, values_out, hist, count, shift, blocks, digit_mask, pack_drop, pack_field,
+        pack_high, pack_pad
+    ]
 );
+
+/// What a caller lets a sort drop from its pairs, so that every pass after
+/// the first moves each pair as one 64-bit word ([`RadixSort::record_with`]):
+/// the key's sort bits above the first digit, the value above them, and the
+/// key's top `high_bits` in place. The first pass packs, the last unpacks:
+/// one store a pair in every pass but the last, where a key and a value are
+/// two. The sorted keys come back with their first digit's bits zeroed.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct PairPacking {
+    /// Low key bits nobody reads after the sort (the first digit may be zeroed if it fits them).
+    pub unused_low_bits: u32,
+    /// Bits every value fits in (at most 32).
+    pub value_bits: u32,
+    /// Top key bits, above the sort bits, read after the sort; the key's
+    /// bits between the sort bits and these must be zero.
+    pub high_bits: u32,
+}
+
+impl PairPacking {
+    /// Whether a sort on `bits` bits whose first digit has `first_digit` bits can pack its pairs.
+    pub fn fits(&self, bits: u32, first_digit: u32) -> bool {
+        first_digit <= self.unused_low_bits
+            && first_digit < bits
+            && self.value_bits <= 32
+            && bits + self.high_bits <= 64
+            && bits - first_digit + self.value_bits + self.high_bits <= 64
+    }
+}
+
+/// Scatter kernels of packed passes: packing, moving words, unpacking.
+type PackedScatters = [Arc<Kernel>; 3];
+
+/// The packed scatter variants of each scatter kernel ([`RadixSort::set_packing`]).
+struct PackedKernels {
+    address: PackedScatters,
+    texel: Option<PackedScatters>,
+    wide: Option<PackedScatters>,
+}
+
+/// Builds `info`'s three packed variants (`PACKED_IN` / `PACKED_OUT`,
+/// specialization constants 2 and 3) with `views` texel views and `items`
+/// keys per invocation (constant 0) where given.
+fn packed_scatters(
+    device: &Device,
+    info: &'static KernelInfo,
+    views: usize,
+    items: Option<u64>,
+) -> Result<PackedScatters> {
+    let variant = |packed_in: bool, packed_out: bool| {
+        let mut specialization = vec![(2, SpecValue::Bool(packed_in)), (3, SpecValue::Bool(packed_out))];
+        specialization.extend(items.map(|n| (0, SpecValue::U32(n as u32))));
+        let decl = KernelDecl {
+            bindings: &[BindingKind::UniformTexelBuffer; 4][..views],
+            push_constant_size: std::mem::size_of::<SortPush>(),
+            specialization: &specialization,
+        };
+        device.kernel(info, &decl)
+    };
+    Ok([variant(false, true)?, variant(true, true)?, variant(true, false)?])
+}
 
 /// The sort kernels and their scratch memory.
 pub struct RadixSort {
@@ -250,6 +330,8 @@ pub struct RadixSort {
     block: Option<(Arc<Kernel>, Arc<Kernel>)>,
     /// Keys a block-digit workgroup ranks ([`block_items`] per invocation).
     block_keys: u64,
+    /// Packed scatter variants; `None` while packing is off.
+    packed: Option<PackedKernels>,
     digits: SortDigits,
     /// Workgroups the device runs at once, for [`wide_blocks`]: on a CPU
     /// device, this host's hardware threads.
@@ -310,6 +392,7 @@ impl RadixSort {
             wide: None,
             block: None,
             block_keys: BLOCK_WORKGROUP * 8,
+            packed: None,
             digits: SortDigits::Four,
             threads: std::thread::available_parallelism().map_or(1, |n| n.get() as u64),
             max_texels: info.max_texel_buffer_elements,
@@ -331,7 +414,10 @@ impl RadixSort {
             return Err(Error::invalid(format!("sort of {count} pairs"), "exceeds 2³² − 1 pairs"));
         }
         self.keys_tmp = Some(device.create_buffer("sort keys (ping-pong)", count * 8, MemoryKind::Storage)?);
-        self.values_tmp = Some(device.create_buffer("sort values (ping-pong)", count * 4, MemoryKind::Storage)?);
+        // Packed passes ping-pong 64-bit words through both scratch buffers.
+        let value_bytes = if self.packed.is_some() { 8 } else { 4 };
+        self.values_tmp =
+            Some(device.create_buffer("sort values (ping-pong)", count * value_bytes, MemoryKind::Storage)?);
         let mut entries = histogram_len(count, self.items);
         match self.digits {
             SortDigits::Wide => {
@@ -446,11 +532,50 @@ impl RadixSort {
             }
             SortDigits::Four => {}
         }
+        if digits == SortDigits::Wide {
+            if let Some(packed) = self.packed.as_mut().filter(|p| p.wide.is_none()) {
+                packed.wide = Some(packed_scatters(device, &kernels::SORT_SCATTER_WIDE_TEXEL, 4, None)?);
+            }
+        }
         if digits != self.digits {
             // The histogram was sized for the other digits: size it again at the next reserve.
             self.capacity = 0;
         }
         self.digits = digits;
+        Ok(())
+    }
+
+    /// Whether [`RadixSort::record_with`] may pack pairs ([`RadixSort::set_packing`]).
+    pub fn packing(&self) -> bool {
+        self.packed.is_some()
+    }
+
+    /// Lets [`RadixSort::record_with`] move pairs as packed words where its
+    /// caller's [`PairPacking`] allows (building the packed scatter kernels
+    /// the first time): not with block digits, which rank their keys in
+    /// shared memory. Call [`RadixSort::reserve`] after a change: packed
+    /// passes need 8 bytes of the values' scratch a pair.
+    pub fn set_packing(&mut self, device: &Device, on: bool) -> Result<()> {
+        if on == self.packed.is_some() {
+            return Ok(());
+        }
+        self.packed = if on {
+            let texel_items = self.texel.as_ref().map(|_| self.items);
+            Some(PackedKernels {
+                address: packed_scatters(device, &kernels::SORT_SCATTER, 0, Some(self.items))?,
+                texel: texel_items
+                    .map(|items| packed_scatters(device, &kernels::SORT_SCATTER_TEXEL, 2, Some(items)))
+                    .transpose()?,
+                wide: self
+                    .wide
+                    .as_ref()
+                    .map(|_| packed_scatters(device, &kernels::SORT_SCATTER_WIDE_TEXEL, 4, None))
+                    .transpose()?,
+            })
+        } else {
+            None
+        };
+        self.capacity = 0;
         Ok(())
     }
 
@@ -470,6 +595,23 @@ impl RadixSort {
         values: &'a Buffer,
         count: u64,
         bits: u32,
+    ) -> Result<()> {
+        self.record_with(rec, keys, values, count, bits, None)
+    }
+
+    /// [`RadixSort::record`], moving the pairs as packed words in every pass
+    /// but the last where packing is on ([`RadixSort::set_packing`]), the
+    /// sort makes two passes or more without block digits, and `packing`
+    /// fits them ([`PairPacking::fits`]); otherwise as `record`. Packed, the
+    /// sorted keys' first-digit bits come back zero.
+    pub fn record_with<'a>(
+        &'a self,
+        rec: &mut Recording<'a>,
+        keys: &'a Buffer,
+        values: &'a Buffer,
+        count: u64,
+        bits: u32,
+        packing: Option<PairPacking>,
     ) -> Result<()> {
         let (Some(keys_tmp), Some(values_tmp), Some(hist)) = (&self.keys_tmp, &self.values_tmp, &self.hist) else {
             return if count == 0 {
@@ -501,9 +643,38 @@ impl RadixSort {
             (None, Some(_)) => (count.div_ceil(self.block_keys), digit_passes(bits, BLOCK_DIGIT_BITS)),
             (None, None) => (count.div_ceil(self.items * SORT_WORKGROUP), digit_passes(bits, DIGIT_BITS)),
         };
+        // The packed scatters of this sort's kernels, where its packing fits.
+        let packed = match (&self.packed, packing) {
+            (Some(kernels), Some(p))
+                if block.is_none()
+                    && passes.len() >= 2
+                    && p.fits(bits, passes[0].1)
+                    && values_tmp.size() >= count * 8 =>
+            {
+                match (wide, texel) {
+                    (Some(_), _) => kernels.wide.as_ref(),
+                    (None, Some(_)) => kernels.texel.as_ref(),
+                    (None, None) => Some(&kernels.address),
+                }
+            }
+            _ => None,
+        };
+        let last = passes.len() - 1;
         let mut src = (keys, values);
         let mut dst = (keys_tmp, values_tmp);
-        for &(shift, digit) in &passes {
+        for (pass, &(shift, digit)) in passes.iter().enumerate() {
+            // Packed: (keys, values) → keys_tmp → values_tmp → keys_tmp … → (keys, values), the
+            // words read through views of their one buffer (the value views stand in, unread).
+            if packed.is_some() {
+                dst = if pass == last {
+                    (keys, values)
+                } else if pass % 2 == 0 {
+                    (keys_tmp, keys_tmp)
+                } else {
+                    (values_tmp, values_tmp)
+                };
+            }
+            let drop = packed.map_or(0, |_| passes[0].1);
             let push = SortPush {
                 keys_in: rec.addr(src.0)?,
                 values_in: rec.addr(src.1)?,
@@ -511,9 +682,13 @@ impl RadixSort {
                 values_out: rec.addr(dst.1)?,
                 hist: rec.addr(hist)?,
                 count: count as u32,
-                shift,
+                shift: if pass == 0 { shift } else { shift - drop },
                 blocks: blocks as u32,
                 digit_mask: (1u32 << digit) - 1,
+                pack_drop: drop,
+                pack_field: bits - drop,
+                pack_high: packing.map_or(0, |p| p.high_bits),
+                pack_pad: 0,
             };
             let view = |buffer: &'a Buffer, elements: u64, format: TexelFormat| {
                 Binding::Texels(Texels { buffer, offset: 0, elements, format })
@@ -541,12 +716,22 @@ impl RadixSort {
                 (None, None, Some((h, s))) => (&**h, &texel_views[..1], &**s, &texel_views, SORT_WORKGROUP),
                 (None, None, None) => (&*self.histogram, &[], &*self.scatter, &[], SORT_WORKGROUP),
             };
+            // Packed: the first pass packs, the last unpacks, the others move words.
+            let variant = match pass {
+                0 => 0,
+                p if p == last => 2,
+                _ => 1,
+            };
+            let scatter = packed.map_or(scatter, |variants| &*variants[variant]);
             rec.dispatch(histogram, Grid::Groups(blocks), histogram_views, &push)?;
             self.scan.record(rec, hist, (1u64 << digit) * blocks * columns)?;
             rec.dispatch(scatter, Grid::Groups(blocks), scatter_views, &push)?;
-            std::mem::swap(&mut src, &mut dst);
+            src = dst;
+            if packed.is_none() {
+                dst = if pass % 2 == 0 { (keys, values) } else { (keys_tmp, values_tmp) };
+            }
         }
-        if passes.len() % 2 == 1 {
+        if packed.is_none() && passes.len() % 2 == 1 {
             rec.copy(keys_tmp, 0, keys, 0, count * 8)?;
             rec.copy(values_tmp, 0, values, 0, count * 4)?;
         }

@@ -12,7 +12,7 @@ use crate::gpu::{
     Texels, Timings,
 };
 use crate::primitives::scan::Scan;
-use crate::primitives::sort::{RadixSort, SortDigits};
+use crate::primitives::sort::{PairPacking, RadixSort, SortDigits};
 use crate::scene::activate::GpuScene;
 use crate::scene::Camera;
 
@@ -296,7 +296,11 @@ impl Splatter {
             chunk_length: default_chunk_length(device.info()),
             chunk_scratch: ChunkScratch::default(),
             scan: Scan::new(device)?,
-            sort: RadixSort::new(device)?,
+            sort: {
+                let mut sort = RadixSort::new(device)?;
+                sort.set_packing(device, true)?;
+                sort
+            },
         })
     }
 
@@ -355,6 +359,19 @@ impl Splatter {
     /// the same, a stable sort on the same keys.
     pub fn set_sort_digits(&mut self, digits: SortDigits) -> Result<()> {
         self.sort.set_digits(&self.device, digits)
+    }
+
+    /// Whether the sort's passes after the first move each pair as one
+    /// 64-bit word (its depth bits above the first digit, tile id, splat
+    /// index and row mask; [`RadixSort::set_packing`]) where they fit: on by
+    /// default (block digits never pack).
+    pub fn sort_packing(&self) -> bool {
+        self.sort.packing()
+    }
+
+    /// Chooses whether the sort packs pairs ([`Splatter::sort_packing`]); the order is the same.
+    pub fn set_sort_packing(&mut self, on: bool) -> Result<()> {
+        self.sort.set_packing(&self.device, on)
     }
 
     /// Pixels each invocation of the texel-buffer blend shades ([`BLEND_PIXELS`]).
@@ -847,6 +864,12 @@ impl Splatter {
             chunks,
             pairs,
             key_bits,
+            // Nothing reads a sorted key's depth bits; the values are splat indices below n.
+            packing: PairPacking {
+                unused_low_bits: depth_bits,
+                value_bits: u64::BITS - n.saturating_sub(1).leading_zeros(),
+                high_bits: if row_masks { tile } else { 0 },
+            },
             texel,
             row_masks,
         })
@@ -1022,7 +1045,7 @@ impl Splatter {
                         rec.dispatch(&s.keys_kernel, Grid::Items(n), &[Binding::from(&p.uniform)], &())?;
                     }
                     rec.begin_stage("sort");
-                    sort.record(rec, &s.keys, &s.values, s.pairs, s.key_bits)?;
+                    sort.record_with(rec, &s.keys, &s.values, s.pairs, s.key_bits, Some(s.packing))?;
                 }
                 rec.begin_stage("ranges");
                 rec.fill(&p.ranges, 0)?;
@@ -1220,6 +1243,8 @@ struct SortPlan {
     chunks: Option<ChunkPlan>,
     pairs: u64,
     key_bits: u32,
+    /// What the sort may drop to pack the pairs.
+    packing: PairPacking,
     texel: bool,
     row_masks: bool,
 }

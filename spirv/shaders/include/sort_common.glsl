@@ -63,6 +63,14 @@ layout(push_constant) uniform SortPush {
     uint shift;       // digit = (key >> shift) & digit_mask, over the 64-bit key
     uint blocks;
     uint digit_mask;  // RADIX - 1, or fewer bits on the last pass
+    // Packed passes (the scatter's PACKED_IN / PACKED_OUT): a packed word is
+    // the key's sort bits above its first digit (pack_field bits), the value
+    // above them and the key's top pack_high bits kept in place
+    // (engine/src/primitives/sort.rs `PairPacking`).
+    uint pack_drop;   // the first digit's bits, dropped from the word
+    uint pack_field;  // sort bits the word keeps
+    uint pack_high;   // top key bits the word keeps
+    uint pack_pad;
 } pc;
 
 #ifdef TEXEL_INPUT

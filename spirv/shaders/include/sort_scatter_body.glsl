@@ -1,6 +1,40 @@
-// The body of sort_scatter.comp and sort_scatter_texel.comp (see there).
+// The body of sort_scatter.comp, sort_scatter_texel.comp and
+// sort_scatter_wide_texel.comp (see there).
 #define SORT_VALUES
 #include "sort_common.glsl"
+
+// Packed passes (engine/src/primitives/sort.rs `PairPacking`): with
+// PACKED_OUT each pair leaves as one 64-bit word (one store where a key and a
+// value are two), with PACKED_IN it arrives as one (the values are not read).
+// The first pass packs, the middle ones move words, the last one unpacks.
+layout(constant_id = 2) const bool PACKED_IN = false;
+layout(constant_id = 3) const bool PACKED_OUT = false;
+
+// The word's sort bits, and the key's top bits it keeps.
+uint64_t field_mask() {
+    return (uint64_t(1) << pc.pack_field) - uint64_t(1);
+}
+uint64_t high_mask() {
+    return pc.pack_high == 0u ? uint64_t(0) : ~uint64_t(0) << (64u - pc.pack_high);
+}
+
+// Writes the pair (key, value) to slot `dst`: as it came, packed or unpacked.
+// With PACKED_IN `key` is the packed word and `value` unused.
+void put(Uint64sOut keys_out, uint dst, uvec2 key, uint value) {
+    uint64_t word = packUint2x32(key);
+    if (PACKED_IN && PACKED_OUT) {
+        keys_out.v[dst] = word;
+    } else if (PACKED_OUT) {
+        keys_out.v[dst] = ((word >> pc.pack_drop) & field_mask()) | (uint64_t(value) << pc.pack_field)
+            | (word & high_mask());
+    } else if (PACKED_IN) {
+        keys_out.v[dst] = ((word & field_mask()) << pc.pack_drop) | (word & high_mask());
+        UintsOut(pc.values_out).v[dst] = uint((word & ~high_mask()) >> pc.pack_field);
+    } else {
+        keys_out.v[dst] = word;
+        UintsOut(pc.values_out).v[dst] = value;
+    }
+}
 
 void main() {
     uint me = invocation();
@@ -18,19 +52,13 @@ void main() {
     for (; i + 3u < end; i += 4u) {
         uvec4 k01 = texelFetch(key_pairs_view, int(i / 2u));
         uvec4 k23 = texelFetch(key_pairs_view, int(i / 2u + 1u));
-        uvec4 v = texelFetch(value_quads_view, int(i / 4u));
+        uvec4 v = PACKED_IN ? uvec4(0u) : texelFetch(value_quads_view, int(i / 4u));
         uvec2 k[4] = uvec2[4](k01.xy, k01.zw, k23.xy, k23.zw);
-        [[unroll]] for (uint j = 0u; j < 4u; j++) {
-            uint dst = next[digit_of(k[j])]++;
-            keys_out.v[dst] = packUint2x32(k[j]);
-            UintsOut(pc.values_out).v[dst] = v[j];
-        }
+        [[unroll]] for (uint j = 0u; j < 4u; j++) put(keys_out, next[digit_of(k[j])]++, k[j], v[j]);
     }
     for (; i < end; i++) {
         uvec2 key = KEY(i);
-        uint dst = next[digit_of(key)]++;
-        keys_out.v[dst] = packUint2x32(key);
-        UintsOut(pc.values_out).v[dst] = VALUE(i);
+        put(keys_out, next[digit_of(key)]++, key, PACKED_IN ? 0u : VALUE(i));
     }
 #else
     for (uint i = me * run; i < end; i++) {
@@ -47,8 +75,7 @@ void main() {
             next[d] += here ? 1u : 0u;
         }
 #endif
-        keys_out.v[dst] = packUint2x32(key);
-        UintsOut(pc.values_out).v[dst] = VALUE(i);
+        put(keys_out, dst, key, PACKED_IN ? 0u : VALUE(i));
     }
 #endif
 }
