@@ -9,7 +9,9 @@
 // order is stable whatever the mapping of invocations to subgroups; the host
 // runs it only where subgroups hold at least 8 invocations and divide the
 // workgroup (MAX_SUBGROUPS), and builds it with full subgroups (it reads
-// gl_SubgroupID). CPU reference: std sort (tests/tests/sort.rs).
+// gl_SubgroupID). Packed passes (sort_common.glsl `put`) stage the pair as
+// it came and pack or unpack it on the way out. CPU reference: std sort
+// (tests/tests/sort.rs).
 #extension GL_KHR_shader_subgroup_basic : require
 #extension GL_KHR_shader_subgroup_ballot : require
 #define BLOCK_DIGITS
@@ -52,7 +54,7 @@ void main() {
         uint i = first + r * WORKGROUP_SIZE_X + place;
         bool valid = i < pc.count;
         keys[r] = valid ? KEY(i) : uvec2(0u);
-        values[r] = valid ? VALUE(i) : 0u;
+        values[r] = valid && !PACKED_IN ? VALUE(i) : 0u;
         uint d = digit_of(keys[r]);
         // The lanes holding a valid key of this digit.
         uvec4 peers = subgroupBallot(valid);
@@ -102,13 +104,11 @@ void main() {
     }
     barrier();
     Uint64sOut keys_out = Uint64sOut(pc.keys_out);
-    UintsOut values_out = UintsOut(pc.values_out);
     uint in_block = min(BLOCK_KEYS, pc.count - first);
     for (uint at = t; at < in_block; at += WORKGROUP_SIZE_X) {
         uvec2 key = block_keys[at];
         uint d = digit_of(key);
         uint dst = out_start[d] + (at - block_start[d]);
-        keys_out.v[dst] = packUint2x32(key);
-        values_out.v[dst] = block_values[at];
+        put(keys_out, dst, key, block_values[at]);
     }
 }

@@ -2,7 +2,7 @@
 //! the masked key (so stability is checked through the values), for random
 //! keys, duplicates, all-equal keys, lengths 0, 1, non-multiples of the block,
 //! and more than 16 million keys; 4-bit and wide digits; pairs packed into
-//! one word a pass where the caller allows ([`PairPacking`]).
+//! one word a pass where the caller allows ([`PairPacking`]), with every kind of digits.
 
 #![allow(clippy::unwrap_used, clippy::expect_used, reason = "a failed unwrap is a failed test")]
 
@@ -12,7 +12,7 @@ use srug::gpu::{Device, MemoryKind};
 use srug::primitives::scan::{exclusive_scan_cpu, Scan};
 use srug::primitives::sort::{
     block_digits_supported, default_sort_digits, sort_items, wide_digits, wide_digits_supported, PairPacking,
-    RadixSort, SortDigits, WIDE_DIGIT_BITS,
+    RadixSort, SortDigits,
 };
 use srug_tests::{assert_no_validation_messages, device};
 
@@ -202,11 +202,7 @@ fn check_packed_sort(
     let mut order: Vec<usize> = (0..n).collect();
     order.sort_by_key(|&i| key64(keys[i]) & ((1u64 << bits) - 1)); // std's stable sort
                                                                    // The first digit: passes as few as the width allows, the bits spread evenly (wider first).
-    let width = match sort.digits() {
-        SortDigits::Wide => WIDE_DIGIT_BITS,
-        SortDigits::Block => 8,
-        SortDigits::Four => 4,
-    };
+    let width = sort.digits().max_bits();
     let first_digit = bits.div_ceil(bits.div_ceil(width));
     let zeroed = if want_packed { (1u64 << first_digit) - 1 } else { 0 };
     for (at, &i) in order.iter().enumerate() {
@@ -247,19 +243,18 @@ fn packed_radix_sort_matches_std_sort() {
     }
     let mut block = RadixSort::with_items(&d, 64).unwrap();
     block.set_digits(&d, SortDigits::Block).unwrap();
-    sorts.push(("block digits (never packed)".into(), block));
+    sorts.push(("block digits".into(), block));
     for (name, sort) in &mut sorts {
         assert!(!sort.packing(), "{name}: packing is off until asked for");
         sort.set_packing(&d, true).unwrap();
         assert!(sort.packing());
-        let width = if sort.digits() == SortDigits::Wide { WIDE_DIGIT_BITS } else { 4 };
+        let width = sort.digits().max_bits();
         // (bits, high bits, value bits): the splat frame's 31 and 33 bits with 16-bit row masks
         // and 20- or 24-bit splat indices, whole 32-bit values, a key reaching bit 63, two passes.
         for (bits, high, value_bits) in [(31, 16, 20), (33, 16, 24), (31, 0, 32), (48, 16, 4), (2 * width, 32, 1)] {
             let packing = PairPacking { unused_low_bits: bits, value_bits, high_bits: high };
             let first_digit = bits.div_ceil(bits.div_ceil(width));
-            let packable =
-                bits.div_ceil(width) >= 2 && sort.digits() != SortDigits::Block && packing.fits(bits, first_digit);
+            let packable = bits.div_ceil(width) >= 2 && packing.fits(bits, first_digit);
             for n in [0usize, 1, 2, 3, 5, 1025, 30_001, 100_004] {
                 let label = format!("{name}, {n} pairs on {bits} bits, {high} high, {value_bits}-bit values");
                 let (keys, values) = pairs(n, bits, high, value_bits);

@@ -164,7 +164,7 @@ pub struct SplatterChoices {
     pub sort_digits: Option<SortDigits>,
     /// Move each pair as one 64-bit word in every pass of the frames' sort but the last (its
     /// depth bits above the first digit, tile id, splat index and row mask): true or false
-    /// (default: true; block digits never pack).
+    /// (default: true).
     #[arg(long)]
     pub sort_packing: Option<bool>,
 }

@@ -41,7 +41,8 @@
 //! sort bits, the value above them and the key's top bits in place. The
 //! middle passes move words (one store a pair where a key and a value are
 //! two), the last unpacks into the caller's buffers, so no copy back is
-//! needed at any pass count. Block digits never pack.
+//! needed at any pass count. Block digits stage the pair in shared memory as
+//! it came and pack or unpack it on the way out.
 
 use bytemuck::{Pod, Zeroable};
 use std::sync::Arc;
@@ -97,6 +98,11 @@ const fn block_shared_bytes(items: u32) -> u32 {
     16 * 256 * 4 + 3 * 256 * 4 + BLOCK_WORKGROUP as u32 * items * 12
 }
 
+/// The block-digit kernels' specialization on `info`'s device: [`block_items`] (constant 1).
+fn block_specialization(info: &DeviceInfo) -> [(u32, SpecValue); 1] {
+    [(1, SpecValue::U32(block_items(info)))]
+}
+
 /// Keys per invocation of the block-digit kernels on `info`'s device
 /// (`BLOCK_ITEMS`, specialization constant 1): 16 where the scatter's
 /// shared memory fits them (longer runs of each digit per block, so wider
@@ -130,6 +136,15 @@ impl SortDigits {
             "block" => Ok(Self::Block),
             "wide" => Ok(Self::Wide),
             other => Err(Error::invalid(format!("sort digits \"{other}\""), "is not 4, block or wide")),
+        }
+    }
+
+    /// Most bits a pass of these digits sorts.
+    pub fn max_bits(self) -> u32 {
+        match self {
+            Self::Four => DIGIT_BITS,
+            Self::Block => BLOCK_DIGIT_BITS,
+            Self::Wide => WIDE_DIGIT_BITS,
         }
     }
 
@@ -292,20 +307,21 @@ struct PackedKernels {
     address: PackedScatters,
     texel: Option<PackedScatters>,
     wide: Option<PackedScatters>,
+    block: Option<PackedScatters>,
 }
 
 /// Builds `info`'s three packed variants (`PACKED_IN` / `PACKED_OUT`,
-/// specialization constants 2 and 3) with `views` texel views and `items`
-/// keys per invocation (constant 0) where given.
+/// specialization constants 2 and 3) with `views` texel views and the
+/// scatter's own `specialization`.
 fn packed_scatters(
     device: &Device,
     info: &'static KernelInfo,
     views: usize,
-    items: Option<u64>,
+    specialization: &[(u32, SpecValue)],
 ) -> Result<PackedScatters> {
     let variant = |packed_in: bool, packed_out: bool| {
-        let mut specialization = vec![(2, SpecValue::Bool(packed_in)), (3, SpecValue::Bool(packed_out))];
-        specialization.extend(items.map(|n| (0, SpecValue::U32(n as u32))));
+        let mut specialization = specialization.to_vec();
+        specialization.extend([(2, SpecValue::Bool(packed_in)), (3, SpecValue::Bool(packed_out))]);
         let decl = KernelDecl {
             bindings: &[BindingKind::UniformTexelBuffer; 4][..views],
             push_constant_size: std::mem::size_of::<SortPush>(),
@@ -520,21 +536,27 @@ impl RadixSort {
                     )));
                 }
                 if self.block.is_none() {
-                    let items = block_items(device.info());
-                    let specialization = [(1, SpecValue::U32(items))];
+                    let specialization = block_specialization(device.info());
                     let decl = KernelDecl::push::<SortPush>(&specialization);
                     self.block = Some((
                         device.kernel(&kernels::SORT_HISTOGRAM_BLOCK, &decl)?,
                         device.kernel(&kernels::SORT_SCATTER_BLOCK, &decl)?,
                     ));
-                    self.block_keys = BLOCK_WORKGROUP * u64::from(items);
+                    self.block_keys = BLOCK_WORKGROUP * u64::from(block_items(device.info()));
                 }
             }
             SortDigits::Four => {}
         }
-        if digits == SortDigits::Wide {
-            if let Some(packed) = self.packed.as_mut().filter(|p| p.wide.is_none()) {
-                packed.wide = Some(packed_scatters(device, &kernels::SORT_SCATTER_WIDE_TEXEL, 4, None)?);
+        if let Some(packed) = self.packed.as_mut() {
+            match digits {
+                SortDigits::Wide if packed.wide.is_none() => {
+                    packed.wide = Some(packed_scatters(device, &kernels::SORT_SCATTER_WIDE_TEXEL, 4, &[])?)
+                }
+                SortDigits::Block if packed.block.is_none() => {
+                    let specialization = block_specialization(device.info());
+                    packed.block = Some(packed_scatters(device, &kernels::SORT_SCATTER_BLOCK, 0, &specialization)?)
+                }
+                _ => {}
             }
         }
         if digits != self.digits {
@@ -552,24 +574,31 @@ impl RadixSort {
 
     /// Lets [`RadixSort::record_with`] move pairs as packed words where its
     /// caller's [`PairPacking`] allows (building the packed scatter kernels
-    /// the first time): not with block digits, which rank their keys in
-    /// shared memory. Call [`RadixSort::reserve`] after a change: packed
+    /// the first time). Call [`RadixSort::reserve`] after a change: packed
     /// passes need 8 bytes of the values' scratch a pair.
     pub fn set_packing(&mut self, device: &Device, on: bool) -> Result<()> {
         if on == self.packed.is_some() {
             return Ok(());
         }
         self.packed = if on {
-            let texel_items = self.texel.as_ref().map(|_| self.items);
+            let items = [(0, SpecValue::U32(self.items as u32))];
+            let block = block_specialization(device.info());
             Some(PackedKernels {
-                address: packed_scatters(device, &kernels::SORT_SCATTER, 0, Some(self.items))?,
-                texel: texel_items
-                    .map(|items| packed_scatters(device, &kernels::SORT_SCATTER_TEXEL, 2, Some(items)))
+                address: packed_scatters(device, &kernels::SORT_SCATTER, 0, &items)?,
+                texel: self
+                    .texel
+                    .as_ref()
+                    .map(|_| packed_scatters(device, &kernels::SORT_SCATTER_TEXEL, 2, &items))
                     .transpose()?,
                 wide: self
                     .wide
                     .as_ref()
-                    .map(|_| packed_scatters(device, &kernels::SORT_SCATTER_WIDE_TEXEL, 4, None))
+                    .map(|_| packed_scatters(device, &kernels::SORT_SCATTER_WIDE_TEXEL, 4, &[]))
+                    .transpose()?,
+                block: self
+                    .block
+                    .as_ref()
+                    .map(|_| packed_scatters(device, &kernels::SORT_SCATTER_BLOCK, 0, &block))
                     .transpose()?,
             })
         } else {
@@ -601,7 +630,7 @@ impl RadixSort {
 
     /// [`RadixSort::record`], moving the pairs as packed words in every pass
     /// but the last where packing is on ([`RadixSort::set_packing`]), the
-    /// sort makes two passes or more without block digits, and `packing`
+    /// sort makes two passes or more, and `packing`
     /// fits them ([`PairPacking::fits`]); otherwise as `record`. Packed, the
     /// sorted keys' first-digit bits come back zero.
     pub fn record_with<'a>(
@@ -638,23 +667,22 @@ impl RadixSort {
         let texel = self.texel.as_ref().filter(|_| self.use_texel && count <= self.max_texels);
         let wide = self.wide.as_ref().filter(|_| self.digits == SortDigits::Wide && texel.is_some());
         let block = self.block.as_ref().filter(|_| self.digits == SortDigits::Block);
-        let (blocks, passes) = match (wide, block) {
-            (Some(_), _) => (wide_blocks(count, self.threads), digit_passes(bits, WIDE_DIGIT_BITS)),
-            (None, Some(_)) => (count.div_ceil(self.block_keys), digit_passes(bits, BLOCK_DIGIT_BITS)),
-            (None, None) => (count.div_ceil(self.items * SORT_WORKGROUP), digit_passes(bits, DIGIT_BITS)),
+        let (blocks, digits) = match (wide, block) {
+            (Some(_), _) => (wide_blocks(count, self.threads), SortDigits::Wide),
+            (None, Some(_)) => (count.div_ceil(self.block_keys), SortDigits::Block),
+            (None, None) => (count.div_ceil(self.items * SORT_WORKGROUP), SortDigits::Four),
         };
+        let passes = digit_passes(bits, digits.max_bits());
         // The packed scatters of this sort's kernels, where its packing fits.
         let packed = match (&self.packed, packing) {
             (Some(kernels), Some(p))
-                if block.is_none()
-                    && passes.len() >= 2
-                    && p.fits(bits, passes[0].1)
-                    && values_tmp.size() >= count * 8 =>
+                if passes.len() >= 2 && p.fits(bits, passes[0].1) && values_tmp.size() >= count * 8 =>
             {
-                match (wide, texel) {
-                    (Some(_), _) => kernels.wide.as_ref(),
-                    (None, Some(_)) => kernels.texel.as_ref(),
-                    (None, None) => Some(&kernels.address),
+                match (block, wide, texel) {
+                    (Some(_), _, _) => kernels.block.as_ref(),
+                    (None, Some(_), _) => kernels.wide.as_ref(),
+                    (None, None, Some(_)) => kernels.texel.as_ref(),
+                    (None, None, None) => Some(&kernels.address),
                 }
             }
             _ => None,

@@ -364,7 +364,7 @@ impl Splatter {
     /// Whether the sort's passes after the first move each pair as one
     /// 64-bit word (its depth bits above the first digit, tile id, splat
     /// index and row mask; [`RadixSort::set_packing`]) where they fit: on by
-    /// default (block digits never pack).
+    /// default.
     pub fn sort_packing(&self) -> bool {
         self.sort.packing()
     }

@@ -3,39 +3,6 @@
 #define SORT_VALUES
 #include "sort_common.glsl"
 
-// Packed passes (engine/src/primitives/sort.rs `PairPacking`): with
-// PACKED_OUT each pair leaves as one 64-bit word (one store where a key and a
-// value are two), with PACKED_IN it arrives as one (the values are not read).
-// The first pass packs, the middle ones move words, the last one unpacks.
-layout(constant_id = 2) const bool PACKED_IN = false;
-layout(constant_id = 3) const bool PACKED_OUT = false;
-
-// The word's sort bits, and the key's top bits it keeps.
-uint64_t field_mask() {
-    return (uint64_t(1) << pc.pack_field) - uint64_t(1);
-}
-uint64_t high_mask() {
-    return pc.pack_high == 0u ? uint64_t(0) : ~uint64_t(0) << (64u - pc.pack_high);
-}
-
-// Writes the pair (key, value) to slot `dst`: as it came, packed or unpacked.
-// With PACKED_IN `key` is the packed word and `value` unused.
-void put(Uint64sOut keys_out, uint dst, uvec2 key, uint value) {
-    uint64_t word = packUint2x32(key);
-    if (PACKED_IN && PACKED_OUT) {
-        keys_out.v[dst] = word;
-    } else if (PACKED_OUT) {
-        keys_out.v[dst] = ((word >> pc.pack_drop) & field_mask()) | (uint64_t(value) << pc.pack_field)
-            | (word & high_mask());
-    } else if (PACKED_IN) {
-        keys_out.v[dst] = ((word & field_mask()) << pc.pack_drop) | (word & high_mask());
-        UintsOut(pc.values_out).v[dst] = uint((word & ~high_mask()) >> pc.pack_field);
-    } else {
-        keys_out.v[dst] = word;
-        UintsOut(pc.values_out).v[dst] = value;
-    }
-}
-
 void main() {
     uint me = invocation();
     // Each key goes out as one 64-bit word: on lavapipe one scatter
