@@ -302,9 +302,11 @@ impl PairPacking {
 /// Scatter kernels of packed passes: packing, moving words, unpacking.
 type PackedScatters = [Arc<Kernel>; 3];
 
-/// The packed scatter variants of each scatter kernel ([`RadixSort::set_packing`]).
+/// The packed scatter variants of each scatter kernel ([`RadixSort::set_packing`]),
+/// built for the digits the sort takes.
+#[derive(Default)]
 struct PackedKernels {
-    address: PackedScatters,
+    address: Option<PackedScatters>,
     texel: Option<PackedScatters>,
     wide: Option<PackedScatters>,
     block: Option<PackedScatters>,
@@ -547,17 +549,8 @@ impl RadixSort {
             }
             SortDigits::Four => {}
         }
-        if let Some(packed) = self.packed.as_mut() {
-            match digits {
-                SortDigits::Wide if packed.wide.is_none() => {
-                    packed.wide = Some(packed_scatters(device, &kernels::SORT_SCATTER_WIDE_TEXEL, 4, &[])?)
-                }
-                SortDigits::Block if packed.block.is_none() => {
-                    let specialization = block_specialization(device.info());
-                    packed.block = Some(packed_scatters(device, &kernels::SORT_SCATTER_BLOCK, 0, &specialization)?)
-                }
-                _ => {}
-            }
+        if self.packed.is_some() {
+            self.build_packed(device, digits)?;
         }
         if digits != self.digits {
             // The histogram was sized for the other digits: size it again at the next reserve.
@@ -580,31 +573,40 @@ impl RadixSort {
         if on == self.packed.is_some() {
             return Ok(());
         }
-        self.packed = if on {
-            let items = [(0, SpecValue::U32(self.items as u32))];
-            let block = block_specialization(device.info());
-            Some(PackedKernels {
-                address: packed_scatters(device, &kernels::SORT_SCATTER, 0, &items)?,
-                texel: self
-                    .texel
-                    .as_ref()
-                    .map(|_| packed_scatters(device, &kernels::SORT_SCATTER_TEXEL, 2, &items))
-                    .transpose()?,
-                wide: self
-                    .wide
-                    .as_ref()
-                    .map(|_| packed_scatters(device, &kernels::SORT_SCATTER_WIDE_TEXEL, 4, &[]))
-                    .transpose()?,
-                block: self
-                    .block
-                    .as_ref()
-                    .map(|_| packed_scatters(device, &kernels::SORT_SCATTER_BLOCK, 0, &block))
-                    .transpose()?,
-            })
-        } else {
-            None
-        };
+        self.packed = None;
+        if on {
+            self.packed = Some(PackedKernels::default());
+            self.build_packed(device, self.digits)?;
+        }
         self.capacity = 0;
+        Ok(())
+    }
+
+    /// Builds the packed scatters `digits` take that are not built yet (4-bit
+    /// digits: by address and, where the device has them, through texel views).
+    fn build_packed(&mut self, device: &Device, digits: SortDigits) -> Result<()> {
+        let Some(packed) = self.packed.as_mut() else {
+            return Ok(());
+        };
+        let items = [(0, SpecValue::U32(self.items as u32))];
+        match digits {
+            SortDigits::Four => {
+                if packed.address.is_none() {
+                    packed.address = Some(packed_scatters(device, &kernels::SORT_SCATTER, 0, &items)?);
+                }
+                if packed.texel.is_none() && self.texel.is_some() {
+                    packed.texel = Some(packed_scatters(device, &kernels::SORT_SCATTER_TEXEL, 2, &items)?);
+                }
+            }
+            SortDigits::Wide if packed.wide.is_none() => {
+                packed.wide = Some(packed_scatters(device, &kernels::SORT_SCATTER_WIDE_TEXEL, 4, &[])?);
+            }
+            SortDigits::Block if packed.block.is_none() => {
+                let specialization = block_specialization(device.info());
+                packed.block = Some(packed_scatters(device, &kernels::SORT_SCATTER_BLOCK, 0, &specialization)?);
+            }
+            SortDigits::Wide | SortDigits::Block => {}
+        }
         Ok(())
     }
 
@@ -682,12 +684,15 @@ impl RadixSort {
                     (Some(_), _, _) => kernels.block.as_ref(),
                     (None, Some(_), _) => kernels.wide.as_ref(),
                     (None, None, Some(_)) => kernels.texel.as_ref(),
-                    (None, None, None) => Some(&kernels.address),
+                    (None, None, None) => kernels.address.as_ref(),
                 }
             }
             _ => None,
         };
         let last = passes.len() - 1;
+        // Packed words drop the first digit's bits and keep the caller's top bits.
+        let drop = packed.map_or(0, |_| passes[0].1);
+        let pack_high = packing.map_or(0, |p| p.high_bits);
         let mut src = (keys, values);
         let mut dst = (keys_tmp, values_tmp);
         for (pass, &(shift, digit)) in passes.iter().enumerate() {
@@ -702,7 +707,6 @@ impl RadixSort {
                     (values_tmp, values_tmp)
                 };
             }
-            let drop = packed.map_or(0, |_| passes[0].1);
             let push = SortPush {
                 keys_in: rec.addr(src.0)?,
                 values_in: rec.addr(src.1)?,
@@ -715,7 +719,7 @@ impl RadixSort {
                 digit_mask: (1u32 << digit) - 1,
                 pack_drop: drop,
                 pack_field: bits - drop,
-                pack_high: packing.map_or(0, |p| p.high_bits),
+                pack_high,
                 pack_pad: 0,
             };
             let view = |buffer: &'a Buffer, elements: u64, format: TexelFormat| {
@@ -754,10 +758,7 @@ impl RadixSort {
             rec.dispatch(histogram, Grid::Groups(blocks), histogram_views, &push)?;
             self.scan.record(rec, hist, (1u64 << digit) * blocks * columns)?;
             rec.dispatch(scatter, Grid::Groups(blocks), scatter_views, &push)?;
-            src = dst;
-            if packed.is_none() {
-                dst = if pass % 2 == 0 { (keys, values) } else { (keys_tmp, values_tmp) };
-            }
+            std::mem::swap(&mut src, &mut dst);
         }
         if packed.is_none() && passes.len() % 2 == 1 {
             rec.copy(keys_tmp, 0, keys, 0, count * 8)?;
