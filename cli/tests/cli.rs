@@ -288,6 +288,17 @@ fn bench_splat_prints_its_tables() {
     let off = ["--floor-pairs", "6000", "--window-fetch", "false", "--texel-preprocess", "false"];
     let o = srug(&[&["bench", "splat"][..], &args, &off].concat());
     assert!(o.status.success() && text(&o).contains("| 2000 | 64x32 |"), "{}", text(&o));
+    // Each sort kernel timed on its own: every pass of the frame's sort and of the comparison's.
+    let o = srug(&[&["bench", "splat"][..], &args, &["--floor-pairs", "6000", "--sort-kernels"]].concat());
+    let t = text(&o);
+    assert!(o.status.success(), "{t}");
+    for want in
+        ["- 2000 Gaussians at 64x32 (", "- 5000 random keys on 43 bits: pass 1 (bits 0-", "scatter", "histogram"]
+    {
+        assert!(t.contains(want), "missing {want:?} in:\n{t}");
+    }
+    let frame = t.lines().find(|l| l.starts_with("- 2000 Gaussians at 64x32 (")).unwrap_or_default();
+    assert!(frame.contains("pass 1 (bits 0-") && frame.contains("scatter") && frame.ends_with('%'), "{frame}");
     // The sort's digits, named in the sort's line.
     for digits in ["4", "block"] {
         let o = srug(&[&["bench", "splat"][..], &args, &["--floor-pairs", "6000", "--sort-digits", digits]].concat());

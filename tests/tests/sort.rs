@@ -11,8 +11,8 @@ use rand_pcg::Pcg64Mcg;
 use srug::gpu::{Device, MemoryKind};
 use srug::primitives::scan::{exclusive_scan_cpu, Scan};
 use srug::primitives::sort::{
-    block_digits_supported, default_sort_digits, sort_items, wide_digits, wide_digits_supported, PairPacking,
-    RadixSort, SortDigits,
+    block_digits_supported, default_sort_digits, sort_items, sort_kernel_stage, wide_digits, wide_digits_supported,
+    PairPacking, RadixSort, SortDigits, SortKernel, SORT_COPY_STAGE,
 };
 use srug_tests::{assert_no_validation_messages, device};
 
@@ -64,6 +64,78 @@ fn check_sort(d: &Device, sort: &mut RadixSort, keys: &[[u32; 2]], bits: u32, la
     }
     // Keys travel with their values, untouched (all 64 bits).
     assert!(got_values.iter().zip(&got_keys).all(|(&v, k)| keys[v as usize] == *k), "{label}: keys were altered");
+}
+
+/// With its kernels timed as stages of their own, the sort names every pass's
+/// histogram, scan and scatter in order, its digits covering the key's bits
+/// once, the copy back exactly where an odd number of unpacked passes needs
+/// it, and sorts as before.
+#[test]
+fn sort_kernel_stages_name_every_pass_and_keep_the_order() {
+    let d = device();
+    let mut rng = Pcg64Mcg::seed_from_u64(11);
+    let mut kinds = vec![SortDigits::Four];
+    if wide_digits_supported(d.info()) {
+        kinds.push(SortDigits::Wide);
+    }
+    if block_digits_supported(d.info()) {
+        kinds.push(SortDigits::Block);
+    }
+    let n = 20_000usize;
+    let keys: Vec<[u32; 2]> = (0..n).map(|_| [rng.random(), rng.random()]).collect();
+    let values: Vec<u32> = (0..n as u32).collect();
+    for digits in kinds {
+        let mut sort = RadixSort::new(&d).unwrap();
+        sort.set_digits(&d, digits).unwrap();
+        sort.set_kernel_stages(true);
+        assert!(sort.kernel_stages());
+        sort.set_packing(&d, true).unwrap();
+        sort.reserve(&d, n as u64).unwrap();
+        for (bits, packing) in
+            [(43u32, None), (31, None), (31, Some(PairPacking { unused_low_bits: 16, value_bits: 15, high_bits: 0 }))]
+        {
+            let label = format!("{} digits, {bits} bits, packing {packing:?}", digits.name());
+            // Packed keys hold nothing above their sort bits (no top bits kept here).
+            let keys: Vec<[u32; 2]> = match packing {
+                Some(_) => keys.iter().map(|k| [k[0] & ((1u32 << bits) - 1), 0]).collect(),
+                None => keys.clone(),
+            };
+            let kb = d.upload("keys", &keys).unwrap();
+            let vb = d.upload("values", &values).unwrap();
+            let timings = d.run(|rec| sort.record_with(rec, &kb, &vb, n as u64, bits, packing)).unwrap();
+            // The passes the sort takes: as few as the digit width allows, the bits spread evenly.
+            let passes = bits.div_ceil(digits.max_bits());
+            let mut want = Vec::new();
+            let mut shift = 0;
+            for pass in 0..passes {
+                let digit = (bits - shift).div_ceil(passes - pass);
+                for kernel in [SortKernel::Histogram, SortKernel::Scan, SortKernel::Scatter] {
+                    want.push(sort_kernel_stage(pass as usize + 1, shift, digit, kernel));
+                }
+                shift += digit;
+            }
+            assert_eq!(shift, bits, "{label}");
+            let packed = packing.is_some_and(|p| p.fits(bits, bits.div_ceil(passes)));
+            if passes % 2 == 1 && !packed {
+                want.push(SORT_COPY_STAGE.to_string());
+            }
+            let names: Vec<&str> = timings.stages.iter().map(|s| s.name.as_str()).collect();
+            assert_eq!(names, want, "{label}");
+            assert!(timings.stages.iter().all(|s| s.seconds.is_finite() && s.seconds >= 0.0), "{label}: {timings}");
+            // Still sorted, stably, the keys unchanged but for a packed sort's first digit.
+            let (got_keys, got_values): (Vec<[u32; 2]>, Vec<u32>) =
+                (d.read_buffer(&kb).unwrap(), d.read_buffer(&vb).unwrap());
+            let key64 = |k: [u32; 2]| u64::from(k[1]) << 32 | u64::from(k[0]);
+            let mut order: Vec<u32> = (0..n as u32).collect();
+            order.sort_by_key(|&i| key64(keys[i as usize]) & ((1u64 << bits) - 1));
+            let zeroed = if packed { (1u64 << bits.div_ceil(passes)) - 1 } else { 0 };
+            for (at, &i) in order.iter().enumerate() {
+                let want = (key64(keys[i as usize]) & !zeroed, i);
+                assert_eq!((key64(got_keys[at]), got_values[at]), want, "{label}: pair {at}");
+            }
+        }
+    }
+    assert_no_validation_messages(&d);
 }
 
 #[test]

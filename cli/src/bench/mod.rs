@@ -19,8 +19,8 @@ use std::time::Instant;
 use bytemuck::{Pod, Zeroable};
 
 use srug::error::Result;
-use srug::gpu::{kernels, Device, DeviceAddress, Grid, KernelDecl, MemoryKind};
-use srug::primitives::sort::{RadixSort, SortDigits};
+use srug::gpu::{kernels, Device, DeviceAddress, Grid, KernelDecl, MemoryKind, Timings};
+use srug::primitives::sort::{RadixSort, SortDigits, SORT_COPY_STAGE, SORT_KERNEL_STAGE_PREFIX};
 use srug::scene::activate::GpuScene;
 use srug::scene::demo::{demo_city, DemoOptions};
 use srug::splat::{BlendVariant, NormalSource, SplatSettings, Splatter, TileBounds};
@@ -106,6 +106,10 @@ pub struct SplatBenchRow {
     /// Bytes the preprocess must write at least: a splat record and a tile
     /// count per visible Gaussian, a zero tile count per culled one.
     pub preprocess_write_bytes: u64,
+    /// Where asked ([`SplatBenchOptions::sort_kernels`]): the median seconds
+    /// of each kernel of the frame's sort, timed in frames of their own
+    /// ([`srug::primitives::sort::sort_kernel_stage`] names), in order.
+    pub sort_kernels: Vec<(String, f64)>,
 }
 
 impl SplatBenchRow {
@@ -216,6 +220,47 @@ pub struct SplatBenchOptions {
     pub tile: u32,
     /// Which tiles list a splat.
     pub tile_bounds: TileBounds,
+    /// Also time each kernel of the frames' sort, in `repeats` more frames
+    /// (apart from the stage times, which the extra timestamps would touch).
+    pub sort_kernels: bool,
+}
+
+/// Median seconds of each stage over `runs`, in first-seen order, of the
+/// stages `keep` takes.
+fn stage_medians<'t>(runs: impl IntoIterator<Item = &'t Timings>, keep: impl Fn(&str) -> bool) -> Vec<(String, f64)> {
+    let mut per_stage: Vec<(String, Vec<f64>)> = Vec::new();
+    for s in runs.into_iter().flat_map(|t| &t.stages).filter(|s| keep(&s.name)) {
+        match per_stage.iter_mut().find(|(name, _)| *name == s.name) {
+            Some((_, v)) => v.push(s.seconds),
+            None => per_stage.push((s.name.clone(), vec![s.seconds])),
+        }
+    }
+    per_stage.into_iter().map(|(n, v)| (n, median(v))).collect()
+}
+
+/// Whether a stage is one kernel of a sort ([`RadixSort::set_kernel_stages`]).
+fn is_sort_kernel(name: &str) -> bool {
+    name.starts_with(SORT_KERNEL_STAGE_PREFIX) || name == SORT_COPY_STAGE
+}
+
+/// One line of a sort's kernel times ([`SplatBenchRow::sort_kernels`],
+/// [`SortBench::kernels`]): each kernel's milliseconds, then the histograms',
+/// scans', scatters' and copy's shares of their sum.
+pub fn sort_kernels_line(kernels: &[(String, f64)]) -> String {
+    let total: f64 = kernels.iter().map(|k| k.1).sum();
+    let share = |kind: &str| {
+        let sum: f64 = kernels.iter().filter(|k| k.0.ends_with(kind)).map(|k| k.1).sum();
+        format!("{kind} {:.0}%", sum / total * 100.0)
+    };
+    let each: Vec<String> = kernels
+        .iter()
+        .map(|(name, s)| format!("{} {:.2}", name.strip_prefix("sort ").unwrap_or(name), s * 1e3))
+        .collect();
+    let mut shares = vec![share("histogram"), share("scan"), share("scatter")];
+    if kernels.iter().any(|k| k.0 == SORT_COPY_STAGE) {
+        shares.push(share("copy back"));
+    }
+    format!("{} ms; of {:.2} ms: {}", each.join(", "), total * 1e3, shares.join(", "))
 }
 
 /// Renders the demo city at each Gaussian count and size; per-stage medians.
@@ -226,7 +271,7 @@ pub fn splat_bench(
     options: &SplatBenchOptions,
     mut progress: impl FnMut(&str),
 ) -> Result<Vec<SplatBenchRow>> {
-    let SplatBenchOptions { repeats, sh_degree, choices, tile, tile_bounds } = *options;
+    let SplatBenchOptions { repeats, sh_degree, choices, tile, tile_bounds, sort_kernels } = *options;
     let settings = SplatSettings { tile, tile_bounds, ..SplatSettings::default() };
     let mut rows = Vec::new();
     let mut splatter = Splatter::new(device)?;
@@ -238,19 +283,23 @@ pub fn splat_bench(
         for &(w, h) in sizes {
             progress(&format!("{n} Gaussians at {w}x{h}"));
             let cam = city.cameras[0].resized(w, h);
-            let mut per_stage: Vec<(String, Vec<f64>)> = Vec::new();
+            let mut timings = Vec::new();
             let mut last = None;
             for _ in 0..repeats.max(1) {
                 let (g, stats) = splatter.render(&scene, &cam, &settings)?;
-                for s in &stats.timings.stages {
-                    match per_stage.iter_mut().find(|(name, _)| *name == s.name) {
-                        Some((_, v)) => v.push(s.seconds),
-                        None => per_stage.push((s.name.clone(), vec![s.seconds])),
-                    }
-                }
+                timings.push(stats.timings.clone());
                 last = Some((g.bytes(), stats));
             }
             let Some((gbuffer_bytes, stats)) = last else { continue };
+            let mut kernel_timings = Vec::new();
+            if sort_kernels {
+                progress(&format!("{n} Gaussians at {w}x{h}: timing the sort's kernels"));
+                splatter.set_sort_kernel_stages(true);
+                let runs: Result<Vec<_>> =
+                    (0..repeats.max(1)).map(|_| Ok(splatter.render(&scene, &cam, &settings)?.1.timings)).collect();
+                splatter.set_sort_kernel_stages(false);
+                kernel_timings = runs?;
+            }
             progress(&format!("{n} Gaussians at {w}x{h}: counting blend work on the CPU"));
             let work = srug::splat::cpu::blend_work(&city.scene, &cam, tile, tile_bounds);
             let visible = (0..city.scene.len())
@@ -266,7 +315,7 @@ pub fn splat_bench(
                 gaussians: n,
                 width: w,
                 height: h,
-                stages: per_stage.into_iter().map(|(n, v)| (n, median(v))).collect(),
+                stages: stage_medians(&timings, |_| true),
                 pairs: stats.pairs,
                 working_bytes: stats.working_bytes,
                 scene_bytes: city.scene.gpu_bytes(),
@@ -279,6 +328,7 @@ pub fn splat_bench(
                 key_bits: stats.key_bits,
                 preprocess_read_bytes: n as u64 * position + visible * rest,
                 preprocess_write_bytes: visible * (record + count) + (n as u64 - visible) * count,
+                sort_kernels: stage_medians(&kernel_timings, is_sort_kernel),
             });
         }
     }
@@ -286,7 +336,7 @@ pub fn splat_bench(
 }
 
 /// GPU radix sort against `sort_unstable` on the CPU, same keys, same run.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Debug)]
 pub struct SortBench {
     /// Keys sorted.
     pub keys: usize,
@@ -298,6 +348,9 @@ pub struct SortBench {
     pub gpu_keys_per_second: f64,
     /// CPU `sort_unstable` keys per second (median), on 64-bit (key, value) words.
     pub cpu_keys_per_second: f64,
+    /// Where asked: the median seconds of each of the GPU sort's kernels,
+    /// timed in sorts of their own, in order (as [`SplatBenchRow::sort_kernels`]).
+    pub kernels: Vec<(String, f64)>,
 }
 
 /// Sorts `n` random splat-like keys on `bits` bits on the GPU and with `sort_unstable`.
@@ -308,6 +361,7 @@ pub fn sort_bench(
     bits: u32,
     repeats: usize,
     digits: Option<SortDigits>,
+    kernels: bool,
 ) -> Result<SortBench> {
     let mut state = 0x9e37_79b9_7f4a_7c15u64;
     let mut next = || {
@@ -343,6 +397,20 @@ pub fn sort_bench(
         cpu.push(n as f64 / started.elapsed().as_secs_f64());
         std::hint::black_box(&pairs);
     }
-    let digits = sort.digits();
-    Ok(SortBench { keys: n, bits, digits, gpu_keys_per_second: median(gpu), cpu_keys_per_second: median(cpu) })
+    let mut kernel_timings = Vec::new();
+    if kernels {
+        sort.set_kernel_stages(true);
+        for _ in 0..repeats.max(1) {
+            device.write_buffer(&kb, 0, &keys)?;
+            kernel_timings.push(device.run(|rec| sort.record(rec, &kb, &vb, n as u64, bits))?);
+        }
+    }
+    Ok(SortBench {
+        keys: n,
+        bits,
+        digits: sort.digits(),
+        gpu_keys_per_second: median(gpu),
+        cpu_keys_per_second: median(cpu),
+        kernels: stage_medians(&kernel_timings, is_sort_kernel),
+    })
 }

@@ -334,6 +334,40 @@ fn packed_scatters(
     Ok([variant(false, true)?, variant(true, true)?, variant(true, false)?])
 }
 
+/// The kernels of one radix pass, as [`RadixSort::set_kernel_stages`] times them.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SortKernel {
+    /// Counting each block's digits.
+    Histogram,
+    /// The exclusive scan of the counts.
+    Scan,
+    /// Writing every pair where its digit puts it.
+    Scatter,
+}
+
+impl SortKernel {
+    /// The kernel's name in stage names.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Histogram => "histogram",
+            Self::Scan => "scan",
+            Self::Scatter => "scatter",
+        }
+    }
+}
+
+/// Prefix of every stage [`RadixSort::set_kernel_stages`] adds.
+pub const SORT_KERNEL_STAGE_PREFIX: &str = "sort pass ";
+/// The stage of the copy back after an odd number of unpacked passes.
+pub const SORT_COPY_STAGE: &str = "sort copy back";
+
+/// The stage name of one kernel of pass `pass` (from 1), whose digit is
+/// `digit` bits at bit `shift` of the key as it came: "sort pass 2 (bits
+/// 8-15) scatter".
+pub fn sort_kernel_stage(pass: usize, shift: u32, digit: u32, kernel: SortKernel) -> String {
+    format!("{SORT_KERNEL_STAGE_PREFIX}{pass} (bits {shift}-{}) {}", shift + digit - 1, kernel.name())
+}
+
 /// The sort kernels and their scratch memory.
 pub struct RadixSort {
     histogram: Arc<Kernel>,
@@ -362,6 +396,8 @@ pub struct RadixSort {
     values_tmp: Option<Buffer>,
     hist: Option<Buffer>,
     capacity: u64,
+    /// Each pass's kernels timed as stages of their own ([`RadixSort::set_kernel_stages`]).
+    kernel_stages: bool,
 }
 
 impl RadixSort {
@@ -420,7 +456,21 @@ impl RadixSort {
             values_tmp: None,
             hist: None,
             capacity: 0,
+            kernel_stages: false,
         })
+    }
+
+    /// Whether [`RadixSort::record_with`] times each kernel as a stage of its own.
+    pub fn kernel_stages(&self) -> bool {
+        self.kernel_stages
+    }
+
+    /// Times each pass's histogram, scan and scatter, and the copy back, as
+    /// stages of their own, named by [`sort_kernel_stage`] (for benchmarks:
+    /// each ends the recording's open stage, so a caller's own "sort" stage
+    /// covers only what comes before the first).
+    pub fn set_kernel_stages(&mut self, on: bool) {
+        self.kernel_stages = on;
     }
 
     /// Makes sure scratch memory fits sorts of up to `count` pairs.
@@ -755,12 +805,23 @@ impl RadixSort {
                 _ => 1,
             };
             let scatter = packed.map_or(scatter, |variants| &*variants[variant]);
+            let stage = |rec: &mut Recording<'a>, kernel: SortKernel| {
+                if self.kernel_stages {
+                    rec.begin_stage(&sort_kernel_stage(pass + 1, shift, digit, kernel));
+                }
+            };
+            stage(rec, SortKernel::Histogram);
             rec.dispatch(histogram, Grid::Groups(blocks), histogram_views, &push)?;
+            stage(rec, SortKernel::Scan);
             self.scan.record(rec, hist, (1u64 << digit) * blocks * columns)?;
+            stage(rec, SortKernel::Scatter);
             rec.dispatch(scatter, Grid::Groups(blocks), scatter_views, &push)?;
             std::mem::swap(&mut src, &mut dst);
         }
         if packed.is_none() && passes.len() % 2 == 1 {
+            if self.kernel_stages {
+                rec.begin_stage(SORT_COPY_STAGE);
+            }
             rec.copy(keys_tmp, 0, keys, 0, count * 8)?;
             rec.copy(values_tmp, 0, values, 0, count * 4)?;
         }

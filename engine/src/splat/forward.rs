@@ -374,6 +374,12 @@ impl Splatter {
         self.sort.set_packing(&self.device, on)
     }
 
+    /// Times each kernel of the frames' sort as a stage of its own instead of
+    /// one "sort" stage ([`RadixSort::set_kernel_stages`]): for benchmarks.
+    pub fn set_sort_kernel_stages(&mut self, on: bool) {
+        self.sort.set_kernel_stages(on);
+    }
+
     /// Pixels each invocation of the texel-buffer blend shades ([`BLEND_PIXELS`]).
     pub fn blend_pixels(&self) -> u32 {
         self.blend_pixels

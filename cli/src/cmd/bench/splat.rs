@@ -40,13 +40,27 @@ pub(crate) struct SplatBenchArgs {
     /// Which tiles list a splat: ellipse (those that can see it at α ≥ 1/255) or rectangle (its 3σ square).
     #[arg(long, default_value = "ellipse")]
     tile_bounds: TileBounds,
+    /// Also time each kernel of the sorts (every pass's histogram, scan and scatter), in runs of
+    /// their own, and print where each sort's time goes.
+    #[arg(long)]
+    sort_kernels: bool,
 }
 
 impl SplatBenchArgs {
     /// Runs `srug bench splat`.
     pub(crate) fn run(&self, device_args: &DeviceArgs) -> Result<()> {
-        let &Self { ref gaussians, ref sizes, repeats, sh_degree, sort_keys, floor_pairs, tile, choices, tile_bounds } =
-            self;
+        let &Self {
+            ref gaussians,
+            ref sizes,
+            repeats,
+            sh_degree,
+            sort_keys,
+            floor_pairs,
+            tile,
+            choices,
+            tile_bounds,
+            sort_kernels,
+        } = self;
         check_tile(tile)?;
         if sh_degree > 3 {
             return Err(srug::Error::invalid(format!("--sh-degree {sh_degree}"), "is not 0 to 3"));
@@ -59,10 +73,10 @@ impl SplatBenchArgs {
         println!("device: {} ({}), measured FMA peak {peak:.1} GFLOP/s", info.name, info.driver);
         println!("scene: the demo city (seed 7) at SH degree {sh_degree}, its first street camera\n");
         let bar = spinner("benchmarking");
-        let options = bench::SplatBenchOptions { repeats, sh_degree, choices, tile, tile_bounds };
+        let options = bench::SplatBenchOptions { repeats, sh_degree, choices, tile, tile_bounds, sort_kernels };
         let rows = bench::splat_bench(&device, counts, &sizes, &options, |m| bar.set_message(m.to_string()))?;
         bar.set_message("sorting");
-        let sort = bench::sort_bench(&device, sort_keys, 32 + 11, repeats, choices.sort_digits)?;
+        let sort = bench::sort_bench(&device, sort_keys, 32 + 11, repeats, choices.sort_digits, sort_kernels)?;
         bar.set_message("measuring the blend ceiling, the pair-move floor and the memory bandwidth");
         let ceiling = bench::limits::blend_ceiling(&device, repeats)?;
         let floor = bench::limits::pair_move_floor(&device, floor_pairs, repeats)?;
@@ -180,6 +194,21 @@ impl SplatBenchArgs {
                 .join(", "),
             ms(floor.random_seconds),
         );
+        if sort_kernels {
+            println!("\nthe sorts' kernels, each timed as a stage of its own (pass, the key bits its digit sorts, kernel), medians:");
+            for r in &rows {
+                println!(
+                    "- {} Gaussians at {}x{} ({} pairs on {} bits): {}",
+                    r.gaussians,
+                    r.width,
+                    r.height,
+                    r.pairs,
+                    r.key_bits,
+                    bench::sort_kernels_line(&r.sort_kernels)
+                );
+            }
+            println!("- {} random keys on {} bits: {}", sort.keys, sort.bits, bench::sort_kernels_line(&sort.kernels));
+        }
         if let Some((digit, bound)) = floor.lsd_bound(sort.bits) {
             println!(
                 "an LSD radix sort of {}-bit keys needs at least {:.1} ms at these floors (best digit width {digit} bits: each pass writes every pair where it goes and its bucket offsets, and above 4 bits updates a count in memory per key); 2x sort_unstable allows {:.1} ms",
