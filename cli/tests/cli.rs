@@ -285,7 +285,8 @@ fn bench_splat_prints_its_tables() {
     assert!(text(&o).contains("--sh-degree 4: is not 0 to 3"), "{}", text(&o));
     // The A/B switches: the blend's per-window fetch and the texel reads off.
     let args = ["--gaussians", "2000", "--sizes", "64x32", "--repeats", "1", "--sort-keys", "5000"];
-    let off = ["--floor-pairs", "6000", "--window-fetch", "false", "--texel-preprocess", "false"];
+    let off =
+        ["--floor-pairs", "6000", "--window-fetch", "false", "--texel-preprocess", "false", "--scan-tiles", "true"];
     let o = srug(&[&["bench", "splat"][..], &args, &off].concat());
     assert!(o.status.success() && text(&o).contains("| 2000 | 64x32 |"), "{}", text(&o));
     // Each sort kernel timed on its own: every pass of the frame's sort and of the comparison's.

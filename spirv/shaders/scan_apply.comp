@@ -3,7 +3,7 @@
 // SCAN_ITEMS consecutive values in place as their exclusive prefix, starting
 // from its scanned sum (sums[invocation]; 0 when `has_sums` is 0, i.e. when
 // everything fits one invocation). See scan_reduce.comp.
-// CPU twin: engine/src/splat/scan.rs `exclusive_scan_cpu`.
+// CPU twin: engine/src/primitives/scan.rs `exclusive_scan_cpu`.
 #include "scan_common.glsl"
 
 void main() {

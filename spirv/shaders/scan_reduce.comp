@@ -5,7 +5,7 @@
 // works alone, in registers: no shared memory, no subgroup operations, no
 // workgroup waiting on another (on CPU implementations such as lavapipe,
 // shared-memory accesses indexed by lane are loops over the lanes).
-// CPU twin: engine/src/splat/scan.rs `exclusive_scan_cpu`.
+// CPU twin: engine/src/primitives/scan.rs `exclusive_scan_cpu`.
 #include "scan_common.glsl"
 
 void main() {

@@ -9,7 +9,7 @@
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64Mcg;
 use srug::gpu::{Device, MemoryKind};
-use srug::primitives::scan::{exclusive_scan_cpu, Scan};
+use srug::primitives::scan::{default_scan_tiles, exclusive_scan_cpu, Scan};
 use srug::primitives::sort::{
     block_digits_supported, default_sort_digits, sort_items, sort_kernel_stage, wide_digits, wide_digits_supported,
     PairPacking, RadixSort, SortDigits, SortKernel, SORT_COPY_STAGE,
@@ -26,18 +26,25 @@ fn gpu_scan(d: &Device, scan: &mut Scan, values: &[u32]) -> Vec<u32> {
 #[test]
 fn exclusive_scan_matches_cpu() {
     let d = device();
-    let mut scan = Scan::new(&d).unwrap();
-    let mut rng = Pcg64Mcg::seed_from_u64(1);
-    // One invocation (32 values), two levels, ..., five levels at 1024·1024 + 1; wrapping sums with large values.
-    for n in [1usize, 2, 31, 32, 33, 1023, 1024, 1025, 5_000, 1_048_577] {
-        let values: Vec<u32> = (0..n).map(|_| rng.random_range(0..100)).collect();
-        assert_eq!(gpu_scan(&d, &mut scan, &values), exclusive_scan_cpu(&values), "n = {n}");
+    // Both shapes on every device: runs of 32 values an invocation, tiles of 2048 a workgroup.
+    for tiles in [false, true] {
+        let mut scan = Scan::with_tiles(&d, tiles).unwrap();
+        assert_eq!(scan.tiles(), tiles);
+        let mut rng = Pcg64Mcg::seed_from_u64(1);
+        // Runs: one invocation (32 values), two levels, ..., five levels at 1024·1024 + 1. Tiles: one
+        // tile, a partial second, two levels at 2048·2048, three at 2048·2048 + 1; wrapping sums.
+        for n in [1usize, 2, 31, 32, 33, 1023, 1024, 1025, 2047, 2048, 2049, 5_000, 1_048_577, 4_194_304, 4_194_305] {
+            let values: Vec<u32> = (0..n).map(|_| rng.random_range(0..100)).collect();
+            assert_eq!(gpu_scan(&d, &mut scan, &values), exclusive_scan_cpu(&values), "n = {n}, tiles {tiles}");
+        }
+        let big: Vec<u32> = (0..3000).map(|_| rng.random::<u32>()).collect();
+        assert_eq!(gpu_scan(&d, &mut scan, &big), exclusive_scan_cpu(&big), "wrapping, tiles {tiles}");
+        // Zero values: nothing to do, no error.
+        let empty = d.create_buffer("empty", 0, MemoryKind::Storage).unwrap();
+        d.run(|rec| scan.record(rec, &empty, 0)).unwrap();
     }
-    let big: Vec<u32> = (0..3000).map(|_| rng.random::<u32>()).collect();
-    assert_eq!(gpu_scan(&d, &mut scan, &big), exclusive_scan_cpu(&big), "wrapping");
-    // Zero values: nothing to do, no error.
-    let empty = d.create_buffer("empty", 0, MemoryKind::Storage).unwrap();
-    d.run(|rec| scan.record(rec, &empty, 0)).unwrap();
+    // The device's own shape: tiles on GPUs, runs on CPU devices.
+    assert_eq!(Scan::new(&d).unwrap().tiles(), default_scan_tiles(d.info().device_type));
     assert_no_validation_messages(&d);
 }
 

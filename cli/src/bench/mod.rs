@@ -171,6 +171,10 @@ pub struct SplatterChoices {
     /// (default: true).
     #[arg(long)]
     pub sort_packing: Option<bool>,
+    /// Prefix sums (tile counts, the sort's digit counts) in tiles of 2048 values a workgroup
+    /// rather than runs of 32 an invocation: true or false (default: true on GPUs, else false).
+    #[arg(long)]
+    pub scan_tiles: Option<bool>,
 }
 
 impl SplatterChoices {
@@ -202,6 +206,9 @@ impl SplatterChoices {
         }
         if let Some(on) = self.sort_packing {
             splatter.set_sort_packing(on)?;
+        }
+        if let Some(on) = self.scan_tiles {
+            splatter.set_scan_tiles(on)?;
         }
         Ok(())
     }
@@ -354,13 +361,13 @@ pub struct SortBench {
 }
 
 /// Sorts `n` random splat-like keys on `bits` bits on the GPU and with `sort_unstable`.
-/// `digits` overrides the device's default sort digits.
+/// `choices` may override the device's default sort digits and scan shape.
 pub fn sort_bench(
     device: &Device,
     n: usize,
     bits: u32,
     repeats: usize,
-    digits: Option<SortDigits>,
+    choices: &SplatterChoices,
     kernels: bool,
 ) -> Result<SortBench> {
     let mut state = 0x9e37_79b9_7f4a_7c15u64;
@@ -377,8 +384,11 @@ pub fn sort_bench(
     let kb = device.upload("bench keys", &keys)?;
     let vb = device.upload("bench values", &values)?;
     let mut sort = RadixSort::new(device)?;
-    if let Some(digits) = digits {
+    if let Some(digits) = choices.sort_digits {
         sort.set_digits(device, digits)?;
+    }
+    if let Some(on) = choices.scan_tiles {
+        sort.set_scan_tiles(device, on)?;
     }
     sort.reserve(device, n as u64)?;
     let mut gpu = Vec::new();

@@ -1,23 +1,41 @@
-//! Exclusive prefix sum of `u32` on the GPU (reduce-then-scan).
+//! Exclusive prefix sum of `u32` on the GPU (reduce-then-scan), in one of
+//! two shapes chosen per device ([`default_scan_tiles`]):
 //!
-//! Every invocation owns `SCAN_ITEMS` consecutive values: `scan_reduce.comp`
-//! sums them, the sums are scanned the same way (recursively, until one
-//! invocation holds everything), and `scan_apply.comp` rewrites each run as
-//! its exclusive prefix from the run's scanned sum. Invocations work alone in
-//! registers: no shared memory (on CPU implementations such as lavapipe a
-//! shared-memory access indexed by lane is a loop over the lanes; the earlier
-//! shared-memory Hillis–Steele scan was several times slower there), no subgroup
-//! operations, and no workgroup waits on another, so no forward-progress
-//! guarantee is needed. Sums wrap modulo 2³² like `u32`.
+//! - **Runs** (CPU devices): every invocation owns `SCAN_ITEMS` consecutive
+//!   values: `scan_reduce.comp` sums them, the sums are scanned the same way
+//!   (recursively, until one invocation holds everything), and
+//!   `scan_apply.comp` rewrites each run as its exclusive prefix from the
+//!   run's scanned sum. Invocations work alone in registers: no shared memory
+//!   (on CPU implementations such as lavapipe a shared-memory access indexed
+//!   by lane is a loop over the lanes; the earlier shared-memory
+//!   Hillis–Steele scan was several times slower there).
+//! - **Tiles** (GPUs): every workgroup owns [`SCAN_TILE`] consecutive values,
+//!   read and written by neighbouring invocations at neighbouring addresses
+//!   and scanned across invocations in shared memory
+//!   (`scan_tiles_reduce.comp`, `scan_tiles_apply.comp`). A level covers 64
+//!   times the values of a run level, so a scan of up to 4 million values
+//!   takes three dispatches where runs take up to nine: on a GPU each
+//!   dispatch and its barrier, not the arithmetic, is most of a scan's time.
+//!
+//! Neither uses subgroup operations or has a workgroup wait on another, so
+//! no forward-progress guarantee is needed. Sums wrap modulo 2³² like `u32`.
 
 use bytemuck::{Pod, Zeroable};
 use std::sync::Arc;
 
 use crate::error::Result;
+use crate::gpu::ash::vk;
 use crate::gpu::{kernels, Buffer, Device, DeviceAddress, Grid, Kernel, KernelDecl, MemoryKind, Recording};
 
-/// Values per invocation (keep in sync with `scan_common.glsl`).
+/// Values per invocation of a run scan (keep in sync with `scan_common.glsl`).
 pub(crate) const SCAN_ITEMS: u64 = 32;
+/// Values per workgroup of a tile scan (keep in sync with `scan_tiles_common.glsl`).
+pub const SCAN_TILE: u64 = 128 * 16;
+
+/// Whether `device_type` scans in tiles (GPUs) rather than runs (CPU devices).
+pub fn default_scan_tiles(device_type: vk::PhysicalDeviceType) -> bool {
+    device_type != vk::PhysicalDeviceType::CPU
+}
 
 /// Push constants of `scan_reduce.comp` and `scan_apply.comp` (`ScanPush` in
 /// `scan_common.glsl`; checked by `check_layout`).
@@ -30,7 +48,7 @@ pub(crate) struct ScanPush {
     pub sums: DeviceAddress,
     /// Number of values.
     pub count: u32,
-    /// `scan_apply.comp`: whether `sums` holds scanned offsets (else all start at 0).
+    /// The apply kernels: whether `sums` holds scanned offsets (else all start at 0).
     pub has_sums: u32,
 }
 crate::gpu::gpu_layout!(ScanPush, "ScanPush", [data, sums, count, has_sums]);
@@ -39,20 +57,57 @@ crate::gpu::gpu_layout!(ScanPush, "ScanPush", [data, sums, count, has_sums]);
 pub struct Scan {
     reduce: Arc<Kernel>,
     apply: Arc<Kernel>,
-    /// Per-invocation sums for each level above the first.
+    /// Tiles of [`SCAN_TILE`] values a workgroup, else runs of `SCAN_ITEMS` an invocation.
+    tiles: bool,
+    /// Per-run or per-tile sums for each level above the first.
     levels: Vec<Buffer>,
     capacity: u64,
 }
 
 impl Scan {
-    /// Builds the kernels.
+    /// Builds the kernels of the device's shape ([`default_scan_tiles`]).
     pub fn new(device: &Device) -> Result<Self> {
+        Self::with_tiles(device, default_scan_tiles(device.info().device_type))
+    }
+
+    /// Builds the kernels scanning in tiles (`true`) or runs (`false`), on any device.
+    pub fn with_tiles(device: &Device, tiles: bool) -> Result<Self> {
+        let (reduce, apply) = if tiles {
+            (&kernels::SCAN_TILES_REDUCE, &kernels::SCAN_TILES_APPLY)
+        } else {
+            (&kernels::SCAN_REDUCE, &kernels::SCAN_APPLY)
+        };
         Ok(Self {
-            reduce: device.kernel(&kernels::SCAN_REDUCE, &KernelDecl::push::<ScanPush>(&[]))?,
-            apply: device.kernel(&kernels::SCAN_APPLY, &KernelDecl::push::<ScanPush>(&[]))?,
+            reduce: device.kernel(reduce, &KernelDecl::push::<ScanPush>(&[]))?,
+            apply: device.kernel(apply, &KernelDecl::push::<ScanPush>(&[]))?,
+            tiles,
             levels: Vec::new(),
             capacity: 0,
         })
+    }
+
+    /// Whether this scan works in tiles ([`Scan::with_tiles`]).
+    pub fn tiles(&self) -> bool {
+        self.tiles
+    }
+
+    /// Switches between tiles and runs, keeping scratch for the scans reserved so far.
+    pub fn set_tiles(&mut self, device: &Device, tiles: bool) -> Result<()> {
+        if tiles != self.tiles {
+            let capacity = self.capacity;
+            *self = Self::with_tiles(device, tiles)?;
+            self.reserve(device, capacity)?;
+        }
+        Ok(())
+    }
+
+    /// Values one run or tile of a level covers.
+    fn span(&self) -> u64 {
+        if self.tiles {
+            SCAN_TILE
+        } else {
+            SCAN_ITEMS
+        }
     }
 
     /// Makes sure scratch memory fits scans of up to `count` values.
@@ -62,8 +117,8 @@ impl Scan {
         }
         self.levels.clear();
         let mut n = count;
-        while n > SCAN_ITEMS {
-            n = n.div_ceil(SCAN_ITEMS);
+        while n > self.span() {
+            n = n.div_ceil(self.span());
             self.levels.push(device.create_buffer(
                 &format!("scan level {}", self.levels.len() + 1),
                 n * 4,
@@ -102,15 +157,17 @@ impl Scan {
         if count == 0 {
             return Ok(());
         }
-        let invocations = count.div_ceil(SCAN_ITEMS);
-        let sums = self.levels.get(level).filter(|_| invocations > 1);
+        // Runs are invocations, tiles workgroups.
+        let parts = count.div_ceil(self.span());
+        let grid = if self.tiles { Grid::Groups(parts) } else { Grid::Items(parts) };
+        let sums = self.levels.get(level).filter(|_| parts > 1);
         let sums_address = rec.addr_or_null(sums)?;
         let push = ScanPush { data, sums: sums_address, count: count as u32, has_sums: u32::from(sums.is_some()) };
         if sums.is_some() {
-            rec.dispatch(&self.reduce, Grid::Items(invocations), &[], &push)?;
-            self.record_level(rec, sums_address, invocations, level + 1)?;
+            rec.dispatch(&self.reduce, grid, &[], &push)?;
+            self.record_level(rec, sums_address, parts, level + 1)?;
         }
-        Ok(rec.dispatch(&self.apply, Grid::Items(invocations), &[], &push)?)
+        Ok(rec.dispatch(&self.apply, grid, &[], &push)?)
     }
 }
 

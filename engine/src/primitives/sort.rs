@@ -460,6 +460,16 @@ impl RadixSort {
         })
     }
 
+    /// Whether the scans of the digit counts work in tiles ([`Scan::tiles`]).
+    pub fn scan_tiles(&self) -> bool {
+        self.scan.tiles()
+    }
+
+    /// Chooses tiles or runs for the scans of the digit counts ([`Scan::set_tiles`]).
+    pub fn set_scan_tiles(&mut self, device: &Device, tiles: bool) -> Result<()> {
+        self.scan.set_tiles(device, tiles)
+    }
+
     /// Whether [`RadixSort::record_with`] times each kernel as a stage of its own.
     pub fn kernel_stages(&self) -> bool {
         self.kernel_stages

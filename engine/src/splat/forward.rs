@@ -374,6 +374,18 @@ impl Splatter {
         self.sort.set_packing(&self.device, on)
     }
 
+    /// Whether the frame's prefix sums (the tile counts, the sort's digit
+    /// counts) work in tiles, the GPUs' default, or runs ([`Scan`]).
+    pub fn scan_tiles(&self) -> bool {
+        self.scan.tiles()
+    }
+
+    /// Chooses tiles or runs for the frame's prefix sums ([`Splatter::scan_tiles`]); the sums are the same.
+    pub fn set_scan_tiles(&mut self, on: bool) -> Result<()> {
+        self.scan.set_tiles(&self.device, on)?;
+        self.sort.set_scan_tiles(&self.device, on)
+    }
+
     /// Times each kernel of the frames' sort as a stage of its own instead of
     /// one "sort" stage ([`RadixSort::set_kernel_stages`]): for benchmarks.
     pub fn set_sort_kernel_stages(&mut self, on: bool) {

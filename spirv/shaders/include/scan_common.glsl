@@ -5,10 +5,10 @@
 #include "common.glsl"
 #include "address.glsl"
 
-// Values per invocation. Keep in sync with engine/src/splat/scan.rs `SCAN_ITEMS`.
+// Values per invocation. Keep in sync with engine/src/primitives/scan.rs `SCAN_ITEMS`.
 #define SCAN_ITEMS 32
 
-// Keep in sync with engine/src/splat/scan.rs `ScanPush`.
+// Keep in sync with engine/src/primitives/scan.rs `ScanPush`.
 layout(push_constant) uniform ScanPush {
     uvec2 data;  // uint[count], scanned in place
     uvec2 sums;  // uint[ceil(count / SCAN_ITEMS)], one per invocation

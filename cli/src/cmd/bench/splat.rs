@@ -76,7 +76,7 @@ impl SplatBenchArgs {
         let options = bench::SplatBenchOptions { repeats, sh_degree, choices, tile, tile_bounds, sort_kernels };
         let rows = bench::splat_bench(&device, counts, &sizes, &options, |m| bar.set_message(m.to_string()))?;
         bar.set_message("sorting");
-        let sort = bench::sort_bench(&device, sort_keys, 32 + 11, repeats, choices.sort_digits, sort_kernels)?;
+        let sort = bench::sort_bench(&device, sort_keys, 32 + 11, repeats, &choices, sort_kernels)?;
         bar.set_message("measuring the blend ceiling, the pair-move floor and the memory bandwidth");
         let ceiling = bench::limits::blend_ceiling(&device, repeats)?;
         let floor = bench::limits::pair_move_floor(&device, floor_pairs, repeats)?;
