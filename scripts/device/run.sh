@@ -9,7 +9,8 @@
 # TESTS: an extended regex picking test binaries by name (all); C_PROGRAMS=0 leaves
 # the C programs out; BENCHES: which `srug bench` commands run after them (embed batch splat unet);
 # COMMANDS: `srug` argument lists separated by `;`, run last, each into $OUT/command_N.txt
-# (e.g. COMMANDS='bench splat --sort-digits 4; bench splat --sort-digits block').
+# with its start and end times (e.g. COMMANDS='bench splat --sort-digits 4; bench splat
+# --sort-digits block'); $OUT/dmon.txt logs the GPU's clocks each second (timestamps to match).
 set -u
 root=$(pwd)
 b=/tmp/srug-device
@@ -47,6 +48,13 @@ sanitizers=(ASAN_OPTIONS=detect_leaks=1:halt_on_error=1:abort_on_error=0
   echo "== composite"; timeout 60 "$b/c/composite_plain" /tmp/composite.ppm; echo "rc=$?"
   echo "== composite (ASan)"; env "${sanitizers[@]}" timeout 90 "$b/c/composite_asan" /tmp/composite.ppm; echo "rc=$?"
 } > "$out/c_programs.txt" 2>&1
+# The GPU's clocks, power and memory use once a second for the whole run (nvidia-smi dmon):
+# memory-bound benchmark rows have differed 3-5x between leases of one kind.
+dmon=
+if command -v nvidia-smi > /dev/null; then
+  nvidia-smi dmon -s pucm -o T -d 1 > "$out/dmon.txt" 2>&1 &
+  dmon=$!
+fi
 export SRUG_VALIDATION=1
 (cd target/debug/deps && ls "$b/deps" | grep -E "${TESTS:-.}" |
   timeout "${TEST_LIMIT:-300}" xargs -P4 -I{} sh -c 'timeout 240 ./{} --test-threads=4 > /tmp/srug_t_{}.log 2>&1; echo "{} rc=$?" >> /tmp/srug_rcs')
@@ -61,5 +69,6 @@ for c in "${commands[@]}"; do
   n=$((n + 1))
   # Word splitting of $c is the point: one srug argument list each.
   # shellcheck disable=SC2086
-  { echo "\$ srug ${c# }"; timeout 300 "$b/srug" $c; echo "rc=$?"; } > "$out/command_$n.txt" 2>&1
+  { date +%T; echo "\$ srug ${c# }"; timeout 300 "$b/srug" $c; echo "rc=$?"; date +%T; } > "$out/command_$n.txt" 2>&1
 done
+[ -z "$dmon" ] || kill "$dmon" 2> /dev/null
