@@ -1,6 +1,6 @@
 #version 460
-// Exclusive prefix sum of uints, step 1: each invocation sums its SCAN_ITEMS
-// consecutive values into sums[invocation]. The sums are scanned the same way
+// Exclusive prefix sum of uints, step 1: each invocation sums its `run`
+// consecutive values (push constant) into sums[invocation]. The sums are scanned the same way
 // (recursively) and scan_apply.comp writes the prefixes. Each invocation
 // works alone, in registers: no shared memory, no subgroup operations, no
 // workgroup waiting on another (on CPU implementations such as lavapipe,
@@ -10,10 +10,12 @@
 
 void main() {
     uint me = linear_index();
-    uint end = min(me * SCAN_ITEMS + SCAN_ITEMS, pc.count);
-    if (me * SCAN_ITEMS >= end) return;
+    // Runs past the last (the grid's padding) return before me * run could wrap (count ≥ 1).
+    if (me > (pc.count - 1u) / pc.run) return;
+    uint start = me * pc.run;
+    uint end = start + min(pc.run, pc.count - start);
     Uints data = Uints(pc.data);
     uint total = 0u;
-    for (uint i = me * SCAN_ITEMS; i < end; i++) total += data.v[i];
+    for (uint i = start; i < end; i++) total += data.v[i];
     Uints(pc.sums).v[me] = total;
 }

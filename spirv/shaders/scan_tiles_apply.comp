@@ -17,8 +17,9 @@ uint padded(uint i) {
 
 void main() {
     uint tile = block_index();
+    // The grid's padding (whole workgroups) returns before tile * SCAN_TILE could wrap (count ≥ 1).
+    if (tile > (pc.count - 1u) / SCAN_TILE) return;
     uint first = tile * SCAN_TILE;
-    if (first >= pc.count) return;  // the grid's padding: whole workgroups
     Uints data = Uints(pc.data);
     uint t = gl_LocalInvocationID.x;
     for (uint j = 0u; j < SCAN_TILE_ITEMS; j++) {

@@ -31,14 +31,23 @@ fn exclusive_scan_matches_cpu() {
         let mut scan = Scan::with_tiles(&d, tiles).unwrap();
         assert_eq!(scan.tiles(), tiles);
         let mut rng = Pcg64Mcg::seed_from_u64(1);
-        // Runs: one invocation (32 values), two levels, ..., five levels at 1024·1024 + 1. Tiles: one
+        // Runs: one invocation up to 4096 values, then two levels (runs of 32 and longer). Tiles: one
         // tile, a partial second, two levels at 2048·2048, three at 2048·2048 + 1; wrapping sums.
-        for n in [1usize, 2, 31, 32, 33, 1023, 1024, 1025, 2047, 2048, 2049, 5_000, 1_048_577, 4_194_304, 4_194_305] {
+        for n in [
+            1usize, 2, 31, 32, 33, 1023, 1024, 1025, 2047, 2048, 2049, 4096, 4097, 5_000, 8192, 8193, 1_048_577,
+            4_194_304, 4_194_305,
+        ] {
             let values: Vec<u32> = (0..n).map(|_| rng.random_range(0..100)).collect();
             assert_eq!(gpu_scan(&d, &mut scan, &values), exclusive_scan_cpu(&values), "n = {n}, tiles {tiles}");
         }
         let big: Vec<u32> = (0..3000).map(|_| rng.random::<u32>()).collect();
         assert_eq!(gpu_scan(&d, &mut scan, &big), exclusive_scan_cpu(&big), "wrapping, tiles {tiles}");
+        // Fewer values than reserved, whose runs are more than the reserved count's (8192: 256 runs of
+        // 32; 8300: 252 of 33).
+        let mut fresh = Scan::with_tiles(&d, tiles).unwrap();
+        fresh.reserve(&d, 8300).unwrap();
+        let values: Vec<u32> = (0..8192).map(|_| rng.random_range(0..100)).collect();
+        assert_eq!(gpu_scan(&d, &mut fresh, &values), exclusive_scan_cpu(&values), "8192 of 8300, tiles {tiles}");
         // Zero values: nothing to do, no error.
         let empty = d.create_buffer("empty", 0, MemoryKind::Storage).unwrap();
         d.run(|rec| scan.record(rec, &empty, 0)).unwrap();

@@ -1,14 +1,18 @@
 //! Exclusive prefix sum of `u32` on the GPU (reduce-then-scan), in one of
 //! two shapes chosen per device ([`default_scan_tiles`]):
 //!
-//! - **Runs** (CPU devices): every invocation owns `SCAN_ITEMS` consecutive
+//! - **Runs** (CPU devices): every invocation owns a run of consecutive
 //!   values: `scan_reduce.comp` sums them, the sums are scanned the same way
 //!   (recursively, until one invocation holds everything), and
 //!   `scan_apply.comp` rewrites each run as its exclusive prefix from the
 //!   run's scanned sum. Invocations work alone in registers: no shared memory
 //!   (on CPU implementations such as lavapipe a shared-memory access indexed
 //!   by lane is a loop over the lanes; the earlier shared-memory
-//!   Hillis–Steele scan was several times slower there).
+//!   Hillis–Steele scan was several times slower there). Runs are as long as
+//!   [`RUN_INVOCATIONS`] invocations need to cover the values (at least
+//!   [`MIN_RUN`]), and one invocation takes up to [`MAX_SINGLE_RUN`] values
+//!   alone, so every scan is at most three dispatches: on lavapipe each
+//!   dispatch costs more than the additions of thousands of values.
 //! - **Tiles** (GPUs): every workgroup owns [`SCAN_TILE`] consecutive values,
 //!   read and written by neighbouring invocations at neighbouring addresses
 //!   and scanned across invocations in shared memory
@@ -27,8 +31,24 @@ use crate::error::Result;
 use crate::gpu::ash::vk;
 use crate::gpu::{kernels, Buffer, Device, DeviceAddress, Grid, Kernel, KernelDecl, MemoryKind, Recording};
 
-/// Values per invocation of a run scan (keep in sync with `scan_common.glsl`).
-pub(crate) const SCAN_ITEMS: u64 = 32;
+/// Fewest values an invocation of a run scan owns.
+pub const MIN_RUN: u64 = 32;
+/// Invocations a level of a run scan spreads its values over: enough for a
+/// CPU device's threads and lanes, few enough that their sums fit one run.
+pub const RUN_INVOCATIONS: u64 = 256;
+/// Most values one invocation scans alone (a level's last).
+pub const MAX_SINGLE_RUN: u64 = 4096;
+
+/// Values each invocation owns in a run scan of `count` values: all of them
+/// up to [`MAX_SINGLE_RUN`], else a share of [`RUN_INVOCATIONS`] (at least
+/// [`MIN_RUN`]), so the sums of a level fit one invocation's run.
+pub fn scan_run(count: u64) -> u64 {
+    if count <= MAX_SINGLE_RUN {
+        count.max(1)
+    } else {
+        count.div_ceil(RUN_INVOCATIONS).max(MIN_RUN)
+    }
+}
 /// Values per workgroup of a tile scan (keep in sync with `scan_tiles_common.glsl`).
 pub const SCAN_TILE: u64 = 128 * 16;
 
@@ -50,14 +70,18 @@ pub(crate) struct ScanPush {
     pub count: u32,
     /// The apply kernels: whether `sums` holds scanned offsets (else all start at 0).
     pub has_sums: u32,
+    /// Values per invocation of a run scan ([`scan_run`]; unread by tiles).
+    pub run: u32,
+    /// Padding.
+    pub pad: u32,
 }
-crate::gpu::gpu_layout!(ScanPush, "ScanPush", [data, sums, count, has_sums]);
+crate::gpu::gpu_layout!(ScanPush, "ScanPush", [data, sums, count, has_sums, run, pad]);
 
 /// The scan kernels and their scratch memory.
 pub struct Scan {
     reduce: Arc<Kernel>,
     apply: Arc<Kernel>,
-    /// Tiles of [`SCAN_TILE`] values a workgroup, else runs of `SCAN_ITEMS` an invocation.
+    /// Tiles of [`SCAN_TILE`] values a workgroup, else runs of [`scan_run`] an invocation.
     tiles: bool,
     /// Per-run or per-tile sums for each level above the first.
     levels: Vec<Buffer>,
@@ -101,12 +125,12 @@ impl Scan {
         Ok(())
     }
 
-    /// Values one run or tile of a level covers.
-    fn span(&self) -> u64 {
+    /// Values one run or tile covers in a level of `count` values.
+    fn span(&self, count: u64) -> u64 {
         if self.tiles {
             SCAN_TILE
         } else {
-            SCAN_ITEMS
+            scan_run(count)
         }
     }
 
@@ -116,9 +140,11 @@ impl Scan {
             return Ok(());
         }
         self.levels.clear();
+        // Each level's sums: tiles of a fixed size; runs at most RUN_INVOCATIONS sums
+        // for any count (scan_run), which one invocation then scans alone.
         let mut n = count;
-        while n > self.span() {
-            n = n.div_ceil(self.span());
+        while n > self.span(n) {
+            n = if self.tiles { n.div_ceil(SCAN_TILE) } else { RUN_INVOCATIONS };
             self.levels.push(device.create_buffer(
                 &format!("scan level {}", self.levels.len() + 1),
                 n * 4,
@@ -158,11 +184,19 @@ impl Scan {
             return Ok(());
         }
         // Runs are invocations, tiles workgroups.
-        let parts = count.div_ceil(self.span());
+        let span = self.span(count);
+        let parts = count.div_ceil(span);
         let grid = if self.tiles { Grid::Groups(parts) } else { Grid::Items(parts) };
         let sums = self.levels.get(level).filter(|_| parts > 1);
         let sums_address = rec.addr_or_null(sums)?;
-        let push = ScanPush { data, sums: sums_address, count: count as u32, has_sums: u32::from(sums.is_some()) };
+        let push = ScanPush {
+            data,
+            sums: sums_address,
+            count: count as u32,
+            has_sums: u32::from(sums.is_some()),
+            run: span as u32,
+            pad: 0,
+        };
         if sums.is_some() {
             rec.dispatch(&self.reduce, grid, &[], &push)?;
             self.record_level(rec, sums_address, parts, level + 1)?;
@@ -182,4 +216,27 @@ pub fn exclusive_scan_cpu(values: &[u32]) -> Vec<u32> {
             out
         })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{scan_run, MAX_SINGLE_RUN, MIN_RUN, RUN_INVOCATIONS};
+
+    /// Every count's runs: one run up to MAX_SINGLE_RUN values, else at most
+    /// RUN_INVOCATIONS runs of at least MIN_RUN values, so the one level of
+    /// sums `Scan::reserve` keeps fits any count and one invocation scans it.
+    #[test]
+    fn runs_take_at_most_two_levels_whatever_the_count() {
+        let counts = (1..=70_000u64).chain([1 << 20, (1 << 24) + 3, u64::from(u32::MAX)]);
+        for n in counts {
+            let run = scan_run(n);
+            let parts = n.div_ceil(run);
+            if n <= MAX_SINGLE_RUN {
+                assert_eq!((run, parts), (n, 1), "{n}");
+            } else {
+                assert!(run >= MIN_RUN && parts <= RUN_INVOCATIONS && parts <= MAX_SINGLE_RUN, "{n}: {run} x {parts}");
+                assert!(parts > 1, "{n}");
+            }
+        }
+    }
 }

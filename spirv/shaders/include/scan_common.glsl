@@ -5,15 +5,14 @@
 #include "common.glsl"
 #include "address.glsl"
 
-// Values per invocation. Keep in sync with engine/src/primitives/scan.rs `SCAN_ITEMS`.
-#define SCAN_ITEMS 32
-
 // Keep in sync with engine/src/primitives/scan.rs `ScanPush`.
 layout(push_constant) uniform ScanPush {
     uvec2 data;  // uint[count], scanned in place
-    uvec2 sums;  // uint[ceil(count / SCAN_ITEMS)], one per invocation
+    uvec2 sums;  // uint[ceil(count / run)], one per invocation
     uint count;
     uint has_sums;  // scan_apply.comp: whether `sums` holds scanned offsets
+    uint run;       // values per invocation (the level's run length)
+    uint pad;
 } pc;
 
 #endif

@@ -19,6 +19,8 @@ layout(push_constant) uniform ScanPush {
     uvec2 sums;  // uint[ceil(count / SCAN_TILE)], one per tile
     uint count;
     uint has_sums;  // scan_tiles_apply.comp: whether `sums` holds scanned offsets
+    uint run;       // unread here: a tile is SCAN_TILE values
+    uint pad;
 } pc;
 
 shared uint partial[WORKGROUP_SIZE_X];
