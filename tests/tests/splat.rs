@@ -586,6 +586,31 @@ fn split_tile_lists_blend_as_one_walk_does() {
     assert_no_validation_messages(&d);
 }
 
+/// The frame's prefix sums in tiles (the GPUs' default) or runs (CPU
+/// devices') give the same bits: both are exact. Switched after frames have
+/// reserved their scratch, then a larger frame, so the switch keeps and grows it.
+#[test]
+fn scans_in_tiles_or_runs_give_the_same_frame() {
+    let d = device();
+    let mut splatter = Splatter::new(&d).unwrap();
+    let city = demo_city(&DemoOptions { seed: 7, gaussians: 30_000, sh_degree: 1 }).unwrap();
+    let scene = GpuScene::upload(&d, &city.scene).unwrap();
+    let settings = all_settings();
+    let default = splatter.scan_tiles();
+    for (w, h) in [(203, 77), (640, 416)] {
+        let cam = city.cameras[1].resized(w, h);
+        splatter.set_scan_tiles(default).unwrap();
+        let (first, stats) = splatter.render(&scene, &cam, &settings).unwrap();
+        assert!(stats.pairs > 10_000, "{w}x{h}: {} pairs", stats.pairs);
+        splatter.set_scan_tiles(!default).unwrap();
+        assert_eq!(splatter.scan_tiles(), !default);
+        let (other, other_stats) = splatter.render(&scene, &cam, &settings).unwrap();
+        assert_eq!(other_stats.pairs, stats.pairs, "{w}x{h}");
+        assert!(gbuffer_bits(&first.read(&d).unwrap()) == gbuffer_bits(&other.read(&d).unwrap()), "{w}x{h}");
+    }
+    assert_no_validation_messages(&d);
+}
+
 #[test]
 fn texel_preprocess_reads_give_the_bits_of_address_reads_at_every_sh_degree() {
     // The texel preprocess fetches means and log-scales as RGB32F, rotations

@@ -172,7 +172,8 @@ pub struct SplatterChoices {
     #[arg(long)]
     pub sort_packing: Option<bool>,
     /// Prefix sums (tile counts, the sort's digit counts) in tiles of 2048 values a workgroup
-    /// rather than runs of 32 an invocation: true or false (default: true on GPUs, else false).
+    /// rather than runs of consecutive values an invocation: true or false (default: true on GPUs,
+    /// else false).
     #[arg(long)]
     pub scan_tiles: Option<bool>,
 }

@@ -4,7 +4,7 @@
 // neighbouring addresses, and scans across its invocations in shared memory.
 #ifndef SRUG_SCAN_TILES_COMMON_GLSL
 #define SRUG_SCAN_TILES_COMMON_GLSL
-// 128 invocations and 8.6 KiB of shared memory: within every Vulkan device's minimum limits.
+// 128 invocations and 8.75 KiB of shared memory: within every Vulkan device's minimum limits.
 #define WORKGROUP_SIZE_X 128
 #include "common.glsl"
 #include "address.glsl"
