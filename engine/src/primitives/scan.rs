@@ -16,10 +16,11 @@
 //! - **Tiles** (GPUs): every workgroup owns [`SCAN_TILE`] consecutive values,
 //!   read and written by neighbouring invocations at neighbouring addresses
 //!   and scanned across invocations in shared memory
-//!   (`scan_tiles_reduce.comp`, `scan_tiles_apply.comp`). A level covers 64
-//!   times the values of a run level, so a scan of up to 4 million values
-//!   takes three dispatches where runs take up to nine: on a GPU each
-//!   dispatch and its barrier, not the arithmetic, is most of a scan's time.
+//!   (`scan_tiles_reduce.comp`, `scan_tiles_apply.comp`), so a scan of up
+//!   to 4 million values takes three dispatches (runs of 32 values took up
+//!   to nine: on a GPU each dispatch and its barrier, not the arithmetic, was
+//!   most of a scan's time). Long runs would not do there: 256 invocations,
+//!   each reading its own stretch, leave a GPU nearly idle.
 //!
 //! Neither uses subgroup operations or has a workgroup wait on another, so
 //! no forward-progress guarantee is needed. Sums wrap modulo 2³² like `u32`.
@@ -49,6 +50,7 @@ pub fn scan_run(count: u64) -> u64 {
         count.div_ceil(RUN_INVOCATIONS).max(MIN_RUN)
     }
 }
+
 /// Values per workgroup of a tile scan (keep in sync with `scan_tiles_common.glsl`).
 pub const SCAN_TILE: u64 = 128 * 16;
 
@@ -57,8 +59,8 @@ pub fn default_scan_tiles(device_type: vk::PhysicalDeviceType) -> bool {
     device_type != vk::PhysicalDeviceType::CPU
 }
 
-/// Push constants of `scan_reduce.comp` and `scan_apply.comp` (`ScanPush` in
-/// `scan_common.glsl`; checked by `check_layout`).
+/// Push constants of the scan kernels, runs and tiles (`ScanPush` in
+/// `scan_common.glsl` and `scan_tiles_common.glsl`; checked by `check_layout`).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
 pub(crate) struct ScanPush {
