@@ -255,6 +255,9 @@ fn is_sort_kernel(name: &str) -> bool {
 /// [`SortBench::kernels`]): each kernel's milliseconds, then the histograms',
 /// scans', scatters' and copy's shares of their sum.
 pub fn sort_kernels_line(kernels: &[(String, f64)]) -> String {
+    if kernels.is_empty() {
+        return "no kernel ran (fewer than two pairs, or no timestamps on this device)".into();
+    }
     let total: f64 = kernels.iter().map(|k| k.1).sum();
     let share = |kind: &str| {
         let sum: f64 = kernels.iter().filter(|k| k.0.ends_with(kind)).map(|k| k.1).sum();
