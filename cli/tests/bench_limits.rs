@@ -9,8 +9,8 @@
 use srug::gpu::MemoryKind;
 use srug_cli::bench::limits::{
     bandwidth_checksums, bandwidth_cpu, bandwidth_run, blend_ceiling_cpu, blend_ceiling_run, pair_move_cpu,
-    pair_move_run, radix_pass_permutation, random_permutation, stable_digit_permutation, BandwidthLayout, BlendCeiling,
-    PairMoveFloor, PairWrites, BLEND_CEILING_MAX_SPLATS, BLEND_CEILING_PIXELS,
+    pair_move_run, radix_pass_permutation, random_permutation, stable_digit_permutation, BandwidthLayout,
+    BandwidthRead, BlendCeiling, PairMoveFloor, PairWrites, BLEND_CEILING_MAX_SPLATS, BLEND_CEILING_PIXELS,
 };
 use srug_cli::bench::{BLEND_FLOPS_PER_CONTRIBUTION, BLEND_FLOPS_PER_EVALUATION};
 use srug_tests::{assert_no_validation_messages, device, save_comparison};
@@ -191,31 +191,38 @@ fn bandwidth_probe_reads_and_copies_every_texel() {
     let d = device();
     // A count that leaves the last invocation a partial run of texels.
     let count: usize = 64 * 64 * 3 + 37;
-    let texels: Vec<[f32; 4]> = (0..count).map(|i| [i as f32, -(i as f32) * 0.5, 1e-3 * i as f32, 7.0]).collect();
+    // Every component differs from texel to texel, so a component left out changes the checksums.
+    let texels: Vec<[f32; 4]> =
+        (0..count).map(|i| [i as f32, -(i as f32) * 0.5, 1e-3 * i as f32, 7.0 + 3.0 * i as f32]).collect();
     let source = d.upload("bandwidth source", &texels).unwrap();
     // Runs: 193 invocations; interleaved: 3 full blocks of 64 lanes and 37 lanes of the last.
     assert_eq!(bandwidth_checksums(count as u64, BandwidthLayout::Runs), 193);
     assert_eq!(bandwidth_checksums(count as u64, BandwidthLayout::Interleaved), 229);
-    for layout in [BandwidthLayout::Runs, BandwidthLayout::Interleaved] {
+    for (layout, read) in [BandwidthLayout::Runs, BandwidthLayout::Interleaved]
+        .into_iter()
+        .flat_map(|layout| [BandwidthRead::Texels, BandwidthRead::Address].map(|read| (layout, read)))
+    {
         let n = bandwidth_checksums(count as u64, layout) as usize;
         let sums = d.create_filled::<u32>("sums", n, 0xdead_beef).unwrap();
-        let seconds = bandwidth_run(&d, false, layout, &source, count as u64, &sums).unwrap();
+        let seconds = bandwidth_run(&d, false, layout, read, &source, count as u64, &sums).unwrap();
         assert!(seconds.is_finite() && seconds > 0.0, "{seconds}");
         let gpu: Vec<u32> = d.read_buffer(&sums).unwrap();
-        assert_eq!(gpu, bandwidth_cpu(&texels, layout), "read-only checksums, {layout:?}");
+        assert_eq!(gpu, bandwidth_cpu(&texels, layout), "read-only checksums, {layout:?}, {read:?}");
         let copy = d.create_filled::<u32>("copy", 4 * count, f32::NAN.to_bits()).unwrap();
-        bandwidth_run(&d, true, layout, &source, count as u64, &copy).unwrap();
+        bandwidth_run(&d, true, layout, read, &source, count as u64, &copy).unwrap();
         let copied: Vec<[f32; 4]> = d.read_buffer(&copy).unwrap();
         let same = copied.iter().zip(&texels).all(|(a, b)| a.map(f32::to_bits) == b.map(f32::to_bits));
-        assert!(same, "copy, {layout:?}");
+        assert!(same, "copy, {layout:?}, {read:?}");
         // Clear refusals.
-        assert!(bandwidth_run(&d, false, layout, &source, 0, &sums).is_err(), "no texels");
-        assert!(bandwidth_run(&d, true, layout, &source, count as u64, &sums).is_err(), "copy into too small a buffer");
+        assert!(bandwidth_run(&d, false, layout, read, &source, 0, &sums).is_err(), "no texels");
+        let small = bandwidth_run(&d, true, layout, read, &source, count as u64, &sums);
+        assert!(small.is_err(), "copy into too small a buffer");
         let past = count as u64 + 1;
-        assert!(bandwidth_run(&d, false, layout, &source, past, &sums).is_err(), "more texels than the source");
+        assert!(bandwidth_run(&d, false, layout, read, &source, past, &sums).is_err(), "more texels than the source");
         if layout == BandwidthLayout::Interleaved {
             let few = d.create_filled::<u32>("few sums", 193, 0).unwrap();
-            assert!(bandwidth_run(&d, false, layout, &source, count as u64, &few).is_err(), "too few checksums");
+            let refused = bandwidth_run(&d, false, layout, read, &source, count as u64, &few);
+            assert!(refused.is_err(), "too few checksums");
         }
     }
     assert_no_validation_messages(&d);

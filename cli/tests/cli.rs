@@ -263,11 +263,13 @@ fn bench_splat_prints_its_tables() {
         "blend ceiling",
         "pair-move floor, 6000 pairs",
         "memory bandwidth (",
-        "MiB read once through an RGBA32F texel view",
+        "MiB read once, and copied once; the fastest of reading through an RGBA32F texel view or as uvec4s by device address",
         "preprocess % of floor | sort % of floor | blend % of ceiling |",
     ] {
         assert!(t.contains(want), "missing {want:?} in:\n{t}");
     }
+    // The bandwidth line names the read that won.
+    assert!(t.contains("here texel fetches ") || t.contains("here device-address loads "), "{t}");
     // The split blend's setting: the default splits no list on CPU devices, lists over 2048 entries on GPUs.
     assert!(t.contains("and no list was split (--chunk-length 0)") || t.contains("in chunks of 1024"), "{t}");
     // A floor measured on one pair (all launch, scaled to thousands) is far above the sort:

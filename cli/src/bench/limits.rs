@@ -16,8 +16,9 @@
 //!   [`PairMoveFloor::lsd_bound`] bounds a whole LSD radix sort.
 //!
 //! - **Memory bandwidth** (`bench_bandwidth.comp`): a large buffer read once
-//!   front to back through a texel view, and copied once: the bytes a
-//!   memory-bound stage must move over this rate bound it from below
+//!   front to back, through a texel view or by device address, and copied
+//!   once, the fastest way counting: the bytes a memory-bound stage must move
+//!   over this rate bound it from below, whichever way the stage reads
 //!   ([`MemoryBandwidth`]).
 //!
 //! The kernels have CPU twins here ([`blend_ceiling_cpu`], [`pair_move_cpu`],
@@ -445,6 +446,8 @@ pub fn random_permutation(n: u32, seed: u64) -> Vec<u32> {
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
 pub struct BandwidthPush {
+    /// The source, read by address ([`BandwidthRead::Address`]).
+    pub src_addr: DeviceAddress,
     /// The copy (16 bytes a texel), or one checksum per invocation.
     pub out_addr: DeviceAddress,
     /// Texels.
@@ -452,7 +455,7 @@ pub struct BandwidthPush {
     /// Workgroups.
     pub blocks: u32,
 }
-srug::gpu::gpu_layout!(BandwidthPush, "BandwidthPush", [out_addr, count, blocks]);
+srug::gpu::gpu_layout!(BandwidthPush, "BandwidthPush", [src_addr, out_addr, count, blocks]);
 
 /// Texels each invocation of `bench_bandwidth.comp` reads (keep in sync with its `ITEMS`).
 pub const BANDWIDTH_ITEMS: u64 = 64;
@@ -468,14 +471,24 @@ pub enum BandwidthLayout {
     Interleaved,
 }
 
+/// How the bandwidth probe reads the buffer.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum BandwidthRead {
+    /// Through an RGBA32F texel-buffer view, as srug's texel kernels read.
+    Texels,
+    /// As uvec4s by device address: a GPU's plain loads.
+    Address,
+}
+
 /// Runs the bandwidth probe once over the first `count` RGBA32F texels of
-/// `source` (finite values) in `layout`: read only (writing one checksum per
-/// invocation into `out`), or with `copy` each texel copied to the same index
-/// of `out`. Returns the GPU seconds.
+/// `source` (finite values) in `layout`, read as `read` says: read only
+/// (writing one checksum per invocation into `out`), or with `copy` each
+/// texel copied to the same index of `out`. Returns the GPU seconds.
 pub fn bandwidth_run(
     device: &Device,
     copy: bool,
     layout: BandwidthLayout,
+    read: BandwidthRead,
     source: &Buffer,
     count: u64,
     out: &Buffer,
@@ -497,14 +510,23 @@ pub fn bandwidth_run(
         &KernelDecl {
             bindings: &[BindingKind::UniformTexelBuffer],
             push_constant_size: std::mem::size_of::<BandwidthPush>(),
-            specialization: &[(0, SpecValue::Bool(copy)), (1, SpecValue::Bool(layout == BandwidthLayout::Interleaved))],
+            specialization: &[
+                (0, SpecValue::Bool(copy)),
+                (1, SpecValue::Bool(layout == BandwidthLayout::Interleaved)),
+                (2, SpecValue::Bool(read == BandwidthRead::Address)),
+            ],
         },
     )?;
     let blocks = count.div_ceil(BANDWIDTH_BLOCK);
     let view =
         [Binding::Texels(Texels { buffer: source, offset: 0, elements: count, format: TexelFormat::Rgba32Float })];
     let t = device.run(|rec| {
-        let push = BandwidthPush { out_addr: rec.addr(out)?, count: count as u32, blocks: blocks as u32 };
+        let push = BandwidthPush {
+            src_addr: rec.addr(source)?,
+            out_addr: rec.addr(out)?,
+            count: count as u32,
+            blocks: blocks as u32,
+        };
         rec.begin_stage("bandwidth");
         rec.dispatch(&kernel, Grid::Groups(blocks), &view, &push)
     })?;
@@ -542,12 +564,14 @@ pub fn bandwidth_cpu(texels: &[[f32; 4]], layout: BandwidthLayout) -> Vec<u32> {
 pub struct MemoryBandwidth {
     /// Bytes of the buffer read.
     pub bytes: u64,
-    /// Bytes read per second, reading once through a texel view.
+    /// Bytes read per second, reading once.
     pub read: f64,
     /// Bytes moved (read and written) per second, copying once.
     pub copy: f64,
     /// The layout that read fastest (the copy takes its own best).
     pub read_layout: BandwidthLayout,
+    /// How the fastest read read (the copy takes its own best).
+    pub read_through: BandwidthRead,
 }
 
 impl MemoryBandwidth {
@@ -560,27 +584,35 @@ impl MemoryBandwidth {
 }
 
 /// Measures the streaming bandwidth over a buffer of `bytes` (rounded to whole
-/// texels): the best of the repeats and of both layouts.
+/// texels): the best of the repeats, of both layouts and of both ways to read.
 pub fn memory_bandwidth(device: &Device, bytes: u64, repeats: usize) -> Result<MemoryBandwidth> {
     let count = (bytes / 16).max(1);
     let texels: Vec<[f32; 4]> = (0..count).map(|i| [i as f32, 1.0, 2.0, 3.0]).collect();
     let source = device.upload("bandwidth source", &texels)?;
     let out = device.create_buffer("bandwidth out", count * 16, MemoryKind::Storage)?;
-    let best = |copy, layout| -> Result<f64> {
+    let best = |copy, layout, read| -> Result<f64> {
         let runs: Result<Vec<f64>> =
-            (0..repeats.max(1)).map(|_| bandwidth_run(device, copy, layout, &source, count, &out)).collect();
+            (0..repeats.max(1)).map(|_| bandwidth_run(device, copy, layout, read, &source, count, &out)).collect();
         Ok(runs?.into_iter().fold(f64::INFINITY, f64::min))
     };
-    let [runs, interleaved] = [BandwidthLayout::Runs, BandwidthLayout::Interleaved];
-    let (read_runs, read_interleaved) = (best(false, runs)?, best(false, interleaved)?);
-    let copy = best(true, runs)?.min(best(true, interleaved)?);
-    let (read, read_layout) =
-        if read_interleaved < read_runs { (read_interleaved, interleaved) } else { (read_runs, runs) };
+    let mut fastest_read = (f64::INFINITY, BandwidthLayout::Runs, BandwidthRead::Texels);
+    let mut fastest_copy = f64::INFINITY;
+    for read in [BandwidthRead::Texels, BandwidthRead::Address] {
+        for layout in [BandwidthLayout::Runs, BandwidthLayout::Interleaved] {
+            let seconds = best(false, layout, read)?;
+            if seconds < fastest_read.0 {
+                fastest_read = (seconds, layout, read);
+            }
+            fastest_copy = fastest_copy.min(best(true, layout, read)?);
+        }
+    }
+    let (read, read_layout, read_through) = fastest_read;
     Ok(MemoryBandwidth {
         bytes: count * 16,
         read: (count * 16) as f64 / read,
-        copy: (count * 32) as f64 / copy,
+        copy: (count * 32) as f64 / fastest_copy,
         read_layout,
+        read_through,
     })
 }
 

@@ -146,10 +146,14 @@ impl SplatBenchArgs {
             );
         }
         println!(
-            "\nmemory bandwidth ({} MiB read once through an RGBA32F texel view, and copied once; the faster of each invocation reading a run of texels and neighbouring invocations reading neighbouring texels, here {}): read {:.1} GB/s, copy {:.1} GB/s moved; \"preprocess % of floor\" is the least time to read every Gaussian's position and the visible ones' other attributes and write their splat records and every tile count at those rates, over the measured preprocess; \"sort % of floor\" the LSD bound below for the row's key bits and pairs over the measured sort; \"blend % of ceiling\" the blend's GFLOP/s over its ceiling for the row's mix",
+            "\nmemory bandwidth ({} MiB read once, and copied once; the fastest of reading through an RGBA32F texel view or as uvec4s by device address, each invocation reading a run of texels or neighbouring invocations reading neighbouring texels, here {} {}): read {:.1} GB/s, copy {:.1} GB/s moved; \"preprocess % of floor\" is the least time to read every Gaussian's position and the visible ones' other attributes and write their splat records and every tile count at those rates, over the measured preprocess; \"sort % of floor\" the LSD bound below for the row's key bits and pairs over the measured sort; \"blend % of ceiling\" the blend's GFLOP/s over its ceiling for the row's mix",
             bandwidth.bytes >> 20,
+            match bandwidth.read_through {
+                bench::limits::BandwidthRead::Texels => "texel fetches",
+                bench::limits::BandwidthRead::Address => "device-address loads",
+            },
             match bandwidth.read_layout {
-                bench::limits::BandwidthLayout::Runs => "runs",
+                bench::limits::BandwidthLayout::Runs => "in runs",
                 bench::limits::BandwidthLayout::Interleaved => "interleaved",
             },
             bandwidth.read * 1e-9,
