@@ -308,6 +308,44 @@ fn bench_splat_prints_its_tables() {
         let t = text(&o);
         assert!(o.status.success() && t.contains(&format!("on 43 bits ({digits} digits)")), "{t}");
     }
+    // One choice's values alternated frame by frame: a row per value and the ratios to the first,
+    // every cell a median with its range; the other tables are not printed.
+    let o = srug(&[
+        "bench",
+        "splat",
+        "--gaussians",
+        "2000",
+        "--sizes",
+        "64x32",
+        "--repeats",
+        "2",
+        "--alternate",
+        "scan-tiles=false,true",
+    ]);
+    let t = text(&o);
+    assert!(o.status.success(), "{t}");
+    for want in ["| 2000 | 64x32 | scan-tiles=false |", "| 2000 | 64x32 | scan-tiles=true |", "2 rounds (A B, then B A"]
+    {
+        assert!(t.contains(want), "missing {want:?} in:\n{t}");
+    }
+    let ratios = t.lines().find(|l| l.starts_with("| 2000 | 64x32 | scan-tiles=true / scan-tiles=false |"));
+    let cells: Vec<&str> =
+        ratios.unwrap_or_else(|| panic!("no ratio row in:\n{t}")).split('|').map(str::trim).collect();
+    // Gaussians, size, choice, six stages and the total.
+    assert_eq!(cells.len(), 1 + 3 + 7 + 1, "{cells:?}");
+    for cell in &cells[4..11] {
+        let (median, range) = cell.split_once(' ').unwrap_or_else(|| panic!("{cell:?}"));
+        let (lo, hi) =
+            range.trim_matches(|c| c == '(' || c == ')').split_once('-').unwrap_or_else(|| panic!("{cell:?}"));
+        let [m, lo, hi]: [f64; 3] = [median, lo, hi].map(|v| v.parse().unwrap_or_else(|_| panic!("{cell:?}")));
+        assert!(lo > 0.0 && lo <= m && m <= hi && hi.is_finite(), "{cell:?}");
+    }
+    assert!(!t.contains("sort_unstable") && !t.contains("pair-move floor"), "{t}");
+    // Refused: an unknown choice, a bad value, one value, no values.
+    for spec in ["nonsense=1,2", "blend-pixels=3,8", "blend-pixels=8", "blend-pixels"] {
+        let o = srug(&["bench", "splat", "--gaussians", "2000", "--sizes", "64x32", "--alternate", spec]);
+        assert!(!o.status.success() && text(&o).contains("error:"), "--alternate {spec}: {}", text(&o));
+    }
 }
 
 /// `srug bench batch` runs srug render and relight to PNG and EXR and the in-process

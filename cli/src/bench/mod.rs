@@ -18,7 +18,7 @@ use std::time::Instant;
 
 use bytemuck::{Pod, Zeroable};
 
-use srug::error::Result;
+use srug::error::{Error, Result};
 use srug::gpu::{kernels, Device, DeviceAddress, Grid, KernelDecl, MemoryKind, Timings};
 use srug::primitives::sort::{RadixSort, SortDigits, SORT_COPY_STAGE, SORT_KERNEL_STAGE_PREFIX};
 use srug::scene::activate::GpuScene;
@@ -179,6 +179,34 @@ pub struct SplatterChoices {
 }
 
 impl SplatterChoices {
+    /// These choices with those `over` makes put in their place.
+    pub fn merged(&self, over: &SplatterChoices) -> SplatterChoices {
+        let Self {
+            blend,
+            blend_pixels,
+            pixel_reach,
+            window_fetch,
+            two_splats_per_step,
+            chunk_length,
+            texel_preprocess,
+            sort_digits,
+            sort_packing,
+            scan_tiles,
+        } = *over;
+        SplatterChoices {
+            blend: blend.or(self.blend),
+            blend_pixels: blend_pixels.or(self.blend_pixels),
+            pixel_reach: pixel_reach.or(self.pixel_reach),
+            window_fetch: window_fetch.or(self.window_fetch),
+            two_splats_per_step: two_splats_per_step.or(self.two_splats_per_step),
+            chunk_length: chunk_length.or(self.chunk_length),
+            texel_preprocess: texel_preprocess.or(self.texel_preprocess),
+            sort_digits: sort_digits.or(self.sort_digits),
+            sort_packing: sort_packing.or(self.sort_packing),
+            scan_tiles: scan_tiles.or(self.scan_tiles),
+        }
+    }
+
     /// Makes the choices given on `splatter`.
     pub fn apply(&self, splatter: &mut Splatter) -> Result<()> {
         if let Some(variant) = self.blend {
@@ -340,6 +368,135 @@ pub fn splat_bench(
                 preprocess_read_bytes: n as u64 * position + visible * rest,
                 preprocess_write_bytes: visible * (record + count) + (n as u64 - visible) * count,
                 sort_kernels: stage_medians(&kernel_timings, is_sort_kernel),
+            });
+        }
+    }
+    Ok(rows)
+}
+
+/// One scene and size of [`alternate_bench`]: each choice's median stage
+/// times, and each stage's ratio to the first choice's, frame pair by frame pair.
+#[derive(Clone, Debug)]
+pub struct AlternateRow {
+    /// Gaussians in the demo city.
+    pub gaussians: usize,
+    /// Image size.
+    pub width: u32,
+    /// Image size.
+    pub height: u32,
+    /// Each choice's name and median seconds per stage, in pipeline order.
+    pub choices: Vec<(String, Vec<(String, f64)>)>,
+    /// For each choice after the first: per stage, and for the whole frame
+    /// ("total"), the median, least and greatest of its frames' times over
+    /// the first choice's frame of the same round.
+    pub ratios: Vec<Vec<(String, Ratio)>>,
+}
+
+/// Median, least and greatest of a set of ratios.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Ratio {
+    /// The median.
+    pub median: f64,
+    /// The least.
+    pub min: f64,
+    /// The greatest.
+    pub max: f64,
+}
+
+impl Ratio {
+    /// The median, least and greatest of `values` (NaN for none).
+    pub fn of(values: &[f64]) -> Ratio {
+        let fold = |f: fn(f64, f64) -> f64, start| values.iter().copied().fold(start, f);
+        if values.is_empty() {
+            return Ratio { median: f64::NAN, min: f64::NAN, max: f64::NAN };
+        }
+        Ratio {
+            median: median(values.to_vec()),
+            min: fold(f64::min, f64::INFINITY),
+            max: fold(f64::max, f64::NEG_INFINITY),
+        }
+    }
+}
+
+/// Renders each scene and size with every one of `choices` (a name and the
+/// splatter choices it stands for; at least two), one frame each in turn,
+/// `repeats` rounds, the order reversed every other round (A B, B A, ...),
+/// so a machine whose speed drifts during the run slows every choice alike.
+/// Each choice has a splatter of its own.
+pub fn alternate_bench(
+    device: &Device,
+    counts: &[usize],
+    sizes: &[(u32, u32)],
+    options: &SplatBenchOptions,
+    choices: &[(String, SplatterChoices)],
+    mut progress: impl FnMut(&str),
+) -> Result<Vec<AlternateRow>> {
+    if choices.len() < 2 {
+        return Err(Error::invalid(format!("{} choices to alternate", choices.len()), "needs two or more"));
+    }
+    let settings = SplatSettings { tile: options.tile, tile_bounds: options.tile_bounds, ..SplatSettings::default() };
+    let mut splatters = Vec::with_capacity(choices.len());
+    for (_, c) in choices {
+        let mut splatter = Splatter::new(device)?;
+        c.apply(&mut splatter)?;
+        splatters.push(splatter);
+    }
+    let mut rows = Vec::new();
+    for &n in counts {
+        progress(&format!("generating the demo city with {n} Gaussians"));
+        let city = demo_city(&DemoOptions { seed: 7, gaussians: n, sh_degree: options.sh_degree })?;
+        let scene = GpuScene::upload(device, &city.scene)?;
+        for &(w, h) in sizes {
+            progress(&format!("{n} Gaussians at {w}x{h}"));
+            let cam = city.cameras[0].resized(w, h);
+            // One warm-up frame each: the first frame reserves scratch memory and builds kernels.
+            for splatter in &mut splatters {
+                splatter.render(&scene, &cam, &settings)?;
+            }
+            let mut timings: Vec<Vec<Timings>> = vec![Vec::new(); choices.len()];
+            for round in 0..options.repeats.max(1) {
+                let order: Vec<usize> =
+                    if round % 2 == 0 { (0..choices.len()).collect() } else { (0..choices.len()).rev().collect() };
+                for i in order {
+                    timings[i].push(splatters[i].render(&scene, &cam, &settings)?.1.timings);
+                }
+            }
+            let stage_names: Vec<String> = timings[0].first().map_or(Vec::new(), |t| {
+                t.stages.iter().map(|s| s.name.clone()).chain(std::iter::once("total".to_string())).collect()
+            });
+            let seconds = |t: &Timings, name: &str| {
+                if name == "total" {
+                    t.total_seconds()
+                } else {
+                    t.stages.iter().find(|s| s.name == name).map_or(f64::NAN, |s| s.seconds)
+                }
+            };
+            let ratios = (1..choices.len())
+                .map(|i| {
+                    stage_names
+                        .iter()
+                        .map(|name| {
+                            let r: Vec<f64> = timings[i]
+                                .iter()
+                                .zip(&timings[0])
+                                .map(|(b, a)| seconds(b, name) / seconds(a, name))
+                                .filter(|r| r.is_finite())
+                                .collect();
+                            (name.clone(), Ratio::of(&r))
+                        })
+                        .collect()
+                })
+                .collect();
+            rows.push(AlternateRow {
+                gaussians: n,
+                width: w,
+                height: h,
+                choices: choices
+                    .iter()
+                    .zip(&timings)
+                    .map(|((name, _), t)| (name.clone(), stage_medians(t, |_| true)))
+                    .collect(),
+                ratios,
             });
         }
     }

@@ -44,6 +44,39 @@ pub(crate) struct SplatBenchArgs {
     /// their own, and print where each sort's time goes.
     #[arg(long)]
     sort_kernels: bool,
+    /// Instead of the tables, compare values of one kernel choice, frame by frame in turn
+    /// (rounds alternating A B, B A): OPTION=A,B[,...], OPTION one of the choices above without
+    /// its dashes (e.g. texel-preprocess=true,false); prints each value's stage medians and its
+    /// ratios to the first value's frames. The other choices given apply to every value.
+    #[arg(long, value_name = "OPTION=A,B")]
+    alternate: Option<String>,
+}
+
+/// Wraps the splatter choices for parsing one of them alone.
+#[derive(clap::Parser)]
+#[command(no_binary_name = true)]
+struct OneChoice {
+    #[command(flatten)]
+    choices: bench::SplatterChoices,
+}
+
+/// The choices `--alternate OPTION=A,B,...` stands for: ("OPTION=A", `base` with OPTION set to A), ...
+fn alternatives(spec: &str, base: &bench::SplatterChoices) -> Result<Vec<(String, bench::SplatterChoices)>> {
+    let bad = |why: String| srug::Error::invalid(format!("--alternate {spec}"), why);
+    let (option, values) = spec.split_once('=').ok_or_else(|| bad("is not OPTION=A,B".into()))?;
+    let values: Vec<&str> = values.split(',').collect();
+    if values.len() < 2 || values.iter().any(|v| v.is_empty()) {
+        return Err(bad("needs two values or more, comma-separated".into()));
+    }
+    values
+        .iter()
+        .map(|value| {
+            let flag = format!("--{option}");
+            let one = <OneChoice as clap::Parser>::try_parse_from([flag.as_str(), value])
+                .map_err(|e| bad(e.render().to_string().lines().next().unwrap_or_default().to_string()))?;
+            Ok((format!("{option}={value}"), base.merged(&one.choices)))
+        })
+        .collect()
 }
 
 impl SplatBenchArgs {
@@ -60,6 +93,7 @@ impl SplatBenchArgs {
             choices,
             tile_bounds,
             sort_kernels,
+            ref alternate,
         } = self;
         check_tile(tile)?;
         if sh_degree > 3 {
@@ -72,8 +106,18 @@ impl SplatBenchArgs {
         let peak = bench::fma_peak_gflops(&device, 5)?;
         println!("device: {} ({}), measured FMA peak {peak:.1} GFLOP/s", info.name, info.driver);
         println!("scene: the demo city (seed 7) at SH degree {sh_degree}, its first street camera\n");
-        let bar = spinner("benchmarking");
         let options = bench::SplatBenchOptions { repeats, sh_degree, choices, tile, tile_bounds, sort_kernels };
+        if let Some(spec) = alternate {
+            let variants = alternatives(spec, &choices)?;
+            let bar = spinner("benchmarking");
+            let rows = bench::alternate_bench(&device, counts, &sizes, &options, &variants, |m| {
+                bar.set_message(m.to_string())
+            })?;
+            bar.finish_and_clear();
+            print_alternation(&rows, repeats);
+            return Ok(());
+        }
+        let bar = spinner("benchmarking");
         let rows = bench::splat_bench(&device, counts, &sizes, &options, |m| bar.set_message(m.to_string()))?;
         bar.set_message("sorting");
         let sort = bench::sort_bench(&device, sort_keys, 32 + 11, repeats, &choices, sort_kernels)?;
@@ -222,5 +266,58 @@ impl SplatBenchArgs {
             );
         }
         Ok(())
+    }
+}
+
+/// The table of `srug bench splat --alternate`: each value's stage medians,
+/// then each later value's ratios to the first.
+fn print_alternation(rows: &[bench::AlternateRow], repeats: usize) {
+    let Some(first) = rows.first() else { return };
+    let stages: Vec<&str> = first.choices[0].1.iter().map(|s| s.0.as_str()).collect();
+    println!(
+        "each value renders one frame in turn, {} rounds (A B, then B A, ...), after a warm-up frame each; \
+         ratios are a value's frame over the first value's frame of the same round: median (least-greatest)\n",
+        repeats.max(1)
+    );
+    println!("| Gaussians | size | choice | {} ms | total ms |", stages.join(" ms | "));
+    println!("|---:|---|---|{}---:|", "---:|".repeat(stages.len()));
+    for r in rows {
+        for (name, medians) in &r.choices {
+            let ms: Vec<String> = stages
+                .iter()
+                .map(|n| medians.iter().find(|s| s.0 == *n).map_or("-".into(), |s| format!("{:.1}", s.1 * 1e3)))
+                .collect();
+            let total: f64 = medians.iter().map(|s| s.1).sum();
+            println!(
+                "| {} | {}x{} | {name} | {} | {:.1} |",
+                r.gaussians,
+                r.width,
+                r.height,
+                ms.join(" | "),
+                total * 1e3
+            );
+        }
+        for (i, ratios) in r.ratios.iter().enumerate() {
+            let cells: Vec<String> = stages
+                .iter()
+                .copied()
+                .chain(std::iter::once("total"))
+                .map(|n| {
+                    ratios
+                        .iter()
+                        .find(|s| s.0 == n)
+                        .map_or("-".into(), |(_, q)| format!("{:.2} ({:.2}-{:.2})", q.median, q.min, q.max))
+                })
+                .collect();
+            println!(
+                "| {} | {}x{} | {} / {} | {} |",
+                r.gaussians,
+                r.width,
+                r.height,
+                r.choices[i + 1].0,
+                r.choices[0].0,
+                cells.join(" | ")
+            );
+        }
     }
 }
