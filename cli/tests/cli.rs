@@ -341,6 +341,45 @@ fn bench_splat_prints_its_tables() {
         assert!(lo > 0.0 && lo <= m && m <= hi && hi.is_finite(), "{cell:?}");
     }
     assert!(!t.contains("sort_unstable") && !t.contains("pair-move floor"), "{t}");
+    // The demo city shuffled, as a trained scene's file holds its Gaussians: the same pairs.
+    let o = srug(&[
+        "bench",
+        "splat",
+        "--gaussians",
+        "2000",
+        "--sizes",
+        "64x32",
+        "--repeats",
+        "1",
+        "--sort-keys",
+        "5000",
+        "--floor-pairs",
+        "6000",
+    ]);
+    let s = srug(&[
+        "bench",
+        "splat",
+        "--gaussians",
+        "2000",
+        "--sizes",
+        "64x32",
+        "--repeats",
+        "1",
+        "--sort-keys",
+        "5000",
+        "--floor-pairs",
+        "6000",
+        "--shuffled",
+    ]);
+    let (t, ts) = (text(&o), text(&s));
+    assert!(o.status.success() && s.status.success() && ts.contains("its Gaussians shuffled"), "{ts}");
+    let pairs = |t: &str| -> String {
+        let cells = |l: &str| l.split('|').map(|c| c.trim().to_string()).collect::<Vec<_>>();
+        let header = t.lines().find(|l| l.starts_with("| Gaussians |")).map(cells).unwrap_or_default();
+        let row = t.lines().find(|l| l.starts_with("| 2000 | 64x32 |")).map(cells).unwrap_or_default();
+        header.iter().position(|c| c == "pairs").and_then(|c| row.get(c).cloned()).unwrap_or_else(|| panic!("{t}"))
+    };
+    assert_eq!(pairs(&t), pairs(&ts));
     // Refused: an unknown choice, a bad value, one value, no values.
     for spec in ["nonsense=1,2", "blend-pixels=3,8", "blend-pixels=8", "blend-pixels"] {
         let o = srug(&["bench", "splat", "--gaussians", "2000", "--sizes", "64x32", "--alternate", spec]);

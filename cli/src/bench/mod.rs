@@ -259,6 +259,30 @@ pub struct SplatBenchOptions {
     /// Also time each kernel of the frames' sort, in `repeats` more frames
     /// (apart from the stage times, which the extra timestamps would touch).
     pub sort_kernels: bool,
+    /// The demo city's Gaussians in a random order ([`bench_city`]).
+    pub shuffled: bool,
+}
+
+/// The demo city (seed 7) the splat benches render: its Gaussians object by
+/// object as the generator makes them, or `shuffled` into a fixed random
+/// order, as a trained scene's file holds them (training appends the
+/// Gaussians it splits and clones), so neighbours in memory are not
+/// neighbours in space.
+pub fn bench_city(gaussians: usize, sh_degree: u32, shuffled: bool) -> Result<srug::scene::demo::DemoCity> {
+    let mut city = demo_city(&DemoOptions { seed: 7, gaussians, sh_degree })?;
+    if shuffled {
+        // Fisher-Yates with a fixed xorshift stream: the same order every run.
+        let mut order: Vec<usize> = (0..city.scene.len()).collect();
+        let mut state = 0x2545_f491_4f6c_dd1du64;
+        for i in (1..order.len()).rev() {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            order.swap(i, (state % (i as u64 + 1)) as usize);
+        }
+        city.scene = city.scene.permuted(&order);
+    }
+    Ok(city)
 }
 
 /// Median seconds of each stage over `runs`, in first-seen order, of the
@@ -310,14 +334,14 @@ pub fn splat_bench(
     options: &SplatBenchOptions,
     mut progress: impl FnMut(&str),
 ) -> Result<Vec<SplatBenchRow>> {
-    let SplatBenchOptions { repeats, sh_degree, choices, tile, tile_bounds, sort_kernels } = *options;
+    let SplatBenchOptions { repeats, sh_degree, choices, tile, tile_bounds, sort_kernels, .. } = *options;
     let settings = SplatSettings { tile, tile_bounds, ..SplatSettings::default() };
     let mut rows = Vec::new();
     let mut splatter = Splatter::new(device)?;
     choices.apply(&mut splatter)?;
     for &n in counts {
         progress(&format!("generating the demo city with {n} Gaussians"));
-        let city = demo_city(&DemoOptions { seed: 7, gaussians: n, sh_degree })?;
+        let city = bench_city(n, sh_degree, options.shuffled)?;
         let scene = GpuScene::upload(device, &city.scene)?;
         for &(w, h) in sizes {
             progress(&format!("{n} Gaussians at {w}x{h}"));
@@ -444,7 +468,7 @@ pub fn alternate_bench(
     let mut rows = Vec::new();
     for &n in counts {
         progress(&format!("generating the demo city with {n} Gaussians"));
-        let city = demo_city(&DemoOptions { seed: 7, gaussians: n, sh_degree: options.sh_degree })?;
+        let city = bench_city(n, options.sh_degree, options.shuffled)?;
         let scene = GpuScene::upload(device, &city.scene)?;
         for &(w, h) in sizes {
             progress(&format!("{n} Gaussians at {w}x{h}"));

@@ -269,6 +269,33 @@ impl Scene {
         }
     }
 
+    /// The same Gaussians in the order `order` gives (each index below
+    /// `len()`, once each), every attribute kept in step.
+    pub fn permuted(&self, order: &[usize]) -> Scene {
+        fn pick<T: Copy>(v: &[T], order: &[usize], per: usize) -> Vec<T> {
+            order.iter().flat_map(|&i| v[i * per..(i + 1) * per].iter().copied()).collect()
+        }
+        let k = 3 * sh_coefficients(self.sh_degree);
+        let m = &self.materials;
+        Scene {
+            means: pick(&self.means, order, 1),
+            normals: self.normals.as_ref().map(|v| pick(v, order, 1)),
+            sh_degree: self.sh_degree,
+            sh: pick(&self.sh, order, k),
+            opacity_logits: pick(&self.opacity_logits, order, 1),
+            log_scales: pick(&self.log_scales, order, 1),
+            rotations: pick(&self.rotations, order, 1),
+            materials: Materials {
+                albedo: m.albedo.as_ref().map(|v| pick(v, order, 1)),
+                roughness: m.roughness.as_ref().map(|v| pick(v, order, 1)),
+                metallic: m.metallic.as_ref().map(|v| pick(v, order, 1)),
+                ao: m.ao.as_ref().map(|v| pick(v, order, 1)),
+                visibility: m.visibility.as_ref().map(|v| pick(v, order, 1)),
+            },
+            extra_properties: self.extra_properties.clone(),
+        }
+    }
+
     /// Floats stored per Gaussian on the GPU (parameters as uploaded).
     pub fn floats_per_gaussian(&self) -> usize {
         let a = self.attributes();
@@ -412,5 +439,55 @@ pub fn human_bytes(bytes: u64) -> String {
         format!("{bytes} B")
     } else {
         format!("{v:.2} {}", UNITS[u])
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Gaussian `g`'s every attribute made from `g`, so a moved Gaussian is recognisable.
+    fn numbered(n: usize, sh_degree: u32) -> Scene {
+        let k = 3 * sh_coefficients(sh_degree);
+        let f = |g: usize, part: usize| (g * 100 + part) as f32;
+        Scene {
+            means: (0..n).map(|g| [f(g, 0), f(g, 1), f(g, 2)]).collect(),
+            normals: Some((0..n).map(|g| [f(g, 3), f(g, 4), f(g, 5)]).collect()),
+            sh_degree,
+            sh: (0..n).flat_map(|g| (0..k).map(move |c| f(g, 10 + c))).collect(),
+            opacity_logits: (0..n).map(|g| f(g, 6)).collect(),
+            log_scales: (0..n).map(|g| [f(g, 7), f(g, 8), f(g, 9)]).collect(),
+            rotations: (0..n).map(|g| [f(g, 60), f(g, 61), f(g, 62), f(g, 63)]).collect(),
+            materials: Materials {
+                albedo: Some((0..n).map(|g| [f(g, 70), f(g, 71), f(g, 72)]).collect()),
+                roughness: Some((0..n).map(|g| f(g, 73)).collect()),
+                metallic: Some((0..n).map(|g| f(g, 74)).collect()),
+                ao: Some((0..n).map(|g| f(g, 75)).collect()),
+                visibility: Some((0..n).map(|g| f(g, 76)).collect()),
+            },
+            extra_properties: vec!["f_extra".into()],
+        }
+    }
+
+    #[test]
+    fn permuted_moves_every_attribute_together_and_the_inverse_undoes_it() {
+        for sh_degree in [0, 1, 3] {
+            let scene = numbered(5, sh_degree);
+            let order = [3, 0, 4, 1, 2];
+            let moved = scene.permuted(&order);
+            for (at, &from) in order.iter().enumerate() {
+                assert_eq!(moved.select(&[at == 0, at == 1, at == 2, at == 3, at == 4]), {
+                    let mut keep = [false; 5];
+                    keep[from] = true;
+                    scene.select(&keep)
+                });
+            }
+            let mut inverse = [0; 5];
+            for (at, &from) in order.iter().enumerate() {
+                inverse[from] = at;
+            }
+            assert_eq!(moved.permuted(&inverse), scene, "SH degree {sh_degree}");
+        }
+        assert_eq!(numbered(3, 1).permuted(&[]).len(), 0);
     }
 }

@@ -50,6 +50,11 @@ pub(crate) struct SplatBenchArgs {
     /// ratios to the first value's frames. The other choices given apply to every value.
     #[arg(long, value_name = "OPTION=A,B")]
     alternate: Option<String>,
+    /// Render the demo city with its Gaussians in a fixed random order, as a trained scene's file
+    /// holds them (the generator writes them object by object, so neighbours in the file are
+    /// neighbours in space).
+    #[arg(long)]
+    shuffled: bool,
 }
 
 /// Wraps the splatter choices for parsing one of them alone.
@@ -94,6 +99,7 @@ impl SplatBenchArgs {
             tile_bounds,
             sort_kernels,
             ref alternate,
+            shuffled,
         } = self;
         check_tile(tile)?;
         if sh_degree > 3 {
@@ -105,8 +111,12 @@ impl SplatBenchArgs {
         let info = device.info();
         let peak = bench::fma_peak_gflops(&device, 5)?;
         println!("device: {} ({}), measured FMA peak {peak:.1} GFLOP/s", info.name, info.driver);
-        println!("scene: the demo city (seed 7) at SH degree {sh_degree}, its first street camera\n");
-        let options = bench::SplatBenchOptions { repeats, sh_degree, choices, tile, tile_bounds, sort_kernels };
+        println!(
+            "scene: the demo city (seed 7) at SH degree {sh_degree}{}, its first street camera\n",
+            if shuffled { ", its Gaussians shuffled" } else { "" }
+        );
+        let options =
+            bench::SplatBenchOptions { repeats, sh_degree, choices, tile, tile_bounds, sort_kernels, shuffled };
         if let Some(spec) = alternate {
             let variants = alternatives(spec, &choices)?;
             let bar = spinner("benchmarking");
