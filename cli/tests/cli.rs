@@ -1041,6 +1041,29 @@ fn convert_writes_every_format_and_refuses_what_it_cannot() {
         let t = text(&o);
         assert!(o.status.success() && t.contains("Gaussians: 400"), "{name}: {t}");
     }
+    // In Morton order: the same Gaussians, in another order (the same bytes a Gaussian).
+    let (file_order, morton) = (dir.path().join("file.ply"), dir.path().join("morton.ply"));
+    let o = srug(&["convert", input.to_str().unwrap(), file_order.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", text(&o));
+    let o = srug(&["convert", input.to_str().unwrap(), morton.to_str().unwrap(), "--order", "morton"]);
+    assert!(o.status.success() && text(&o).contains("400 Gaussians (SH degree 3)"), "{}", text(&o));
+    let (a, b) = (std::fs::read(&file_order).unwrap(), std::fs::read(&morton).unwrap());
+    assert!(a.len() == b.len() && a != b, "the order changed nothing, or the size");
+    let rows = |bytes: &[u8]| -> Vec<Vec<u8>> {
+        let body = bytes.windows(11).position(|w| w == b"end_header\n").unwrap() + 11;
+        let mut rows: Vec<Vec<u8>> = bytes[body..].chunks((bytes.len() - body) / 400).map(<[u8]>::to_vec).collect();
+        rows.sort();
+        rows
+    };
+    assert_eq!(rows(&a), rows(&b), "the same Gaussians");
+    // `srug info` says how far apart consecutive centres lie, and suggests the Morton order where it is much closer.
+    let hint = "`srug convert --order morton` writes them in that order";
+    let t = text(&srug(&["info", file_order.to_str().unwrap()]));
+    assert!(t.contains("order: consecutive centres a median ") && t.contains(hint), "{t}");
+    let t = text(&srug(&["info", morton.to_str().unwrap()]));
+    assert!(t.contains("order: consecutive centres a median ") && !t.contains(hint), "{t}");
+    let o = srug(&["convert", input.to_str().unwrap(), morton.to_str().unwrap(), "--order", "hilbert"]);
+    assert!(!o.status.success() && text(&o).contains("hilbert"), "{}", text(&o));
     // An explicit format under a misleading extension is written, with a warning.
     let odd = dir.path().join("b.ply");
     let o = srug(&["convert", input.to_str().unwrap(), odd.to_str().unwrap(), "--format", "glb"]);

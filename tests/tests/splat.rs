@@ -611,6 +611,43 @@ fn scans_in_tiles_or_runs_give_the_same_frame() {
     assert_no_validation_messages(&d);
 }
 
+/// A scene written in another order (`srug convert --order morton`, or shuffled as a trained
+/// scene's file is) renders the same frame: every channel within the twin comparison's
+/// tolerances (splats whose depth keys tie blend in scene order, which the order changes), and
+/// the top Gaussian the same one once its index is mapped back.
+#[test]
+fn the_gaussians_order_changes_no_frame() {
+    let d = device();
+    let mut splatter = Splatter::new(&d).unwrap();
+    let city = demo_city(&DemoOptions { seed: 7, gaussians: 30_000, sh_degree: 1 }).unwrap();
+    let cam = city.cameras[1].resized(203, 77);
+    let settings = all_settings();
+    let mut render = |scene: &Scene| {
+        let gpu = GpuScene::upload(&d, scene).unwrap();
+        let (g, stats) = splatter.render(&gpu, &cam, &settings).unwrap();
+        (g.read(&d).unwrap(), stats.pairs)
+    };
+    let (base, pairs) = render(&city.scene);
+    assert!(pairs > 10_000, "{pairs} pairs");
+    let mut shuffled: Vec<usize> = (0..city.scene.len()).collect();
+    shuffled.reverse();
+    shuffled.rotate_left(12_345);
+    for (name, order) in [("morton", city.scene.morton_order()), ("reversed and rotated", shuffled)] {
+        let (mut other, other_pairs) = render(&city.scene.permuted(&order));
+        assert_eq!(other_pairs, pairs, "{name}");
+        let before = other.top_gaussian.clone();
+        for t in other.top_gaussian.iter_mut().flatten().filter(|t| **t != u32::MAX) {
+            *t = order[*t as usize] as u32;
+        }
+        assert_ne!(before, other.top_gaussian, "{name}: the order moved the top Gaussians' indices");
+        let (tops, base_tops) = (other.top_gaussian.clone().unwrap(), base.top_gaussian.clone().unwrap());
+        let moved = tops.iter().zip(&base_tops).filter(|(a, b)| a != b).count();
+        assert!(moved * 1000 <= tops.len(), "{name}: {moved} of {} top Gaussians differ", tops.len());
+        compare_with(&other, &base, name, true);
+    }
+    assert_no_validation_messages(&d);
+}
+
 #[test]
 fn texel_preprocess_reads_give_the_bits_of_address_reads_at_every_sh_degree() {
     // The texel preprocess fetches means and log-scales as RGB32F, rotations

@@ -259,29 +259,42 @@ pub struct SplatBenchOptions {
     /// Also time each kernel of the frames' sort, in `repeats` more frames
     /// (apart from the stage times, which the extra timestamps would touch).
     pub sort_kernels: bool,
-    /// The demo city's Gaussians in a random order ([`bench_city`]).
-    pub shuffled: bool,
+    /// The order of the demo city's Gaussians ([`bench_city`]).
+    pub order: CityOrder,
 }
 
-/// The demo city (seed 7) the splat benches render: its Gaussians object by
-/// object as the generator makes them, or `shuffled` into a fixed random
-/// order, as a trained scene's file holds them (training appends the
-/// Gaussians it splits and clones), so neighbours in memory are not
-/// neighbours in space.
-pub fn bench_city(gaussians: usize, sh_degree: u32, shuffled: bool) -> Result<srug::scene::demo::DemoCity> {
+/// The order of the benches' demo city's Gaussians ([`bench_city`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum CityOrder {
+    /// Object by object, as the generator makes them.
+    Generated,
+    /// A fixed random order, as a trained scene's file holds them (training
+    /// appends the Gaussians it splits and clones).
+    Shuffled,
+    /// Along a Morton curve through the centres ([`srug::scene::Scene::morton_order`]).
+    Morton,
+}
+
+/// The demo city (seed 7) the splat benches render, its Gaussians in `order`.
+pub fn bench_city(gaussians: usize, sh_degree: u32, order: CityOrder) -> Result<srug::scene::demo::DemoCity> {
     let mut city = demo_city(&DemoOptions { seed: 7, gaussians, sh_degree })?;
-    if shuffled {
-        // Fisher-Yates with a fixed xorshift stream: the same order every run.
-        let mut order: Vec<usize> = (0..city.scene.len()).collect();
-        let mut state = 0x2545_f491_4f6c_dd1du64;
-        for i in (1..order.len()).rev() {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            order.swap(i, (state % (i as u64 + 1)) as usize);
+    let order = match order {
+        CityOrder::Generated => return Ok(city),
+        CityOrder::Morton => city.scene.morton_order(),
+        CityOrder::Shuffled => {
+            // Fisher-Yates with a fixed xorshift stream: the same order every run.
+            let mut order: Vec<usize> = (0..city.scene.len()).collect();
+            let mut state = 0x2545_f491_4f6c_dd1du64;
+            for i in (1..order.len()).rev() {
+                state ^= state << 13;
+                state ^= state >> 7;
+                state ^= state << 17;
+                order.swap(i, (state % (i as u64 + 1)) as usize);
+            }
+            order
         }
-        city.scene = city.scene.permuted(&order);
-    }
+    };
+    city.scene = city.scene.permuted(&order);
     Ok(city)
 }
 
@@ -341,7 +354,7 @@ pub fn splat_bench(
     choices.apply(&mut splatter)?;
     for &n in counts {
         progress(&format!("generating the demo city with {n} Gaussians"));
-        let city = bench_city(n, sh_degree, options.shuffled)?;
+        let city = bench_city(n, sh_degree, options.order)?;
         let scene = GpuScene::upload(device, &city.scene)?;
         for &(w, h) in sizes {
             progress(&format!("{n} Gaussians at {w}x{h}"));
@@ -468,7 +481,7 @@ pub fn alternate_bench(
     let mut rows = Vec::new();
     for &n in counts {
         progress(&format!("generating the demo city with {n} Gaussians"));
-        let city = bench_city(n, options.sh_degree, options.shuffled)?;
+        let city = bench_city(n, options.sh_degree, options.order)?;
         let scene = GpuScene::upload(device, &city.scene)?;
         for &(w, h) in sizes {
             progress(&format!("{n} Gaussians at {w}x{h}"));

@@ -17,6 +17,20 @@ pub(super) struct ConvertArgs {
     /// Output format: ply, compressed-ply, splat, spz, sog (bundled) or glb.
     #[arg(long, value_parser = parse_format)]
     format: Option<SceneFormat>,
+    /// The order to write the Gaussians in: file (as read) or morton (along a Morton curve through
+    /// their centres, so neighbours in the file are neighbours in space: a trained scene's file
+    /// is close to a random order, which splats markedly slower; docs/bench/splat.md).
+    #[arg(long, value_enum, default_value = "file")]
+    order: GaussianOrder,
+}
+
+/// The order `srug convert` writes Gaussians in.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+enum GaussianOrder {
+    /// As read.
+    File,
+    /// Along a Morton curve through the centres (`Scene::morton_order`).
+    Morton,
 }
 
 fn parse_format(s: &str) -> std::result::Result<SceneFormat, String> {
@@ -46,7 +60,10 @@ impl ConvertArgs {
                 log::warn!("{}: writing {format} under an extension that says {named}", self.output.display());
             }
         }
-        let scene = io::read_scene(&self.input)?;
+        let mut scene = io::read_scene(&self.input)?;
+        if self.order == GaussianOrder::Morton {
+            scene = scene.permuted(&scene.morton_order());
+        }
         for what in io::dropped_by(format, &scene) {
             log::warn!("{format} does not store {what}; they are not in {}", self.output.display());
         }

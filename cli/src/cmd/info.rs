@@ -47,6 +47,15 @@ impl InfoArgs {
         let scene = scene?;
         println!("{}", path.display());
         print!("{}", scene.summary());
+        if let (Some(file), Some(morton)) = (scene.median_step(None), scene.median_step(Some(&scene.morton_order()))) {
+            // Neighbours in the file far apart in space (a trained scene's order) splat markedly slower.
+            let hint = if file > 4.0 * morton {
+                "; `srug convert --order morton` writes them in that order, which splats faster (docs/bench/splat.md)"
+            } else {
+                ""
+            };
+            println!("order: consecutive centres a median {file:.3} apart (in Morton order {morton:.3}){hint}");
+        }
         if *plan {
             let (width, height) = size.pair();
             let mut relight = shade.settings()?;

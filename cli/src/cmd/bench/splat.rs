@@ -50,11 +50,11 @@ pub(crate) struct SplatBenchArgs {
     /// ratios to the first value's frames. The other choices given apply to every value.
     #[arg(long, value_name = "OPTION=A,B")]
     alternate: Option<String>,
-    /// Render the demo city with its Gaussians in a fixed random order, as a trained scene's file
-    /// holds them (the generator writes them object by object, so neighbours in the file are
-    /// neighbours in space).
-    #[arg(long)]
-    shuffled: bool,
+    /// The order of the demo city's Gaussians: generated (object by object, so neighbours in the
+    /// file are neighbours in space), shuffled (a fixed random order, as a trained scene's file
+    /// holds them) or morton (along a Morton curve, as `srug convert --order morton` writes).
+    #[arg(long, value_enum, default_value = "generated")]
+    order: bench::CityOrder,
 }
 
 /// Wraps the splatter choices for parsing one of them alone.
@@ -99,7 +99,7 @@ impl SplatBenchArgs {
             tile_bounds,
             sort_kernels,
             ref alternate,
-            shuffled,
+            order,
         } = self;
         check_tile(tile)?;
         if sh_degree > 3 {
@@ -113,10 +113,13 @@ impl SplatBenchArgs {
         println!("device: {} ({}), measured FMA peak {peak:.1} GFLOP/s", info.name, info.driver);
         println!(
             "scene: the demo city (seed 7) at SH degree {sh_degree}{}, its first street camera\n",
-            if shuffled { ", its Gaussians shuffled" } else { "" }
+            match order {
+                bench::CityOrder::Generated => "",
+                bench::CityOrder::Shuffled => ", its Gaussians shuffled",
+                bench::CityOrder::Morton => ", its Gaussians in Morton order",
+            }
         );
-        let options =
-            bench::SplatBenchOptions { repeats, sh_degree, choices, tile, tile_bounds, sort_kernels, shuffled };
+        let options = bench::SplatBenchOptions { repeats, sh_degree, choices, tile, tile_bounds, sort_kernels, order };
         if let Some(spec) = alternate {
             let variants = alternatives(spec, &choices)?;
             let bar = spinner("benchmarking");
