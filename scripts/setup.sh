@@ -7,6 +7,13 @@
 # pytest from PyPI); a TrueType
 # font (fonts-dejavu-core) for the text of `srug bench trade`'s plot. Idempotent;
 # needs root (or sudo) only when something is missing. Rust (cargo) must already be installed.
+# Sourced (by scripts/test.sh and scripts/demo.sh, or in a developer's shell for its
+# environment): the caller's shell options come back at the end, so a shell that sources
+# it does not keep `-e` (which would end it at the first command that fails).
+_srug_setup_restore=""
+case $- in *e*) ;; *) _srug_setup_restore+="set +e;" ;; esac
+case $- in *u*) ;; *) _srug_setup_restore+="set +u;" ;; esac
+shopt -qo pipefail || _srug_setup_restore+="set +o pipefail;"
 set -euo pipefail
 
 packages=(
@@ -70,3 +77,5 @@ if command -v rustup >/dev/null 2>&1; then
     rustup component list --installed 2>/dev/null | grep -q "^$c" || rustup component add "$c" >&2
   done
 fi
+eval "$_srug_setup_restore"
+unset _srug_setup_restore

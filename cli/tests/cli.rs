@@ -342,35 +342,9 @@ fn bench_splat_prints_its_tables() {
     }
     assert!(!t.contains("sort_unstable") && !t.contains("pair-move floor"), "{t}");
     // The demo city shuffled, as a trained scene's file holds its Gaussians: the same pairs.
-    let o = srug(&[
-        "bench",
-        "splat",
-        "--gaussians",
-        "2000",
-        "--sizes",
-        "64x32",
-        "--repeats",
-        "1",
-        "--sort-keys",
-        "5000",
-        "--floor-pairs",
-        "6000",
-    ]);
-    let s = srug(&[
-        "bench",
-        "splat",
-        "--gaussians",
-        "2000",
-        "--sizes",
-        "64x32",
-        "--repeats",
-        "1",
-        "--sort-keys",
-        "5000",
-        "--floor-pairs",
-        "6000",
-        "--shuffled",
-    ]);
+    let quick = ["bench", "splat", "--gaussians", "2000", "--sizes", "64x32", "--repeats", "1", "--sort-keys", "5000"];
+    let o = srug(&[&quick[..], &["--floor-pairs", "6000"]].concat());
+    let s = srug(&[&quick[..], &["--floor-pairs", "6000", "--order", "shuffled"]].concat());
     let (t, ts) = (text(&o), text(&s));
     assert!(o.status.success() && s.status.success() && ts.contains("its Gaussians shuffled"), "{ts}");
     let pairs = |t: &str| -> String {
