@@ -245,28 +245,8 @@ impl Scene {
 
     /// The Gaussians where `keep` is true, every attribute kept in step.
     pub fn select(&self, keep: &[bool]) -> Scene {
-        fn pick<T: Copy>(v: &[T], keep: &[bool], per: usize) -> Vec<T> {
-            v.chunks(per).zip(keep).filter(|(_, k)| **k).flat_map(|(c, _)| c.iter().copied()).collect()
-        }
-        let k = 3 * sh_coefficients(self.sh_degree);
-        let m = &self.materials;
-        Scene {
-            means: pick(&self.means, keep, 1),
-            normals: self.normals.as_ref().map(|v| pick(v, keep, 1)),
-            sh_degree: self.sh_degree,
-            sh: pick(&self.sh, keep, k),
-            opacity_logits: pick(&self.opacity_logits, keep, 1),
-            log_scales: pick(&self.log_scales, keep, 1),
-            rotations: pick(&self.rotations, keep, 1),
-            materials: Materials {
-                albedo: m.albedo.as_ref().map(|v| pick(v, keep, 1)),
-                roughness: m.roughness.as_ref().map(|v| pick(v, keep, 1)),
-                metallic: m.metallic.as_ref().map(|v| pick(v, keep, 1)),
-                ao: m.ao.as_ref().map(|v| pick(v, keep, 1)),
-                visibility: m.visibility.as_ref().map(|v| pick(v, keep, 1)),
-            },
-            extra_properties: self.extra_properties.clone(),
-        }
+        let kept: Vec<usize> = keep.iter().enumerate().filter(|(_, k)| **k).map(|(i, _)| i).collect();
+        self.permuted(&kept)
     }
 
     /// An order of the Gaussians along a Morton (Z-order) curve through their
@@ -334,11 +314,13 @@ impl Scene {
         Some(*steps.select_nth_unstable_by(mid, f32::total_cmp).1)
     }
 
-    /// The same Gaussians in the order `order` gives (each index below
-    /// `len()`, once each), every attribute kept in step.
+    /// The Gaussians `order` names, in its order, every attribute kept in
+    /// step: a permutation of `0..len()` reorders the scene, a subset keeps
+    /// those; indices past the end are left out.
     pub fn permuted(&self, order: &[usize]) -> Scene {
         fn pick<T: Copy>(v: &[T], order: &[usize], per: usize) -> Vec<T> {
-            order.iter().flat_map(|&i| v[i * per..(i + 1) * per].iter().copied()).collect()
+            let range = |i: usize| i.checked_mul(per).and_then(|s| v.get(s..s.checked_add(per)?));
+            order.iter().filter_map(|&i| range(i)).flatten().copied().collect()
         }
         let k = 3 * sh_coefficients(self.sh_degree);
         let m = &self.materials;
@@ -554,6 +536,13 @@ mod tests {
             assert_eq!(moved.permuted(&inverse), scene, "SH degree {sh_degree}");
         }
         assert_eq!(numbered(3, 1).permuted(&[]).len(), 0);
+        // A subset keeps those, in its order; indices past the end are left out.
+        let scene = numbered(4, 1);
+        assert_eq!(
+            scene.permuted(&[2, 99, usize::MAX, 0]),
+            scene.select(&[true, false, true, false]).permuted(&[1, 0])
+        );
+        assert_eq!(scene.select(&[false, true, true, false, true]).means, vec![scene.means[1], scene.means[2]]);
     }
 
     #[test]
