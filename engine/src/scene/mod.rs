@@ -252,16 +252,22 @@ impl Scene {
     /// An order of the Gaussians along a Morton (Z-order) curve through their
     /// centres, for [`Scene::permuted`]: neighbours in the order are mostly
     /// neighbours in space, so a kernel's neighbouring invocations (a CPU's
-    /// SIMD row, a GPU's subgroup) cull, project and list tiles alike.
-    /// Centres are quantized to 1024 cells an axis over
-    /// [`Scene::core_bounds`] at a tail of 0.1% (farther ones in the edge
-    /// cells); non-finite centres come last; ties keep their order.
+    /// SIMD row, a GPU's subgroup) cull, project and list tiles alike. Over
+    /// [`Scene::core_bounds`] at a tail of 0.1%, so a few far floaters do not
+    /// squeeze everything else into few cells ([`Scene::morton_order_over`]).
     pub fn morton_order(&self) -> Vec<usize> {
-        let Some(b) = self.core_bounds(0.001) else { return Vec::new() };
+        self.core_bounds(0.001).map_or_else(Vec::new, |b| self.morton_order_over(&b))
+    }
+
+    /// The Gaussians sorted by the Morton code of their centres quantized to
+    /// 1024 cells an axis over `b` (centres outside it in the edge cells,
+    /// non-finite ones last; ties keep their order). The compressed PLY and
+    /// SOG writers order their chunks so over [`Scene::bounds`].
+    pub fn morton_order_over(&self, b: &Bounds) -> Vec<usize> {
         let cell = |v: f32, a: usize| -> u64 {
             let (lo, hi) = (b.min[a], b.max[a]);
             if hi > lo {
-                ((v - lo) / (hi - lo) * 1024.0).clamp(0.0, 1023.0) as u64
+                ((v - lo) / (hi - lo) * 1023.0).clamp(0.0, 1023.0) as u64
             } else {
                 0
             }

@@ -338,28 +338,8 @@ pub(crate) fn encode(scene: &Scene) -> Vec<u8> {
     out
 }
 
-/// Gaussian indices sorted by the Morton code of their centres (10 bits per axis).
+/// Gaussian indices sorted by the Morton code of their centres over their
+/// bounds (10 bits per axis; [`Scene::morton_order_over`]).
 pub(crate) fn morton_order(scene: &Scene) -> Vec<usize> {
-    let Some(b) = scene.bounds() else { return Vec::new() };
-    let spread = |mut v: u64| {
-        v &= 0x3ff;
-        v = (v | v << 16) & 0x0300_00ff;
-        v = (v | v << 8) & 0x0300_f00f;
-        v = (v | v << 4) & 0x030c_30c3;
-        (v | v << 2) & 0x0924_9249
-    };
-    let key = |p: [f32; 3]| {
-        let c = |a: usize| {
-            let ext = b.max[a] - b.min[a];
-            if ext > 0.0 {
-                (((p[a] - b.min[a]) / ext) * 1023.0) as u64
-            } else {
-                0
-            }
-        };
-        spread(c(0)) | spread(c(1)) << 1 | spread(c(2)) << 2
-    };
-    let mut order: Vec<usize> = (0..scene.len()).collect();
-    order.sort_by_key(|&g| key(scene.means[g]));
-    order
+    scene.bounds().map_or_else(Vec::new, |b| scene.morton_order_over(&b))
 }
