@@ -7,6 +7,7 @@ use std::sync::{Arc, Mutex};
 use srug::gpu::Device;
 use srug::scene::activate::GpuScene;
 use srug::scene::demo::{demo_city, DemoOptions};
+use srug::scene::order::SceneOrder;
 use srug::scene::{AttributeGroups, Bounds, Scene};
 
 use crate::context::*;
@@ -32,7 +33,9 @@ pub(crate) struct SceneObject {
 
 impl SceneObject {
     fn new(device: &Device, scene: Scene) -> FfiResult<Self> {
-        let gpu = GpuScene::upload(device, &scene)?;
+        let mut gpu = GpuScene::upload(device, &scene)?;
+        // A file in no spatial order renders faster arranged; every output stays in file order.
+        gpu.arrange(device, SceneOrder::Auto)?;
         Ok(Self {
             device: device.clone(),
             attributes: scene.attributes(),
@@ -204,12 +207,8 @@ pub unsafe extern "C" fn srug_scene_set_gaussians(
             }
         }
         let dev = s.device.clone();
-        // Before writing: even a partial write must not leave a reused shadow map looking current.
-        s.gpu.mark_changed();
-        dev.write_buffer(&s.gpu.means, 0, m)?;
-        dev.write_buffer(&s.gpu.log_scales, 0, l)?;
-        dev.write_buffer(&s.gpu.rotations, 0, r)?;
-        dev.write_buffer(&s.gpu.opacity_logits, 0, o)?;
+        // In file order whatever the device's (it marks the scene changed before its first write).
+        s.gpu.write_geometry(&dev, m, l, r, o)?;
         for i in 0..count {
             s.scene.means[i] = [m[3 * i], m[3 * i + 1], m[3 * i + 2]];
             s.scene.log_scales[i] = [l[3 * i], l[3 * i + 1], l[3 * i + 2]];

@@ -13,9 +13,11 @@ use glam::Vec3;
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64Mcg;
 use srug::frame::{Preset, RelightSettings};
+use srug::io::{write_ply, PlyFormat};
 use srug::scene::activate::GpuScene;
 use srug::scene::demo::{demo_city, DemoOptions};
-use srug::scene::Camera;
+use srug::scene::order::SceneOrder;
+use srug::scene::{Camera, Scene};
 use srug::shadow::backward::GpuVisibilityLoss;
 use srug::shadow::{ShadowPass, ShadowSettings, Sun, VisibilityKind};
 use srug::splat::{SplatSettings, Splatter};
@@ -34,6 +36,30 @@ fn ok(s: srug_status) {
 
 #[test]
 fn abi_shadow_pass_matches_the_rust_api() {
+    let dir = tempfile::tempdir().unwrap();
+    let city = demo_city(&DemoOptions { seed: 11, gaussians: 3000, sh_degree: 1 }).unwrap().scene;
+    write_ply(dir.path().join("city.ply"), &city, PlyFormat::BinaryLittleEndian).unwrap();
+    check_shadow_pass(&city, &dir.path().join("city.ply"));
+}
+
+/// A scene listed in no spatial order goes onto the device along a Morton curve through the C
+/// API too, and its gradients still come back in file order: the Rust API's for the same file.
+#[test]
+fn abi_gradients_of_an_arranged_scene_are_in_file_order() {
+    let dir = tempfile::tempdir().unwrap();
+    let city = demo_city(&DemoOptions { seed: 11, gaussians: 3000, sh_degree: 1 }).unwrap().scene;
+    let n = city.len();
+    let scrambled = city.permuted(&(0..n).map(|i| (i * 7919 + 13) % n).collect::<Vec<_>>());
+    let d = device();
+    let mut gpu = GpuScene::upload(&d, &scrambled).unwrap();
+    assert!(gpu.arrange(&d, SceneOrder::Auto).unwrap(), "the test's premise: the scene is arranged");
+    write_ply(dir.path().join("scrambled.ply"), &scrambled, PlyFormat::BinaryLittleEndian).unwrap();
+    check_shadow_pass(&scrambled, &dir.path().join("scrambled.ply"));
+}
+
+/// The shadow pass's visibility and gradients through the C API against the Rust API's for
+/// `host`, which the C API reads from `ply` (the Rust side arranges it as the C API does).
+fn check_shadow_pass(host: &Scene, ply: &std::path::Path) {
     let (w, h) = (96u32, 48u32);
     let (eye, target, up) = ([-30.0f32, -2.0, 6.0], [10.0f32, -2.0, 2.0], [0.0f32, 0.0, 1.0]);
     let (res, k, bias) = (256u32, 20.0f32, 0.5f32);
@@ -42,13 +68,14 @@ fn abi_shadow_pass_matches_the_rust_api() {
     let dl_dv: Vec<f32> = (0..pixels).map(|_| rng.random_range(-1.0..1.0)).collect();
 
     // Through the C API.
+    let path = std::ffi::CString::new(ply.to_str().unwrap()).unwrap();
     let (mut ctx, mut scene, mut r) = (null_mut(), null_mut(), null_mut());
     let mut v_abi = vec![f32::NAN; pixels];
     let mut count = 0usize;
     // SAFETY: out-pointers to locals; arrays of the stated lengths.
     unsafe {
         ok(srug_context_create(std::ptr::null(), SRUG_CONTEXT_VALIDATION, &mut ctx));
-        ok(srug_scene_create_demo(ctx, 3000, 11, &mut scene));
+        ok(srug_scene_from_file(ctx, path.as_ptr(), &mut scene));
         ok(srug_scene_info(scene, &mut count, null_mut()));
         ok(srug_renderer_create(ctx, w, h, 0, &mut r));
         ok(srug_renderer_set_camera_look_at(r, eye.as_ptr(), target.as_ptr(), up.as_ptr(), 80.0));
@@ -80,8 +107,8 @@ fn abi_shadow_pass_matches_the_rust_api() {
 
     // Through the Rust API.
     let d = device();
-    let city = demo_city(&DemoOptions { seed: 11, gaussians: 3000, sh_degree: 1 }).unwrap();
-    let gpu = GpuScene::upload(&d, &city.scene).unwrap();
+    let mut gpu = GpuScene::upload(&d, host).unwrap();
+    gpu.arrange(&d, SceneOrder::Auto).unwrap();
     let camera = Camera::look_at(Vec3::from(eye), Vec3::from(target), Vec3::from(up), 80.0, w, h).unwrap();
     let sun = Sun::from_azimuth_elevation(250.0, 35.0, [1.0; 3]).unwrap();
     // The renderer's default is the balanced preset: its slope bias stays.
@@ -89,7 +116,7 @@ fn abi_shadow_pass_matches_the_rust_api() {
     let mut splatter = Splatter::new(&d).unwrap();
     let mut pass = ShadowPass::new(&d).unwrap();
     let receivers = splatter.render_frame(&gpu, &camera, &st.receiver_splat()).unwrap();
-    let bounds = city.scene.bounds().unwrap();
+    let bounds = host.bounds().unwrap();
     let map = pass.shadow_map(&mut splatter, &gpu, &bounds, &sun, &st, Some(&camera)).unwrap().unwrap();
     let (v, _) = pass.visibility(&map, &receivers.gbuffer, &camera, &st, VisibilityKind::Sigmoid).unwrap();
     let v_rust: Vec<f32> = d.read_buffer(&v).unwrap();

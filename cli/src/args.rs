@@ -8,6 +8,7 @@ use std::str::FromStr;
 use srug::frame::{Preset, RelightSettings};
 use srug::gpu::{Device, DeviceOptions, DeviceSelection};
 use srug::io;
+use srug::scene::order::SceneOrder;
 use srug::scene::Camera;
 use srug::shade::{Background, BrdfLut, ShadeSettings, ToneMap, VisibilitySource};
 use srug::shadow::{sun_path, DepthMode, ShadowFilter, ShadowFit, Sun, UtcTime, VisibilityKind};
@@ -34,6 +35,20 @@ impl DeviceArgs {
     pub fn open(&self) -> Result<Device> {
         Ok(Device::new(&DeviceOptions { selection: self.device.clone(), validation: self.validation.then_some(true) })?)
     }
+}
+
+/// The log line of a scene whose Gaussians [`SceneOrderArgs`] moved.
+pub const ARRANGED: &str =
+    "its Gaussians, listed in no spatial order, go onto the device along a Morton curve (--scene-order file keeps the file's)";
+
+/// Where a loaded scene's Gaussians go on the device (`srug::scene::order`).
+#[derive(clap::Args, Clone, Copy, Debug)]
+pub struct SceneOrderArgs {
+    /// Order of the Gaussians on the device: auto (along a Morton curve through their centres
+    /// when the file lists them in no spatial order, as trained scenes do: faster frames, the
+    /// same image; ids and outputs stay in file order), morton, or file.
+    #[arg(long, default_value = "auto", value_parser = SceneOrder::parse)]
+    pub scene_order: SceneOrder,
 }
 
 /// An image size, `WxH` (both at least 1).

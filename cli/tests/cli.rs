@@ -1030,8 +1030,8 @@ fn convert_writes_every_format_and_refuses_what_it_cannot() {
         rows
     };
     assert_eq!(rows(&a), rows(&b), "the same Gaussians");
-    // `srug info` says how far apart consecutive centres lie, and suggests the Morton order where it is much closer.
-    let hint = "`srug convert --order morton` writes them in that order";
+    // `srug info` says how far apart consecutive centres lie, and where srug rearranges them on loading.
+    let hint = "in no spatial order, so srug puts them on the device in Morton order";
     let t = text(&srug(&["info", file_order.to_str().unwrap()]));
     assert!(t.contains("order: consecutive centres a median ") && t.contains(hint), "{t}");
     let t = text(&srug(&["info", morton.to_str().unwrap()]));
@@ -1338,6 +1338,68 @@ fn render_writes_exact_id_channels() {
         "{}",
         text(&o)
     );
+}
+
+/// A PLY listing its Gaussians in no spatial order goes onto the device along a Morton curve
+/// (said in the log), and renders the same: the same top Gaussian (its file row) and ids in every
+/// pixel as with `--scene-order file`.
+#[test]
+fn render_arranges_a_scrambled_scene_and_names_gaussians_by_file_row() {
+    let dir = tempfile::tempdir().unwrap();
+    let ply = dir.path().join("scrambled.ply");
+    // A 32 × 16 wall of small opaque Gaussians facing the camera, listed in a scrambled order,
+    // each with its file row as its id.
+    let mut header = String::from("ply\nformat binary_little_endian 1.0\nelement vertex 512\n");
+    for p in [
+        "x", "y", "z", "f_dc_0", "f_dc_1", "f_dc_2", "opacity", "scale_0", "scale_1", "scale_2", "rot_0", "rot_1",
+        "rot_2", "rot_3",
+    ] {
+        header += &format!("property float {p}\n");
+    }
+    header += "property int row\nend_header\n";
+    let mut bytes = header.into_bytes();
+    for row in 0..512i32 {
+        let cell = (row * 97 + 5) % 512;
+        let (x, z) = ((cell % 32) as f32 * 0.2 - 3.1, (cell / 32) as f32 * 0.2 - 1.5);
+        let colour = (cell % 7) as f32 * 0.3 - 1.0;
+        // Each a little deeper than the last cell's (no two depths tie: ties blend in listed order).
+        let y = cell as f32 * 1e-3;
+        for v in [x, y, z, colour, 0.2, -colour, 4.0, -2.8, -6.0, -2.8, 1.0, 0.0, 0.0, 0.0] {
+            bytes.extend_from_slice(&v.to_le_bytes());
+        }
+        bytes.extend_from_slice(&row.to_le_bytes());
+    }
+    std::fs::write(&ply, bytes).unwrap();
+    let args =
+        ["render", ply.to_str().unwrap(), "--eye", "0,-8,0", "--target", "0,0,0", "--size", "96x48", "--fov", "50"];
+    let mut images = Vec::new();
+    for order in ["auto", "file"] {
+        let out = dir.path().join(format!("{order}.exr"));
+        let o = srug(
+            &[
+                &args[..],
+                &["--scene-order", order, "--ids", "row", "--channels", "rgb", "--out", out.to_str().unwrap()],
+            ]
+            .concat(),
+        );
+        assert!(o.status.success(), "{}", text(&o));
+        assert_eq!(text(&o).contains("along a Morton curve"), order == "auto", "{}", text(&o));
+        images.push(exr::prelude::read_all_flat_layers_from_file(&out).unwrap());
+    }
+    let channel = |i: usize, name: &str| -> Vec<u32> {
+        let c = images[i].layer_data[0].channel_data.list.iter().find(|c| c.name.to_string() == name).unwrap();
+        match &c.sample_data {
+            exr::prelude::FlatSamples::U32(v) => v.clone(),
+            other => panic!("{name} is not a 32-bit integer channel: {other:?}"),
+        }
+    };
+    let (top, row, listed) = (channel(0, "top_gaussian"), channel(0, "row"), channel(1, "top_gaussian"));
+    let differ = |a: &[u32], b: &[u32]| a.iter().zip(b).filter(|(x, y)| x != y).count();
+    assert_eq!(differ(&top, &listed), 0, "the same file rows as in the file's order");
+    assert_eq!(differ(&row, &top), 0, "each Gaussian's id is its file row");
+    assert!(top.iter().filter(|t| **t != u32::MAX).count() > 96 * 48 / 3, "the wall covers the image");
+    let o = srug(&[&args[..], &["--scene-order", "hilbert", "--out", "x.png"]].concat());
+    assert!(!o.status.success() && text(&o).contains("hilbert"), "{}", text(&o));
 }
 
 /// The analytic block's completion from files on disk: the scene without its tallest building as

@@ -26,6 +26,7 @@ use srug::camera::{Camera, Projection, DEFAULT_FAR, DEFAULT_NEAR};
 use srug::frame::{HostDepthImage, Preset, RelightSettings, Relighter};
 use srug::gpu::{Buffer, Device as GpuDevice, DeviceOptions, DeviceSelection};
 use srug::scene::activate::GpuScene;
+use srug::scene::order::SceneOrder;
 use srug::scene::Scene as HostScene;
 use srug::shade::{
     BrdfLut, BrdfTable, EnvironmentMap, EnvironmentPrep, PrepareSettings, PreparedEnvironment, ProceduralSky,
@@ -433,10 +434,22 @@ impl Device {
     /// Reads a scene file (any format srug reads, detected from the content)
     /// straight onto this device: a binary PLY streams in blocks, so the host
     /// never holds the whole scene (its arrays are read back from the device
-    /// if `Scene.arrays`, `save` or another device asks for them).
-    fn load_scene(&self, py: Python<'_>, path: PathBuf) -> PyResult<Scene> {
+    /// if `Scene.arrays`, `save` or another device asks for them). `order`:
+    /// where its Gaussians go on the device, "auto" (along a Morton curve when
+    /// the file lists them in no spatial order, as trained scenes do: faster
+    /// frames, the same image), "morton" or "file"; ids, arrays and gradients
+    /// stay in file order whatever the device's.
+    #[pyo3(signature = (path, order = "auto"))]
+    fn load_scene(&self, py: Python<'_>, path: PathBuf, order: &str) -> PyResult<Scene> {
         let device = self.gpu()?;
-        let loaded = py.detach(|| GpuScene::load(&device, &path)).map_err(py_err)?;
+        let order = SceneOrder::parse(order).map_err(py_err)?;
+        let loaded = py
+            .detach(|| -> srug::Result<_> {
+                let mut loaded = GpuScene::load(&device, &path)?;
+                loaded.gpu.arrange(&device, order)?;
+                Ok(loaded)
+            })
+            .map_err(py_err)?;
         let info = SceneInfo {
             count: loaded.gpu.count,
             sh_degree: loaded.gpu.sh_degree,
@@ -1021,7 +1034,9 @@ impl Scene {
             return Ok(g.clone());
         }
         let host = self.host()?;
-        let g = Arc::new(GpuScene::upload(device, &host)?);
+        let mut g = GpuScene::upload(device, &host)?;
+        g.arrange(device, SceneOrder::Auto)?;
+        let g = Arc::new(g);
         lock(&self.uploads).push((id, g.clone(), device.clone()));
         Ok(g)
     }

@@ -358,9 +358,16 @@ class Device:
         """Per camera of the last render or relight: a list of (stage, milliseconds)."""
         return self._native.last_timings()
 
-    def load_scene(self, path: PathLike) -> Scene:
-        """Reads a scene file (any format srug reads) and uploads it to this device."""
-        return Scene(self._native.load_scene(os.fspath(path)))
+    def load_scene(self, path: PathLike, order: str = "auto") -> Scene:
+        """Reads a scene file (any format srug reads) and uploads it to this device.
+
+        ``order``: where its Gaussians go on the device: ``"auto"`` (along a
+        Morton curve when the file lists them in no spatial order, as trained
+        scenes do: faster frames, the same image), ``"morton"`` or ``"file"``.
+        Ids (``top_gaussian``), ``Scene.arrays`` and gradients stay in file
+        order whatever the device's.
+        """
+        return Scene(self._native.load_scene(os.fspath(path), order))
 
     def render(
         self,

@@ -10,6 +10,7 @@ use srug::gpu::{Buffer, Device};
 use srug::io::{read_ply, read_ply_blocks, read_scene, write_ply, write_scene, PlyFormat, SceneFormat};
 use srug::scene::activate::{activate, activate_cpu, activate_kernel, GpuScene};
 use srug::scene::demo::{demo_city, DemoOptions};
+use srug::scene::order::{core_bounds, in_spatial_order, morton_order, SceneOrder};
 use srug::scene::{sh_coefficients, Scene};
 use srug_tests::{assert_no_validation_messages, device, failure_dir};
 
@@ -193,6 +194,61 @@ fn a_scene_loads_straight_to_the_device_as_its_upload() {
     let e = GpuScene::load_in_blocks(&d, dir.join("nan.ply"), 50_000).err().map(|e| e.to_string()).unwrap_or_default();
     assert!(e.contains(&format!("row {row}")), "{e}");
     std::fs::remove_dir_all(&dir).unwrap();
+    assert_no_validation_messages(&d);
+}
+
+/// The demo city (every optional attribute, SH 3) listed in a scrambled order, as a trained
+/// scene's file lists its Gaussians.
+fn scrambled_city(gaussians: usize) -> (Scene, Scene) {
+    let city = demo_city(&DemoOptions { seed: 3, gaussians, sh_degree: 3 }).unwrap().scene;
+    let n = city.len();
+    let scrambled: Vec<usize> = (0..n).map(|i| (i * 7919 + 13) % n).collect();
+    (city.permuted(&scrambled), city)
+}
+
+#[test]
+fn arranging_a_scene_moves_every_attribute_row_along_the_morton_curve() {
+    // GpuScene::arrange moves every buffer's rows on the device; its twin is the host's
+    // Scene::permuted by the same Morton order, bit for bit (the scratch starts as NaN, so a
+    // row the kernel missed would not pass). Reading the scene back, and writing its geometry,
+    // stay in file order.
+    let d = device();
+    let (scrambled, city) = scrambled_city(5_000);
+    assert!(!in_spatial_order(&scrambled.means) && in_spatial_order(&city.means), "the test's premise");
+    let mut gpu = GpuScene::upload(&d, &scrambled).unwrap();
+    assert!(!gpu.arrange(&d, SceneOrder::File).unwrap(), "file order keeps the rows");
+    let version = gpu.version();
+    assert!(gpu.arrange(&d, SceneOrder::Auto).unwrap(), "a scrambled scene moves");
+    assert_ne!(gpu.version(), version, "moved rows are new contents");
+    assert!(!gpu.arrange(&d, SceneOrder::Morton).unwrap(), "an arranged scene stays");
+    let bounds = core_bounds(&scrambled.means, 0.001).unwrap();
+    let expected = morton_order(&scrambled.means, &bounds);
+    let order = gpu.row_order().unwrap();
+    assert_eq!(order.to_file().iter().map(|&f| f as usize).collect::<Vec<_>>(), expected);
+    let moved = scrambled.permuted(&expected);
+    let twin = device_bytes(&d, &GpuScene::upload(&d, &moved).unwrap());
+    assert!(device_bytes(&d, &gpu) == twin, "the device's rows differ from the host's permuted scene");
+    assert!(gpu.download(&d).unwrap() == scrambled, "read back in file order");
+    let mut in_order = GpuScene::upload(&d, &city).unwrap();
+    assert!(!in_order.arrange(&d, SceneOrder::Auto).unwrap(), "the demo lists its Gaussians object by object");
+    assert!(in_order.row_order().is_none());
+
+    // A training step writes every Gaussian's geometry in file order.
+    let mut stepped = scrambled.clone();
+    for (g, p) in stepped.means.iter_mut().enumerate() {
+        p[0] += 0.001 * g as f32;
+    }
+    stepped.opacity_logits.iter_mut().for_each(|o| *o -= 0.5);
+    let flat = |v: &[[f32; 3]]| v.iter().flatten().copied().collect::<Vec<f32>>();
+    let rotations: Vec<f32> = stepped.rotations.iter().flatten().copied().collect();
+    let version = gpu.version();
+    let e = gpu.write_geometry(&d, &flat(&stepped.means)[1..], &[], &[], &[]).unwrap_err().to_string();
+    assert!(e.contains("means of 14999 floats") && e.contains("3 a Gaussian"), "{e}");
+    assert!(gpu.download(&d).unwrap() == scrambled && gpu.version() == version, "nothing written on an error");
+    gpu.write_geometry(&d, &flat(&stepped.means), &flat(&stepped.log_scales), &rotations, &stepped.opacity_logits)
+        .unwrap();
+    assert_ne!(gpu.version(), version);
+    assert!(gpu.download(&d).unwrap() == stepped, "the step lands on each Gaussian's own row");
     assert_no_validation_messages(&d);
 }
 

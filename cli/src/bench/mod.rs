@@ -23,6 +23,7 @@ use srug::gpu::{kernels, Device, DeviceAddress, Grid, KernelDecl, MemoryKind, Ti
 use srug::primitives::sort::{RadixSort, SortDigits, SORT_COPY_STAGE, SORT_KERNEL_STAGE_PREFIX};
 use srug::scene::activate::GpuScene;
 use srug::scene::demo::{demo_city, DemoOptions};
+use srug::scene::order::SceneOrder;
 use srug::splat::{BlendVariant, NormalSource, SplatSettings, Splatter, TileBounds};
 
 /// Push constants of `bench_fma.comp` (keep in sync with its `Push` block).
@@ -261,6 +262,22 @@ pub struct SplatBenchOptions {
     pub sort_kernels: bool,
     /// The order of the demo city's Gaussians ([`bench_city`]).
     pub order: CityOrder,
+    /// Where they go on the device ([`GpuScene::arrange`]).
+    pub scene_order: SceneOrder,
+}
+
+/// The bench city on the device, arranged as `options` say (reported through `progress`).
+fn bench_scene(
+    device: &Device,
+    city: &srug::scene::demo::DemoCity,
+    options: &SplatBenchOptions,
+    progress: &mut impl FnMut(&str),
+) -> Result<GpuScene> {
+    let mut scene = GpuScene::upload(device, &city.scene)?;
+    if scene.arrange(device, options.scene_order)? {
+        progress("arranged along a Morton curve on the device");
+    }
+    Ok(scene)
 }
 
 /// The order of the benches' demo city's Gaussians ([`bench_city`]).
@@ -355,7 +372,7 @@ pub fn splat_bench(
     for &n in counts {
         progress(&format!("generating the demo city with {n} Gaussians"));
         let city = bench_city(n, sh_degree, options.order)?;
-        let scene = GpuScene::upload(device, &city.scene)?;
+        let scene = bench_scene(device, &city, options, &mut progress)?;
         for &(w, h) in sizes {
             progress(&format!("{n} Gaussians at {w}x{h}"));
             let cam = city.cameras[0].resized(w, h);
@@ -482,7 +499,7 @@ pub fn alternate_bench(
     for &n in counts {
         progress(&format!("generating the demo city with {n} Gaussians"));
         let city = bench_city(n, options.sh_degree, options.order)?;
-        let scene = GpuScene::upload(device, &city.scene)?;
+        let scene = bench_scene(device, &city, options, &mut progress)?;
         for &(w, h) in sizes {
             progress(&format!("{n} Gaussians at {w}x{h}"));
             let cam = city.cameras[0].resized(w, h);

@@ -49,8 +49,9 @@ impl InfoArgs {
         print!("{}", scene.summary());
         if let (Some(file), Some(morton)) = (scene.median_step(None), scene.median_step(Some(&scene.morton_order()))) {
             // Neighbours in the file far apart in space (a trained scene's order) splat markedly slower.
-            let hint = if file > 4.0 * morton {
-                "; `srug convert --order morton` writes them in that order, which splats faster (docs/bench/splat.md)"
+            let hint = if !srug::scene::order::in_spatial_order(&scene.means) {
+                "; in no spatial order, so srug puts them on the device in Morton order when it loads the scene \
+                 (--scene-order; `srug convert --order morton` saves that order in a file)"
             } else {
                 ""
             };

@@ -18,7 +18,7 @@ use srug::{io, Error, Result};
 
 use crate::args::{
     numbered, output_is_exr, overlapped, print_line, progress_bar, write_all, CameraArgs, DeviceArgs, EnvArgs,
-    RunOutputs, ShadeArgs, SunArgs, WriterArgs,
+    RunOutputs, SceneOrderArgs, ShadeArgs, SunArgs, WriterArgs,
 };
 
 /// Lighting resources reused across frames.
@@ -149,6 +149,8 @@ pub(super) struct RelightArgs {
     #[command(flatten)]
     pub view: CameraArgs,
     #[command(flatten)]
+    pub order: SceneOrderArgs,
+    #[command(flatten)]
     pub sun: SunArgs,
     #[command(flatten)]
     pub env: EnvArgs,
@@ -175,7 +177,8 @@ impl RelightArgs {
 }
 
 fn relight(device: &Device, args: &RelightArgs) -> Result<()> {
-    let RelightArgs { scene: scene_path, view, sun, env, shade, indirect, indirect_precision, out, writers } = args;
+    let RelightArgs { scene: scene_path, view, order, sun, env, shade, indirect, indirect_precision, out, writers } =
+        args;
     let writers = writers.count();
     let precision = indirect_precision.unwrap_or_else(|| shade.preset.indirect_precision());
     let exr = output_is_exr(out)?;
@@ -184,7 +187,8 @@ fn relight(device: &Device, args: &RelightArgs) -> Result<()> {
     let suns = if sun.sun_from_env { Vec::new() } else { sun.resolve()? };
     let settings = shade.settings()?;
     // Straight to the device: the host never holds the whole scene.
-    let activate::LoadedScene { gpu: gpu_scene, attributes, bounds } = activate::GpuScene::load(device, scene_path)?;
+    let activate::LoadedScene { gpu: mut gpu_scene, attributes, bounds } =
+        activate::GpuScene::load(device, scene_path)?;
     if !attributes.shadeable() {
         return Err(Error::invalid(
             scene_path.display().to_string(),
@@ -192,6 +196,9 @@ fn relight(device: &Device, args: &RelightArgs) -> Result<()> {
         ));
     }
     let bounds = bounds.ok_or_else(|| Error::invalid("scene", "is empty"))?;
+    if gpu_scene.arrange(device, order.scene_order)? {
+        log::info!("{}: {}", scene_path.display(), crate::args::ARRANGED);
+    }
     let lights = Lights::new(device, env)?;
     let suns = if sun.sun_from_env { vec![lights.sun_from_map(sun.sun_intensity)?] } else { suns };
     let mut relighter = Relighter::new(device)?;

@@ -15,7 +15,7 @@ use srug::{Error, Result};
 
 use crate::args::{
     numbered, output_is_exr, overlapped, print_line, progress_bar, write_all, CameraArgs, ChannelList, DeviceArgs,
-    RunOutputs, Vec3Arg, WriterArgs,
+    RunOutputs, SceneOrderArgs, Vec3Arg, WriterArgs, ARRANGED,
 };
 
 /// Arguments of `srug render`.
@@ -25,6 +25,8 @@ pub(super) struct RenderArgs {
     scene: PathBuf,
     #[command(flatten)]
     view: CameraArgs,
+    #[command(flatten)]
+    order: SceneOrderArgs,
     /// Output file, .png or .exr.
     #[arg(long)]
     out: PathBuf,
@@ -75,6 +77,7 @@ impl RenderArgs {
         let Self {
             scene: path,
             view,
+            order,
             out,
             channels,
             ids,
@@ -112,7 +115,10 @@ impl RenderArgs {
         channel_set.top_gaussian |= !ids.is_empty();
         let device = device_args.open()?;
         // Straight to the device: the host never holds the whole scene.
-        let gpu_scene = activate::GpuScene::load(&device, path)?.gpu;
+        let mut gpu_scene = activate::GpuScene::load(&device, path)?.gpu;
+        if gpu_scene.arrange(&device, order.scene_order)? {
+            log::info!("{}: {ARRANGED}", path.display());
+        }
         let mut splatter = Splatter::new(&device)?;
         let settings = SplatSettings {
             background: background.0.to_array(),

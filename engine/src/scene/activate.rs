@@ -46,6 +46,8 @@ pub struct GpuScene {
     pub visibility: Option<Buffer>,
     /// What [`GpuScene::version`] returns.
     version: u64,
+    /// The rows' order when [`GpuScene::arrange`] moved them.
+    row_order: Option<super::order::RowOrder>,
 }
 
 /// The next [`GpuScene::version`] (process-wide, so no two uploads share one).
@@ -78,6 +80,7 @@ impl GpuScene {
             opacity_logits: device.upload("scene opacity logits", &scene.opacity_logits)?,
             sh: device.upload("scene SH", &scene.sh)?,
             version: next_scene_version(),
+            row_order: None,
         })
     }
 
@@ -130,7 +133,7 @@ impl GpuScene {
         let k = super::sh_coefficients(self.sh_degree) * 3;
         let mut sh: Vec<f32> = device.read_buffer(&self.sh)?;
         sh.truncate(n * k);
-        let scene = Scene {
+        let mut scene = Scene {
             means: device.read_buffer(&self.means)?,
             log_scales: device.read_buffer(&self.log_scales)?,
             rotations: device.read_buffer(&self.rotations)?,
@@ -149,6 +152,9 @@ impl GpuScene {
         };
         if scene.len() != n || scene.means.len() != n {
             return Err(crate::Error::Internal(format!("the scene's buffers hold {} Gaussians, not {n}", scene.len())));
+        }
+        if let Some(o) = &self.row_order {
+            scene = scene.permuted(&o.to_device_indices());
         }
         Ok(scene)
     }
@@ -175,6 +181,7 @@ impl GpuScene {
             opacity_logits: make("scene opacity logits", n)?,
             sh: make("scene SH", 3 * k * n)?,
             version: next_scene_version(),
+            row_order: None,
         })
     }
 
@@ -200,6 +207,77 @@ impl GpuScene {
         optional(device, &self.metallic, &m.metallic, at)?;
         optional(device, &self.ao, &m.ao, at)?;
         optional(device, &self.visibility, &m.visibility, at)?;
+        Ok(())
+    }
+
+    /// The rows' order on the device when [`GpuScene::arrange`] moved them
+    /// (`None`: as listed in the file or arrays the scene came from).
+    pub fn row_order(&self) -> Option<&super::order::RowOrder> {
+        self.row_order.as_ref()
+    }
+
+    pub(super) fn set_row_order(&mut self, order: super::order::RowOrder) {
+        self.row_order = Some(order);
+        self.mark_changed();
+    }
+
+    /// Every buffer holding a row per Gaussian, with its row's length in words.
+    pub(super) fn row_buffers(&self) -> Vec<(&Buffer, u32)> {
+        let sh_words = 3 * super::sh_coefficients(self.sh_degree) as u32;
+        let optional = [
+            (&self.normals, 3),
+            (&self.albedo, 3),
+            (&self.roughness, 1),
+            (&self.metallic, 1),
+            (&self.ao, 1),
+            (&self.visibility, 1),
+        ];
+        [(&self.means, 3), (&self.log_scales, 3), (&self.rotations, 4), (&self.opacity_logits, 1), (&self.sh, sh_words)]
+            .into_iter()
+            .chain(optional.into_iter().filter_map(|(b, w)| b.as_ref().map(|b| (b, w))))
+            .collect()
+    }
+
+    /// Replaces every Gaussian's geometry (a training step), each array listed
+    /// in file order: `means` and `log_scales` 3 floats a Gaussian,
+    /// `rotations` 4 (w, x, y, z), `opacity_logits` 1. Lengths are checked
+    /// before anything is written; the scene counts as changed
+    /// ([`GpuScene::mark_changed`]) from the first write on.
+    pub fn write_geometry(
+        &mut self,
+        device: &Device,
+        means: &[f32],
+        log_scales: &[f32],
+        rotations: &[f32],
+        opacity_logits: &[f32],
+    ) -> Result<()> {
+        let n = self.count;
+        for (name, v, per) in [
+            ("means", means, 3),
+            ("log_scales", log_scales, 3),
+            ("rotations", rotations, 4),
+            ("opacity_logits", opacity_logits, 1),
+        ] {
+            if Some(v.len()) != n.checked_mul(per) {
+                return Err(crate::Error::invalid(
+                    format!("{name} of {} floats", v.len()),
+                    format!("must hold {per} a Gaussian for the scene's {n}"),
+                ));
+            }
+        }
+        self.mark_changed();
+        let arrays = [
+            (&self.means, means, 3),
+            (&self.log_scales, log_scales, 3),
+            (&self.rotations, rotations, 4),
+            (&self.opacity_logits, opacity_logits, 1),
+        ];
+        for (buffer, v, per) in arrays {
+            match &self.row_order {
+                Some(o) => device.write_buffer(buffer, 0, &o.rows_to_device(v, per))?,
+                None => device.write_buffer(buffer, 0, v)?,
+            }
+        }
         Ok(())
     }
 

@@ -14,6 +14,7 @@ pub mod activate;
 pub mod blocks;
 pub mod demo;
 mod layout;
+pub mod order;
 
 use std::fmt;
 
@@ -214,20 +215,7 @@ impl Scene {
     /// each axis (`tail` in [0, 0.5)): the place a trained scene covers, without
     /// the few floaters far out that stretch [`Scene::bounds`]; `None` when empty.
     pub fn core_bounds(&self, tail: f32) -> Option<Bounds> {
-        if self.means.is_empty() || !(0.0..0.5).contains(&tail) {
-            return None;
-        }
-        let n = self.means.len();
-        let (lo_i, hi_i) = (((n - 1) as f32 * tail) as usize, ((n - 1) as f32 * (1.0 - tail)).ceil() as usize);
-        let mut b = Bounds { min: [0.0; 3], max: [0.0; 3] };
-        let mut axis: Vec<f32> = Vec::with_capacity(n);
-        for a in 0..3 {
-            axis.clear();
-            axis.extend(self.means.iter().map(|p| p[a]));
-            b.min[a] = *axis.select_nth_unstable_by(lo_i, f32::total_cmp).1;
-            b.max[a] = *axis.select_nth_unstable_by(hi_i.min(n - 1), f32::total_cmp).1;
-        }
-        Some(b)
+        order::core_bounds(&self.means, tail)
     }
 
     /// The scene without the Gaussians whose centres lie in `b` grown by `margin` on every side.
@@ -264,32 +252,7 @@ impl Scene {
     /// non-finite ones last; ties keep their order). The compressed PLY and
     /// SOG writers order their chunks so over [`Scene::bounds`].
     pub fn morton_order_over(&self, b: &Bounds) -> Vec<usize> {
-        let cell = |v: f32, a: usize| -> u64 {
-            let (lo, hi) = (b.min[a], b.max[a]);
-            if hi > lo {
-                ((v - lo) / (hi - lo) * 1023.0).clamp(0.0, 1023.0) as u64
-            } else {
-                0
-            }
-        };
-        // The low 10 bits of x, two zero bits after each.
-        let spread = |mut x: u64| {
-            x &= 0x3ff;
-            x = (x | x << 16) & 0x0300_00ff;
-            x = (x | x << 8) & 0x0300_f00f;
-            x = (x | x << 4) & 0x030c_30c3;
-            (x | x << 2) & 0x0924_9249
-        };
-        let key = |p: &[f32; 3]| {
-            if p.iter().all(|v| v.is_finite()) {
-                spread(cell(p[0], 0)) | spread(cell(p[1], 1)) << 1 | spread(cell(p[2], 2)) << 2
-            } else {
-                u64::MAX
-            }
-        };
-        let mut order: Vec<usize> = (0..self.means.len()).collect();
-        order.sort_by_cached_key(|&i| key(&self.means[i]));
-        order
+        order::morton_order(&self.means, b)
     }
 
     /// The median distance between consecutive Gaussians' centres when taken
@@ -297,27 +260,7 @@ impl Scene {
     /// centres: how far a file's order is from keeping neighbours together
     /// (compare with [`Scene::morton_order`]'s); `None` under two such pairs.
     pub fn median_step(&self, order: Option<&[usize]>) -> Option<f32> {
-        let stored: Vec<usize>;
-        let order = match order {
-            Some(o) => o,
-            None => {
-                stored = (0..self.means.len()).collect();
-                &stored
-            }
-        };
-        let mut steps: Vec<f32> = order
-            .windows(2)
-            .filter_map(|w| {
-                let (a, b) = (glam::Vec3::from(*self.means.get(w[0])?), glam::Vec3::from(*self.means.get(w[1])?));
-                let d = a.distance(b);
-                d.is_finite().then_some(d)
-            })
-            .collect();
-        if steps.len() < 2 {
-            return None;
-        }
-        let mid = steps.len() / 2;
-        Some(*steps.select_nth_unstable_by(mid, f32::total_cmp).1)
+        order::median_step(&self.means, order)
     }
 
     /// The Gaussians `order` names, in its order, every attribute kept in

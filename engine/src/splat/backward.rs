@@ -27,6 +27,7 @@ use crate::gpu::{
     Timings,
 };
 use crate::scene::activate::GpuScene;
+use crate::scene::order::ReorderKernels;
 
 /// Per-pixel loss gradients of the blended channels (layout as
 /// [`super::GpuGBuffer`]: planar, rgb/normal/albedo 3 floats per pixel).
@@ -274,6 +275,22 @@ impl Splatter {
             values: with_values.then(|| f("dL/d values", 16)).transpose()?,
             timings: Timings::default(),
         };
+        // An arranged scene's gradients leave in file order (scene::order): gathered into these.
+        let file_rows = match scene.row_order() {
+            Some(order) => Some((
+                order,
+                ReorderKernels::new(&device)?,
+                GaussianGradients {
+                    means: f("dL/d means, file order", 3)?,
+                    log_scales: f("dL/d log-scales, file order", 3)?,
+                    rotations: f("dL/d rotations, file order", 4)?,
+                    opacity_logits: f("dL/d opacity logits, file order", 1)?,
+                    values: with_values.then(|| f("dL/d values, file order", 16)).transpose()?,
+                    timings: Timings::default(),
+                },
+            )),
+            None => None,
+        };
         let uniform = device.create_buffer(
             "backward uniform",
             std::mem::size_of::<BackwardUniform>() as u64,
@@ -326,9 +343,25 @@ impl Splatter {
             )?;
             rec.begin_stage("backward projection");
             rec.dispatch(&k.gaussians, Grid::Items(n), &[Binding::from(&frame.uniform), Binding::from(&uniform)], &())?;
+            if let Some((order, map, file)) = &file_rows {
+                let pairs = [
+                    (&out.means, &file.means, 3),
+                    (&out.log_scales, &file.log_scales, 3),
+                    (&out.rotations, &file.rotations, 4),
+                    (&out.opacity_logits, &file.opacity_logits, 1),
+                ];
+                let values = out.values.as_ref().zip(file.values.as_ref()).map(|(d, f)| (d, f, 16));
+                for (device_rows, file_rows, w) in pairs.into_iter().chain(values) {
+                    let index = Some(order.file_to_device());
+                    map.record_rows(rec, (device_rows, w, 0), (file_rows, w, 0), index, n, w)?;
+                }
+            }
             rec.end_stage();
             Ok(())
         })?;
-        Ok(GaussianGradients { timings, ..out })
+        match file_rows {
+            Some((_, _, file)) => Ok(GaussianGradients { timings, ..file }),
+            None => Ok(GaussianGradients { timings, ..out }),
+        }
     }
 }

@@ -14,6 +14,7 @@ use crate::gpu::{
 use crate::primitives::scan::Scan;
 use crate::primitives::sort::{PairPacking, RadixSort, SortDigits};
 use crate::scene::activate::GpuScene;
+use crate::scene::order::ReorderKernels;
 use crate::scene::Camera;
 
 /// What one render did, besides its G-buffers.
@@ -1022,6 +1023,11 @@ impl Splatter {
             .any(|s| s.chunks.is_some())
             .then(|| device.create_buffer("chunk counts", 4 * views.len() as u64, MemoryKind::Readback))
             .transpose()?;
+        // An arranged scene's ids leave in file order (scene::order).
+        let id_map = match scene.row_order() {
+            Some(order) if ch.top_gaussian => Some((order, ReorderKernels::new(&device)?)),
+            _ => None,
+        };
         let mut phase2_marks = Vec::with_capacity(views.len());
         let phase2 = device.run(|rec| -> Result<()> {
             if let Some(counts) = &chunk_counts {
@@ -1117,6 +1123,10 @@ impl Splatter {
                     }
                 } else {
                     rec.dispatch(&s.blend, Grid::Groups(p.tiles), &[Binding::from(&p.uniform)], &())?;
+                }
+                if let (Some(top), Some((order, map))) = (&p.out.top_gaussian, &id_map) {
+                    let pixels = u64::from(p.camera.width) * u64::from(p.camera.height);
+                    map.record_ids(rec, top, pixels, order)?;
                 }
                 rec.end_stage();
             }

@@ -13,13 +13,15 @@ layout(buffer_reference, std430, buffer_reference_align = 4) writeonly buffer Ui
 
 layout(buffer_reference, std430, buffer_reference_align = 4) buffer Uints { uint v[]; };
 
-// One float at a 64-bit address. Indexing `v[i]` of a reference is limited to byte offsets
+// One float (or uint) at a 64-bit address. Indexing `v[i]` of a reference is limited to byte offsets
 // below 4 GiB on some drivers (NVIDIA wrapped at i = 2^30 floats); buffers that may be larger
 // compute addresses in 64 bits with `element_address` (needs shaderInt64).
 #ifdef SRUG_ADDRESS_64
 #extension GL_EXT_shader_explicit_arithmetic_types_int64 : require
 layout(buffer_reference, std430, buffer_reference_align = 4) readonly buffer FloatIn { float v; };
 layout(buffer_reference, std430, buffer_reference_align = 4) writeonly buffer FloatOut { float v; };
+layout(buffer_reference, std430, buffer_reference_align = 4) readonly buffer UintIn { uint v; };
+layout(buffer_reference, std430, buffer_reference_align = 4) writeonly buffer UintOut { uint v; };
 uint64_t element_address(uvec2 base, uint index, uint stride) {
     return packUint2x32(base) + uint64_t(index) * uint64_t(stride);
 }

@@ -3,6 +3,7 @@
 //! blend's arithmetic ceiling, the pair-move floor of a sort pass, the memory
 //! bandwidth), with each stage's share of its own floor.
 
+use srug::scene::order::SceneOrder;
 use srug::splat::{check_tile, default_chunk_length, TileBounds, DEFAULT_TILE};
 use srug::Result;
 
@@ -55,6 +56,10 @@ pub(crate) struct SplatBenchArgs {
     /// holds them) or morton (along a Morton curve, as `srug convert --order morton` writes).
     #[arg(long, value_enum, default_value = "generated")]
     order: bench::CityOrder,
+    /// Where the city's Gaussians go on the device, as `srug render --scene-order` (auto: along
+    /// a Morton curve when they are listed in no spatial order, as --order shuffled lists them).
+    #[arg(long, default_value = "auto", value_parser = SceneOrder::parse)]
+    scene_order: SceneOrder,
 }
 
 /// Wraps the splatter choices for parsing one of them alone.
@@ -100,6 +105,7 @@ impl SplatBenchArgs {
             sort_kernels,
             ref alternate,
             order,
+            scene_order,
         } = self;
         check_tile(tile)?;
         if sh_degree > 3 {
@@ -119,7 +125,16 @@ impl SplatBenchArgs {
                 bench::CityOrder::Morton => ", its Gaussians in Morton order",
             }
         );
-        let options = bench::SplatBenchOptions { repeats, sh_degree, choices, tile, tile_bounds, sort_kernels, order };
+        let options = bench::SplatBenchOptions {
+            repeats,
+            sh_degree,
+            choices,
+            tile,
+            tile_bounds,
+            sort_kernels,
+            order,
+            scene_order,
+        };
         if let Some(spec) = alternate {
             let variants = alternatives(spec, &choices)?;
             let bar = spinner("benchmarking");
