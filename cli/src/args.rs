@@ -2,12 +2,13 @@
 //! parsed by clap through a typed parser (`FromStr` or an engine `parse`), so a
 //! bad value is refused before anything runs, with clap's usage message.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::str::FromStr;
 
 use srug::frame::{Preset, RelightSettings};
 use srug::gpu::{Device, DeviceOptions, DeviceSelection};
 use srug::io;
+use srug::scene::activate::GpuScene;
 use srug::scene::order::SceneOrder;
 use srug::scene::Camera;
 use srug::shade::{Background, BrdfLut, ShadeSettings, ToneMap, VisibilitySource};
@@ -37,18 +38,36 @@ impl DeviceArgs {
     }
 }
 
-/// The log line of a scene whose Gaussians [`SceneOrderArgs`] moved.
-pub const ARRANGED: &str =
-    "its Gaussians, listed in no spatial order, go onto the device along a Morton curve (--scene-order file keeps the file's)";
+/// Frames a run renders from which `--scene-order auto` moves a scene listed in no spatial
+/// order: the move costs about what this many frames save on lavapipe (docs/bench/splat.md).
+pub const ARRANGE_MIN_FRAMES: usize = 8;
 
 /// Where a loaded scene's Gaussians go on the device (`srug::scene::order`).
 #[derive(clap::Args, Clone, Copy, Debug)]
 pub struct SceneOrderArgs {
     /// Order of the Gaussians on the device: auto (along a Morton curve through their centres
-    /// when the file lists them in no spatial order, as trained scenes do: faster frames, the
-    /// same image; ids and outputs stay in file order), morton, or file.
+    /// when the file lists them in no spatial order, as trained scenes do, and the run renders 8
+    /// frames or more: faster frames for a move that costs about 8 frames' saving), morton, or
+    /// file. The image is the same; ids and outputs stay in file order.
     #[arg(long, default_value = "auto", value_parser = SceneOrder::parse)]
     pub scene_order: SceneOrder,
+}
+
+impl SceneOrderArgs {
+    /// Arranges `scene` for a run of `frames` frames as `--scene-order` asks, saying so in the log.
+    pub fn arrange(&self, device: &Device, scene: &mut GpuScene, frames: usize, path: &Path) -> Result<()> {
+        let order = match self.scene_order {
+            SceneOrder::Auto if frames < ARRANGE_MIN_FRAMES => SceneOrder::File,
+            order => order,
+        };
+        if scene.arrange(device, order)? {
+            log::info!(
+                "{}: its Gaussians go onto the device along a Morton curve (--scene-order file keeps the file's order)",
+                path.display()
+            );
+        }
+        Ok(())
+    }
 }
 
 /// An image size, `WxH` (both at least 1).

@@ -1031,7 +1031,7 @@ fn convert_writes_every_format_and_refuses_what_it_cannot() {
     };
     assert_eq!(rows(&a), rows(&b), "the same Gaussians");
     // `srug info` says how far apart consecutive centres lie, and where srug rearranges them on loading.
-    let hint = "in no spatial order, so srug puts them on the device in Morton order";
+    let hint = "in no spatial order: runs of 8 frames or more put them on the device along a Morton curve";
     let t = text(&srug(&["info", file_order.to_str().unwrap()]));
     assert!(t.contains("order: consecutive centres a median ") && t.contains(hint), "{t}");
     let t = text(&srug(&["info", morton.to_str().unwrap()]));
@@ -1341,8 +1341,9 @@ fn render_writes_exact_id_channels() {
 }
 
 /// A PLY listing its Gaussians in no spatial order goes onto the device along a Morton curve
-/// (said in the log), and renders the same: the same top Gaussian (its file row) and ids in every
-/// pixel as with `--scene-order file`.
+/// (said in the log) with `--scene-order morton`, and with `auto` for a run of eight frames or more
+/// (not for one), and renders the same: the same top Gaussian (its file row) and ids in every pixel
+/// as with `--scene-order file`.
 #[test]
 fn render_arranges_a_scrambled_scene_and_names_gaussians_by_file_row() {
     let dir = tempfile::tempdir().unwrap();
@@ -1373,7 +1374,7 @@ fn render_arranges_a_scrambled_scene_and_names_gaussians_by_file_row() {
     let args =
         ["render", ply.to_str().unwrap(), "--eye", "0,-8,0", "--target", "0,0,0", "--size", "96x48", "--fov", "50"];
     let mut images = Vec::new();
-    for order in ["auto", "file"] {
+    for order in ["morton", "file", "auto"] {
         let out = dir.path().join(format!("{order}.exr"));
         let o = srug(
             &[
@@ -1383,9 +1384,25 @@ fn render_arranges_a_scrambled_scene_and_names_gaussians_by_file_row() {
             .concat(),
         );
         assert!(o.status.success(), "{}", text(&o));
-        assert_eq!(text(&o).contains("along a Morton curve"), order == "auto", "{}", text(&o));
+        assert_eq!(text(&o).contains("along a Morton curve"), order == "morton", "{order}: {}", text(&o));
         images.push(exr::prelude::read_all_flat_layers_from_file(&out).unwrap());
     }
+    // Eight cameras: auto moves the Gaussians.
+    let camera =
+        srug::scene::Camera::look_at(glam::Vec3::new(0.0, -8.0, 0.0), glam::Vec3::ZERO, glam::Vec3::Z, 50.0, 96, 48)
+            .unwrap();
+    let cameras = dir.path().join("cameras.json");
+    srug::io::write_cameras_json(&cameras, &vec![camera; 8]).unwrap();
+    let frames = dir.path().join("f.png");
+    let o = srug(&[
+        "render",
+        ply.to_str().unwrap(),
+        "--cameras",
+        cameras.to_str().unwrap(),
+        "--out",
+        frames.to_str().unwrap(),
+    ]);
+    assert!(o.status.success() && text(&o).contains("along a Morton curve"), "{}", text(&o));
     let channel = |i: usize, name: &str| -> Vec<u32> {
         let c = images[i].layer_data[0].channel_data.list.iter().find(|c| c.name.to_string() == name).unwrap();
         match &c.sample_data {

@@ -228,6 +228,13 @@ fn arranging_a_scene_moves_every_attribute_row_along_the_morton_curve() {
     let moved = scrambled.permuted(&expected);
     let twin = device_bytes(&d, &GpuScene::upload(&d, &moved).unwrap());
     assert!(device_bytes(&d, &gpu) == twin, "the device's rows differ from the host's permuted scene");
+    // In blocks of a row's words (each written back in place; an SH-3 row's 48 words in 9 blocks
+    // of 5 and one of 3), or a word at a time: the same rows.
+    for words in [5, 1] {
+        let mut blocks = GpuScene::upload(&d, &scrambled).unwrap();
+        assert!(blocks.arrange_in_blocks(&d, SceneOrder::Morton, Some(words)).unwrap());
+        assert!(device_bytes(&d, &blocks) == twin, "in blocks of {words} words: other rows");
+    }
     assert!(gpu.download(&d).unwrap() == scrambled, "read back in file order");
     let mut in_order = GpuScene::upload(&d, &city).unwrap();
     assert!(!in_order.arrange(&d, SceneOrder::Auto).unwrap(), "the demo lists its Gaussians object by object");

@@ -50,10 +50,13 @@ impl InfoArgs {
         if let (Some(file), Some(morton)) = (scene.median_step(None), scene.median_step(Some(&scene.morton_order()))) {
             // Neighbours in the file far apart in space (a trained scene's order) splat markedly slower.
             let hint = if !srug::scene::order::in_spatial_order(&scene.means) {
-                "; in no spatial order, so srug puts them on the device in Morton order when it loads the scene \
-                 (--scene-order; `srug convert --order morton` saves that order in a file)"
+                format!(
+                    "; in no spatial order: runs of {} frames or more put them on the device along a Morton curve \
+                     (--scene-order); `srug convert --order morton` saves that order in the file, for every run",
+                    crate::args::ARRANGE_MIN_FRAMES
+                )
             } else {
-                ""
+                String::new()
             };
             println!("order: consecutive centres a median {file:.3} apart (in Morton order {morton:.3}){hint}");
         }

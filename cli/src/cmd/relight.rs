@@ -196,11 +196,9 @@ fn relight(device: &Device, args: &RelightArgs) -> Result<()> {
         ));
     }
     let bounds = bounds.ok_or_else(|| Error::invalid("scene", "is empty"))?;
-    if gpu_scene.arrange(device, order.scene_order)? {
-        log::info!("{}: {}", scene_path.display(), crate::args::ARRANGED);
-    }
     let lights = Lights::new(device, env)?;
     let suns = if sun.sun_from_env { vec![lights.sun_from_map(sun.sun_intensity)?] } else { suns };
+    order.arrange(device, &mut gpu_scene, cams.len() * suns.len(), scene_path)?;
     let mut relighter = Relighter::new(device)?;
     // The scene does not change during the run: a frame under the previous frame's sun reuses its shadow map.
     relighter.set_shadow_map_reuse(true);

@@ -15,7 +15,7 @@ use srug::{Error, Result};
 
 use crate::args::{
     numbered, output_is_exr, overlapped, print_line, progress_bar, write_all, CameraArgs, ChannelList, DeviceArgs,
-    RunOutputs, SceneOrderArgs, Vec3Arg, WriterArgs, ARRANGED,
+    RunOutputs, SceneOrderArgs, Vec3Arg, WriterArgs,
 };
 
 /// Arguments of `srug render`.
@@ -116,9 +116,7 @@ impl RenderArgs {
         let device = device_args.open()?;
         // Straight to the device: the host never holds the whole scene.
         let mut gpu_scene = activate::GpuScene::load(&device, path)?.gpu;
-        if gpu_scene.arrange(&device, order.scene_order)? {
-            log::info!("{}: {ARRANGED}", path.display());
-        }
+        order.arrange(&device, &mut gpu_scene, cams.len(), path)?;
         let mut splatter = Splatter::new(&device)?;
         let settings = SplatSettings {
             background: background.0.to_array(),

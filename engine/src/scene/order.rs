@@ -177,9 +177,20 @@ pub fn in_spatial_order(means: &[[f32; 3]]) -> bool {
     }
 }
 
-/// Words a row block of [`GpuScene::arrange`] moves at a time: the scratch
-/// holds this many words per Gaussian, whatever the SH degree.
-const ARRANGE_WORDS: u32 = 4;
+/// Bytes of scratch [`GpuScene::arrange`] may use beyond [`ARRANGE_MIN_WORDS`] a Gaussian.
+const ARRANGE_SCRATCH_BYTES: usize = 64 << 20;
+
+/// Words a Gaussian [`GpuScene::arrange`] moves at a time at least (its scratch
+/// holds this many a Gaussian at any scene size).
+const ARRANGE_MIN_WORDS: u32 = 4;
+
+/// Words of a row [`GpuScene::arrange`] moves at a time for `n` Gaussians:
+/// within [`ARRANGE_SCRATCH_BYTES`] of scratch, at least [`ARRANGE_MIN_WORDS`],
+/// at most the longest row (an SH-3 row's 48).
+fn arrange_words(n: usize, longest_row: u32) -> u32 {
+    let fit = ARRANGE_SCRATCH_BYTES / (4 * n.max(1));
+    (fit.min(longest_row as usize) as u32).max(ARRANGE_MIN_WORDS)
+}
 
 /// The device order of an arranged [`GpuScene`].
 pub struct RowOrder {
@@ -251,10 +262,23 @@ fn scatter_rows<T: Copy + Default>(index: &[u32], rows: &[T], per: usize) -> Vec
     out
 }
 
-/// The kernels of `scene_reorder.comp`: rows gathered by an index, and ids mapped.
+/// Which rows [`ReorderKernels::record_rows`] moves where.
+#[derive(Clone, Copy)]
+pub(crate) enum RowMap<'a> {
+    /// Row i to row i.
+    Same,
+    /// Row `index[i]` to row i.
+    Gather(&'a Buffer),
+    /// Row i to row `index[i]`: reads in order, writes scattered (cheaper
+    /// where reads that miss the cache stall and writes do not).
+    Scatter(&'a Buffer),
+}
+
+/// The kernels of `scene_reorder.comp`: rows moved by an index, and ids mapped.
 pub(crate) struct ReorderKernels {
-    rows: Arc<Kernel>,
+    gather: Arc<Kernel>,
     ids: Arc<Kernel>,
+    scatter: Arc<Kernel>,
 }
 
 impl ReorderKernels {
@@ -262,21 +286,26 @@ impl ReorderKernels {
         let kernel = |mode: u32| {
             device.kernel(&kernels::SCENE_REORDER, &KernelDecl::push::<ReorderPush>(&[(0, SpecValue::U32(mode))]))
         };
-        Ok(Self { rows: kernel(0)?, ids: kernel(1)? })
+        Ok(Self { gather: kernel(0)?, ids: kernel(1)?, scatter: kernel(2)? })
     }
 
-    /// Records `dst` row i, words `dst_first..+width` of rows `dst_stride`
-    /// long, = `src` row `index[i]` (row i without an index), words
-    /// `src_first..+width`, for `count` rows.
+    /// Records, for `count` rows, words `src_first..+width` of `src` rows
+    /// `src_stride` words long into words `dst_first..+width` of `dst` rows
+    /// `dst_stride` long, the rows matched by `map`.
     pub(crate) fn record_rows<'a>(
         &'a self,
         rec: &mut Recording<'a>,
         src: (&'a Buffer, u32, u32),
         dst: (&'a Buffer, u32, u32),
-        index: Option<&'a Buffer>,
+        map: RowMap<'a>,
         count: u64,
         width: u32,
     ) -> Result<()> {
+        let (kernel, index) = match map {
+            RowMap::Same => (&self.gather, None),
+            RowMap::Gather(index) => (&self.gather, Some(index)),
+            RowMap::Scatter(index) => (&self.scatter, Some(index)),
+        };
         let push = ReorderPush {
             src: rec.addr(src.0)?,
             dst: rec.addr(dst.0)?,
@@ -288,7 +317,7 @@ impl ReorderKernels {
             dst_stride: dst.1,
             dst_first: dst.2,
         };
-        Ok(rec.dispatch(&self.rows, Grid::Items(count), &[], &push)?)
+        Ok(rec.dispatch(kernel, Grid::Items(count), &[], &push)?)
     }
 
     /// Records `ids[i] = order.to_file[ids[i]]` in place for `count` ids
@@ -320,14 +349,23 @@ fn rows_u32(count: u64) -> Result<u32> {
 impl GpuScene {
     /// Puts the Gaussians on the device in `order` (module doc): reads the
     /// centres back, sorts them on the host, and moves every attribute's rows
-    /// on the device a few words at a time (scratch of 16 bytes a Gaussian).
+    /// on the device a block of words at a time (scratch of at least 16 bytes a
+    /// Gaussian, 64 MiB where that holds more).
     /// Returns whether the rows moved; a scene already arranged stays as it is.
     pub fn arrange(&mut self, device: &Device, order: SceneOrder) -> Result<bool> {
+        self.arrange_in_blocks(device, order, None)
+    }
+
+    /// [`GpuScene::arrange`] moving `words` of a row at a time (at least one;
+    /// `None`: as many as its scratch budget allows). For tests of the block path.
+    #[doc(hidden)]
+    pub fn arrange_in_blocks(&mut self, device: &Device, order: SceneOrder, words: Option<u32>) -> Result<bool> {
         let n = self.count;
         if order == SceneOrder::File || n < 2 || self.row_order().is_some() {
             return Ok(false);
         }
         rows_u32(n as u64)?;
+        let start = std::time::Instant::now();
         let means: Vec<[f32; 3]> = device.read_buffer(&self.means)?;
         if order == SceneOrder::Auto && in_spatial_order(&means[..n]) {
             return Ok(false);
@@ -335,22 +373,43 @@ impl GpuScene {
         let Some(bounds) = core_bounds(&means[..n], 0.001) else { return Ok(false) };
         let to_file: Vec<u32> = morton_order(&means[..n], &bounds).into_iter().map(|i| i as u32).collect();
         drop(means);
+        let sorted = start.elapsed();
         let rows = RowOrder::new(device, to_file)?;
         let kernels = ReorderKernels::new(device)?;
-        let scratch = device.create_filled::<u32>("scene reorder scratch", n * ARRANGE_WORDS as usize, 0x7fc0_0000)?;
+        let buffers = self.row_buffers();
+        let longest = buffers.iter().map(|(_, row)| *row).max().unwrap_or(1);
+        let words = words.map_or_else(|| arrange_words(n, longest), |w| w.clamp(1, longest));
+        let scratch = device.create_filled::<u32>("scene reorder scratch", n * words as usize, 0x7fc0_0000)?;
         let count = n as u64;
-        device.run(|rec| -> Result<()> {
-            for (buffer, row) in self.row_buffers() {
-                for first in (0..row).step_by(ARRANGE_WORDS as usize) {
-                    let width = ARRANGE_WORDS.min(row - first);
-                    let gather = Some(&rows.device_to_file);
-                    kernels.record_rows(rec, (buffer, row, first), (&scratch, width, 0), gather, count, width)?;
-                    kernels.record_rows(rec, (&scratch, width, 0), (buffer, row, first), None, count, width)?;
+        let moved = std::time::Instant::now();
+        let timings = device.run(|rec| -> Result<()> {
+            for &(buffer, row) in &buffers {
+                rec.begin_stage(buffer.name());
+                for first in (0..row).step_by(words as usize) {
+                    let width = words.min(row - first);
+                    let map = RowMap::Scatter(&rows.file_to_device);
+                    kernels.record_rows(rec, (buffer, row, first), (&scratch, width, 0), map, count, width)?;
+                    if width == row {
+                        // Whole rows: back in one copy.
+                        rec.copy(&scratch, 0, buffer, 0, 4 * u64::from(row) * count)?;
+                    } else {
+                        let back = RowMap::Same;
+                        kernels.record_rows(rec, (&scratch, width, 0), (buffer, row, first), back, count, width)?;
+                    }
                 }
             }
             Ok(())
         })?;
         self.set_row_order(rows);
+        log::debug!(
+            "arranged {n} Gaussians along a Morton curve in {:.3} s ({:.3} s reading and sorting the centres, \
+             {:.3} s moving the rows of which {:.3} s GPU)",
+            start.elapsed().as_secs_f64(),
+            sorted.as_secs_f64(),
+            moved.elapsed().as_secs_f64(),
+            timings.total_seconds()
+        );
+        log::debug!("{timings}");
         Ok(true)
     }
 }

@@ -27,7 +27,7 @@ use crate::gpu::{
     Timings,
 };
 use crate::scene::activate::GpuScene;
-use crate::scene::order::ReorderKernels;
+use crate::scene::order::{ReorderKernels, RowMap};
 
 /// Per-pixel loss gradients of the blended channels (layout as
 /// [`super::GpuGBuffer`]: planar, rgb/normal/albedo 3 floats per pixel).
@@ -352,8 +352,8 @@ impl Splatter {
                 ];
                 let values = out.values.as_ref().zip(file.values.as_ref()).map(|(d, f)| (d, f, 16));
                 for (device_rows, file_rows, w) in pairs.into_iter().chain(values) {
-                    let index = Some(order.file_to_device());
-                    map.record_rows(rec, (device_rows, w, 0), (file_rows, w, 0), index, n, w)?;
+                    let rows = RowMap::Gather(order.file_to_device());
+                    map.record_rows(rec, (device_rows, w, 0), (file_rows, w, 0), rows, n, w)?;
                 }
             }
             rec.end_stage();
