@@ -1262,6 +1262,21 @@ fn render_writes_panoramas() {
     assert!(!o.status.success() && text(&o).contains("--panorama 1"), "{}", text(&o));
 }
 
+/// The header of a little-endian PLY of `count` Gaussians (INRIA's float properties, SH degree 0,
+/// then `extra` property lines).
+fn gaussians_ply_header(count: usize, extra: &str) -> Vec<u8> {
+    let mut header = format!("ply\nformat binary_little_endian 1.0\nelement vertex {count}\n");
+    for p in [
+        "x", "y", "z", "f_dc_0", "f_dc_1", "f_dc_2", "opacity", "scale_0", "scale_1", "scale_2", "rot_0", "rot_1",
+        "rot_2", "rot_3",
+    ] {
+        header += &format!("property float {p}\n");
+    }
+    header += extra;
+    header += "end_header\n";
+    header.into_bytes()
+}
+
 /// `srug render --ids`: integer PLY properties become exact 32-bit integer EXR
 /// channels holding each pixel's top Gaussian's id; −1 and empty pixels read 4294967295.
 #[test]
@@ -1269,15 +1284,7 @@ fn render_writes_exact_id_channels() {
     let dir = tempfile::tempdir().unwrap();
     let ply = dir.path().join("labelled.ply");
     // Two opaque Gaussians side by side, with semantic ids 70000 and -1 and instance ids 3 and 250.
-    let mut header = String::from("ply\nformat binary_little_endian 1.0\nelement vertex 2\n");
-    for p in [
-        "x", "y", "z", "f_dc_0", "f_dc_1", "f_dc_2", "opacity", "scale_0", "scale_1", "scale_2", "rot_0", "rot_1",
-        "rot_2", "rot_3",
-    ] {
-        header += &format!("property float {p}\n");
-    }
-    header += "property int semantic\nproperty uchar instance\nend_header\n";
-    let mut bytes = header.into_bytes();
+    let mut bytes = gaussians_ply_header(2, "property int semantic\nproperty uchar instance\n");
     for (x, semantic, instance) in [(-1.0f32, 70_000i32, 3u8), (1.0, -1, 250)] {
         for v in [x, 0.0, 0.0, 0.5, 0.5, 0.5, 5.0, -1.2, -1.2, -1.2, 1.0, 0.0, 0.0, 0.0] {
             bytes.extend_from_slice(&v.to_le_bytes());
@@ -1350,15 +1357,7 @@ fn render_arranges_a_scrambled_scene_and_names_gaussians_by_file_row() {
     let ply = dir.path().join("scrambled.ply");
     // A 32 × 16 wall of small opaque Gaussians facing the camera, listed in a scrambled order,
     // each with its file row as its id.
-    let mut header = String::from("ply\nformat binary_little_endian 1.0\nelement vertex 512\n");
-    for p in [
-        "x", "y", "z", "f_dc_0", "f_dc_1", "f_dc_2", "opacity", "scale_0", "scale_1", "scale_2", "rot_0", "rot_1",
-        "rot_2", "rot_3",
-    ] {
-        header += &format!("property float {p}\n");
-    }
-    header += "property int row\nend_header\n";
-    let mut bytes = header.into_bytes();
+    let mut bytes = gaussians_ply_header(512, "property int row\n");
     for row in 0..512i32 {
         let cell = (row * 97 + 5) % 512;
         let (x, z) = ((cell % 32) as f32 * 0.2 - 3.1, (cell / 32) as f32 * 0.2 - 1.5);

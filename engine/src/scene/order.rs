@@ -87,13 +87,20 @@ pub fn morton_order(means: &[[f32; 3]], b: &Bounds) -> Vec<usize> {
         if p.iter().all(|v| v.is_finite()) {
             spread(cell(p[0], 0)) | spread(cell(p[1], 1)) << 1 | spread(cell(p[2], 2)) << 2
         } else {
-            u64::MAX
+            1 << 30
         }
     };
-    // Code above, index below: one unstable sort of u64s, ties in index order.
-    let mut keyed: Vec<(u64, usize)> = means.iter().enumerate().map(|(i, p)| (key(p), i)).collect();
-    keyed.sort_unstable();
-    keyed.into_iter().map(|(_, i)| i).collect()
+    // The 30-bit code (2³⁰ for non-finite centres) above a 32-bit index: one unstable sort of u64s,
+    // ties in index order. Past 2³² Gaussians, pairs.
+    if u32::try_from(means.len()).is_ok() {
+        let mut keyed: Vec<u64> = means.iter().enumerate().map(|(i, p)| key(p) << 32 | i as u64).collect();
+        keyed.sort_unstable();
+        keyed.into_iter().map(|k| (k & 0xffff_ffff) as usize).collect()
+    } else {
+        let mut keyed: Vec<(u64, usize)> = means.iter().enumerate().map(|(i, p)| (key(p), i)).collect();
+        keyed.sort_unstable();
+        keyed.into_iter().map(|(_, i)| i).collect()
+    }
 }
 
 /// Bounds of `means` between the `tail` and 1 − `tail` quantiles on each axis
@@ -142,7 +149,7 @@ fn median(values: &mut [f32]) -> Option<f32> {
 const ORDER_SAMPLES: usize = 4096;
 
 /// Whether the centres, as listed, lie in a spatial order: on a sample of
-/// [`ORDER_SAMPLES`] places, the median distance between consecutive centres
+/// 4096 places, the median distance between consecutive centres
 /// is under a quarter of the median distance between centres paired at
 /// random (a random order's ratio is about one). Scenes of fewer than 64
 /// Gaussians count as ordered (nothing to gain). Deterministic.

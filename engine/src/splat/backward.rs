@@ -266,29 +266,23 @@ impl Splatter {
         let stride = record_stride(bits, frame.surface_depth);
         let pairs =
             device.create_buffer("backward pair records", frame.stats.pairs * stride * 4, MemoryKind::Storage)?;
-        let f = |name: &str, floats: u64| device.create_buffer(name, n * floats * 4, MemoryKind::Storage);
-        let out = GaussianGradients {
-            means: f("dL/d means", 3)?,
-            log_scales: f("dL/d log-scales", 3)?,
-            rotations: f("dL/d rotations", 4)?,
-            opacity_logits: f("dL/d opacity logits", 1)?,
-            values: with_values.then(|| f("dL/d values", 16)).transpose()?,
-            timings: Timings::default(),
+        let gradients = |suffix: &str| -> Result<GaussianGradients> {
+            let f = |name: &str, floats: u64| {
+                device.create_buffer(&format!("{name}{suffix}"), n * floats * 4, MemoryKind::Storage)
+            };
+            Ok(GaussianGradients {
+                means: f("dL/d means", 3)?,
+                log_scales: f("dL/d log-scales", 3)?,
+                rotations: f("dL/d rotations", 4)?,
+                opacity_logits: f("dL/d opacity logits", 1)?,
+                values: with_values.then(|| f("dL/d values", 16)).transpose()?,
+                timings: Timings::default(),
+            })
         };
+        let out = gradients("")?;
         // An arranged scene's gradients leave in file order (scene::order): gathered into these.
         let file_rows = match scene.row_order() {
-            Some(order) => Some((
-                order,
-                ReorderKernels::new(&device)?,
-                GaussianGradients {
-                    means: f("dL/d means, file order", 3)?,
-                    log_scales: f("dL/d log-scales, file order", 3)?,
-                    rotations: f("dL/d rotations, file order", 4)?,
-                    opacity_logits: f("dL/d opacity logits, file order", 1)?,
-                    values: with_values.then(|| f("dL/d values, file order", 16)).transpose()?,
-                    timings: Timings::default(),
-                },
-            )),
+            Some(order) => Some((order, ReorderKernels::new(&device)?, gradients(", file order")?)),
             None => None,
         };
         let uniform = device.create_buffer(
@@ -344,14 +338,14 @@ impl Splatter {
             rec.begin_stage("backward projection");
             rec.dispatch(&k.gaussians, Grid::Items(n), &[Binding::from(&frame.uniform), Binding::from(&uniform)], &())?;
             if let Some((order, map, file)) = &file_rows {
-                let pairs = [
+                let kinds = [
                     (&out.means, &file.means, 3),
                     (&out.log_scales, &file.log_scales, 3),
                     (&out.rotations, &file.rotations, 4),
                     (&out.opacity_logits, &file.opacity_logits, 1),
                 ];
                 let values = out.values.as_ref().zip(file.values.as_ref()).map(|(d, f)| (d, f, 16));
-                for (device_rows, file_rows, w) in pairs.into_iter().chain(values) {
+                for (device_rows, file_rows, w) in kinds.into_iter().chain(values) {
                     let rows = RowMap::Gather(order.file_to_device());
                     map.record_rows(rec, (device_rows, w, 0), (file_rows, w, 0), rows, n, w)?;
                 }
