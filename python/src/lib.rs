@@ -456,7 +456,8 @@ impl Device {
             attributes: loaded.attributes,
             bounds: loaded.bounds,
         };
-        Ok(Scene { host: Mutex::new(None), info, uploads: Mutex::new(vec![(self.id, Arc::new(loaded.gpu), device)]) })
+        let uploads = Mutex::new(vec![(self.id, Arc::new(loaded.gpu), device)]);
+        Ok(Scene { host: Mutex::new(None), info, uploads, order })
     }
 
     /// Renders every camera of `cameras` into G-buffer channels, stacked:
@@ -992,6 +993,8 @@ struct Scene {
     info: SceneInfo,
     /// (device id, upload, device) for each device that holds it.
     uploads: Mutex<Vec<(u64, Arc<GpuScene>, GpuDevice)>>,
+    /// Where its Gaussians go on each device it is uploaded to.
+    order: SceneOrder,
 }
 
 /// A scene's size and attributes, known without its arrays.
@@ -1003,15 +1006,15 @@ struct SceneInfo {
 }
 
 impl Scene {
-    /// A scene from host arrays.
-    fn from_host(host: HostScene) -> Self {
+    /// A scene from host arrays, arranged as `order` says on each upload.
+    fn from_host(host: HostScene, order: SceneOrder) -> Self {
         let info = SceneInfo {
             count: host.len(),
             sh_degree: host.sh_degree,
             attributes: host.attributes(),
             bounds: host.bounds(),
         };
-        Self { host: Mutex::new(Some(Arc::new(host))), info, uploads: Mutex::new(Vec::new()) }
+        Self { host: Mutex::new(Some(Arc::new(host))), info, uploads: Mutex::new(Vec::new()), order }
     }
 
     /// The host arrays, read back from the device the scene was loaded onto if need be.
@@ -1035,7 +1038,7 @@ impl Scene {
         }
         let host = self.host()?;
         let mut g = GpuScene::upload(device, &host)?;
-        g.arrange(device, SceneOrder::Auto)?;
+        g.arrange(device, self.order)?;
         let g = Arc::new(g);
         lock(&self.uploads).push((id, g.clone(), device.clone()));
         Ok(g)
@@ -1044,11 +1047,14 @@ impl Scene {
 
 #[pymethods]
 impl Scene {
-    /// Reads a scene file: INRIA PLY, compressed PLY, .splat, .spz, SOG or GLB (detected from the content).
+    /// Reads a scene file: INRIA PLY, compressed PLY, .splat, .spz, SOG or GLB (detected from the
+    /// content). `order`: where its Gaussians go on each device, as `Device.load_scene`'s.
     #[staticmethod]
-    fn from_file(py: Python<'_>, path: PathBuf) -> PyResult<Self> {
+    #[pyo3(signature = (path, order = "auto"))]
+    fn from_file(py: Python<'_>, path: PathBuf, order: &str) -> PyResult<Self> {
+        let order = SceneOrder::parse(order).map_err(py_err)?;
         let host = py.detach(|| srug::io::read_scene(&path)).map_err(py_err)?;
-        Ok(Self::from_host(host))
+        Ok(Self::from_host(host, order))
     }
 
     /// Writes the scene in the format its extension names (.ply, .spz, .splat,
@@ -1103,10 +1109,12 @@ impl Scene {
     /// harmonics with K = 1, 4, 9 or 16. Relighting attributes, optional:
     /// `normals` (N, 3), `albedo` (N, 3), `roughness`, `metallic`, `ao`,
     /// `visibility` (N,), activated (in [0, 1], clamped like opacities) unless
-    /// `activated=False` (logits, as srug's PLY stores them).
+    /// `activated=False` (logits, as srug's PLY stores them). `order`: where the
+    /// Gaussians go on each device, as `Device.load_scene`'s ("file" for a scene
+    /// made for one frame, as a training step's).
     #[staticmethod]
     #[pyo3(signature = (means, quats, scales, opacities, sh, activated = true, normals = None, albedo = None,
-                        roughness = None, metallic = None, ao = None, visibility = None))]
+                        roughness = None, metallic = None, ao = None, visibility = None, order = "auto"))]
     #[allow(clippy::too_many_arguments, reason = "the Python keyword arguments of one call")]
     fn from_arrays(
         means: PyReadonlyArrayDyn<'_, f32>,
@@ -1121,6 +1129,7 @@ impl Scene {
         metallic: Option<PyReadonlyArrayDyn<'_, f32>>,
         ao: Option<PyReadonlyArrayDyn<'_, f32>>,
         visibility: Option<PyReadonlyArrayDyn<'_, f32>>,
+        order: &str,
     ) -> PyResult<Self> {
         let (ms, m) = floats(&means, "means")?;
         let n = ms.first().copied().unwrap_or(0);
@@ -1188,7 +1197,7 @@ impl Scene {
             ..HostScene::default()
         };
         host.validate("arrays").map_err(|e| py_err(e.into()))?;
-        Ok(Self::from_host(host))
+        Ok(Self::from_host(host, SceneOrder::parse(order).map_err(py_err)?))
     }
 
     /// The number of Gaussians.
@@ -1400,7 +1409,7 @@ impl Cameras {
 fn demo_city(py: Python<'_>, gaussians: usize, seed: u64, sh_degree: u32) -> PyResult<(Scene, Cameras)> {
     let options = srug::scene::demo::DemoOptions { gaussians, seed, sh_degree };
     let city = py.detach(|| srug::scene::demo::demo_city(&options)).map_err(py_err)?;
-    Ok((Scene::from_host(city.scene), Cameras { cameras: city.cameras }))
+    Ok((Scene::from_host(city.scene, SceneOrder::Auto), Cameras { cameras: city.cameras }))
 }
 
 /// The sun's (azimuth, elevation) in degrees at `time` (ISO 8601 with a zone,

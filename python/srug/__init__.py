@@ -97,9 +97,10 @@ class Scene:
         self._native = native
 
     @staticmethod
-    def from_file(path: PathLike) -> "Scene":
-        """Reads INRIA PLY, compressed PLY, .splat, .spz, SOG or GLB (detected from the content)."""
-        return Scene(_srug.Scene.from_file(os.fspath(path)))
+    def from_file(path: PathLike, order: str = "auto") -> "Scene":
+        """Reads INRIA PLY, compressed PLY, .splat, .spz, SOG or GLB (detected from the content).
+        ``order``: where its Gaussians go on each device, as :meth:`Device.load_scene`'s."""
+        return Scene(_srug.Scene.from_file(os.fspath(path), order))
 
     @staticmethod
     def from_arrays(
@@ -117,6 +118,7 @@ class Scene:
         metallic: Any = None,
         ao: Any = None,
         visibility: Any = None,
+        order: str = "auto",
     ) -> "Scene":
         """A scene from arrays with gsplat's names and meanings.
 
@@ -127,6 +129,8 @@ class Scene:
         (N, 3) RGB in [0, 1] (stored as the SH band 0). Relighting needs ``albedo`` (N, 3); with it
         ``roughness``, ``metallic``, ``ao``, ``visibility`` (N,) and ``normals`` (N, 3) are optional,
         activated (in [0, 1]) unless ``activated=False`` (logits, as srug's PLY stores them).
+        ``order``: where the Gaussians go on each device, as :meth:`Device.load_scene`'s; ``"file"``
+        for a scene made for one frame (a training step's), which the move would not repay.
         """
         m = _float32(means, "means", (None, 3))
         n = m.shape[0]
@@ -157,6 +161,7 @@ class Scene:
                 opt(metallic, "metallic", 1),
                 opt(ao, "ao", 1),
                 opt(visibility, "visibility", 1),
+                order,
             )
         )
 

@@ -105,7 +105,7 @@ class ShadowTest:
 
 class Scene:
     @staticmethod
-    def from_file(path: str) -> Scene: ...
+    def from_file(path: str, order: str = ...) -> Scene: ...
     @staticmethod
     def from_arrays(
         means: np.ndarray,
@@ -120,6 +120,7 @@ class Scene:
         metallic: Optional[np.ndarray] = ...,
         ao: Optional[np.ndarray] = ...,
         visibility: Optional[np.ndarray] = ...,
+        order: str = ...,
     ) -> Scene: ...
     def save(self, path: str, format: Optional[str] = ...) -> None: ...
     def arrays(self) -> Dict[str, np.ndarray]: ...

@@ -47,8 +47,15 @@ class ShadowFunction(torch.autograd.Function):
         camera: "srug.Cameras",
         options: dict,
     ) -> torch.Tensor:
+        # A scene for this step's one frame: kept in the caller's order (moving it would not repay).
         scene = srug.Scene.from_arrays(
-            _numpy(means), _numpy(rotations), _numpy(log_scales), _numpy(opacity_logits), sh=sh, activated=False
+            _numpy(means),
+            _numpy(rotations),
+            _numpy(log_scales),
+            _numpy(opacity_logits),
+            sh=sh,
+            activated=False,
+            order="file",
         )
         test = device.shadow(scene, camera, **options)
         ctx.test = test

@@ -603,9 +603,20 @@ def test_a_scrambled_scene_renders_as_listed_with_ids_in_file_order(dev, city, t
     assert (ref_ids[ref["alpha"] > 0.5] < n).all() and (ref["alpha"] > 0.5).mean() > 0.5
     for name, v in arranged.arrays().items():
         assert np.array_equal(v, a[name][perm]), name
+    # Scenes from arrays and host files take the same choice: the same order, the same bits.
+    listed_arrays = srug.Scene.from_arrays(
+        a["means"][perm], a["quats"][perm], a["log_scales"][perm], a["opacity_logits"][perm], a["sh"][perm],
+        activated=False, order="file", **{k: a[k][perm] for k in names if k in a},
+    )
+    for other, same in ((listed_arrays, ref), (scrambled, out), (srug.Scene.from_file(str(path), order="file"), ref)):
+        got = dev.render(other, few, channels=channels)
+        assert all(np.array_equal(got[k], same[k]) for k in same), "another order than the same choice's"
     with pytest.raises(srug.Error) as e:
         dev.load_scene(str(path), order="hilbert")
     assert "hilbert" in str(e.value)
+    with pytest.raises(srug.Error) as e:
+        srug.Scene.from_file(str(path), order="z-curve")
+    assert "z-curve" in str(e.value)
 
 
 def test_shadow_cull_relights_alike(dev, city):
