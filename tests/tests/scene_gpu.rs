@@ -216,6 +216,9 @@ fn arranging_a_scene_moves_every_attribute_row_along_the_morton_curve() {
     let (scrambled, city) = scrambled_city(5_000);
     assert!(!in_spatial_order(&scrambled.means) && in_spatial_order(&city.means), "the test's premise");
     let mut gpu = GpuScene::upload(&d, &scrambled).unwrap();
+    // The device's sampled test (only the sampled rows read back) is the host's.
+    assert!(!gpu.in_spatial_order(&d).unwrap());
+    assert!(GpuScene::upload(&d, &city).unwrap().in_spatial_order(&d).unwrap());
     assert!(!gpu.arrange(&d, SceneOrder::File).unwrap(), "file order keeps the rows");
     let version = gpu.version();
     assert!(gpu.arrange(&d, SceneOrder::Auto).unwrap(), "a scrambled scene moves");

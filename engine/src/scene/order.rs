@@ -148,22 +148,14 @@ fn median(values: &mut [f32]) -> Option<f32> {
 /// Consecutive pairs [`in_spatial_order`] samples.
 const ORDER_SAMPLES: usize = 4096;
 
-/// Whether the centres, as listed, lie in a spatial order: on a sample of
-/// 4096 places, the median distance between consecutive centres
-/// is under a quarter of the median distance between centres paired at
-/// random (a random order's ratio is about one). Scenes of fewer than 64
-/// Gaussians count as ordered (nothing to gain). Deterministic.
-pub fn in_spatial_order(means: &[[f32; 3]]) -> bool {
-    let n = means.len();
-    if n < 64 {
-        return true;
-    }
+/// Scenes of fewer Gaussians count as in a spatial order (nothing to gain).
+const ORDER_MIN_GAUSSIANS: usize = 64;
+
+/// The rows [`in_spatial_order`] reads for `n` Gaussians (at least
+/// [`ORDER_MIN_GAUSSIANS`]): for each sample a row, the next one, and a partner
+/// drawn at random (SplitMix64 from a fixed seed: the same rows on every run).
+fn order_sample_rows(n: usize) -> Vec<u32> {
     let samples = ORDER_SAMPLES.min(n - 1);
-    let dist = |a: usize, b: usize| {
-        let d = glam::Vec3::from(means[a]).distance(glam::Vec3::from(means[b]));
-        d.is_finite().then_some(d)
-    };
-    // SplitMix64 from a fixed seed: the same partners on every run.
     let mut state = 0x9e37_79b9_7f4a_7c15u64;
     let mut random = || {
         state = state.wrapping_add(0x9e37_79b9_7f4a_7c15);
@@ -172,16 +164,40 @@ pub fn in_spatial_order(means: &[[f32; 3]]) -> bool {
         z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
         z ^ (z >> 31)
     };
-    let (mut next, mut far) = (Vec::with_capacity(samples), Vec::with_capacity(samples));
-    for s in 0..samples {
-        let i = s * (n - 1) / samples;
-        next.extend(dist(i, i + 1));
-        far.extend(dist(i, (random() % n as u64) as usize));
-    }
+    (0..samples)
+        .flat_map(|s| {
+            let i = s * (n - 1) / samples;
+            [i, i + 1, (random() % n as u64) as usize].map(|r| r as u32)
+        })
+        .collect()
+}
+
+/// [`in_spatial_order`]'s test on the centres of [`order_sample_rows`], in that order.
+fn spatial_order_of_samples(points: &[[f32; 3]]) -> bool {
+    let dist = |a: [f32; 3], b: [f32; 3]| {
+        let d = glam::Vec3::from(a).distance(glam::Vec3::from(b));
+        d.is_finite().then_some(d)
+    };
+    let next = points.chunks_exact(3).filter_map(|t| dist(t[0], t[1]));
+    let far = points.chunks_exact(3).filter_map(|t| dist(t[0], t[2]));
+    let (mut next, mut far): (Vec<f32>, Vec<f32>) = (next.collect(), far.collect());
     match (median(&mut next), median(&mut far)) {
         (Some(step), Some(spread)) => step < 0.25 * spread,
         _ => true,
     }
+}
+
+/// Whether the centres, as listed, lie in a spatial order: on a sample of
+/// 4096 places, the median distance between consecutive centres
+/// is under a quarter of the median distance between centres paired at
+/// random (a random order's ratio is about one). Scenes of fewer than 64
+/// Gaussians count as ordered (nothing to gain). Deterministic.
+pub fn in_spatial_order(means: &[[f32; 3]]) -> bool {
+    if means.len() < ORDER_MIN_GAUSSIANS {
+        return true;
+    }
+    let points: Vec<[f32; 3]> = order_sample_rows(means.len()).iter().map(|&r| means[r as usize]).collect();
+    spatial_order_of_samples(&points)
 }
 
 /// Bytes of scratch [`GpuScene::arrange`] may use beyond [`ARRANGE_MIN_WORDS`] a Gaussian.
@@ -363,6 +379,25 @@ impl GpuScene {
         self.arrange_in_blocks(device, order, None)
     }
 
+    /// [`in_spatial_order`] of the scene's centres as they lie on the device,
+    /// reading back only the sampled rows (gathered on the device).
+    pub fn in_spatial_order(&self, device: &Device) -> Result<bool> {
+        let n = self.count;
+        if n < ORDER_MIN_GAUSSIANS {
+            return Ok(true);
+        }
+        rows_u32(n as u64)?;
+        let rows = order_sample_rows(n);
+        let index = device.upload("order sample rows", &rows)?;
+        let count = rows.len() as u64;
+        let points = device.create_filled::<[f32; 3]>("order sample centres", rows.len(), 0x7fc0_0000)?;
+        let kernels = ReorderKernels::new(device)?;
+        device.run(|rec| {
+            kernels.record_rows(rec, (&self.means, 3, 0), (&points, 3, 0), RowMap::Gather(&index), count, 3)
+        })?;
+        Ok(spatial_order_of_samples(&device.read_buffer::<[f32; 3]>(&points)?))
+    }
+
     /// [`GpuScene::arrange`] moving `words` of a row at a time (at least one;
     /// `None`: as many as its scratch budget allows). For tests of the block path.
     #[doc(hidden)]
@@ -373,10 +408,10 @@ impl GpuScene {
         }
         rows_u32(n as u64)?;
         let start = std::time::Instant::now();
-        let means: Vec<[f32; 3]> = device.read_buffer(&self.means)?;
-        if order == SceneOrder::Auto && in_spatial_order(&means[..n]) {
+        if order == SceneOrder::Auto && self.in_spatial_order(device)? {
             return Ok(false);
         }
+        let means: Vec<[f32; 3]> = device.read_buffer(&self.means)?;
         let Some(bounds) = core_bounds(&means[..n], 0.001) else { return Ok(false) };
         let to_file: Vec<u32> = morton_order(&means[..n], &bounds).into_iter().map(|i| i as u32).collect();
         drop(means);
