@@ -145,9 +145,7 @@ impl Device {
         // A freed buffer of this kind and about this size, if one is kept (`BufferPool`).
         let pooled = lock(&shared.pool).take(usage, vk_size);
         if let Some(p) = pooled {
-            let bytes = p.allocation.size();
-            let now = shared.current_bytes.fetch_add(bytes, Ordering::Relaxed) + bytes;
-            shared.peak_bytes.fetch_max(now, Ordering::Relaxed);
+            shared.count_allocated(p.allocation.size());
             return Ok(Buffer {
                 shared: shared.clone(),
                 raw: p.raw,

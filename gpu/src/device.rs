@@ -475,8 +475,10 @@ impl Device {
 
     /// Frees the buffers kept for reuse ([`MemoryUsage::pooled_bytes`]) and
     /// returns how many bytes that released. srug keeps at most an eighth of
-    /// the device's largest device-local heap (256 MiB to 4 GiB) of them and
-    /// frees them itself when an allocation finds no memory.
+    /// the device's largest device-local heap (256 MiB to 4 GiB) of them,
+    /// frees them itself when an allocation finds no memory, and frees some
+    /// before a new allocation would make them and the memory in use together
+    /// exceed the most ever allocated at once.
     pub fn release_pooled_memory(&self) -> u64 {
         self.shared.drain_pool()
     }
@@ -547,6 +549,7 @@ impl Device {
             info: p.info,
             current_bytes: AtomicU64::new(0),
             peak_bytes: AtomicU64::new(0),
+            high_water_bytes: AtomicU64::new(0),
             pool: Mutex::new(BufferPool::new(pool_limit(heap))),
             kernel_cache: Mutex::new(HashMap::new()),
         });

@@ -90,6 +90,9 @@ pub(crate) struct PooledBuffer {
 /// emptied 256 MiB block (all but the last) to the system: the next batch's
 /// buffers were then faulted in and zeroed page by page by the first kernel
 /// writing them. Contents are undefined, as Vulkan's fresh memory is.
+/// What is allocated and pooled together never exceeds the most ever
+/// allocated at once ([`Shared::trim_pool_for`]): the pool saves faults, never
+/// memory beyond what some moment needed live.
 pub(crate) struct BufferPool {
     pub(crate) items: VecDeque<PooledBuffer>,
     pub(crate) bytes: u64,
@@ -123,7 +126,30 @@ impl BufferPool {
             .filter(|(_, b)| b.key.usage == usage && (vk_size..=limit).contains(&b.key.vk_size))
             .min_by_key(|(_, b)| b.key.vk_size)
             .map(|(i, _)| i)?;
-        let item = self.items.remove(best)?;
+        self.remove(best)
+    }
+
+    /// Takes out buffers to free so that `excess` bytes fewer are kept:
+    /// the smallest one that covers the excess alone, else the largest, and
+    /// again, so a small overshoot frees a small buffer rather than the
+    /// large one a repeated frame is about to take again.
+    pub(crate) fn evict(&mut self, mut excess: u64) -> Vec<PooledBuffer> {
+        let mut evicted = Vec::new();
+        while excess > 0 {
+            let covering = self.items.iter().enumerate().filter(|(_, b)| b.allocation.size() >= excess);
+            let pick = covering
+                .min_by_key(|(_, b)| b.allocation.size())
+                .or_else(|| self.items.iter().enumerate().max_by_key(|(_, b)| b.allocation.size()))
+                .map(|(i, _)| i);
+            let Some(item) = pick.and_then(|i| self.remove(i)) else { break };
+            excess = excess.saturating_sub(item.allocation.size());
+            evicted.push(item);
+        }
+        evicted
+    }
+
+    fn remove(&mut self, index: usize) -> Option<PooledBuffer> {
+        let item = self.items.remove(index)?;
         self.bytes -= item.allocation.size();
         Some(item)
     }
@@ -159,6 +185,10 @@ pub(crate) struct Shared {
     pub(crate) info: DeviceInfo,
     pub(crate) current_bytes: AtomicU64,
     pub(crate) peak_bytes: AtomicU64,
+    /// Most bytes allocated at once since the device was made (never reset,
+    /// unlike `peak_bytes`): an allocation past it empties the pool first
+    /// ([`Shared::trim_pool_for`]).
+    pub(crate) high_water_bytes: AtomicU64,
     /// Freed buffers kept for reuse.
     pub(crate) pool: Mutex<BufferPool>,
     /// Every kernel built through `Device::kernel`, by what makes it that
@@ -207,6 +237,8 @@ impl Shared {
             linear,
             allocation_scheme: AllocationScheme::GpuAllocatorManaged,
         };
+        self.trim_pool_for(requirements.size);
+        log::debug!("FRESHTMP {name} {}", requirements.size);
         let mut result = lock(&self.allocator).allocate(&desc);
         // Out of memory with freed buffers still kept: free them and try once more.
         if result.is_err() && self.drain_pool() > 0 {
@@ -228,9 +260,35 @@ impl Shared {
             return Err(vk_error(bind_call)(e));
         }
         let bytes = allocation.size();
+        self.count_allocated(bytes);
+        Ok(allocation)
+    }
+
+    /// Counts `bytes` more allocated (fresh or taken from the pool) in the
+    /// current use, its peak and the high-water mark.
+    pub(crate) fn count_allocated(&self, bytes: u64) {
         let now = self.current_bytes.fetch_add(bytes, Ordering::Relaxed) + bytes;
         self.peak_bytes.fetch_max(now, Ordering::Relaxed);
-        Ok(allocation)
+        self.high_water_bytes.fetch_max(now, Ordering::Relaxed);
+    }
+
+    /// Before `bytes` are freshly allocated: frees pooled buffers until
+    /// what is allocated and pooled stays within the most ever allocated at
+    /// once (or within the new total, when that is a new high). So keeping
+    /// freed buffers never holds more memory than one moment needed live: a
+    /// one-off buffer (a scene's reorder scratch, a load's staging) pooled
+    /// before a frame is freed when the frame needs more, not held beside it.
+    pub(crate) fn trim_pool_for(&self, bytes: u64) {
+        let after = self.current_bytes.load(Ordering::Relaxed).saturating_add(bytes);
+        let ceiling = self.high_water_bytes.load(Ordering::Relaxed).max(after);
+        let evicted = {
+            let mut pool = lock(&self.pool);
+            let excess = (after.saturating_add(pool.bytes)).saturating_sub(ceiling);
+            pool.evict(excess)
+        };
+        for old in evicted {
+            self.free_buffer(old.raw, old.allocation);
+        }
     }
 
     /// Destroys a garbage item now. The caller guarantees the GPU is done with it.

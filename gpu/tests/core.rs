@@ -8,8 +8,9 @@
 use srug_gpu::ash::vk;
 use srug_gpu::selftest::{self, affine_cpu, affine_kernel, AffineAddressedPush, AffinePush, AFFINE_BINDINGS};
 use srug_gpu::{
-    self as gpu, full_subgroup_flags, kernels, specialized_workgroup_size, Binding, BindingKind, Device, DeviceOptions,
-    DeviceSelection, GpuError as Error, Grid, Kernel, KernelDecl, MemoryKind, SpecValue, TexelFormat, Texels,
+    self as gpu, full_subgroup_flags, kernels, specialized_workgroup_size, Binding, BindingKind, Buffer, Device,
+    DeviceOptions, DeviceSelection, GpuError as Error, Grid, Kernel, KernelDecl, MemoryKind, SpecValue, TexelFormat,
+    Texels,
 };
 
 /// A device with validation on (device choice from `SRUG_DEVICE`, else automatic).
@@ -360,6 +361,9 @@ fn memory_accounting_and_deferred_destruction() {
 fn freed_buffers_are_pooled_and_taken_by_the_next_of_their_kind_and_size() {
     let d = device();
     d.wait_idle().unwrap();
+    // A high-water mark above everything below, so no buffer here is freed to stay under it.
+    drop(d.create_buffer("high water", 64 << 20, MemoryKind::Storage).unwrap());
+    d.wait_idle().unwrap();
     d.release_pooled_memory();
     let n = 1usize << 20;
     drop(d.create_filled::<f32>("first", n, NAN).unwrap());
@@ -406,6 +410,59 @@ fn freed_buffers_are_pooled_and_taken_by_the_next_of_their_kind_and_size() {
     let released = d.release_pooled_memory();
     assert!(released >= kept, "{released} of {kept} bytes released");
     assert_eq!(d.memory_usage().pooled_bytes, 0);
+    assert_no_validation_messages(&d);
+}
+
+/// Size of a pooled buffer as `MemoryUsage::pooled_bytes` counts it.
+fn pooled_after_dropping(d: &Device, buffer: Buffer) -> u64 {
+    let before = d.memory_usage().pooled_bytes;
+    drop(buffer);
+    d.wait_idle().unwrap();
+    d.memory_usage().pooled_bytes - before
+}
+
+#[test]
+fn the_pool_never_holds_memory_past_the_most_ever_in_use() {
+    let d = device();
+    d.wait_idle().unwrap();
+    d.release_pooled_memory();
+    let mib = 1u64 << 20;
+    let storage = |name: &str, bytes: u64| d.create_buffer(name, bytes, MemoryKind::Storage).unwrap();
+    let held = |d: &Device| {
+        let m = d.memory_usage();
+        m.current_bytes + m.pooled_bytes
+    };
+
+    // Pooled, then more than ever before is asked for in another size: the
+    // pooled buffer goes first (it and the new one were never both needed).
+    let first = storage("first", 4 * mib);
+    let base = d.memory_usage().current_bytes - 4 * mib;
+    assert!(pooled_after_dropping(&d, first) >= 4 * mib);
+    let larger = storage("larger", 8 * mib);
+    assert_eq!(d.memory_usage().pooled_bytes, 0, "the 4 MiB buffer is freed, not held beside the 8 MiB one");
+    assert!(held(&d) <= base + 9 * mib, "{} MiB held", (held(&d) - base) / mib);
+
+    // Under the high-water mark (8 MiB live once, now 2 MiB of 3 MiB pooled)
+    // a fresh buffer that would overshoot it frees the smallest pooled buffer
+    // that covers the overshoot, not the large one a repeated frame takes again.
+    drop(larger);
+    d.wait_idle().unwrap();
+    d.release_pooled_memory();
+    let (big, small, live) = (storage("big", 6 * mib), storage("small", mib), storage("live", mib));
+    let kept_big = pooled_after_dropping(&d, big);
+    let kept_small = pooled_after_dropping(&d, small);
+    assert!(kept_big >= 6 * mib && kept_small >= mib);
+    let high = held(&d);
+    // Half a MiB fits no pooled buffer (at most a quarter larger): a fresh one, 0.5 MiB over.
+    let fresh = storage("fresh", mib / 2);
+    assert_eq!(d.memory_usage().pooled_bytes, kept_big, "the 1 MiB buffer went, the 6 MiB one stays");
+    assert!(held(&d) <= high, "{} bytes held against a high-water mark of {high}", held(&d));
+
+    // The next of the large one's size takes it.
+    let again = storage("again", 6 * mib);
+    assert_eq!(d.memory_usage().pooled_bytes, 0, "taken from the pool");
+    drop((again, fresh, live));
+    d.wait_idle().unwrap();
     assert_no_validation_messages(&d);
 }
 
