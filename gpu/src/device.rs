@@ -476,9 +476,8 @@ impl Device {
     /// Frees the buffers kept for reuse ([`MemoryUsage::pooled_bytes`]) and
     /// returns how many bytes that released. srug keeps at most an eighth of
     /// the device's largest device-local heap (256 MiB to 4 GiB) of them,
-    /// frees them itself when an allocation finds no memory, and frees some
-    /// before a new allocation would make them and the memory in use together
-    /// exceed the most ever allocated at once.
+    /// frees them itself when an allocation finds no memory or puts more in
+    /// use than ever before.
     pub fn release_pooled_memory(&self) -> u64 {
         self.shared.drain_pool()
     }

@@ -103,8 +103,8 @@ pub struct MemoryUsage {
     pub peak_bytes: u64,
     /// Bytes of freed buffers kept for reuse by later ones of the same kind
     /// and about the same size (at most an eighth of the largest device-local
-    /// heap, 256 MiB to 4 GiB, and never so many that they and `current_bytes`
-    /// together exceed the most ever allocated at once; not in `current_bytes`;
+    /// heap, 256 MiB to 4 GiB; all freed before an allocation that puts more
+    /// in use than ever before; not in `current_bytes`;
     /// [`Device::release_pooled_memory`](crate::Device::release_pooled_memory) frees them).
     pub pooled_bytes: u64,
 }

@@ -90,9 +90,8 @@ pub(crate) struct PooledBuffer {
 /// emptied 256 MiB block (all but the last) to the system: the next batch's
 /// buffers were then faulted in and zeroed page by page by the first kernel
 /// writing them. Contents are undefined, as Vulkan's fresh memory is.
-/// What is allocated and pooled together never exceeds the most ever
-/// allocated at once ([`Shared::trim_pool_for`]): the pool saves faults, never
-/// memory beyond what some moment needed live.
+/// An allocation that puts more in use than ever before empties it first
+/// ([`Shared::trim_pool_for`]).
 pub(crate) struct BufferPool {
     pub(crate) items: VecDeque<PooledBuffer>,
     pub(crate) bytes: u64,
@@ -127,25 +126,6 @@ impl BufferPool {
             .min_by_key(|(_, b)| b.key.vk_size)
             .map(|(i, _)| i)?;
         self.remove(best)
-    }
-
-    /// Takes out buffers to free so that `excess` bytes fewer are kept:
-    /// the smallest one that covers the excess alone, else the largest, and
-    /// again, so a small overshoot frees a small buffer rather than the
-    /// large one a repeated frame is about to take again.
-    pub(crate) fn evict(&mut self, mut excess: u64) -> Vec<PooledBuffer> {
-        let mut evicted = Vec::new();
-        while excess > 0 {
-            let covering = self.items.iter().enumerate().filter(|(_, b)| b.allocation.size() >= excess);
-            let pick = covering
-                .min_by_key(|(_, b)| b.allocation.size())
-                .or_else(|| self.items.iter().enumerate().max_by_key(|(_, b)| b.allocation.size()))
-                .map(|(i, _)| i);
-            let Some(item) = pick.and_then(|i| self.remove(i)) else { break };
-            excess = excess.saturating_sub(item.allocation.size());
-            evicted.push(item);
-        }
-        evicted
     }
 
     fn remove(&mut self, index: usize) -> Option<PooledBuffer> {
@@ -238,7 +218,6 @@ impl Shared {
             allocation_scheme: AllocationScheme::GpuAllocatorManaged,
         };
         self.trim_pool_for(requirements.size);
-        log::debug!("FRESHTMP {name} {}", requirements.size);
         let mut result = lock(&self.allocator).allocate(&desc);
         // Out of memory with freed buffers still kept: free them and try once more.
         if result.is_err() && self.drain_pool() > 0 {
@@ -272,22 +251,16 @@ impl Shared {
         self.high_water_bytes.fetch_max(now, Ordering::Relaxed);
     }
 
-    /// Before `bytes` are freshly allocated: frees pooled buffers until
-    /// what is allocated and pooled stays within the most ever allocated at
-    /// once (or within the new total, when that is a new high). So keeping
-    /// freed buffers never holds more memory than one moment needed live: a
-    /// one-off buffer (a scene's reorder scratch, a load's staging) pooled
-    /// before a frame is freed when the frame needs more, not held beside it.
+    /// Before `bytes` are freshly allocated: when that puts more memory in
+    /// use than was ever allocated at once, frees every pooled buffer first.
+    /// The pool keeps what work of the sizes seen so far will take again;
+    /// once the work grows past every earlier moment, what it holds (a
+    /// scene's reorder scratch, a load's staging, before the first frame)
+    /// would only sit beside the larger work.
     pub(crate) fn trim_pool_for(&self, bytes: u64) {
         let after = self.current_bytes.load(Ordering::Relaxed).saturating_add(bytes);
-        let ceiling = self.high_water_bytes.load(Ordering::Relaxed).max(after);
-        let evicted = {
-            let mut pool = lock(&self.pool);
-            let excess = (after.saturating_add(pool.bytes)).saturating_sub(ceiling);
-            pool.evict(excess)
-        };
-        for old in evicted {
-            self.free_buffer(old.raw, old.allocation);
+        if after > self.high_water_bytes.load(Ordering::Relaxed) && lock(&self.pool).bytes > 0 {
+            self.drain_pool();
         }
     }
 

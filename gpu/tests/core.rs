@@ -422,47 +422,35 @@ fn pooled_after_dropping(d: &Device, buffer: Buffer) -> u64 {
 }
 
 #[test]
-fn the_pool_never_holds_memory_past_the_most_ever_in_use() {
+fn an_allocation_past_the_most_ever_in_use_empties_the_pool_first() {
     let d = device();
     d.wait_idle().unwrap();
     d.release_pooled_memory();
     let mib = 1u64 << 20;
     let storage = |name: &str, bytes: u64| d.create_buffer(name, bytes, MemoryKind::Storage).unwrap();
-    let held = |d: &Device| {
-        let m = d.memory_usage();
-        m.current_bytes + m.pooled_bytes
-    };
 
-    // Pooled, then more than ever before is asked for in another size: the
-    // pooled buffer goes first (it and the new one were never both needed).
-    let first = storage("first", 4 * mib);
-    let base = d.memory_usage().current_bytes - 4 * mib;
-    assert!(pooled_after_dropping(&d, first) >= 4 * mib);
-    let larger = storage("larger", 8 * mib);
-    assert_eq!(d.memory_usage().pooled_bytes, 0, "the 4 MiB buffer is freed, not held beside the 8 MiB one");
-    assert!(held(&d) <= base + 9 * mib, "{} MiB held", (held(&d) - base) / mib);
-
-    // Under the high-water mark (8 MiB live once, now 2 MiB of 3 MiB pooled)
-    // a fresh buffer that would overshoot it frees the smallest pooled buffer
-    // that covers the overshoot, not the large one a repeated frame takes again.
-    drop(larger);
-    d.wait_idle().unwrap();
-    d.release_pooled_memory();
-    let (big, small, live) = (storage("big", 6 * mib), storage("small", mib), storage("live", mib));
+    // Below the most ever in use (8 MiB at once), buffers of sizes used in
+    // turn stay pooled beside each other: each is taken again.
+    let (big, small) = (storage("big", 6 * mib), storage("small", 2 * mib));
     let kept_big = pooled_after_dropping(&d, big);
     let kept_small = pooled_after_dropping(&d, small);
-    assert!(kept_big >= 6 * mib && kept_small >= mib);
-    let high = held(&d);
-    // Half a MiB fits no pooled buffer (at most a quarter larger): a fresh one, 0.5 MiB over.
-    let fresh = storage("fresh", mib / 2);
-    assert_eq!(d.memory_usage().pooled_bytes, kept_big, "the 1 MiB buffer went, the 6 MiB one stays");
-    assert!(held(&d) <= high, "{} bytes held against a high-water mark of {high}", held(&d));
-
-    // The next of the large one's size takes it.
+    assert!(kept_big >= 6 * mib && kept_small >= 2 * mib);
+    let other = storage("other", mib / 2);
+    assert_eq!(d.memory_usage().pooled_bytes, kept_big + kept_small, "under the high-water mark both stay");
     let again = storage("again", 6 * mib);
-    assert_eq!(d.memory_usage().pooled_bytes, 0, "taken from the pool");
-    drop((again, fresh, live));
+    assert_eq!(d.memory_usage().pooled_bytes, kept_small, "the 6 MiB one is taken again");
+    drop(again);
     d.wait_idle().unwrap();
+
+    // More than ever in use at once (0.5 + 9 MiB): what is pooled is freed
+    // first, not held beside the larger work.
+    let larger = storage("larger", 9 * mib);
+    assert_eq!(d.memory_usage().pooled_bytes, 0, "the pool is emptied before the new high");
+    let m = d.memory_usage();
+    assert!(m.current_bytes >= 9 * mib + mib / 2, "{m:?}");
+    drop((larger, other));
+    d.wait_idle().unwrap();
+    assert!(d.memory_usage().pooled_bytes >= 9 * mib, "freed buffers are pooled again");
     assert_no_validation_messages(&d);
 }
 

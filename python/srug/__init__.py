@@ -346,8 +346,8 @@ class Device:
         """GPU memory srug holds: ``{"current_bytes": ..., "peak_bytes": ..., "pooled_bytes": ...}``.
 
         ``pooled_bytes``: freed buffers kept (up to an eighth of the device's memory,
-        256 MiB to 4 GiB, and never more than, with ``current_bytes``, the most ever
-        allocated at once) for reuse by later ones of
+        256 MiB to 4 GiB, all freed when an allocation puts more in use than ever
+        before) for reuse by later ones of
         their kind and about their size; not counted in ``current_bytes``.
         """
         return self._native.memory()
