@@ -125,11 +125,7 @@ impl BufferPool {
             .filter(|(_, b)| b.key.usage == usage && (vk_size..=limit).contains(&b.key.vk_size))
             .min_by_key(|(_, b)| b.key.vk_size)
             .map(|(i, _)| i)?;
-        self.remove(best)
-    }
-
-    fn remove(&mut self, index: usize) -> Option<PooledBuffer> {
-        let item = self.items.remove(index)?;
+        let item = self.items.remove(best)?;
         self.bytes -= item.allocation.size();
         Some(item)
     }

@@ -413,7 +413,7 @@ fn freed_buffers_are_pooled_and_taken_by_the_next_of_their_kind_and_size() {
     assert_no_validation_messages(&d);
 }
 
-/// Size of a pooled buffer as `MemoryUsage::pooled_bytes` counts it.
+/// Bytes the pool gains when `buffer` is dropped (its size as `MemoryUsage::pooled_bytes` counts it).
 fn pooled_after_dropping(d: &Device, buffer: Buffer) -> u64 {
     let before = d.memory_usage().pooled_bytes;
     drop(buffer);
