@@ -344,9 +344,11 @@ fn bench_splat_prints_its_tables() {
     // The demo city shuffled, as a trained scene's file holds its Gaussians: the same pairs.
     let quick = ["bench", "splat", "--gaussians", "2000", "--sizes", "64x32", "--repeats", "1", "--sort-keys", "5000"];
     let o = srug(&[&quick[..], &["--floor-pairs", "6000"]].concat());
-    let s = srug(&[&quick[..], &["--floor-pairs", "6000", "--order", "shuffled"]].concat());
+    let s = srug(&[&quick[..], &["--floor-pairs", "6000", "--order", "shuffled", "--warm-up-ms", "50"]].concat());
     let (t, ts) = (text(&o), text(&s));
     assert!(o.status.success() && s.status.success() && ts.contains("its Gaussians shuffled"), "{ts}");
+    // No warm-up on a CPU device unless asked for; asked for, the bench says so.
+    assert!(!t.contains("warm-up") && ts.contains("warm-up: 50 ms of untimed frames"), "{t}\n{ts}");
     let pairs = |t: &str| -> String {
         let cells = |l: &str| l.split('|').map(|c| c.trim().to_string()).collect::<Vec<_>>();
         let header = t.lines().find(|l| l.starts_with("| Gaussians |")).map(cells).unwrap_or_default();

@@ -8,9 +8,10 @@
 # the repository is linked there. TEST_LIMIT: seconds for all tests (300);
 # TESTS: an extended regex picking test binaries by name (all); C_PROGRAMS=0 leaves
 # the C programs out; BENCHES: which `srug bench` commands run after them (embed batch splat unet);
-# COMMANDS: `srug` argument lists separated by `;`, run last, each into $OUT/command_N.txt
+# COMMANDS: `srug` argument lists separated by `;`, run last, each into $OUT/commands.txt
 # with its start and end times (e.g. COMMANDS='bench splat --sort-digits 4; bench splat
-# --sort-digits block'); $OUT/dmon.txt logs the GPU's clocks each second (timestamps to match).
+# --sort-digits block'); $OUT/clocks.csv logs the GPU's SM clock every 0.1 s (timestamps to
+# match). At most 7 files land in $OUT: the device tool brings back 8.
 set -u
 root=$(pwd)
 b=/tmp/srug-device
@@ -48,11 +49,12 @@ sanitizers=(ASAN_OPTIONS=detect_leaks=1:halt_on_error=1:abort_on_error=0
   echo "== composite"; timeout 60 "$b/c/composite_plain" /tmp/composite.ppm; echo "rc=$?"
   echo "== composite (ASan)"; env "${sanitizers[@]}" timeout 90 "$b/c/composite_asan" /tmp/composite.ppm; echo "rc=$?"
 } > "$out/c_programs.txt" 2>&1
-# The GPU's clocks, power and memory use once a second for the whole run (nvidia-smi dmon):
-# memory-bound benchmark rows have differed 3-5x between leases of one kind.
+# The GPU's clocks, load and power every 0.1 s for the whole run: the SM clock falls to a
+# fifth within seconds of the GPU idling (docs/bench/gpu.md, "The GPU's clock").
 dmon=
 if command -v nvidia-smi > /dev/null; then
-  nvidia-smi dmon -s pucm -o T -d 1 > "$out/dmon.txt" 2>&1 &
+  nvidia-smi --query-gpu=timestamp,clocks.sm,clocks.mem,utilization.gpu,power.draw,memory.used \
+    --format=csv -lms 100 > "$out/clocks.csv" 2>&1 &
   dmon=$!
 fi
 export SRUG_VALIDATION=1
@@ -61,7 +63,9 @@ export SRUG_VALIDATION=1
 { cat /tmp/srug_rcs; grep -h "^test result\|FAILED\|panicked" /tmp/srug_t_*.log; } > "$out/tests_summary.txt"
 for f in /tmp/srug_t_*.log; do echo "######## $f"; cat "$f"; done > "$out/tests.log"
 unset SRUG_VALIDATION
-for bench in ${BENCHES-embed batch splat unet}; do timeout 90 "$b/srug" bench "$bench" > "$out/bench_$bench.txt" 2>&1; done
+for bench in ${BENCHES-embed batch splat unet}; do
+  { date +%T; echo "\$ srug bench $bench"; timeout 90 "$b/srug" bench "$bench"; echo "rc=$?"; date +%T; } >> "$out/benches.txt" 2>&1
+done
 IFS=';' read -ra commands <<< "${COMMANDS-}"
 n=0
 for c in "${commands[@]}"; do
@@ -69,6 +73,6 @@ for c in "${commands[@]}"; do
   n=$((n + 1))
   # Word splitting of $c is the point: one srug argument list each.
   # shellcheck disable=SC2086
-  { date +%T; echo "\$ srug ${c# }"; timeout 300 "$b/srug" $c; echo "rc=$?"; date +%T; } > "$out/command_$n.txt" 2>&1
+  { echo "######## command $n"; date +%T; echo "\$ srug ${c# }"; timeout 300 "$b/srug" $c; echo "rc=$?"; date +%T; } >> "$out/commands.txt" 2>&1
 done
 [ -z "$dmon" ] || kill "$dmon" 2> /dev/null

@@ -14,7 +14,7 @@ pub mod shadow;
 pub mod trade;
 pub mod unet;
 
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 use bytemuck::{Pod, Zeroable};
 
@@ -25,6 +25,39 @@ use srug::scene::activate::GpuScene;
 use srug::scene::demo::{demo_city, DemoOptions};
 use srug::scene::order::SceneOrder;
 use srug::splat::{BlendVariant, NormalSource, SplatSettings, Splatter, TileBounds};
+
+/// Untimed frames before a bench's timed ones (`--warm-up-ms`). A GPU idles
+/// at a low clock while the host generates or loads a scene and raises it
+/// only once it has been busy for a while, so a few timed frames right after
+/// would be measured at the idle clock (one H200 lease read the same 3M-Gaussian
+/// frame at 1.7 ms and at 7.7 ms). CPU devices run at the host's speed at once.
+#[derive(clap::Args, Clone, Copy, Debug, Default)]
+pub struct WarmUpArgs {
+    /// Render untimed frames for at least this many milliseconds before each row's timed
+    /// ones (default: 1000 on GPUs, whose clocks rise only under load; 0 on CPU devices).
+    #[arg(long, value_name = "MS")]
+    pub warm_up_ms: Option<u64>,
+}
+
+impl WarmUpArgs {
+    /// The warm-up on `device`: as given, else 1 s on GPUs and none on CPU devices.
+    pub fn duration(&self, device: &Device) -> Duration {
+        let cpu = device.info().device_type == srug::gpu::ash::vk::PhysicalDeviceType::CPU;
+        Duration::from_millis(self.warm_up_ms.unwrap_or(if cpu { 0 } else { 1000 }))
+    }
+}
+
+/// Runs `frame` (untimed) until `duration` has passed, not at all for zero;
+/// returns how many frames ran.
+pub fn warm_up(duration: Duration, mut frame: impl FnMut() -> Result<()>) -> Result<usize> {
+    let start = Instant::now();
+    let mut frames = 0;
+    while start.elapsed() < duration {
+        frame()?;
+        frames += 1;
+    }
+    Ok(frames)
+}
 
 /// Push constants of `bench_fma.comp` (keep in sync with its `Push` block).
 #[repr(C)]
@@ -264,6 +297,8 @@ pub struct SplatBenchOptions {
     pub order: CityOrder,
     /// Where they go on the device ([`GpuScene::arrange`]).
     pub scene_order: SceneOrder,
+    /// Untimed frames before each row's timed ones ([`warm_up`]).
+    pub warm_up: Duration,
 }
 
 /// The bench city on the device, arranged as `options` say (reported through `progress`).
@@ -364,7 +399,8 @@ pub fn splat_bench(
     options: &SplatBenchOptions,
     mut progress: impl FnMut(&str),
 ) -> Result<Vec<SplatBenchRow>> {
-    let SplatBenchOptions { repeats, sh_degree, choices, tile, tile_bounds, sort_kernels, .. } = *options;
+    let SplatBenchOptions { repeats, sh_degree, choices, tile, tile_bounds, sort_kernels, warm_up: warm, .. } =
+        *options;
     let settings = SplatSettings { tile, tile_bounds, ..SplatSettings::default() };
     let mut rows = Vec::new();
     let mut splatter = Splatter::new(device)?;
@@ -376,6 +412,7 @@ pub fn splat_bench(
         for &(w, h) in sizes {
             progress(&format!("{n} Gaussians at {w}x{h}"));
             let cam = city.cameras[0].resized(w, h);
+            warm_up(warm, || splatter.render(&scene, &cam, &settings).map(drop))?;
             let mut timings = Vec::new();
             let mut last = None;
             for _ in 0..repeats.max(1) {
@@ -503,10 +540,16 @@ pub fn alternate_bench(
         for &(w, h) in sizes {
             progress(&format!("{n} Gaussians at {w}x{h}"));
             let cam = city.cameras[0].resized(w, h);
-            // One warm-up frame each: the first frame reserves scratch memory and builds kernels.
+            // One warm-up frame each (the first frame reserves scratch memory and builds
+            // kernels), then the device's warm-up, the values in turn.
             for splatter in &mut splatters {
                 splatter.render(&scene, &cam, &settings)?;
             }
+            let mut next = 0;
+            warm_up(options.warm_up, || {
+                next = (next + 1) % splatters.len();
+                splatters[next].render(&scene, &cam, &settings).map(drop)
+            })?;
             let mut timings: Vec<Vec<Timings>> = vec![Vec::new(); choices.len()];
             for round in 0..options.repeats.max(1) {
                 let order: Vec<usize> =
@@ -638,4 +681,41 @@ pub fn sort_bench(
         cpu_keys_per_second: median(cpu),
         kernels: stage_medians(&kernel_timings, is_sort_kernel),
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use std::time::{Duration, Instant};
+
+    use super::warm_up;
+
+    #[test]
+    fn warm_up_renders_until_its_time_has_passed_and_stops_at_an_error() {
+        let mut frames = 0;
+        let ran = warm_up(Duration::ZERO, || {
+            frames += 1;
+            Ok(())
+        });
+        assert_eq!((ran.ok(), frames), (Some(0), 0), "no frame for no warm-up");
+
+        let start = Instant::now();
+        let ran = warm_up(Duration::from_millis(30), || {
+            frames += 1;
+            std::thread::sleep(Duration::from_millis(4));
+            Ok(())
+        });
+        assert!(start.elapsed() >= Duration::from_millis(30), "stopped before its time");
+        assert_eq!(ran.ok(), Some(frames));
+        assert!(frames >= 1);
+
+        let mut calls = 0;
+        let ran = warm_up(Duration::from_secs(60), || {
+            calls += 1;
+            if calls == 2 {
+                return Err(srug::Error::invalid("frame", "failed"));
+            }
+            Ok(())
+        });
+        assert!(ran.is_err() && calls == 2, "the first error ends the warm-up: {calls} calls");
+    }
 }

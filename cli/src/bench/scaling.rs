@@ -68,6 +68,8 @@ pub struct ScalingSetup {
     pub gaussians: usize,
     /// Frames per point.
     pub repeats: usize,
+    /// Untimed frames before each point's timed ones ([`super::warm_up`]).
+    pub warm_up: std::time::Duration,
 }
 
 /// The two sweeps: by Gaussian count, then by image size.
@@ -94,6 +96,9 @@ pub fn scaling_bench(
             let camera = city.cameras[0].resized(w, h);
             let (mut seconds, mut groups) = (Vec::new(), vec![Vec::new(); STAGE_GROUPS.len()]);
             let (mut frame_bytes, mut pairs) = (0u64, 0u64);
+            super::warm_up(setup.warm_up, || {
+                relighter.render(&gpu, &attributes, &bounds, &camera, Some(&sun), &env, &brdf, &settings).map(drop)
+            })?;
             for r in 0..setup.repeats.max(1) {
                 progress(&format!("{n} Gaussians at {w}x{h} ({}/{})", r + 1, setup.repeats.max(1)));
                 device.reset_peak_memory();

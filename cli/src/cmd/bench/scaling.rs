@@ -24,22 +24,29 @@ pub(crate) struct ScalingBenchArgs {
     /// Frames per point (medians reported).
     #[arg(long, default_value_t = 3)]
     repeats: usize,
+    #[command(flatten)]
+    warm_up: crate::bench::WarmUpArgs,
 }
 
 impl ScalingBenchArgs {
     /// Runs `srug bench scaling`.
     pub(crate) fn run(&self, device_args: &DeviceArgs) -> Result<()> {
-        let &Self { ref gaussians, size, ref sizes, pixel_sweep_gaussians, repeats } = self;
+        let &Self { ref gaussians, size, ref sizes, pixel_sweep_gaussians, repeats, warm_up } = self;
+        let device = device_args.open()?;
         let setup = ScalingSetup {
             counts: gaussians.clone(),
             size: size.pair(),
             sizes: sizes.iter().map(|s| s.pair()).collect(),
             gaussians: pixel_sweep_gaussians,
             repeats,
+            warm_up: warm_up.duration(&device),
         };
-        let device = device_args.open()?;
         let info = device.info();
-        println!("{} ({}): relit demo frames, balanced preset, no network\n", info.name, info.driver);
+        println!("{} ({}): relit demo frames, balanced preset, no network", info.name, info.driver);
+        if !setup.warm_up.is_zero() {
+            println!("warm-up: {} ms of untimed frames before each row's timed ones", setup.warm_up.as_millis());
+        }
+        println!();
         let bar = spinner("benchmarking");
         let result = scaling_bench(&device, &setup, |m| bar.set_message(m.to_string()));
         bar.finish_and_clear();

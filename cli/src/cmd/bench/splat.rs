@@ -60,6 +60,8 @@ pub(crate) struct SplatBenchArgs {
     /// a Morton curve when they are listed in no spatial order, as --order shuffled lists them).
     #[arg(long, default_value = "auto", value_parser = SceneOrder::parse)]
     scene_order: SceneOrder,
+    #[command(flatten)]
+    warm_up: bench::WarmUpArgs,
 }
 
 /// Wraps the splatter choices for parsing one of them alone.
@@ -106,6 +108,7 @@ impl SplatBenchArgs {
             ref alternate,
             order,
             scene_order,
+            warm_up,
         } = self;
         check_tile(tile)?;
         if sh_degree > 3 {
@@ -117,6 +120,10 @@ impl SplatBenchArgs {
         let info = device.info();
         let peak = bench::fma_peak_gflops(&device, 5)?;
         println!("device: {} ({}), measured FMA peak {peak:.1} GFLOP/s", info.name, info.driver);
+        let warm = warm_up.duration(&device);
+        if !warm.is_zero() {
+            println!("warm-up: {} ms of untimed frames before each row's timed ones", warm.as_millis());
+        }
         println!(
             "scene: the demo city (seed 7) at SH degree {sh_degree}{}, its first street camera\n",
             match order {
@@ -134,6 +141,7 @@ impl SplatBenchArgs {
             sort_kernels,
             order,
             scene_order,
+            warm_up: warm_up.duration(&device),
         };
         if let Some(spec) = alternate {
             let variants = alternatives(spec, &choices)?;
