@@ -603,9 +603,9 @@ pub struct ShadeArgs {
     /// Maps with `--shadow-fit cascades`, 2 to 4, each `--shadow-resolution` texels [default: 3].
     #[arg(long)]
     pub shadow_cascades: Option<u32>,
-    /// Splat the shadow map only where the frame's receivers look it up (the same
-    /// shadows, for less; a map per camera, so not reused across cameras) [default:
-    /// on for one camera, off for several, which share one map per sun].
+    /// Splat the shadow map only where the frames' receivers look it up (the same
+    /// shadows, for less; one map per batch of cameras, so not reused across batches)
+    /// [default: on for one camera, off for several, which share one map per sun].
     #[arg(long)]
     pub shadow_cull: bool,
     /// Sigmoid sharpness k per metre [preset: 50].

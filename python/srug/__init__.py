@@ -499,8 +499,9 @@ class Device:
         premultiplied radiance, so ``image + (1 - alpha) * yours`` composites
         it over your frame. ``return_alpha``: return (image, alpha), alpha
         (N, H, W) the splats' coverage. ``shadow_cull``: splat the shadow map
-        only where each frame looks it up (the same shadows, for less when the
-        sun or the cameras change from call to call; a map per camera).
+        only where the call's frames look it up (the same shadows, for less
+        when the sun or the cameras change from call to call, and less memory
+        for large scenes; one map for the call's cameras, not kept for others).
         ``shadow_resolution`` (texels), ``shadow_k`` (sigmoid sharpness per
         metre), ``shadow_bias`` (metres), ``shadow_slope_bias`` and
         ``shadow_normal_offset`` (map texels), ``receiver_depth`` ("median" or

@@ -4,7 +4,8 @@
 //! bit, with the bias offsets on and off and for several cameras at once;
 //! every texel of the culled map is the whole map's or empty; it sorts fewer
 //! pairs; and a relit frame with it equals one without, where the relighter
-//! culls because it is asked to or because its map is not kept.
+//! culls because it is asked to or because its map is not kept, and where a
+//! batch of cameras shares one map culled to all of them.
 
 #![allow(clippy::unwrap_used, clippy::expect_used, reason = "a failed unwrap is a failed test")]
 
@@ -14,7 +15,7 @@ use srug::scene::activate::GpuScene;
 use srug::scene::demo::{demo_city, DemoOptions};
 use srug::scene::Camera;
 use srug::shade::{BrdfLut, EnvironmentPrep, PrepareSettings, ProceduralSky};
-use srug::shadow::{ShadowPass, ShadowSettings, Sun, VisibilityKind};
+use srug::shadow::{ShadowFit, ShadowPass, ShadowSettings, Sun, VisibilityKind};
 use srug::splat::{Channel, Splatter};
 use srug_tests::{assert_no_validation_messages, device};
 
@@ -152,5 +153,58 @@ fn a_map_splatted_only_where_receivers_look_gives_them_the_same_visibility() {
     }
     assert!(frames[0] == frames[2], "the map culled by itself relights the frame differently");
     assert!(frames[0] == frames[1], "the culled map relights the frame differently");
+    assert_no_validation_messages(&d);
+}
+
+#[test]
+fn a_batch_shares_one_map_culled_to_all_its_cameras() {
+    let d = device();
+    let city = demo_city(&DemoOptions { seed: 5, gaussians: 20_000, sh_degree: 1 }).unwrap();
+    let scene = GpuScene::upload(&d, &city.scene).unwrap();
+    let bounds = city.scene.bounds().unwrap();
+    let sun = Sun::from_azimuth_elevation(260.0, 35.0, [3.0; 3]).unwrap();
+    let cameras: Vec<Camera> = city.cameras.iter().take(3).map(|c| c.resized(176, 48)).collect();
+    let prep = EnvironmentPrep::new(&d).unwrap();
+    let sky = ProceduralSky::new(sun.direction, 3.0).render().unwrap();
+    let env = prep.prepare(&sky, &PrepareSettings { samples: 16, ..PrepareSettings::default() }).unwrap();
+    let brdf = prep.brdf_table(BrdfLut::Karis, 33, 64).unwrap();
+    let attributes = city.scene.attributes();
+    let batch = |cull: bool, fit: ShadowFit| {
+        let mut relighter = Relighter::new(&d).unwrap();
+        let mut settings = RelightSettings::default();
+        settings.shadow.cull_to_receivers = cull;
+        settings.shadow.fit = fit;
+        let frames =
+            relighter.render_batch(&scene, &attributes, &bounds, &cameras, Some(&sun), &env, &brdf, &settings).unwrap();
+        assert_eq!(frames.len(), cameras.len());
+        frames
+            .iter()
+            .map(|f| {
+                assert!(f.shadow_pass_ran);
+                let culled = f.timings.get("shadow map receiver tiles").is_some();
+                let splatted = f.timings.stages.iter().any(|s| s.name.starts_with("shadow map"));
+                let pixels = (read(&d, &f.shaded.radiance), read(&d, f.visibility.as_ref().unwrap()));
+                (pixels, f.shadow_map_reused, splatted, culled)
+            })
+            .collect::<Vec<_>>()
+    };
+    let whole = batch(false, ShadowFit::SceneBounds);
+    let culled = batch(true, ShadowFit::SceneBounds);
+    // One map for the batch, culled to where all three cameras look: splatted
+    // with the first frame (its stages in that frame's timings), reused by the others.
+    let flags: Vec<_> = culled.iter().map(|(_, reused, splatted, culled)| (*reused, *splatted, *culled)).collect();
+    assert_eq!(flags, [(false, true, true), (true, false, false), (true, false, false)]);
+    assert_eq!(whole.iter().map(|w| (w.1, w.3)).collect::<Vec<_>>(), [(false, false), (true, false), (true, false)]);
+    for (i, (w, c)) in whole.iter().zip(&culled).enumerate() {
+        assert!(w.0 == c.0, "camera {i}: the batch's culled map relights the frame differently");
+    }
+    // Fitted to each view, each camera's map is its own, culled to its own receivers.
+    let fitted = batch(true, ShadowFit::ViewFrustum);
+    let flags: Vec<_> = fitted.iter().map(|(_, reused, splatted, culled)| (*reused, *splatted, *culled)).collect();
+    assert_eq!(flags, [(false, true, true); 3]);
+    let fitted_alone = batch(false, ShadowFit::ViewFrustum);
+    for (i, (a, c)) in fitted_alone.iter().zip(&fitted).enumerate() {
+        assert!(a.0 == c.0, "camera {i}: a view-fitted map culled to its receivers relights differently");
+    }
     assert_no_validation_messages(&d);
 }

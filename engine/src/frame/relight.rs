@@ -154,8 +154,16 @@ struct ShadowMapKey {
     tile: u32,
     surface_depth: bool,
     coverage: f32,
-    /// The receivers' camera, where the map is splatted only for them.
-    receivers: Option<Camera>,
+    /// The receivers' cameras, where the map is splatted only for them.
+    receivers: Option<Vec<Camera>>,
+}
+
+/// One frame's shadow test: the visibility per pixel, whether its map was
+/// an earlier frame's, and the GPU times of the map (when splatted) and the test.
+struct FrameShadow {
+    visibility: crate::gpu::Buffer,
+    reused: bool,
+    timings: Timings,
 }
 
 impl Relighter {
@@ -370,8 +378,9 @@ impl Relighter {
     /// ([`Splatter::render_batch`]: one submission per step for several
     /// cameras) unless a host depth is set; the cameras share one shadow map
     /// (splatted once for the batch, whether or not
-    /// [`Relighter::set_shadow_map_reuse`] keeps it after) and each frame is
-    /// shaded in turn. Every frame is held
+    /// [`Relighter::set_shadow_map_reuse`] keeps it after; with
+    /// [`crate::shadow::ShadowSettings::cull_to_receivers`], only where the
+    /// batch's cameras look) and each frame is shaded in turn. Every frame is held
     /// until returned: pass as many cameras as memory allows
     /// ([`crate::splat::cameras_per_batch`]).
     #[allow(clippy::too_many_arguments, reason = "Relighter::render's inputs, with several cameras")]
@@ -397,16 +406,39 @@ impl Relighter {
         // settings: the same map unless it is fitted to each view), reuse on or off.
         let reuse = self.reuse_shadow_map;
         self.reuse_shadow_map = true;
-        let frames = cameras
-            .iter()
-            .zip(splats)
-            .map(|(camera, (gbuffer, stats))| self.finish(scene, camera, &lights, settings, &plan, gbuffer, stats))
-            .collect();
+        let frames = self.finish_batch(scene, &cameras, &lights, settings, &plan, splats);
         self.reuse_shadow_map = reuse;
         if !reuse {
             self.shadow_map = None;
         }
         frames
+    }
+
+    /// [`Relighter::finish`] for each camera of a batch: every frame's shadow
+    /// test first (a map culled to receivers serves the whole batch's), then
+    /// the shading in turn.
+    fn finish_batch(
+        &mut self,
+        scene: &GpuScene,
+        cameras: &[Camera],
+        lights: &Lights<'_>,
+        settings: &RelightSettings,
+        plan: &FramePlan,
+        splats: Vec<(GpuGBuffer, crate::splat::SplatStats)>,
+    ) -> Result<Vec<RelitFrame>> {
+        let receivers: Vec<(&GpuGBuffer, &Camera)> = splats.iter().map(|(g, _)| g).zip(cameras).collect();
+        let shadows = (0..cameras.len())
+            .map(|i| self.shadow_step(scene, lights, settings, plan, &receivers, i))
+            .collect::<Result<Vec<_>>>()?;
+        drop(receivers);
+        cameras
+            .iter()
+            .zip(splats)
+            .zip(shadows)
+            .map(|((camera, (gbuffer, stats)), shadow)| {
+                self.shade_step(camera, lights, settings, plan, gbuffer, stats, shadow)
+            })
+            .collect()
     }
 
     /// Steps 2 to 5 of a frame whose G-buffers are splatted: the shadow pass
@@ -422,25 +454,57 @@ impl Relighter {
         gbuffer: GpuGBuffer,
         stats: crate::splat::SplatStats,
     ) -> Result<RelitFrame> {
+        let shadow = self.shadow_step(scene, lights, settings, plan, &[(&gbuffer, camera)], 0)?;
+        self.shade_step(camera, lights, settings, plan, gbuffer, stats, shadow)
+    }
+
+    /// Steps 2 and 3 for the frame of `receivers[this]`: the sun's shadow map
+    /// (splatted, or the last frame's) and its test at every pixel, when the
+    /// visibility is editable and there is a sun. A map culled to receivers is
+    /// culled to all of `receivers` (the frames of one batch), unless it is
+    /// fitted to each view.
+    fn shadow_step(
+        &mut self,
+        scene: &GpuScene,
+        lights: &Lights<'_>,
+        settings: &RelightSettings,
+        plan: &FramePlan,
+        receivers: &[(&GpuGBuffer, &Camera)],
+        this: usize,
+    ) -> Result<Option<FrameShadow>> {
+        let (Some(sun), true) = (lights.sun, plan.decisions.shadow_pass) else { return Ok(None) };
+        let &(gbuffer, camera) =
+            receivers.get(this).ok_or_else(|| Error::Internal("a shadow test without its receivers".into()))?;
+        let served = if settings.shadow.fit == ShadowFit::SceneBounds { receivers } else { &receivers[this..=this] };
+        let mut timings = Timings::default();
+        let (visibility, reused) =
+            self.shadow_pass(scene, lights.bounds, camera, sun, gbuffer, served, settings, &mut timings)?;
+        Ok(Some(FrameShadow { visibility, reused, timings }))
+    }
+
+    /// Steps 4 and 5: the shading, with the indirect network's L_ind when one is set.
+    #[allow(clippy::too_many_arguments, reason = "one frame's inputs, each of a different stage")]
+    fn shade_step(
+        &mut self,
+        camera: &Camera,
+        lights: &Lights<'_>,
+        settings: &RelightSettings,
+        plan: &FramePlan,
+        gbuffer: GpuGBuffer,
+        stats: crate::splat::SplatStats,
+        shadow: Option<FrameShadow>,
+    ) -> Result<RelitFrame> {
         let (mut timings, pairs) = (stats.timings, stats.pairs);
-        let sun = lights.sun;
-
-        // 2. and 3. The sun's shadow map (splatted, or the last frame's) and its
-        // test at every camera pixel, when the visibility is editable and there is a sun.
-        let mut shadow = None;
-        if let (true, Some(s)) = (plan.decisions.shadow_pass, sun) {
-            shadow = Some(self.shadow_pass(scene, lights.bounds, camera, s, &gbuffer, settings, &mut timings)?);
+        if let Some(s) = &shadow {
+            timings.stages.extend(s.timings.stages.iter().cloned());
         }
-        let visibility = shadow.as_ref().map(|(v, _)| v);
-
-        // 4. and 5. Shading, with the indirect network's L_ind when one is set.
         let inputs = ShadeInputs {
             gbuffer: &gbuffer,
             camera,
             environment: lights.environment,
             brdf: lights.brdf,
-            sun,
-            editable_visibility: visibility,
+            sun: lights.sun,
+            editable_visibility: shadow.as_ref().map(|s| &s.visibility),
             indirect: None,
         };
         let shaded = match self.network.as_mut() {
@@ -448,14 +512,13 @@ impl Relighter {
             None => self.shader.shade(&inputs, &plan.shade)?,
         };
         timings.stages.extend(shaded.timings.stages.iter().cloned());
-        let shadow_map_reused = shadow.as_ref().is_some_and(|(_, reused)| *reused);
         Ok(RelitFrame {
             shaded,
             timings,
             shadow_pass_ran: shadow.is_some(),
-            shadow_map_reused,
+            shadow_map_reused: shadow.as_ref().is_some_and(|s| s.reused),
             gbuffer,
-            visibility: shadow.map(|(v, _)| v),
+            visibility: shadow.map(|s| s.visibility),
             pairs,
             exposure_ev: settings.shade.exposure_ev,
             tone_map: settings.shade.tone_map,
@@ -463,8 +526,9 @@ impl Relighter {
     }
 
     /// The shadow map of `sun` (reused from the last frame when reuse is on and
-    /// nothing it depends on changed) and the per-pixel visibility of the
-    /// receivers in `gbuffer`; returns the visibility and whether the map was reused.
+    /// nothing it depends on changed; culled to `receivers` where it serves
+    /// only them) and the per-pixel visibility of the receivers in `gbuffer`;
+    /// returns the visibility and whether the map was reused.
     #[allow(clippy::too_many_arguments, reason = "one pass's inputs, each of a different stage")]
     fn shadow_pass(
         &mut self,
@@ -473,6 +537,7 @@ impl Relighter {
         camera: &Camera,
         sun: &Sun,
         gbuffer: &GpuGBuffer,
+        receivers: &[(&GpuGBuffer, &Camera)],
         settings: &RelightSettings,
         timings: &mut Timings,
     ) -> Result<(crate::gpu::Buffer, bool)> {
@@ -506,7 +571,7 @@ impl Relighter {
             tile: shadow.tile,
             surface_depth: shadow.map_surface_depth,
             coverage: shadow.map_coverage,
-            receivers: cull.then(|| camera.clone()),
+            receivers: cull.then(|| receivers.iter().map(|&(_, c)| c.clone()).collect()),
         };
         let reused = self.reuse_shadow_map && self.shadow_map.as_ref().is_some_and(|(k, _)| *k == key);
         if !reused {
@@ -514,8 +579,7 @@ impl Relighter {
             self.shadow_map = None;
             let light = key.light.clone();
             let map = if cull {
-                let receivers = [(gbuffer, camera)];
-                self.shadows.shadow_map_for_receivers(&mut self.splatter, scene, light, sun, shadow, &receivers)?
+                self.shadows.shadow_map_for_receivers(&mut self.splatter, scene, light, sun, shadow, receivers)?
             } else {
                 self.shadows.shadow_map_from(&mut self.splatter, scene, light, sun, shadow)?
             };

@@ -247,9 +247,11 @@ pub struct ShadowSettings {
     pub tile: u32,
     /// Splat the map only in the tiles the frame's receivers look up
     /// ([`ShadowPass::shadow_map_for_receivers`]) even where it is kept for
-    /// later frames: the same visibility for less, but a map per camera (it
-    /// cannot be reused for another view). `frame::Relighter` culls anyway
-    /// whenever its map is not kept (shadow-map reuse off, one camera).
+    /// later frames: the same visibility for less, but a map per camera, or
+    /// per batch of cameras (`frame::Relighter::render_batch` culls the
+    /// batch's one map to all of them), so it is not reused for another view.
+    /// `frame::Relighter` culls anyway whenever its map is not kept
+    /// (shadow-map reuse off, one camera).
     pub cull_to_receivers: bool,
 }
 
