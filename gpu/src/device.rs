@@ -470,6 +470,7 @@ impl Device {
             current_bytes: self.shared.current_bytes.load(Ordering::Relaxed),
             peak_bytes: self.shared.peak_bytes.load(Ordering::Relaxed),
             pooled_bytes: lock(&self.shared.pool).bytes,
+            fresh_allocations: self.shared.fresh_allocations.load(Ordering::Relaxed),
         }
     }
 
@@ -549,6 +550,7 @@ impl Device {
             current_bytes: AtomicU64::new(0),
             peak_bytes: AtomicU64::new(0),
             high_water_bytes: AtomicU64::new(0),
+            fresh_allocations: AtomicU64::new(0),
             pool: Mutex::new(BufferPool::new(pool_limit(heap))),
             kernel_cache: Mutex::new(HashMap::new()),
         });

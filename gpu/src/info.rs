@@ -107,6 +107,9 @@ pub struct MemoryUsage {
     /// in use than ever before; not in `current_bytes`;
     /// [`Device::release_pooled_memory`](crate::Device::release_pooled_memory) frees them).
     pub pooled_bytes: u64,
+    /// Allocations since the device was made that took new memory rather
+    /// than a pooled buffer (images included).
+    pub fresh_allocations: u64,
 }
 
 /// A device as listed before choosing one.

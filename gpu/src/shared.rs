@@ -165,6 +165,8 @@ pub(crate) struct Shared {
     /// unlike `peak_bytes`): an allocation past it empties the pool first
     /// ([`Shared::trim_pool_for`]).
     pub(crate) high_water_bytes: AtomicU64,
+    /// Allocations that took new memory rather than a pooled buffer.
+    pub(crate) fresh_allocations: AtomicU64,
     /// Freed buffers kept for reuse.
     pub(crate) pool: Mutex<BufferPool>,
     /// Every kernel built through `Device::kernel`, by what makes it that
@@ -236,6 +238,7 @@ impl Shared {
         }
         let bytes = allocation.size();
         self.count_allocated(bytes);
+        self.fresh_allocations.fetch_add(1, Ordering::Relaxed);
         Ok(allocation)
     }
 

@@ -375,9 +375,11 @@ fn freed_buffers_are_pooled_and_taken_by_the_next_of_their_kind_and_size() {
     // a kernel over its asked-for size, validation on, computes as on fresh memory.
     let m = n - n / 8;
     let x: Vec<f32> = (0..m).map(|i| i as f32 * 0.25).collect();
+    let fresh = d.memory_usage().fresh_allocations;
     let input = d.create_buffer("input", 4 * m as u64, MemoryKind::Storage).unwrap();
     let taken = pooled - d.memory_usage().pooled_bytes;
     assert!(taken >= 4 * n as u64, "it took the pooled buffer ({taken} bytes taken)");
+    assert_eq!(d.memory_usage().fresh_allocations, fresh, "a pooled buffer taken is no fresh allocation");
     d.write_buffer(&input, 0, &x).unwrap();
     let output = d.create_filled::<f32>("output", m, NAN).unwrap();
     let kernel = affine_kernel(&d, 0).unwrap();
@@ -401,10 +403,12 @@ fn freed_buffers_are_pooled_and_taken_by_the_next_of_their_kind_and_size() {
     d.wait_idle().unwrap();
     let kept = d.memory_usage().pooled_bytes;
     assert!(kept >= before + 4 * m as u64);
+    let fresh = d.memory_usage().fresh_allocations;
     let small = d.create_buffer("small", 2 * n as u64, MemoryKind::Storage).unwrap();
     // The only pooled buffer of this size is the storage one.
     let staging = d.create_buffer("staging", 4 * n as u64, MemoryKind::Upload).unwrap();
     assert_eq!(d.memory_usage().pooled_bytes, kept, "neither takes the pooled storage buffer");
+    assert_eq!(d.memory_usage().fresh_allocations, fresh + 2, "both took new memory");
     drop((small, staging, output));
     d.wait_idle().unwrap();
     let released = d.release_pooled_memory();

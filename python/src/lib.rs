@@ -408,13 +408,14 @@ impl Device {
     }
 
     /// GPU memory srug holds on this device: {"current_bytes": …, "peak_bytes": …,
-    /// "pooled_bytes": … (freed buffers kept for reuse)}.
+    /// "pooled_bytes": … (freed buffers kept for reuse), "fresh_allocations": …}.
     fn memory<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let m = self.gpu()?.memory_usage();
         let d = PyDict::new(py);
         d.set_item("current_bytes", m.current_bytes)?;
         d.set_item("peak_bytes", m.peak_bytes)?;
         d.set_item("pooled_bytes", m.pooled_bytes)?;
+        d.set_item("fresh_allocations", m.fresh_allocations)?;
         Ok(d)
     }
 

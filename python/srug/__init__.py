@@ -343,12 +343,15 @@ class Device:
         return self._native.take_validation_messages()
 
     def memory(self) -> Dict[str, int]:
-        """GPU memory srug holds: ``{"current_bytes": ..., "peak_bytes": ..., "pooled_bytes": ...}``.
+        """GPU memory srug holds: ``{"current_bytes": ..., "peak_bytes": ..., "pooled_bytes": ...,
+        "fresh_allocations": ...}``.
 
         ``pooled_bytes``: freed buffers kept (up to an eighth of the device's memory,
         256 MiB to 4 GiB, all freed when an allocation puts more in use than ever
         before) for reuse by later ones of
         their kind and about their size; not counted in ``current_bytes``.
+        ``fresh_allocations``: allocations since the device was made that took new
+        memory rather than a kept buffer (steady frames take few or none).
         """
         return self._native.memory()
 

@@ -180,7 +180,9 @@ def test_progress_timings_and_memory(dev, city):
     assert dev.release_pooled_memory() == memory["pooled_bytes"]
     assert dev.memory()["pooled_bytes"] == 0 and dev.release_pooled_memory() == 0
     w, h = cams.sizes[0]
+    fresh = dev.memory()["fresh_allocations"]
     assert dev.render(scene, cams[:1])["rgb"].shape == (1, h, w, 3), "rendering goes on after the release"
+    assert dev.memory()["fresh_allocations"] > fresh  # its working buffers were released: new memory
 
     def stop(done, total):
         raise KeyboardInterrupt("stop")

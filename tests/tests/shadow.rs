@@ -593,3 +593,37 @@ fn cascades_refuse_what_they_cannot_slice() {
     let bad = ShadowSettings { fit: ShadowFit::Cascades, cascades: 7, ..settings(512) };
     assert!(bad.validate().is_err());
 }
+
+/// A kept map released to its texels (`ShadowMap::release_splats`, what the
+/// relighter keeps between frames) frees its per-Gaussian records, tests its
+/// receivers bit for bit as before, and refuses the traced test and the
+/// backward pass, which read the splats, with a message.
+#[test]
+fn a_map_released_to_its_texels_tests_the_same_and_refuses_what_reads_splats() {
+    let mut s = setup(20_000);
+    let camera = s.demo.cameras[0].resized(176, 48);
+    let sun = Sun::from_direction(s.demo.sun_direction, [1.0; 3]).unwrap();
+    let st = settings(512);
+    let (g, _) = receiver(&mut s, &camera, Channels::default());
+    let mut map = shadow_map(&mut s, &sun, &st, None);
+    let (v, _) = s.pass.visibility(&map, &g, &camera, &st, VisibilityKind::Sigmoid).unwrap();
+    let before: Vec<f32> = s.d.read_buffer(&v).unwrap();
+    let splat_bytes = map.frame.splats.size() + map.frame.sorted_gaussians.size();
+    s.d.wait_idle().unwrap();
+    let in_use = s.d.memory_usage().current_bytes;
+    assert!(!map.splats_released());
+    map.release_splats(&s.d).unwrap();
+    s.d.wait_idle().unwrap();
+    let freed = in_use.saturating_sub(s.d.memory_usage().current_bytes);
+    assert!(map.splats_released() && freed >= splat_bytes, "{freed} bytes freed, the splats took {splat_bytes}");
+    let (v, _) = s.pass.visibility(&map, &g, &camera, &st, VisibilityKind::Sigmoid).unwrap();
+    let after: Vec<f32> = s.d.read_buffer(&v).unwrap();
+    assert!(before.iter().zip(&after).all(|(a, b)| a.to_bits() == b.to_bits()), "the released map tests differently");
+    assert!(before.iter().any(|v| *v < 0.5) && before.iter().any(|v| *v > 0.5), "no shadow edge to compare");
+    let traced = s.pass.visibility(&map, &g, &camera, &st, VisibilityKind::Traced).err().unwrap();
+    assert!(traced.to_string().contains("its splats were released"), "{traced}");
+    let ones = s.d.upload("dL/dV", &vec![1.0f32; (camera.width * camera.height) as usize]).unwrap();
+    let backward = s.pass.backward(&map, &g, &camera, &st, GpuVisibilityLoss::Upstream(&ones)).err().unwrap();
+    assert!(backward.to_string().contains("the backward pass reads them"), "{backward}");
+    assert_no_validation_messages(&s.d);
+}

@@ -312,7 +312,7 @@ fn relit_outputs(
         }
         _ => None,
     };
-    log::debug!("{}: {}", target.display(), relit.timings);
+    log::debug!("{}: {}; memory {:?}", target.display(), relit.timings, device.memory_usage());
     let line = format!(
         "{} camera {} {label}: {:.0} ms GPU{}",
         target.display(),

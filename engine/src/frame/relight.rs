@@ -15,7 +15,7 @@ use crate::gpu::{Device, Timings};
 use crate::scene::activate::GpuScene;
 use crate::scene::{AttributeGroups, Bounds, Camera};
 use crate::shade::{BrdfTable, PreparedEnvironment, ShadeInputs, ShadedFrame, Shader};
-use crate::shadow::{light_camera, DepthMode, ShadowFit, ShadowMap, ShadowPass, Sun};
+use crate::shadow::{light_camera, DepthMode, ShadowFit, ShadowMap, ShadowPass, Sun, VisibilityKind};
 use crate::splat::{GpuGBuffer, SplatSettings, Splatter};
 
 use super::host_images::{FrameChannel, FrameOutputs, HostImageWriter, HostPixels, HostTargets};
@@ -156,6 +156,8 @@ struct ShadowMapKey {
     coverage: f32,
     /// The receivers' cameras, where the map is splatted only for them.
     receivers: Option<Vec<Camera>>,
+    /// Whether the map keeps its splats (the traced test reads them).
+    splats_kept: bool,
 }
 
 /// One frame's shadow test: the visibility per pixel, whether its map was
@@ -572,6 +574,7 @@ impl Relighter {
             surface_depth: shadow.map_surface_depth,
             coverage: shadow.map_coverage,
             receivers: cull.then(|| receivers.iter().map(|&(_, c)| c.clone()).collect()),
+            splats_kept: settings.visibility_kind == VisibilityKind::Traced,
         };
         let reused = self.reuse_shadow_map && self.shadow_map.as_ref().is_some_and(|(k, _)| *k == key);
         if !reused {
@@ -585,6 +588,11 @@ impl Relighter {
             };
             // Its stages are named "shadow map …" already.
             timings.stages.extend(map.frame.stats.timings.stages.iter().cloned());
+            let mut map = map;
+            if settings.visibility_kind == VisibilityKind::Sigmoid {
+                // A kept map holds its texels alone: the sigmoid test reads nothing else.
+                map.release_splats(&self.device)?;
+            }
             self.shadow_map = Some((key, map));
         }
         let Some((_, map)) = &self.shadow_map else {

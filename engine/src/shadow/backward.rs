@@ -126,6 +126,7 @@ impl ShadowPass {
         settings: &ShadowSettings,
         loss: GpuVisibilityLoss<'_>,
     ) -> Result<ShadowBackward> {
+        map.check_splats("the backward pass")?;
         let device = self.device.clone();
         let (u, inputs) = shadow_uniform(map, gbuffer, camera, settings)?;
         let pixels = u64::from(camera.width) * u64::from(camera.height);

@@ -165,7 +165,7 @@ impl ShadowPass {
         for stage in &mut frame.stats.timings.stages {
             stage.name = format!("shadow map {}", stage.name);
         }
-        Ok(ShadowMap { camera, sun: *sun, depth: settings.map_depth, frame, wanted_tiles: None })
+        Ok(ShadowMap::new(camera, *sun, settings.map_depth, frame))
     }
 
     /// The shadow map from light camera `camera` (as [`ShadowPass::shadow_map`]
@@ -258,6 +258,9 @@ impl ShadowPass {
         settings: &ShadowSettings,
         kind: VisibilityKind,
     ) -> Result<(Buffer, Timings)> {
+        if kind == VisibilityKind::Traced {
+            map.check_splats("the traced visibility")?;
+        }
         let device = &self.device;
         let pixels = u64::from(camera.width) * u64::from(camera.height);
         let out = device.create_buffer("visibility", pixels * 4, MemoryKind::Storage)?;

@@ -522,7 +522,7 @@ fn frustum_box(view: &Camera, lo: Vec3, hi: Vec3) -> Option<(Vec3, Vec3)> {
 }
 
 /// A shadow map: the scene splatted from the sun, with the frame kept for the
-/// traced pass.
+/// traced pass and the backward pass (until [`ShadowMap::release_splats`]).
 pub struct ShadowMap {
     /// The light camera.
     pub camera: Camera,
@@ -537,9 +537,51 @@ pub struct ShadowMap {
     /// (`ShadowSettings::tile`, row-major), non-zero where the map was
     /// splatted. Elsewhere `frame`'s G-buffer was not written.
     pub wanted_tiles: Option<Buffer>,
+    /// Whether `frame`'s splats, pair lists and tile ranges were freed
+    /// ([`ShadowMap::release_splats`]).
+    splats_released: bool,
 }
 
 impl ShadowMap {
+    /// A map of `frame`, its splats kept.
+    pub(crate) fn new(camera: Camera, sun: Sun, depth: DepthMode, frame: SplatFrame) -> Self {
+        Self { camera, sun, depth, frame, wanted_tiles: None, splats_released: false }
+    }
+
+    /// Frees the frame's splat records, pair lists, tile ranges and features,
+    /// keeping its texels (the G-buffer), its camera and its wanted tiles:
+    /// all that the sigmoid test ([`VisibilityKind::Sigmoid`]) reads. A map
+    /// kept for later frames then holds its texels alone, not per-Gaussian
+    /// records (640 MB at 10M Gaussians). The traced test and the backward
+    /// pass refuse it after; the frame's buffers are 4-byte stand-ins.
+    pub fn release_splats(&mut self, device: &Device) -> Result<()> {
+        let stand_in = |name: &str| device.create_buffer(name, 4, crate::gpu::MemoryKind::Storage);
+        self.frame.splats = stand_in("shadow map splats (released)")?;
+        self.frame.pair_offsets = stand_in("shadow map pair offsets (released)")?;
+        self.frame.sorted_gaussians = stand_in("shadow map sorted pairs (released)")?;
+        self.frame.ranges = stand_in("shadow map tile ranges (released)")?;
+        self.frame.features = None;
+        self.frame.pair_tiles = None;
+        self.splats_released = true;
+        Ok(())
+    }
+
+    /// Whether [`ShadowMap::release_splats`] freed the frame's splats.
+    pub fn splats_released(&self) -> bool {
+        self.splats_released
+    }
+
+    /// Refuses a map whose splats were released, for `what`, which reads them.
+    pub(crate) fn check_splats(&self, what: &str) -> Result<()> {
+        if self.splats_released {
+            return Err(Error::invalid(
+                "shadow map",
+                format!("its splats were released (ShadowMap::release_splats); {what} reads them"),
+            ));
+        }
+        Ok(())
+    }
+
     /// The world width of one texel (texels are square).
     pub fn texel_size(&self) -> f32 {
         texel_size(&self.camera)
