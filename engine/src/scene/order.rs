@@ -204,15 +204,20 @@ pub fn in_spatial_order(means: &[[f32; 3]]) -> bool {
 const ARRANGE_SCRATCH_BYTES: usize = 64 << 20;
 
 /// Words a Gaussian [`GpuScene::arrange`] moves at a time at least (its scratch
-/// holds this many a Gaussian at any scene size).
-const ARRANGE_MIN_WORDS: u32 = 4;
+/// holds this many a Gaussian at any scene size, where its rows are as long):
+/// 48 bytes, under the 64-byte splat record that every frame of the scene
+/// allocates for each Gaussian, so the scratch, pooled when the first frame
+/// starts, is freed before it could raise that frame's peak. Each block is a
+/// scatter of every row to a random place: fewer, wider blocks move a large
+/// scene's rows faster (docs/bench/splat.md, "Arranged on the device").
+const ARRANGE_MIN_WORDS: u32 = 12;
 
 /// Words of a row [`GpuScene::arrange`] moves at a time for `n` Gaussians:
 /// within [`ARRANGE_SCRATCH_BYTES`] of scratch, at least [`ARRANGE_MIN_WORDS`],
 /// at most the longest row (an SH-3 row's 48).
 fn arrange_words(n: usize, longest_row: u32) -> u32 {
     let fit = ARRANGE_SCRATCH_BYTES / (4 * n.max(1));
-    (fit.min(longest_row as usize) as u32).max(ARRANGE_MIN_WORDS)
+    (fit.min(longest_row as usize) as u32).max(ARRANGE_MIN_WORDS).min(longest_row).max(1)
 }
 
 /// The device order of an arranged [`GpuScene`].
@@ -460,6 +465,15 @@ impl GpuScene {
 mod tests {
     #![allow(clippy::unwrap_used, reason = "a failed unwrap is a failed test")]
     use super::*;
+
+    #[test]
+    fn arrange_moves_whole_rows_of_small_scenes_and_twelve_words_of_large_ones() {
+        assert_eq!(arrange_words(100_000, 48), 48, "an SH-3 row whole within 64 MiB");
+        assert_eq!(arrange_words(1_000_000, 48), 16, "64 MiB over 1M Gaussians: 16 words");
+        assert_eq!(arrange_words(10_000_000, 48), 12, "at least 12 words a Gaussian");
+        assert_eq!(arrange_words(10_000_000, 4), 4, "never more than the longest row");
+        assert_eq!(arrange_words(0, 0), 1);
+    }
 
     #[test]
     fn scene_orders_parse_by_name() {
