@@ -431,9 +431,9 @@ srug_status srug_context_memory(const srug_context *ctx, uint64_t *current, uint
 
 // Frees the buffers srug keeps for reuse after freeing them (up to an
 // eighth of the device's largest device-local heap, 256 MiB to 4 GiB; srug
-// frees them itself only when one of its own allocations finds no memory):
-// for a host that wants that memory back now. The bytes released go into
-// `released` where it is not NULL.
+// frees them itself when one of its own allocations finds no memory or puts
+// more in use than it ever had at once): for a host that wants that memory
+// back now. The bytes released go into `released` where it is not NULL.
 //
 // # Safety
 // `ctx` a live context; `released` NULL or valid for one write.
