@@ -358,8 +358,9 @@ class Device:
     def release_pooled_memory(self) -> int:
         """Frees the buffers kept for reuse (``memory()["pooled_bytes"]``); returns the bytes released.
 
-        srug frees them itself when an allocation finds no memory or puts more in use than ever; call this to hand the
-        memory back sooner (say, to the rest of a host application between bursts of work).
+        srug frees them itself when an allocation finds no memory or puts more in use
+        than ever; call this to hand the memory back sooner (say, to the rest of a host
+        application between bursts of work).
         """
         return self._native.release_pooled_memory()
 
