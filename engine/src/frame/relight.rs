@@ -581,15 +581,14 @@ impl Relighter {
             // Free the old map before splatting the new one.
             self.shadow_map = None;
             let light = key.light.clone();
-            let map = if cull {
+            let mut map = if cull {
                 self.shadows.shadow_map_for_receivers(&mut self.splatter, scene, light, sun, shadow, receivers)?
             } else {
                 self.shadows.shadow_map_from(&mut self.splatter, scene, light, sun, shadow)?
             };
             // Its stages are named "shadow map …" already.
             timings.stages.extend(map.frame.stats.timings.stages.iter().cloned());
-            let mut map = map;
-            if settings.visibility_kind == VisibilityKind::Sigmoid {
+            if self.reuse_shadow_map && settings.visibility_kind == VisibilityKind::Sigmoid {
                 // A kept map holds its texels alone: the sigmoid test reads nothing else.
                 map.release_splats(&self.device)?;
             }
