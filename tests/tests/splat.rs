@@ -15,7 +15,9 @@ use srug::scene::demo::{demo_city, DemoOptions};
 use srug::scene::order::SceneOrder;
 use srug::scene::{Camera, Scene};
 use srug::splat::backward::BlendGrads;
-use srug::splat::cpu::{blend_work, preprocess_one, render_cpu, tile_row_span, CpuSplat};
+use srug::splat::cpu::{
+    blend_work, pack_features, preprocess_one, render_cpu, tile_row_span, unpack_features, CpuSplat,
+};
 use srug::splat::Channel;
 use srug::splat::{
     cameras_per_batch, default_blend_pixels, default_pixel_reach, default_two_splats_per_step, default_window_fetch,
@@ -1650,4 +1652,56 @@ fn blend_work_counts_the_longest_walk() {
     scene.opacity_logits = vec![-4.0; 10];
     let work = blend_work(&scene, &camera, 16, TileBounds::Ellipse);
     assert_eq!((work.longest_walk, work.evaluated, work.contributed), (10, 10 * pixels, 10 * pixels), "{work:?}");
+}
+
+/// The preprocess stores each splat's ten features at 16 bits (`pack_features` in
+/// `splat_types.glsl`): every Gaussian the GPU lists that the twin also sees stores the twin's
+/// packing of its f64 features but for f32 rounding (one step at most in any value: the demo's
+/// roughness 0.9 lies on a rounding tie at 16 bits), and unpacked they lie within one step
+/// (1/32767 for the normal, 1/65535 for the rest) plus f32 rounding of the twin's features.
+#[test]
+fn features_are_stored_at_16_bits_as_the_twin_packs_them() {
+    let d = device();
+    let mut splatter = Splatter::new(&d).unwrap();
+    let city = demo_city(&DemoOptions { seed: 7, gaussians: 30_000, sh_degree: 1 }).unwrap();
+    let cam = city.cameras[1].resized(352, 96);
+    let settings = all_settings();
+    let gpu_scene = GpuScene::upload(&d, &city.scene).unwrap();
+    let frame = splatter.render_frame(&gpu_scene, &cam, &settings).unwrap();
+    let words: Vec<u32> = d.read_buffer(frame.features.as_ref().unwrap()).unwrap();
+    let offsets: Vec<u32> = d.read_buffer(&frame.pair_offsets).unwrap();
+    assert_eq!(words.len(), 6 * city.scene.len(), "24 bytes a Gaussian");
+    let (mut compared, mut twin_only) = (0usize, 0usize);
+    for i in 0..city.scene.len() {
+        let Some(twin) = preprocess_one(&city.scene, i, &cam, NormalSource::Stored, DEFAULT_TILE) else {
+            continue;
+        };
+        let twin_pairs: u32 =
+            (twin.rect[1]..twin.rect[3]).map(|ty| tile_row_span(&twin, ty, DEFAULT_TILE)).map(|(x0, x1)| x1 - x0).sum();
+        if offsets[i + 1] == offsets[i] {
+            // Listed in no tile, so its features are not written: the twin lists none either,
+            // but where f32 rounding at the ellipse's bound differs from f64.
+            twin_only += usize::from(twin_pairs > 0);
+            continue;
+        }
+        compared += 1;
+        let gpu: [u32; 6] = words[6 * i..6 * i + 6].try_into().unwrap();
+        let packed = pack_features(&twin.features);
+        for (w, (g, c)) in gpu.iter().zip(&packed).enumerate() {
+            for half in [0, 16] {
+                let (g, c) = ((g >> half) & 0xffff, (c >> half) & 0xffff);
+                let steps = g.abs_diff(c).min(0x10000 - g.abs_diff(c));
+                assert!(steps <= 1, "Gaussian {i} word {w} bits {half}..: stored {g:#x}, twin {c:#x}");
+            }
+        }
+        for (k, (g, c)) in unpack_features(&gpu).iter().zip(&twin.features).enumerate() {
+            let step = if k < 3 { 1.0 / 32767.0 } else { 1.0 / 65535.0 };
+            assert!((g - c).abs() <= step + 1e-6, "Gaussian {i} feature {k}: stored {g}, twin {c}");
+        }
+    }
+    assert!(compared > 5_000, "only {compared} Gaussians in view");
+    assert!(twin_only * 1000 <= compared, "{twin_only} Gaussians the twin lists were not listed, of {compared}");
+    // The G-buffer's features are the blend of what was stored: within the twin comparison's tolerances.
+    compare(&frame.gbuffer.read(&d).unwrap(), &render_cpu(&city.scene, &cam, &settings), "packed_features");
+    assert_no_validation_messages(&d);
 }

@@ -580,6 +580,14 @@ impl Relighter {
         if !reused {
             // Free the old map before splatting the new one.
             self.shadow_map = None;
+            // A kept whole-scene map is splatted once per sun, with working buffers
+            // sized by the whole scene: the pool's buffers (the camera's, most of
+            // which it cannot use) are freed before it, and its own after it, so
+            // neither lies beside the other's working set.
+            let kept_whole = self.reuse_shadow_map && !cull;
+            if kept_whole {
+                self.device.release_pooled_memory();
+            }
             let light = key.light.clone();
             let mut map = if cull {
                 self.shadows.shadow_map_for_receivers(&mut self.splatter, scene, light, sun, shadow, receivers)?
@@ -591,6 +599,9 @@ impl Relighter {
             if self.reuse_shadow_map && settings.visibility_kind == VisibilityKind::Sigmoid {
                 // A kept map holds its texels alone: the sigmoid test reads nothing else.
                 map.release_splats(&self.device)?;
+            }
+            if kept_whole {
+                self.device.release_pooled_memory();
             }
             self.shadow_map = Some((key, map));
         }

@@ -293,6 +293,49 @@ fn sigmoid(x: f64) -> f64 {
     1.0 / (1.0 + (-x).exp())
 }
 
+/// GLSL's `packUnorm2x16` of one value: round(clamp(v, 0, 1) · 65535).
+fn unorm16(v: f64) -> u32 {
+    (v.clamp(0.0, 1.0) * 65535.0).round() as u32
+}
+
+/// GLSL's `packSnorm2x16` of one value: round(clamp(v, −1, 1) · 32767) as 16 bits.
+fn snorm16(v: f64) -> u32 {
+    u32::from((v.clamp(-1.0, 1.0) * 32767.0).round() as i16 as u16)
+}
+
+/// The packed words the preprocess writes for features `f` ([`CpuSplat::features`]
+/// order): twin of `pack_features` in `splat_types.glsl`, three (low, high) pairs.
+pub fn pack_features(f: &[f64; 10]) -> [u32; 6] {
+    [
+        snorm16(f[0]) | snorm16(f[1]) << 16,
+        snorm16(f[2]) | unorm16(f[3]) << 16,
+        unorm16(f[4]) | unorm16(f[5]) << 16,
+        unorm16(f[6]) | unorm16(f[7]) << 16,
+        unorm16(f[8]) | unorm16(f[9]) << 16,
+        0,
+    ]
+}
+
+/// [`pack_features`] undone, as `unpack_features` in `splat_types.glsl` reads
+/// them: each value within half a step (1/65535 or 1/32767) of what was packed.
+pub fn unpack_features(p: &[u32; 6]) -> [f64; 10] {
+    let half = |w: u32, k: u32| (w >> (16 * k)) & 0xffff;
+    let unorm = |w, k| f64::from(half(w, k)) / 65535.0;
+    let snorm = |w, k| (f64::from(half(w, k) as u16 as i16) / 32767.0).max(-1.0);
+    [
+        snorm(p[0], 0),
+        snorm(p[0], 1),
+        snorm(p[1], 0),
+        unorm(p[1], 1),
+        unorm(p[2], 0),
+        unorm(p[2], 1),
+        unorm(p[3], 0),
+        unorm(p[3], 1),
+        unorm(p[4], 0),
+        unorm(p[4], 1),
+    ]
+}
+
 /// The differentiable parameters of one Gaussian in f64, as stored (before activation).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Gaussian64 {
@@ -994,4 +1037,28 @@ fn render_cpu_with(
         }
     }
     g
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{pack_features, unpack_features};
+
+    #[test]
+    fn packed_features_round_trip_within_half_a_step_and_clamp_to_their_ranges() {
+        let values = [
+            [-1.0, 1.0, 0.0, 0.0, 1.0, 0.5, 0.25, 1.0 / 3.0, 0.999_99, 1e-9],
+            [0.577_35, -0.577_35, 0.577_35, 0.7, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6],
+        ];
+        for f in values {
+            let back = unpack_features(&pack_features(&f));
+            for (k, (b, v)) in back.iter().zip(&f).enumerate() {
+                let half_step = if k < 3 { 0.5 / 32767.0 } else { 0.5 / 65535.0 };
+                assert!((b - v).abs() <= half_step + 1e-15, "feature {k}: {v} came back {b}");
+            }
+        }
+        // Out of range: clamped as GLSL's packSnorm2x16 / packUnorm2x16 do; -1 and 1 exact.
+        let back = unpack_features(&pack_features(&[-2.0, 2.0, -1.0, -0.5, 1.5, 0.0, 1.0, 7.0, -3.0, 0.0]));
+        assert_eq!(back, [-1.0, 1.0, -1.0, 0.0, 1.0, 0.0, 1.0, 1.0, 0.0, 0.0]);
+        assert_eq!(pack_features(&[0.0; 10])[5], 0, "the last word is padding");
+    }
 }

@@ -95,7 +95,9 @@ pub fn depth_key_bits(camera: &Camera) -> u32 {
 /// RGBA32F and R32UI texel-buffer views, and subgroup shuffles.
 fn texel_blend_supported(info: &DeviceInfo) -> bool {
     info.subgroup_shuffle
-        && [TexelFormat::Rgba32Float, TexelFormat::R32Uint].iter().all(|f| info.texel_formats.contains(f))
+        && [TexelFormat::Rgba32Float, TexelFormat::R32Uint, TexelFormat::Rg32Uint]
+            .iter()
+            .all(|f| info.texel_formats.contains(f))
 }
 
 /// A kernel whose binding 0 is the frame uniform and bindings 1..=`views`
@@ -1105,8 +1107,12 @@ impl Splatter {
                     let uints = |buffer, elements| {
                         Binding::Texels(Texels { buffer, offset: 0, elements, format: TexelFormat::R32Uint })
                     };
-                    // Without features the kernel never reads binding 2; the splats stand in.
-                    let features = p.features.as_ref().map_or(view(&p.splats, 4 * n), |fb| view(fb, 3 * n));
+                    // Packed features, three RG32UI texels a splat; without them the kernel
+                    // never reads binding 2, and a texel of the splats stands in.
+                    let pairs_of = |buffer, elements| {
+                        Binding::Texels(Texels { buffer, offset: 0, elements, format: TexelFormat::Rg32Uint })
+                    };
+                    let features = p.features.as_ref().map_or(pairs_of(&p.splats, 1), |fb| pairs_of(fb, 3 * n));
                     let bindings = [
                         Binding::Buffer(&p.uniform),
                         view(&p.splats, 4 * n),

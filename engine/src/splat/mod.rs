@@ -160,8 +160,9 @@ pub(crate) const TOP_GAUSSIAN_BIT: u32 = 9;
 const NO_RGB: &str = "this G-buffer has no rgb channel (it was splatted with SplatSettings::rgb off)";
 /// Bytes of one projected splat (keep in sync with `Splat` in `splat.glsl`).
 pub(crate) const SPLAT_BYTES: u64 = 64;
-/// Bytes of one splat's features (three vec4).
-pub(crate) const FEATURE_BYTES: u64 = 48;
+/// Bytes of one splat's features: ten values at 16 bits in three uvec2
+/// (keep in sync with `Features` in `splat_types.glsl`; [`cpu::pack_features`] is its twin).
+pub(crate) const FEATURE_BYTES: u64 = 24;
 
 /// How the blend kernel reads splats; all give the same image.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]

@@ -63,12 +63,12 @@ const uint NO_GAUSSIAN = 0xffffffffu;
 const bool FEATURES = (CHANNELS & 252u) != 0u;
 
 #ifdef TEXEL_SPLATS
-// Splats (4 RGBA32F texels each: head, conic, color, rect) and features (3
-// each) as texel-buffer views: a contribution's colour and features are read
+// Splats (4 RGBA32F texels each: head, conic, color, rect) and packed
+// features (3 RG32UI each) as texel-buffer views: a contribution's colour and features are read
 // by the contributing lanes only, and on lavapipe a texelFetch is one vector
 // gather where a device-address load is a loop over the lanes.
 layout(set = 0, binding = 1) uniform textureBuffer splat_texels;
-layout(set = 0, binding = 2) uniform textureBuffer feature_texels;
+layout(set = 0, binding = 2) uniform utextureBuffer feature_texels;
 // The sorted splat indices (R32UI), the tile's list.
 layout(set = 0, binding = 3) uniform utextureBuffer value_texels;
 // The sorted keys (R32UI, two words per pair): with ROW_MASKS the high
@@ -76,7 +76,7 @@ layout(set = 0, binding = 3) uniform utextureBuffer value_texels;
 layout(set = 0, binding = 4) uniform utextureBuffer key_texels;
 #define SPLAT_COLOR(g) texelFetch(splat_texels, int(4u * (g) + 2u)).rgb
 #define SPLAT_SLOPE_Y(g) texelFetch(splat_texels, int(4u * (g) + 2u)).w
-#define FEATURE(i) texelFetch(feature_texels, int(i))
+#define FEATURE(i) texelFetch(feature_texels, int(i)).xy
 #else
 #define SPLAT_COLOR(g) Splats(frame.splats).v[g].color.rgb
 #define SPLAT_SLOPE_Y(g) Splats(frame.splats).v[g].color.w
@@ -143,11 +143,7 @@ struct Contribution {
 Contribution splat_contribution(uint g) {
     Contribution c = Contribution(vec3(0.0), vec4(0.0), vec4(0.0), vec4(0.0));
     if (RGB) c.color = SPLAT_COLOR(g);
-    if (FEATURES) {
-        c.f0 = FEATURE(3 * g);
-        c.f1 = FEATURE(3 * g + 1);
-        c.f2 = FEATURE(3 * g + 2);
-    }
+    if (FEATURES) unpack_features(FEATURE(3 * g), FEATURE(3 * g + 1), FEATURE(3 * g + 2), c.f0, c.f1, c.f2);
     return c;
 }
 
@@ -414,17 +410,18 @@ void blend_pixel(inout Accumulated acc, inout bool live, float limit, uint g, ve
 }
 
 // A splat as a blend step takes it: its index, head, conic, colour texel
-// (rgb, and the surface slope's y in w), features and row reach; members
-// the kernel's constants do not use stay zero.
+// (rgb, and the surface slope's y in w), packed features and row reach;
+// members the kernel's constants do not use stay zero.
 struct StepSplat {
     uint g;
-    vec4 head, conic, color, f0, f1, f2;
+    vec4 head, conic, color;
+    uvec2 f0, f1, f2;
     vec3 reach_of;
 };
 
 // The splat of the tile list's entry `index`.
 StepSplat fetch_step_splat(uint index) {
-    StepSplat s = StepSplat(0u, vec4(0.0), vec4(0.0), vec4(0.0), vec4(0.0), vec4(0.0), vec4(0.0), vec3(0.0));
+    StepSplat s = StepSplat(0u, vec4(0.0), vec4(0.0), vec4(0.0), uvec2(0u), uvec2(0u), uvec2(0u), vec3(0.0));
     s.g = texelFetch(value_texels, int(index)).x;
     s.head = texelFetch(splat_texels, int(4u * s.g));
     s.conic = texelFetch(splat_texels, int(4u * s.g + 1u));
@@ -461,8 +458,15 @@ StepSplat shuffled(StepSplat s, uint from) {
 // column no lane of the vector reaches costs a compare. Splats come in order
 // of centre depth: once one lies at or behind the host's depth, so do the
 // rest (`behind_host`).
-void blend_step(inout Accumulated acc, inout bool live, float limit, StepSplat s, vec2 reach, vec2 centre) {
-    Contribution c = Contribution(s.color.rgb, s.f0, s.f1, s.f2);
+// Step splat `s`'s colour and features, unpacked once for all of a lane's pixels.
+Contribution step_contribution(StepSplat s) {
+    Contribution c = Contribution(s.color.rgb, vec4(0.0), vec4(0.0), vec4(0.0));
+    if (FEATURES) unpack_features(s.f0, s.f1, s.f2, c.f0, c.f1, c.f2);
+    return c;
+}
+
+void blend_step(inout Accumulated acc, inout bool live, float limit, StepSplat s, Contribution c, vec2 reach,
+                vec2 centre) {
     vec2 slope = SURFACE_DEPTH ? vec2(s.conic.w, s.color.w) : vec2(0.0);
     if (PIXEL_REACH) {
         if (all(bvec3(live, centre.x >= reach.x, centre.x <= reach.y))) {
@@ -566,7 +570,7 @@ void main() {
     // until all are done, so each window is whole.
     uint next = range.x, window_start = range.x, window = 0u;
     // WINDOW_FETCH: each lane's wanted splat of the current window.
-    StepSplat lane_splat = StepSplat(0u, vec4(0.0), vec4(0.0), vec4(0.0), vec4(0.0), vec4(0.0), vec4(0.0), vec3(0.0));
+    StepSplat lane_splat = StepSplat(0u, vec4(0.0), vec4(0.0), vec4(0.0), uvec2(0u), uvec2(0u), uvec2(0u), vec3(0.0));
     while (subgroupBallot(any_live) != uvec4(0u)) {
         if (!WINDOW_FETCH || window == 0u) {
             while (window == 0u && next < range.y) {
@@ -599,12 +603,14 @@ void main() {
         float row = float(base.y) + 0.5;
         vec2 reach1 = PIXEL_REACH ? row_span(s1.reach_of, s1.head, row) : vec2(0.0);
         vec2 reach2 = PIXEL_REACH && TWO_SPLATS ? row_span(s2.reach_of, s2.head, row) : vec2(0.0);
+        Contribution c1 = step_contribution(s1);
+        Contribution c2 = TWO_SPLATS ? step_contribution(s2) : c1;
         [[unroll]] for (uint k = 0u; k < PIXELS; k++) {
             vec2 centre = vec2(base + uvec2(k * STEP, 0u)) + 0.5;
-            blend_step(acc[k], live[k], limit[k], s1, reach1, centre);
+            blend_step(acc[k], live[k], limit[k], s1, c1, reach1, centre);
             if (TWO_SPLATS) {
                 bool live2 = all(bvec2(live[k], second));
-                blend_step(acc[k], live2, limit[k], s2, reach2, centre);
+                blend_step(acc[k], live2, limit[k], s2, c2, reach2, centre);
                 live[k] = second ? live2 : live[k];
             }
         }

@@ -262,8 +262,6 @@ void main() {
         if (frame.ao.x + frame.ao.y != 0u) ao = sigmoid(FloatsIn(frame.ao).v[i]);
         if (frame.visibility.x + frame.visibility.y != 0u) vis = sigmoid(FloatsIn(frame.visibility).v[i]);
         Features f = Features(frame.features);
-        f.v[3 * i] = vec4(n, rough);
-        f.v[3 * i + 1] = vec4(albedo, metal);
-        f.v[3 * i + 2] = vec4(ao, vis, 0.0, 0.0);
+        pack_features(n, rough, albedo, metal, ao, vis, f.v[3 * i], f.v[3 * i + 1], f.v[3 * i + 2]);
     }
 }

@@ -12,8 +12,26 @@ struct Splat {
     uvec4 rect;     // tile rectangle [x0, y0, x1, y1) (x1 > tiles_x: wraps to the left edge)
 };
 layout(buffer_reference, std430, buffer_reference_align = 16) buffer Splats { Splat v[]; };
-// Per-splat features: (normal.xyz, roughness), (albedo.rgb, metallic), (ao, visibility, 0, 0).
-layout(buffer_reference, std430, buffer_reference_align = 16) buffer Features { vec4 v[]; };
+// Per-splat features, 16 bits a value in three uvec2 (24 bytes; keep in sync with
+// engine/src/splat/mod.rs `FEATURE_BYTES` and its CPU twin `pack_features`):
+// (snorm normal.xy, snorm normal.z | unorm roughness << 16),
+// (unorm albedo.rg, unorm albedo.b | unorm metallic << 16), (unorm ao | unorm visibility << 16, 0).
+layout(buffer_reference, std430, buffer_reference_align = 8) buffer Features { uvec2 v[]; };
+
+// The packed features of one splat (`Features`): the normal's components in [−1, 1], the rest in [0, 1].
+void pack_features(vec3 n, float rough, vec3 albedo, float metal, float ao, float vis,
+                   out uvec2 p0, out uvec2 p1, out uvec2 p2) {
+    p0 = uvec2(packSnorm2x16(n.xy), (packSnorm2x16(vec2(n.z, 0.0)) & 0xffffu) | (packUnorm2x16(vec2(0.0, rough)) & 0xffff0000u));
+    p1 = uvec2(packUnorm2x16(albedo.rg), packUnorm2x16(vec2(albedo.b, metal)));
+    p2 = uvec2(packUnorm2x16(vec2(ao, vis)), 0u);
+}
+
+// `pack_features` undone: (normal.xyz, roughness), (albedo.rgb, metallic), (ao, visibility, 0, 0).
+void unpack_features(uvec2 p0, uvec2 p1, uvec2 p2, out vec4 f0, out vec4 f1, out vec4 f2) {
+    f0 = vec4(unpackSnorm2x16(p0.x), unpackSnorm2x16(p0.y).x, unpackUnorm2x16(p0.y).y);
+    f1 = vec4(unpackUnorm2x16(p1.x), unpackUnorm2x16(p1.y));
+    f2 = vec4(unpackUnorm2x16(p2.x), 0.0, 0.0);
+}
 layout(buffer_reference, std430, buffer_reference_align = 8) buffer Uvec2s { uvec2 v[]; };
 layout(buffer_reference, std430, buffer_reference_align = 4) buffer Floats { float v[]; };
 
