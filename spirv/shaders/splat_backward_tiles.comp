@@ -137,7 +137,9 @@ void main() {
                 conic = splats.v[g].conic;
                 if (GRAD_RGB || SURFACE_DEPTH) color = splats.v[g].color;
                 if (GRAD_FEATURES) {
-                    unpack_features(features.v[3u * g], features.v[3u * g + 1u], features.v[3u * g + 2u], f0, f1, f2);
+                    f0 = features.v[3u * g];
+                    f1 = features.v[3u * g + 1u];
+                    f2 = features.v[3u * g + 2u];
                 }
             }
             g = subgroupBroadcastFirst(g);

@@ -18,13 +18,13 @@ use srug::splat::backward::BlendGrads;
 use srug::splat::cpu::{
     blend_work, pack_features, preprocess_one, render_cpu, tile_row_span, unpack_features, CpuSplat,
 };
-use srug::splat::Channel;
 use srug::splat::{
     cameras_per_batch, default_blend_pixels, default_pixel_reach, default_two_splats_per_step, default_window_fetch,
     BlendVariant, Channels, DepthKey, GBuffer, NormalSource, SplatSettings, Splatter, TileBounds, BATCH_BYTES,
     BLEND_PIXELS, DEFAULT_CHUNK_LENGTH, DEFAULT_MEDIAN_COVERAGE, DEFAULT_TILE, FRAMES_PER_SUBMISSION, MAX_CHUNK_LENGTH,
     TILE_SIZES,
 };
+use srug::splat::{Channel, PerChannel};
 use srug_tests::{
     assert_no_validation_messages, device, move_scene, psnr, random_scene, save_comparison, NAN_SENTINEL,
 };
@@ -123,6 +123,7 @@ fn all_settings() -> SplatSettings {
         tile_bounds: TileBounds::default(),
         surface_depth: false,
         median_coverage: DEFAULT_MEDIAN_COVERAGE,
+        packed_features: false,
     }
 }
 
@@ -782,11 +783,14 @@ fn a_batch_of_cameras_renders_the_same_bits_as_one_camera_at_a_time() {
     }
     // Batch sizes from the memory budget: a street frame of 200k Gaussians at
     // 704x192 (rgb: 100 bytes per Gaussian, 16 per pixel; every channel: 148 and
-    // 64), never fewer than one camera however large, never more than a submission takes.
+    // 64, with packed features 124), never fewer than one camera however large, never more than
+    // a submission takes.
     let street = city.cameras[0].resized(704, 192);
     let all = SplatSettings { channels: Channels::ALL, ..SplatSettings::default() };
     assert_eq!(cameras_per_batch(200_000, &street, &SplatSettings::default(), BATCH_BYTES), 12);
     assert_eq!(cameras_per_batch(200_000, &street, &all, BATCH_BYTES), 7);
+    let packed = SplatSettings { packed_features: true, ..all };
+    assert_eq!(cameras_per_batch(200_000, &street, &packed, BATCH_BYTES), 8);
     assert_eq!(cameras_per_batch(u64::MAX, &street, &all, BATCH_BYTES), 1);
     assert_eq!(cameras_per_batch(10, &street.resized(8, 8), &all, BATCH_BYTES), FRAMES_PER_SUBMISSION);
     // Nothing to render is no work; one bad camera fails the whole call.
@@ -1665,9 +1669,10 @@ fn features_are_stored_at_16_bits_as_the_twin_packs_them() {
     let mut splatter = Splatter::new(&d).unwrap();
     let city = demo_city(&DemoOptions { seed: 7, gaussians: 30_000, sh_degree: 1 }).unwrap();
     let cam = city.cameras[1].resized(352, 96);
-    let settings = all_settings();
+    let settings = SplatSettings { packed_features: true, ..all_settings() };
     let gpu_scene = GpuScene::upload(&d, &city.scene).unwrap();
     let frame = splatter.render_frame(&gpu_scene, &cam, &settings).unwrap();
+    assert!(frame.packed_features);
     let words: Vec<u32> = d.read_buffer(frame.features.as_ref().unwrap()).unwrap();
     let offsets: Vec<u32> = d.read_buffer(&frame.pair_offsets).unwrap();
     assert_eq!(words.len(), 6 * city.scene.len(), "24 bytes a Gaussian");
@@ -1702,6 +1707,30 @@ fn features_are_stored_at_16_bits_as_the_twin_packs_them() {
     assert!(compared > 5_000, "only {compared} Gaussians in view");
     assert!(twin_only * 1000 <= compared, "{twin_only} Gaussians the twin lists were not listed, of {compared}");
     // The G-buffer's features are the blend of what was stored: within the twin comparison's tolerances.
-    compare(&frame.gbuffer.read(&d).unwrap(), &render_cpu(&city.scene, &cam, &settings), "packed_features");
+    let packed = frame.gbuffer.read(&d).unwrap();
+    compare(&packed, &render_cpu(&city.scene, &cam, &settings), "packed_features");
+    // Against the same frame with float features, on every blend path: rgb, alpha and the
+    // depths bit for bit, normal and materials within one 16-bit step.
+    for texel in [true, false] {
+        splatter.set_texel_blend(texel).unwrap();
+        let floats = splatter.render_frame(&gpu_scene, &cam, &all_settings()).unwrap();
+        assert!(!floats.packed_features);
+        let floats = floats.gbuffer.read(&d).unwrap();
+        let packed = splatter.render_frame(&gpu_scene, &cam, &settings).unwrap().gbuffer.read(&d).unwrap();
+        for ((name, p, _), (_, f, _)) in packed.channels().into_iter().zip(floats.channels()) {
+            let worst = p.iter().zip(f).map(|(a, b)| (a - b).abs()).fold(0.0f32, f32::max);
+            let limit = match name {
+                "normal" => 1.0 / 32767.0 + 1e-6,
+                "albedo" | "roughness" | "metallic" | "ao" | "visibility" => 1.0 / 65535.0 + 1e-6,
+                _ => 0.0,
+            };
+            assert!(worst <= limit, "texel blend {texel}: {name} differs by {worst} (limit {limit})");
+        }
+    }
+    // The backward pass refuses feature gradients of a packed frame.
+    let albedo = d.create_filled::<f32>("d albedo", 3 * 352 * 96, 0).unwrap();
+    let grads = BlendGrads { channels: PerChannel::default().with(Channel::Albedo, albedo), ..BlendGrads::default() };
+    let e = splatter.backward(&frame, &gpu_scene, &grads, false).err().unwrap().to_string();
+    assert!(e.contains("packed_features"), "{e}");
     assert_no_validation_messages(&d);
 }

@@ -12,7 +12,7 @@ use crate::frame::{RelightDecisions, RelightSettings};
 use crate::indirect::{StoragePrecision, UNetConfig};
 use crate::scene::{human_bytes, Scene};
 use crate::shadow::{depth_channels, light_camera, Sun};
-use crate::splat::{BlendVariant, Channel, Channels, FEATURE_BYTES, SPLAT_BYTES};
+use crate::splat::{BlendVariant, Channel, Channels, PACKED_FEATURE_BYTES, SPLAT_BYTES};
 
 /// What the plan is for.
 #[derive(Clone, Debug)]
@@ -106,7 +106,8 @@ fn splat_stage(
     blend: BlendVariant,
     (tile, surface_depth): (u32, bool),
 ) -> PlannedStage {
-    let features = if channels.needs_features() { n * FEATURE_BYTES } else { 0 };
+    // The relighter stores its splats' features at 16 bits (`SplatSettings::packed_features`).
+    let features = if channels.needs_features() { n * PACKED_FEATURE_BYTES } else { 0 };
     PlannedStage {
         name: name.to_string(),
         kernels: format!(

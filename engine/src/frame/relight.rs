@@ -75,6 +75,8 @@ impl FramePlan {
             // The shadow test's receivers are these pixels: their depths follow its definition.
             surface_depth: settings.shadow.surface_depth,
             median_coverage: settings.shadow.receiver_coverage,
+            // Shading reads the features; nothing differentiates them.
+            packed_features: true,
             ..SplatSettings::default()
         };
         Ok(Self { decisions, shade, splat })

@@ -221,6 +221,12 @@ impl Splatter {
                 "needs a frame rendered with a feature channel (normal or materials)",
             ));
         }
+        if bits & 252 != 0 && frame.packed_features {
+            return Err(Error::invalid(
+                "feature gradient",
+                "needs a frame whose features are stored as floats (SplatSettings::packed_features off)",
+            ));
+        }
         if grads.rgb.is_some() && frame.gbuffer.rgb.is_none() {
             // Its splats' colours were not evaluated (SH degree 0).
             return Err(Error::invalid("rgb gradient", "needs a frame rendered with rgb (SplatSettings::rgb on)"));

@@ -95,7 +95,7 @@ pub fn depth_key_bits(camera: &Camera) -> u32 {
 /// RGBA32F and R32UI texel-buffer views, and subgroup shuffles.
 fn texel_blend_supported(info: &DeviceInfo) -> bool {
     info.subgroup_shuffle
-        && [TexelFormat::Rgba32Float, TexelFormat::R32Uint, TexelFormat::Rg32Uint]
+        && [TexelFormat::Rgba32Float, TexelFormat::R32Uint, TexelFormat::Rg32Uint, TexelFormat::Rgba32Uint]
             .iter()
             .all(|f| info.texel_formats.contains(f))
 }
@@ -205,6 +205,8 @@ struct BlendOptions {
     chunk_length: u32,
     /// [`SplatSettings::median_coverage`].
     median_coverage: f32,
+    /// [`SplatSettings::packed_features`].
+    packed_features: bool,
 }
 
 /// One rendered frame with the per-frame buffers later stages walk again:
@@ -252,6 +254,8 @@ pub struct SplatFrame {
     pub surface_depth: bool,
     /// Its median depth's coverage ([`SplatSettings::median_coverage`]).
     pub median_coverage: f32,
+    /// Whether its features are stored at 16 bits ([`SplatSettings::packed_features`]).
+    pub packed_features: bool,
     /// Whether a host's depth hid splats ([`Splatter::render_frame_occluded`]).
     pub occluded: bool,
 }
@@ -505,6 +509,7 @@ impl Splatter {
             chunk_pass,
             chunk_length,
             median_coverage,
+            packed_features,
         } = options;
         // The transmittance pass blends nothing and needs no depth.
         let (bits, surface) = if chunk_pass == 1 { (0, false) } else { (bits, surface) };
@@ -529,6 +534,9 @@ impl Splatter {
         }
         if occluded {
             spec.push((5, SpecValue::Bool(true)));
+        }
+        if packed_features && bits & 252 != 0 {
+            spec.push((14, SpecValue::Bool(true)));
         }
         if median_coverage != DEFAULT_MEDIAN_COVERAGE {
             spec.push((13, SpecValue::F32(1.0 - median_coverage)));
@@ -765,7 +773,7 @@ impl Splatter {
             splats: device.create_buffer("splats", n * SPLAT_BYTES, MemoryKind::Storage)?,
             features: ch
                 .needs_features()
-                .then(|| device.create_buffer("splat features", n * FEATURE_BYTES, MemoryKind::Storage))
+                .then(|| device.create_buffer("splat features", n * feature_bytes(settings), MemoryKind::Storage))
                 .transpose()?,
             tile_counts: device.create_buffer("tile counts", (n + 1) * 4, MemoryKind::Storage)?,
             ranges: device.create_buffer("tile ranges", tiles * 8, MemoryKind::Storage)?,
@@ -841,6 +849,7 @@ impl Splatter {
             chunk_pass,
             chunk_length,
             median_coverage: settings.median_coverage,
+            packed_features: settings.packed_features,
         };
         // The split blend: texel blends not in front of a host's depth, where a list can split.
         let chunks = match chunk_slots(pairs, tiles, tile, self.chunk_length) {
@@ -943,6 +952,7 @@ impl Splatter {
         let ellipse = SpecValue::Bool(settings.tile_bounds == TileBounds::Ellipse);
         let surface = SpecValue::Bool(settings.surface_depth);
         let features = SpecValue::Bool(ch.needs_features());
+        let packed = SpecValue::Bool(ch.needs_features() && settings.packed_features);
         // The SH degree used (as in each view's uniform, `FrameUniform::counts`).
         let sh_used = SpecValue::U32(sh_degree_used(scene, settings));
         // Every view of one call masks its tiles or none does (one preprocess kernel).
@@ -955,8 +965,15 @@ impl Splatter {
         let vec3_inputs = texel_preprocess && formats[0] == TexelFormat::Rgb32Float;
         let vec4_inputs = texel_preprocess && formats[2] == TexelFormat::Rgba32Float;
         let sh_vec4 = texel_preprocess && formats[4] == TexelFormat::Rgba32Float;
-        let mut preprocess_spec =
-            vec![(0, features), (1, ellipse), (2, surface), (3, sh_used), (5, mask_spec), tile_spec(tile)[0]];
+        let mut preprocess_spec = vec![
+            (0, features),
+            (1, ellipse),
+            (2, surface),
+            (3, sh_used),
+            (5, mask_spec),
+            (9, packed),
+            tile_spec(tile)[0],
+        ];
         if texel_preprocess {
             preprocess_spec.extend([
                 (6, SpecValue::Bool(vec4_inputs)),
@@ -1107,12 +1124,12 @@ impl Splatter {
                     let uints = |buffer, elements| {
                         Binding::Texels(Texels { buffer, offset: 0, elements, format: TexelFormat::R32Uint })
                     };
-                    // Packed features, three RG32UI texels a splat; without them the kernel
-                    // never reads binding 2, and a texel of the splats stands in.
-                    let pairs_of = |buffer, elements| {
-                        Binding::Texels(Texels { buffer, offset: 0, elements, format: TexelFormat::Rg32Uint })
-                    };
-                    let features = p.features.as_ref().map_or(pairs_of(&p.splats, 1), |fb| pairs_of(fb, 3 * n));
+                    // Features, three texels a splat: RG32UI when packed, else RGBA32UI
+                    // (the floats' bits); without them the kernel never reads binding 2,
+                    // and a texel of the splats stands in.
+                    let format = if settings.packed_features { TexelFormat::Rg32Uint } else { TexelFormat::Rgba32Uint };
+                    let words = |buffer, elements| Binding::Texels(Texels { buffer, offset: 0, elements, format });
+                    let features = p.features.as_ref().map_or(words(&p.splats, 1), |fb| words(fb, 3 * n));
                     let bindings = [
                         Binding::Buffer(&p.uniform),
                         view(&p.splats, 4 * n),
@@ -1183,6 +1200,7 @@ impl Splatter {
                 tile,
                 surface_depth: settings.surface_depth,
                 median_coverage: settings.median_coverage,
+                packed_features: settings.packed_features && settings.channels.needs_features(),
                 occluded: view.occluder.is_some(),
             });
         }
@@ -1212,7 +1230,7 @@ pub fn cameras_per_batch(gaussians: u64, camera: &Camera, settings: &SplatSettin
         + 3 * u64::from(settings.rgb)
         + ch.iter().map(|c| c.floats() as u64).sum::<u64>()
         + u64::from(ch.top_gaussian);
-    let features = if ch.needs_features() { FEATURE_BYTES } else { 0 };
+    let features = if ch.needs_features() { feature_bytes(settings) } else { 0 };
     let per_frame = gaussians.saturating_mul(SPLAT_BYTES + features + 4 + 2 * 16).saturating_add(pixels * floats * 4);
     (budget / per_frame.max(1)).clamp(1, FRAMES_PER_SUBMISSION as u64) as usize
 }

@@ -160,9 +160,20 @@ pub(crate) const TOP_GAUSSIAN_BIT: u32 = 9;
 const NO_RGB: &str = "this G-buffer has no rgb channel (it was splatted with SplatSettings::rgb off)";
 /// Bytes of one projected splat (keep in sync with `Splat` in `splat.glsl`).
 pub(crate) const SPLAT_BYTES: u64 = 64;
-/// Bytes of one splat's features: ten values at 16 bits in three uvec2
-/// (keep in sync with `Features` in `splat_types.glsl`; [`cpu::pack_features`] is its twin).
-pub(crate) const FEATURE_BYTES: u64 = 24;
+/// Bytes of one splat's features (three vec4).
+pub(crate) const FEATURE_BYTES: u64 = 48;
+/// Bytes of one splat's features at 16 bits ([`SplatSettings::packed_features`]:
+/// three uvec2, `PackedFeatures` in `splat_types.glsl`; [`cpu::pack_features`] is its twin).
+pub(crate) const PACKED_FEATURE_BYTES: u64 = 24;
+
+/// Bytes of one splat's features as `settings` store them.
+pub(crate) fn feature_bytes(settings: &SplatSettings) -> u64 {
+    if settings.packed_features {
+        PACKED_FEATURE_BYTES
+    } else {
+        FEATURE_BYTES
+    }
+}
 
 /// How the blend kernel reads splats; all give the same image.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
@@ -269,6 +280,13 @@ pub struct SplatSettings {
     /// median; more keeps only what covers a pixel more surely (shadow maps,
     /// [`crate::shadow::ShadowSettings::map_coverage`]). Strictly between 0 and 1.
     pub median_coverage: f32,
+    /// Store each splat's normal and materials at 16 bits (24 bytes, not 48:
+    /// snorm normal, unorm materials) for the blend to read back: the normal
+    /// and material channels then carry a splat's values to within 1/32767 and
+    /// 1/65535. Half the features' memory and reads, for frames that are not
+    /// differentiated: the backward pass refuses such a frame. Off by default;
+    /// the relighter turns it on for its cameras.
+    pub packed_features: bool,
 }
 
 /// The coverage at which the median depth is read by default (the median).
@@ -296,6 +314,7 @@ impl Default for SplatSettings {
             rgb: true,
             surface_depth: false,
             median_coverage: DEFAULT_MEDIAN_COVERAGE,
+            packed_features: false,
         }
     }
 }

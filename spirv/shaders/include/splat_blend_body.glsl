@@ -55,6 +55,8 @@ layout(constant_id = 12) const uint CHUNK_LENGTH = 0u;
 // 0.5: the median); with surface depths a later splat at least that opaque
 // and nearer takes it over.
 layout(constant_id = 13) const float MEDIAN_T = 0.5;
+// Features at 16 bits (`PackedFeatures` in splat_types.glsl), else as floats.
+layout(constant_id = 14) const bool PACKED_FEATURES = false;
 // Without rgb (shadow maps) no colour is read, blended or stored.
 const bool RGB = (CHANNELS & 256u) != 0u;
 // The index of the splat with the largest weight wᵢ = αᵢ Tᵢ (the first of equal ones), per pixel.
@@ -63,8 +65,8 @@ const uint NO_GAUSSIAN = 0xffffffffu;
 const bool FEATURES = (CHANNELS & 252u) != 0u;
 
 #ifdef TEXEL_SPLATS
-// Splats (4 RGBA32F texels each: head, conic, color, rect) and packed
-// features (3 RG32UI each) as texel-buffer views: a contribution's colour and features are read
+// Splats (4 RGBA32F texels each: head, conic, color, rect) and features (3
+// each: RG32UI when packed, else RGBA32UI holding the floats' bits) as texel-buffer views: a contribution's colour and features are read
 // by the contributing lanes only, and on lavapipe a texelFetch is one vector
 // gather where a device-address load is a loop over the lanes.
 layout(set = 0, binding = 1) uniform textureBuffer splat_texels;
@@ -76,11 +78,12 @@ layout(set = 0, binding = 3) uniform utextureBuffer value_texels;
 layout(set = 0, binding = 4) uniform utextureBuffer key_texels;
 #define SPLAT_COLOR(g) texelFetch(splat_texels, int(4u * (g) + 2u)).rgb
 #define SPLAT_SLOPE_Y(g) texelFetch(splat_texels, int(4u * (g) + 2u)).w
-#define FEATURE(i) texelFetch(feature_texels, int(i)).xy
+#define FEATURE_WORDS(i) texelFetch(feature_texels, int(i))
 #else
 #define SPLAT_COLOR(g) Splats(frame.splats).v[g].color.rgb
 #define SPLAT_SLOPE_Y(g) Splats(frame.splats).v[g].color.w
-#define FEATURE(i) Features(frame.features).v[i]
+#define FEATURE_WORDS(i) (PACKED_FEATURES ? uvec4(PackedFeatures(frame.features).v[i], 0u, 0u) \
+                                         : floatBitsToUint(Features(frame.features).v[i]))
 #endif
 
 // The splat's surface-depth slope (zero without SURFACE_DEPTH): x in its
@@ -140,10 +143,21 @@ struct Contribution {
     vec4 f0, f1, f2;
 };
 
+// A splat's three feature words (`FEATURE_WORDS`) as values: unpacked, or the floats' bits.
+void features_of(uvec4 w0, uvec4 w1, uvec4 w2, inout Contribution c) {
+    if (PACKED_FEATURES) {
+        unpack_features(w0.xy, w1.xy, w2.xy, c.f0, c.f1, c.f2);
+    } else {
+        c.f0 = uintBitsToFloat(w0);
+        c.f1 = uintBitsToFloat(w1);
+        c.f2 = uintBitsToFloat(w2);
+    }
+}
+
 Contribution splat_contribution(uint g) {
     Contribution c = Contribution(vec3(0.0), vec4(0.0), vec4(0.0), vec4(0.0));
     if (RGB) c.color = SPLAT_COLOR(g);
-    if (FEATURES) unpack_features(FEATURE(3 * g), FEATURE(3 * g + 1), FEATURE(3 * g + 2), c.f0, c.f1, c.f2);
+    if (FEATURES) features_of(FEATURE_WORDS(3 * g), FEATURE_WORDS(3 * g + 1), FEATURE_WORDS(3 * g + 2), c);
     return c;
 }
 
@@ -410,26 +424,26 @@ void blend_pixel(inout Accumulated acc, inout bool live, float limit, uint g, ve
 }
 
 // A splat as a blend step takes it: its index, head, conic, colour texel
-// (rgb, and the surface slope's y in w), packed features and row reach;
-// members the kernel's constants do not use stay zero.
+// (rgb, and the surface slope's y in w), feature words (`FEATURE_WORDS`: xy
+// alone when packed) and row reach; members the kernel's constants do not use stay zero.
 struct StepSplat {
     uint g;
     vec4 head, conic, color;
-    uvec2 f0, f1, f2;
+    uvec4 f0, f1, f2;
     vec3 reach_of;
 };
 
 // The splat of the tile list's entry `index`.
 StepSplat fetch_step_splat(uint index) {
-    StepSplat s = StepSplat(0u, vec4(0.0), vec4(0.0), vec4(0.0), uvec2(0u), uvec2(0u), uvec2(0u), vec3(0.0));
+    StepSplat s = StepSplat(0u, vec4(0.0), vec4(0.0), vec4(0.0), uvec4(0u), uvec4(0u), uvec4(0u), vec3(0.0));
     s.g = texelFetch(value_texels, int(index)).x;
     s.head = texelFetch(splat_texels, int(4u * s.g));
     s.conic = texelFetch(splat_texels, int(4u * s.g + 1u));
     if (RGB || SURFACE_DEPTH) s.color = texelFetch(splat_texels, int(4u * s.g + 2u));
     if (FEATURES) {
-        s.f0 = FEATURE(3u * s.g);
-        s.f1 = FEATURE(3u * s.g + 1u);
-        s.f2 = FEATURE(3u * s.g + 2u);
+        s.f0 = FEATURE_WORDS(3u * s.g);
+        s.f1 = FEATURE_WORDS(3u * s.g + 1u);
+        s.f2 = FEATURE_WORDS(3u * s.g + 2u);
     }
     if (PIXEL_REACH) s.reach_of = row_reach_of(s.head, s.conic);
     return s;
@@ -444,9 +458,15 @@ StepSplat shuffled(StepSplat s, uint from) {
     t.conic = subgroupShuffle(s.conic, from);
     if (RGB || SURFACE_DEPTH) t.color = subgroupShuffle(s.color, from);
     if (FEATURES) {
-        t.f0 = subgroupShuffle(s.f0, from);
-        t.f1 = subgroupShuffle(s.f1, from);
-        t.f2 = subgroupShuffle(s.f2, from);
+        if (PACKED_FEATURES) {
+            t.f0.xy = subgroupShuffle(s.f0.xy, from);
+            t.f1.xy = subgroupShuffle(s.f1.xy, from);
+            t.f2.xy = subgroupShuffle(s.f2.xy, from);
+        } else {
+            t.f0 = subgroupShuffle(s.f0, from);
+            t.f1 = subgroupShuffle(s.f1, from);
+            t.f2 = subgroupShuffle(s.f2, from);
+        }
     }
     if (PIXEL_REACH) t.reach_of = subgroupShuffle(s.reach_of, from);
     return t;
@@ -461,7 +481,7 @@ StepSplat shuffled(StepSplat s, uint from) {
 // Step splat `s`'s colour and features, unpacked once for all of a lane's pixels.
 Contribution step_contribution(StepSplat s) {
     Contribution c = Contribution(s.color.rgb, vec4(0.0), vec4(0.0), vec4(0.0));
-    if (FEATURES) unpack_features(s.f0, s.f1, s.f2, c.f0, c.f1, c.f2);
+    if (FEATURES) features_of(s.f0, s.f1, s.f2, c);
     return c;
 }
 
@@ -570,7 +590,7 @@ void main() {
     // until all are done, so each window is whole.
     uint next = range.x, window_start = range.x, window = 0u;
     // WINDOW_FETCH: each lane's wanted splat of the current window.
-    StepSplat lane_splat = StepSplat(0u, vec4(0.0), vec4(0.0), vec4(0.0), uvec2(0u), uvec2(0u), uvec2(0u), vec3(0.0));
+    StepSplat lane_splat = StepSplat(0u, vec4(0.0), vec4(0.0), vec4(0.0), uvec4(0u), uvec4(0u), uvec4(0u), vec3(0.0));
     while (subgroupBallot(any_live) != uvec4(0u)) {
         if (!WINDOW_FETCH || window == 0u) {
             while (window == 0u && next < range.y) {

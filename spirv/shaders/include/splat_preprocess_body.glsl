@@ -52,6 +52,8 @@ const bool SH_VEC4 = false;
 #endif
 
 layout(constant_id = 0) const bool WRITE_FEATURES = false;
+// Features at 16 bits (`PackedFeatures` in splat_types.glsl), else as floats.
+layout(constant_id = 9) const bool PACKED_FEATURES = false;
 // Count only the tiles whose square can see the splat at α ≥ 1/255
 // (`tile_row_span`), not its whole 3σ rectangle. The keys kernel must agree.
 layout(constant_id = 1) const bool ELLIPSE_TILES = false;
@@ -261,7 +263,14 @@ void main() {
         if (frame.metallic.x + frame.metallic.y != 0u) metal = sigmoid(FloatsIn(frame.metallic).v[i]);
         if (frame.ao.x + frame.ao.y != 0u) ao = sigmoid(FloatsIn(frame.ao).v[i]);
         if (frame.visibility.x + frame.visibility.y != 0u) vis = sigmoid(FloatsIn(frame.visibility).v[i]);
-        Features f = Features(frame.features);
-        pack_features(n, rough, albedo, metal, ao, vis, f.v[3 * i], f.v[3 * i + 1], f.v[3 * i + 2]);
+        if (PACKED_FEATURES) {
+            PackedFeatures f = PackedFeatures(frame.features);
+            pack_features(n, rough, albedo, metal, ao, vis, f.v[3 * i], f.v[3 * i + 1], f.v[3 * i + 2]);
+        } else {
+            Features f = Features(frame.features);
+            f.v[3 * i] = vec4(n, rough);
+            f.v[3 * i + 1] = vec4(albedo, metal);
+            f.v[3 * i + 2] = vec4(ao, vis, 0.0, 0.0);
+        }
     }
 }

@@ -12,11 +12,14 @@ struct Splat {
     uvec4 rect;     // tile rectangle [x0, y0, x1, y1) (x1 > tiles_x: wraps to the left edge)
 };
 layout(buffer_reference, std430, buffer_reference_align = 16) buffer Splats { Splat v[]; };
-// Per-splat features, 16 bits a value in three uvec2 (24 bytes; keep in sync with
-// engine/src/splat/mod.rs `FEATURE_BYTES` and its CPU twin `pack_features`):
+// Per-splat features: (normal.xyz, roughness), (albedo.rgb, metallic), (ao, visibility, 0, 0).
+layout(buffer_reference, std430, buffer_reference_align = 16) buffer Features { vec4 v[]; };
+// The same ten values at 16 bits in three uvec2 (24 bytes; forward-only frames,
+// `SplatSettings::packed_features`; keep in sync with engine/src/splat/mod.rs
+// `PACKED_FEATURE_BYTES` and the CPU twin `pack_features`):
 // (snorm normal.xy, snorm normal.z | unorm roughness << 16),
 // (unorm albedo.rg, unorm albedo.b | unorm metallic << 16), (unorm ao | unorm visibility << 16, 0).
-layout(buffer_reference, std430, buffer_reference_align = 8) buffer Features { uvec2 v[]; };
+layout(buffer_reference, std430, buffer_reference_align = 8) buffer PackedFeatures { uvec2 v[]; };
 
 // The packed features of one splat (`Features`): the normal's components in [−1, 1], the rest in [0, 1].
 void pack_features(vec3 n, float rough, vec3 albedo, float metal, float ao, float vis,
