@@ -239,6 +239,8 @@ pub unsafe extern "C" fn srug_renderer_create(
         let mut settings = RelightSettings::preset(Preset::Balanced);
         settings.shade.tone_map = ToneMap::Aces;
         settings.extra_channels = Channels::from_bits(channels >> 2);
+        // The header's contract: rgb is always rendered.
+        settings.rgb = true;
         let obj = RendererObject {
             device: c.device.clone(),
             width,
@@ -909,6 +911,7 @@ pub unsafe extern "C" fn srug_renderer_set_preset(renderer: *mut srug_renderer, 
             s.shade = r.settings.shade;
             s.normal_source = r.settings.normal_source;
             s.extra_channels = r.settings.extra_channels;
+            s.rgb = r.settings.rgb;
             (s.tile, s.shadow.tile) = (r.settings.tile, r.settings.shadow.tile);
             s.validate()?;
             r.settings = s;

@@ -192,7 +192,7 @@ impl RendererObject {
         if targets.composite {
             self.settings.shade.background = srug::shade::Background::Color([0.0; 3]);
         }
-        targets.request_channels(&mut self.settings.extra_channels);
+        targets.request_channels(&mut self.settings);
         let size = self.settings.render_size(self.width, self.height);
         // The render's own failure (its status and message) is reported as it is.
         let mut failure = None;

@@ -936,3 +936,46 @@ fn a_batch_of_relit_cameras_is_each_camera_relit_alone() {
     }
     assert_no_validation_messages(&d);
 }
+
+/// Shading never reads the scene's own colour: a relit frame splats it (and reads the SH)
+/// only when `RelightSettings::rgb` asks, and its light is the same bits either way; the rgb it
+/// then gives is a plain splat's, bit for bit.
+#[test]
+fn a_relit_frame_splats_the_scenes_colour_only_when_asked() {
+    use srug::frame::{RelightSettings, Relighter};
+    use srug::scene::activate::GpuScene;
+    use srug::scene::demo::{demo_city, DemoOptions};
+    use srug::splat::{SplatSettings, Splatter};
+    let d = device();
+    let city = demo_city(&DemoOptions { seed: 4, gaussians: 5000, sh_degree: 2 }).unwrap();
+    let cam = city.cameras[0].resized(176, 48);
+    let sun = Sun::from_azimuth_elevation(260.0, 50.0, [3.0; 3]).unwrap();
+    let prep = EnvironmentPrep::new(&d).unwrap();
+    let sky = srug::shade::ProceduralSky::new(sun.direction, 3.0).render().unwrap();
+    let env = prep.prepare(&sky, &PrepareSettings { samples: 16, ..PrepareSettings::default() }).unwrap();
+    let brdf = prep.brdf_table(BrdfLut::Karis, 33, 64).unwrap();
+    let (bounds, attributes) = (city.scene.bounds().unwrap(), city.scene.attributes());
+    let gpu = GpuScene::upload(&d, &city.scene).unwrap();
+    let mut relighter = Relighter::new(&d).unwrap();
+    let mut relit = |settings: &RelightSettings| {
+        relighter.render(&gpu, &attributes, &bounds, &cam, Some(&sun), &env, &brdf, settings).unwrap()
+    };
+    let plain = relit(&RelightSettings::default());
+    assert!(plain.gbuffer.rgb.is_none(), "the colour was splatted unasked");
+    let asked = relit(&RelightSettings { rgb: true, ..RelightSettings::default() });
+    let light = |f: &srug::frame::RelitFrame| f.shaded.read(&d).unwrap().radiance;
+    assert!(light(&plain) == light(&asked), "the colour changed the light");
+    let rgb: Vec<f32> = d.read_buffer(asked.gbuffer.rgb.as_ref().unwrap()).unwrap();
+    let settings = RelightSettings::default();
+    let splat = SplatSettings {
+        tile: settings.tile,
+        surface_depth: settings.shadow.surface_depth,
+        median_coverage: settings.shadow.receiver_coverage,
+        ..SplatSettings::default()
+    };
+    let (g, _) = Splatter::new(&d).unwrap().render(&gpu, &cam, &splat).unwrap();
+    let own: Vec<f32> = d.read_buffer(g.rgb.as_ref().unwrap()).unwrap();
+    assert!(rgb.iter().any(|v| *v > 0.0), "the street has colour");
+    assert!(rgb.iter().zip(&own).all(|(a, b)| a.to_bits() == b.to_bits()), "not a plain splat's rgb");
+    assert_no_validation_messages(&d);
+}

@@ -265,8 +265,9 @@ pub fn trade_bench(device: &Device, setup: &TradeSetup, mut progress: impl FnMut
         };
         for r in 0..setup.repeats.max(1) {
             progress(&format!("{label} ({}/{})", r + 1, setup.repeats.max(1)));
-            let relit =
-                relighter.render(&gpu, &attributes, &bounds, &camera, Some(&sun), &env, &brdf, &setting.settings)?;
+            // The splatted colour too, for the colour PSNR column.
+            let settings = RelightSettings { rgb: true, ..setting.settings };
+            let relit = relighter.render(&gpu, &attributes, &bounds, &camera, Some(&sun), &env, &brdf, &settings)?;
             m.seconds.push(relit.timings.total_seconds());
             for (i, t) in group_seconds(&relit.timings).into_iter().enumerate() {
                 m.groups[i].push(t);

@@ -100,15 +100,18 @@ impl FrameChannel {
 }
 
 impl HostTargets {
-    /// Adds the G-buffer channels these targets read to `channels`: the
-    /// median depth for a depth image, and those of the host buffers.
-    pub fn request_channels(&self, channels: &mut crate::splat::Channels) {
+    /// Adds what these targets read to `settings`: the median depth for a
+    /// depth image, the G-buffer channels of the host buffers, and the
+    /// splatted colour where one reads it ([`FrameChannel::Rgb`]).
+    pub fn request_channels(&self, settings: &mut crate::frame::RelightSettings) {
         if self.depth.is_some() {
-            channels.median_depth = true;
+            settings.extra_channels.median_depth = true;
         }
         for (c, _) in &self.buffers {
-            if let FrameChannel::GBuffer(c) = c {
-                channels.set(*c);
+            match c {
+                FrameChannel::GBuffer(c) => settings.extra_channels.set(*c),
+                FrameChannel::Rgb => settings.rgb = true,
+                _ => {}
             }
         }
     }

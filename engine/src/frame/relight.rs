@@ -77,6 +77,8 @@ impl FramePlan {
             median_coverage: settings.shadow.receiver_coverage,
             // Shading reads the features; nothing differentiates them.
             packed_features: true,
+            // Nor the scene's own colour: its SH are read only where asked for.
+            rgb: settings.rgb,
             ..SplatSettings::default()
         };
         Ok(Self { decisions, shade, splat })
@@ -214,7 +216,7 @@ impl Relighter {
         if targets.composite {
             settings.shade.background = crate::shade::Background::Color([0.0; 3]);
         }
-        targets.request_channels(&mut settings.extra_channels);
+        targets.request_channels(&mut settings);
         let size = settings.render_size(camera.width, camera.height);
         let (mut frame, t) = Self::with_host_targets(
             self,

@@ -18,6 +18,10 @@ pub struct RelightSettings {
     pub normal_source: NormalSource,
     /// G-buffer channels to blend besides those the shading reads (for callers that read them).
     pub extra_channels: Channels,
+    /// Also blend the scene's own colour (its spherical harmonics) into the
+    /// G-buffer's rgb channel, for callers that read it. Shading never does: off,
+    /// a relit frame reads no SH coefficient (most of an SH-3 scene's bytes).
+    pub rgb: bool,
     /// How editable visibility is computed: the sigmoid test (differentiable)
     /// or the traced transmittance through the shadow map's splats (exact, slower).
     pub visibility_kind: VisibilityKind,
@@ -38,6 +42,7 @@ impl Default for RelightSettings {
             shadow: ShadowSettings::default(),
             normal_source: NormalSource::default(),
             extra_channels: Channels::default(),
+            rgb: false,
             visibility_kind: VisibilityKind::default(),
             sh_degree: None,
             render_scale: 0.0,
