@@ -114,6 +114,8 @@ fn run(rig: &mut Rig, case: &Case) -> Vec<f32> {
     let bounds = case.scene.bounds().unwrap();
     let env = rig.environment(&case.sun);
     let mut settings = case.settings;
+    // The splat's own colour too, checked against its twin below.
+    settings.rgb = true;
     settings.shade.prefill = Some(NAN);
     settings.shadow.prefill = Some(NAN);
     match case.network {
