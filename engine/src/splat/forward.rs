@@ -92,7 +92,8 @@ pub fn depth_key_bits(camera: &Camera) -> u32 {
 }
 
 /// Whether `info`'s device can run the texel blend (`splat_blend_texel.comp`):
-/// RGBA32F and R32UI texel-buffer views, and subgroup shuffles.
+/// RGBA32F, R32UI, RG32UI and RGBA32UI texel-buffer views (splats, keys and
+/// values, packed and float features), and subgroup shuffles.
 fn texel_blend_supported(info: &DeviceInfo) -> bool {
     info.subgroup_shuffle
         && [TexelFormat::Rgba32Float, TexelFormat::R32Uint, TexelFormat::Rg32Uint, TexelFormat::Rgba32Uint]
