@@ -66,9 +66,10 @@ const bool FEATURES = (CHANNELS & 252u) != 0u;
 
 #ifdef TEXEL_SPLATS
 // Splats (4 RGBA32F texels each: head, conic, color, rect) and features (3
-// each: RG32UI when packed, else RGBA32UI holding the floats' bits) as texel-buffer views: a contribution's colour and features are read
-// by the contributing lanes only, and on lavapipe a texelFetch is one vector
-// gather where a device-address load is a loop over the lanes.
+// each: RG32UI when packed, else RGBA32UI holding the floats' bits) as
+// texel-buffer views: a contribution's colour and features are read by the
+// contributing lanes only, and on lavapipe a texelFetch is one vector gather
+// where a device-address load is a loop over the lanes.
 layout(set = 0, binding = 1) uniform textureBuffer splat_texels;
 layout(set = 0, binding = 2) uniform utextureBuffer feature_texels;
 // The sorted splat indices (R32UI), the tile's list.
@@ -472,12 +473,6 @@ StepSplat shuffled(StepSplat s, uint from) {
     return t;
 }
 
-// Blends step splat `s` into one pixel of a lane (centre `centre`, at the
-// row span `reach`): with PIXEL_REACH a pixel outside the span is not
-// evaluated (the same result: it would not take the splat), so a pixel
-// column no lane of the vector reaches costs a compare. Splats come in order
-// of centre depth: once one lies at or behind the host's depth, so do the
-// rest (`behind_host`).
 // Step splat `s`'s colour and features, unpacked once for all of a lane's pixels.
 Contribution step_contribution(StepSplat s) {
     Contribution c = Contribution(s.color.rgb, vec4(0.0), vec4(0.0), vec4(0.0));
@@ -485,6 +480,12 @@ Contribution step_contribution(StepSplat s) {
     return c;
 }
 
+// Blends step splat `s` into one pixel of a lane (centre `centre`, at the
+// row span `reach`): with PIXEL_REACH a pixel outside the span is not
+// evaluated (the same result: it would not take the splat), so a pixel
+// column no lane of the vector reaches costs a compare. Splats come in order
+// of centre depth: once one lies at or behind the host's depth, so do the
+// rest (`behind_host`).
 void blend_step(inout Accumulated acc, inout bool live, float limit, StepSplat s, Contribution c, vec2 reach,
                 vec2 centre) {
     vec2 slope = SURFACE_DEPTH ? vec2(s.conic.w, s.color.w) : vec2(0.0);
