@@ -71,5 +71,6 @@ pub use info::{AdapterSummary, DeviceInfo, MemoryUsage};
 pub use kernel::{check_decl, full_subgroup_flags, specialized_workgroup_size, Kernel, KernelDecl, SpecValue};
 pub use layout::{check_block, check_layout, DeviceAddress, GpuLayout};
 pub use recording::{grid_1d, Binding, Grid, Recording, StageTime, Submission, Timings};
+pub use shared::POOL_HEADROOM_BYTES;
 pub use srug_spirv::{kernels, BindingInfo, BindingKind, BlockInfo, KernelInfo, MemberInfo, SpecConstantInfo};
 pub use sync::{HostSync, SemaphoreSignal, SemaphoreWait};

@@ -90,8 +90,9 @@ pub(crate) struct PooledBuffer {
 /// emptied 256 MiB block (all but the last) to the system: the next batch's
 /// buffers were then faulted in and zeroed page by page by the first kernel
 /// writing them. Contents are undefined, as Vulkan's fresh memory is.
-/// An allocation that puts more in use than ever before empties it first
-/// ([`Shared::trim_pool_for`]).
+/// A fresh allocation first frees pooled buffers, oldest first, until in
+/// use and pooled stay within the most ever in use (staging: plus a little
+/// headroom; all of them past it: [`Shared::trim_pool_for`]).
 pub(crate) struct BufferPool {
     pub(crate) items: VecDeque<PooledBuffer>,
     pub(crate) bytes: u64,
@@ -105,6 +106,13 @@ pub(crate) struct BufferPool {
 pub(crate) fn pool_limit(heap_bytes: u64) -> u64 {
     (heap_bytes / 8).clamp(256 << 20, 4 << 30)
 }
+
+/// Bytes the pool may hold beyond the most ever in use at once when a
+/// host-visible (staging) buffer is freshly allocated ([`Shared::trim_pool_for`]):
+/// room for a streamed load's staging buffers of every size (one per
+/// attribute), which would otherwise be freed and faulted in again for
+/// every block.
+pub const POOL_HEADROOM_BYTES: u64 = 32 << 20;
 
 /// A pooled buffer may be up to this much larger than asked for (as a fraction, 1/4).
 const POOL_SLACK_DIVISOR: u64 = 4;
@@ -162,8 +170,8 @@ pub(crate) struct Shared {
     pub(crate) current_bytes: AtomicU64,
     pub(crate) peak_bytes: AtomicU64,
     /// Most bytes allocated at once since the device was made (never reset,
-    /// unlike `peak_bytes`): an allocation past it empties the pool first
-    /// ([`Shared::trim_pool_for`]).
+    /// unlike `peak_bytes`): a fresh allocation frees pooled buffers so that
+    /// in use and pooled stay near it ([`Shared::trim_pool_for`]).
     pub(crate) high_water_bytes: AtomicU64,
     /// Allocations that took new memory rather than a pooled buffer.
     pub(crate) fresh_allocations: AtomicU64,
@@ -215,7 +223,9 @@ impl Shared {
             linear,
             allocation_scheme: AllocationScheme::GpuAllocatorManaged,
         };
-        self.trim_pool_for(requirements.size);
+        // Host-visible buffers (staging) may keep the pool a little past the mark.
+        let headroom = if location == MemoryLocation::GpuOnly { 0 } else { POOL_HEADROOM_BYTES };
+        self.trim_pool_for(requirements.size, name, headroom);
         let mut result = lock(&self.allocator).allocate(&desc);
         // Out of memory with freed buffers still kept: free them and try once more.
         if result.is_err() && self.drain_pool() > 0 {
@@ -250,16 +260,32 @@ impl Shared {
         self.high_water_bytes.fetch_max(now, Ordering::Relaxed);
     }
 
-    /// Before `bytes` are freshly allocated: when that puts more memory in
-    /// use than was ever allocated at once, frees every pooled buffer first.
-    /// The pool keeps what work of the sizes seen so far will take again;
-    /// once the work grows past every earlier moment, what it holds (a
-    /// scene's reorder scratch, a load's staging, before the first frame)
-    /// would only sit beside the larger work.
-    pub(crate) fn trim_pool_for(&self, bytes: u64) {
+    /// Before `bytes` named `name` are freshly allocated: when that puts
+    /// more memory in use than was ever allocated at once, frees every pooled
+    /// buffer (what the pool holds would only sit beside the larger work);
+    /// below that mark, frees pooled buffers, oldest first, until in use,
+    /// pooled and the new buffer stay within it plus `headroom`
+    /// ([`POOL_HEADROOM_BYTES`] for staging, else 0).
+    /// The pool keeps what work of the sizes seen so far will take again,
+    /// but work whose sizes change (compacted splat records, a view seeing
+    /// less) would otherwise leave the old sizes pooled beside the new.
+    pub(crate) fn trim_pool_for(&self, bytes: u64, name: &str, headroom: u64) {
         let after = self.current_bytes.load(Ordering::Relaxed).saturating_add(bytes);
-        if after > self.high_water_bytes.load(Ordering::Relaxed) && lock(&self.pool).bytes > 0 {
-            self.drain_pool();
+        let most = self.high_water_bytes.load(Ordering::Relaxed);
+        let room = if after > most { 0 } else { (most + headroom).saturating_sub(after) };
+        let evicted = {
+            let mut pool = lock(&self.pool);
+            let mut evicted = Vec::new();
+            while pool.bytes > room {
+                let Some(old) = pool.items.pop_front() else { break };
+                pool.bytes -= old.allocation.size();
+                evicted.push(old);
+            }
+            evicted
+        };
+        for old in evicted {
+            log::trace!("pooled buffer of {} bytes freed for {name} ({bytes} bytes)", old.allocation.size());
+            self.free_buffer(old.raw, old.allocation);
         }
     }
 

@@ -124,6 +124,7 @@ fn all_settings() -> SplatSettings {
         surface_depth: false,
         median_coverage: DEFAULT_MEDIAN_COVERAGE,
         packed_features: false,
+        compact_splats: false,
     }
 }
 
@@ -1732,5 +1733,106 @@ fn features_are_stored_at_16_bits_as_the_twin_packs_them() {
     let grads = BlendGrads { channels: PerChannel::default().with(Channel::Albedo, albedo), ..BlendGrads::default() };
     let e = splatter.backward(&frame, &gpu_scene, &grads, false).err().unwrap().to_string();
     assert!(e.contains("packed_features"), "{e}");
+    assert_no_validation_messages(&d);
+}
+
+/// Compacted records (`SplatSettings::compact_splats`): a frame keeps records only for the
+/// Gaussians its position cull keeps, in increasing order, each the record the full frame gives
+/// that Gaussian bit for bit (tile count, splat, features), every Gaussian the full frame lists
+/// among them, and the twin's listed Gaussians too (but 1 in 1000 at f32 rounding of the
+/// ellipse's bound); the G-buffers, top-Gaussian ids included, are the full frame's bit for bit
+/// on both blend and both preprocess paths, for several cameras in one call (one looking at
+/// nothing), and on a scene arranged in Morton order (whose ids map twice).
+#[test]
+fn compacted_records_are_the_listed_gaussians_and_the_frames_the_same_bits() {
+    let d = device();
+    let mut splatter = Splatter::new(&d).unwrap();
+    let city = demo_city(&DemoOptions { seed: 11, gaussians: 30_000, sh_degree: 1 }).unwrap();
+    let mut cams: Vec<Camera> = city.cameras.iter().take(2).map(|c| c.resized(352, 96)).collect();
+    let away = Camera::look_at(Vec3::new(0.0, 0.0, 500.0), Vec3::new(0.0, 0.0, 1000.0), Vec3::Y, 60.0, 64, 48).unwrap();
+    cams.push(away);
+    let full_settings = SplatSettings { packed_features: true, ..all_settings() };
+    let settings = SplatSettings { compact_splats: true, ..full_settings };
+    let n = city.scene.len();
+    let mut gpu_scene = GpuScene::upload(&d, &city.scene).unwrap();
+    for (texel_blend, texel_preprocess) in [(true, true), (false, false)] {
+        splatter.set_texel_blend(texel_blend).unwrap();
+        splatter.set_texel_preprocess(texel_preprocess).unwrap();
+        let full = splatter.render_frames(&gpu_scene, &cams, &full_settings).unwrap();
+        let compact = splatter.render_frames(&gpu_scene, &cams, &settings).unwrap();
+        for (k, (f, c)) in full.iter().zip(&compact).enumerate() {
+            let label = format!("camera {k}, texel blend {texel_blend}, texel preprocess {texel_preprocess}");
+            assert_eq!(f.stats.records, n as u64, "{label}");
+            assert!(f.slot_gaussians.is_none(), "{label}");
+            assert_eq!(c.stats.pairs, f.stats.pairs, "{label}");
+            assert!(c.stats.working_bytes < f.stats.working_bytes, "{label}");
+            let (a, b) = (gbuffer_bits(&c.gbuffer.read(&d).unwrap()), gbuffer_bits(&f.gbuffer.read(&d).unwrap()));
+            assert_eq!(a.len(), b.len(), "{label}");
+            let differing = a.iter().zip(&b).filter(|(x, y)| x != y).count();
+            assert_eq!(differing, 0, "{label}: {differing} G-buffer values differ");
+            let slots: Vec<u32> = d.read_buffer(c.slot_gaussians.as_ref().unwrap()).unwrap();
+            assert_eq!(slots.len() as u64, c.stats.records, "{label}");
+            assert!(slots.windows(2).all(|w| w[0] < w[1]), "{label}: slots out of order");
+            let full_offsets: Vec<u32> = d.read_buffer(&f.pair_offsets).unwrap();
+            let offsets: Vec<u32> = d.read_buffer(&c.pair_offsets).unwrap();
+            let full_splats: Vec<u32> = d.read_buffer(&f.splats).unwrap();
+            let splats: Vec<u32> = d.read_buffer(&c.splats).unwrap();
+            let full_features: Vec<u32> = d.read_buffer(f.features.as_ref().unwrap()).unwrap();
+            let features: Vec<u32> = d.read_buffer(c.features.as_ref().unwrap()).unwrap();
+            let listed = (0..n).filter(|&i| full_offsets[i + 1] > full_offsets[i]).count();
+            let mut kept = 0;
+            for (slot, &i) in slots.iter().enumerate() {
+                let i = i as usize;
+                let pairs = offsets[slot + 1] - offsets[slot];
+                assert_eq!(pairs, full_offsets[i + 1] - full_offsets[i], "{label}: Gaussian {i}'s tile count");
+                if pairs > 0 {
+                    kept += 1;
+                    assert_eq!(
+                        splats[16 * slot..16 * slot + 16],
+                        full_splats[16 * i..16 * i + 16],
+                        "{label}: Gaussian {i}"
+                    );
+                    assert_eq!(
+                        features[6 * slot..6 * slot + 6],
+                        full_features[6 * i..6 * i + 6],
+                        "{label}: Gaussian {i}"
+                    );
+                }
+            }
+            assert_eq!(kept, listed, "{label}: Gaussians listed by the full frame without a record");
+            if k == 2 {
+                assert_eq!((c.stats.records, c.stats.pairs), (0, 0), "{label}: a view of nothing");
+                continue;
+            }
+            assert!(
+                listed > 2_000 && c.stats.records < n as u64 * 3 / 4,
+                "{label}: {listed} listed, {} records",
+                c.stats.records
+            );
+            let mut twin_only = 0;
+            for i in 0..n {
+                let Some(twin) = preprocess_one(&city.scene, i, &cams[k], NormalSource::Stored, DEFAULT_TILE) else {
+                    continue;
+                };
+                let pairs: u32 = (twin.rect[1]..twin.rect[3])
+                    .map(|ty| tile_row_span(&twin, ty, DEFAULT_TILE))
+                    .map(|(x0, x1)| x1 - x0)
+                    .sum();
+                twin_only += usize::from(pairs > 0 && slots.binary_search(&(i as u32)).is_err());
+            }
+            assert!(twin_only * 1000 <= listed, "{label}: {twin_only} Gaussians the twin lists have no record");
+        }
+    }
+    // The twin's image, and an arranged scene's ids through both maps.
+    let frame = splatter.render_frame(&gpu_scene, &cams[0], &settings).unwrap();
+    compare(&frame.gbuffer.read(&d).unwrap(), &render_cpu(&city.scene, &cams[0], &settings), "compacted");
+    assert!(gpu_scene.arrange(&d, SceneOrder::Morton).unwrap());
+    let full = splatter.render_frame(&gpu_scene, &cams[0], &full_settings).unwrap().gbuffer.read(&d).unwrap();
+    let compact = splatter.render_frame(&gpu_scene, &cams[0], &settings).unwrap().gbuffer.read(&d).unwrap();
+    assert_eq!(compact.top_gaussian, full.top_gaussian, "arranged scene's ids");
+    assert!(full.top_gaussian.as_ref().unwrap().iter().any(|&id| id != u32::MAX));
+    // The backward pass refuses a compacted frame.
+    let e = splatter.backward(&frame, &gpu_scene, &BlendGrads::default(), false).err().unwrap().to_string();
+    assert!(e.contains("compact_splats"), "{e}");
     assert_no_validation_messages(&d);
 }

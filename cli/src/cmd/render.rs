@@ -131,6 +131,7 @@ impl RenderArgs {
             median_coverage: *median_coverage,
             // Feature channels go to the user's files as floats.
             packed_features: false,
+            compact_splats: false,
         };
         let bar = if cams.len() > 1 {
             progress_bar(cams.len() as u64, "{bar:40} {pos}/{len} cameras [{elapsed} < {eta}]")

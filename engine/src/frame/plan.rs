@@ -106,7 +106,8 @@ fn splat_stage(
     blend: BlendVariant,
     (tile, surface_depth): (u32, bool),
 ) -> PlannedStage {
-    // The relighter stores its splats' features at 16 bits (`SplatSettings::packed_features`).
+    // The relighter stores its splats' features at 16 bits (`SplatSettings::packed_features`),
+    // for the Gaussians in view only (`SplatSettings::compact_splats`): at most every Gaussian's.
     let features = if channels.needs_features() { n * PACKED_FEATURE_BYTES } else { 0 };
     PlannedStage {
         name: name.to_string(),

@@ -77,6 +77,8 @@ impl FramePlan {
             median_coverage: settings.shadow.receiver_coverage,
             // Shading reads the features; nothing differentiates them.
             packed_features: true,
+            // Records only for the Gaussians a camera can see.
+            compact_splats: true,
             // Nor the scene's own colour: its SH are read only where asked for.
             rgb: settings.rgb,
             ..SplatSettings::default()

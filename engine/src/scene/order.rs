@@ -357,13 +357,26 @@ impl ReorderKernels {
         count: u64,
         order: &'a RowOrder,
     ) -> Result<()> {
+        self.record_ids_through(rec, ids, count, &order.device_to_file, order.to_file.len() as u64)
+    }
+
+    /// Records `ids[i] = table[ids[i]]` in place for `count` ids, where
+    /// `ids[i] < width` (`table` holds `width` u32; others, "none", kept).
+    pub(crate) fn record_ids_through<'a>(
+        &'a self,
+        rec: &mut Recording<'a>,
+        ids: &'a Buffer,
+        count: u64,
+        table: &'a Buffer,
+        width: u64,
+    ) -> Result<()> {
         let addr = rec.addr(ids)?;
         let push = ReorderPush {
             src: addr,
             dst: addr,
-            index: rec.addr(&order.device_to_file)?,
+            index: rec.addr(table)?,
             count: rows_u32(count)?,
-            width: rows_u32(order.to_file.len() as u64)?,
+            width: rows_u32(width)?,
             ..ReorderPush::zeroed()
         };
         Ok(rec.dispatch(&self.ids, Grid::Items(count), &[], &push)?)

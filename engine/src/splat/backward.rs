@@ -197,6 +197,12 @@ impl Splatter {
         if frame.scene_means != scene.means.id() || frame.gaussians != scene.count as u64 {
             return Err(Error::invalid("splat frame", "was rendered from another scene"));
         }
+        if frame.slot_gaussians.is_some() {
+            return Err(Error::invalid(
+                "splat frame",
+                "holds records for its listed Gaussians only (render it with SplatSettings::compact_splats off)",
+            ));
+        }
         let Some(pair_tiles) = frame.pair_tiles.as_ref() else {
             return Err(Error::invalid("splat frame", "keeps no pair tiles (render it with Splatter::render_frame)"));
         };
@@ -300,9 +306,9 @@ impl Splatter {
         let timings = device.run(|rec| -> Result<()> {
             let buffers = FrameBuffers {
                 scene,
-                splats: &frame.splats,
+                splats: Some(&frame.splats),
                 features: frame.features.as_ref(),
-                tile_counts: &frame.pair_offsets,
+                tile_counts: Some(&frame.pair_offsets),
                 keys: None,
                 values: Some(&frame.sorted_gaussians),
                 pair_tiles: Some(pair_tiles),
@@ -310,6 +316,8 @@ impl Splatter {
                 out: &frame.gbuffer,
                 occluder: None,
                 tile_mask: None,
+                visible_slots: None,
+                slot_gaussians: None,
             };
             frame.params.record(rec, &frame.uniform, &buffers)?;
             let g = grads;

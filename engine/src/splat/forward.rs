@@ -35,6 +35,9 @@ pub struct SplatStats {
     pub row_masks: bool,
     /// Chunks the split blend cut the tile lists into ([`Splatter::chunk_length`]; 0: no list split).
     pub chunks: u64,
+    /// Splat records the frame holds: one per Gaussian, or with
+    /// [`SplatSettings::compact_splats`] one per Gaussian its position cull kept.
+    pub records: u64,
 }
 
 /// The SH degree the colour uses: the settings' cap on the scene's, and 0
@@ -220,12 +223,16 @@ pub struct SplatFrame {
     pub stats: SplatStats,
     /// The camera it was rendered from.
     pub camera: Camera,
-    /// Projected splats, `SPLAT_BYTES` each (culled ones have an empty rectangle).
+    /// Projected splats, `SPLAT_BYTES` each, one per Gaussian or, compacted,
+    /// per slot (those culled after their slot was given have a tile count of 0).
     pub splats: Buffer,
-    /// Per-Gaussian offsets into the unsorted pair list (exclusive scan of tile counts), n + 1 values.
+    /// Per-record offsets into the unsorted pair list (exclusive scan of tile counts), records + 1 values.
     pub pair_offsets: Buffer,
-    /// Gaussian index of each sorted pair.
+    /// Record of each sorted pair: its Gaussian, or compacted its slot.
     pub sorted_gaussians: Buffer,
+    /// Compacted records ([`SplatSettings::compact_splats`]): each slot's
+    /// Gaussian, in increasing order; `None` where record i is Gaussian i.
+    pub slot_gaussians: Option<Buffer>,
     /// Tile id of each unsorted pair: each Gaussian's pairs from its offset on,
     /// in increasing tile order (the keys kernel's padding last, with id = tiles).
     /// The backward pass finds a pair's gradient record by searching these.
@@ -734,7 +741,8 @@ impl Splatter {
     }
 
     /// Everything [`Splatter::render_views`] needs to know about one view
-    /// before its splats are counted: its uniform, G-buffers and per-splat buffers.
+    /// before its splats are counted: its uniform, G-buffers and, compacted,
+    /// the Gaussians' flags ([`Splatter::reserve_records`] adds the records).
     fn prepare_view(&self, scene: &GpuScene, view: &View<'_>, settings: &SplatSettings) -> Result<PendingView> {
         let device = &self.device;
         let (camera, tile, ch) = (view.camera, settings.tile, settings.channels);
@@ -771,12 +779,11 @@ impl Splatter {
             camera: camera.clone(),
             frame,
             out,
-            splats: device.create_buffer("splats", n * SPLAT_BYTES, MemoryKind::Storage)?,
-            features: ch
-                .needs_features()
-                .then(|| device.create_buffer("splat features", n * feature_bytes(settings), MemoryKind::Storage))
+            visible: settings
+                .compact_splats
+                .then(|| device.create_buffer("visible slots", (n + 1) * 4, MemoryKind::Storage))
                 .transpose()?,
-            tile_counts: device.create_buffer("tile counts", (n + 1) * 4, MemoryKind::Storage)?,
+            records: None,
             ranges: device.create_buffer("tile ranges", tiles * 8, MemoryKind::Storage)?,
             uniform: device.create_buffer(
                 "splat frame",
@@ -784,6 +791,23 @@ impl Splatter {
                 MemoryKind::Storage,
             )?,
             tiles,
+        })
+    }
+
+    /// A view's splat records: `count` records (with slot ids where compacted).
+    fn reserve_records(&self, settings: &SplatSettings, count: u64) -> Result<SplatRecords> {
+        let device = &self.device;
+        let storage = |name: &str, bytes: u64| device.create_buffer(name, bytes, MemoryKind::Storage);
+        Ok(SplatRecords {
+            splats: storage("splats", count * SPLAT_BYTES)?,
+            features: settings
+                .channels
+                .needs_features()
+                .then(|| storage("splat features", count * feature_bytes(settings)))
+                .transpose()?,
+            tile_counts: storage("tile counts", (count + 1) * 4)?,
+            slot_gaussians: settings.compact_splats.then(|| storage("slot gaussians", count * 4)).transpose()?,
+            count,
         })
     }
 
@@ -895,7 +919,7 @@ impl Splatter {
             chunks,
             pairs,
             key_bits,
-            // Nothing reads a sorted key's depth bits; the values are splat indices below n.
+            // Nothing reads a sorted key's depth bits; the values are record indices below n.
             packing: PairPacking {
                 unused_low_bits: depth_bits,
                 value_bits: u64::BITS - n.saturating_sub(1).leading_zeros(),
@@ -908,7 +932,9 @@ impl Splatter {
 
     /// Renders `views` (at most [`FRAMES_PER_SUBMISSION`]) with two
     /// submissions: preprocess and scan of every view, then keys, sort,
-    /// ranges and blend of every view.
+    /// ranges and blend of every view; compacted records
+    /// ([`SplatSettings::compact_splats`]) add a first one, the position cull
+    /// and its scan, whose totals size the records.
     fn render_views(
         &mut self,
         scene: &GpuScene,
@@ -982,43 +1008,79 @@ impl Splatter {
                 (8, SpecValue::Bool(vec3_inputs)),
             ]);
         }
-        let preprocess = if texel_preprocess {
-            texel_view_kernel(&device, &kernels::SPLAT_PREPROCESS_TEXEL, 5, &preprocess_spec)?
-        } else {
-            device.kernel(&kernels::SPLAT_PREPROCESS, &KernelDecl::uniform(&preprocess_spec))?
+        // COMPACT (spec 10): 0 a record per Gaussian; 1 flag the position cull's
+        // survivors; 2 their records at the scanned slots.
+        let compact = settings.compact_splats;
+        let preprocess_kernel = |stage: u32| -> Result<Arc<Kernel>> {
+            let mut spec = preprocess_spec.clone();
+            spec.push((10, SpecValue::U32(stage)));
+            if texel_preprocess {
+                texel_view_kernel(&device, &kernels::SPLAT_PREPROCESS_TEXEL, 5, &spec)
+            } else {
+                Ok(device.kernel(&kernels::SPLAT_PREPROCESS, &KernelDecl::uniform(&spec))?)
+            }
         };
+        let preprocess = preprocess_kernel(if compact { 2 } else { 0 })?;
+        let cull = compact.then(|| preprocess_kernel(1)).transpose()?;
         let mut pending =
             views.iter().map(|view| self.prepare_view(scene, view, settings)).collect::<Result<Vec<_>>>()?;
         self.scan.reserve(&device, n + 1)?;
-        let counts = device.create_buffer("pair counts", 4 * views.len() as u64, MemoryKind::Readback)?;
+        let readback = |name| device.create_buffer(name, 4 * views.len() as u64, MemoryKind::Readback);
+        let texel_inputs = texel_preprocess.then_some((scene_inputs, formats));
+        let scan = &self.scan;
+
+        // Phase 0, compacted records: flag and scan the Gaussians the position cull keeps; each total sizes its records.
+        let mut phase0_marks = Vec::with_capacity(views.len());
+        let (phase0, records) = match &cull {
+            Some(cull) => {
+                let totals = readback("visible counts")?;
+                let timings = device.run(|rec| -> Result<()> {
+                    for (i, (p, view)) in pending.iter().zip(views).enumerate() {
+                        phase0_marks.push(rec.stages_begun());
+                        let visible = p.visible.as_ref().ok_or_else(|| Error::Internal("no visible slots".into()))?;
+                        p.frame.record(rec, &p.uniform, &p.buffers(scene, view, None))?;
+                        rec.begin_stage("cull");
+                        rec.fill(visible, 0)?;
+                        dispatch_preprocess(rec, cull, &p.uniform, texel_inputs, n)?;
+                        scan.record(rec, visible, n + 1)?;
+                        rec.end_stage();
+                        rec.copy(visible, 4 * n, &totals, 4 * i as u64, 4)?;
+                    }
+                    Ok(())
+                })?;
+                let counts: Vec<u32> = device.read_mapped(&totals)?;
+                (Some(timings), counts.into_iter().map(u64::from).collect())
+            }
+            None => (None, vec![n; views.len()]),
+        };
+        for (p, &count) in pending.iter_mut().zip(&records) {
+            p.records = Some(self.reserve_records(settings, count)?);
+        }
+        let counts = readback("pair counts")?;
 
         // Phase 1, every view: preprocess and scan the tile counts; each total sizes its phase 2.
-        let (preprocess, scan) = (&*preprocess, &self.scan);
+        let preprocess = &*preprocess;
         let mut phase1_marks = Vec::with_capacity(views.len());
         let phase1 = device.run(|rec| -> Result<()> {
             for (i, (p, view)) in pending.iter().zip(views).enumerate() {
                 phase1_marks.push(rec.stages_begun());
+                let r = p.records()?;
                 p.frame.record(rec, &p.uniform, &p.buffers(scene, view, None))?;
                 rec.begin_stage("preprocess");
-                rec.fill(&p.tile_counts, 0)?;
-                if texel_preprocess {
-                    let mut bindings = vec![Binding::Buffer(&p.uniform)];
-                    bindings.extend(scene_inputs.iter().zip(formats).map(|(&buffer, format)| {
-                        let elements = buffer.size() / format.bytes();
-                        Binding::Texels(Texels { buffer, offset: 0, elements, format })
-                    }));
-                    rec.dispatch(preprocess, Grid::Items(n), &bindings, &())?;
-                } else {
-                    rec.dispatch(preprocess, Grid::Items(n), &[Binding::from(&p.uniform)], &())?;
-                }
+                rec.fill(&r.tile_counts, 0)?;
+                dispatch_preprocess(rec, preprocess, &p.uniform, texel_inputs, n)?;
                 rec.begin_stage("scan");
-                scan.record(rec, &p.tile_counts, n + 1)?;
+                scan.record(rec, &r.tile_counts, r.count + 1)?;
                 rec.end_stage();
-                rec.copy(&p.tile_counts, 4 * n, &counts, 4 * i as u64, 4)?;
+                rec.copy(&r.tile_counts, 4 * r.count, &counts, 4 * i as u64, 4)?;
             }
             Ok(())
         })?;
         let pair_counts: Vec<u32> = device.read_mapped(&counts)?;
+        for p in &mut pending {
+            // The slots are in the records now; later kernels index records.
+            p.visible = None;
+        }
 
         // Phase 2, every view: keys, sort, ranges, blend.
         let plans = views
@@ -1026,6 +1088,7 @@ impl Splatter {
             .zip(&mut pending)
             .zip(&pair_counts)
             .map(|((view, p), &pairs)| {
+                p.frame.counts[0] = p.records()?.count as u32;
                 p.frame.counts[3] = pairs;
                 self.plan_sort(view, p, settings, u64::from(pairs))
             })
@@ -1043,11 +1106,11 @@ impl Splatter {
             .any(|s| s.chunks.is_some())
             .then(|| device.create_buffer("chunk counts", 4 * views.len() as u64, MemoryKind::Readback))
             .transpose()?;
-        // An arranged scene's ids leave in file order (scene::order).
-        let id_map = match scene.row_order() {
-            Some(order) if ch.top_gaussian => Some((order, ReorderKernels::new(&device)?)),
-            _ => None,
-        };
+        // Top-Gaussian ids leave as the scene's: record slots mapped to their
+        // Gaussians (compacted), an arranged scene's rows to file order (scene::order).
+        let id_map = (ch.top_gaussian && (compact || scene.row_order().is_some()))
+            .then(|| ReorderKernels::new(&device))
+            .transpose()?;
         let mut phase2_marks = Vec::with_capacity(views.len());
         let phase2 = device.run(|rec| -> Result<()> {
             if let Some(counts) = &chunk_counts {
@@ -1055,6 +1118,7 @@ impl Splatter {
             }
             for (i, ((p, s), view)) in pending.iter().zip(&plans).zip(views).enumerate() {
                 phase2_marks.push(rec.stages_begun());
+                let r = p.records()?;
                 p.frame.record(rec, &p.uniform, &p.buffers(scene, view, Some(s)))?;
                 if let Some(word) = settings.prefill {
                     for b in [&p.out.alpha]
@@ -1072,21 +1136,21 @@ impl Splatter {
                         let bindings = [
                             Binding::Buffer(&p.uniform),
                             Binding::Texels(Texels {
-                                buffer: &p.splats,
+                                buffer: &r.splats,
                                 offset: 0,
-                                elements: 4 * n,
+                                elements: 4 * r.count,
                                 format: TexelFormat::Rgba32Uint,
                             }),
                             Binding::Texels(Texels {
-                                buffer: &p.tile_counts,
+                                buffer: &r.tile_counts,
                                 offset: 0,
-                                elements: n + 1,
+                                elements: r.count + 1,
                                 format: TexelFormat::R32Uint,
                             }),
                         ];
-                        rec.dispatch(&s.keys_kernel, Grid::Items(n), &bindings, &())?;
+                        rec.dispatch(&s.keys_kernel, Grid::Items(r.count), &bindings, &())?;
                     } else {
-                        rec.dispatch(&s.keys_kernel, Grid::Items(n), &[Binding::from(&p.uniform)], &())?;
+                        rec.dispatch(&s.keys_kernel, Grid::Items(r.count), &[Binding::from(&p.uniform)], &())?;
                     }
                     rec.begin_stage("sort");
                     sort.record_with(rec, &s.keys, &s.values, s.pairs, s.key_bits, Some(s.packing))?;
@@ -1130,10 +1194,10 @@ impl Splatter {
                     // and a texel of the splats stands in.
                     let format = if settings.packed_features { TexelFormat::Rg32Uint } else { TexelFormat::Rgba32Uint };
                     let words = |buffer, elements| Binding::Texels(Texels { buffer, offset: 0, elements, format });
-                    let features = p.features.as_ref().map_or(words(&p.splats, 1), |fb| words(fb, 3 * n));
+                    let features = r.features.as_ref().map_or(words(&r.splats, 1), |fb| words(fb, 3 * r.count));
                     let bindings = [
                         Binding::Buffer(&p.uniform),
-                        view(&p.splats, 4 * n),
+                        view(&r.splats, 4 * r.count),
                         features,
                         uints(&s.values, s.pairs),
                         uints(&s.keys, 2 * s.pairs),
@@ -1148,9 +1212,14 @@ impl Splatter {
                 } else {
                     rec.dispatch(&s.blend, Grid::Groups(p.tiles), &[Binding::from(&p.uniform)], &())?;
                 }
-                if let (Some(top), Some((order, map))) = (&p.out.top_gaussian, &id_map) {
+                if let (Some(top), Some(map)) = (&p.out.top_gaussian, &id_map) {
                     let pixels = u64::from(p.camera.width) * u64::from(p.camera.height);
-                    map.record_ids(rec, top, pixels, order)?;
+                    if let Some(slots) = &r.slot_gaussians {
+                        map.record_ids_through(rec, top, pixels, slots, r.count)?;
+                    }
+                    if let Some(order) = scene.row_order() {
+                        map.record_ids(rec, top, pixels, order)?;
+                    }
                 }
                 rec.end_stage();
             }
@@ -1161,17 +1230,24 @@ impl Splatter {
             Some(counts) => device.read_mapped(counts)?,
             None => vec![0; views.len()],
         };
+        let phase0 = match phase0 {
+            Some(timings) => split_timings(timings, &phase0_marks),
+            None => vec![Timings::default(); views.len()],
+        };
         let phase1 = split_timings(phase1, &phase1_marks);
         let phase2 = split_timings(phase2, &phase2_marks);
         let scratch = self.sort.scratch_bytes() + self.scan.scratch_bytes() + self.chunk_scratch.bytes();
         let mut frames = Vec::with_capacity(views.len());
-        for (((((p, s), view), mut timings), later), chunks) in
-            pending.into_iter().zip(plans).zip(views).zip(phase1).zip(phase2).zip(chunks)
+        for ((((((p, s), view), mut timings), preprocess), later), chunks) in
+            pending.into_iter().zip(plans).zip(views).zip(phase0).zip(phase1).zip(phase2).zip(chunks)
         {
+            timings.stages.extend(preprocess.stages);
             timings.stages.extend(later.stages);
-            let working_bytes = p.splats.size()
-                + p.features.as_ref().map_or(0, Buffer::size)
-                + p.tile_counts.size()
+            let r = p.records.ok_or_else(|| Error::Internal("a view's records were not reserved".into()))?;
+            let working_bytes = r.splats.size()
+                + r.features.as_ref().map_or(0, Buffer::size)
+                + r.tile_counts.size()
+                + r.slot_gaussians.as_ref().map_or(0, Buffer::size)
                 + s.keys.size()
                 + s.values.size()
                 + s.pair_tiles.as_ref().map_or(0, Buffer::size)
@@ -1186,14 +1262,16 @@ impl Splatter {
                     working_bytes,
                     row_masks: s.row_masks,
                     chunks: u64::from(chunks),
+                    records: r.count,
                 },
                 camera: p.camera,
-                splats: p.splats,
-                pair_offsets: p.tile_counts,
+                splats: r.splats,
+                pair_offsets: r.tile_counts,
                 sorted_gaussians: s.values,
+                slot_gaussians: r.slot_gaussians,
                 pair_tiles: s.pair_tiles,
                 ranges: p.ranges,
-                features: p.features,
+                features: r.features,
                 uniform: p.uniform,
                 params: p.frame,
                 scene_means: scene.means.id(),
@@ -1207,6 +1285,29 @@ impl Splatter {
         }
         Ok(frames)
     }
+}
+
+/// One preprocess dispatch over `n` Gaussians: the scene's arrays viewed as
+/// texels in their formats (`texel_inputs`), or addressed through the uniform.
+fn dispatch_preprocess<'a>(
+    rec: &mut crate::gpu::Recording<'a>,
+    kernel: &'a Kernel,
+    uniform: &'a Buffer,
+    texel_inputs: Option<([&'a Buffer; 5], [TexelFormat; 5])>,
+    n: u64,
+) -> Result<()> {
+    match texel_inputs {
+        Some((inputs, formats)) => {
+            let mut bindings = vec![Binding::Buffer(uniform)];
+            bindings.extend(inputs.iter().zip(formats).map(|(&buffer, format)| {
+                let elements = buffer.size() / format.bytes();
+                Binding::Texels(Texels { buffer, offset: 0, elements, format })
+            }));
+            rec.dispatch(kernel, Grid::Items(n), &bindings, &())?;
+        }
+        None => rec.dispatch(kernel, Grid::Items(n), &[Binding::from(uniform)], &())?,
+    }
+    Ok(())
 }
 
 /// Cameras whose preprocessing, and then whose sorts and blends, one
@@ -1252,22 +1353,41 @@ struct PendingView {
     camera: Camera,
     frame: FrameUniform,
     out: GpuGBuffer,
-    splats: Buffer,
-    features: Option<Buffer>,
-    tile_counts: Buffer,
+    /// Compacted records: each Gaussian's flag, then its slot, until the records are written.
+    visible: Option<Buffer>,
+    /// Its splat records, once their count is known ([`Splatter::reserve_records`]).
+    records: Option<SplatRecords>,
     ranges: Buffer,
     uniform: Buffer,
     tiles: u64,
 }
 
+/// One view's splat records and what is kept per record.
+struct SplatRecords {
+    splats: Buffer,
+    features: Option<Buffer>,
+    /// Each record's tile count, then (scanned) its first pair; count + 1 u32.
+    tile_counts: Buffer,
+    /// Compacted: each record's Gaussian.
+    slot_gaussians: Option<Buffer>,
+    count: u64,
+}
+
 impl PendingView {
-    /// The buffers its uniform addresses: the sort's once `sort` exists.
+    fn records(&self) -> Result<&SplatRecords> {
+        self.records.as_ref().ok_or_else(|| Error::Internal("a view's records were not reserved".into()))
+    }
+
+    /// The buffers its uniform addresses: the records' once reserved, the sort's once `sort` exists.
     fn buffers<'a>(&'a self, scene: &'a GpuScene, view: &View<'a>, sort: Option<&'a SortPlan>) -> FrameBuffers<'a> {
+        let records = self.records.as_ref();
         FrameBuffers {
             scene,
-            splats: &self.splats,
-            features: self.features.as_ref(),
-            tile_counts: &self.tile_counts,
+            splats: records.map(|r| &r.splats),
+            features: records.and_then(|r| r.features.as_ref()),
+            tile_counts: records.map(|r| &r.tile_counts),
+            visible_slots: self.visible.as_ref(),
+            slot_gaussians: records.and_then(|r| r.slot_gaussians.as_ref()),
             keys: sort.map(|s| &s.keys),
             values: sort.map(|s| &s.values),
             pair_tiles: sort.and_then(|s| s.pair_tiles.as_ref()),

@@ -56,6 +56,8 @@ pub(crate) struct FrameUniform {
     g_visibility: DeviceAddress,
     g_top_gaussian: DeviceAddress,
     tile_mask: DeviceAddress,
+    visible_slots: DeviceAddress,
+    slot_gaussians: DeviceAddress,
 }
 crate::gpu::gpu_layout!(
     FrameUniform,
@@ -107,16 +109,19 @@ crate::gpu::gpu_layout!(
         g_ao,
         g_visibility,
         g_top_gaussian,
-        tile_mask
+        tile_mask,
+        visible_slots,
+        slot_gaussians
     ]
 );
 
 /// The buffers a splat frame's kernels reach by address.
 pub(crate) struct FrameBuffers<'b> {
     pub(crate) scene: &'b GpuScene,
-    pub(crate) splats: &'b Buffer,
+    /// Absent before a compacted frame's records are counted.
+    pub(crate) splats: Option<&'b Buffer>,
     pub(crate) features: Option<&'b Buffer>,
-    pub(crate) tile_counts: &'b Buffer,
+    pub(crate) tile_counts: Option<&'b Buffer>,
     /// Absent before the sort's buffers exist and after they are freed.
     pub(crate) keys: Option<&'b Buffer>,
     pub(crate) values: Option<&'b Buffer>,
@@ -127,6 +132,11 @@ pub(crate) struct FrameBuffers<'b> {
     pub(crate) occluder: Option<&'b Buffer>,
     /// One u32 per tile, non-zero where pairs are wanted (`TILE_MASK` kernels).
     pub(crate) tile_mask: Option<&'b Buffer>,
+    /// Compacted records ([`SplatSettings::compact_splats`]): each Gaussian's
+    /// flag, then slot (n + 1 u32), until the records are written.
+    pub(crate) visible_slots: Option<&'b Buffer>,
+    /// Compacted records: each record's Gaussian.
+    pub(crate) slot_gaussians: Option<&'b Buffer>,
 }
 
 impl FrameUniform {
@@ -151,9 +161,9 @@ impl FrameUniform {
         self.metallic = rec.addr_or_null(s.metallic.as_ref())?;
         self.ao = rec.addr_or_null(s.ao.as_ref())?;
         self.visibility = rec.addr_or_null(s.visibility.as_ref())?;
-        self.splats = rec.addr(b.splats)?;
+        self.splats = rec.addr_or_null(b.splats)?;
         self.features = rec.addr_or_null(b.features)?;
-        self.tile_counts = rec.addr(b.tile_counts)?;
+        self.tile_counts = rec.addr_or_null(b.tile_counts)?;
         self.keys = rec.addr_or_null(b.keys)?;
         self.values = rec.addr_or_null(b.values)?;
         self.ranges = rec.addr(b.ranges)?;
@@ -172,6 +182,8 @@ impl FrameUniform {
         self.g_visibility = rec.addr_or_null(o.get(Channel::Visibility))?;
         self.g_top_gaussian = rec.addr_or_null(o.top_gaussian.as_ref())?;
         self.tile_mask = rec.addr_or_null(b.tile_mask)?;
+        self.visible_slots = rec.addr_or_null(b.visible_slots)?;
+        self.slot_gaussians = rec.addr_or_null(b.slot_gaussians)?;
         Ok(rec.update(uniform, 0, &self)?)
     }
 }

@@ -287,6 +287,17 @@ pub struct SplatSettings {
     /// differentiated: the backward pass refuses such a frame. Off by default;
     /// the relighter turns it on for its cameras.
     pub packed_features: bool,
+    /// Keep splat records (and features) only for the Gaussians that can
+    /// reach the image: a first pass culls on each Gaussian's position and
+    /// largest scale, a scan of its flags gives each survivor a slot in order,
+    /// and only those get a record, so a view that sees a fraction of a large
+    /// scene holds that fraction (plus 4 bytes a Gaussian while counting).
+    /// The images are the same bits; the pairs name record slots, and a
+    /// frame's top-Gaussian channel is mapped back to Gaussian ids
+    /// ([`SplatFrame::slot_gaussians`]). One more submission and readback per
+    /// call, and a second read of the positions. Off by default (the backward
+    /// pass refuses such frames); the relighter turns it on for its cameras.
+    pub compact_splats: bool,
 }
 
 /// The coverage at which the median depth is read by default (the median).
@@ -315,6 +326,7 @@ impl Default for SplatSettings {
             surface_depth: false,
             median_coverage: DEFAULT_MEDIAN_COVERAGE,
             packed_features: false,
+            compact_splats: false,
         }
     }
 }

@@ -47,6 +47,9 @@ layout(std140, set = 0, binding = 0) uniform Frame {
     uvec2 g_visibility;
     uvec2 g_top_gaussian;   // uint per pixel: the Gaussian with the largest blend weight
     uvec2 tile_mask;        // uint per tile, non-zero where pairs are wanted (TILE_MASK)
+    uvec2 visible_slots;    // compacted records (preprocess COMPACT): per Gaussian (n + 1) its
+                            // flag, then, scanned, its record's slot; 0 once the records exist
+    uvec2 slot_gaussians;   // compacted records: each record's Gaussian
 } frame;
 
 // The chunks a tile's list (`range` of the sorted pairs) splits into for

@@ -3,7 +3,9 @@
 // radius, SH colour, tile rectangle and count, and (when asked) the
 // per-splat features. Culled Gaussians get a tile count of 0 and no splat
 // record: every reader of the records reaches them through a pair, or (the
-// backward pass) only where the tile count is not 0.
+// backward pass) only where the tile count is not 0. Compacted records
+// (COMPACT): a first dispatch flags the Gaussians the position cull keeps, a
+// scan gives each its slot, and a second writes their records at those slots.
 // CPU twin: engine/src/splat/cpu.rs `preprocess_one`.
 #extension GL_EXT_control_flow_attributes : require
 #define WORKGROUP_SIZE_X 64
@@ -69,6 +71,11 @@ layout(constant_id = 3) const uint SH_USED = 3u;
 // Count only the tiles the frame's tile mask wants (`tile_wanted`); the keys
 // kernel must agree. Not for wrapping panoramas (the host refuses them).
 layout(constant_id = 5) const bool TILE_MASK = false;
+// Records (engine/src/splat/mod.rs `SplatSettings::compact_splats`): 0 one
+// per Gaussian; 1 only flag (frame.visible_slots) the Gaussians the position
+// cull keeps; 2 write each flagged Gaussian's record, tile count and id at its
+// scanned slot. Both passes cull alike, so every record has its slot.
+layout(constant_id = 10) const uint COMPACT = 0u;
 
 float sigmoid(float x) {
     float e = exp(-abs(x));
@@ -77,13 +84,20 @@ float sigmoid(float x) {
 
 bool finite(float x) { return !isnan(x) && !isinf(x); }
 
-void cull(uint i) {
-    Uints(frame.tile_counts).v[i] = 0u;
+// `slot`: where the Gaussian's record goes (its index unless compacted).
+void cull(uint slot) {
+    if (COMPACT != 1u) Uints(frame.tile_counts).v[slot] = 0u;
 }
 
 void main() {
     uint i = linear_index();
     if (i >= frame.counts.x) return;
+    uint slot = i;
+    if (COMPACT == 2u) {
+        UintsIn visible = UintsIn(frame.visible_slots);
+        slot = visible.v[i];
+        if (visible.v[i + 1u] == slot) return;
+    }
     vec3 p = MEAN3(i);
     mat3 W = world_to_camera_rotation(frame.camera);
     vec3 t = W * (p - frame.camera.position.xyz);
@@ -93,7 +107,7 @@ void main() {
     bool equirect = frame.camera.lens2.x == 9.0;
     float near = frame.clip.x, far = frame.clip.y;
     float depth = equirect ? length(t) : t.z;
-    if (!(depth > near && depth < far)) { cull(i); return; }
+    if (!(depth > near && depth < far)) { cull(slot); return; }
 
     // Cull on the position and the largest scale before reading the rest
     // (pinhole and orthographic cameras): the radius 3·sqrt(λ) is at most
@@ -111,8 +125,13 @@ void main() {
         float sigma = exp(max(max(log_s.x, log_s.y), log_s.z));
         float bound = 1.01 * (3.0 * sqrt(j2 * sigma * sigma + 0.62) + 1.0) + 1.0;
         vec2 grid = vec2(frame.size.zw * TILE);
-        if (any(lessThan(m + bound, vec2(0.0))) || any(greaterThanEqual(m - bound, grid))) { cull(i); return; }
+        if (any(lessThan(m + bound, vec2(0.0))) || any(greaterThanEqual(m - bound, grid))) { cull(slot); return; }
     }
+    if (COMPACT == 1u) {
+        Uints(frame.visible_slots).v[i] = 1u;
+        return;
+    }
+    if (COMPACT == 2u) Uints(frame.slot_gaussians).v[slot] = i;
 
     // 3D covariance.
     vec3 s = exp(log_s);
@@ -142,7 +161,7 @@ void main() {
         // bounds the image itself).
         vec2 dn;
         mat3 Jn;
-        if (!lens_project(frame.camera, t, dn, Jn)) { cull(i); return; }
+        if (!lens_project(frame.camera, t, dn, Jn)) { cull(slot); return; }
         mean = k.xy * dn + k.zw;
         J = mat3(k.x * Jn[0][0], k.y * Jn[0][1], 0.0,
                  k.x * Jn[1][0], k.y * Jn[1][1], 0.0,
@@ -159,12 +178,12 @@ void main() {
     mat3 cov2 = J * cov_cam * transpose(J);
     float a = cov2[0][0] + 0.3, b = cov2[1][0], c = cov2[1][1] + 0.3;
     float det = a * c - b * b;
-    if (!(det > 0.0) || !finite(det) || !finite(mean.x) || !finite(mean.y)) { cull(i); return; }
+    if (!(det > 0.0) || !finite(det) || !finite(mean.x) || !finite(mean.y)) { cull(slot); return; }
     vec3 conic = vec3(c, -b, a) / det;
     float mid = 0.5 * (a + c);
     float lambda = mid + sqrt(max(0.1, mid * mid - det));
     float radius = ceil(3.0 * sqrt(lambda));
-    if (!finite(radius) || !all(bvec3(finite(conic.x), finite(conic.y), finite(conic.z)))) { cull(i); return; }
+    if (!finite(radius) || !all(bvec3(finite(conic.x), finite(conic.y), finite(conic.z)))) { cull(slot); return; }
 
     // Tile rectangle [x0, x1) × [y0, y1).
     vec2 tiles = vec2(frame.size.zw);
@@ -202,7 +221,7 @@ void main() {
             for (uint tx = span.x; tx < span.y; tx++) count += tile_wanted(ty * frame.size.z + tx) ? 1u : 0u;
         }
     }
-    if (count == 0u) { cull(i); return; }
+    if (count == 0u) { cull(slot); return; }
 
     // View-dependent colour.
     vec3 dir = ortho ? frame.view_dir.xyz : normalize(p - frame.eye.xyz);
@@ -237,8 +256,8 @@ void main() {
         vec3 own = vec3(cov2[0][0], cov2[1][0], cov2[1][1]);
         slope = surface_slope(W * axis, t, k.xy, ortho, extent, own);
     }
-    Splats(frame.splats).v[i] = Splat(head, vec4(conic, slope.x), vec4(color, slope.y), rect);
-    Uints(frame.tile_counts).v[i] = count;
+    Splats(frame.splats).v[slot] = Splat(head, vec4(conic, slope.x), vec4(color, slope.y), rect);
+    Uints(frame.tile_counts).v[slot] = count;
 
     if (WRITE_FEATURES) {
         // Normal: the stored one when asked for and non-zero, else the shortest axis; toward the camera.
@@ -265,12 +284,12 @@ void main() {
         if (frame.visibility.x + frame.visibility.y != 0u) vis = sigmoid(FloatsIn(frame.visibility).v[i]);
         if (PACKED_FEATURES) {
             PackedFeatures f = PackedFeatures(frame.features);
-            pack_features(n, rough, albedo, metal, ao, vis, f.v[3 * i], f.v[3 * i + 1], f.v[3 * i + 2]);
+            pack_features(n, rough, albedo, metal, ao, vis, f.v[3 * slot], f.v[3 * slot + 1], f.v[3 * slot + 2]);
         } else {
             Features f = Features(frame.features);
-            f.v[3 * i] = vec4(n, rough);
-            f.v[3 * i + 1] = vec4(albedo, metal);
-            f.v[3 * i + 2] = vec4(ao, vis, 0.0, 0.0);
+            f.v[3 * slot] = vec4(n, rough);
+            f.v[3 * slot + 1] = vec4(albedo, metal);
+            f.v[3 * slot + 2] = vec4(ao, vis, 0.0, 0.0);
         }
     }
 }
