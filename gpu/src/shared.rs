@@ -107,11 +107,12 @@ pub(crate) fn pool_limit(heap_bytes: u64) -> u64 {
     (heap_bytes / 8).clamp(256 << 20, 4 << 30)
 }
 
-/// Bytes the pool may hold beyond the most ever in use at once when a
-/// host-visible (staging) buffer is freshly allocated ([`Shared::trim_pool_for`]):
-/// room for a streamed load's staging buffers of every size (one per
-/// attribute), which would otherwise be freed and faulted in again for
-/// every block.
+/// Bytes the device's pool of freed buffers may hold beyond the most ever in
+/// use at once when a host-visible (staging) buffer is freshly allocated
+/// (below that mark, a fresh allocation frees pooled buffers, oldest first,
+/// until in use and pooled stay within it): room for a streamed load's
+/// staging buffers of every size (one per attribute), which would otherwise
+/// be freed and faulted in again for every block.
 pub const POOL_HEADROOM_BYTES: u64 = 32 << 20;
 
 /// A pooled buffer may be up to this much larger than asked for (as a fraction, 1/4).
