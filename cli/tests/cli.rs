@@ -341,6 +341,33 @@ fn bench_splat_prints_its_tables() {
         assert!(lo > 0.0 && lo <= m && m <= hi && hi.is_finite(), "{cell:?}");
     }
     assert!(!t.contains("sort_unstable") && !t.contains("pair-move floor"), "{t}");
+    // Compacted records against a record per Gaussian: the cull stage gets a column, timed only
+    // where it runs, and its ratio is left blank.
+    let o = srug(&[
+        "bench",
+        "splat",
+        "--gaussians",
+        "2000",
+        "--sizes",
+        "64x32",
+        "--repeats",
+        "2",
+        "--alternate",
+        "compact-splats=false,true",
+    ]);
+    let t = text(&o);
+    assert!(o.status.success(), "{t}");
+    let cells = |prefix: &str| -> Vec<String> {
+        let line = t.lines().find(|l| l.starts_with(prefix)).unwrap_or_else(|| panic!("no {prefix:?} in:\n{t}"));
+        line.split('|').map(|c| c.trim().to_string()).collect()
+    };
+    let header = cells("| Gaussians | size | choice |");
+    assert_eq!(header[4..6], ["cull ms", "preprocess ms"], "{header:?}");
+    assert_eq!(cells("| 2000 | 64x32 | compact-splats=false |")[4], "-");
+    let cull: f64 = cells("| 2000 | 64x32 | compact-splats=true |")[4].parse().unwrap_or_else(|_| panic!("{t}"));
+    assert!(cull > 0.0, "{t}");
+    let ratios = cells("| 2000 | 64x32 | compact-splats=true / compact-splats=false |");
+    assert_eq!((ratios.len(), ratios[4].as_str()), (1 + 3 + 8 + 1, "-"), "{ratios:?}");
     // The demo city shuffled, as a trained scene's file holds its Gaussians: the same pairs.
     let quick = ["bench", "splat", "--gaussians", "2000", "--sizes", "64x32", "--repeats", "1", "--sort-keys", "5000"];
     let o = srug(&[&quick[..], &["--floor-pairs", "6000"]].concat());

@@ -22,7 +22,7 @@ use srug::splat::{
     cameras_per_batch, default_blend_pixels, default_pixel_reach, default_two_splats_per_step, default_window_fetch,
     BlendVariant, Channels, DepthKey, GBuffer, NormalSource, SplatSettings, Splatter, TileBounds, BATCH_BYTES,
     BLEND_PIXELS, DEFAULT_CHUNK_LENGTH, DEFAULT_MEDIAN_COVERAGE, DEFAULT_TILE, FRAMES_PER_SUBMISSION, MAX_CHUNK_LENGTH,
-    TILE_SIZES,
+    SPLAT_STAGES, TILE_SIZES,
 };
 use srug::splat::{Channel, PerChannel};
 use srug_tests::{
@@ -1765,6 +1765,12 @@ fn compacted_records_are_the_listed_gaussians_and_the_frames_the_same_bits() {
             assert_eq!(f.stats.records, n as u64, "{label}");
             assert!(f.slot_gaussians.is_none(), "{label}");
             assert_eq!(c.stats.pairs, f.stats.pairs, "{label}");
+            let stages = |f: &srug::splat::SplatFrame| -> Vec<String> {
+                f.stats.timings.stages.iter().map(|s| s.name.clone()).collect()
+            };
+            assert_eq!(stages(c)[0], "cull", "{label}: the first pass");
+            assert!(stages(c).iter().all(|n| SPLAT_STAGES.contains(&n.as_str())), "{label}: {:?}", stages(c));
+            assert!(!stages(f).contains(&"cull".to_string()), "{label}: {:?}", stages(f));
             assert!(c.stats.working_bytes < f.stats.working_bytes, "{label}");
             let (a, b) = (gbuffer_bits(&c.gbuffer.read(&d).unwrap()), gbuffer_bits(&f.gbuffer.read(&d).unwrap()));
             assert_eq!(a.len(), b.len(), "{label}");

@@ -210,6 +210,11 @@ pub struct SplatterChoices {
     /// else false).
     #[arg(long)]
     pub scan_tiles: Option<bool>,
+    /// Keep splat records only for the Gaussians the view's position cull keeps, counted by a
+    /// `cull` stage before the preprocess (`SplatSettings::compact_splats`): true or false
+    /// (default: false; the relighter's cameras: true).
+    #[arg(long)]
+    pub compact_splats: Option<bool>,
 }
 
 impl SplatterChoices {
@@ -226,6 +231,7 @@ impl SplatterChoices {
             sort_digits,
             sort_packing,
             scan_tiles,
+            compact_splats,
         } = *over;
         SplatterChoices {
             blend: blend.or(self.blend),
@@ -238,7 +244,13 @@ impl SplatterChoices {
             sort_digits: sort_digits.or(self.sort_digits),
             sort_packing: sort_packing.or(self.sort_packing),
             scan_tiles: scan_tiles.or(self.scan_tiles),
+            compact_splats: compact_splats.or(self.compact_splats),
         }
+    }
+
+    /// `settings` with the choices that are a frame's settings, not the splatter's.
+    pub fn settings(&self, settings: SplatSettings) -> SplatSettings {
+        SplatSettings { compact_splats: self.compact_splats.unwrap_or(settings.compact_splats), ..settings }
     }
 
     /// Makes the choices given on `splatter`.
@@ -401,7 +413,7 @@ pub fn splat_bench(
 ) -> Result<Vec<SplatBenchRow>> {
     let SplatBenchOptions { repeats, sh_degree, choices, tile, tile_bounds, sort_kernels, warm_up: warm, .. } =
         *options;
-    let settings = SplatSettings { tile, tile_bounds, ..SplatSettings::default() };
+    let settings = choices.settings(SplatSettings { tile, tile_bounds, ..SplatSettings::default() });
     let mut rows = Vec::new();
     let mut splatter = Splatter::new(device)?;
     choices.apply(&mut splatter)?;
@@ -465,6 +477,19 @@ pub fn splat_bench(
     Ok(rows)
 }
 
+/// Stage names once each, splat stages in pipeline order ([`srug::splat::SPLAT_STAGES`]), others after.
+pub fn splat_stage_order<'a>(names: impl IntoIterator<Item = &'a String>) -> Vec<String> {
+    let mut out: Vec<String> = Vec::new();
+    for name in names {
+        if !out.contains(name) {
+            out.push(name.clone());
+        }
+    }
+    let place = |n: &String| srug::splat::SPLAT_STAGES.iter().position(|s| s == n).unwrap_or(usize::MAX);
+    out.sort_by_key(place);
+    out
+}
+
 /// One scene and size of [`alternate_bench`]: each choice's median stage
 /// times, and each stage's ratio to the first choice's, frame pair by frame pair.
 #[derive(Clone, Debug)]
@@ -525,7 +550,8 @@ pub fn alternate_bench(
     if choices.len() < 2 {
         return Err(Error::invalid(format!("{} choices to alternate", choices.len()), "needs two or more"));
     }
-    let settings = SplatSettings { tile: options.tile, tile_bounds: options.tile_bounds, ..SplatSettings::default() };
+    let base = SplatSettings { tile: options.tile, tile_bounds: options.tile_bounds, ..SplatSettings::default() };
+    let settings: Vec<SplatSettings> = choices.iter().map(|(_, c)| c.settings(base)).collect();
     let mut splatters = Vec::with_capacity(choices.len());
     for (_, c) in choices {
         let mut splatter = Splatter::new(device)?;
@@ -542,25 +568,26 @@ pub fn alternate_bench(
             let cam = city.cameras[0].resized(w, h);
             // One warm-up frame each (the first frame reserves scratch memory and builds
             // kernels), then the device's warm-up, the values in turn.
-            for splatter in &mut splatters {
-                splatter.render(&scene, &cam, &settings)?;
+            for (splatter, settings) in splatters.iter_mut().zip(&settings) {
+                splatter.render(&scene, &cam, settings)?;
             }
             let mut next = 0;
             warm_up(options.warm_up, || {
                 next = (next + 1) % splatters.len();
-                splatters[next].render(&scene, &cam, &settings).map(drop)
+                splatters[next].render(&scene, &cam, &settings[next]).map(drop)
             })?;
             let mut timings: Vec<Vec<Timings>> = vec![Vec::new(); choices.len()];
             for round in 0..options.repeats.max(1) {
                 let order: Vec<usize> =
                     if round % 2 == 0 { (0..choices.len()).collect() } else { (0..choices.len()).rev().collect() };
                 for i in order {
-                    timings[i].push(splatters[i].render(&scene, &cam, &settings)?.1.timings);
+                    timings[i].push(splatters[i].render(&scene, &cam, &settings[i])?.1.timings);
                 }
             }
-            let stage_names: Vec<String> = timings[0].first().map_or(Vec::new(), |t| {
-                t.stages.iter().map(|s| s.name.clone()).chain(std::iter::once("total".to_string())).collect()
-            });
+            // Every choice's stages (a compacted frame's `cull` too), then the whole frame.
+            let mut stage_names =
+                splat_stage_order(timings.iter().filter_map(|t| t.first()).flat_map(|t| &t.stages).map(|s| &s.name));
+            stage_names.push("total".to_string());
             let seconds = |t: &Timings, name: &str| {
                 if name == "total" {
                     t.total_seconds()

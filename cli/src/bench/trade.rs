@@ -161,7 +161,7 @@ pub fn stage_group(name: &str) -> &'static str {
         "shadow test"
     } else if name.starts_with("shade") {
         "shading"
-    } else if ["preprocess", "scan", "keys", "sort", "ranges", "blend"].contains(&name) {
+    } else if srug::splat::SPLAT_STAGES.contains(&name) {
         "splat"
     } else {
         "indirect"
@@ -484,6 +484,7 @@ mod tests {
         assert_eq!(stage_group("traced visibility"), "shadow test");
         assert_eq!(stage_group("shade lights"), "shading");
         assert_eq!(stage_group("blend"), "splat");
+        assert_eq!(stage_group("cull"), "splat", "compacted records' first pass");
         assert_eq!(stage_group("down1"), "indirect");
         let stage = |name: &str, seconds| srug::gpu::StageTime { name: name.into(), seconds };
         let timings = srug::gpu::Timings {

@@ -1310,6 +1310,11 @@ fn dispatch_preprocess<'a>(
     Ok(())
 }
 
+/// The timed stages of a splat frame, in pipeline order ([`SplatStats::timings`]):
+/// `cull` only with [`SplatSettings::compact_splats`]; a relit frame's shadow
+/// map names its own with a `shadow map ` prefix.
+pub const SPLAT_STAGES: [&str; 7] = ["cull", "preprocess", "scan", "keys", "sort", "ranges", "blend"];
+
 /// Cameras whose preprocessing, and then whose sorts and blends, one
 /// submission records ([`Splatter::render_frames`]); within the timestamp
 /// queries one recording holds.

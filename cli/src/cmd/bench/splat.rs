@@ -184,12 +184,14 @@ impl SplatBenchArgs {
             let mib = |b: u64| b as f64 / (1u64 << 20) as f64;
             let stage = |name: &str| r.stages.iter().find(|s| s.0 == name).map_or(f64::NAN, |s| s.1);
             let preprocess_floor = bandwidth.floor_seconds(r.preprocess_read_bytes, r.preprocess_write_bytes);
+            // Compacted records read the positions in a cull stage before the preprocess: both count.
+            let preprocess = stage("preprocess") + r.stages.iter().find(|s| s.0 == "cull").map_or(0.0, |s| s.1);
             // The LSD bound for this row's key width, scaled from the floor's pairs to the row's.
             let sort_floor =
                 floor.lsd_bound(r.key_bits).map_or(f64::NAN, |(_, s)| s * r.pairs as f64 / floor.keys.max(1) as f64);
             let blend_ceiling = ceiling.for_work(r.blend_evaluations, r.blend_contributions);
             for (column, share) in [
-                ("preprocess % of floor", preprocess_floor / stage("preprocess")),
+                ("preprocess % of floor", preprocess_floor / preprocess),
                 ("sort % of floor", sort_floor / stage("sort")),
                 ("blend % of ceiling", r.blend_gflops() / blend_ceiling),
             ] {
@@ -214,7 +216,7 @@ impl SplatBenchArgs {
                 r.blend_gflops(),
                 r.blend_gflops() / peak * 100.0,
                 blend_ceiling / peak * 100.0,
-                preprocess_floor / stage("preprocess") * 100.0,
+                preprocess_floor / preprocess * 100.0,
                 sort_floor / stage("sort") * 100.0,
                 r.blend_gflops() / blend_ceiling * 100.0,
             );
@@ -226,7 +228,7 @@ impl SplatBenchArgs {
             );
         }
         println!(
-            "\nmemory bandwidth ({} MiB read once, and copied once; the fastest of reading through an RGBA32F texel view or as uvec4s by device address, each invocation reading a run of texels or neighbouring invocations reading neighbouring texels, here {} {}): read {:.1} GB/s, copy {:.1} GB/s moved; \"preprocess % of floor\" is the least time to read every Gaussian's position and the visible ones' other attributes and write their splat records and every tile count at those rates, over the measured preprocess; \"sort % of floor\" the LSD bound below for the row's key bits and pairs over the measured sort; \"blend % of ceiling\" the blend's GFLOP/s over its ceiling for the row's mix",
+            "\nmemory bandwidth ({} MiB read once, and copied once; the fastest of reading through an RGBA32F texel view or as uvec4s by device address, each invocation reading a run of texels or neighbouring invocations reading neighbouring texels, here {} {}): read {:.1} GB/s, copy {:.1} GB/s moved; \"preprocess % of floor\" is the least time to read every Gaussian's position and the visible ones' other attributes and write their splat records and every tile count at those rates, over the measured preprocess (and cull, with compacted records); \"sort % of floor\" the LSD bound below for the row's key bits and pairs over the measured sort; \"blend % of ceiling\" the blend's GFLOP/s over its ceiling for the row's mix",
             bandwidth.bytes >> 20,
             match bandwidth.read_through {
                 bench::limits::BandwidthRead::Texels => "texel fetches",
@@ -309,7 +311,8 @@ impl SplatBenchArgs {
 /// then each later value's ratios to the first.
 fn print_alternation(rows: &[bench::AlternateRow], repeats: usize) {
     let Some(first) = rows.first() else { return };
-    let stages: Vec<&str> = first.choices[0].1.iter().map(|s| s.0.as_str()).collect();
+    let names = bench::splat_stage_order(first.choices.iter().flat_map(|c| &c.1).map(|s| &s.0));
+    let stages: Vec<&str> = names.iter().map(String::as_str).collect();
     println!(
         "each value renders one frame in turn, {} rounds (A B, then B A, ...), after a warm-up frame each; \
          ratios are a value's frame over the first value's frame of the same round: median (least-greatest)\n",
@@ -342,6 +345,7 @@ fn print_alternation(rows: &[bench::AlternateRow], repeats: usize) {
                     ratios
                         .iter()
                         .find(|s| s.0 == n)
+                        .filter(|(_, q)| q.median.is_finite())
                         .map_or("-".into(), |(_, q)| format!("{:.2} ({:.2}-{:.2})", q.median, q.min, q.max))
                 })
                 .collect();
