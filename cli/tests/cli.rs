@@ -308,20 +308,13 @@ fn bench_splat_prints_its_tables() {
         let t = text(&o);
         assert!(o.status.success() && t.contains(&format!("on 43 bits ({digits} digits)")), "{t}");
     }
+    // `srug bench splat --alternate SPEC` on a small city, two rounds.
+    let alternated = |spec: &str| {
+        srug(&["bench", "splat", "--gaussians", "2000", "--sizes", "64x32", "--repeats", "2", "--alternate", spec])
+    };
     // One choice's values alternated frame by frame: a row per value and the ratios to the first,
     // every cell a median with its range; the other tables are not printed.
-    let o = srug(&[
-        "bench",
-        "splat",
-        "--gaussians",
-        "2000",
-        "--sizes",
-        "64x32",
-        "--repeats",
-        "2",
-        "--alternate",
-        "scan-tiles=false,true",
-    ]);
+    let o = alternated("scan-tiles=false,true");
     let t = text(&o);
     assert!(o.status.success(), "{t}");
     for want in ["| 2000 | 64x32 | scan-tiles=false |", "| 2000 | 64x32 | scan-tiles=true |", "2 rounds (A B, then B A"]
@@ -343,18 +336,7 @@ fn bench_splat_prints_its_tables() {
     assert!(!t.contains("sort_unstable") && !t.contains("pair-move floor"), "{t}");
     // Compacted records against a record per Gaussian: the cull stage gets a column, timed only
     // where it runs, and its ratio is left blank.
-    let o = srug(&[
-        "bench",
-        "splat",
-        "--gaussians",
-        "2000",
-        "--sizes",
-        "64x32",
-        "--repeats",
-        "2",
-        "--alternate",
-        "compact-splats=false,true",
-    ]);
+    let o = alternated("compact-splats=false,true");
     let t = text(&o);
     assert!(o.status.success(), "{t}");
     let cells = |prefix: &str| -> Vec<String> {
