@@ -73,8 +73,8 @@ layout(constant_id = 3) const uint SH_USED = 3u;
 layout(constant_id = 5) const bool TILE_MASK = false;
 // Records (engine/src/splat/mod.rs `SplatSettings::compact_splats`): 0 one
 // per Gaussian; 1 only flag (frame.visible_slots) the Gaussians the position
-// cull keeps; 2 write each flagged Gaussian's record, tile count and id at its
-// scanned slot. Both passes cull alike, so every record has its slot.
+// cull keeps; 2 write each flagged Gaussian's id, and unless a later test
+// culls it its record and tile count, at its scanned slot.
 layout(constant_id = 10) const uint COMPACT = 0u;
 
 float sigmoid(float x) {
@@ -97,6 +97,8 @@ void main() {
         UintsIn visible = UintsIn(frame.visible_slots);
         slot = visible.v[i];
         if (visible.v[i + 1u] == slot) return;
+        // Every slot names its Gaussian, even one a later test culls.
+        Uints(frame.slot_gaussians).v[slot] = i;
     }
     vec3 p = MEAN3(i);
     mat3 W = world_to_camera_rotation(frame.camera);
@@ -131,7 +133,6 @@ void main() {
         Uints(frame.visible_slots).v[i] = 1u;
         return;
     }
-    if (COMPACT == 2u) Uints(frame.slot_gaussians).v[slot] = i;
 
     // 3D covariance.
     vec3 s = exp(log_s);
