@@ -12,6 +12,7 @@
 // binary search in the splat's run of pair tiles, which is in tile order), so
 // step 2 can sum each Gaussian's records in order without atomics.
 // CPU twin: engine/src/splat/cpu_backward.rs `blend_backward_cpu`.
+#extension GL_EXT_control_flow_attributes : require
 #extension GL_KHR_shader_subgroup_basic : require
 #extension GL_KHR_shader_subgroup_ballot : require
 #define TILE_WORKGROUP
@@ -163,10 +164,11 @@ void main() {
                                         f1.x, f1.y, f1.z, f1.w, f2.x, f2.y);
                 float w = alpha * T;
                 float d_alpha = bg_term * t_final / (1.0 - alpha);
-                for (uint k = 0u; k < 14u; k++) {
-                    if (!value_used(k)) continue;
-                    d_alpha += dv[k] * (x[k] * T - behind[k] / (1.0 - alpha));
-                    behind[k] += x[k] * w;
+                [[unroll]] for (uint k = 0u; k < 14u; k++) {
+                    if (value_used(k)) {
+                        d_alpha += dv[k] * (x[k] * T - behind[k] / (1.0 - alpha));
+                        behind[k] += x[k] * w;
+                    }
                 }
                 if (head.w * gauss <= 0.99) {
                     float d_power = alpha * d_alpha;

@@ -641,10 +641,13 @@ void main() {
     [[unroll]] for (uint k = 0u; k < PIXELS; k++) {
         uvec2 pix = base + uvec2(k * STEP, 0u);
         uint px = in_tile.y * TILE + in_tile.x + k * STEP;
-        if (pix.x >= frame.size.x || pix.y >= frame.size.y) continue;
-        if (CHUNK_PASS == 0u) store_pixel(pix, acc[k]);
-        if (CHUNK_PASS == 1u) FloatsOut(chunks.transmittance).v[slot * TILE_PIXELS + px] = acc[k].T;
-        if (CHUNK_PASS == 2u) store_partial(slot, px, acc[k], start_T[k]);
+        // An `if`, not a `continue`: an unrolled loop must not leave early
+        // (spirv/tests/unrolled_loops.rs says why).
+        if (pix.x < frame.size.x && pix.y < frame.size.y) {
+            if (CHUNK_PASS == 0u) store_pixel(pix, acc[k]);
+            if (CHUNK_PASS == 1u) FloatsOut(chunks.transmittance).v[slot * TILE_PIXELS + px] = acc[k].T;
+            if (CHUNK_PASS == 2u) store_partial(slot, px, acc[k], start_T[k]);
+        }
     }
 }
 #else

@@ -220,7 +220,6 @@ void main() {
     bool last = (pc.flags & 2u) != 0u;
     [[unroll]] for (uint x = 0u; x < PX; ++x) {
         int ox = ox0 + int(x);
-        if (ox >= ow) break;
         uint px = uint(oy * ow + ox);
         [[unroll]] for (uint q = 0u; q < Q; ++q) {
             vec4 a = acc[x * Q + q];
@@ -233,11 +232,12 @@ void main() {
             }
             [[unroll]] for (uint j = 0u; j < 4u; ++j) {
                 uint c = ob * OCB + 4u * q + j;
-                if (c >= pc.oc) continue;
-                if (last) {
-                    store_output(pc.o, c * plane + px, a[j]);
-                } else {
-                    FloatsOut(pc.partial).v[c * plane + px] = a[j];
+                if (all(bvec2(ox < ow, c < pc.oc))) {
+                    if (last) {
+                        store_output(pc.o, c * plane + px, a[j]);
+                    } else {
+                        FloatsOut(pc.partial).v[c * plane + px] = a[j];
+                    }
                 }
             }
         }

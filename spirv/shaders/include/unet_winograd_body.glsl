@@ -270,20 +270,19 @@ void main() {
         // come from two tiles.
         [[unroll]] for (uint g = 0u; g < TT * WT / 4u; ++g) {
             int gx = ox0 + 4 * int(g);
-            if (gx >= ow) break;
             [[unroll]] for (uint q = 0u; q < Q; ++q) {
                 [[unroll]] for (uint j = 0u; j < 4u; ++j) {
                     uint c = (ob * Q + q) * 4u + j;
-                    if (c >= pc.oc) continue;
                     [[unroll]] for (uint row = 0u; row < WT; ++row) {
                         int oy = oy0 + int(row);
-                        if (oy >= oh) continue;
-                        vec4 px;
-                        [[unroll]] for (uint x = 0u; x < 4u; ++x) {
-                            uint t = (4u * g + x) / WT;
-                            px[x] = ys[t * Q + q][WT * row + (4u * g + x) % WT][j];
+                        if (all(bvec3(gx < ow, c < pc.oc, oy < oh))) {
+                            vec4 px;
+                            [[unroll]] for (uint x = 0u; x < 4u; ++x) {
+                                uint t = (4u * g + x) / WT;
+                                px[x] = ys[t * Q + q][WT * row + (4u * g + x) % WT][j];
+                            }
+                            store_output4(pc.o, c * out_plane + uint(oy * ow + gx), px);
                         }
-                        store_output4(pc.o, c * out_plane + uint(oy * ow + gx), px);
                     }
                 }
             }
@@ -291,14 +290,14 @@ void main() {
     } else {
         [[unroll]] for (uint t = 0u; t < TT; ++t) {
             int tx = ox0 + WT * int(t);
-            if (tx >= ow) break;
             [[unroll]] for (uint q = 0u; q < Q; ++q) {
                 [[unroll]] for (uint i = 0u; i < WT * WT; ++i) {
                     int ox = tx + int(i % WT), oy = oy0 + int(i / WT);
-                    if (ox >= ow || oy >= oh) continue;
                     [[unroll]] for (uint j = 0u; j < 4u; ++j) {
                         uint c = (ob * Q + q) * 4u + j;
-                        if (c < pc.oc) store_output(pc.o, c * out_plane + uint(oy * ow + ox), ys[t * Q + q][i][j]);
+                        if (all(bvec3(ox < ow, oy < oh, c < pc.oc))) {
+                            store_output(pc.o, c * out_plane + uint(oy * ow + ox), ys[t * Q + q][i][j]);
+                        }
                     }
                 }
             }
