@@ -950,6 +950,13 @@ fn bench_trade_writes_csv_markdown_and_a_plot_with_the_pareto_front() {
             assert!(p.is_finite() && p > 5.0, "{r:?}");
         }
     }
+    // The splatted colour still compared (frames are timed without it): SH degree 0 is a
+    // finite PSNR against the reference's degree 3, which matches itself.
+    let colour = col("colour_psnr_db");
+    assert_eq!(reference[colour], "inf");
+    let sh0 = rows.iter().find(|r| r[knob] == "SH degree" && r[value] == "0").unwrap();
+    let p: f64 = sh0[colour].parse().unwrap();
+    assert!(p.is_finite() && p > 5.0, "{sh0:?}");
     // The fastest row is always on the front.
     let fastest = rows.iter().min_by(|a, b| a[median].parse::<f64>().unwrap().total_cmp(&b[median].parse().unwrap()));
     assert_eq!(fastest.unwrap()[pareto], "true");
