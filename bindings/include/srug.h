@@ -423,16 +423,28 @@ srug_status srug_context_device_name(const srug_context *ctx,
                                      size_t len,
                                      size_t *written);
 
-// GPU memory the context's objects hold now and at most since its creation, in bytes.
+// GPU memory the context's objects hold now and at most since its creation, in bytes
+// (buffers kept for reuse not counted: `srug_context_memory_pool`).
 //
 // # Safety
 // `current` and `peak` each NULL or valid for one write (at least one non-NULL).
 srug_status srug_context_memory(const srug_context *ctx, uint64_t *current, uint64_t *peak);
 
-// Frees the buffers srug keeps for reuse after freeing them (up to an
-// eighth of the device's largest device-local heap, 256 MiB to 4 GiB; srug
-// frees them itself when one of its own allocations finds no memory or puts
-// more in use than it ever had at once): for a host that wants that memory
+// Freed buffers srug keeps for reuse (not in `srug_context_memory`'s
+// `current`) into `pooled`, and into `fresh` how many of its allocations
+// since the context was made took new memory rather than a kept buffer
+// (steady frames take few or none). srug keeps at most an eighth of the
+// device's largest device-local heap (256 MiB to 4 GiB), and never so much
+// that in use and kept would pass the most it ever had in use at once
+// (staging buffers: 32 MiB more): a new allocation frees the oldest first.
+//
+// # Safety
+// `pooled` and `fresh` each NULL or valid for one write (at least one non-NULL).
+srug_status srug_context_memory_pool(const srug_context *ctx, uint64_t *pooled, uint64_t *fresh);
+
+// Frees the buffers srug keeps for reuse (`srug_context_memory_pool`; srug
+// also frees them itself when one of its own allocations finds no memory or
+// would pass the most it ever had in use): for a host that wants that memory
 // back now. The bytes released go into `released` where it is not NULL.
 //
 // # Safety

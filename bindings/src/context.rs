@@ -219,7 +219,8 @@ pub unsafe extern "C" fn srug_context_device_name(
     })
 }
 
-/// GPU memory the context's objects hold now and at most since its creation, in bytes.
+/// GPU memory the context's objects hold now and at most since its creation, in bytes
+/// (buffers kept for reuse not counted: `srug_context_memory_pool`).
 ///
 /// # Safety
 /// `current` and `peak` each NULL or valid for one write (at least one non-NULL).
@@ -247,10 +248,43 @@ pub unsafe extern "C" fn srug_context_memory(
     })
 }
 
-/// Frees the buffers srug keeps for reuse after freeing them (up to an
-/// eighth of the device's largest device-local heap, 256 MiB to 4 GiB; srug
-/// frees them itself when one of its own allocations finds no memory or puts
-/// more in use than it ever had at once): for a host that wants that memory
+/// Freed buffers srug keeps for reuse (not in `srug_context_memory`'s
+/// `current`) into `pooled`, and into `fresh` how many of its allocations
+/// since the context was made took new memory rather than a kept buffer
+/// (steady frames take few or none). srug keeps at most an eighth of the
+/// device's largest device-local heap (256 MiB to 4 GiB), and never so much
+/// that in use and kept would pass the most it ever had in use at once
+/// (staging buffers: 32 MiB more): a new allocation frees the oldest first.
+///
+/// # Safety
+/// `pooled` and `fresh` each NULL or valid for one write (at least one non-NULL).
+#[no_mangle]
+pub unsafe extern "C" fn srug_context_memory_pool(
+    ctx: *const srug_context,
+    pooled: *mut u64,
+    fresh: *mut u64,
+) -> srug_status {
+    guard("srug_context_memory_pool", || {
+        let (_, c) = context(ctx)?;
+        if pooled.is_null() && fresh.is_null() {
+            return Err(null("both pooled and fresh"));
+        }
+        let m = c.device.memory_usage();
+        if !pooled.is_null() {
+            // SAFETY: non-null; the caller's contract.
+            unsafe { pooled.write(m.pooled_bytes) };
+        }
+        if !fresh.is_null() {
+            // SAFETY: non-null; the caller's contract.
+            unsafe { fresh.write(m.fresh_allocations) };
+        }
+        Ok(())
+    })
+}
+
+/// Frees the buffers srug keeps for reuse (`srug_context_memory_pool`; srug
+/// also frees them itself when one of its own allocations finds no memory or
+/// would pass the most it ever had in use): for a host that wants that memory
 /// back now. The bytes released go into `released` where it is not NULL.
 ///
 /// # Safety

@@ -4,7 +4,8 @@
 //! - every allocation is named and counted in [`MemoryUsage`](crate::MemoryUsage);
 //! - a dropped buffer is destroyed only after every submission made before the
 //!   drop has finished (see `Shared::retire`), so the GPU never reads freed memory;
-//!   then, up to an eighth of the device's memory, it is kept (`BufferPool`) for the next buffer
+//!   then, up to an eighth of the device's memory and within the most ever in use, it is kept
+//!   (`BufferPool`) for the next buffer
 //!   of its kind and of its size to a quarter less, whose contents are then
 //!   undefined as fresh Vulkan memory's are (no code may rely on zeros);
 //! - storage buffers carry a device address, so kernels can reach buffers larger

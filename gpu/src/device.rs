@@ -476,9 +476,10 @@ impl Device {
 
     /// Frees the buffers kept for reuse ([`MemoryUsage::pooled_bytes`]) and
     /// returns how many bytes that released. srug keeps at most an eighth of
-    /// the device's largest device-local heap (256 MiB to 4 GiB) of them,
-    /// frees them itself when an allocation finds no memory or puts more in
-    /// use than ever before.
+    /// the device's largest device-local heap (256 MiB to 4 GiB) of them, and
+    /// never so much that in use and kept would pass the most ever in use
+    /// (staging buffers: [`POOL_HEADROOM_BYTES`](crate::POOL_HEADROOM_BYTES) more); it
+    /// frees them itself when an allocation finds no memory.
     pub fn release_pooled_memory(&self) -> u64 {
         self.shared.drain_pool()
     }

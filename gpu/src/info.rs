@@ -103,8 +103,9 @@ pub struct MemoryUsage {
     pub peak_bytes: u64,
     /// Bytes of freed buffers kept for reuse by later ones of the same kind
     /// and about the same size (at most an eighth of the largest device-local
-    /// heap, 256 MiB to 4 GiB; all freed before an allocation that puts more
-    /// in use than ever before; not in `current_bytes`;
+    /// heap, 256 MiB to 4 GiB, and never so much that in use and kept would
+    /// pass the most ever in use, staging buffers [`POOL_HEADROOM_BYTES`](crate::POOL_HEADROOM_BYTES)
+    /// more: a new allocation frees the oldest first; not in `current_bytes`;
     /// [`Device::release_pooled_memory`](crate::Device::release_pooled_memory) frees them).
     pub pooled_bytes: u64,
     /// Allocations since the device was made that took new memory rather

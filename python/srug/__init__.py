@@ -347,8 +347,8 @@ class Device:
         "fresh_allocations": ...}``.
 
         ``pooled_bytes``: freed buffers kept (up to an eighth of the device's memory,
-        256 MiB to 4 GiB, all freed when an allocation puts more in use than ever
-        before) for reuse by later ones of
+        256 MiB to 4 GiB, and never so much that in use and kept would pass the most
+        ever in use: a new allocation frees the oldest first) for reuse by later ones of
         their kind and about their size; not counted in ``current_bytes``.
         ``fresh_allocations``: allocations since the device was made that took new
         memory rather than a kept buffer (steady frames take few or none).

@@ -41,6 +41,8 @@ int main(int argc, char **argv) {
   REQUIRE(none == NULL);
   CHECK(srug_context_create(NULL, SRUG_CONTEXT_VALIDATION, &other));
   EXPECT(srug_context_memory(ctx, NULL, NULL), SRUG_ERROR_NULL_POINTER);
+  EXPECT(srug_context_memory_pool(ctx, NULL, NULL), SRUG_ERROR_NULL_POINTER);
+  EXPECT(srug_context_memory_pool(NULL, NULL, NULL), SRUG_ERROR_NULL_POINTER);
   EXPECT(srug_context_release_pooled_memory(NULL, NULL), SRUG_ERROR_NULL_POINTER);
   EXPECT(srug_scene_from_file(ctx, "/nonexistent/scene.ply", &scene), SRUG_ERROR_IO);
   EXPECT(srug_scene_from_file(ctx, NULL, &scene), SRUG_ERROR_NULL_POINTER);

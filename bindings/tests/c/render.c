@@ -153,12 +153,18 @@ int main(int argc, char **argv) {
   CHECK(srug_context_memory(ctx, &current, &peak));
   printf("GPU memory: %.1f MiB now, %.1f MiB peak\n", current / 1048576.0, peak / 1048576.0);
   REQUIRE(current > 0 && peak >= current);
-  /* The buffers the frames freed are kept for reuse until released. */
+  /* The buffers the frames freed are kept for reuse until released, within the peak. */
+  uint64_t pooled = 0, fresh = 0, pooled_after = 1, fresh_after = 0;
+  CHECK(srug_context_memory_pool(ctx, &pooled, &fresh));
+  REQUIRE(pooled > 0 && current + pooled <= peak + (32u << 20) && fresh > 0);
   uint64_t released = 0, released_again = 1;
   CHECK(srug_context_release_pooled_memory(ctx, &released));
   CHECK(srug_context_release_pooled_memory(ctx, &released_again));
   printf("released %.1f MiB of pooled buffers\n", released / 1048576.0);
-  REQUIRE(released > 0 && released_again == 0);
+  REQUIRE(released == pooled && released_again == 0);
+  CHECK(srug_context_memory_pool(ctx, &pooled_after, NULL));
+  CHECK(srug_context_memory_pool(ctx, NULL, &fresh_after));
+  REQUIRE(pooled_after == 0 && fresh_after == fresh);
 
   /* Channels: depth and normal were asked for, L_sun comes with a relit frame. */
   size_t pixels = (size_t)w * h;
