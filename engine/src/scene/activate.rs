@@ -17,6 +17,13 @@ use crate::error::Result;
 use crate::gpu::{kernels, Buffer, Device, Grid, Kernel, KernelDecl, MemoryKind, Timings};
 
 /// A scene's stored parameters in GPU memory.
+///
+/// The per-Gaussian buffers hold their rows in device order: the file's (or
+/// arrays') order unless [`GpuScene::arrange`] moved them, after which device
+/// row `i` is file row [`RowOrder::to_file`](super::order::RowOrder::to_file)`[i]`
+/// ([`GpuScene::row_order`]). Code that reads or writes the buffers
+/// directly must map rows through it; [`GpuScene::download`] and
+/// [`GpuScene::write_geometry`] already do.
 pub struct GpuScene {
     /// Number of Gaussians.
     pub count: usize,
