@@ -210,8 +210,9 @@ pub(crate) fn with_renderer_and_scene(
 /// Makes a renderer of `width`×`height` pixels. `channels` is a mask of
 /// `1u << SRUG_CHANNEL_*` bits for the G-buffer channels to keep besides those
 /// the shading needs (rgb and alpha are always there). Defaults: no sun, the
-/// procedural sky, shadow map 2048 texels with k = 50, bias 0.3 m plus 3 texels of
-/// slope bias, median depths (the balanced preset, as `srug relight`), exposure 0 with the ACES tone map.
+/// procedural sky, the balanced preset's shadows as `srug relight` has them (a
+/// 2048-texel map, k = 50, a bias of 0.8 m plus 3 texels of slope bias, surface
+/// median depths, percentage-closer filtering), exposure 0 with the ACES tone map.
 ///
 /// # Safety
 /// `out` valid for one write.
