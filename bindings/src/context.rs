@@ -232,20 +232,28 @@ pub unsafe extern "C" fn srug_context_memory(
 ) -> srug_status {
     guard("srug_context_memory", || {
         let (_, c) = context(ctx)?;
-        if current.is_null() && peak.is_null() {
-            return Err(null("both current and peak"));
-        }
         let m = c.device.memory_usage();
-        if !current.is_null() {
-            // SAFETY: non-null; the caller's contract.
-            unsafe { current.write(m.current_bytes) };
-        }
-        if !peak.is_null() {
-            // SAFETY: non-null; the caller's contract.
-            unsafe { peak.write(m.peak_bytes) };
-        }
-        Ok(())
+        // SAFETY: each NULL or valid for one write; the caller's contract.
+        unsafe { write_either([("current", current, m.current_bytes), ("peak", peak, m.peak_bytes)]) }
     })
+}
+
+/// Writes each value whose pointer is not NULL; all NULL is an error naming them.
+///
+/// # Safety
+/// Each pointer NULL or valid for one write.
+unsafe fn write_either<const N: usize>(outs: [(&str, *mut u64, u64); N]) -> FfiResult {
+    if outs.iter().all(|o| o.1.is_null()) {
+        let names: Vec<&str> = outs.iter().map(|o| o.0).collect();
+        return Err(null(&format!("all of {}", names.join(" and "))));
+    }
+    for (_, out, value) in outs {
+        if !out.is_null() {
+            // SAFETY: non-null; the caller's contract.
+            unsafe { out.write(value) };
+        }
+    }
+    Ok(())
 }
 
 /// Freed buffers srug keeps for reuse (not in `srug_context_memory`'s
@@ -266,19 +274,9 @@ pub unsafe extern "C" fn srug_context_memory_pool(
 ) -> srug_status {
     guard("srug_context_memory_pool", || {
         let (_, c) = context(ctx)?;
-        if pooled.is_null() && fresh.is_null() {
-            return Err(null("both pooled and fresh"));
-        }
         let m = c.device.memory_usage();
-        if !pooled.is_null() {
-            // SAFETY: non-null; the caller's contract.
-            unsafe { pooled.write(m.pooled_bytes) };
-        }
-        if !fresh.is_null() {
-            // SAFETY: non-null; the caller's contract.
-            unsafe { fresh.write(m.fresh_allocations) };
-        }
-        Ok(())
+        // SAFETY: each NULL or valid for one write; the caller's contract.
+        unsafe { write_either([("pooled", pooled, m.pooled_bytes), ("fresh", fresh, m.fresh_allocations)]) }
     })
 }
 
