@@ -268,7 +268,10 @@ typedef struct {
   uint8_t driver_uuid[16];
 } srug_exported_image;
 
-// Colour over the background (3 floats per pixel); always rendered.
+// The scene's own (3DGS) colour over the background (3 floats per pixel):
+// always rendered in plain frames; in relit frames only when the renderer's
+// channel mask has its bit (shading never reads it, and without it a relit
+// frame reads no spherical-harmonic coefficient).
 #define SRUG_CHANNEL_RGB 0
 
 // Coverage, 1 − final transmittance (1 float); always rendered.
@@ -555,7 +558,8 @@ uint32_t srug_channel_components(srug_channel channel);
 
 // Makes a renderer of `width`×`height` pixels. `channels` is a mask of
 // `1u << SRUG_CHANNEL_*` bits for the G-buffer channels to keep besides those
-// the shading needs (rgb and alpha are always there). Defaults: no sun, the
+// the shading needs (alpha is always there, and rgb in plain frames; relit
+// frames splat the scene's own colour only with `1u << SRUG_CHANNEL_RGB`). Defaults: no sun, the
 // procedural sky, the balanced preset's shadows as `srug relight` has them (a
 // 2048-texel map, k = 50, a bias of 0.8 m plus 3 texels of slope bias, surface
 // median depths, percentage-closer filtering), exposure 0 with the ACES tone map.

@@ -34,7 +34,10 @@ pub struct srug_renderer {
 /// A G-buffer or shading channel: an index for `srug_renderer_read_channel`
 /// and, as `1u << channel`, a bit of `srug_renderer_create`'s channel mask.
 pub type srug_channel = u32;
-/// Colour over the background (3 floats per pixel); always rendered.
+/// The scene's own (3DGS) colour over the background (3 floats per pixel):
+/// always rendered in plain frames; in relit frames only when the renderer's
+/// channel mask has its bit (shading never reads it, and without it a relit
+/// frame reads no spherical-harmonic coefficient).
 pub const SRUG_CHANNEL_RGB: srug_channel = 0;
 /// Coverage, 1 − final transmittance (1 float); always rendered.
 pub const SRUG_CHANNEL_ALPHA: srug_channel = 1;
@@ -209,7 +212,8 @@ pub(crate) fn with_renderer_and_scene(
 
 /// Makes a renderer of `width`×`height` pixels. `channels` is a mask of
 /// `1u << SRUG_CHANNEL_*` bits for the G-buffer channels to keep besides those
-/// the shading needs (rgb and alpha are always there). Defaults: no sun, the
+/// the shading needs (alpha is always there, and rgb in plain frames; relit
+/// frames splat the scene's own colour only with `1u << SRUG_CHANNEL_RGB`). Defaults: no sun, the
 /// procedural sky, the balanced preset's shadows as `srug relight` has them (a
 /// 2048-texel map, k = 50, a bias of 0.8 m plus 3 texels of slope bias, surface
 /// median depths, percentage-closer filtering), exposure 0 with the ACES tone map.
@@ -240,8 +244,8 @@ pub unsafe extern "C" fn srug_renderer_create(
         let mut settings = RelightSettings::preset(Preset::Balanced);
         settings.shade.tone_map = ToneMap::Aces;
         settings.extra_channels = Channels::from_bits(channels >> 2);
-        // The header's contract: rgb is always rendered.
-        settings.rgb = true;
+        // Relit frames splat the scene's own colour only when the mask asks (plain frames always do).
+        settings.rgb = channels & (1 << SRUG_CHANNEL_RGB) != 0;
         let obj = RendererObject {
             device: c.device.clone(),
             width,

@@ -188,6 +188,28 @@ int main(int argc, char **argv) {
   }
   REQUIRE(brightest > 0.0f);
 
+  /* The scene's own colour comes with a relit frame only when the mask asks: shading never
+     reads it, so the relit image is the same bytes either way. */
+  EXPECT(srug_renderer_read_channel(r, SRUG_CHANNEL_RGB, values, pixels * 3), SRUG_ERROR_WRONG_ORDER);
+  srug_renderer *with_rgb = NULL;
+  CHECK(srug_renderer_create(ctx, w, h, channels | (1u << SRUG_CHANNEL_RGB), &with_rgb));
+  CHECK(srug_renderer_set_camera(with_rgb, fx, fy, cx, cy, c2w, near_plane, far_plane));
+  CHECK(srug_renderer_set_sun(with_rgb, azimuth, elevation, sun));
+  CHECK(srug_renderer_set_environment(with_rgb, NULL, 0.0f, 1.0f));
+  CHECK(srug_renderer_render(with_rgb, scene));
+  unsigned char *rgb_image = read_rgba8(with_rgb, w, h);
+  REQUIRE(memcmp(rgb_image, image, pixels * 4) == 0);
+  free(rgb_image);
+  for (size_t i = 0; i < pixels * 3; i++) values[i] = NAN; /* sentinel */
+  CHECK(srug_renderer_read_channel(with_rgb, SRUG_CHANNEL_RGB, values, pixels * 3));
+  size_t coloured = 0;
+  for (size_t i = 0; i < pixels * 3; i++) {
+    REQUIRE(isfinite(values[i]) && values[i] >= 0.0f);
+    coloured += values[i] > 0.0f;
+  }
+  REQUIRE(coloured > pixels);
+  CHECK(srug_renderer_destroy(with_rgb));
+
   /* Linear float image: finite, alpha equals the RGBA8 alpha within rounding. */
   float *linear = malloc(pixels * 4 * sizeof(float));
   REQUIRE(linear != NULL);
