@@ -249,6 +249,9 @@ fn bench_splat_prints_its_tables() {
     assert!(o.status.success(), "{t}");
     let sh1_mib = scene_mib(&t);
     assert!(t.contains("measured FMA peak"), "{t}");
+    // The host CPU that ran it (on lavapipe, the device): model, CPUs and vector ISA.
+    let host = t.lines().find(|l| l.starts_with("host: ")).unwrap_or_else(|| panic!("no host line:\n{t}"));
+    assert!(host.contains(" CPUs, ") && (host.contains("AVX") || host.contains("SSE")), "{host}");
     assert!(t.contains("the demo city (seed 7) at SH degree 1"), "{t}");
     for want in [
         "| 2000 | 64x32 |",

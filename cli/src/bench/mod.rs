@@ -72,6 +72,50 @@ pub struct FmaPush {
 }
 srug::gpu::gpu_layout!(FmaPush, "FmaPush", [out_addr, iterations, count]);
 
+/// The host's CPU as a bench names it: its model name, x86 family and model,
+/// logical CPUs and the widest vector instructions it has. On lavapipe the
+/// CPU is the device, and the same "2-core machine" has been CPUs with and
+/// without AVX-512, whose JIT code and speeds differ (docs/testing.md,
+/// "Which machine"): every table names it.
+pub fn host_cpu() -> String {
+    let info = std::fs::read_to_string("/proc/cpuinfo").unwrap_or_default();
+    host_cpu_from(&info, std::thread::available_parallelism().map_or(0, usize::from), vector_isa())
+}
+
+/// [`host_cpu`] from a `/proc/cpuinfo` text (empty where there is none).
+pub fn host_cpu_from(cpuinfo: &str, cpus: usize, isa: &str) -> String {
+    let field = |name: &str| {
+        cpuinfo.lines().find_map(|l| {
+            let (key, value) = l.split_once(':')?;
+            (key.trim() == name).then(|| value.trim().to_string())
+        })
+    };
+    let model = field("model name").unwrap_or_else(|| std::env::consts::ARCH.to_string());
+    let family = match (field("cpu family"), field("model")) {
+        (Some(f), Some(m)) => format!(", family {f} model {m}"),
+        _ => String::new(),
+    };
+    format!("{model}{family}, {cpus} CPUs, {isa}")
+}
+
+/// The widest x86 vector extension this CPU has (what llvmpipe's JIT can use).
+fn vector_isa() -> &'static str {
+    #[cfg(target_arch = "x86_64")]
+    {
+        if std::arch::is_x86_feature_detected!("avx512f") {
+            return "AVX-512";
+        }
+        if std::arch::is_x86_feature_detected!("avx2") {
+            return "AVX2 (no AVX-512)";
+        }
+        "SSE/AVX (no AVX2)"
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        std::env::consts::ARCH
+    }
+}
+
 /// Measures the device's FMA throughput in GFLOP/s (best of `repeats`).
 pub fn fma_peak_gflops(device: &Device, repeats: usize) -> Result<f64> {
     let kernel = device.kernel(
@@ -712,6 +756,19 @@ pub fn sort_bench(
 
 #[cfg(test)]
 mod tests {
+    use super::host_cpu_from;
+
+    #[test]
+    fn host_cpu_names_model_family_and_isa() {
+        let info =
+            "processor\t: 0\nvendor_id\t: AuthenticAMD\ncpu family\t: 25\nmodel\t\t: 1\nmodel name\t: AMD EPYC\n";
+        assert_eq!(
+            host_cpu_from(info, 2, "AVX2 (no AVX-512)"),
+            "AMD EPYC, family 25 model 1, 2 CPUs, AVX2 (no AVX-512)"
+        );
+        assert_eq!(host_cpu_from("", 4, "AVX-512"), format!("{}, 4 CPUs, AVX-512", std::env::consts::ARCH));
+    }
+
     use std::time::{Duration, Instant};
 
     use super::warm_up;

@@ -49,6 +49,8 @@ pub(super) enum BenchCommand {
 impl BenchCommand {
     /// Runs the benchmark.
     pub(super) fn run(&self, device: &DeviceArgs) -> Result<()> {
+        // The host first: on lavapipe it is the device, and its vector ISA moves every figure.
+        println!("host: {}", crate::bench::host_cpu());
         match self {
             Self::Splat(a) => a.run(device),
             Self::Unet(a) => a.run(device),
