@@ -249,6 +249,8 @@ fn bench_splat_prints_its_tables() {
     assert!(o.status.success(), "{t}");
     let sh1_mib = scene_mib(&t);
     assert!(t.contains("measured FMA peak"), "{t}");
+    // The peak measured again after the rows; the columns take the better.
+    assert!(t.contains("after them; the columns take the better, "), "{t}");
     // The host CPU that ran it (on lavapipe, the device): model, CPUs and vector ISA.
     let host = t.lines().find(|l| l.starts_with("host: ")).unwrap_or_else(|| panic!("no host line:\n{t}"));
     assert!(host.contains(" CPUs, ") && (host.contains("AVX") || host.contains("SSE")), "{host}");
@@ -838,6 +840,7 @@ fn bench_unet_prints_its_table() {
         "| 37x23 | fp32 | address |",
         "| 37x23 | fp32 | winograd2 |",
         "% of FMA peak",
+        "after them; \"% of FMA peak\" takes the better, ",
         "texel per layer: inc",
         "winograd2 per layer: inc",
     ] {
