@@ -592,6 +592,8 @@ void main() {
     uint next = range.x, window_start = range.x, window = 0u;
     // WINDOW_FETCH: each lane's wanted splat of the current window.
     StepSplat lane_splat = StepSplat(0u, vec4(0.0), vec4(0.0), vec4(0.0), uvec4(0u), uvec4(0u), uvec4(0u), vec3(0.0));
+    // The lane's first pixel centre, converted once: each pixel's is a constant step on (exact in float).
+    vec2 first_centre = vec2(base) + 0.5;
     while (subgroupBallot(any_live) != uvec4(0u)) {
         if (!WINDOW_FETCH || window == 0u) {
             while (window == 0u && next < range.y) {
@@ -621,13 +623,13 @@ void main() {
                                     : fetch_step_splat(window_start + bitCount(lanes & ((1u << first_lane) - 1u)));
         StepSplat s2 = s1;
         if (TWO_SPLATS) s2 = shuffled(lane_splat, second_lane);
-        float row = float(base.y) + 0.5;
+        float row = first_centre.y;
         vec2 reach1 = PIXEL_REACH ? row_span(s1.reach_of, s1.head, row) : vec2(0.0);
         vec2 reach2 = PIXEL_REACH && TWO_SPLATS ? row_span(s2.reach_of, s2.head, row) : vec2(0.0);
         Contribution c1 = step_contribution(s1);
         Contribution c2 = TWO_SPLATS ? step_contribution(s2) : c1;
         [[unroll]] for (uint k = 0u; k < PIXELS; k++) {
-            vec2 centre = vec2(base + uvec2(k * STEP, 0u)) + 0.5;
+            vec2 centre = vec2(first_centre.x + float(k * STEP), first_centre.y);
             blend_step(acc[k], live[k], limit[k], s1, c1, reach1, centre);
             if (TWO_SPLATS) {
                 bool live2 = all(bvec2(live[k], second));
