@@ -156,11 +156,13 @@ uint tile_block_mask(TileEllipse e, vec2 mean, uint tx, uint ty, uint tile, bool
     float split = origin.x + float(half_cols);
     vec3 rows = ellipse_rows(e);
     uint mask = 0u;
-    for (uint r = r0; r <= r1; r++) {
+    // The row's centre as a float counter: exact, and no integer conversion a row.
+    float row_centre = origin.y + float(r0) + 0.5;
+    for (uint r = r0; r <= r1; r++, row_centre += 1.0) {
         bool left = true, right = true;
         if (check_x) {
             // d = mean − centre; at this row's dy the ellipse spans dx ∈ (−b·dy ± sqrt(r²a − det·dy²)) / a.
-            vec2 x = ellipse_row_span(rows, mean, mean.y - (origin.y + float(r) + 0.5));
+            vec2 x = ellipse_row_span(rows, mean, mean.y - row_centre);
             left = x.y >= origin.x + 0.5 && x.x <= split - 0.5;
             right = x.y >= split + 0.5 && x.x <= origin.x + float(tile) - 0.5;
         }
