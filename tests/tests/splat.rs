@@ -800,6 +800,10 @@ fn a_batch_of_cameras_renders_the_same_bits_as_one_camera_at_a_time() {
     bad[1] = bad[1].resized(70_000, 70_000);
     let text = splatter.render_frames(&gpu_scene, &bad, &settings).err().map(|e| e.to_string()).unwrap_or_default();
     assert!(text.contains("image 70000x70000") && text.contains("too large"), "{text}");
+    // Few pixels but 2^22 tile columns (the kernels count tiles in floats, exact below 2^23).
+    bad[1] = cameras[1].resized(16 << 22, 1);
+    let text = splatter.render_frames(&gpu_scene, &bad, &settings).err().map(|e| e.to_string()).unwrap_or_default();
+    assert!(text.contains("image 67108864x1") && text.contains("too large"), "{text}");
     assert_no_validation_messages(&d);
 }
 

@@ -751,7 +751,9 @@ impl Splatter {
         let (tiles_x, tiles_y) = (w.div_ceil(tile), h.div_ceil(tile));
         let tiles = u64::from(tiles_x) * u64::from(tiles_y);
         let pixels = u64::from(w) * u64::from(h);
-        if tiles >= 1 << 32 || pixels * 3 >= 1 << 32 {
+        // Tile columns and rows below 2^22 (a wrapping panorama's rectangle reaches twice
+        // across): the kernels count them in floats (`whole_to_uint`, exact below 2^23).
+        if tiles >= 1 << 32 || pixels * 3 >= 1 << 32 || tiles_x >= 1 << 22 || tiles_y >= 1 << 22 {
             return Err(Error::invalid(format!("image {w}x{h}"), "is too large"));
         }
         let mut frame = FrameUniform::zeroed();

@@ -24,6 +24,17 @@ layout(local_size_x = WORKGROUP_SIZE_X) in;
 #error "define WORKGROUP_SIZE_X or TILE_WORKGROUP before including common.glsl"
 #endif
 
+// Whole numbers in [0, 2^23) between float and uint, exactly, in two vector
+// instructions: 2^23 + x has x in its mantissa bits. AVX2 has no unsigned
+// conversions, so lavapipe's float(uint) and uint(float) are several
+// instructions a lane (uint(float) a branch a lane); spirv-opt folds
+// uint(int(x)) back into uint(x).
+uint whole_to_uint(float x) { return floatBitsToUint(x + 8388608.0) - 0x4B000000u; }
+uvec2 whole_to_uint(vec2 x) { return floatBitsToUint(x + 8388608.0) - 0x4B000000u; }
+uvec4 whole_to_uint(vec4 x) { return floatBitsToUint(x + 8388608.0) - 0x4B000000u; }
+float uint_to_whole(uint u) { return uintBitsToFloat(u | 0x4B000000u) - 8388608.0; }
+vec4 uint_to_whole(uvec4 u) { return uintBitsToFloat(u | 0x4B000000u) - 8388608.0; }
+
 // 1D work is dispatched as a 2D grid so counts above 65535 workgroups fit;
 // the host side is `Recording::dispatch_1d` (keep in sync).
 #ifdef WORKGROUP_SIZE_X

@@ -98,13 +98,14 @@ TileEllipse tile_ellipse(vec4 head, vec3 conic) {
 // drops a pixel the blend would take, and rows where Q is too ill-conditioned
 // for f32 keep their whole rectangle row. Only meaningful for `rect` from the
 // same splat. Keep in sync with engine/src/splat/cpu.rs `tile_row_span`.
-uvec2 tile_row_span(TileEllipse e, vec2 mean, uvec4 rect, uint ty, uint tile) {
-    if (!(e.r2 > 0.0)) return uvec2(rect.x, rect.x);
+// Columns and rows as floats (whole numbers; `tile_row_span` converts).
+vec2 tile_row_span_f(TileEllipse e, vec2 mean, vec4 rect, float ty, float tile) {
+    if (!(e.r2 > 0.0)) return rect.xx;
     if (!(e.det > 0.0)) return rect.xz;
-    float t = float(tile);
-    float lo = max(float(ty) * t - 0.01 - mean.y, -e.y_max);
-    float hi = min(float(ty) * t + t + 0.01 - mean.y, e.y_max);
-    if (!(lo <= hi)) return uvec2(rect.x, rect.x);
+    float t = tile;
+    float lo = max(ty * t - 0.01 - mean.y, -e.y_max);
+    float hi = min(ty * t + t + 0.01 - mean.y, e.y_max);
+    if (!(lo <= hi)) return rect.xx;
     // The ellipse's right edge x(y) = (−b·y + sqrt(r²·a − det·y²)) / a is concave,
     // largest at y = −y_side; its left edge is convex, smallest at y = +y_side.
     float yr = clamp(-e.y_side, lo, hi), yl = clamp(e.y_side, lo, hi);
@@ -113,9 +114,15 @@ uvec2 tile_row_span(TileEllipse e, vec2 mean, uvec4 rect, uint ty, uint tile) {
     if (!(xl <= xr)) return rect.xz;
     float first = ceil((mean.x + xl - 0.01) / t - 1.0);
     float last = floor((mean.x + xr + 0.01) / t);
-    float x0 = clamp(first, float(rect.x), float(rect.z));
-    float x1 = clamp(last + 1.0, x0, float(rect.z));
-    return uvec2(x0, x1);
+    float x0 = clamp(first, rect.x, rect.z);
+    float x1 = clamp(last + 1.0, x0, rect.z);
+    return vec2(x0, x1);
+}
+
+// `tile_row_span_f` as tile columns (`whole_to_uint`: rect's columns are
+// under 2^23).
+uvec2 tile_row_span(TileEllipse e, vec2 mean, uvec4 rect, uint ty, uint tile) {
+    return whole_to_uint(tile_row_span_f(e, mean, uint_to_whole(rect), uint_to_whole(ty), float(tile)));
 }
 
 // The rows of the ellipse of `e` (det > 0) as three numbers (slope, q, r), so
@@ -143,21 +150,22 @@ vec2 ellipse_row_span(vec3 rows, vec2 mean, float dy) {
 // `tile_ellipse` (`e`, widened) and 0.01 px more. Every block where Q is too
 // ill-conditioned for f32; both halves of a reached row without `check_x`
 // (panoramas). The texel blend skips a splat for subgroups whose blocks it
-// misses (splat_keys.comp stores the mask with each pair).
-uint tile_block_mask(TileEllipse e, vec2 mean, uint tx, uint ty, uint tile, bool check_x) {
+// misses (splat_keys.comp stores the mask with each pair). `origin`: the
+// tile's first pixel (tx·tile, ty·tile), as floats.
+uint tile_block_mask(TileEllipse e, vec2 mean, vec2 origin, uint tile, bool check_x) {
     if (!(e.r2 > 0.0)) return 0u;
     if (!(e.det > 0.0)) return tile >= 32u ? ~0u : (1u << tile) - 1u;
-    vec2 origin = vec2(uvec2(tx, ty) * tile);
     float lo = ceil(mean.y - e.y_max - origin.y - 0.5 - 0.01);
     float hi = floor(mean.y + e.y_max - origin.y - 0.5 + 0.01);
     if (!(lo <= hi) || hi < 0.0 || lo > float(tile) - 1.0) return 0u;
-    uint r0 = uint(max(lo, 0.0)), r1 = uint(min(hi, float(tile) - 1.0));
+    float first_row = max(lo, 0.0);
+    uint r0 = whole_to_uint(first_row), r1 = whole_to_uint(min(hi, float(tile) - 1.0));
     uint half_cols = tile / 2u;
     float split = origin.x + float(half_cols);
     vec3 rows = ellipse_rows(e);
     uint mask = 0u;
     // The row's centre as a float counter: exact, and no integer conversion a row.
-    float row_centre = origin.y + float(r0) + 0.5;
+    float row_centre = origin.y + first_row + 0.5;
     for (uint r = r0; r <= r1; r++, row_centre += 1.0) {
         bool left = true, right = true;
         if (check_x) {

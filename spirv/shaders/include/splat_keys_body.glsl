@@ -55,12 +55,19 @@ void main() {
     bool wraps = rect.z > frame.size.z;
     // Block masks test columns only where x does not wrap (not on panoramas).
     bool check_x = !wraps && frame.camera.lens2.x != 9.0;
-    for (uint y = rect.y; y < rect.w; y++) {
-        uvec2 span = ELLIPSE_TILES && !wraps ? tile_row_span(e, head.xy, rect, y, TILE) : rect.xz;
-        for (uint x = span.x; x < span.y && offset < end; x++) {
+    // The rectangle, the row and the tile's first pixel as floats
+    // (`tile_row_span_f`, `tile_block_mask`): no float-uint conversion a row
+    // or tile but `whole_to_uint`'s.
+    vec4 rect_f = uint_to_whole(rect);
+    float row_f = rect_f.y;
+    for (uint y = rect.y; y < rect.w; y++, row_f += 1.0) {
+        vec2 span_f = ELLIPSE_TILES && !wraps ? tile_row_span_f(e, head.xy, rect_f, row_f, float(TILE)) : rect_f.xz;
+        uvec2 span = whole_to_uint(span_f);
+        vec2 origin = vec2(span_f.x, row_f) * float(TILE);
+        for (uint x = span.x; x < span.y && offset < end; x++, origin.x += float(TILE)) {
             uint tile = y * frame.size.z + (x < frame.size.z ? x : x - frame.size.z);
             if (TILE_MASK && !tile_wanted(tile)) continue;
-            uint blocks = ROW_MASKS ? tile_block_mask(e, head.xy, x, y, TILE, check_x) << (32u - TILE) : 0u;
+            uint blocks = ROW_MASKS ? tile_block_mask(e, head.xy, origin, TILE, check_x) << (32u - TILE) : 0u;
             keys.v[offset] = packUint2x32(pair_key(tile, depth_key, DEPTH_BITS, blocks));
             values.v[offset] = i;
             if (PAIR_TILES) pair_tiles.v[offset] = tile;

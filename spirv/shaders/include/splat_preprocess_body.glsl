@@ -203,15 +203,27 @@ void main() {
         if (2.0 * radius >= period) { lo.x = 0.0; hi.x = tiles.x; }
         hi.x = min(hi.x, lo.x + tiles.x);
     }
-    uvec4 rect = uvec4(uvec2(lo), uvec2(hi));
+    // Whole numbers in [0, 2^23) (`whole_to_uint`; the host keeps tile columns and rows below 2^22).
+    uvec4 rect = whole_to_uint(vec4(lo, hi));
     uint count = (rect.z - rect.x) * (rect.w - rect.y);
     vec4 head = vec4(mean, depth, sigmoid(OPACITY_LOGIT(i)));
     if (ELLIPSE_TILES && count != 0u && rect.z <= frame.size.z) {
-        count = 0u;
         TileEllipse e = tile_ellipse(head, conic);
-        for (uint ty = rect.y; ty < rect.w; ty++) {
-            uvec2 span = tile_row_span(e, mean, rect, ty, TILE);
-            count += span.y - span.x;
+        if (count < (1u << 23)) {
+            // Counted in floats (whole numbers, exact below 2^23): no conversion a row.
+            vec4 rect_f = vec4(lo, hi);
+            float tiles_f = 0.0;
+            for (float ty = rect_f.y; ty < rect_f.w; ty += 1.0) {
+                vec2 span = tile_row_span_f(e, mean, rect_f, ty, float(TILE));
+                tiles_f += span.y - span.x;
+            }
+            count = whole_to_uint(tiles_f);
+        } else {
+            count = 0u;
+            for (uint ty = rect.y; ty < rect.w; ty++) {
+                uvec2 span = tile_row_span(e, mean, rect, ty, TILE);
+                count += span.y - span.x;
+            }
         }
     }
     if (TILE_MASK && count != 0u) {
