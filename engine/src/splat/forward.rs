@@ -106,6 +106,11 @@ fn texel_blend_supported(info: &DeviceInfo) -> bool {
 
 /// A kernel whose binding 0 is the frame uniform and bindings 1..=`views`
 /// texel-buffer views.
+/// Sorted pairs a ranges invocation takes (`PAIRS` in splat_ranges_body.glsl): it reads
+/// one key more than its pairs, where one pair an invocation reads two (docs/bench/splat.md,
+/// "Tile ranges eight pairs an invocation").
+const RANGE_PAIRS: u32 = 8;
+
 fn texel_view_kernel(
     device: &Device,
     info: &'static crate::gpu::KernelInfo,
@@ -839,6 +844,7 @@ impl Splatter {
         // both fit (splat_keys.comp).
         let row_masks = texel && key_bits + tile <= 64;
         let depth_spec = (3, SpecValue::U32(depth_bits));
+        let range_pairs = (4, SpecValue::U32(RANGE_PAIRS));
         let ellipse = SpecValue::Bool(settings.tile_bounds == TileBounds::Ellipse);
         let mask = (4, SpecValue::Bool(view.tile_mask.is_some()));
         let shift = (5, SpecValue::U32(depth_key.shift));
@@ -912,9 +918,9 @@ impl Splatter {
             keys_kernel,
             texel_keys,
             ranges_kernel: if texel_ranges {
-                texel_view_kernel(device, &kernels::SPLAT_RANGES_TEXEL, 1, &[depth_spec])?
+                texel_view_kernel(device, &kernels::SPLAT_RANGES_TEXEL, 1, &[depth_spec, range_pairs])?
             } else {
-                device.kernel(&kernels::SPLAT_RANGES, &KernelDecl::uniform(&[depth_spec]))?
+                device.kernel(&kernels::SPLAT_RANGES, &KernelDecl::uniform(&[depth_spec, range_pairs]))?
             },
             texel_ranges,
             blend: self.blend_kernel(blend(0, chunk_length))?,
@@ -1162,9 +1168,10 @@ impl Splatter {
                 if s.pairs > 0 && s.texel_ranges {
                     let keys = Texels { buffer: &s.keys, offset: 0, elements: s.pairs, format: TexelFormat::Rg32Uint };
                     let bindings = [Binding::Buffer(&p.uniform), Binding::Texels(keys)];
-                    rec.dispatch(&s.ranges_kernel, Grid::Items(s.pairs), &bindings, &())?;
+                    rec.dispatch(&s.ranges_kernel, Grid::Items(s.pairs.div_ceil(RANGE_PAIRS.into())), &bindings, &())?;
                 } else if s.pairs > 0 {
-                    rec.dispatch(&s.ranges_kernel, Grid::Items(s.pairs), &[Binding::from(&p.uniform)], &())?;
+                    let grid = Grid::Items(s.pairs.div_ceil(RANGE_PAIRS.into()));
+                    rec.dispatch(&s.ranges_kernel, grid, &[Binding::from(&p.uniform)], &())?;
                 }
                 rec.begin_stage("blend");
                 let mut chunk_push = ChunkPush::zeroed();
