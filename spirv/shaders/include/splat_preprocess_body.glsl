@@ -209,21 +209,12 @@ void main() {
     vec4 head = vec4(mean, depth, sigmoid(OPACITY_LOGIT(i)));
     if (ELLIPSE_TILES && count != 0u && rect.z <= frame.size.z) {
         TileEllipse e = tile_ellipse(head, conic);
-        if (count < (1u << 23)) {
-            // Counted in floats (whole numbers, exact below 2^23): no conversion a row.
-            vec4 rect_f = vec4(lo, hi);
-            float tiles_f = 0.0;
-            for (float ty = rect_f.y; ty < rect_f.w; ty += 1.0) {
-                vec2 span = tile_row_span_f(e, mean, rect_f, ty, float(TILE));
-                tiles_f += span.y - span.x;
-            }
-            count = whole_to_uint(tiles_f);
-        } else {
-            count = 0u;
-            for (uint ty = rect.y; ty < rect.w; ty++) {
-                uvec2 span = tile_row_span(e, mean, rect, ty, TILE);
-                count += span.y - span.x;
-            }
+        // Rows and spans in floats; each row's width (under 2^22) to uint with `whole_to_uint`.
+        vec4 rect_f = vec4(lo, hi);
+        count = 0u;
+        for (float ty = rect_f.y; ty < rect_f.w; ty += 1.0) {
+            vec2 span = tile_row_span_f(e, mean, rect_f, ty, float(TILE));
+            count += whole_to_uint(span.y - span.x);
         }
     }
     if (TILE_MASK && count != 0u) {
