@@ -429,6 +429,23 @@ impl<'a> Recording<'a> {
         Ok(())
     }
 
+    /// Sets the 32-bit words `first..first + count` of `buffer` to `word`
+    /// (where a kernel writes every other word itself).
+    pub fn fill_words(&mut self, buffer: &'a Buffer, first: u64, count: u64, word: u32) -> Result<()> {
+        self.check_device(buffer)?;
+        let end = first.checked_add(count).and_then(|e| e.checked_mul(4));
+        if count == 0 || end.is_none_or(|e| e > buffer.used_bytes()) {
+            return Err(Error::invalid(
+                format!("filling words {first}..{first}+{count} of buffer '{}'", buffer.name()),
+                format!("needs 1 or more words within its {} bytes", buffer.used_bytes()),
+            ));
+        }
+        self.before_command();
+        // SAFETY: recording state; the buffer is a live TRANSFER_DST buffer of this device, the range checked above.
+        unsafe { self.device.shared.device.cmd_fill_buffer(self.cmd, buffer.raw, 4 * first, 4 * count, word) };
+        Ok(())
+    }
+
     /// Two fills of one buffer with no barrier between them: a write-after-write
     /// hazard that synchronization validation must report. Tests only.
     #[doc(hidden)]

@@ -655,12 +655,14 @@ fn recorded_updates_are_ordered_with_other_commands() {
         rec.fill(&a, NAN)?;
         rec.update(&a, 16, &[1.0f32, 2.0, 3.0, 4.0])?;
         rec.copy(&a, 0, &b, 0, 64)?;
-        rec.update(&b, 60, &5.0f32)
+        rec.update(&b, 60, &5.0f32)?;
+        rec.fill_words(&b, 9, 3, 7)
     })
     .unwrap();
     let got: Vec<u32> = d.read_buffer(&b).unwrap();
     let mut want = vec![NAN; 16];
     want[4..8].copy_from_slice(&[1.0f32, 2.0, 3.0, 4.0].map(f32::to_bits));
+    want[9..12].copy_from_slice(&[7; 3]);
     want[15] = 5.0f32.to_bits();
     assert_eq!(got, want);
     // Out of bounds, unaligned, empty or over 64 KiB: refused before recording.
@@ -671,6 +673,9 @@ fn recorded_updates_are_ordered_with_other_commands() {
     assert!(rec.update(&a, 2, &0u32).is_err());
     assert!(rec.update(&a, 0, &[0u8; 0]).is_err());
     assert!(rec.update_bytes(&big, 0, &vec![0u8; 65540]).is_err());
+    assert!(rec.fill_words(&a, 15, 2, 0).is_err(), "past the end");
+    assert!(rec.fill_words(&a, 3, 0, 0).is_err(), "no words");
+    assert!(rec.fill_words(&a, u64::MAX, 1, 0).is_err(), "an overflowing range");
     // A buffer without a device address (staging) has no address to give.
     assert!(rec.addr(&staging).is_err());
     assert!(rec.addr_or_null(None).unwrap().is_null());

@@ -1048,7 +1048,11 @@ impl Splatter {
                         let visible = p.visible.as_ref().ok_or_else(|| Error::Internal("no visible slots".into()))?;
                         p.frame.record(rec, &p.uniform, &p.buffers(scene, view, None))?;
                         rec.begin_stage("cull");
-                        rec.fill(visible, 0)?;
+                        // The cull writes every Gaussian's flag; the scan's total word starts at 0.
+                        if let Some(word) = settings.prefill {
+                            rec.fill(visible, word)?;
+                        }
+                        rec.fill_words(visible, n, 1, 0)?;
                         dispatch_preprocess(rec, cull, &p.uniform, texel_inputs, n)?;
                         scan.record(rec, visible, n + 1)?;
                         rec.end_stage();
@@ -1075,7 +1079,11 @@ impl Splatter {
                 let r = p.records()?;
                 p.frame.record(rec, &p.uniform, &p.buffers(scene, view, None))?;
                 rec.begin_stage("preprocess");
-                rec.fill(&r.tile_counts, 0)?;
+                // The kernel writes every record's count (0 where it culls); the scan's total word starts at 0.
+                if let Some(word) = settings.prefill {
+                    rec.fill(&r.tile_counts, word)?;
+                }
+                rec.fill_words(&r.tile_counts, r.count, 1, 0)?;
                 dispatch_preprocess(rec, preprocess, &p.uniform, texel_inputs, n)?;
                 rec.begin_stage("scan");
                 scan.record(rec, &r.tile_counts, r.count + 1)?;

@@ -250,7 +250,9 @@ pub struct SplatSettings {
     /// Where normals come from.
     pub normal_source: NormalSource,
     /// Fill every output with this 32-bit word before blending (tests use NaN,
-    /// so a pixel the kernel never wrote cannot pass for a value).
+    /// so a pixel the kernel never wrote cannot pass for a value), and the
+    /// preprocess's per-record tile counts and cull flags before it writes them
+    /// (a record it skipped then cannot pass for an empty one).
     pub prefill: Option<u32>,
     /// Spherical-harmonic degree evaluated for colour, at most the scene's
     /// (`None`: the scene's). Lower degrees drop view-dependent terms for speed.

@@ -85,8 +85,11 @@ float sigmoid(float x) {
 bool finite(float x) { return !isnan(x) && !isinf(x); }
 
 // `slot`: where the Gaussian's record goes (its index unless compacted).
+// Every Gaussian writes its flag (COMPACT 1) or its record's tile count, so
+// the host fills only the scan's total word.
 void cull(uint slot) {
-    if (COMPACT != 1u) Uints(frame.tile_counts).v[slot] = 0u;
+    if (COMPACT == 1u) Uints(frame.visible_slots).v[slot] = 0u;
+    else Uints(frame.tile_counts).v[slot] = 0u;
 }
 
 void main() {
