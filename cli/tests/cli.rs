@@ -232,19 +232,21 @@ fn bad_input_fails_with_a_clear_message() {
 
 #[test]
 fn bench_splat_prints_its_tables() {
-    let bench = |sizes: &str, floor_pairs: &str, sh_degree: &str| {
+    let bench = |sizes: &str, floor_pairs: &str, sh_degree: &str, row_floors: &str| {
         let args = ["--gaussians", "2000", "--sizes", sizes, "--repeats", "1", "--sort-keys", "5000"];
-        srug(&[&["bench", "splat"][..], &args, &["--floor-pairs", floor_pairs, "--sh-degree", sh_degree]].concat())
+        let floors = ["--floor-pairs", floor_pairs, "--row-floors", row_floors];
+        srug(&[&["bench", "splat"][..], &args, &floors, &["--sh-degree", sh_degree]].concat())
     };
-    // The "scene MiB" of the first row.
-    let scene_mib = |t: &str| -> f64 {
+    // A column of the first row.
+    let first_row = |t: &str, name: &str| -> f64 {
         let cells = |l: &str| l.split('|').map(|c| c.trim().to_string()).collect::<Vec<_>>();
         let header = t.lines().find(|l| l.starts_with("| Gaussians |")).map(cells).unwrap_or_default();
         let row = t.lines().find(|l| l.starts_with("| 2000 | 64x32 |")).map(cells).unwrap_or_default();
-        let column = header.iter().position(|c| c == "scene MiB").unwrap_or_else(|| panic!("no scene MiB:\n{t}"));
+        let column = header.iter().position(|c| c == name).unwrap_or_else(|| panic!("no {name}:\n{t}"));
         row.get(column).and_then(|c| c.parse().ok()).unwrap_or_else(|| panic!("no 64x32 row:\n{t}"))
     };
-    let o = bench("64x32,48x16", "6000", "1");
+    let scene_mib = |t: &str| first_row(t, "scene MiB");
+    let o = bench("64x32,48x16", "6000", "1", "true");
     let t = text(&o);
     assert!(o.status.success(), "{t}");
     let sh1_mib = scene_mib(&t);
@@ -271,25 +273,30 @@ fn bench_splat_prints_its_tables() {
         "pair-move floor, 6000 pairs",
         "memory bandwidth (",
         "MiB read once, and copied once; the fastest of reading through an RGBA32F texel view or as uvec4s by device address",
-        "preprocess % of floor | sort % of floor | blend % of ceiling |",
+        "preprocess % of floor | sort floor ms | sort % of floor | blend % of ceiling |",
+        "at a pair-move floor measured at the row's own pairs right after its frames",
     ] {
         assert!(t.contains(want), "missing {want:?} in:\n{t}");
     }
+    // Each row's own floor: a bound of some time, which the sort of that row takes at least.
+    let own_floor = first_row(&t, "sort floor ms");
+    assert!(own_floor > 0.0 && own_floor <= first_row(&t, "sort ms"), "{own_floor} ms:\n{t}");
     // The bandwidth line names the read that won.
     assert!(t.contains("here texel fetches ") || t.contains("here device-address loads "), "{t}");
     // The split blend's setting: the default splits no list on CPU devices, lists over 2048 entries on GPUs.
     assert!(t.contains("and no list was split (--chunk-length 0)") || t.contains("in chunks of 1024"), "{t}");
     // A floor measured on one pair (all launch, scaled to thousands) is far above the sort:
     // the column passes 100 and the bench says what that means.
-    let o = bench("64x32", "1", "3");
+    let o = bench("64x32", "1", "3", "false");
     let t = text(&o);
     assert!(o.status.success(), "{t}");
     assert!(t.contains("note: sort % of floor above 100 in some rows"), "{t}");
+    assert!(t.contains("scaled from the one pair-move floor below"), "{t}");
     // SH degree 3: 48 coefficients a Gaussian where degree 1 holds 12, 144 bytes more each.
     assert!(t.contains("the demo city (seed 7) at SH degree 3"), "{t}");
     let grown = scene_mib(&t) - sh1_mib;
     assert!((grown - 2000.0 * 144.0 / 1048576.0).abs() < 0.11, "{sh1_mib} -> {} MiB", scene_mib(&t));
-    let o = bench("64x32", "6000", "4");
+    let o = bench("64x32", "6000", "4", "true");
     assert_eq!(o.status.code(), Some(1), "{}", text(&o));
     assert!(text(&o).contains("--sh-degree 4: is not 0 to 3"), "{}", text(&o));
     // The A/B switches: the blend's per-window fetch and the texel reads off.

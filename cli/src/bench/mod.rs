@@ -188,6 +188,10 @@ pub struct SplatBenchRow {
     /// of each kernel of the frame's sort, timed in frames of their own
     /// ([`srug::primitives::sort::sort_kernel_stage`] names), in order.
     pub sort_kernels: Vec<(String, f64)>,
+    /// Where asked ([`SplatBenchOptions::row_floors`]) and the frame had
+    /// pairs: the pair-move floor at [`Self::pairs`], measured right after
+    /// the row's timed frames.
+    pub sort_floor: Option<limits::PairMoveFloor>,
 }
 
 impl SplatBenchRow {
@@ -355,6 +359,10 @@ pub struct SplatBenchOptions {
     pub scene_order: SceneOrder,
     /// Untimed frames before each row's timed ones ([`warm_up`]).
     pub warm_up: Duration,
+    /// Measure the pair-move floor at each row's own pairs right after its
+    /// timed frames ([`SplatBenchRow::sort_floor`]): no scaling from another
+    /// pair count, and the same minutes of a host whose memory speed drifts.
+    pub row_floors: bool,
 }
 
 /// The bench city on the device, arranged as `options` say (reported through `progress`).
@@ -477,6 +485,12 @@ pub fn splat_bench(
                 last = Some((g.bytes(), stats));
             }
             let Some((gbuffer_bytes, stats)) = last else { continue };
+            let sort_floor = if options.row_floors && stats.pairs > 0 {
+                progress(&format!("{n} Gaussians at {w}x{h}: the pair-move floor at {} pairs", stats.pairs));
+                Some(limits::pair_move_floor(device, stats.pairs, repeats)?)
+            } else {
+                None
+            };
             let mut kernel_timings = Vec::new();
             if sort_kernels {
                 progress(&format!("{n} Gaussians at {w}x{h}: timing the sort's kernels"));
@@ -515,6 +529,7 @@ pub fn splat_bench(
                 preprocess_read_bytes: n as u64 * position + visible * rest,
                 preprocess_write_bytes: visible * (record + count) + (n as u64 - visible) * count,
                 sort_kernels: stage_medians(&kernel_timings, is_sort_kernel),
+                sort_floor,
             });
         }
     }

@@ -28,10 +28,15 @@ pub(crate) struct SplatBenchArgs {
     /// Keys for the sort comparison.
     #[arg(long, default_value_t = 4_000_000)]
     sort_keys: usize,
-    /// Pairs the pair-move floor is measured at ("sort % of floor" scales it to each row's pairs;
-    /// apart from --sort-keys, so a quick run with few sort keys keeps the column comparable).
+    /// Pairs the pair-move floor printed under the table is measured at (apart from --sort-keys;
+    /// "sort % of floor" uses it, scaled to each row's pairs, only with --row-floors false).
     #[arg(long, default_value_t = 4_000_000)]
     floor_pairs: u64,
+    /// Measure the pair-move floor again at each row's own pairs, right after the row's frames,
+    /// for that row's "sort % of floor" (a host's memory speed drifts over minutes; false: scale
+    /// the one floor measured at --floor-pairs, quicker).
+    #[arg(long, default_value_t = true, action = clap::ArgAction::Set)]
+    row_floors: bool,
     /// Tile edge in pixels: 8, 16 or 32.
     #[arg(long, default_value_t = DEFAULT_TILE)]
     tile: u32,
@@ -101,6 +106,7 @@ impl SplatBenchArgs {
             sh_degree,
             sort_keys,
             floor_pairs,
+            row_floors,
             tile,
             choices,
             tile_bounds,
@@ -142,6 +148,7 @@ impl SplatBenchArgs {
             order,
             scene_order,
             warm_up: warm_up.duration(&device),
+            row_floors,
         };
         if let Some(spec) = alternate {
             let variants = alternatives(spec, &choices)?;
@@ -175,11 +182,11 @@ impl SplatBenchArgs {
         let stage_names: Vec<String> =
             rows.first().map(|r| r.stages.iter().map(|s| s.0.clone()).collect()).unwrap_or_default();
         println!(
-            "| Gaussians | size | {} | total ms | pairs | working MiB | scene MiB | G-buffer MiB | blend evals (M) | longest walk | split chunks | blend GFLOP/s | % of FMA peak | ceiling % | preprocess % of floor | sort % of floor | blend % of ceiling |",
+            "| Gaussians | size | {} | total ms | pairs | working MiB | scene MiB | G-buffer MiB | blend evals (M) | longest walk | split chunks | blend GFLOP/s | % of FMA peak | ceiling % | preprocess % of floor | sort floor ms | sort % of floor | blend % of ceiling |",
             stage_names.join(" ms | ") + " ms"
         );
         println!(
-            "|---:|---|{}---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
+            "|---:|---|{}---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
             "---:|".repeat(stage_names.len())
         );
         // Columns over 100%: a stage beat the floor measured for it.
@@ -194,9 +201,13 @@ impl SplatBenchArgs {
             let preprocess_floor = bandwidth.floor_seconds(r.preprocess_read_bytes, r.preprocess_write_bytes);
             // Compacted records read the positions in a cull stage before the preprocess: both count.
             let preprocess = stage("preprocess") + r.stages.iter().find(|s| s.0 == "cull").map_or(0.0, |s| s.1);
-            // The LSD bound for this row's key width, scaled from the floor's pairs to the row's.
-            let sort_floor =
-                floor.lsd_bound(r.key_bits).map_or(f64::NAN, |(_, s)| s * r.pairs as f64 / floor.keys.max(1) as f64);
+            // The LSD bound for this row's key width: at the row's own floor, else scaled from the floor's pairs.
+            let sort_floor = match &r.sort_floor {
+                Some(own) => own.lsd_bound(r.key_bits).map_or(f64::NAN, |(_, s)| s),
+                None => {
+                    floor.lsd_bound(r.key_bits).map_or(f64::NAN, |(_, s)| s * r.pairs as f64 / floor.keys.max(1) as f64)
+                }
+            };
             let blend_ceiling = ceiling.for_work(r.blend_evaluations, r.blend_contributions);
             for (column, share) in [
                 ("preprocess % of floor", preprocess_floor / preprocess),
@@ -208,7 +219,7 @@ impl SplatBenchArgs {
                 }
             }
             println!(
-                "| {} | {}x{} | {} | {:.1} | {} | {:.1} | {:.1} | {:.1} | {:.1} | {} | {} | {:.2} | {:.1} | {:.1} | {:.0} | {:.0} | {:.0} |",
+                "| {} | {}x{} | {} | {:.1} | {} | {:.1} | {:.1} | {:.1} | {:.1} | {} | {} | {:.2} | {:.1} | {:.1} | {:.0} | {:.1} | {:.0} | {:.0} |",
                 r.gaussians,
                 r.width,
                 r.height,
@@ -225,6 +236,7 @@ impl SplatBenchArgs {
                 r.blend_gflops() / peak * 100.0,
                 blend_ceiling / peak * 100.0,
                 preprocess_floor / preprocess * 100.0,
+                sort_floor * 1e3,
                 sort_floor / stage("sort") * 100.0,
                 r.blend_gflops() / blend_ceiling * 100.0,
             );
@@ -236,7 +248,7 @@ impl SplatBenchArgs {
             );
         }
         println!(
-            "\nmemory bandwidth ({} MiB read once, and copied once; the fastest of reading through an RGBA32F texel view or as uvec4s by device address, each invocation reading a run of texels or neighbouring invocations reading neighbouring texels, here {} {}): read {:.1} GB/s, copy {:.1} GB/s moved; \"preprocess % of floor\" is the least time to read every Gaussian's position and the visible ones' other attributes and write their splat records and every tile count at those rates, over the measured preprocess (and cull, with compacted records); \"sort % of floor\" the LSD bound below for the row's key bits and pairs over the measured sort; \"blend % of ceiling\" the blend's GFLOP/s over its ceiling for the row's mix",
+            "\nmemory bandwidth ({} MiB read once, and copied once; the fastest of reading through an RGBA32F texel view or as uvec4s by device address, each invocation reading a run of texels or neighbouring invocations reading neighbouring texels, here {} {}): read {:.1} GB/s, copy {:.1} GB/s moved; \"preprocess % of floor\" is the least time to read every Gaussian's position and the visible ones' other attributes and write their splat records and every tile count at those rates, over the measured preprocess (and cull, with compacted records); \"sort floor ms\" the LSD bound below for the row's key bits and pairs ({}), \"sort % of floor\" that bound over the measured sort; \"blend % of ceiling\" the blend's GFLOP/s over its ceiling for the row's mix",
             bandwidth.bytes >> 20,
             match bandwidth.read_through {
                 bench::limits::BandwidthRead::Texels => "texel fetches",
@@ -247,7 +259,12 @@ impl SplatBenchArgs {
                 bench::limits::BandwidthLayout::Interleaved => "interleaved",
             },
             bandwidth.read * 1e-9,
-            bandwidth.copy * 1e-9
+            bandwidth.copy * 1e-9,
+            if row_floors {
+                "at a pair-move floor measured at the row's own pairs right after its frames"
+            } else {
+                "scaled from the one pair-move floor below"
+            }
         );
         println!(
             "\nblend flops: {} per evaluated pair + {} per contributing pair (exp not counted); pairs counted by replaying the blend on the CPU twin; \"longest walk\" is the most splats one pixel reads before it is done in that replay: one workgroup walks each tile's list, so where the device runs every tile at once (a GPU) the blend lasts at least as long as one walk that far, {}",
@@ -288,6 +305,30 @@ impl SplatBenchArgs {
                 .join(", "),
             ms(floor.random_seconds),
         );
+        if rows.iter().any(|r| r.sort_floor.is_some()) {
+            println!("\neach row's own pair-move floor (measured as the one above, at the row's pairs, right after its frames):");
+            for r in &rows {
+                let Some(own) = &r.sort_floor else { continue };
+                let Some((digit, bound)) = own.lsd_bound(r.key_bits) else { continue };
+                println!(
+                    "- {} Gaussians at {}x{} ({} pairs on {} bits): LSD bound {:.1} ms (best digit width {digit} bits); read only {:.1} ms, writing the value {:.1} ms; where a radix pass would put it, by digit width in bits, {} ms; to a random index {:.1} ms",
+                    r.gaussians,
+                    r.width,
+                    r.height,
+                    r.pairs,
+                    r.key_bits,
+                    ms(bound),
+                    ms(own.read_seconds),
+                    ms(own.value_seconds),
+                    own.digit_seconds
+                        .iter()
+                        .map(|(bits, s)| format!("{bits}: {:.1}", ms(*s)))
+                        .collect::<Vec<_>>()
+                        .join(", "),
+                    ms(own.random_seconds),
+                );
+            }
+        }
         if sort_kernels {
             println!("\nthe sorts' kernels, each timed as a stage of its own (pass, the key bits its digit sorts, kernel), medians:");
             for r in &rows {
