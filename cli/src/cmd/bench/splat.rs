@@ -311,7 +311,7 @@ impl SplatBenchArgs {
                 let Some(own) = &r.sort_floor else { continue };
                 let Some((digit, bound)) = own.lsd_bound(r.key_bits) else { continue };
                 println!(
-                    "- {} Gaussians at {}x{} ({} pairs on {} bits): LSD bound {:.1} ms (best digit width {digit} bits); read only {:.1} ms, writing the value {:.1} ms; where a radix pass would put it, by digit width in bits, {} ms; to a random index {:.1} ms",
+                    "- floor of {} Gaussians at {}x{} ({} pairs on {} bits): LSD bound {:.1} ms (best digit width {digit} bits); read only {:.1} ms, writing the value {:.1} ms; where a radix pass would put it, by digit width in bits, {} ms; to a random index {:.1} ms",
                     r.gaussians,
                     r.width,
                     r.height,
