@@ -187,6 +187,37 @@ fn lsd_bound_takes_the_cheapest_digit_width() {
 }
 
 #[test]
+fn the_best_of_two_floors_takes_each_time_at_its_least() {
+    let first = PairMoveFloor {
+        keys: 1000,
+        read_seconds: 0.006,
+        value_seconds: 0.012,
+        pair_seconds: 0.020,
+        digit_seconds: vec![(4, 0.010), (8, 0.025), (11, 0.040)],
+        random_seconds: 0.05,
+    };
+    let second = PairMoveFloor {
+        keys: 1000,
+        read_seconds: 0.008,
+        value_seconds: 0.009,
+        pair_seconds: 0.030,
+        digit_seconds: vec![(4, 0.015), (8, 0.020), (11, 0.035)],
+        random_seconds: 0.04,
+    };
+    let best = first.best(&second);
+    assert_eq!(best.keys, 1000);
+    assert_eq!(
+        (best.read_seconds, best.value_seconds, best.pair_seconds, best.random_seconds),
+        (0.006, 0.009, 0.020, 0.04)
+    );
+    assert_eq!(best.digit_seconds, vec![(4, 0.010), (8, 0.020), (11, 0.035)]);
+    // Either way round, and never above either floor's bound.
+    assert_eq!(second.best(&first).digit_seconds, best.digit_seconds);
+    let bound = |f: &PairMoveFloor| f.lsd_bound(31).unwrap().1;
+    assert!(bound(&best) <= bound(&first).min(bound(&second)), "{} {} {}", bound(&best), bound(&first), bound(&second));
+}
+
+#[test]
 fn bandwidth_probe_reads_and_copies_every_texel() {
     let d = device();
     // A count that leaves the last invocation a partial run of texels.

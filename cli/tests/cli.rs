@@ -282,6 +282,8 @@ fn bench_splat_prints_its_tables() {
     let own_floor = first_row(&t, "sort floor ms");
     let line = t.lines().find(|l| l.starts_with("- floor of 2000 Gaussians at 64x32 (")).unwrap_or_default();
     assert!(own_floor > 0.0 && line.contains(&format!("LSD bound {own_floor:.1} ms")), "{own_floor} ms:\n{t}");
+    // And its own memory bandwidth, which its "preprocess % of floor" takes.
+    assert!(line.contains("memory read ") && line.contains(" GB/s moved; LSD bound"), "{line}");
     // The bandwidth line names the read that won.
     assert!(t.contains("here texel fetches ") || t.contains("here device-address loads "), "{t}");
     // The split blend's setting: the default splits no list on CPU devices, lists over 2048 entries on GPUs.

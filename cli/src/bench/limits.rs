@@ -319,6 +319,27 @@ pub const PAIR_MOVE_MAX_DIGIT_BITS: u32 = 22;
 pub const REGISTER_DIGIT_BITS: u32 = 4;
 
 impl PairMoveFloor {
+    /// The faster of two floors over the same pairs, time by time (a floor
+    /// is the best a device showed; interference only ever slows a probe).
+    pub fn best(&self, other: &PairMoveFloor) -> PairMoveFloor {
+        let digit_seconds = self
+            .digit_seconds
+            .iter()
+            .map(|&(bits, s)| {
+                let theirs = other.digit_seconds.iter().find(|d| d.0 == bits).map_or(s, |d| d.1);
+                (bits, s.min(theirs))
+            })
+            .collect();
+        PairMoveFloor {
+            keys: self.keys,
+            read_seconds: self.read_seconds.min(other.read_seconds),
+            value_seconds: self.value_seconds.min(other.value_seconds),
+            pair_seconds: self.pair_seconds.min(other.pair_seconds),
+            digit_seconds,
+            random_seconds: self.random_seconds.min(other.random_seconds),
+        }
+    }
+
     /// Least time an LSD radix sort of `bits`-bit keys could take at these
     /// floors, over every digit width from 1 to `bits`: (digit width, seconds).
     /// Each of its ⌈bits / width⌉ passes

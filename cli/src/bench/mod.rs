@@ -190,8 +190,25 @@ pub struct SplatBenchRow {
     pub sort_kernels: Vec<(String, f64)>,
     /// Where asked ([`SplatBenchOptions::row_floors`]) and the frame had
     /// pairs: the pair-move floor at [`Self::pairs`], measured right after
-    /// the row's timed frames.
+    /// the row's timed frames and again after every row, the faster of the two
+    /// ([`limits::PairMoveFloor::best`]).
     pub sort_floor: Option<limits::PairMoveFloor>,
+    /// Where asked ([`SplatBenchOptions::row_floors`]): the memory
+    /// bandwidth ([`bandwidth_probe_bytes`]), measured right after the row's
+    /// timed frames and again after every row, the faster rates of the two
+    /// (`srug bench splat` prices the preprocess at the fastest rates of
+    /// every probe of its run).
+    pub bandwidth: Option<limits::MemoryBandwidth>,
+}
+
+/// Bytes the memory-bandwidth probe reads on `device`: 64 MiB on CPU devices,
+/// on GPUs four times that, past their last-level caches.
+pub fn bandwidth_probe_bytes(device: &Device) -> u64 {
+    if device.info().device_type == srug::gpu::ash::vk::PhysicalDeviceType::CPU {
+        64 << 20
+    } else {
+        256 << 20
+    }
 }
 
 impl SplatBenchRow {
@@ -359,9 +376,10 @@ pub struct SplatBenchOptions {
     pub scene_order: SceneOrder,
     /// Untimed frames before each row's timed ones ([`warm_up`]).
     pub warm_up: Duration,
-    /// Measure the pair-move floor at each row's own pairs right after its
-    /// timed frames ([`SplatBenchRow::sort_floor`]): no scaling from another
-    /// pair count, and the same minutes of a host whose memory speed drifts.
+    /// Measure the pair-move floor at each row's own pairs and the memory
+    /// bandwidth right after its timed frames ([`SplatBenchRow::sort_floor`],
+    /// [`SplatBenchRow::bandwidth`]): no scaling from another pair count, and
+    /// more probes of a host whose memory speed moves between them.
     pub row_floors: bool,
 }
 
@@ -491,6 +509,12 @@ pub fn splat_bench(
             } else {
                 None
             };
+            let bandwidth = if options.row_floors {
+                progress(&format!("{n} Gaussians at {w}x{h}: the memory bandwidth"));
+                Some(limits::memory_bandwidth(device, bandwidth_probe_bytes(device), repeats)?)
+            } else {
+                None
+            };
             let mut kernel_timings = Vec::new();
             if sort_kernels {
                 progress(&format!("{n} Gaussians at {w}x{h}: timing the sort's kernels"));
@@ -530,7 +554,25 @@ pub fn splat_bench(
                 preprocess_write_bytes: visible * (record + count) + (n as u64 - visible) * count,
                 sort_kernels: stage_medians(&kernel_timings, is_sort_kernel),
                 sort_floor,
+                bandwidth,
             });
+        }
+    }
+    if options.row_floors {
+        // Each row's floors once more, after every row: each keeps the faster of its two.
+        for r in &mut rows {
+            progress(&format!("{} Gaussians at {}x{}: the floors again", r.gaussians, r.width, r.height));
+            if let Some(first) = &r.sort_floor {
+                r.sort_floor = Some(first.best(&limits::pair_move_floor(device, r.pairs, repeats)?));
+            }
+            if let Some(first) = r.bandwidth {
+                let again = limits::memory_bandwidth(device, bandwidth_probe_bytes(device), repeats)?;
+                r.bandwidth = Some(limits::MemoryBandwidth {
+                    read: first.read.max(again.read),
+                    copy: first.copy.max(again.copy),
+                    ..first
+                });
+            }
         }
     }
     Ok(rows)

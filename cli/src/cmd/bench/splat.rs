@@ -32,9 +32,10 @@ pub(crate) struct SplatBenchArgs {
     /// "sort % of floor" uses it, scaled to each row's pairs, only with --row-floors false).
     #[arg(long, default_value_t = 4_000_000)]
     floor_pairs: u64,
-    /// Measure the pair-move floor again at each row's own pairs, right after the row's frames,
-    /// for that row's "sort % of floor" (a host's memory speed drifts over minutes; false: scale
-    /// the one floor measured at --floor-pairs, quicker).
+    /// Measure the pair-move floor again at each row's own pairs, and the memory bandwidth, right
+    /// after the row's frames: that row's "sort % of floor" takes its own floor, "preprocess % of
+    /// floor" the fastest bandwidth of every probe (a host's memory speed moves between probes;
+    /// false: the one floor measured at --floor-pairs, scaled, and the one bandwidth, quicker).
     #[arg(long, default_value_t = true, action = clap::ArgAction::Set)]
     row_floors: bool,
     /// Tile edge in pixels: 8, 16 or 32.
@@ -167,9 +168,7 @@ impl SplatBenchArgs {
         bar.set_message("measuring the blend ceiling, the pair-move floor and the memory bandwidth");
         let ceiling = bench::limits::blend_ceiling(&device, repeats)?;
         let floor = bench::limits::pair_move_floor(&device, floor_pairs, repeats)?;
-        // 64 MiB on CPU devices; on GPUs four times that, past their last-level caches.
-        let cpu = device.info().device_type == srug::gpu::ash::vk::PhysicalDeviceType::CPU;
-        let bandwidth = bench::limits::memory_bandwidth(&device, if cpu { 64 << 20 } else { 256 << 20 }, repeats)?;
+        let bandwidth = bench::limits::memory_bandwidth(&device, bench::bandwidth_probe_bytes(&device), repeats)?;
         // The peak again after the rows: a device slowed while the first probe ran (a
         // busy host) would otherwise inflate every "% of FMA peak"; a peak is the best seen.
         let peak_at_end = bench::fma_peak_gflops(&device, 5)?;
@@ -189,6 +188,11 @@ impl SplatBenchArgs {
             "|---:|---|{}---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
             "---:|".repeat(stage_names.len())
         );
+        // The preprocess's floor at the fastest read and copy of every bandwidth probe of the run
+        // (this host's memory speed moves between probes seconds apart; a floor takes its best).
+        let fastest = rows.iter().filter_map(|r| r.bandwidth).fold(bandwidth, |best, b| {
+            bench::limits::MemoryBandwidth { read: best.read.max(b.read), copy: best.copy.max(b.copy), ..best }
+        });
         // Columns over 100%: a stage beat the floor measured for it.
         let mut over_floor = Vec::new();
         for r in &rows {
@@ -198,7 +202,7 @@ impl SplatBenchArgs {
                 .collect();
             let mib = |b: u64| b as f64 / (1u64 << 20) as f64;
             let stage = |name: &str| r.stages.iter().find(|s| s.0 == name).map_or(f64::NAN, |s| s.1);
-            let preprocess_floor = bandwidth.floor_seconds(r.preprocess_read_bytes, r.preprocess_write_bytes);
+            let preprocess_floor = fastest.floor_seconds(r.preprocess_read_bytes, r.preprocess_write_bytes);
             // Compacted records read the positions in a cull stage before the preprocess: both count.
             let preprocess = stage("preprocess") + r.stages.iter().find(|s| s.0 == "cull").map_or(0.0, |s| s.1);
             // The LSD bound for this row's key width: at the row's own floor, else scaled from the floor's pairs.
@@ -248,7 +252,7 @@ impl SplatBenchArgs {
             );
         }
         println!(
-            "\nmemory bandwidth ({} MiB read once, and copied once; the fastest of reading through an RGBA32F texel view or as uvec4s by device address, each invocation reading a run of texels or neighbouring invocations reading neighbouring texels, here {} {}): read {:.1} GB/s, copy {:.1} GB/s moved; \"preprocess % of floor\" is the least time to read every Gaussian's position and the visible ones' other attributes and write their splat records and every tile count at those rates, over the measured preprocess (and cull, with compacted records); \"sort floor ms\" the LSD bound below for the row's key bits and pairs ({}), \"sort % of floor\" that bound over the measured sort; \"blend % of ceiling\" the blend's GFLOP/s over its ceiling for the row's mix",
+            "\nmemory bandwidth ({} MiB read once, and copied once; the fastest of reading through an RGBA32F texel view or as uvec4s by device address, each invocation reading a run of texels or neighbouring invocations reading neighbouring texels, here {} {}): read {:.1} GB/s, copy {:.1} GB/s moved; \"preprocess % of floor\" is the least time to read every Gaussian's position and the visible ones' other attributes and write their splat records and every tile count at {}, over the measured preprocess (and cull, with compacted records); \"sort floor ms\" the LSD bound below for the row's key bits and pairs ({}), \"sort % of floor\" that bound over the measured sort; \"blend % of ceiling\" the blend's GFLOP/s over its ceiling for the row's mix",
             bandwidth.bytes >> 20,
             match bandwidth.read_through {
                 bench::limits::BandwidthRead::Texels => "texel fetches",
@@ -261,7 +265,16 @@ impl SplatBenchArgs {
             bandwidth.read * 1e-9,
             bandwidth.copy * 1e-9,
             if row_floors {
-                "at a pair-move floor measured at the row's own pairs right after its frames"
+                format!(
+                    "the fastest rates of these and every row's own probe (each row's floor line below): read {:.1} GB/s, copy {:.1} GB/s",
+                    fastest.read * 1e-9,
+                    fastest.copy * 1e-9
+                )
+            } else {
+                "those rates".to_string()
+            },
+            if row_floors {
+                "at a pair-move floor measured at the row's own pairs right after its frames and again after every row"
             } else {
                 "scaled from the one pair-move floor below"
             }
@@ -305,27 +318,35 @@ impl SplatBenchArgs {
                 .join(", "),
             ms(floor.random_seconds),
         );
-        if rows.iter().any(|r| r.sort_floor.is_some()) {
-            println!("\neach row's own pair-move floor (measured as the one above, at the row's pairs, right after its frames):");
+        if rows.iter().any(|r| r.sort_floor.is_some() || r.bandwidth.is_some()) {
+            println!("\neach row's own floors (measured as the ones above, the pair-move floor at the row's pairs, right after its frames and again after every row, the faster of the two):");
             for r in &rows {
-                let Some(own) = &r.sort_floor else { continue };
-                let Some((digit, bound)) = own.lsd_bound(r.key_bits) else { continue };
+                let memory = r
+                    .bandwidth
+                    .map(|b| format!("memory read {:.1} GB/s, copy {:.1} GB/s moved", b.read * 1e-9, b.copy * 1e-9));
+                let pairs = r.sort_floor.as_ref().and_then(|own| {
+                    let (digit, bound) = own.lsd_bound(r.key_bits)?;
+                    Some(format!(
+                        "LSD bound {:.1} ms (best digit width {digit} bits); read only {:.1} ms, writing the value {:.1} ms; where a radix pass would put it, by digit width in bits, {} ms; to a random index {:.1} ms",
+                        ms(bound),
+                        ms(own.read_seconds),
+                        ms(own.value_seconds),
+                        own.digit_seconds
+                            .iter()
+                            .map(|(bits, s)| format!("{bits}: {:.1}", ms(*s)))
+                            .collect::<Vec<_>>()
+                            .join(", "),
+                        ms(own.random_seconds),
+                    ))
+                });
                 println!(
-                    "- floor of {} Gaussians at {}x{} ({} pairs on {} bits): LSD bound {:.1} ms (best digit width {digit} bits); read only {:.1} ms, writing the value {:.1} ms; where a radix pass would put it, by digit width in bits, {} ms; to a random index {:.1} ms",
+                    "- floor of {} Gaussians at {}x{} ({} pairs on {} bits): {}",
                     r.gaussians,
                     r.width,
                     r.height,
                     r.pairs,
                     r.key_bits,
-                    ms(bound),
-                    ms(own.read_seconds),
-                    ms(own.value_seconds),
-                    own.digit_seconds
-                        .iter()
-                        .map(|(bits, s)| format!("{bits}: {:.1}", ms(*s)))
-                        .collect::<Vec<_>>()
-                        .join(", "),
-                    ms(own.random_seconds),
+                    memory.into_iter().chain(pairs).collect::<Vec<_>>().join("; ")
                 );
             }
         }
