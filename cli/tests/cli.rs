@@ -284,6 +284,11 @@ fn bench_splat_prints_its_tables() {
     assert!(own_floor > 0.0 && line.contains(&format!("LSD bound {own_floor:.1} ms")), "{own_floor} ms:\n{t}");
     // And its own memory bandwidth, which its "preprocess % of floor" takes.
     assert!(line.contains("memory read ") && line.contains(" GB/s moved; LSD bound"), "{line}");
+    // The blend ceiling is the better of a probe before the rows and one after them.
+    assert!(
+        t.contains("; the better of a probe before the rows, ") && t.contains(" GFLOP/s, and one after them, "),
+        "{t}"
+    );
     // The bandwidth line names the read that won.
     assert!(t.contains("here texel fetches ") || t.contains("here device-address loads "), "{t}");
     // The split blend's setting: the default splits no list on CPU devices, lists over 2048 entries on GPUs.
