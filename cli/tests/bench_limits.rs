@@ -141,16 +141,21 @@ fn radix_pass_destinations_are_a_stable_partition_by_digit() {
     }
 }
 
-#[test]
-fn lsd_bound_takes_the_cheapest_digit_width() {
-    let floor = PairMoveFloor {
+/// A pair-move floor of 1,000 pairs with round times.
+fn example_floor() -> PairMoveFloor {
+    PairMoveFloor {
         keys: 1000,
         read_seconds: 0.006,
         value_seconds: 0.009,
         pair_seconds: 0.020,
         digit_seconds: vec![(4, 0.010), (8, 0.025), (11, 0.040)],
         random_seconds: 0.05,
-    };
+    }
+}
+
+#[test]
+fn lsd_bound_takes_the_cheapest_digit_width() {
+    let floor = example_floor();
     // A pass: scatter (10 ms at widths 4–7, 25 at 8–10, 40 from 11) + 9 µs × 2^width of offsets
     // + 3 ms of counting (9 − 6) above 4 bits. 43 bits: 4 bits, 11 × 10.144 = 111.6 ms; 7 bits,
     // 7 × 14.152 = 99.1; 8 bits, 6 × 30.304 = 181.8; 11 bits, 4 × 61.43 = 245.7: 7 bits wins.
@@ -188,21 +193,13 @@ fn lsd_bound_takes_the_cheapest_digit_width() {
 
 #[test]
 fn the_best_of_two_floors_takes_each_time_at_its_least() {
-    let first = PairMoveFloor {
-        keys: 1000,
-        read_seconds: 0.006,
-        value_seconds: 0.012,
-        pair_seconds: 0.020,
-        digit_seconds: vec![(4, 0.010), (8, 0.025), (11, 0.040)],
-        random_seconds: 0.05,
-    };
+    let first = PairMoveFloor { value_seconds: 0.012, ..example_floor() };
     let second = PairMoveFloor {
-        keys: 1000,
         read_seconds: 0.008,
-        value_seconds: 0.009,
         pair_seconds: 0.030,
         digit_seconds: vec![(4, 0.015), (8, 0.020), (11, 0.035)],
         random_seconds: 0.04,
+        ..example_floor()
     };
     let best = first.best(&second);
     assert_eq!(best.keys, 1000);
