@@ -10,7 +10,8 @@ use srug::gpu::MemoryKind;
 use srug_cli::bench::limits::{
     bandwidth_checksums, bandwidth_cpu, bandwidth_run, blend_ceiling_cpu, blend_ceiling_run, pair_move_cpu,
     pair_move_run, radix_pass_permutation, random_permutation, stable_digit_permutation, BandwidthLayout,
-    BandwidthRead, BlendCeiling, PairMoveFloor, PairWrites, BLEND_CEILING_MAX_SPLATS, BLEND_CEILING_PIXELS,
+    BandwidthRead, BlendCeiling, MemoryBandwidth, PairMoveFloor, PairWrites, BLEND_CEILING_MAX_SPLATS,
+    BLEND_CEILING_PIXELS,
 };
 use srug_cli::bench::{BLEND_FLOPS_PER_CONTRIBUTION, BLEND_FLOPS_PER_EVALUATION};
 use srug_tests::{assert_no_validation_messages, device, save_comparison};
@@ -212,6 +213,21 @@ fn the_best_of_two_floors_takes_each_time_at_its_least() {
     assert_eq!(second.best(&first).digit_seconds, best.digit_seconds);
     let bound = |f: &PairMoveFloor| f.lsd_bound(31).unwrap().1;
     assert!(bound(&best) <= bound(&first).min(bound(&second)), "{} {} {}", bound(&best), bound(&first), bound(&second));
+}
+
+#[test]
+fn the_best_of_two_bandwidths_takes_the_faster_read_and_copy() {
+    let probe = |read: f64, copy: f64| MemoryBandwidth {
+        bytes: 64 << 20,
+        read,
+        copy,
+        read_layout: BandwidthLayout::Runs,
+        read_through: BandwidthRead::Texels,
+    };
+    let best = probe(18e9, 9e9).best(&probe(12e9, 14e9));
+    assert_eq!((best.read, best.copy), (18e9, 14e9));
+    // A faster probe prices the same bytes in less time.
+    assert!(best.floor_seconds(1 << 30, 1 << 29) < probe(18e9, 9e9).floor_seconds(1 << 30, 1 << 29));
 }
 
 #[test]

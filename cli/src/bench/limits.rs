@@ -596,6 +596,12 @@ pub struct MemoryBandwidth {
 }
 
 impl MemoryBandwidth {
+    /// The faster read and the faster copy of two probes (a floor takes the
+    /// best a device showed); the rest from `self`.
+    pub fn best(&self, other: &MemoryBandwidth) -> MemoryBandwidth {
+        MemoryBandwidth { read: self.read.max(other.read), copy: self.copy.max(other.copy), ..*self }
+    }
+
     /// Least seconds to read `read` bytes and write `written` bytes at these
     /// rates: a written byte costs what copying it costs beyond reading it.
     pub fn floor_seconds(&self, read: u64, written: u64) -> f64 {

@@ -566,12 +566,8 @@ pub fn splat_bench(
                 r.sort_floor = Some(first.best(&limits::pair_move_floor(device, r.pairs, repeats)?));
             }
             if let Some(first) = r.bandwidth {
-                let again = limits::memory_bandwidth(device, bandwidth_probe_bytes(device), repeats)?;
-                r.bandwidth = Some(limits::MemoryBandwidth {
-                    read: first.read.max(again.read),
-                    copy: first.copy.max(again.copy),
-                    ..first
-                });
+                r.bandwidth =
+                    Some(first.best(&limits::memory_bandwidth(device, bandwidth_probe_bytes(device), repeats)?));
             }
         }
     }

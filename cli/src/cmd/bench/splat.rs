@@ -194,9 +194,7 @@ impl SplatBenchArgs {
         );
         // The preprocess's floor at the fastest read and copy of every bandwidth probe of the run
         // (this host's memory speed moves between probes seconds apart; a floor takes its best).
-        let fastest = rows.iter().filter_map(|r| r.bandwidth).fold(bandwidth, |best, b| {
-            bench::limits::MemoryBandwidth { read: best.read.max(b.read), copy: best.copy.max(b.copy), ..best }
-        });
+        let fastest = rows.iter().filter_map(|r| r.bandwidth).fold(bandwidth, |best, b| best.best(&b));
         // Columns over 100%: a stage beat the floor measured for it.
         let mut over_floor = Vec::new();
         for r in &rows {
