@@ -1,5 +1,7 @@
 // Body of splat_keys.comp and splat_keys_texel.comp (see their headers).
-#define WORKGROUP_SIZE_X 64
+// 256 invocations a workgroup: on lavapipe a few percent faster than 64
+// (fewer workgroups to launch; docs/bench/splat.md, "Larger workgroups").
+#define WORKGROUP_SIZE_X 256
 #define SRUG_WORDS_64
 #include "common.glsl"
 #include "splat.glsl"

@@ -8,7 +8,9 @@
 // scan gives each its slot, and a second writes their records at those slots.
 // CPU twin: engine/src/splat/cpu.rs `preprocess_one`.
 #extension GL_EXT_control_flow_attributes : require
-#define WORKGROUP_SIZE_X 64
+// 256 invocations a workgroup: on lavapipe a few percent faster than 64
+// (fewer workgroups to launch; docs/bench/splat.md, "Larger workgroups").
+#define WORKGROUP_SIZE_X 256
 #include "common.glsl"
 #include "splat.glsl"
 #include "sh.glsl"
