@@ -1,6 +1,6 @@
 // Body of splat_keys.comp and splat_keys_texel.comp (see their headers).
-// 256 invocations a workgroup: on lavapipe a few percent faster than 64
-// (fewer workgroups to launch; docs/bench/splat.md, "Larger workgroups").
+// 256 invocations a workgroup, one per Gaussian: fewer workgroups for a CPU
+// implementation to launch (docs/bench/splat.md, "Larger workgroups").
 #define WORKGROUP_SIZE_X 256
 #define SRUG_WORDS_64
 #include "common.glsl"

@@ -8,8 +8,8 @@
 // scan gives each its slot, and a second writes their records at those slots.
 // CPU twin: engine/src/splat/cpu.rs `preprocess_one`.
 #extension GL_EXT_control_flow_attributes : require
-// 256 invocations a workgroup: on lavapipe a few percent faster than 64
-// (fewer workgroups to launch; docs/bench/splat.md, "Larger workgroups").
+// 256 invocations a workgroup, one per Gaussian: fewer workgroups for a CPU
+// implementation to launch (docs/bench/splat.md, "Larger workgroups").
 #define WORKGROUP_SIZE_X 256
 #include "common.glsl"
 #include "splat.glsl"
