@@ -248,6 +248,7 @@ impl Shared {
             return Err(vk_error(bind_call)(e));
         }
         let bytes = allocation.size();
+        log::trace!("fresh allocation of {bytes} bytes for {name}");
         self.count_allocated(bytes);
         self.fresh_allocations.fetch_add(1, Ordering::Relaxed);
         Ok(allocation)

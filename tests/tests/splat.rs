@@ -1171,6 +1171,44 @@ fn rgb_off_drops_only_colour_in_every_variant() {
     assert_no_validation_messages(&d);
 }
 
+/// Without rgb the preprocess evaluates no colour, so no SH coefficient reaches
+/// anything: every listed record's colour is 0 (where rgb gives colour), and a
+/// scene whose SH are all NaN renders the same bits in every channel as the
+/// scene itself, on both preprocess paths (the records pre-filled with NaN).
+#[test]
+fn rgb_off_reads_no_sh_coefficient() {
+    let d = device();
+    let mut splatter = Splatter::new(&d).unwrap();
+    let city = demo_city(&DemoOptions { seed: 5, gaussians: 20_000, sh_degree: 3 }).unwrap();
+    let cam = city.cameras[0].resized(176, 48);
+    let mut poisoned = city.scene.clone();
+    poisoned.sh.iter_mut().for_each(|c| *c = f32::NAN);
+    let scene = GpuScene::upload(&d, &city.scene).unwrap();
+    let poisoned = GpuScene::upload(&d, &poisoned).unwrap();
+    let on = all_settings();
+    let off = SplatSettings { rgb: false, ..on };
+    for texel in [true, false] {
+        splatter.set_texel_preprocess(texel).unwrap();
+        // Each listed record's colour (a record is 16 floats: head, conic, colour, rect).
+        let mut colours = |scene: &GpuScene, settings: &SplatSettings| -> (Vec<[f32; 3]>, Vec<u32>) {
+            let frame = splatter.render_frame(scene, &cam, settings).unwrap();
+            let offsets: Vec<u32> = d.read_buffer(&frame.pair_offsets).unwrap();
+            let splats: Vec<f32> = d.read_buffer(&frame.splats).unwrap();
+            let listed = (0..city.scene.len()).filter(|&i| offsets[i + 1] > offsets[i]);
+            let colours = listed.map(|i| [splats[16 * i + 8], splats[16 * i + 9], splats[16 * i + 10]]).collect();
+            (colours, gbuffer_bits(&frame.gbuffer.read(&d).unwrap()))
+        };
+        let (with, _) = colours(&scene, &on);
+        let (without, bits) = colours(&scene, &off);
+        let (_, poisoned_bits) = colours(&poisoned, &off);
+        assert!(without.len() > 1_000 && without.len() == with.len(), "texel {texel}: {} listed", without.len());
+        assert!(with.iter().any(|c| c.iter().any(|&v| v > 0.0)), "texel {texel}: rgb gives colour");
+        assert!(without.iter().all(|c| *c == [0.0; 3]), "texel {texel}: a colour without rgb");
+        assert!(bits == poisoned_bits, "texel {texel}: the SH changed a channel without rgb");
+    }
+    assert_no_validation_messages(&d);
+}
+
 /// The top-Gaussian channel names the splat with the largest blend weight
 /// wᵢ = αᵢ Tᵢ, exactly, in every blend variant: a faint splat in front of an
 /// opaque one loses to it (0.3 against 0.7·α), a strong one in front wins,

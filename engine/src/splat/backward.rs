@@ -234,7 +234,7 @@ impl Splatter {
             ));
         }
         if grads.rgb.is_some() && frame.gbuffer.rgb.is_none() {
-            // Its splats' colours were not evaluated (SH degree 0).
+            // Its splats' colours were not evaluated (the records hold 0).
             return Err(Error::invalid("rgb gradient", "needs a frame rendered with rgb (SplatSettings::rgb on)"));
         }
         let tile = frame.tile;

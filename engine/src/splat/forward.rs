@@ -41,7 +41,8 @@ pub struct SplatStats {
 }
 
 /// The SH degree the colour uses: the settings' cap on the scene's, and 0
-/// without rgb (the colour is never read: degree 0 spares the SH reads).
+/// without rgb, where the preprocess evaluates no colour at all (`COLOUR`,
+/// its specialization constant 11) and so reads no SH coefficient.
 fn sh_degree_used(scene: &GpuScene, settings: &SplatSettings) -> u32 {
     if settings.rgb {
         settings.sh_degree.map_or(scene.sh_degree, |d| d.min(scene.sh_degree))
@@ -1007,6 +1008,8 @@ impl Splatter {
             (3, sh_used),
             (5, mask_spec),
             (9, packed),
+            // Without rgb no SH coefficient is read (the records' colour is 0).
+            (11, SpecValue::Bool(settings.rgb)),
             tile_spec(tile)[0],
         ];
         if texel_preprocess {

@@ -70,6 +70,9 @@ layout(constant_id = 15) const uint TILE = 16u;
 // constant, so the colour loop unrolls and each basis function is straight
 // code (lavapipe would run every case of `sh_basis`'s switch under a mask).
 layout(constant_id = 3) const uint SH_USED = 3u;
+// Whether the frame blends the splats' colour: without it no SH coefficient is
+// read and the records' colour is 0 (engine/src/splat/forward.rs, `SplatSettings::rgb`).
+layout(constant_id = 11) const bool COLOUR = true;
 // Count only the tiles the frame's tile mask wants (`tile_wanted`); the keys
 // kernel must agree. Not for wrapping panoramas (the host refuses them).
 layout(constant_id = 5) const bool TILE_MASK = false;
@@ -232,31 +235,33 @@ void main() {
     }
     if (count == 0u) { cull(slot); return; }
 
-    // View-dependent colour.
-    vec3 dir = ortho ? frame.view_dir.xyz : normalize(p - frame.eye.xyz);
-    uint stored = frame.counts.y & 255u;
-    uint K = (stored + 1) * (stored + 1);
+    // View-dependent colour, where the frame blends it.
     vec3 color = vec3(0.0);
-    const uint USED = (SH_USED + 1) * (SH_USED + 1);
-    if (SH_VEC4) {
-        // The used coefficients' floats in whole vec4s (within the Gaussian's own, K·3 being a multiple of 4).
-        float c[(USED * 3 + 3) / 4 * 4];
-        uint base = i * K * 3 / 4;
-        [[unroll]] for (uint v = 0; v < (USED * 3 + 3) / 4; v++) {
-            vec4 f = SH4(base + v);
-            c[4 * v] = f.x;
-            c[4 * v + 1] = f.y;
-            c[4 * v + 2] = f.z;
-            c[4 * v + 3] = f.w;
+    if (COLOUR) {
+        vec3 dir = ortho ? frame.view_dir.xyz : normalize(p - frame.eye.xyz);
+        uint stored = frame.counts.y & 255u;
+        uint K = (stored + 1) * (stored + 1);
+        const uint USED = (SH_USED + 1) * (SH_USED + 1);
+        if (SH_VEC4) {
+            // The used coefficients' floats in whole vec4s (within the Gaussian's own, K·3 being a multiple of 4).
+            float c[(USED * 3 + 3) / 4 * 4];
+            uint base = i * K * 3 / 4;
+            [[unroll]] for (uint v = 0; v < (USED * 3 + 3) / 4; v++) {
+                vec4 f = SH4(base + v);
+                c[4 * v] = f.x;
+                c[4 * v + 1] = f.y;
+                c[4 * v + 2] = f.z;
+                c[4 * v + 3] = f.w;
+            }
+            [[unroll]] for (uint j = 0; j < USED; j++) color += sh_basis(j, dir) * vec3(c[3 * j], c[3 * j + 1], c[3 * j + 2]);
+        } else {
+            [[unroll]] for (uint j = 0; j < USED; j++) {
+                uint o = (i * K + j) * 3;
+                color += sh_basis(j, dir) * vec3(SH(o), SH(o + 1), SH(o + 2));
+            }
         }
-        [[unroll]] for (uint j = 0; j < USED; j++) color += sh_basis(j, dir) * vec3(c[3 * j], c[3 * j + 1], c[3 * j + 2]);
-    } else {
-        [[unroll]] for (uint j = 0; j < USED; j++) {
-            uint o = (i * K + j) * 3;
-            color += sh_basis(j, dir) * vec3(SH(o), SH(o + 1), SH(o + 2));
-        }
+        color = max(color + 0.5, vec3(0.0));
     }
-    color = max(color + 0.5, vec3(0.0));
 
     vec2 slope = vec2(0.0);
     if (SURFACE_DEPTH && !equirect && frame.camera.lens2.x == 0.0) {

@@ -8,7 +8,7 @@
 struct Splat {
     vec4 head;      // mean (pixel coordinates, centres at +0.5), camera z (equirectangular: distance), opacity
     vec4 conic;     // inverse 2D covariance (a, b, c); w: surface-depth slope x (surface_slope.glsl), else 0
-    vec4 color;     // rgb; w: surface-depth slope y, else 0
+    vec4 color;     // rgb (0 where the frame blends no colour); w: surface-depth slope y, else 0
     uvec4 rect;     // tile rectangle [x0, y0, x1, y1) (x1 > tiles_x: wraps to the left edge)
 };
 layout(buffer_reference, std430, buffer_reference_align = 16) buffer Splats { Splat v[]; };
