@@ -156,6 +156,49 @@ fn a_map_splatted_only_where_receivers_look_gives_them_the_same_visibility() {
     assert_no_validation_messages(&d);
 }
 
+/// A tile mask bounds the preprocess's position cull (`FrameUniform::cull_tiles`):
+/// with compacted records, a mask wanting one corner block of tiles keeps records
+/// for the Gaussians near it alone, far fewer than the frame without a mask, and
+/// the wanted tiles' pixels are the whole render's bit for bit; a mask wanting no
+/// tile keeps no record and lists no pair.
+#[test]
+fn a_tile_mask_bounds_the_position_cull() {
+    let d = device();
+    let city = demo_city(&DemoOptions { seed: 5, gaussians: 20_000, sh_degree: 1 }).unwrap();
+    let scene = GpuScene::upload(&d, &city.scene).unwrap();
+    let camera = city.cameras[0].resized(176, 48);
+    let mut splatter = Splatter::new(&d).unwrap();
+    let settings = srug::splat::SplatSettings {
+        prefill: Some(srug_tests::NAN_SENTINEL),
+        compact_splats: true,
+        ..Default::default()
+    };
+    let tiles_x = camera.width.div_ceil(settings.tile) as usize;
+    let tiles = tiles_x * camera.height.div_ceil(settings.tile) as usize;
+    // The 3 × 2 tiles at the top left (11 × 3 in all).
+    let wanted: Vec<u32> = (0..tiles).map(|t| u32::from(t % tiles_x < 3 && t / tiles_x < 2)).collect();
+    let mask = d.upload("tile mask", &wanted).unwrap();
+    let full = splatter.render_frame(&scene, &camera, &settings).unwrap();
+    let part = splatter.render_frame_in_tiles(&scene, &camera, &settings, &mask).unwrap();
+    let (records, all) = (part.stats.records, full.stats.records);
+    println!("{records} of {all} records, {} of {} pairs", part.stats.pairs, full.stats.pairs);
+    assert!(records > 0 && records * 2 < all, "{records} of {all} records kept");
+    let (w, tile) = (camera.width as usize, settings.tile as usize);
+    let (f, p) = (read(&d, &full.gbuffer.alpha), read(&d, &part.gbuffer.alpha));
+    for (i, (f, p)) in f.iter().zip(&p).enumerate() {
+        if wanted[tile_of(i, w, tile)] == 0 {
+            assert!(p.is_nan(), "pixel {i} of a tile not wanted was written");
+        } else {
+            assert_eq!(p.to_bits(), f.to_bits(), "pixel {i}");
+        }
+    }
+    assert!(f.iter().zip(&p).any(|(f, p)| *f > 0.0 && f.to_bits() == p.to_bits()), "no covered pixel kept");
+    let none = d.upload("empty tile mask", &vec![0u32; tiles]).unwrap();
+    let empty = splatter.render_frame_in_tiles(&scene, &camera, &settings, &none).unwrap();
+    assert_eq!((empty.stats.records, empty.stats.pairs), (0, 0), "a mask wanting no tile");
+    assert_no_validation_messages(&d);
+}
+
 #[test]
 fn a_batch_shares_one_map_culled_to_all_its_cameras() {
     let d = device();

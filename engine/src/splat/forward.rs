@@ -160,6 +160,22 @@ fn chunk_slots(pairs: u64, tiles: u64, tile: u32, chunk_length: u32) -> Option<(
     None
 }
 
+/// The tiles `[x0, y0, x1, y1)` that hold every tile `mask` wants (one u32
+/// per tile, row-major, `tiles_x` a row; non-zero: wanted), or `[0; 4]` where it
+/// wants none: the preprocess culls every splat whose bounding square misses them.
+fn wanted_bounds(mask: &[u32], tiles_x: u32) -> [u32; 4] {
+    let mut bounds = [u32::MAX, u32::MAX, 0, 0];
+    for (t, _) in mask.iter().enumerate().filter(|(_, &w)| w != 0) {
+        let (x, y) = ((t as u64 % u64::from(tiles_x)) as u32, (t as u64 / u64::from(tiles_x)) as u32);
+        bounds = [bounds[0].min(x), bounds[1].min(y), bounds[2].max(x + 1), bounds[3].max(y + 1)];
+    }
+    if bounds[0] == u32::MAX {
+        [0; 4]
+    } else {
+        bounds
+    }
+}
+
 /// The texel formats the texel preprocess views the scene's means,
 /// log-scales, rotations, opacity logits and SH coefficients in (arrays of
 /// `bytes` each), or `None` where the device cannot view them all so within
@@ -767,6 +783,14 @@ impl Splatter {
         frame.background = [settings.background[0], settings.background[1], settings.background[2], 0.0];
         frame.occluder = view.occluder.map_or([0.0; 4], |(_, c)| c.packed());
         frame.size = [w, h, tiles_x, tiles_y];
+        // The position cull keeps splats for the image's tiles, or a mask's wanted ones' bounds.
+        frame.cull_tiles = match view.tile_mask {
+            Some(mask) => {
+                let words: Vec<u32> = device.read_buffer(mask)?;
+                wanted_bounds(words.get(..tiles as usize).unwrap_or(&words), tiles_x)
+            }
+            None => [0, 0, tiles_x, tiles_y],
+        };
         let sh_used = sh_degree_used(scene, settings);
         frame.counts =
             [n as u32, scene.sh_degree | sh_used << 8, u32::from(settings.normal_source == NormalSource::Stored), 0];
@@ -1517,6 +1541,21 @@ fn split_timings(timings: Timings, marks: &[usize]) -> Vec<Timings> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn wanted_bounds_hold_every_wanted_tile_and_no_more() {
+        // 5 × 3 tiles: wanted (1, 0), (3, 2) and (2, 1).
+        let mut mask = vec![0u32; 15];
+        for (x, y) in [(1, 0), (3, 2), (2, 1)] {
+            mask[y * 5 + x] = 7;
+        }
+        assert_eq!(wanted_bounds(&mask, 5), [1, 0, 4, 3]);
+        assert_eq!(wanted_bounds(&[0; 15], 5), [0; 4], "none wanted: nothing kept");
+        let mut one = vec![0u32; 15];
+        one[14] = 1;
+        assert_eq!(wanted_bounds(&one, 5), [4, 2, 5, 3], "the last tile alone");
+        assert_eq!(wanted_bounds(&[1; 15], 5), [0, 0, 5, 3], "every tile");
+    }
 
     #[test]
     fn chunk_slots_hold_every_split_list_within_the_memory_cap() {

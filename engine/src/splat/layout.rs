@@ -58,6 +58,9 @@ pub(crate) struct FrameUniform {
     tile_mask: DeviceAddress,
     visible_slots: DeviceAddress,
     slot_gaussians: DeviceAddress,
+    /// std140 places the uvec4 below at a 16-byte boundary.
+    padding: [u32; 2],
+    pub(super) cull_tiles: [u32; 4],
 }
 crate::gpu::gpu_layout!(
     FrameUniform,
@@ -111,7 +114,8 @@ crate::gpu::gpu_layout!(
         g_top_gaussian,
         tile_mask,
         visible_slots,
-        slot_gaussians
+        slot_gaussians,
+        cull_tiles
     ]
 );
 

@@ -123,7 +123,9 @@ void main() {
     // (pinhole and orthographic cameras): the radius 3·sqrt(λ) is at most
     // 3·sqrt(‖J‖²_F·σ_max² + 0.3 + 0.32) + 1 (the dilation, `lambda`'s floor
     // of 0.1 under its root, the ceil), with 1% and 1 px to spare for f32
-    // rounding; a square of that half-width off the tile grid gets no tile.
+    // rounding; a square of that half-width off the tiles the frame keeps
+    // (`cull_tiles`: the grid, or the tile mask's wanted tiles' bounds) gets
+    // no tile there.
     // NaN or Inf never culls here (the full test below decides).
     vec3 log_s = LOG_SCALE3(i);
     if (!equirect && frame.camera.lens2.x == 0.0) {
@@ -134,8 +136,12 @@ void main() {
                          : (k.x * k.x * (1.0 + lim.x * lim.x) + k.y * k.y * (1.0 + lim.y * lim.y)) / (t.z * t.z);
         float sigma = exp(max(max(log_s.x, log_s.y), log_s.z));
         float bound = 1.01 * (3.0 * sqrt(j2 * sigma * sigma + 0.62) + 1.0) + 1.0;
-        vec2 grid = vec2(frame.size.zw * TILE);
-        if (any(lessThan(m + bound, vec2(0.0))) || any(greaterThanEqual(m - bound, grid))) { cull(slot); return; }
+        // The tiles the frame keeps splats for: the image's, or the wanted tiles' bounds (empty: none).
+        vec2 lo = vec2(frame.cull_tiles.xy * TILE), hi = vec2(frame.cull_tiles.zw * TILE);
+        if (any(lessThan(m + bound, lo)) || any(greaterThanEqual(m - bound, hi)) || any(greaterThanEqual(lo, hi))) {
+            cull(slot);
+            return;
+        }
     }
     if (COMPACT == 1u) {
         Uints(frame.visible_slots).v[i] = 1u;
