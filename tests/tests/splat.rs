@@ -1209,6 +1209,39 @@ fn rgb_off_reads_no_sh_coefficient() {
     assert_no_validation_messages(&d);
 }
 
+/// The preprocess reads only the attributes of the feature channels a frame
+/// blends: with albedo alone, every listed record's albedo is the all-channel
+/// frame's bit for bit and its roughness, metallic, ao and visibility are 0,
+/// where the all-channel frame's are not (records unpacked: 12 floats each).
+#[test]
+fn only_blended_feature_channels_read_their_attributes() {
+    let d = device();
+    let mut splatter = Splatter::new(&d).unwrap();
+    let city = demo_city(&DemoOptions { seed: 5, gaussians: 20_000, sh_degree: 1 }).unwrap();
+    let cam = city.cameras[0].resized(176, 48);
+    let scene = GpuScene::upload(&d, &city.scene).unwrap();
+    let all = all_settings();
+    let albedo_only = SplatSettings { channels: Channels { albedo: true, ..Channels::default() }, ..all };
+    let mut features = |settings: &SplatSettings| -> Vec<[u32; 12]> {
+        let frame = splatter.render_frame(&scene, &cam, settings).unwrap();
+        let offsets: Vec<u32> = d.read_buffer(&frame.pair_offsets).unwrap();
+        let words: Vec<u32> = d.read_buffer(frame.features.as_ref().unwrap()).unwrap();
+        (0..city.scene.len())
+            .filter(|&i| offsets[i + 1] > offsets[i])
+            .map(|i| std::array::from_fn(|k| words[12 * i + k]))
+            .collect()
+    };
+    let (full, albedo) = (features(&all), features(&albedo_only));
+    assert!(full.len() > 1_000 && full.len() == albedo.len(), "{} listed", full.len());
+    // Albedo at words 4-6; roughness 3, metallic 7, ao 8, visibility 9.
+    for (f, a) in full.iter().zip(&albedo) {
+        assert_eq!(f[4..7], a[4..7], "albedo");
+        assert!([3, 7, 8, 9].iter().all(|&k| a[k] == 0), "a material not blended was read: {a:?}");
+    }
+    assert!(full.iter().any(|f| [3, 7, 8, 9].iter().all(|&k| f32::from_bits(f[k]) > 0.0)), "every material read");
+    assert_no_validation_messages(&d);
+}
+
 /// The top-Gaussian channel names the splat with the largest blend weight
 /// wᵢ = αᵢ Tᵢ, exactly, in every blend variant: a faint splat in front of an
 /// opaque one loses to it (0.3 against 0.7·α), a strong one in front wins,

@@ -40,6 +40,10 @@ pub struct SplatStats {
     pub records: u64,
 }
 
+/// The feature channels' bits (`Channel::bit`: normal to visibility), whose
+/// attributes the preprocess reads (`FEATURE_CHANNELS`, its specialization constant 12).
+const FEATURE_CHANNEL_BITS: u32 = 252;
+
 /// The SH degree the colour uses: the settings' cap on the scene's, and 0
 /// without rgb, where the preprocess evaluates no colour at all (`COLOUR`,
 /// its specialization constant 11) and so reads no SH coefficient.
@@ -1034,6 +1038,8 @@ impl Splatter {
             (9, packed),
             // Without rgb no SH coefficient is read (the records' colour is 0).
             (11, SpecValue::Bool(settings.rgb)),
+            // Only the attributes of the feature channels blended are read.
+            (12, SpecValue::U32(ch.bits() & FEATURE_CHANNEL_BITS)),
             tile_spec(tile)[0],
         ];
         if texel_preprocess {

@@ -56,6 +56,10 @@ const bool SH_VEC4 = false;
 #endif
 
 layout(constant_id = 0) const bool WRITE_FEATURES = false;
+// The feature channels the frame blends (engine/src/splat/channels.rs `Channel::bit`: normal 4,
+// albedo 8, roughness 16, metallic 32, ao 64, visibility 128): only their attributes are read,
+// and a material no channel takes is stored as 0 (the normal as the shortest axis).
+layout(constant_id = 12) const uint FEATURE_CHANNELS = 252u;
 // Features at 16 bits (`PackedFeatures` in splat_types.glsl), else as floats.
 layout(constant_id = 9) const bool PACKED_FEATURES = false;
 // Count only the tiles whose square can see the splat at α ≥ 1/255
@@ -282,7 +286,7 @@ void main() {
     if (WRITE_FEATURES) {
         // Normal: the stored one when asked for and non-zero, else the shortest axis; toward the camera.
         vec3 n = vec3(0.0);
-        if (frame.counts.z == 1u && frame.normals.x + frame.normals.y != 0u) {
+        if ((FEATURE_CHANNELS & 4u) != 0u && frame.counts.z == 1u && frame.normals.x + frame.normals.y != 0u) {
             FloatsIn nb = FloatsIn(frame.normals);
             n = vec3(nb.v[3 * i], nb.v[3 * i + 1], nb.v[3 * i + 2]);
         }
@@ -294,14 +298,20 @@ void main() {
         if (dot(n, toward) < 0.0) n = -n;
         vec3 albedo = vec3(0.0);
         float rough = 0.0, metal = 0.0, ao = 0.0, vis = 0.0;
-        if (frame.albedo.x + frame.albedo.y != 0u) {
+        if ((FEATURE_CHANNELS & 8u) != 0u && frame.albedo.x + frame.albedo.y != 0u) {
             FloatsIn al = FloatsIn(frame.albedo);
             albedo = vec3(sigmoid(al.v[3 * i]), sigmoid(al.v[3 * i + 1]), sigmoid(al.v[3 * i + 2]));
         }
-        if (frame.roughness.x + frame.roughness.y != 0u) rough = sigmoid(FloatsIn(frame.roughness).v[i]);
-        if (frame.metallic.x + frame.metallic.y != 0u) metal = sigmoid(FloatsIn(frame.metallic).v[i]);
-        if (frame.ao.x + frame.ao.y != 0u) ao = sigmoid(FloatsIn(frame.ao).v[i]);
-        if (frame.visibility.x + frame.visibility.y != 0u) vis = sigmoid(FloatsIn(frame.visibility).v[i]);
+        if ((FEATURE_CHANNELS & 16u) != 0u && frame.roughness.x + frame.roughness.y != 0u) {
+            rough = sigmoid(FloatsIn(frame.roughness).v[i]);
+        }
+        if ((FEATURE_CHANNELS & 32u) != 0u && frame.metallic.x + frame.metallic.y != 0u) {
+            metal = sigmoid(FloatsIn(frame.metallic).v[i]);
+        }
+        if ((FEATURE_CHANNELS & 64u) != 0u && frame.ao.x + frame.ao.y != 0u) ao = sigmoid(FloatsIn(frame.ao).v[i]);
+        if ((FEATURE_CHANNELS & 128u) != 0u && frame.visibility.x + frame.visibility.y != 0u) {
+            vis = sigmoid(FloatsIn(frame.visibility).v[i]);
+        }
         if (PACKED_FEATURES) {
             PackedFeatures f = PackedFeatures(frame.features);
             pack_features(n, rough, albedo, metal, ao, vis, f.v[3 * slot], f.v[3 * slot + 1], f.v[3 * slot + 2]);
