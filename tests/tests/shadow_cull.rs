@@ -156,9 +156,10 @@ fn a_map_splatted_only_where_receivers_look_gives_them_the_same_visibility() {
     assert_no_validation_messages(&d);
 }
 
-/// A tile mask bounds the preprocess's position cull (`FrameUniform::cull_tiles`):
-/// with compacted records, a mask wanting one corner block of tiles keeps records
-/// for the Gaussians near it alone, far fewer than the frame without a mask, and
+/// A tile mask bounds the preprocess's position cull (the wanted tiles' bounds,
+/// then each tile row's wanted columns): with compacted records, a mask wanting
+/// one corner block of tiles, or two opposite corner tiles, keeps records for
+/// the Gaussians near them alone, far fewer than the frame without a mask, and
 /// the wanted tiles' pixels are the whole render's bit for bit; a mask wanting no
 /// tile keeps no record and lists no pair.
 #[test]
@@ -193,6 +194,20 @@ fn a_tile_mask_bounds_the_position_cull() {
         }
     }
     assert!(f.iter().zip(&p).any(|(f, p)| *f > 0.0 && f.to_bits() == p.to_bits()), "no covered pixel kept");
+    // Two opposite corner tiles: their bounds are the whole image, but each tile row's
+    // wanted columns are one tile, so most Gaussians still go.
+    let corners: Vec<u32> = (0..tiles).map(|t| u32::from(t == 0 || t == tiles - 1)).collect();
+    let mask = d.upload("corner tiles", &corners).unwrap();
+    let part = splatter.render_frame_in_tiles(&scene, &camera, &settings, &mask).unwrap();
+    let records = part.stats.records;
+    println!("two corner tiles: {records} of {all} records");
+    assert!(records > 0 && records * 2 < all, "two corner tiles: {records} of {all} records kept");
+    let p = read(&d, &part.gbuffer.alpha);
+    for (i, (f, p)) in f.iter().zip(&p).enumerate() {
+        if corners[tile_of(i, w, tile)] != 0 {
+            assert_eq!(p.to_bits(), f.to_bits(), "two corner tiles: pixel {i}");
+        }
+    }
     let none = d.upload("empty tile mask", &vec![0u32; tiles]).unwrap();
     let empty = splatter.render_frame_in_tiles(&scene, &camera, &settings, &none).unwrap();
     assert_eq!((empty.stats.records, empty.stats.pairs), (0, 0), "a mask wanting no tile");

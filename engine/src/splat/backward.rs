@@ -318,6 +318,7 @@ impl Splatter {
                 tile_mask: None,
                 visible_slots: None,
                 slot_gaussians: None,
+                wanted_rows: None,
             };
             frame.params.record(rec, &frame.uniform, &buffers)?;
             let g = grads;

@@ -164,20 +164,27 @@ fn chunk_slots(pairs: u64, tiles: u64, tile: u32, chunk_length: u32) -> Option<(
     None
 }
 
-/// The tiles `[x0, y0, x1, y1)` that hold every tile `mask` wants (one u32
-/// per tile, row-major, `tiles_x` a row; non-zero: wanted), or `[0; 4]` where it
-/// wants none: the preprocess culls every splat whose bounding square misses them.
-fn wanted_bounds(mask: &[u32], tiles_x: u32) -> [u32; 4] {
+/// Where `mask` (one u32 per tile, row-major, `tiles_x` a row, `tiles_y`
+/// rows; non-zero: wanted) wants tiles: each row's wanted columns `[x0, x1)`
+/// (their hull; `[0, 0)` for a row wanting none), and the tiles `[x0, y0, x1,
+/// y1)` that hold them all (`[0; 4]` where it wants none). The preprocess culls
+/// every splat whose bounding square misses them.
+fn wanted_spans(mask: &[u32], tiles_x: u32, tiles_y: u32) -> (Vec<[u32; 2]>, [u32; 4]) {
+    let mut rows = vec![[u32::MAX, 0]; tiles_y as usize];
     let mut bounds = [u32::MAX, u32::MAX, 0, 0];
     for (t, _) in mask.iter().enumerate().filter(|(_, &w)| w != 0) {
         let (x, y) = ((t as u64 % u64::from(tiles_x)) as u32, (t as u64 / u64::from(tiles_x)) as u32);
+        if let Some(row) = rows.get_mut(y as usize) {
+            *row = [row[0].min(x), row[1].max(x + 1)];
+        }
         bounds = [bounds[0].min(x), bounds[1].min(y), bounds[2].max(x + 1), bounds[3].max(y + 1)];
     }
-    if bounds[0] == u32::MAX {
-        [0; 4]
-    } else {
-        bounds
+    for row in &mut rows {
+        if row[0] == u32::MAX {
+            *row = [0, 0];
+        }
     }
+    (rows, if bounds[0] == u32::MAX { [0; 4] } else { bounds })
 }
 
 /// The texel formats the texel preprocess views the scene's means,
@@ -787,11 +794,15 @@ impl Splatter {
         frame.background = [settings.background[0], settings.background[1], settings.background[2], 0.0];
         frame.occluder = view.occluder.map_or([0.0; 4], |(_, c)| c.packed());
         frame.size = [w, h, tiles_x, tiles_y];
-        // The position cull keeps splats for the image's tiles, or a mask's wanted ones' bounds.
+        // The position cull keeps splats for the image's tiles, or a mask's wanted ones
+        // (their bounds, and each tile row's wanted columns).
+        let mut wanted_rows = None;
         frame.cull_tiles = match view.tile_mask {
             Some(mask) => {
                 let words: Vec<u32> = device.read_buffer(mask)?;
-                wanted_bounds(words.get(..tiles as usize).unwrap_or(&words), tiles_x)
+                let (rows, bounds) = wanted_spans(words.get(..tiles as usize).unwrap_or(&words), tiles_x, tiles_y);
+                wanted_rows = Some(device.upload("wanted tile rows", &rows)?);
+                bounds
             }
             None => [0, 0, tiles_x, tiles_y],
         };
@@ -820,6 +831,7 @@ impl Splatter {
                 .then(|| device.create_buffer("visible slots", (n + 1) * 4, MemoryKind::Storage))
                 .transpose()?,
             records: None,
+            wanted_rows,
             ranges: device.create_buffer("tile ranges", tiles * 8, MemoryKind::Storage)?,
             uniform: device.create_buffer(
                 "splat frame",
@@ -1412,6 +1424,8 @@ struct PendingView {
     visible: Option<Buffer>,
     /// Its splat records, once their count is known ([`Splatter::reserve_records`]).
     records: Option<SplatRecords>,
+    /// With a tile mask: each tile row's wanted columns (`wanted_spans`).
+    wanted_rows: Option<Buffer>,
     ranges: Buffer,
     uniform: Buffer,
     tiles: u64,
@@ -1450,6 +1464,7 @@ impl PendingView {
             out: &self.out,
             occluder: view.occluder.map(|(b, _)| b),
             tile_mask: view.tile_mask,
+            wanted_rows: self.wanted_rows.as_ref(),
         }
     }
 }
@@ -1549,18 +1564,18 @@ mod tests {
     use super::*;
 
     #[test]
-    fn wanted_bounds_hold_every_wanted_tile_and_no_more() {
-        // 5 × 3 tiles: wanted (1, 0), (3, 2) and (2, 1).
+    fn wanted_spans_hold_every_wanted_tile_and_no_more() {
+        // 5 × 3 tiles: wanted (1, 0), (3, 2), (2, 1) and (4, 1).
         let mut mask = vec![0u32; 15];
-        for (x, y) in [(1, 0), (3, 2), (2, 1)] {
+        for (x, y) in [(1, 0), (3, 2), (2, 1), (4, 1)] {
             mask[y * 5 + x] = 7;
         }
-        assert_eq!(wanted_bounds(&mask, 5), [1, 0, 4, 3]);
-        assert_eq!(wanted_bounds(&[0; 15], 5), [0; 4], "none wanted: nothing kept");
+        assert_eq!(wanted_spans(&mask, 5, 3), (vec![[1, 2], [2, 5], [3, 4]], [1, 0, 5, 3]));
+        assert_eq!(wanted_spans(&[0; 15], 5, 3), (vec![[0, 0]; 3], [0; 4]), "none wanted: nothing kept");
         let mut one = vec![0u32; 15];
         one[14] = 1;
-        assert_eq!(wanted_bounds(&one, 5), [4, 2, 5, 3], "the last tile alone");
-        assert_eq!(wanted_bounds(&[1; 15], 5), [0, 0, 5, 3], "every tile");
+        assert_eq!(wanted_spans(&one, 5, 3), (vec![[0, 0], [0, 0], [4, 5]], [4, 2, 5, 3]), "the last tile alone");
+        assert_eq!(wanted_spans(&[1; 15], 5, 3), (vec![[0, 5]; 3], [0, 0, 5, 3]), "every tile");
     }
 
     #[test]

@@ -58,8 +58,7 @@ pub(crate) struct FrameUniform {
     tile_mask: DeviceAddress,
     visible_slots: DeviceAddress,
     slot_gaussians: DeviceAddress,
-    /// std140 places the uvec4 below at a 16-byte boundary.
-    padding: [u32; 2],
+    wanted_rows: DeviceAddress,
     pub(super) cull_tiles: [u32; 4],
 }
 crate::gpu::gpu_layout!(
@@ -115,6 +114,7 @@ crate::gpu::gpu_layout!(
         tile_mask,
         visible_slots,
         slot_gaussians,
+        wanted_rows,
         cull_tiles
     ]
 );
@@ -141,6 +141,8 @@ pub(crate) struct FrameBuffers<'b> {
     pub(crate) visible_slots: Option<&'b Buffer>,
     /// Compacted records: each record's Gaussian.
     pub(crate) slot_gaussians: Option<&'b Buffer>,
+    /// With a tile mask: each tile row's wanted columns `[x0, x1)` (uvec2 a row).
+    pub(crate) wanted_rows: Option<&'b Buffer>,
 }
 
 impl FrameUniform {
@@ -188,6 +190,7 @@ impl FrameUniform {
         self.tile_mask = rec.addr_or_null(b.tile_mask)?;
         self.visible_slots = rec.addr_or_null(b.visible_slots)?;
         self.slot_gaussians = rec.addr_or_null(b.slot_gaussians)?;
+        self.wanted_rows = rec.addr_or_null(b.wanted_rows)?;
         Ok(rec.update(uniform, 0, &self)?)
     }
 }

@@ -50,6 +50,7 @@ layout(std140, set = 0, binding = 0) uniform Frame {
     uvec2 visible_slots;    // compacted records (preprocess COMPACT): per Gaussian (n + 1) its
                             // flag, then, scanned, its record's slot; 0 once the records exist
     uvec2 slot_gaussians;   // compacted records: each record's Gaussian
+    uvec2 wanted_rows;      // TILE_MASK: uvec2 per tile row, its wanted columns [x0, x1) (their hull)
     uvec4 cull_tiles;       // tiles [x0, y0) to [x1, y1) the position cull keeps splats for:
                             // the image's, or (TILE_MASK) the bounds of the wanted tiles
 } frame;

@@ -128,9 +128,10 @@ void main() {
     // 3·sqrt(‖J‖²_F·σ_max² + 0.3 + 0.32) + 1 (the dilation, `lambda`'s floor
     // of 0.1 under its root, the ceil), with 1% and 1 px to spare for f32
     // rounding; a square of that half-width off the tiles the frame keeps
-    // (`cull_tiles`: the grid, or the tile mask's wanted tiles' bounds) gets
-    // no tile there.
-    // NaN or Inf never culls here (the full test below decides).
+    // (`cull_tiles`: the grid, or the tile mask's wanted tiles' bounds, and
+    // then each tile row's wanted columns) gets no tile there. NaN or Inf
+    // never culls in the bounds test (the full test below decides); a NaN
+    // position fails the rows' test, as it would the full one.
     vec3 log_s = LOG_SCALE3(i);
     if (!equirect && frame.camera.lens2.x == 0.0) {
         vec4 k = frame.camera.intrinsics;
@@ -145,6 +146,18 @@ void main() {
         if (any(lessThan(m + bound, lo)) || any(greaterThanEqual(m - bound, hi)) || any(greaterThanEqual(lo, hi))) {
             cull(slot);
             return;
+        }
+        if (TILE_MASK) {
+            // A square that meets no tile row's wanted columns (their hull) gets no wanted tile.
+            Uvec2sIn rows = Uvec2sIn(frame.wanted_rows);
+            vec2 first = max(floor((m - bound) / float(TILE)), vec2(frame.cull_tiles.xy));
+            vec2 last = min(floor((m + bound) / float(TILE)), vec2(frame.cull_tiles.zw) - 1.0);
+            bool meets = false;
+            for (float ty = first.y; ty <= last.y && !meets; ty += 1.0) {
+                uvec2 span = rows.v[whole_to_uint(ty)];
+                meets = last.x >= uint_to_whole(span.x) && first.x < uint_to_whole(span.y);
+            }
+            if (!meets) { cull(slot); return; }
         }
     }
     if (COMPACT == 1u) {
